@@ -1,0 +1,126 @@
+/*
+ * adaptive_rig_contract.h -- the wire contract between a plant process (simulation or
+ * DAQ I/O) and the adaptive control service, for processes written in C or C++ against
+ * iceoryx2's C/C++ API.
+ *
+ * This header mirrors ipc-types/src/lib.rs. The Rust test suite reads the numbers below
+ * and checks them against the Rust layout; the _Static_asserts check them against your
+ * C compiler's layout. Change both together and bump AR_CONTRACT_VERSION.
+ *
+ * Services (N = the rig name):
+ *   "adaptive-rig/N/measurement"  publish-subscribe, payload ar_measurement_t,
+ *                                 type name AR_MEASUREMENT_TYPE_NAME, created by the plant
+ *   "adaptive-rig/N/actuation"    publish-subscribe, payload ar_actuation_t,
+ *                                 type name AR_ACTUATION_TYPE_NAME, created by the service
+ *   "adaptive-rig/N/measurement"  event, notified by the plant after each measurement
+ *   "adaptive-rig/N/actuation"    event, notified by the service after each actuation
+ * The creator of each publish-subscribe service defines the attributes
+ *   "contract-version", "n-y", "n-z", "n-r", "n-u", "period-ns", "role"
+ * as decimal strings ("role" is "plant" or "service"); the opener compares them with its own.
+ * Timestamps are CLOCK_MONOTONIC in nanoseconds.
+ */
+#ifndef ADAPTIVE_RIG_CONTRACT_H
+#define ADAPTIVE_RIG_CONTRACT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define AR_CONTRACT_VERSION 1
+#define AR_MAX_Y 16
+#define AR_MAX_Z 16
+#define AR_MAX_R 16
+#define AR_MAX_U 8
+
+#define AR_MEASUREMENT_TYPE_NAME "adaptive_rig::Measurement.v1"
+#define AR_ACTUATION_TYPE_NAME "adaptive_rig::Actuation.v1"
+
+/* Measurement flags */
+#define AR_MEAS_LOCKSTEP 0x1u
+#define AR_MEAS_PLANT_SAFE_OUTPUT 0x2u
+#define AR_MEAS_PREVIOUS_ACTUATION_MISSED 0x4u
+
+/* Actuation status bits */
+#define AR_ACT_OK 0x0u
+#define AR_ACT_SAFE_STATE 0x1u
+#define AR_ACT_MEASUREMENT_REJECTED 0x2u
+#define AR_ACT_SATURATED 0x4u
+#define AR_ACT_STARTING 0x8u
+#define AR_ACT_CONTROLLER_FAULT 0x10u
+
+typedef struct ar_channel_counts {
+    uint16_t n_y;
+    uint16_t n_z;
+    uint16_t n_r;
+    uint16_t n_u;
+} ar_channel_counts_t;
+
+#define AR_CHANNEL_COUNTS_SIZE 8
+#define AR_CHANNEL_COUNTS_OFFSET_N_Y 0
+#define AR_CHANNEL_COUNTS_OFFSET_N_Z 2
+#define AR_CHANNEL_COUNTS_OFFSET_N_R 4
+#define AR_CHANNEL_COUNTS_OFFSET_N_U 6
+
+typedef struct ar_measurement {
+    uint32_t contract_version;
+    uint32_t flags;
+    uint64_t seq;
+    uint64_t t_sample_ns;
+    uint64_t period_ns;
+    uint64_t deadline_ns;
+    ar_channel_counts_t counts;
+    double y[AR_MAX_Y];
+    double z[AR_MAX_Z];
+    double r[AR_MAX_R];
+} ar_measurement_t;
+
+#define AR_MEASUREMENT_SIZE 432
+#define AR_MEASUREMENT_ALIGN 8
+#define AR_MEASUREMENT_OFFSET_CONTRACT_VERSION 0
+#define AR_MEASUREMENT_OFFSET_FLAGS 4
+#define AR_MEASUREMENT_OFFSET_SEQ 8
+#define AR_MEASUREMENT_OFFSET_T_SAMPLE_NS 16
+#define AR_MEASUREMENT_OFFSET_PERIOD_NS 24
+#define AR_MEASUREMENT_OFFSET_DEADLINE_NS 32
+#define AR_MEASUREMENT_OFFSET_COUNTS 40
+#define AR_MEASUREMENT_OFFSET_Y 48
+#define AR_MEASUREMENT_OFFSET_Z 176
+#define AR_MEASUREMENT_OFFSET_R 304
+
+typedef struct ar_actuation {
+    uint32_t contract_version;
+    uint32_t status;
+    uint64_t seq;
+    uint64_t t_sample_ns;
+    uint64_t t_publish_ns;
+    uint64_t compute_ns;
+    ar_channel_counts_t counts;
+    double u[AR_MAX_U];
+} ar_actuation_t;
+
+#define AR_ACTUATION_SIZE 112
+#define AR_ACTUATION_ALIGN 8
+#define AR_ACTUATION_OFFSET_CONTRACT_VERSION 0
+#define AR_ACTUATION_OFFSET_STATUS 4
+#define AR_ACTUATION_OFFSET_SEQ 8
+#define AR_ACTUATION_OFFSET_T_SAMPLE_NS 16
+#define AR_ACTUATION_OFFSET_T_PUBLISH_NS 24
+#define AR_ACTUATION_OFFSET_COMPUTE_NS 32
+#define AR_ACTUATION_OFFSET_COUNTS 40
+#define AR_ACTUATION_OFFSET_U 48
+
+#if defined(__STDC_VERSION__) && __STDC_VERSION__ >= 201112L
+_Static_assert(sizeof(ar_channel_counts_t) == AR_CHANNEL_COUNTS_SIZE, "ar_channel_counts_t size");
+_Static_assert(offsetof(ar_channel_counts_t, n_u) == AR_CHANNEL_COUNTS_OFFSET_N_U, "n_u offset");
+_Static_assert(sizeof(ar_measurement_t) == AR_MEASUREMENT_SIZE, "ar_measurement_t size");
+_Static_assert(_Alignof(ar_measurement_t) == AR_MEASUREMENT_ALIGN, "ar_measurement_t align");
+_Static_assert(offsetof(ar_measurement_t, counts) == AR_MEASUREMENT_OFFSET_COUNTS, "counts offset");
+_Static_assert(offsetof(ar_measurement_t, y) == AR_MEASUREMENT_OFFSET_Y, "y offset");
+_Static_assert(offsetof(ar_measurement_t, z) == AR_MEASUREMENT_OFFSET_Z, "z offset");
+_Static_assert(offsetof(ar_measurement_t, r) == AR_MEASUREMENT_OFFSET_R, "r offset");
+_Static_assert(sizeof(ar_actuation_t) == AR_ACTUATION_SIZE, "ar_actuation_t size");
+_Static_assert(_Alignof(ar_actuation_t) == AR_ACTUATION_ALIGN, "ar_actuation_t align");
+_Static_assert(offsetof(ar_actuation_t, compute_ns) == AR_ACTUATION_OFFSET_COMPUTE_NS, "compute_ns offset");
+_Static_assert(offsetof(ar_actuation_t, u) == AR_ACTUATION_OFFSET_U, "u offset");
+#endif
+
+#endif /* ADAPTIVE_RIG_CONTRACT_H */

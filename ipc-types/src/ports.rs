@@ -1,0 +1,613 @@
+//! Connecting the two sides of the contract over iceoryx2.
+//!
+//! Each side creates (or reopens) the publish-subscribe service it publishes on, defining
+//! the attributes of its [`ContractInfo`], then waits for the peer's service, reads the
+//! peer's attributes and refuses to connect when they differ, naming every difference:
+//!
+//! | service (rig `N`)              | pattern           | payload         | created by |
+//! |--------------------------------|-------------------|-----------------|------------|
+//! | `adaptive-rig/N/measurement`   | publish-subscribe | [`Measurement`] | plant      |
+//! | `adaptive-rig/N/actuation`     | publish-subscribe | [`Actuation`]   | service    |
+//! | `adaptive-rig/N/measurement`   | event             | —               | either     |
+//! | `adaptive-rig/N/actuation`     | event             | —               | either     |
+//!
+//! The payload types are checked by iceoryx2 itself (type name, size, alignment). A process
+//! that died leaves stale shared-memory resources behind; [`cleanup_dead_nodes`] removes
+//! them so that a restarted peer can connect again.
+//!
+//! Everything here allocates and may block: it is set-up code, run before a real-time loop
+//! starts or while it is idle, never inside a control step.
+
+use crate::{Actuation, CONTRACT_VERSION, ChannelCounts, Measurement};
+use core::fmt;
+use core::time::Duration;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::builder::publish_subscribe::{
+    PublishSubscribeCreateError, PublishSubscribeOpenError,
+};
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Prefix of every service name of this product.
+pub const SERVICE_PREFIX: &str = "adaptive-rig";
+
+/// Which side of the contract a process is on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// The plant process (plant-proxy or a DAQ I/O process): the clock master.
+    Plant,
+    /// The control service.
+    Service,
+}
+
+impl Side {
+    /// The name used in attributes and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Plant => "plant",
+            Side::Service => "service",
+        }
+    }
+    fn peer(self) -> Side {
+        match self {
+            Side::Plant => Side::Service,
+            Side::Service => Side::Plant,
+        }
+    }
+}
+
+/// What one side states about itself when it connects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ContractInfo {
+    /// The side that states it.
+    pub side: Side,
+    /// Its contract version ([`CONTRACT_VERSION`] for this build).
+    pub version: u32,
+    /// The channel counts it uses.
+    pub counts: ChannelCounts,
+    /// The sampling period it runs at (the plant) or was designed for (the service), in ns.
+    pub period_ns: u64,
+}
+
+impl ContractInfo {
+    /// Info of this build's contract version.
+    pub fn new(side: Side, counts: ChannelCounts, period_ns: u64) -> Self {
+        Self { side, version: CONTRACT_VERSION, counts, period_ns }
+    }
+
+    fn specifier(&self) -> Result<AttributeSpecifier, ConnectError> {
+        let kv = [
+            ("contract-version", self.version.to_string()),
+            ("n-y", self.counts.n_y.to_string()),
+            ("n-z", self.counts.n_z.to_string()),
+            ("n-r", self.counts.n_r.to_string()),
+            ("n-u", self.counts.n_u.to_string()),
+            ("period-ns", self.period_ns.to_string()),
+            ("role", self.side.name().to_string()),
+        ];
+        let mut spec = AttributeSpecifier::new();
+        for (k, v) in kv {
+            let key = k.try_into().map_err(|e| ipc_err("attribute key", k, e))?;
+            let value = v.as_str().try_into().map_err(|e| ipc_err("attribute value", k, e))?;
+            spec = spec.define(&key, &value).map_err(|e| ipc_err("attribute", k, e))?;
+        }
+        Ok(spec)
+    }
+
+    fn from_attributes(set: &AttributeSet, service: &str) -> Result<Self, ConnectError> {
+        let get = |k: &str| -> Result<String, ConnectError> {
+            let key = k.try_into().map_err(|e| ipc_err("attribute key", k, e))?;
+            set.key_value(&key, 0).map(|v| v.to_string()).ok_or_else(|| {
+                ConnectError::NotAContractService {
+                    service: service.to_string(),
+                    detail: format!("it has no attribute '{k}'"),
+                }
+            })
+        };
+        let num = |k: &str| -> Result<u64, ConnectError> {
+            let v = get(k)?;
+            v.parse().map_err(|_| ConnectError::NotAContractService {
+                service: service.to_string(),
+                detail: format!("attribute '{k}' = '{v}' is not a number"),
+            })
+        };
+        let side = match get("role")?.as_str() {
+            "plant" => Side::Plant,
+            "service" => Side::Service,
+            other => {
+                return Err(ConnectError::NotAContractService {
+                    service: service.to_string(),
+                    detail: format!("attribute 'role' = '{other}' is neither plant nor service"),
+                });
+            }
+        };
+        Ok(Self {
+            side,
+            version: num("contract-version")? as u32,
+            counts: ChannelCounts {
+                n_y: num("n-y")? as u16,
+                n_z: num("n-z")? as u16,
+                n_r: num("n-r")? as u16,
+                n_u: num("n-u")? as u16,
+            },
+            period_ns: num("period-ns")?,
+        })
+    }
+
+    /// Every difference between `self` and `other` that makes them incompatible, one line
+    /// each, naming each side by its role.
+    pub fn differences(&self, other: &ContractInfo) -> Vec<String> {
+        let (me, them) = (self.side.name(), other.side.name());
+        let mut out = Vec::new();
+        if self.version != other.version {
+            out.push(format!(
+                "contract version: {them} has {}, {me} has {}",
+                other.version, self.version
+            ));
+        }
+        out.extend(self.counts.differences(me, &other.counts, them));
+        if self.period_ns != other.period_ns {
+            out.push(format!(
+                "sample period: {them} runs at {} ns ({:.3} Hz), {me} at {} ns ({:.3} Hz)",
+                other.period_ns,
+                1e9 / other.period_ns.max(1) as f64,
+                self.period_ns,
+                1e9 / self.period_ns.max(1) as f64
+            ));
+        }
+        out
+    }
+}
+
+/// Why a connection could not be made. Every variant names the service at fault.
+#[derive(Debug)]
+pub enum ConnectError {
+    /// The rig name cannot be used in a service name.
+    InvalidRigName {
+        /// The name given.
+        rig: String,
+        /// What is wrong with it.
+        detail: String,
+    },
+    /// The peer states another contract; each difference is listed.
+    Mismatch {
+        /// The service whose attributes differ.
+        service: String,
+        /// Whose attributes they are.
+        holder: Side,
+        /// One line per difference.
+        differences: Vec<String>,
+    },
+    /// iceoryx2 refused the payload type: another layout or type name was compiled in.
+    IncompatibleType {
+        /// The service concerned.
+        service: String,
+    },
+    /// A service with this name exists but does not carry this contract's attributes.
+    NotAContractService {
+        /// The service concerned.
+        service: String,
+        /// What is missing or malformed.
+        detail: String,
+    },
+    /// The peer's service did not appear within the time allowed.
+    PeerTimeout {
+        /// The service waited for.
+        service: String,
+        /// How long was waited.
+        waited: Duration,
+    },
+    /// A shutdown was requested while waiting.
+    Interrupted,
+    /// Any other iceoryx2 failure.
+    Ipc {
+        /// What was being done.
+        what: String,
+        /// The service or item concerned.
+        item: String,
+        /// iceoryx2's error.
+        detail: String,
+    },
+}
+
+fn ipc_err(what: &str, item: &str, e: impl fmt::Debug) -> ConnectError {
+    ConnectError::Ipc { what: what.to_string(), item: item.to_string(), detail: format!("{e:?}") }
+}
+
+impl fmt::Display for ConnectError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConnectError::InvalidRigName { rig, detail } => {
+                write!(f, "invalid rig name '{rig}': {detail}")
+            }
+            ConnectError::Mismatch { service, holder, differences } => {
+                write!(
+                    f,
+                    "contract mismatch on '{service}' (defined by the {}), refusing to connect:",
+                    holder.name()
+                )?;
+                for d in differences {
+                    write!(f, "\n  - {d}")?;
+                }
+                Ok(())
+            }
+            ConnectError::IncompatibleType { service } => write!(
+                f,
+                "'{service}' carries another payload type (type name, size or alignment differ): \
+                 the peer was built against another contract layout; rebuild it against \
+                 contract version {CONTRACT_VERSION}"
+            ),
+            ConnectError::NotAContractService { service, detail } => {
+                write!(f, "'{service}' is not an adaptive-rig contract service: {detail}")
+            }
+            ConnectError::PeerTimeout { service, waited } => write!(
+                f,
+                "no peer: '{service}' did not appear within {:.1} s (is the other process running \
+                 with the same rig name?)",
+                waited.as_secs_f64()
+            ),
+            ConnectError::Interrupted => write!(f, "interrupted while connecting"),
+            ConnectError::Ipc { what, item, detail } => {
+                write!(f, "iceoryx2 failure while {what} '{item}': {detail}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ConnectError {}
+
+/// The service names of one rig.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RigServiceNames {
+    /// `adaptive-rig/<rig>/measurement`.
+    pub measurement: String,
+    /// `adaptive-rig/<rig>/actuation`.
+    pub actuation: String,
+}
+
+/// Service names derived from a rig name, so that several rigs run side by side. A rig name
+/// is 1 to 64 characters of ASCII letters, digits, `-` and `_`.
+pub fn service_names(rig: &str) -> Result<RigServiceNames, ConnectError> {
+    let bad = |detail: &str| ConnectError::InvalidRigName { rig: rig.into(), detail: detail.into() };
+    if rig.is_empty() || rig.len() > 64 {
+        return Err(bad("it must have 1 to 64 characters"));
+    }
+    if !rig.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+        return Err(bad("only ASCII letters, digits, '-' and '_' are allowed"));
+    }
+    Ok(RigServiceNames {
+        measurement: format!("{SERVICE_PREFIX}/{rig}/measurement"),
+        actuation: format!("{SERVICE_PREFIX}/{rig}/actuation"),
+    })
+}
+
+/// Removes the stale resources of every dead iceoryx2 node on this machine, and returns
+/// how many dead nodes were cleaned up.
+pub fn cleanup_dead_nodes() -> usize {
+    let mut n = 0;
+    let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
+        if let NodeState::<ipc::Service>::Dead(view) = state {
+            if view.try_remove_stale_resources().is_ok() {
+                n += 1;
+            }
+        }
+        CallbackProgression::Continue
+    });
+    n
+}
+
+/// The ports of one side: publishes `Out`, subscribes to `In`, notifies after each send and
+/// listens for the peer's notifications.
+pub struct Ports<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static> {
+    /// Publisher of this side's samples.
+    pub publisher: Publisher<ipc::Service, Out, ()>,
+    /// Subscriber to the peer's samples.
+    pub subscriber: Subscriber<ipc::Service, In, ()>,
+    /// Notifier signalled after each published sample.
+    pub notifier: Notifier<ipc::Service>,
+    /// Listener woken by the peer's notifier.
+    pub listener: Listener<ipc::Service>,
+    /// What the peer stated when the connection was made.
+    pub peer: ContractInfo,
+    _own_service: PubSubFactory<ipc::Service, Out, ()>,
+    _peer_service: PubSubFactory<ipc::Service, In, ()>,
+    _node: Node<ipc::Service>,
+}
+
+/// The plant's ports: publishes [`Measurement`], receives [`Actuation`].
+pub type PlantPorts = Ports<Measurement, Actuation>;
+/// The service's ports: publishes [`Actuation`], receives [`Measurement`].
+pub type ServicePorts = Ports<Actuation, Measurement>;
+
+/// Options for [`connect`].
+#[derive(Debug, Clone, Copy)]
+pub struct ConnectOptions<'a> {
+    /// How long to wait for the peer's service to appear.
+    pub peer_timeout: Duration,
+    /// Set from a signal handler to abandon the wait.
+    pub shutdown: Option<&'a AtomicBool>,
+}
+
+/// Opens this side's own publish-subscribe service (creating it with `own`'s attributes if
+/// it does not exist, verifying them if it does), waits for the peer's service, verifies the
+/// peer's attributes against `own`, and creates the ports.
+pub fn connect<Out, In>(
+    rig: &str,
+    own: ContractInfo,
+    node_name: &str,
+    opts: ConnectOptions<'_>,
+) -> Result<Ports<Out, In>, ConnectError>
+where
+    Out: fmt::Debug + ZeroCopySend + 'static,
+    In: fmt::Debug + ZeroCopySend + 'static,
+{
+    let names = service_names(rig)?;
+    let (own_name, peer_name) = match own.side {
+        Side::Plant => (names.measurement.clone(), names.actuation.clone()),
+        Side::Service => (names.actuation.clone(), names.measurement.clone()),
+    };
+    set_log_level(LogLevel::Error);
+    cleanup_dead_nodes();
+    let node = NodeBuilder::new()
+        .name(&node_name.try_into().map_err(|e| ipc_err("naming the node", node_name, e))?)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| ipc_err("creating the node", node_name, e))?;
+
+    let own_service = open_own::<Out>(&node, &own_name, &own, &opts)?;
+    let (peer_service, peer) = open_peer::<In>(&node, &peer_name, &own, &opts)?;
+
+    let publisher = own_service
+        .publisher_builder()
+        .max_loaned_samples(2)
+        .create()
+        .map_err(|e| ipc_err("creating the publisher of", &own_name, e))?;
+    let subscriber = peer_service
+        .subscriber_builder()
+        .create()
+        .map_err(|e| ipc_err("creating the subscriber of", &peer_name, e))?;
+    let own_event = open_event(&node, &own_name)?;
+    let peer_event = open_event(&node, &peer_name)?;
+    let notifier = own_event
+        .notifier_builder()
+        .create()
+        .map_err(|e| ipc_err("creating the notifier of", &own_name, e))?;
+    let listener = peer_event
+        .listener_builder()
+        .create()
+        .map_err(|e| ipc_err("creating the listener of", &peer_name, e))?;
+    Ok(Ports {
+        publisher,
+        subscriber,
+        notifier,
+        listener,
+        peer,
+        _own_service: own_service,
+        _peer_service: peer_service,
+        _node: node,
+    })
+}
+
+fn service_name(name: &str) -> Result<ServiceName, ConnectError> {
+    ServiceName::new(name).map_err(|e| ipc_err("naming the service", name, e))
+}
+
+fn open_event(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, ConnectError> {
+    node.service_builder(&service_name(name)?)
+        .event()
+        .max_notifiers(4)
+        .max_listeners(4)
+        .open_or_create()
+        .map_err(|e| ipc_err("opening the event service", name, e))
+}
+
+fn pubsub_builder<T: fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<iceoryx2::service::builder::publish_subscribe::Builder<T, (), ipc::Service>, ConnectError>
+{
+    Ok(node
+        .service_builder(&service_name(name)?)
+        .publish_subscribe::<T>()
+        .max_publishers(2)
+        .max_subscribers(4)
+        .subscriber_max_buffer_size(4)
+        .history_size(0)
+        .enable_safe_overflow(true))
+}
+
+fn verify(
+    existing: &ContractInfo,
+    own: &ContractInfo,
+    service: &str,
+) -> Result<(), ConnectError> {
+    let differences = own.differences(existing);
+    if differences.is_empty() {
+        Ok(())
+    } else {
+        Err(ConnectError::Mismatch { service: service.to_string(), holder: existing.side, differences })
+    }
+}
+
+fn open_own<T: fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+    own: &ContractInfo,
+    opts: &ConnectOptions<'_>,
+) -> Result<PubSubFactory<ipc::Service, T, ()>, ConnectError> {
+    let start = Instant::now();
+    loop {
+        match pubsub_builder::<T>(node, name)?.open() {
+            Ok(f) => {
+                let existing = ContractInfo::from_attributes(f.attributes(), name)?;
+                // The service may survive a crash of this side, held open by the peer.
+                let existing = ContractInfo { side: own.side, ..existing };
+                verify(&existing, own, name)?;
+                return Ok(f);
+            }
+            Err(PublishSubscribeOpenError::DoesNotExist)
+            | Err(PublishSubscribeOpenError::IsMarkedForDestruction) => {}
+            Err(PublishSubscribeOpenError::IncompatibleTypes) => {
+                return Err(ConnectError::IncompatibleType { service: name.to_string() });
+            }
+            Err(e) => return Err(ipc_err("opening", name, e)),
+        }
+        match pubsub_builder::<T>(node, name)?.create_with_attributes(&own.specifier()?) {
+            Ok(f) => return Ok(f),
+            Err(PublishSubscribeCreateError::AlreadyExists)
+            | Err(PublishSubscribeCreateError::IsBeingCreatedByAnotherInstance) => {}
+            Err(e) => return Err(ipc_err("creating", name, e)),
+        }
+        wait_a_little(start, name, opts)?;
+    }
+}
+
+fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+    own: &ContractInfo,
+    opts: &ConnectOptions<'_>,
+) -> Result<(PubSubFactory<ipc::Service, T, ()>, ContractInfo), ConnectError> {
+    let start = Instant::now();
+    loop {
+        match pubsub_builder::<T>(node, name)?.open() {
+            Ok(f) => {
+                let peer = ContractInfo::from_attributes(f.attributes(), name)?;
+                if peer.side != own.side.peer() {
+                    return Err(ConnectError::NotAContractService {
+                        service: name.to_string(),
+                        detail: format!(
+                            "it was created by a {}, expected the {}",
+                            peer.side.name(),
+                            own.side.peer().name()
+                        ),
+                    });
+                }
+                verify(&peer, own, name)?;
+                return Ok((f, peer));
+            }
+            Err(PublishSubscribeOpenError::DoesNotExist)
+            | Err(PublishSubscribeOpenError::IsMarkedForDestruction)
+            | Err(PublishSubscribeOpenError::HangsInCreation) => {
+                cleanup_dead_nodes();
+            }
+            Err(PublishSubscribeOpenError::IncompatibleTypes) => {
+                return Err(ConnectError::IncompatibleType { service: name.to_string() });
+            }
+            Err(e) => return Err(ipc_err("opening", name, e)),
+        }
+        wait_a_little(start, name, opts)?;
+    }
+}
+
+fn wait_a_little(start: Instant, name: &str, opts: &ConnectOptions<'_>) -> Result<(), ConnectError> {
+    if opts.shutdown.is_some_and(|s| s.load(Ordering::Relaxed)) {
+        return Err(ConnectError::Interrupted);
+    }
+    if start.elapsed() >= opts.peer_timeout {
+        return Err(ConnectError::PeerTimeout { service: name.to_string(), waited: start.elapsed() });
+    }
+    std::thread::sleep(Duration::from_millis(5));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(side: Side, n_y: u16, n_u: u16, period_ns: u64) -> ContractInfo {
+        ContractInfo::new(side, ChannelCounts { n_y, n_z: n_y, n_r: 0, n_u }, period_ns)
+    }
+
+    #[test]
+    fn service_names_are_derived_from_the_rig_name() {
+        let n = service_names("bench-7").unwrap();
+        assert_eq!(n.measurement, "adaptive-rig/bench-7/measurement");
+        assert_eq!(n.actuation, "adaptive-rig/bench-7/actuation");
+        assert!(service_names("a/b").is_err());
+        assert!(service_names("").is_err());
+    }
+
+    #[test]
+    fn differences_name_each_field_and_each_side() {
+        let plant = info(Side::Plant, 1, 2, 125_000);
+        let mut service = info(Side::Service, 2, 2, 10_000_000);
+        service.version = 7;
+        let d = service.differences(&plant);
+        assert_eq!(d.len(), 4, "{d:?}");
+        assert!(d[0].contains("contract version: plant has 1, service has 7"), "{}", d[0]);
+        assert!(d.iter().any(|l| l.contains("measurement channels (y): plant uses 1, service uses 2")));
+        assert!(d.iter().any(|l| l.contains("sample period")));
+        assert!(plant.differences(&info(Side::Service, 1, 2, 125_000)).is_empty());
+    }
+
+    #[test]
+    fn a_peer_with_other_counts_is_refused_at_connect_time() {
+        let rig = format!("unit-mismatch-{}", std::process::id());
+        let plant = info(Side::Plant, 1, 2, 1_000_000);
+        let service = info(Side::Service, 1, 1, 1_000_000);
+        let rig2 = rig.clone();
+        let t = std::thread::spawn(move || {
+            let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None };
+            connect::<Measurement, Actuation>(&rig2, plant, "unit-plant", opts).map(|_| ())
+        });
+        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None };
+        let err = connect::<Actuation, Measurement>(&rig, service, "unit-service", opts)
+            .err()
+            .expect("the mismatch must be refused");
+        let msg = err.to_string();
+        assert!(msg.contains("contract mismatch"), "{msg}");
+        assert!(msg.contains("actuation channels (u): plant uses 2, service uses 1"), "{msg}");
+        let plant_side = t.join().unwrap();
+        assert!(plant_side.is_err(), "the plant must refuse too");
+    }
+
+    #[test]
+    fn matching_sides_connect_and_exchange_a_sample() {
+        let rig = format!("unit-match-{}", std::process::id());
+        let plant = info(Side::Plant, 2, 1, 1_000_000);
+        let service = info(Side::Service, 2, 1, 1_000_000);
+        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None };
+        let rig2 = rig.clone();
+        let t = std::thread::spawn(move || {
+            let ports = connect::<Measurement, Actuation>(&rig2, plant, "unit-plant2", opts).unwrap();
+            let mut m = Measurement::zeroed(plant.counts);
+            m.seq = 42;
+            m.y[1] = 3.5;
+            let start = Instant::now();
+            loop {
+                ports.publisher.send_copy(m).unwrap();
+                if let Some(a) = ports.subscriber.receive().unwrap() {
+                    return (a.seq, a.u[0]);
+                }
+                assert!(start.elapsed() < Duration::from_secs(5), "no answer");
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        });
+        let ports = connect::<Actuation, Measurement>(&rig, service, "unit-service2", opts).unwrap();
+        assert_eq!(ports.peer.side, Side::Plant);
+        let start = Instant::now();
+        loop {
+            if let Some(m) = ports.subscriber.receive().unwrap() {
+                let mut a = Actuation::zeroed(service.counts);
+                a.seq = m.seq;
+                a.u[0] = -m.y[1];
+                ports.publisher.send_copy(a).unwrap();
+                break;
+            }
+            assert!(start.elapsed() < Duration::from_secs(5), "no measurement");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // keep answering until the plant thread has read it
+        let (seq, u) = t.join().unwrap();
+        assert_eq!((seq, u), (42, -3.5));
+    }
+}

@@ -1,0 +1,21 @@
+//! # plant-proxy: the simulated plant behind the adaptive-rig contract
+//!
+//! A separate process that plays the plant side of the contract in `ipc-types`: the clock
+//! master that publishes `y_k`, `z_k`, `r_k` at sample `k` and applies the service's `u_k`.
+//! A hardware DAQ I/O process can take its place without any change to the service.
+//!
+//! - [`lti`]: continuous and discrete linear time-invariant models, realization of transfer
+//!   function matrices, exact zero-order-hold discretization by the matrix exponential of the
+//!   augmented matrix.
+//! - [`sim`]: the sampled-data simulation of a scenario plant with per-input delays, harmonic
+//!   disturbances integrated exactly through an exosystem, and seeded white noise.
+//! - [`scenario`]: the plant part of a scenario TOML file, validated into typed parameters.
+//! - [`runtime`]: the plant process: real-time (paced on `CLOCK_MONOTONIC`) and lockstep modes,
+//!   deadline handling, watchdog, fault injection.
+
+#![warn(missing_docs)]
+
+pub mod lti;
+pub mod runtime;
+pub mod scenario;
+pub mod sim;

@@ -1,0 +1,22 @@
+//! # service: the adaptive real-time control service
+//!
+//! The control side of the contract in `ipc-types`. A pinned real-time thread waits for
+//! measurement `k`, runs the controller step and publishes actuation `k`; non-real-time
+//! threads write signal logs, latency histograms and the run report.
+//!
+//! - [`controller`]: the controller interface and the controllers (pure math kernels, no I/O).
+//! - [`config`]: the service's TOML configuration, read once and validated into typed
+//!   parameters.
+//! - [`telemetry`]: pre-sized latency histograms recorded in the RT thread and reported
+//!   outside it (HdrHistogram interval logs, cyclictest-style summaries).
+//! - [`logging`]: the bounded lock-free queue that carries signal logs out of the RT thread
+//!   and the CSV writer behind it.
+//! - [`runtime`]: the RT loop, the deadline and silence policy, the run report.
+
+#![warn(missing_docs)]
+
+pub mod config;
+pub mod controller;
+pub mod logging;
+pub mod runtime;
+pub mod telemetry;

@@ -1,0 +1,1 @@
+//! Helpers for the closed-loop integration tests (see `tests/`).
