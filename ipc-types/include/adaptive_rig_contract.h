@@ -38,6 +38,7 @@
 #define AR_MEAS_LOCKSTEP 0x1u
 #define AR_MEAS_PLANT_SAFE_OUTPUT 0x2u
 #define AR_MEAS_PREVIOUS_ACTUATION_MISSED 0x4u
+#define AR_MEAS_LAST_SAMPLE 0x8u
 
 /* Actuation status bits */
 #define AR_ACT_OK 0x0u

@@ -31,6 +31,7 @@
 
 pub mod clock;
 pub mod ports;
+pub mod rt;
 
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -53,6 +54,8 @@ pub mod measurement_flags {
     pub const PLANT_SAFE_OUTPUT: u32 = 1 << 1;
     /// The actuation for the previous sample missed the deadline (or never came).
     pub const PREVIOUS_ACTUATION_MISSED: u32 = 1 << 2;
+    /// The plant ends its run after this sample; it will publish no more.
+    pub const LAST_SAMPLE: u32 = 1 << 3;
 }
 
 /// Status bits the service sets in [`Actuation::status`].

@@ -310,10 +310,13 @@ pub struct Ports<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + Zero
     pub subscriber: Subscriber<ipc::Service, In, ()>,
     /// Notifier signalled after each published sample.
     pub notifier: Notifier<ipc::Service>,
-    /// Listener woken by the peer's notifier.
-    pub listener: Listener<ipc::Service>,
+    /// Listener woken by the peer's notifier; only created when asked for, so that a peer
+    /// that busy-polls pays no system call for notifications nobody waits on.
+    pub listener: Option<Listener<ipc::Service>>,
     /// What the peer stated when the connection was made.
     pub peer: ContractInfo,
+    _own_event: iceoryx2::service::port_factory::event::PortFactory<ipc::Service>,
+    _peer_event: iceoryx2::service::port_factory::event::PortFactory<ipc::Service>,
     _own_service: PubSubFactory<ipc::Service, Out, ()>,
     _peer_service: PubSubFactory<ipc::Service, In, ()>,
     _node: Node<ipc::Service>,
@@ -331,6 +334,8 @@ pub struct ConnectOptions<'a> {
     pub peer_timeout: Duration,
     /// Set from a signal handler to abandon the wait.
     pub shutdown: Option<&'a AtomicBool>,
+    /// Create a listener on the peer's event service (for blocking waits).
+    pub listen: bool,
 }
 
 /// Opens this side's own publish-subscribe service (creating it with `own`'s attributes if
@@ -377,16 +382,30 @@ where
         .notifier_builder()
         .create()
         .map_err(|e| ipc_err("creating the notifier of", &own_name, e))?;
-    let listener = peer_event
-        .listener_builder()
-        .create()
-        .map_err(|e| ipc_err("creating the listener of", &peer_name, e))?;
+    let listener = if opts.listen {
+        Some(
+            peer_event
+                .listener_builder()
+                .create()
+                .map_err(|e| ipc_err("creating the listener of", &peer_name, e))?,
+        )
+    } else {
+        None
+    };
+    // Wait until the peer subscribes to this side's samples, so that the first sample sent
+    // after connect() is not lost (lockstep runs depend on it).
+    let start = Instant::now();
+    while own_service.dynamic_config().number_of_subscribers() == 0 {
+        wait_a_little(start, &own_name, &opts)?;
+    }
     Ok(Ports {
         publisher,
         subscriber,
         notifier,
         listener,
         peer,
+        _own_event: own_event,
+        _peer_event: peer_event,
         _own_service: own_service,
         _peer_service: peer_service,
         _node: node,
@@ -556,10 +575,10 @@ mod tests {
         let service = info(Side::Service, 1, 1, 1_000_000);
         let rig2 = rig.clone();
         let t = std::thread::spawn(move || {
-            let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None };
+            let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None, listen: false };
             connect::<Measurement, Actuation>(&rig2, plant, "unit-plant", opts).map(|_| ())
         });
-        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None };
+        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None, listen: false };
         let err = connect::<Actuation, Measurement>(&rig, service, "unit-service", opts)
             .err()
             .expect("the mismatch must be refused");
@@ -575,7 +594,7 @@ mod tests {
         let rig = format!("unit-match-{}", std::process::id());
         let plant = info(Side::Plant, 2, 1, 1_000_000);
         let service = info(Side::Service, 2, 1, 1_000_000);
-        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None };
+        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None, listen: false };
         let rig2 = rig.clone();
         let t = std::thread::spawn(move || {
             let ports = connect::<Measurement, Actuation>(&rig2, plant, "unit-plant2", opts).unwrap();

@@ -1,1 +1,674 @@
-//! (being written)
+//! The service's configuration: the `[rig]`, `[service]`, `[controller]` and `[log]` tables
+//! of a scenario TOML file, read once at start-up, validated, and turned into typed
+//! parameters. Nothing in the real-time loop reads a string or a map.
+//!
+//! A bad file or value is refused before anything starts, with the file, the field and
+//! what is wrong ([`ConfigError`]). The tables read by plant-proxy (`[plant]`, `[proxy]`)
+//! may share the file; the service only reads the channel counts from `[plant]` when
+//! `[service.channels]` is absent.
+//!
+//! ```toml
+//! [rig]
+//! name = "acoustic-rig"
+//! sample-period = 1.25e-4        # or sample-rate-hz = 8000
+//!
+//! [service]
+//! core = 1                        # pin the RT thread (omit: no pinning)
+//! fifo-priority = 80              # SCHED_FIFO priority (0: stay SCHED_OTHER)
+//! mlockall = true
+//! require-rt = false              # true: refuse to run when the OS refuses any of the above
+//! wait = "busy-poll"              # or "block"
+//! grace-periods = 800             # start-up cycles whose misses do not count toward the limit
+//! max-consecutive-misses = 10     # then go to the safe state
+//! recover-after = 0               # 0: the safe state latches; N: leave it after N good cycles
+//! silent-periods = 400            # no sample for this many periods: the plant is silent
+//! peer-timeout = 30.0             # s to wait for the plant at start
+//! safe-input = [0.0, 0.0]
+//! y-min = -10.0                   # scalar or one per channel; measurements outside are rejected
+//! y-max = 10.0
+//! histogram-interval = 1.0        # s between interval-log entries
+//! run-dir = "runs"
+//! rms-settle = 2.0                # s after which the "settled" RMS of z starts
+//! [service.channels]              # optional; default from [plant]
+//! y = 1
+//! z = 1
+//! r = 0
+//! u = 2
+//!
+//! [controller]
+//! kind = "lti"
+//! input = "y"                     # "y", "error" (r − y) or "y-and-r"
+//! u-min = -1.0                    # optional saturation, scalar or per input
+//! u-max = 1.0
+//! [controller.ss]                 # discrete state space …
+//! a = [[0.5]]
+//! b = [[1.0]]
+//! c = [[-0.2]]
+//! d = [[0.0]]
+//! # … or [controller.tf] entries = [[{ num = [..], den = [..] }]]  (discrete, in z, n_u × n_e)
+//!
+//! [log]
+//! enabled = true
+//! decimation = 1
+//! queue-capacity = 65536
+//! ```
+
+use crate::controller::{Controller, ControllerInput, LtiController, OutputLimits};
+use ipc_types::ChannelCounts;
+use ipc_types::rt::RtRequest;
+use nalgebra::{DMatrix, DVector};
+use serde::Deserialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Top-level tables a scenario file may contain.
+pub const KNOWN_TABLES: &[&str] = &["rig", "plant", "proxy", "service", "controller", "log"];
+
+/// A refused configuration: the file, the field and what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigError {
+    /// The file read (or the origin given to [`ServiceConfig::parse`]).
+    pub file: String,
+    /// The dotted field path, empty when the whole file is at fault.
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.field.is_empty() {
+            write!(f, "{}: {}", self.file, self.message)
+        } else {
+            write!(f, "{}: field '{}': {}", self.file, self.field, self.message)
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// How the RT thread waits for the next measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WaitMode {
+    /// Spin on the subscriber (lowest latency; burns the pinned core).
+    BusyPoll,
+    /// Sleep on the plant's iceoryx2 event (spares the core; adds a wake-up).
+    Block,
+}
+
+/// The deadline and silence policy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeadlinePolicy {
+    /// Cycles after (re)connection whose misses do not count toward the limit.
+    pub grace_cycles: u64,
+    /// Consecutive misses that send the service to its safe state.
+    pub max_consecutive_misses: u64,
+    /// Good cycles after which the safe state is left; `None` latches it.
+    pub recover_after: Option<u64>,
+    /// Periods without a sample after which the plant is declared silent.
+    pub silent_periods: u64,
+    /// Reset the controller when a silent plant comes back.
+    pub reset_on_resume: bool,
+}
+
+/// Accepted range of each measurement channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasurementLimits {
+    /// Lower bounds of `y`.
+    pub y_min: Vec<f64>,
+    /// Upper bounds of `y`.
+    pub y_max: Vec<f64>,
+    /// Lower bounds of `z`.
+    pub z_min: Vec<f64>,
+    /// Upper bounds of `z`.
+    pub z_max: Vec<f64>,
+}
+
+/// Signal logging.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogConfig {
+    /// Write the CSV signal log.
+    pub enabled: bool,
+    /// Keep every N-th sample.
+    pub decimation: u32,
+    /// Capacity of the lock-free queue out of the RT thread, in records.
+    pub queue_capacity: usize,
+}
+
+/// The controller as configured (validated, not yet built).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ControllerConfig {
+    /// A discrete LTI controller.
+    Lti {
+        /// State-space matrices.
+        a: DMatrix<f64>,
+        /// Input matrix.
+        b: DMatrix<f64>,
+        /// Output matrix.
+        c: DMatrix<f64>,
+        /// Feedthrough.
+        d: DMatrix<f64>,
+        /// Initial state.
+        x0: Option<DVector<f64>>,
+        /// What feeds it.
+        input: ControllerInput,
+        /// Output saturation.
+        limits: Option<OutputLimits>,
+    },
+}
+
+impl ControllerConfig {
+    /// Builds the controller (allocating; before the RT thread starts).
+    pub fn build(&self, counts: ChannelCounts) -> Result<Box<dyn Controller>, String> {
+        match self {
+            ControllerConfig::Lti { a, b, c, d, x0, input, limits } => {
+                let mut ctl = LtiController::new(
+                    a.clone(),
+                    b.clone(),
+                    c.clone(),
+                    d.clone(),
+                    *input,
+                    counts,
+                    limits.clone(),
+                )?;
+                if let Some(x0) = x0 {
+                    ctl = ctl.with_initial_state(x0.clone())?;
+                }
+                Ok(Box::new(ctl))
+            }
+        }
+    }
+}
+
+/// The validated configuration of the service.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServiceConfig {
+    /// The file it came from.
+    pub origin: String,
+    /// Rig name (service names derive from it).
+    pub rig: String,
+    /// Sampling period the controller was designed for, in ns.
+    pub sample_period_ns: u64,
+    /// Channels the service reads and writes.
+    pub counts: ChannelCounts,
+    /// Real-time set-up of the loop thread.
+    pub rt: RtRequest,
+    /// Refuse to run when any RT set-up step is refused.
+    pub require_rt: bool,
+    /// How the loop waits.
+    pub wait: WaitMode,
+    /// Deadline and silence policy.
+    pub policy: DeadlinePolicy,
+    /// Accepted measurement ranges.
+    pub limits: MeasurementLimits,
+    /// Input applied in the safe state and before the first controller output.
+    pub safe_input: Vec<f64>,
+    /// How long to wait for the plant at start.
+    pub peer_timeout: Duration,
+    /// Cycles per histogram interval.
+    pub histogram_interval_cycles: u64,
+    /// Response-time budget for the "over budget" count, in ns (the sample period).
+    pub budget_ns: u64,
+    /// Signal logging.
+    pub log: LogConfig,
+    /// Folder under which each run gets its own folder.
+    pub run_dir: PathBuf,
+    /// The controller.
+    pub controller: ControllerConfig,
+    /// Cycles after which the "settled" RMS of `z` starts accumulating.
+    pub rms_settle_cycles: u64,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case")]
+struct RawFile {
+    rig: Option<RawRig>,
+    service: Option<RawService>,
+    controller: Option<toml::Value>,
+    log: Option<RawLog>,
+    plant: Option<toml::Value>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case")]
+struct RawRig {
+    name: String,
+    sample_period: Option<f64>,
+    sample_rate_hz: Option<f64>,
+    #[allow(dead_code)]
+    duration: Option<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawChannels {
+    y: usize,
+    z: usize,
+    #[serde(default)]
+    r: usize,
+    u: usize,
+}
+
+/// A scalar or one value per channel.
+#[derive(Deserialize, Clone)]
+#[serde(untagged)]
+enum ScalarOrVec {
+    Scalar(f64),
+    Vec(Vec<f64>),
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawService {
+    core: Option<usize>,
+    fifo_priority: Option<i32>,
+    mlockall: Option<bool>,
+    require_rt: Option<bool>,
+    wait: Option<WaitMode>,
+    grace_periods: Option<u64>,
+    max_consecutive_misses: Option<u64>,
+    recover_after: Option<u64>,
+    silent_periods: Option<u64>,
+    reset_on_resume: Option<bool>,
+    peer_timeout: Option<f64>,
+    safe_input: Option<ScalarOrVec>,
+    y_min: Option<ScalarOrVec>,
+    y_max: Option<ScalarOrVec>,
+    z_min: Option<ScalarOrVec>,
+    z_max: Option<ScalarOrVec>,
+    histogram_interval: Option<f64>,
+    run_dir: Option<PathBuf>,
+    rms_settle: Option<f64>,
+    channels: Option<RawChannels>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawLog {
+    enabled: Option<bool>,
+    decimation: Option<u32>,
+    queue_capacity: Option<usize>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawLti {
+    kind: String,
+    input: Option<String>,
+    u_min: Option<ScalarOrVec>,
+    u_max: Option<ScalarOrVec>,
+    ss: Option<RawSs>,
+    tf: Option<RawTfMatrix>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawSs {
+    a: Vec<Vec<f64>>,
+    b: Vec<Vec<f64>>,
+    c: Vec<Vec<f64>>,
+    d: Vec<Vec<f64>>,
+    x0: Option<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawTfMatrix {
+    entries: Vec<Vec<RawTfEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum RawTfEntry {
+    Zero(i64),
+    Tf { num: Vec<f64>, den: Vec<f64> },
+}
+
+impl ServiceConfig {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            file: origin.clone(),
+            field: String::new(),
+            message: format!("cannot read the file: {e}"),
+        })?;
+        Self::parse(&text, &origin)
+    }
+
+    /// Validates the text of a scenario file; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let err = |field: &str, message: String| ConfigError {
+            file: origin.to_string(),
+            field: field.to_string(),
+            message,
+        };
+        let table: toml::Table =
+            toml::from_str(text).map_err(|e| err("", format!("not valid TOML: {e}")))?;
+        for key in table.keys() {
+            if !KNOWN_TABLES.contains(&key.as_str()) {
+                return Err(err(
+                    key,
+                    format!("unknown table; the known ones are {}", KNOWN_TABLES.join(", ")),
+                ));
+            }
+        }
+        let raw: RawFile = toml::from_str(text).map_err(|e| err("", e.to_string()))?;
+        let rig = raw.rig.ok_or_else(|| err("rig", "the [rig] table is missing".into()))?;
+        if let Err(e) = ipc_types::ports::service_names(&rig.name) {
+            return Err(err("rig.name", e.to_string()));
+        }
+        let period = match (rig.sample_period, rig.sample_rate_hz) {
+            (Some(t), None) => t,
+            (None, Some(f)) if f > 0.0 => 1.0 / f,
+            (None, Some(f)) => return Err(err("rig.sample-rate-hz", format!("{f} is not positive"))),
+            (Some(_), Some(_)) => {
+                return Err(err("rig", "give sample-period or sample-rate-hz, not both".into()));
+            }
+            (None, None) => return Err(err("rig.sample-period", "missing".into())),
+        };
+        if !(period.is_finite() && period > 1e-7 && period < 100.0) {
+            return Err(err("rig.sample-period", format!("{period} s is not a usable period")));
+        }
+        let sample_period_ns = (period * 1e9).round() as u64;
+        let s = raw.service.unwrap_or_default();
+
+        let counts = match &s.channels {
+            Some(c) => ChannelCounts::new(c.y, c.z, c.r, c.u)
+                .map_err(|m| err("service.channels", m))?,
+            None => channels_from_plant(raw.plant.as_ref()).map_err(|m| err("service.channels", m))?,
+        };
+        let n_y = counts.n_y as usize;
+        let n_z = counts.n_z as usize;
+        let n_u = counts.n_u as usize;
+        if n_u == 0 {
+            return Err(err("service.channels.u", "the service needs at least one input u".into()));
+        }
+
+        let fifo_priority = match s.fifo_priority {
+            None => Some(80),
+            Some(0) => None,
+            Some(p) if (1..=99).contains(&p) => Some(p),
+            Some(p) => return Err(err("service.fifo-priority", format!("{p} is not in 1..=99 (0 disables)"))),
+        };
+        let rt = RtRequest {
+            core: s.core,
+            fifo_priority,
+            mlockall: s.mlockall.unwrap_or(true),
+            prefault_stack_bytes: 256 * 1024,
+        };
+        let policy = DeadlinePolicy {
+            grace_cycles: s.grace_periods.unwrap_or(100),
+            max_consecutive_misses: positive(s.max_consecutive_misses.unwrap_or(10), "service.max-consecutive-misses", &err)?,
+            recover_after: s.recover_after.filter(|n| *n > 0),
+            silent_periods: positive(s.silent_periods.unwrap_or(400), "service.silent-periods", &err)?,
+            reset_on_resume: s.reset_on_resume.unwrap_or(true),
+        };
+        let per_channel = |v: &Option<ScalarOrVec>, n: usize, default: f64, field: &str| -> Result<Vec<f64>, ConfigError> {
+            match v {
+                None => Ok(vec![default; n]),
+                Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n]),
+                Some(ScalarOrVec::Vec(xs)) if xs.len() == n => Ok(xs.clone()),
+                Some(ScalarOrVec::Vec(xs)) => Err(err(field, format!("has {} values, expected {n} (one per channel) or a scalar", xs.len()))),
+            }
+        };
+        let limits = MeasurementLimits {
+            y_min: per_channel(&s.y_min, n_y, f64::NEG_INFINITY, "service.y-min")?,
+            y_max: per_channel(&s.y_max, n_y, f64::INFINITY, "service.y-max")?,
+            z_min: per_channel(&s.z_min, n_z, f64::NEG_INFINITY, "service.z-min")?,
+            z_max: per_channel(&s.z_max, n_z, f64::INFINITY, "service.z-max")?,
+        };
+        for (i, (lo, hi)) in limits.y_min.iter().zip(&limits.y_max).enumerate() {
+            if lo.is_nan() || hi.is_nan() || lo >= hi {
+                return Err(err("service.y-min", format!("channel {i}: y-min {lo} must be below y-max {hi}")));
+            }
+        }
+        for (i, (lo, hi)) in limits.z_min.iter().zip(&limits.z_max).enumerate() {
+            if lo.is_nan() || hi.is_nan() || lo >= hi {
+                return Err(err("service.z-min", format!("channel {i}: z-min {lo} must be below z-max {hi}")));
+            }
+        }
+        let safe_input = per_channel(&s.safe_input, n_u, 0.0, "service.safe-input")?;
+        if safe_input.iter().any(|v| !v.is_finite()) {
+            return Err(err("service.safe-input", "must be finite".into()));
+        }
+        let peer_timeout = s.peer_timeout.unwrap_or(30.0);
+        if !(peer_timeout.is_finite() && peer_timeout > 0.0) {
+            return Err(err("service.peer-timeout", format!("{peer_timeout} s is not positive")));
+        }
+        let interval = s.histogram_interval.unwrap_or(1.0);
+        if !(interval.is_finite() && interval > 0.0) {
+            return Err(err("service.histogram-interval", format!("{interval} s is not positive")));
+        }
+        let histogram_interval_cycles = ((interval / period).round() as u64).max(1);
+        let l = raw.log.unwrap_or_default();
+        let log = LogConfig {
+            enabled: l.enabled.unwrap_or(true),
+            decimation: l.decimation.unwrap_or(1).max(1),
+            queue_capacity: l.queue_capacity.unwrap_or(65536),
+        };
+        if log.queue_capacity < 16 {
+            return Err(err("log.queue-capacity", "must be at least 16".into()));
+        }
+        let controller_value = raw
+            .controller
+            .ok_or_else(|| err("controller", "the [controller] table is missing".into()))?;
+        let controller = parse_controller(controller_value, counts, &err)?;
+
+        Ok(ServiceConfig {
+            origin: origin.to_string(),
+            rig: rig.name,
+            sample_period_ns,
+            counts,
+            rt,
+            require_rt: s.require_rt.unwrap_or(false),
+            wait: s.wait.unwrap_or(WaitMode::BusyPoll),
+            policy,
+            limits,
+            safe_input,
+            peer_timeout: Duration::from_secs_f64(peer_timeout),
+            histogram_interval_cycles,
+            budget_ns: sample_period_ns,
+            log,
+            run_dir: s.run_dir.unwrap_or_else(|| PathBuf::from("runs")),
+            controller,
+            rms_settle_cycles: (s.rms_settle.unwrap_or(0.0).max(0.0) / period).round() as u64,
+        })
+    }
+}
+
+fn positive(
+    v: u64,
+    field: &str,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<u64, ConfigError> {
+    if v == 0 { Err(err(field, "must be at least 1".into())) } else { Ok(v) }
+}
+
+fn channels_from_plant(plant: Option<&toml::Value>) -> Result<ChannelCounts, String> {
+    let plant = plant.ok_or(
+        "neither [service.channels] nor a [plant] table says how many channels the rig has",
+    )?;
+    let get = |k: &str, default: Option<i64>| -> Result<usize, String> {
+        match plant.get(k).and_then(|v| v.as_integer()).or(default) {
+            Some(n) if n >= 0 => Ok(n as usize),
+            Some(n) => Err(format!("plant.{k} = {n} is negative")),
+            None => Err(format!("plant.{k} is missing, and [service.channels] is not given")),
+        }
+    };
+    ChannelCounts::new(get("outputs-y", None)?, get("outputs-z", None)?, get("commands", Some(0))?, get("inputs", None)?)
+}
+
+fn matrix(rows: &[Vec<f64>], cols_if_empty: usize, field: &str) -> Result<DMatrix<f64>, String> {
+    if rows.is_empty() {
+        return Ok(DMatrix::zeros(0, cols_if_empty));
+    }
+    let n = rows[0].len();
+    if let Some((i, r)) = rows.iter().enumerate().find(|(_, r)| r.len() != n) {
+        return Err(format!("{field}: row {i} has {} entries, row 0 has {n}", r.len()));
+    }
+    Ok(DMatrix::from_fn(rows.len(), n, |i, j| rows[i][j]))
+}
+
+fn parse_controller(
+    value: toml::Value,
+    counts: ChannelCounts,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<ControllerConfig, ConfigError> {
+    let kind = value.get("kind").and_then(|v| v.as_str()).unwrap_or("");
+    match kind {
+        "lti" => {}
+        "" => return Err(err("controller.kind", "missing; known kinds: lti".into())),
+        other => return Err(err("controller.kind", format!("unknown controller '{other}'; known kinds: lti"))),
+    }
+    let raw: RawLti = value.try_into().map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
+    debug_assert_eq!(raw.kind, "lti");
+    let input = match raw.input.as_deref().unwrap_or("y") {
+        "y" => ControllerInput::Y,
+        "error" => ControllerInput::Error,
+        "y-and-r" => ControllerInput::YAndR,
+        other => return Err(err("controller.input", format!("'{other}' is not one of y, error, y-and-r"))),
+    };
+    let n_u = counts.n_u as usize;
+    let n_e = match input {
+        ControllerInput::YAndR => (counts.n_y + counts.n_r) as usize,
+        _ => counts.n_y as usize,
+    };
+    let limits = match (&raw.u_min, &raw.u_max) {
+        (None, None) => None,
+        (lo, hi) => {
+            let expand = |v: &Option<ScalarOrVec>, d: f64, f: &str| match v {
+                None => Ok(vec![d; n_u]),
+                Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n_u]),
+                Some(ScalarOrVec::Vec(x)) if x.len() == n_u => Ok(x.clone()),
+                Some(ScalarOrVec::Vec(x)) => Err(err(f, format!("has {} values, expected {n_u}", x.len()))),
+            };
+            Some(OutputLimits {
+                min: expand(lo, f64::NEG_INFINITY, "controller.u-min")?,
+                max: expand(hi, f64::INFINITY, "controller.u-max")?,
+            })
+        }
+    };
+    let (a, b, c, d, x0) = match (raw.ss, raw.tf) {
+        (Some(ss), None) => {
+            let a = matrix(&ss.a, 0, "a").map_err(|m| err("controller.ss.a", m))?;
+            let n = a.nrows();
+            let b = matrix(&ss.b, n_e, "b").map_err(|m| err("controller.ss.b", m))?;
+            let c = if ss.c.is_empty() || (n == 0 && ss.c.iter().all(|r| r.is_empty())) {
+                DMatrix::zeros(n_u, n)
+            } else {
+                matrix(&ss.c, n, "c").map_err(|m| err("controller.ss.c", m))?
+            };
+            let d = matrix(&ss.d, n_e, "d").map_err(|m| err("controller.ss.d", m))?;
+            (a, b, c, d, ss.x0.map(DVector::from_vec))
+        }
+        (None, Some(tf)) => {
+            let (a, b, c, d) = realize_tf_entries(&tf.entries, n_u, n_e)
+                .map_err(|m| err("controller.tf.entries", m))?;
+            (a, b, c, d, None)
+        }
+        (Some(_), Some(_)) => return Err(err("controller", "give [controller.ss] or [controller.tf], not both".into())),
+        (None, None) => return Err(err("controller", "an lti controller needs [controller.ss] or [controller.tf]".into())),
+    };
+    let cfg = ControllerConfig::Lti { a, b, c, d, x0, input, limits };
+    // Build once now so that size errors are reported at load time, naming the table.
+    cfg.build(counts).map_err(|m| err("controller", m))?;
+    Ok(cfg)
+}
+
+/// Realizes an `n_u × n_e` matrix of discrete transfer functions with plant-proxy's
+/// realization code.
+fn realize_tf_entries(
+    entries: &[Vec<RawTfEntry>],
+    n_u: usize,
+    n_e: usize,
+) -> Result<(DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>), String> {
+    use plant_proxy::lti::{Tf, realize_tf_matrix};
+    if entries.len() != n_u {
+        return Err(format!("{} rows, expected one per input u ({n_u})", entries.len()));
+    }
+    let mut m = Vec::with_capacity(n_u);
+    for (i, row) in entries.iter().enumerate() {
+        if row.len() != n_e {
+            return Err(format!("row {i} has {} entries, expected one per controller input ({n_e})", row.len()));
+        }
+        let mut r = Vec::with_capacity(n_e);
+        for (j, e) in row.iter().enumerate() {
+            r.push(match e {
+                RawTfEntry::Zero(0) => None,
+                RawTfEntry::Zero(v) => return Err(format!("[{i}][{j}] = {v}: an entry is 0 or {{ num, den }}")),
+                RawTfEntry::Tf { num, den } => Some(
+                    Tf::new(num.clone(), den.clone()).map_err(|e| format!("[{i}][{j}]: {e}"))?,
+                ),
+            });
+        }
+        m.push(r);
+    }
+    let ss = realize_tf_matrix(&m).map_err(|e| e.to_string())?;
+    Ok((ss.a, ss.b, ss.c, ss.d))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[rig]
+name = "unit"
+sample-period = 0.001
+[service]
+channels = { y = 1, z = 1, u = 1 }
+y-min = -5.0
+y-max = 5.0
+[controller]
+kind = "lti"
+[controller.ss]
+a = []
+b = []
+c = []
+d = [[-2.0]]
+"#;
+
+    #[test]
+    fn a_good_file_gives_typed_parameters() {
+        let c = ServiceConfig::parse(GOOD, "good.toml").unwrap();
+        assert_eq!(c.sample_period_ns, 1_000_000);
+        assert_eq!(c.counts, ChannelCounts { n_y: 1, n_z: 1, n_r: 0, n_u: 1 });
+        assert_eq!(c.limits.y_max, vec![5.0]);
+        assert_eq!(c.wait, WaitMode::BusyPoll);
+    }
+
+    fn refused(text: &str) -> String {
+        ServiceConfig::parse(text, "bad.toml").err().expect("must be refused").to_string()
+    }
+
+    #[test]
+    fn bad_values_are_refused_naming_file_and_field() {
+        let m = refused(&GOOD.replace("y-max = 5.0", "y-max = -6.0"));
+        assert!(m.starts_with("bad.toml: field 'service.y-min'"), "{m}");
+        let m = refused(&GOOD.replace("d = [[-2.0]]", "d = [[-2.0, 1.0]]"));
+        assert!(m.contains("field 'controller'") && m.contains("d is 1×2, expected 1×1"), "{m}");
+        let m = refused(&GOOD.replace("kind = \"lti\"", "kind = \"pid\""));
+        assert!(m.contains("controller.kind") && m.contains("pid"), "{m}");
+        let m = refused(&GOOD.replace("[service]", "[service]\nwiat = \"block\""));
+        assert!(m.contains("wiat"), "{m}");
+        let m = refused(&GOOD.replace("[rig]", "[rigg]\n[rig]"));
+        assert!(m.contains("field 'rigg'") && m.contains("unknown table"), "{m}");
+        let m = refused(&GOOD.replace("sample-period = 0.001", "sample-period = -1.0"));
+        assert!(m.contains("rig.sample-period"), "{m}");
+        let m = refused(&GOOD.replace("name = \"unit\"", "name = \"a/b\""));
+        assert!(m.contains("rig.name"), "{m}");
+        let m = refused("[rig\nname=");
+        assert!(m.starts_with("bad.toml: not valid TOML"), "{m}");
+    }
+
+    #[test]
+    fn channel_counts_come_from_the_plant_table_when_not_given() {
+        let text = GOOD.replace("channels = { y = 1, z = 1, u = 1 }", "")
+            + "\n[plant]\nkind = \"transfer-function\"\ninputs = 1\noutputs-y = 1\noutputs-z = 1\ndisturbances = 0\n";
+        let c = ServiceConfig::parse(&text, "x.toml").unwrap();
+        assert_eq!(c.counts.n_u, 1);
+    }
+}

@@ -1,1 +1,895 @@
-//! (being written)
+//! The real-time loop of the service, its deadline and silence policy, and the run report.
+//!
+//! Two phases, kept apart by types. [`run`] builds everything that allocates — the
+//! controller, the histogram boxes, the log and event queues, the iceoryx2 ports — and
+//! starts the helper threads (histogram reporter, CSV writer) off the RT core and at normal
+//! priority. The RT thread then pins itself, asks for `SCHED_FIFO` and `mlockall`, connects,
+//! and runs [`LoopCore`], whose per-sample work is:
+//!
+//! ```text
+//!  wait for measurement k (busy-poll or blocking on the plant's event)
+//!  validate it (contract version and counts, finite, in range) — else hold u, count
+//!  u_k = controller.step(y_k, z_k, r_k)            (or the safe input in the safe state)
+//!  publish actuation k; record wake-up, compute, response time and period jitter
+//!  push the signals to the log queue (drop and count when full)
+//!  deadline policy: response > deadline ⇒ miss; N consecutive misses after the grace
+//!  period ⇒ safe state (latched, or left after M good cycles)
+//! ```
+//!
+//! Nothing in that path allocates, locks, does I/O or panics (a counting-allocator test in
+//! `service/tests/no_alloc.rs` runs it). Events (plant silent, resumed, safe state) leave the
+//! RT thread through a lock-free queue and are printed by the supervising thread. When no
+//! sample has arrived for `silent-periods` periods the plant is declared silent; while it is,
+//! and only then, the loop cleans up stale iceoryx2 resources of dead processes every 100 ms
+//! so that a restarted plant can connect, and it resumes on the next sample.
+
+use crate::config::{ServiceConfig, WaitMode};
+use crate::controller::{Controller, MAX_INTERNALS, StepInput};
+use crate::logging::{self, LogLayout, LogProducer, LogRecord};
+use crate::telemetry::{self, CycleTiming, TelemetryRt, TelemetrySummary};
+use ipc_types::clock::monotonic_ns;
+use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
+use ipc_types::rt::RtSetup;
+use ipc_types::{
+    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, MAX_Y, MAX_Z, Measurement,
+    actuation_status, measurement_flags,
+};
+use serde::Serialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+/// Something the RT loop reports; carried out of it through a lock-free queue.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(tag = "event", rename_all = "kebab-case")]
+pub enum LoopEvent {
+    /// The first sample of a plant session arrived.
+    FirstSample {
+        /// Its sequence number.
+        seq: u64,
+    },
+    /// No sample for the configured number of periods.
+    PlantSilent {
+        /// The last sequence number received.
+        last_seq: u64,
+        /// Periods waited.
+        periods: u64,
+    },
+    /// Samples came back after silence.
+    PlantResumed {
+        /// The first sequence number received again.
+        seq: u64,
+    },
+    /// The sequence went backwards without silence (a plant restarted quickly).
+    SequenceRestarted {
+        /// The last sequence number before.
+        from: u64,
+        /// The new one.
+        to: u64,
+    },
+    /// Too many consecutive deadline misses: the safe input is applied.
+    SafeStateEntered {
+        /// Sequence number at which it happened.
+        seq: u64,
+        /// Consecutive misses counted.
+        misses: u64,
+    },
+    /// The safe state was left after enough good cycles.
+    SafeStateLeft {
+        /// Sequence number at which it happened.
+        seq: u64,
+    },
+    /// The plant said this was its last sample.
+    PlantEnded {
+        /// Its sequence number.
+        seq: u64,
+    },
+    /// Stale resources of dead iceoryx2 nodes were removed.
+    DeadNodesCleaned {
+        /// How many nodes.
+        count: u64,
+    },
+}
+
+impl fmt::Display for LoopEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LoopEvent::FirstSample { seq } => write!(f, "plant connected: first sample seq {seq}"),
+            LoopEvent::PlantSilent { last_seq, periods } => write!(
+                f,
+                "PLANT SILENT: no sample for {periods} periods after seq {last_seq}; waiting for it to come back"
+            ),
+            LoopEvent::PlantResumed { seq } => write!(f, "plant resumed at seq {seq}"),
+            LoopEvent::SequenceRestarted { from, to } => {
+                write!(f, "plant sequence restarted: {from} -> {to}")
+            }
+            LoopEvent::SafeStateEntered { seq, misses } => write!(
+                f,
+                "SAFE STATE at seq {seq}: {misses} consecutive deadline misses; applying the safe input"
+            ),
+            LoopEvent::SafeStateLeft { seq } => write!(f, "safe state left at seq {seq}"),
+            LoopEvent::PlantEnded { seq } => write!(f, "plant ended its run at seq {seq}"),
+            LoopEvent::DeadNodesCleaned { count } => {
+                write!(f, "removed stale resources of {count} dead iceoryx2 node(s)")
+            }
+        }
+    }
+}
+
+/// Counters of the RT loop.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct LoopStats {
+    /// Measurements received.
+    pub received: u64,
+    /// Actuations published.
+    pub published: u64,
+    /// Controller steps run.
+    pub controller_steps: u64,
+    /// Samples rejected for another contract version or other channel counts.
+    pub rejected_contract: u64,
+    /// Samples rejected for a NaN or infinite value.
+    pub rejected_non_finite: u64,
+    /// Samples rejected for a value outside the configured range.
+    pub rejected_out_of_range: u64,
+    /// Samples never seen (gaps in the sequence).
+    pub skipped: u64,
+    /// Cycles whose response came after the plant's deadline.
+    pub deadline_misses: u64,
+    /// Misses the plant reported (its view: the actuation was late or absent).
+    pub plant_reported_misses: u64,
+    /// Longest run of consecutive misses.
+    pub max_consecutive_misses: u64,
+    /// Entries into the safe state.
+    pub safe_state_entries: u64,
+    /// Cycles spent in the safe state.
+    pub safe_state_cycles: u64,
+    /// Times the plant went silent.
+    pub plant_silent_events: u64,
+    /// Times it came back.
+    pub plant_resumes: u64,
+    /// Cycles the controller reported saturation.
+    pub saturated_cycles: u64,
+    /// Cycles the controller reported a fault.
+    pub controller_faults: u64,
+    /// Actuations that could not be published.
+    pub publish_failures: u64,
+    /// Events dropped because the event queue was full.
+    pub events_dropped: u64,
+}
+
+/// Why the loop stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StopReason {
+    /// SIGINT or SIGTERM.
+    Signal,
+    /// The plant sent its last sample.
+    PlantEnded,
+    /// The configured maximum number of cycles was reached.
+    MaxCycles,
+}
+
+/// The pure per-sample logic of the RT loop, all buffers pre-allocated. The IPC glue
+/// around it only receives, calls [`LoopCore::process`] and [`LoopCore::finish_cycle`],
+/// and publishes.
+pub struct LoopCore {
+    controller: Box<dyn Controller>,
+    telemetry: TelemetryRt,
+    log: Option<LogProducer>,
+    events: rtrb::Producer<LoopEvent>,
+    counts: ChannelCounts,
+    y_min: [f64; MAX_Y],
+    y_max: [f64; MAX_Y],
+    z_min: [f64; MAX_Z],
+    z_max: [f64; MAX_Z],
+    safe_input: [f64; MAX_U],
+    last_u: [f64; MAX_U],
+    period_ns: u64,
+    grace_cycles: u64,
+    max_consecutive_misses: u64,
+    recover_after: Option<u64>,
+    silent_ns: u64,
+    silent_periods: u64,
+    reset_on_resume: bool,
+    rms_settle_cycles: u64,
+    /// Counters, readable at any time.
+    pub stats: LoopStats,
+    in_safe_state: bool,
+    consecutive_misses: u64,
+    good_in_safe_state: u64,
+    cycles_in_session: u64,
+    last_seq: Option<u64>,
+    last_recv_ns: Option<u64>,
+    silent: bool,
+    z_sum_sq: [f64; MAX_Z],
+    z_sum_sq_settled: [f64; MAX_Z],
+    z_count: u64,
+    z_count_settled: u64,
+    record: LogRecord,
+    internals: [f64; MAX_INTERNALS],
+    pending_jitter: Option<u64>,
+}
+
+/// What [`LoopCore::process`] decided for one sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CycleDecision {
+    /// Compute time of the controller step (0 when it did not run).
+    pub compute_ns: u64,
+    /// The plant says this was its last sample.
+    pub last_sample: bool,
+}
+
+impl LoopCore {
+    /// Builds the loop state from the configuration (allocating; before the RT phase).
+    pub fn new(
+        cfg: &ServiceConfig,
+        controller: Box<dyn Controller>,
+        telemetry: TelemetryRt,
+        log: Option<LogProducer>,
+        events: rtrb::Producer<LoopEvent>,
+    ) -> Self {
+        let fill = |src: &[f64], default: f64| {
+            let mut a = [default; 16];
+            a[..src.len()].copy_from_slice(src);
+            a
+        };
+        let mut safe_input = [0.0; MAX_U];
+        safe_input[..cfg.safe_input.len()].copy_from_slice(&cfg.safe_input);
+        Self {
+            controller,
+            telemetry,
+            log,
+            events,
+            counts: cfg.counts,
+            y_min: fill(&cfg.limits.y_min, f64::NEG_INFINITY),
+            y_max: fill(&cfg.limits.y_max, f64::INFINITY),
+            z_min: fill(&cfg.limits.z_min, f64::NEG_INFINITY),
+            z_max: fill(&cfg.limits.z_max, f64::INFINITY),
+            safe_input,
+            last_u: safe_input,
+            period_ns: cfg.sample_period_ns,
+            grace_cycles: cfg.policy.grace_cycles,
+            max_consecutive_misses: cfg.policy.max_consecutive_misses,
+            recover_after: cfg.policy.recover_after,
+            silent_ns: cfg.policy.silent_periods.saturating_mul(cfg.sample_period_ns),
+            silent_periods: cfg.policy.silent_periods,
+            reset_on_resume: cfg.policy.reset_on_resume,
+            rms_settle_cycles: cfg.rms_settle_cycles,
+            stats: LoopStats::default(),
+            in_safe_state: false,
+            consecutive_misses: 0,
+            good_in_safe_state: 0,
+            cycles_in_session: 0,
+            last_seq: None,
+            last_recv_ns: None,
+            silent: false,
+            z_sum_sq: [0.0; MAX_Z],
+            z_sum_sq_settled: [0.0; MAX_Z],
+            z_count: 0,
+            z_count_settled: 0,
+            record: LogRecord::zeroed(),
+            internals: [0.0; MAX_INTERNALS],
+            pending_jitter: None,
+        }
+    }
+
+    fn event(&mut self, e: LoopEvent) {
+        if self.events.push(e).is_err() {
+            self.stats.events_dropped += 1;
+        }
+    }
+
+    fn valid(&mut self, m: &Measurement) -> bool {
+        if m.contract_version != CONTRACT_VERSION || m.counts != self.counts {
+            self.stats.rejected_contract += 1;
+            return false;
+        }
+        let (y, z, r) = (m.y(), m.z(), m.r());
+        let finite = y.iter().chain(z).chain(r).all(|v| v.is_finite());
+        if !finite {
+            self.stats.rejected_non_finite += 1;
+            return false;
+        }
+        let y_ok = y.iter().enumerate().all(|(i, v)| *v >= self.y_min[i] && *v <= self.y_max[i]);
+        let z_ok = z.iter().enumerate().all(|(i, v)| *v >= self.z_min[i] && *v <= self.z_max[i]);
+        if !(y_ok && z_ok) {
+            self.stats.rejected_out_of_range += 1;
+            return false;
+        }
+        true
+    }
+
+    /// Handles measurement `m` received at `t_recv_ns` and writes the answer into `act`
+    /// (all fields but `t_publish_ns`).
+    pub fn process(&mut self, m: &Measurement, t_recv_ns: u64, act: &mut Actuation) -> CycleDecision {
+        self.stats.received += 1;
+        // Session bookkeeping: first sample, resume after silence, sequence restart, gaps.
+        match self.last_seq {
+            None => self.event(LoopEvent::FirstSample { seq: m.seq }),
+            Some(last) => {
+                if self.silent {
+                    self.silent = false;
+                    self.stats.plant_resumes += 1;
+                    self.event(LoopEvent::PlantResumed { seq: m.seq });
+                    self.new_session();
+                } else if m.seq <= last {
+                    self.event(LoopEvent::SequenceRestarted { from: last, to: m.seq });
+                    self.new_session();
+                } else if m.seq > last + 1 {
+                    self.stats.skipped += m.seq - last - 1;
+                }
+            }
+        }
+        if m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0 && self.cycles_in_session > 0 {
+            self.stats.plant_reported_misses += 1;
+        }
+        let jitter = self.last_recv_ns.map(|prev| {
+            let dt = t_recv_ns.saturating_sub(prev);
+            dt.abs_diff(self.period_ns)
+        });
+        self.last_seq = Some(m.seq);
+        self.last_recv_ns = Some(t_recv_ns);
+        self.cycles_in_session += 1;
+
+        let n_u = self.counts.n_u as usize;
+        act.contract_version = CONTRACT_VERSION;
+        act.seq = m.seq;
+        act.t_sample_ns = m.t_sample_ns;
+        act.counts = self.counts;
+        act.u = [0.0; MAX_U];
+        let mut status = actuation_status::OK;
+        let mut compute_ns = 0;
+        if self.cycles_in_session <= self.grace_cycles {
+            status |= actuation_status::STARTING;
+        }
+        if !self.valid(m) {
+            status |= actuation_status::MEASUREMENT_REJECTED;
+            act.u[..n_u].copy_from_slice(&self.last_u[..n_u]);
+        } else if self.in_safe_state {
+            status |= actuation_status::SAFE_STATE;
+            act.u[..n_u].copy_from_slice(&self.safe_input[..n_u]);
+            self.stats.safe_state_cycles += 1;
+            self.accumulate_z(m);
+        } else {
+            let input = StepInput { seq: m.seq, y: m.y(), z: m.z(), r: m.r() };
+            let t0 = monotonic_ns();
+            let s = self.controller.step(&input, &mut act.u[..n_u]);
+            compute_ns = monotonic_ns().saturating_sub(t0);
+            self.stats.controller_steps += 1;
+            if s & actuation_status::SATURATED != 0 {
+                self.stats.saturated_cycles += 1;
+            }
+            if s & actuation_status::CONTROLLER_FAULT != 0 {
+                self.stats.controller_faults += 1;
+            }
+            // The controller promises finite output; the runtime still never sends a NaN.
+            for (v, safe) in act.u[..n_u].iter_mut().zip(&self.safe_input) {
+                if !v.is_finite() {
+                    *v = *safe;
+                }
+            }
+            status |= s;
+            self.last_u[..n_u].copy_from_slice(&act.u[..n_u]);
+            self.accumulate_z(m);
+        }
+        act.status = status;
+        act.compute_ns = compute_ns;
+        self.pending_jitter = jitter;
+        CycleDecision { compute_ns, last_sample: m.flags & measurement_flags::LAST_SAMPLE != 0 }
+    }
+
+    fn accumulate_z(&mut self, m: &Measurement) {
+        self.z_count += 1;
+        let settled = self.z_count > self.rms_settle_cycles;
+        if settled {
+            self.z_count_settled += 1;
+        }
+        for (i, z) in m.z().iter().enumerate() {
+            self.z_sum_sq[i] += z * z;
+            if settled {
+                self.z_sum_sq_settled[i] += z * z;
+            }
+        }
+    }
+
+    fn new_session(&mut self) {
+        if self.reset_on_resume {
+            self.controller.reset();
+        }
+        self.cycles_in_session = 0;
+        self.consecutive_misses = 0;
+        self.last_recv_ns = None;
+    }
+
+    /// Completes the cycle after publishing at `t_pub_ns`: deadline policy, histograms, log.
+    pub fn finish_cycle(&mut self, m: &Measurement, act: &Actuation, t_recv_ns: u64, t_pub_ns: u64, published: bool) {
+        if published {
+            self.stats.published += 1;
+        } else {
+            self.stats.publish_failures += 1;
+        }
+        let response_ns = t_pub_ns.saturating_sub(m.t_sample_ns);
+        let missed = !published || (m.deadline_ns > 0 && response_ns > m.deadline_ns);
+        if missed {
+            self.stats.deadline_misses += 1;
+            self.consecutive_misses += 1;
+            self.stats.max_consecutive_misses =
+                self.stats.max_consecutive_misses.max(self.consecutive_misses);
+            self.good_in_safe_state = 0;
+            let counts_toward_limit = self.cycles_in_session > self.grace_cycles;
+            if counts_toward_limit
+                && !self.in_safe_state
+                && self.consecutive_misses >= self.max_consecutive_misses
+            {
+                self.in_safe_state = true;
+                self.stats.safe_state_entries += 1;
+                let misses = self.consecutive_misses;
+                self.event(LoopEvent::SafeStateEntered { seq: m.seq, misses });
+            }
+        } else {
+            self.consecutive_misses = 0;
+            if self.in_safe_state {
+                self.good_in_safe_state += 1;
+                if self.recover_after.is_some_and(|n| self.good_in_safe_state >= n) {
+                    self.in_safe_state = false;
+                    self.good_in_safe_state = 0;
+                    self.controller.reset();
+                    self.event(LoopEvent::SafeStateLeft { seq: m.seq });
+                }
+            }
+        }
+        let jitter = self.pending_jitter.take();
+        self.telemetry.record(&CycleTiming {
+            seq: m.seq,
+            wakeup_ns: t_recv_ns.saturating_sub(m.t_sample_ns),
+            compute_ns: act.compute_ns,
+            response_ns,
+            period_jitter_ns: jitter,
+        });
+        if let Some(log) = self.log.as_mut() {
+            let r = &mut self.record;
+            r.seq = m.seq;
+            r.t_sample_ns = m.t_sample_ns;
+            r.status = act.status;
+            r.flags = m.flags;
+            r.y = m.y;
+            r.z = m.z;
+            r.u = act.u;
+            let n = self.controller.internals(&mut self.internals);
+            r.internals[..n].copy_from_slice(&self.internals[..n]);
+            log.push(r);
+        }
+        if m.flags & measurement_flags::LAST_SAMPLE != 0 {
+            self.event(LoopEvent::PlantEnded { seq: m.seq });
+        }
+    }
+
+    /// Called while no sample is pending; returns true when the plant has just been declared
+    /// silent or is silent.
+    pub fn on_idle(&mut self, now_ns: u64) -> bool {
+        if self.silent {
+            return true;
+        }
+        if let (Some(last), Some(seq)) = (self.last_recv_ns, self.last_seq) {
+            if now_ns.saturating_sub(last) > self.silent_ns {
+                self.silent = true;
+                self.stats.plant_silent_events += 1;
+                let periods = self.silent_periods;
+                self.event(LoopEvent::PlantSilent { last_seq: seq, periods });
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Reports the result of a stale-resource clean-up done while the plant is silent.
+    pub fn note_cleanup(&mut self, count: usize) {
+        if count > 0 {
+            self.event(LoopEvent::DeadNodesCleaned { count: count as u64 });
+        }
+    }
+
+    /// RMS of each performance channel over the whole run and after the settling time.
+    pub fn z_rms(&self) -> (Vec<f64>, Vec<f64>) {
+        let n = self.counts.n_z as usize;
+        let rms = |s: &[f64; MAX_Z], c: u64| {
+            s[..n].iter().map(|v| if c > 0 { (v / c as f64).sqrt() } else { f64::NAN }).collect()
+        };
+        (rms(&self.z_sum_sq, self.z_count), rms(&self.z_sum_sq_settled, self.z_count_settled))
+    }
+
+    /// Hands the histogram box back at the end of a run.
+    pub fn flush_telemetry(&mut self) {
+        self.telemetry.flush();
+    }
+}
+
+/// Options of one run that do not belong in the configuration file.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Overrides `service.run-dir`: the folder this run writes into (created).
+    pub run_folder: Option<PathBuf>,
+    /// Stop when the plant sends its last sample.
+    pub exit_with_plant: bool,
+    /// Stop after this many received samples.
+    pub max_cycles: Option<u64>,
+    /// Overrides `service.wait`.
+    pub wait: Option<WaitMode>,
+    /// Overrides `service.core`.
+    pub core: Option<usize>,
+}
+
+/// Why the service could not run.
+#[derive(Debug)]
+pub enum ServiceError {
+    /// The run folder could not be created or written.
+    Io {
+        /// What was being done.
+        what: String,
+        /// The OS error.
+        error: std::io::Error,
+    },
+    /// The controller could not be built.
+    Controller(String),
+    /// `require-rt` is set and the OS refused a real-time set-up step.
+    RtRefused(String),
+    /// The plant could not be connected.
+    Connect(ipc_types::ports::ConnectError),
+    /// The RT thread ended abnormally.
+    RtThread(String),
+}
+
+impl fmt::Display for ServiceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ServiceError::Io { what, error } => write!(f, "{what}: {error}"),
+            ServiceError::Controller(m) => write!(f, "controller: {m}"),
+            ServiceError::RtRefused(m) => write!(
+                f,
+                "real-time set-up refused and service.require-rt is true: {m}"
+            ),
+            ServiceError::Connect(e) => write!(f, "{e}"),
+            ServiceError::RtThread(m) => write!(f, "RT thread: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for ServiceError {}
+
+/// The report of one run, written as `report.json` into the run folder and printed.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunReport {
+    /// Rig name.
+    pub rig: String,
+    /// Configuration file.
+    pub config: String,
+    /// The run folder.
+    pub run_folder: String,
+    /// Controller kind.
+    pub controller: String,
+    /// Wait mode used.
+    pub wait: String,
+    /// Outcome of the real-time set-up, one line.
+    pub rt_setup: String,
+    /// True when any RT set-up step was refused.
+    pub rt_degraded: bool,
+    /// Why the loop stopped.
+    pub stop_reason: StopReason,
+    /// Counters.
+    pub stats: LoopStats,
+    /// Every event, in order.
+    pub events: Vec<LoopEvent>,
+    /// RMS of each performance channel over the run.
+    pub z_rms: Vec<f64>,
+    /// RMS of each performance channel after `service.rms-settle` seconds.
+    pub z_rms_settled: Vec<f64>,
+    /// Latency histograms.
+    pub latency: TelemetrySummary,
+    /// Signal log records written and dropped.
+    pub log_written: u64,
+    /// Signal log records dropped because the queue was full.
+    pub log_dropped: u64,
+    /// Response-time budget used for "over budget" (the sample period), ns.
+    pub budget_ns: u64,
+}
+
+impl RunReport {
+    /// The human-readable report.
+    pub fn render(&self) -> String {
+        let s = &self.stats;
+        let mut out = String::new();
+        out += &format!("=== run report: rig '{}', controller {}, wait {} ===\n", self.rig, self.controller, self.wait);
+        out += &format!("run folder: {}\n", self.run_folder);
+        out += &format!(
+            "real-time set-up: {}{}\n",
+            self.rt_setup,
+            if self.rt_degraded { "  (DEGRADED: latency figures are not those of an RT setup)" } else { "" }
+        );
+        out += &format!("stopped: {:?}\n", self.stop_reason);
+        out += &format!(
+            "samples: {} received, {} published, {} controller steps, {} skipped\n",
+            s.received, s.published, s.controller_steps, s.skipped
+        );
+        out += &format!(
+            "deadline: {} misses (service-measured), {} reported by the plant, longest run {}, \
+             safe state entered {}× ({} cycles)\n",
+            s.deadline_misses, s.plant_reported_misses, s.max_consecutive_misses, s.safe_state_entries, s.safe_state_cycles
+        );
+        out += &format!(
+            "rejected measurements: {} non-finite, {} out of range, {} contract\n",
+            s.rejected_non_finite, s.rejected_out_of_range, s.rejected_contract
+        );
+        out += &format!(
+            "plant silent {}×, resumed {}×; controller faults {}, saturated cycles {}\n",
+            s.plant_silent_events, s.plant_resumes, s.controller_faults, s.saturated_cycles
+        );
+        let fmt_v = |v: &[f64]| v.iter().map(|x| format!("{x:.4e}")).collect::<Vec<_>>().join(", ");
+        out += &format!("RMS of z: [{}] (whole run), [{}] (after settling)\n", fmt_v(&self.z_rms), fmt_v(&self.z_rms_settled));
+        out += &format!("signal log: {} records written, {} dropped\n", self.log_written, self.log_dropped);
+        out += &self.latency.render_table(self.budget_ns);
+        out
+    }
+}
+
+/// Runs the service with `cfg` until a signal sets `shutdown`, the plant ends (with
+/// `exit_with_plant`), or `max_cycles` samples have been received. Prints events as they
+/// happen; returns the report (also written to `report.json` in the run folder).
+pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) -> Result<RunReport, ServiceError> {
+    let mut cfg = cfg.clone();
+    if let Some(w) = opts.wait {
+        cfg.wait = w;
+    }
+    if let Some(c) = opts.core {
+        cfg.rt.core = Some(c);
+    }
+    let folder = match &opts.run_folder {
+        Some(f) => f.clone(),
+        None => cfg.run_dir.join(format!("{}-{}", cfg.rig, timestamp())),
+    };
+    std::fs::create_dir_all(&folder)
+        .map_err(|error| ServiceError::Io { what: format!("creating run folder {}", folder.display()), error })?;
+    let controller = cfg.controller.build(cfg.counts).map_err(ServiceError::Controller)?;
+    let controller_kind = controller.kind();
+    let internal_names = controller.internal_names();
+
+    let (tele_rt, tele_reporter) = telemetry::channel(cfg.budget_ns, cfg.histogram_interval_cycles, 4, &folder)
+        .map_err(|error| ServiceError::Io { what: "creating histogram logs".into(), error })?;
+    let (log_producer, log_writer) = if cfg.log.enabled {
+        let layout = LogLayout {
+            n_y: cfg.counts.n_y as usize,
+            n_z: cfg.counts.n_z as usize,
+            n_u: cfg.counts.n_u as usize,
+            internal_names,
+            decimation: cfg.log.decimation,
+        };
+        let (p, w) = logging::channel(cfg.log.queue_capacity, layout);
+        (Some(p), Some(w))
+    } else {
+        (None, None)
+    };
+    let (event_tx, mut event_rx) = rtrb::RingBuffer::<LoopEvent>::new(1024);
+    let rt_core = cfg.rt.core;
+
+    // Helper threads inherit this thread's affinity and policy: off the RT core, normal
+    // priority. The RT thread pins itself afterwards.
+    ipc_types::rt::keep_off_core(rt_core);
+    let log_handle = match log_writer {
+        Some(w) => Some(
+            w.spawn(folder.join("signals.csv"))
+                .map_err(|error| ServiceError::Io { what: "starting the CSV writer".into(), error })?,
+        ),
+        None => None,
+    };
+    let reporter_stop = Arc::new(AtomicBool::new(false));
+    let reporter_thread = {
+        let stop = reporter_stop.clone();
+        let mut reporter = tele_reporter;
+        std::thread::Builder::new()
+            .name("histograms".into())
+            .spawn(move || {
+                while !stop.load(Ordering::Acquire) {
+                    if let Err(e) = reporter.poll() {
+                        eprintln!("[service] histogram log write failed: {e}");
+                    }
+                    std::thread::sleep(Duration::from_millis(50));
+                }
+                reporter
+            })
+            .map_err(|error| ServiceError::Io { what: "starting the histogram thread".into(), error })?
+    };
+
+    let core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx);
+    let rt_cfg = cfg.clone();
+    let rt_shutdown = shutdown.clone();
+    let max_cycles = opts.max_cycles;
+    let exit_with_plant = opts.exit_with_plant;
+    let rt_thread = std::thread::Builder::new()
+        .name("rt-loop".into())
+        .spawn(move || rt_thread_main(rt_cfg, core, rt_shutdown, max_cycles, exit_with_plant))
+        .map_err(|error| ServiceError::Io { what: "starting the RT thread".into(), error })?;
+
+    // Supervise: print events while the RT thread runs.
+    let mut events = Vec::new();
+    let mut drain = |events: &mut Vec<LoopEvent>| {
+        while let Ok(e) = event_rx.pop() {
+            eprintln!("[service] {e}");
+            events.push(e);
+        }
+    };
+    while !rt_thread.is_finished() {
+        drain(&mut events);
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let rt_result = rt_thread.join().map_err(|_| ServiceError::RtThread("panicked".into()))?;
+    drain(&mut events);
+    reporter_stop.store(true, Ordering::Release);
+    let reporter = reporter_thread.join().map_err(|_| ServiceError::RtThread("histogram thread panicked".into()))?;
+    let (mut core, setup, stop_reason) = rt_result?;
+    core.flush_telemetry();
+    let latency = reporter
+        .finish()
+        .map_err(|error| ServiceError::Io { what: "writing histogram files".into(), error })?;
+    let (log_written, log_dropped) = match log_handle {
+        Some(h) => {
+            let st = h.finish().map_err(|error| ServiceError::Io { what: "writing signals.csv".into(), error })?;
+            (st.written, st.dropped)
+        }
+        None => (0, 0),
+    };
+    let (z_rms, z_rms_settled) = core.z_rms();
+    let report = RunReport {
+        rig: cfg.rig.clone(),
+        config: cfg.origin.clone(),
+        run_folder: folder.display().to_string(),
+        controller: controller_kind.to_string(),
+        wait: format!("{:?}", cfg.wait),
+        rt_setup: setup.describe(),
+        rt_degraded: setup.any_refused(),
+        stop_reason,
+        stats: core.stats,
+        events,
+        z_rms,
+        z_rms_settled,
+        latency,
+        log_written,
+        log_dropped,
+        budget_ns: cfg.budget_ns,
+    };
+    write_json(&folder.join("report.json"), &report)?;
+    Ok(report)
+}
+
+fn write_json(path: &Path, report: &RunReport) -> Result<(), ServiceError> {
+    let text = serde_json::to_string_pretty(report).expect("the report serializes");
+    std::fs::write(path, text).map_err(|error| ServiceError::Io { what: format!("writing {}", path.display()), error })
+}
+
+fn timestamp() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    format!("{secs}-{}", std::process::id())
+}
+
+type RtResult = Result<(LoopCore, RtSetup, StopReason), ServiceError>;
+
+fn rt_thread_main(
+    cfg: ServiceConfig,
+    mut core: LoopCore,
+    shutdown: Arc<AtomicBool>,
+    max_cycles: Option<u64>,
+    exit_with_plant: bool,
+) -> RtResult {
+    let setup = ipc_types::rt::setup_current_thread(&cfg.rt);
+    if setup.any_refused() {
+        eprintln!("[service] WARNING: real-time set-up incomplete: {}", setup.describe());
+        if cfg.require_rt {
+            return Err(ServiceError::RtRefused(setup.describe()));
+        }
+    }
+    let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns);
+    let opts = ConnectOptions {
+        peer_timeout: cfg.peer_timeout,
+        shutdown: Some(&shutdown),
+        listen: cfg.wait == WaitMode::Block,
+    };
+    eprintln!("[service] waiting for the plant on rig '{}' ...", cfg.rig);
+    let ports: ServicePorts = match ipc_types::ports::connect(&cfg.rig, own, "adaptive-rig-service", opts) {
+        Ok(p) => p,
+        Err(ipc_types::ports::ConnectError::Interrupted) => {
+            return Ok((core, setup, StopReason::Signal));
+        }
+        Err(e) => return Err(ServiceError::Connect(e)),
+    };
+    eprintln!("[service] connected to the plant; running ({:?})", cfg.wait);
+    let stop = rt_loop(&ports, &mut core, &shutdown, cfg.wait, cfg.sample_period_ns, max_cycles, exit_with_plant);
+    Ok((core, setup, stop))
+}
+
+/// Takes the newest pending measurement, if any, into `m`.
+#[inline]
+fn take_newest(ports: &ServicePorts, m: &mut Measurement) -> bool {
+    let mut got = false;
+    while let Ok(Some(sample)) = ports.subscriber.receive() {
+        *m = *sample;
+        got = true;
+    }
+    got
+}
+
+/// Publishes `act` with its publish time stamped; returns (published, t_pub).
+#[inline]
+fn publish(ports: &ServicePorts, act: &mut Actuation) -> (bool, u64) {
+    let ok = match ports.publisher.loan_uninit() {
+        Ok(sample) => {
+            act.t_publish_ns = monotonic_ns();
+            let sample = sample.write_payload(*act);
+            sample.send().is_ok()
+        }
+        Err(_) => false,
+    };
+    let t_pub = monotonic_ns();
+    let _ = ports.notifier.notify();
+    (ok, t_pub)
+}
+
+/// One pass of the RT loop: wait, process, publish. Public so that the allocation test and
+/// the latency bench run exactly this code.
+pub fn rt_loop(
+    ports: &ServicePorts,
+    core: &mut LoopCore,
+    shutdown: &AtomicBool,
+    wait: WaitMode,
+    period_ns: u64,
+    max_cycles: Option<u64>,
+    exit_with_plant: bool,
+) -> StopReason {
+    let mut m = Measurement::zeroed(ChannelCounts::default());
+    let mut act = Actuation::zeroed(ChannelCounts::default());
+    let mut spins: u32 = 0;
+    let mut last_cleanup_ns = 0u64;
+    let block_timeout = Duration::from_nanos(period_ns.clamp(50_000, 100_000_000));
+    loop {
+        if shutdown.load(Ordering::Relaxed) {
+            return StopReason::Signal;
+        }
+        if take_newest(ports, &mut m) {
+            let t_recv = monotonic_ns();
+            let d = core.process(&m, t_recv, &mut act);
+            let (ok, t_pub) = publish(ports, &mut act);
+            core.finish_cycle(&m, &act, t_recv, t_pub, ok);
+            if d.last_sample && exit_with_plant {
+                return StopReason::PlantEnded;
+            }
+            if max_cycles.is_some_and(|n| core.stats.received >= n) {
+                return StopReason::MaxCycles;
+            }
+            continue;
+        }
+        match (wait, &ports.listener) {
+            (WaitMode::Block, Some(listener)) => {
+                let _ = listener.timed_wait(|_| {}, block_timeout);
+            }
+            _ => {
+                core::hint::spin_loop();
+                spins = spins.wrapping_add(1);
+                if spins % 256 != 0 {
+                    continue;
+                }
+            }
+        }
+        let now = monotonic_ns();
+        if core.on_idle(now) && now.saturating_sub(last_cleanup_ns) > 100_000_000 {
+            // Silent plant: not controlling anything now, so housekeeping is allowed here.
+            last_cleanup_ns = now;
+            let n = ipc_types::ports::cleanup_dead_nodes();
+            core.note_cleanup(n);
+            if wait == WaitMode::BusyPoll {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        }
+    }
+}

@@ -1,0 +1,199 @@
+//! Real-time thread set-up shared by both sides of the contract: pin to a core, request
+//! `SCHED_FIFO`, lock memory (`mlockall`) and prefault the stack.
+//!
+//! On a stock kernel without `CAP_SYS_NICE` or with RT throttling the OS may refuse some of
+//! these. Each step's outcome is recorded in an [`RtSetup`] so that the process can warn
+//! loudly at start-up, put it in its run report, or refuse to run when configured so.
+
+use core::fmt;
+
+/// What the real-time set-up asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RtRequest {
+    /// Core to pin the thread to, or `None` to leave the affinity alone.
+    pub core: Option<usize>,
+    /// `SCHED_FIFO` priority 1–99, or `None` to stay `SCHED_OTHER`.
+    pub fifo_priority: Option<i32>,
+    /// Lock all current and future pages in RAM.
+    pub mlockall: bool,
+    /// Bytes of stack to touch so that the pages are mapped before the loop starts.
+    pub prefault_stack_bytes: usize,
+}
+
+/// The outcome of one set-up step.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StepOutcome {
+    /// Not requested.
+    Skipped,
+    /// Done.
+    Done,
+    /// The OS refused; the message says why.
+    Refused(String),
+}
+
+impl StepOutcome {
+    /// True when the step was requested and refused.
+    pub fn refused(&self) -> bool {
+        matches!(self, StepOutcome::Refused(_))
+    }
+}
+
+impl fmt::Display for StepOutcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StepOutcome::Skipped => write!(f, "not requested"),
+            StepOutcome::Done => write!(f, "ok"),
+            StepOutcome::Refused(why) => write!(f, "REFUSED: {why}"),
+        }
+    }
+}
+
+/// What the set-up achieved, step by step.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RtSetup {
+    /// Pinning to the requested core.
+    pub affinity: StepOutcome,
+    /// `SCHED_FIFO` at the requested priority.
+    pub fifo: StepOutcome,
+    /// `mlockall(MCL_CURRENT | MCL_FUTURE)`.
+    pub mlockall: StepOutcome,
+}
+
+impl RtSetup {
+    /// True when any requested step was refused.
+    pub fn any_refused(&self) -> bool {
+        self.affinity.refused() || self.fifo.refused() || self.mlockall.refused()
+    }
+
+    /// One line per step, for the start-up banner and the run report.
+    pub fn describe(&self) -> String {
+        format!(
+            "core affinity: {}; SCHED_FIFO: {}; mlockall: {}",
+            self.affinity, self.fifo, self.mlockall
+        )
+    }
+}
+
+/// Applies `req` to the calling thread (and, for `mlockall`, to the whole process).
+pub fn setup_current_thread(req: &RtRequest) -> RtSetup {
+    let affinity = match req.core {
+        None => StepOutcome::Skipped,
+        Some(core) => pin_current_thread(core),
+    };
+    let fifo = match req.fifo_priority {
+        None => StepOutcome::Skipped,
+        Some(prio) => set_fifo(prio),
+    };
+    let mlockall = if req.mlockall { lock_memory() } else { StepOutcome::Skipped };
+    if req.prefault_stack_bytes > 0 {
+        prefault_stack(req.prefault_stack_bytes);
+    }
+    RtSetup { affinity, fifo, mlockall }
+}
+
+/// Pins the calling thread to `core`.
+pub fn pin_current_thread(core: usize) -> StepOutcome {
+    let ids = core_affinity::get_core_ids().unwrap_or_default();
+    match ids.into_iter().find(|c| c.id == core) {
+        None => StepOutcome::Refused(format!("core {core} does not exist on this machine")),
+        Some(id) => {
+            if core_affinity::set_for_current(id) {
+                StepOutcome::Done
+            } else {
+                StepOutcome::Refused(format!("sched_setaffinity to core {core} failed"))
+            }
+        }
+    }
+}
+
+/// Restricts the calling thread to every core except `rt_core`, and to `SCHED_OTHER`, so
+/// that helper threads never compete with the real-time thread.
+pub fn keep_off_core(rt_core: Option<usize>) {
+    // SAFETY: cpu_set_t is plain data; the calls only read it and act on the calling thread.
+    unsafe {
+        let mut set: libc::cpu_set_t = core::mem::zeroed();
+        let n = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+        let mut any = false;
+        for c in 0..n {
+            if Some(c) != rt_core {
+                libc::CPU_SET(c, &mut set);
+                any = true;
+            }
+        }
+        if any {
+            libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &set);
+        }
+        let param = libc::sched_param { sched_priority: 0 };
+        libc::sched_setscheduler(0, libc::SCHED_OTHER, &param);
+    }
+}
+
+fn set_fifo(prio: i32) -> StepOutcome {
+    let param = libc::sched_param { sched_priority: prio };
+    // SAFETY: `param` is valid; pid 0 is the calling thread.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        StepOutcome::Done
+    } else {
+        StepOutcome::Refused(format!(
+            "sched_setscheduler(SCHED_FIFO, {prio}): {} (needs root or CAP_SYS_NICE and an RT \
+             runtime budget)",
+            std::io::Error::last_os_error()
+        ))
+    }
+}
+
+fn lock_memory() -> StepOutcome {
+    // SAFETY: mlockall takes flags only.
+    let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+    if rc == 0 {
+        StepOutcome::Done
+    } else {
+        StepOutcome::Refused(format!(
+            "mlockall: {} (raise RLIMIT_MEMLOCK or run with CAP_IPC_LOCK)",
+            std::io::Error::last_os_error()
+        ))
+    }
+}
+
+#[inline(never)]
+fn prefault_stack(bytes: usize) {
+    const CHUNK: usize = 16 * 1024;
+    fn touch(remaining: usize) {
+        let mut buf = [0u8; CHUNK];
+        // Volatile writes so the pages are really touched.
+        for i in (0..CHUNK).step_by(4096) {
+            // SAFETY: `i` is within `buf`.
+            unsafe { core::ptr::write_volatile(buf.as_mut_ptr().add(i), 1) };
+        }
+        core::hint::black_box(&buf);
+        if remaining > CHUNK {
+            touch(remaining - CHUNK);
+        }
+    }
+    touch(bytes);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_skipped_request_changes_nothing_and_reports_skipped() {
+        let s = setup_current_thread(&RtRequest {
+            core: None,
+            fifo_priority: None,
+            mlockall: false,
+            prefault_stack_bytes: 64 * 1024,
+        });
+        assert_eq!(s.affinity, StepOutcome::Skipped);
+        assert!(!s.any_refused());
+    }
+
+    #[test]
+    fn pinning_to_a_core_that_does_not_exist_is_refused_with_a_reason() {
+        let s = pin_current_thread(100_000);
+        assert!(s.refused());
+        assert!(s.to_string().contains("does not exist"));
+    }
+}
