@@ -1,1 +1,682 @@
-fn main() {}
+//! `latency-bench`: checks the 8 kHz budget on this machine in one run.
+//!
+//! ```text
+//! cargo run --release -p latency-bench [-- --samples N --seconds S --out DIR --quick --skip-cyclictest]
+//! ```
+//!
+//! Runs, in order: the contract round trip against the real service, the raw iceoryx2
+//! ping-pong, the service's wake-up latency at 8 kHz in busy-poll and blocking mode,
+//! cyclictest on the RT core (when installed), and the step cost of each known controller
+//! configuration. Prints the machine facts and one table, and writes every distribution
+//! (`.hgrm`, `.hlog`), the service's run reports and a `summary.json` to the output folder
+//! (default `bench-results/<unix-time>/`). See the library docs for the method of each
+//! measurement.
+
+use clap::{Parser, Subcommand};
+use hdrhistogram::Histogram;
+use ipc_types::ChannelCounts;
+use ipc_types::rt::{RtRequest, RtSetup};
+use latency_bench::child::{self, ChildProc};
+use latency_bench::configs::{self, Channels};
+use latency_bench::cyclictest::{self, CyclictestRun};
+use latency_bench::hist::{self, Summary, ratio};
+use latency_bench::machine;
+use latency_bench::paced::{self, PacedResult};
+use latency_bench::roundtrip::{self, RoundTripPlan};
+use latency_bench::step_cost;
+use latency_bench::table::{self, Row, fmt_ratio};
+use latency_bench::{PERIOD_NS, RT_PRIORITY};
+use serde_json::{Value, json};
+use service::config::WaitMode;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// The issue's target for contract / raw at p50 and p99.
+const TARGET_RATIO: f64 = 1.5;
+
+#[derive(Parser)]
+#[command(
+    name = "latency-bench",
+    about = "Checks the 8 kHz budget: contract round trip vs raw iceoryx2, loop wake-up vs cyclictest, controller step cost"
+)]
+struct Cli {
+    #[command(subcommand)]
+    role: Option<Role>,
+    #[command(flatten)]
+    opts: Options,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+struct Options {
+    /// Round trips recorded per variant (default 50000; 5000 with --quick).
+    #[arg(long)]
+    samples: Option<u64>,
+    /// Round trips run before recording (default samples / 10).
+    #[arg(long)]
+    warmup: Option<u64>,
+    /// Busy-wait between an answer and the next round trip, µs; the same for both variants
+    /// (0: back-to-back).
+    #[arg(long, default_value_t = 20.0)]
+    gap_us: f64,
+    /// Seconds of 8 kHz pacing per wait mode, and of cyclictest (default 5; 1 with --quick).
+    #[arg(long)]
+    seconds: Option<f64>,
+    /// Timed steps per controller configuration (default 200000; 20000 with --quick).
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Output folder (default bench-results/<unix-time>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Do not run cyclictest even if it is installed.
+    #[arg(long)]
+    skip_cyclictest: bool,
+    /// A short run for smoke tests.
+    #[arg(long)]
+    quick: bool,
+    /// Enable the service's CSV signal log in the service runs (off by default).
+    #[arg(long)]
+    service_log: bool,
+    /// Core of the plant side (the parent's measuring thread).
+    #[arg(long, default_value_t = 0)]
+    plant_core: usize,
+    /// Core of the real-time side (service RT thread, echo, cyclictest, step cost).
+    #[arg(long, default_value_t = 1)]
+    rt_core: usize,
+}
+
+#[derive(Subcommand)]
+enum Role {
+    /// Child role: the real service.
+    #[command(hide = true)]
+    ChildService {
+        #[arg(long)]
+        config: PathBuf,
+        #[arg(long)]
+        wait: String,
+        #[arg(long)]
+        core: usize,
+        #[arg(long)]
+        run_folder: PathBuf,
+    },
+    /// Child role: the raw iceoryx2 echo.
+    #[command(hide = true)]
+    ChildEcho {
+        #[arg(long)]
+        rig: String,
+        #[arg(long)]
+        core: usize,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let code = match cli.role {
+        Some(Role::ChildService { config, wait, core, run_folder }) => {
+            let wait = match wait.as_str() {
+                "busy-poll" => WaitMode::BusyPoll,
+                "block" => WaitMode::Block,
+                other => {
+                    eprintln!("unknown wait mode {other}");
+                    return ExitCode::from(2);
+                }
+            };
+            child::run_service_child(&config, wait, core, &run_folder)
+        }
+        Some(Role::ChildEcho { rig, core }) => roundtrip::run_echo_child(&rig, core),
+        None => bench(&cli.opts),
+    };
+    ExitCode::from(code.clamp(0, 255) as u8)
+}
+
+/// The settings of one run, defaults resolved.
+#[derive(Debug, Clone)]
+struct Settings {
+    plan: RoundTripPlan,
+    seconds: f64,
+    steps: u64,
+    step_warmup: u64,
+    plant_core: usize,
+    rt_core: usize,
+    service_log: bool,
+    cyclictest: bool,
+}
+
+impl Settings {
+    fn from(o: &Options) -> Self {
+        let samples = o.samples.unwrap_or(if o.quick { 5_000 } else { 50_000 }).max(1);
+        let steps = o.steps.unwrap_or(if o.quick { 20_000 } else { 200_000 }).max(1);
+        Self {
+            plan: RoundTripPlan {
+                warmup: o.warmup.unwrap_or(samples / 10),
+                samples,
+                gap_ns: (o.gap_us.max(0.0) * 1_000.0) as u64,
+                answer_timeout: Duration::from_secs(2),
+                connect_timeout: Duration::from_secs(20),
+            },
+            seconds: o.seconds.unwrap_or(if o.quick { 1.0 } else { 5.0 }).max(0.01),
+            steps,
+            step_warmup: (steps / 20).max(100),
+            plant_core: o.plant_core,
+            rt_core: o.rt_core,
+            service_log: o.service_log,
+            cyclictest: !o.skip_cyclictest,
+        }
+    }
+
+    fn plant_rt(&self) -> RtRequest {
+        RtRequest {
+            core: Some(self.plant_core),
+            fifo_priority: Some(RT_PRIORITY),
+            mlockall: true,
+            prefault_stack_bytes: 256 * 1024,
+        }
+    }
+
+    /// Longest a round-trip measurement may take before the bench gives up on it: the
+    /// connection time, plus four times a generous estimate of the run.
+    fn rtt_limit(&self) -> Duration {
+        let n = self.plan.warmup + self.plan.samples;
+        let per_sample_ns = self.plan.gap_ns + 50_000;
+        Duration::from_secs(30) + Duration::from_nanos(4 * n * per_sample_ns)
+    }
+
+    fn json(&self) -> Value {
+        json!({
+            "round_trip_samples": self.plan.samples,
+            "round_trip_warmup": self.plan.warmup,
+            "round_trip_spacing": if self.plan.gap_ns == 0 {
+                "back-to-back".to_string()
+            } else {
+                format!("busy-wait of {} ns after each answer", self.plan.gap_ns)
+            },
+            "paced_seconds_per_mode": self.seconds,
+            "period_ns": PERIOD_NS,
+            "paced_deadline_ns": PERIOD_NS / 2,
+            "step_cost_steps": self.steps,
+            "step_cost_warmup": self.step_warmup,
+            "plant_core": self.plant_core,
+            "rt_core": self.rt_core,
+            "fifo_priority": RT_PRIORITY,
+            "service_log": self.service_log,
+        })
+    }
+}
+
+/// One measurement's outcome, for the table and `summary.json`.
+struct Measured {
+    id: String,
+    label: String,
+    count: Option<u64>,
+    us: [Option<f64>; 4],
+    summary: Option<Summary>,
+    note: String,
+    files: Vec<PathBuf>,
+    error: Option<String>,
+}
+
+impl Measured {
+    fn from_summary(id: &str, label: &str, s: Summary, files: Vec<PathBuf>) -> Self {
+        Self {
+            id: id.into(),
+            label: label.into(),
+            count: Some(s.count),
+            us: s.columns_us(),
+            summary: Some(s),
+            note: String::new(),
+            files,
+            error: None,
+        }
+    }
+
+    fn empty(id: &str, label: &str, note: &str) -> Self {
+        Self {
+            id: id.into(),
+            label: label.into(),
+            count: None,
+            us: [None; 4],
+            summary: None,
+            note: note.into(),
+            files: Vec::new(),
+            error: None,
+        }
+    }
+
+    fn failed(id: &str, label: &str, why: String) -> Self {
+        Self {
+            id: id.into(),
+            label: label.into(),
+            count: None,
+            us: [None; 4],
+            summary: None,
+            note: String::new(),
+            files: Vec::new(),
+            error: Some(why),
+        }
+    }
+
+    fn row(&self) -> Row {
+        let note = match &self.error {
+            Some(e) => format!("FAILED: {}", e.lines().next().unwrap_or("")),
+            None => self.note.clone(),
+        };
+        Row::new(self.label.clone(), self.count, self.us, note)
+    }
+
+    fn json(&self) -> Value {
+        json!({
+            "id": self.id,
+            "label": self.label,
+            "summary": self.summary,
+            "p50_us": self.us[0], "p99_us": self.us[1], "p99_9_us": self.us[2], "max_us": self.us[3],
+            "note": self.note,
+            "files": self.files,
+            "error": self.error,
+        })
+    }
+}
+
+fn unix_now() -> u64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
+}
+
+fn progress(msg: &str) {
+    eprintln!("[latency-bench] {msg}");
+}
+
+fn bench(o: &Options) -> i32 {
+    let s = Settings::from(o);
+    let started = unix_now();
+    let out = o.out.clone().unwrap_or_else(|| PathBuf::from("bench-results").join(started.to_string()));
+    if let Err(e) = std::fs::create_dir_all(&out) {
+        eprintln!("cannot create {}: {e}", out.display());
+        return 2;
+    }
+    // The plant thread's RT set-up, probed once for the machine facts (mlockall holds for
+    // the whole process from here on).
+    let probe = std::thread::spawn({
+        let rt = s.plant_rt();
+        move || ipc_types::rt::setup_current_thread(&rt)
+    })
+    .join()
+    .expect("probe thread");
+    let facts = machine::collect(&probe);
+    println!("{}", facts.render());
+    if probe.any_refused() {
+        println!("WARNING: the OS refused part of the real-time set-up; latency figures are not those of an RT setup\n");
+    }
+    progress(&format!("writing to {}", out.display()));
+
+    let pid = std::process::id();
+    let counts = ChannelCounts::new(1, 1, 0, 1).expect("within capacity");
+    let mut measured: Vec<Measured> = Vec::new();
+    let mut reports = serde_json::Map::new();
+    let mut extra = serde_json::Map::new();
+    let mut details: Vec<String> = Vec::new();
+
+    // 1. Contract round trip and raw ping-pong.
+    progress(&format!(
+        "1/6 contract round trip: {} + {} warm-up samples against the service (busy-poll)",
+        s.plan.samples, s.plan.warmup
+    ));
+    let rig = format!("bench-{pid}-rtt");
+    let contract = contract_phase(&s, &out.join("contract-rtt"), &rig, counts);
+    let mut contract = record_rtt(contract, &out.join("contract-rtt"), "contract-rtt", "contract round trip (service)", &mut reports, &mut details);
+    progress("2/6 raw iceoryx2 ping-pong");
+    let rig = format!("bench-{pid}-raw");
+    let raw = raw_phase(&s, &out.join("raw-rtt"), &rig);
+    let raw = raw.map(|(h, setup, t)| (h, setup, t, Value::Null));
+    let mut raw = record_rtt(raw, &out.join("raw-rtt"), "raw-rtt", "raw iceoryx2 ping-pong", &mut reports, &mut details);
+    let contract_ratio = match (&contract.summary, &raw.summary) {
+        (Some(c), Some(r)) => {
+            let p50 = ratio(c.p50_ns, r.p50_ns);
+            let p99 = ratio(c.p99_ns, r.p99_ns);
+            let pass = p50.zip(p99).map(|(a, b)| a <= TARGET_RATIO && b <= TARGET_RATIO);
+            contract.note = format!(
+                "÷ raw: p50 {}, p99 {} → {} (target ≤ {TARGET_RATIO})",
+                fmt_ratio(p50),
+                fmt_ratio(p99),
+                match pass {
+                    Some(true) => "PASS",
+                    Some(false) => "FAIL",
+                    None => "n/a",
+                }
+            );
+            raw.note = "reference for the contract row".into();
+            json!({ "p50": p50, "p99": p99, "target": TARGET_RATIO, "pass": pass })
+        }
+        _ => Value::Null,
+    };
+    let spacing = if s.plan.gap_ns == 0 {
+        "back-to-back".to_string()
+    } else {
+        format!("{:.0} µs busy-wait after each answer", s.plan.gap_ns as f64 / 1e3)
+    };
+    details.push(format!(
+        "round trips: parent on core {} and child on core {}, both busy-polling; {} samples after {} warm-up, {spacing}, same for both variants",
+        s.plant_core, s.rt_core, s.plan.samples, s.plan.warmup
+    ));
+    measured.push(contract);
+    measured.push(raw);
+
+    // 2. Wake-up latency at 8 kHz.
+    let mut plant_rows: Vec<Measured> = Vec::new();
+    for (i, (mode, wait)) in [("busy-poll", "busy-poll"), ("block", "block")].into_iter().enumerate() {
+        progress(&format!("{}/6 service wake-up at 8 kHz, {mode}, {:.1} s", 3 + i, s.seconds));
+        let dir = out.join(format!("wakeup-{mode}"));
+        let rig = format!("bench-{pid}-{mode}");
+        let label = format!("service wake-up 8 kHz {mode}");
+        match paced_phase(&s, &dir, &rig, wait, counts) {
+            Ok((p, setup, report)) => {
+                let wk = report.pointer("/latency/wakeup").ok_or("report.json has no latency.wakeup".to_string()).and_then(Summary::from_service_json);
+                match wk {
+                    Ok(sum) => {
+                        let mut m = Measured::from_summary(&format!("wakeup-{mode}"), &label, sum, vec![dir.join("wakeup.hgrm"), dir.join("wakeup.hlog")]);
+                        m.files.retain(|f| f.exists());
+                        measured.push(m);
+                    }
+                    Err(e) => {
+                        measured.push(Measured::failed(&format!("wakeup-{mode}"), &label, e));
+                    }
+                }
+                let files = hist::write_files(&dir, "plant-pacing", &p.pacing, p.start, p.duration).unwrap_or_default();
+                plant_rows.push(Measured::from_summary(
+                    &format!("pacing-{mode}"),
+                    &format!("  plant pacing lateness ({mode} run)"),
+                    Summary::of(&p.pacing),
+                    files,
+                ));
+                let files = hist::write_files(&dir, "plant-publish-to-answer", &p.publish_to_answer, p.start, p.duration).unwrap_or_default();
+                let mut m = Measured::from_summary(
+                    &format!("publish-to-answer-{mode}"),
+                    &format!("  plant publish → u_k published ({mode})"),
+                    Summary::of(&p.publish_to_answer),
+                    files,
+                );
+                m.note = format!("{} of {} answers in time", p.in_time, p.samples);
+                plant_rows.push(m);
+                let misses = report.pointer("/stats/deadline_misses").and_then(Value::as_u64);
+                details.push(format!(
+                    "8 kHz {mode}: {} samples, deadline {} µs: {} answered in time, {} late, {} missing (plant view); service counted {} misses; service RT set-up: {}; plant thread: {}",
+                    p.samples,
+                    PERIOD_NS / 2_000,
+                    p.in_time,
+                    p.late,
+                    p.missing(),
+                    misses.map(|m| m.to_string()).unwrap_or_else(|| "?".into()),
+                    service_rt_line(&report),
+                    setup.describe()
+                ));
+                extra.insert(
+                    format!("paced-{mode}"),
+                    json!({
+                        "samples": p.samples, "in_time": p.in_time, "late": p.late, "missing": p.missing(),
+                        "pacing_lateness": Summary::of(&p.pacing),
+                        "publish_to_answer": Summary::of(&p.publish_to_answer),
+                        "plant_rt_setup": setup.describe(),
+                    }),
+                );
+                reports.insert(format!("wakeup-{mode}"), report);
+            }
+            Err(e) => {
+                measured.push(Measured::failed(&format!("wakeup-{mode}"), &label, e));
+            }
+        }
+    }
+
+    // Cyclictest on the RT core.
+    progress("5/6 cyclictest");
+    let ct_label = format!("cyclictest (core {}, {} µs)", s.rt_core, PERIOD_NS / 1_000);
+    let ct = cyclictest_phase(&s, &out.join("cyclictest"));
+    let ct_measured = match &ct {
+        Ok(Some((run, files))) => {
+            let h = &run.histogram;
+            let us = [h.percentile_us(0.5), h.percentile_us(0.99), h.percentile_us(0.999), h.max()];
+            extra.insert(
+                "cyclictest".into(),
+                json!({
+                    "command": run.command, "total": h.total(), "overflows": h.overflows,
+                    "min_us": h.min_us, "avg_us": h.avg_us, "max_us": h.max_us,
+                    "p50_us": us[0], "p99_us": us[1], "p99_9_us": us[2],
+                    "percentiles": "from its 1 µs histogram, at bucket middles",
+                }),
+            );
+            Measured {
+                id: "cyclictest".into(),
+                label: ct_label,
+                count: Some(h.total()),
+                us,
+                summary: None,
+                note: "machine floor; percentiles ±0.5 µs (1 µs buckets)".into(),
+                files: files.clone(),
+                error: None,
+            }
+        }
+        Ok(None) => {
+            let why = if s.cyclictest { "cyclictest not installed" } else { "skipped (--skip-cyclictest)" };
+            extra.insert("cyclictest".into(), json!(why));
+            Measured::empty("cyclictest", &ct_label, why)
+        }
+        Err(e) => Measured::failed("cyclictest", &ct_label, e.clone()),
+    };
+    // Ratios of the service wake-up to the machine floor.
+    let mut wake_ratios = serde_json::Map::new();
+    if ct_measured.error.is_none() && ct_measured.count.is_some() {
+        for m in measured.iter_mut().filter(|m| m.id.starts_with("wakeup-")) {
+            if let Some(sum) = m.summary {
+                let r = |v: u64, c: Option<f64>| c.filter(|c| *c > 0.0).map(|c| v as f64 / 1e3 / c);
+                let (p50, p99, max) = (r(sum.p50_ns, ct_measured.us[0]), r(sum.p99_ns, ct_measured.us[1]), r(sum.max_ns, ct_measured.us[3]));
+                m.note = format!("÷ cyclictest: p50 {}, p99 {}, max {}", fmt_ratio(p50), fmt_ratio(p99), fmt_ratio(max));
+                wake_ratios.insert(m.id.trim_start_matches("wakeup-").to_string(), json!({ "p50": p50, "p99": p99, "max": max }));
+            }
+        }
+    }
+    measured.extend(plant_rows);
+    measured.push(ct_measured);
+
+    // 3. Controller step cost.
+    progress("6/6 controller step cost");
+    let step_rows = step_phase(&s, &out.join("step-cost"));
+    measured.extend(step_rows);
+
+    // Output.
+    let rows: Vec<Row> = measured.iter().map(Measured::row).collect();
+    let table = table::render(&rows);
+    println!("{table}");
+    for d in &details {
+        println!("{d}");
+    }
+    println!("results: {}", out.display());
+    let _ = std::fs::write(out.join("table.txt"), format!("{}\n{table}\n{}\n", facts.render(), details.join("\n")));
+    let summary = json!({
+        "bench": "latency-bench",
+        "started_unix": started,
+        "command": std::env::args().collect::<Vec<_>>(),
+        "machine": facts,
+        "settings": s.json(),
+        "measurements": measured.iter().map(Measured::json).collect::<Vec<_>>(),
+        "ratios": {
+            "contract_over_raw": contract_ratio,
+            "wakeup_over_cyclictest": Value::Object(wake_ratios),
+        },
+        "details": details,
+        "extra": Value::Object(extra),
+        "service_reports": Value::Object(reports),
+    });
+    let text = serde_json::to_string_pretty(&summary).expect("the summary serializes");
+    if let Err(e) = std::fs::write(out.join("summary.json"), text) {
+        eprintln!("writing summary.json: {e}");
+        return 1;
+    }
+    if measured.iter().any(|m| m.error.is_some()) { 1 } else { 0 }
+}
+
+/// Writes a service configuration for `rig` into `dir` and starts the service child on it.
+fn spawn_service(s: &Settings, dir: &Path, rig: &str, wait: &str) -> Result<ChildProc, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let text = configs::service_toml(rig, Channels { y: 1, z: 1, u: 1 }, &configs::loop_controller(), s.service_log);
+    let config = dir.join("config.toml");
+    std::fs::write(&config, text).map_err(|e| format!("writing {}: {e}", config.display()))?;
+    let args = vec![
+        "child-service".to_string(),
+        "--config".into(),
+        config.display().to_string(),
+        "--wait".into(),
+        wait.into(),
+        "--core".into(),
+        s.rt_core.to_string(),
+        "--run-folder".into(),
+        dir.display().to_string(),
+    ];
+    ChildProc::spawn(&args, &dir.join("child.log"), &format!("service ({wait})"))
+}
+
+fn read_report(dir: &Path) -> Result<Value, String> {
+    let path = dir.join("report.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    let mut report: Value = serde_json::from_str(&text).map_err(|e| format!("parsing {}: {e}", path.display()))?;
+    if let (Ok(note), Some(obj)) = (std::fs::read_to_string(dir.join(child::REPIN_NOTE)), report.as_object_mut()) {
+        obj.insert("latency_bench_repin".into(), Value::String(note.trim().to_string()));
+    }
+    Ok(report)
+}
+
+/// The service's RT set-up as its report states it, and whether the bench had to re-pin
+/// its RT thread.
+fn service_rt_line(report: &Value) -> String {
+    let setup = report.get("rt_setup").and_then(Value::as_str).unwrap_or("?");
+    if report.get("latency_bench_repin").is_some() {
+        format!("{setup} → RT thread re-pinned to its core by the bench (service pinning bug, see child.log)")
+    } else {
+        setup.to_string()
+    }
+}
+
+type RttOutcome = Result<(Histogram<u64>, RtSetup, (SystemTime, Duration), Value), String>;
+
+fn contract_phase(s: &Settings, dir: &Path, rig: &str, counts: ChannelCounts) -> RttOutcome {
+    let mut child = spawn_service(s, dir, rig, "busy-poll")?;
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let plan = s.plan;
+    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| roundtrip::contract_round_trips(rig, counts, &plan, abort))?;
+    let elapsed = t.elapsed();
+    child.wait(Duration::from_secs(30))?;
+    let report = read_report(dir)?;
+    Ok((h, setup, (start, elapsed), report))
+}
+
+fn raw_phase(s: &Settings, dir: &Path, rig: &str) -> Result<(Histogram<u64>, RtSetup, (SystemTime, Duration)), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let args = vec!["child-echo".to_string(), "--rig".into(), rig.into(), "--core".into(), s.rt_core.to_string()];
+    let mut child = ChildProc::spawn(&args, &dir.join("child.log"), "raw echo")?;
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let plan = s.plan;
+    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| roundtrip::raw_round_trips(rig, &plan, abort))?;
+    let elapsed = t.elapsed();
+    child.wait(Duration::from_secs(30))?;
+    Ok((h, setup, (start, elapsed)))
+}
+
+fn record_rtt(
+    outcome: RttOutcome,
+    dir: &Path,
+    id: &str,
+    label: &str,
+    reports: &mut serde_json::Map<String, Value>,
+    details: &mut Vec<String>,
+) -> Measured {
+    match outcome {
+        Ok((h, setup, (start, elapsed), report)) => {
+            let files = hist::write_files(dir, "rtt", &h, start, elapsed).unwrap_or_default();
+            let m = Measured::from_summary(id, label, Summary::of(&h), files);
+            if report.is_null() {
+                details.push(format!("{label}: plant thread: {}", setup.describe()));
+            } else {
+                details.push(format!("{label}: service RT set-up: {}; plant thread: {}", service_rt_line(&report), setup.describe()));
+            }
+            if !report.is_null() {
+                reports.insert(id.to_string(), report);
+            }
+            m
+        }
+        Err(e) => Measured::failed(id, label, e),
+    }
+}
+
+fn paced_phase(s: &Settings, dir: &Path, rig: &str, wait: &str, counts: ChannelCounts) -> Result<(PacedResult, RtSetup, Value), String> {
+    let mut child = spawn_service(s, dir, rig, wait)?;
+    let seconds = s.seconds;
+    let (p, setup) = child::drive(&mut child, s.plant_rt(), Duration::from_secs_f64(40.0 + 3.0 * seconds), |abort| paced::paced_plant(rig, counts, seconds, Duration::from_secs(20), abort))?;
+    child.wait(Duration::from_secs(30))?;
+    let report = read_report(dir)?;
+    Ok((p, setup, report))
+}
+
+fn cyclictest_phase(s: &Settings, dir: &Path) -> Result<Option<(CyclictestRun, Vec<PathBuf>)>, String> {
+    if !s.cyclictest {
+        return Ok(None);
+    }
+    let Some(exe) = cyclictest::find() else { return Ok(None) };
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let seconds = s.seconds.ceil().max(1.0) as u64;
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let run = cyclictest::run(&exe, s.rt_core, PERIOD_NS / 1_000, seconds)?;
+    let elapsed = t.elapsed();
+    let _ = std::fs::write(dir.join("cyclictest.txt"), format!("$ {}\n{}", run.command, run.output));
+    let mut files = vec![dir.join("cyclictest.txt")];
+    if let Ok(f) = hist::write_files(dir, "cyclictest", &run.histogram.to_hdr(), start, elapsed) {
+        files.extend(f);
+    }
+    Ok(Some((run, files)))
+}
+
+fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return vec![Measured::failed("step-cost", "step cost", format!("creating {}: {e}", dir.display()))];
+    }
+    let cases = configs::step_cases();
+    let rt = RtRequest {
+        core: Some(s.rt_core),
+        fifo_priority: Some(RT_PRIORITY),
+        mlockall: true,
+        prefault_stack_bytes: 256 * 1024,
+    };
+    let (warmup, steps) = (s.step_warmup, s.steps);
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let worker = std::thread::Builder::new().name("bench-step".into()).spawn(move || {
+        let setup = ipc_types::rt::setup_current_thread(&rt);
+        let results: Vec<_> = cases.iter().map(|c| (c.clone(), step_cost::measure(c, warmup, steps))).collect();
+        let overhead = step_cost::timer_overhead(steps);
+        (setup, results, overhead)
+    });
+    let (setup, results, overhead) = match worker.map(|h| h.join()) {
+        Ok(Ok(v)) => v,
+        _ => return vec![Measured::failed("step-cost", "step cost", "the step-cost thread failed".into())],
+    };
+    let elapsed = t.elapsed();
+    let mut out = Vec::new();
+    for (case, r) in results {
+        let id = format!("step-{}", case.slug);
+        let label = format!("step: {}", case.name);
+        match r {
+            Ok((h, _kind)) => {
+                let files = hist::write_files(dir, &case.slug, &h, start, elapsed).unwrap_or_default();
+                let sum = Summary::of(&h);
+                let mut m = Measured::from_summary(&id, &label, sum, files);
+                let pct = |ns: u64| 100.0 * ns as f64 / PERIOD_NS as f64;
+                m.note = format!("of 125 µs: p99 {:.2} %, max {:.1} %", pct(sum.p99_ns), pct(sum.max_ns));
+                out.push(m);
+            }
+            Err(e) => out.push(Measured::failed(&id, &label, e)),
+        }
+    }
+    let files = hist::write_files(dir, "timer-overhead", &overhead, start, elapsed).unwrap_or_default();
+    let mut m = Measured::from_summary("timer-overhead", "  timer overhead (2× clock_gettime)", Summary::of(&overhead), files);
+    m.note = format!("inside every step value; step thread: {}", setup.describe());
+    out.push(m);
+    out
+}

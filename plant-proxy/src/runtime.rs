@@ -402,7 +402,7 @@ pub fn run_plant(
             }
             Mode::Lockstep => monotonic_ns(),
         };
-        sim.sample(&mut y, &mut z, &mut r);
+        sim.sample(&mut y, &mut z, &mut r).map_err(|e| PlantError::Config(e.to_string()))?;
         let mut m = Measurement::zeroed(counts);
         m.seq = k;
         m.t_sample_ns = t_k;
@@ -461,6 +461,10 @@ pub fn run_plant(
                 }
             }
         };
+        if answer.is_none() && shutdown.load(Ordering::Relaxed) {
+            // Stopped while waiting: this sample was never answered nor applied.
+            break;
+        }
         let status = match answer {
             Some(a) => {
                 report.actuations_applied += 1;
@@ -503,7 +507,7 @@ pub fn run_plant(
         if let Some(t) = trace.as_mut() {
             t.row(k, sim.time(), &m.y[..n_y], &z, &u_applied[..n_u], m.flags, status);
         }
-        sim.advance(&u_applied[..n_u]);
+        sim.advance(&u_applied[..n_u]).map_err(|e| PlantError::Config(e.to_string()))?;
     }
     if let Some(mut t) = trace {
         t.out.flush().map_err(|e| PlantError::Io(format!("writing the trace: {e}")))?;

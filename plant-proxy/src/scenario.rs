@@ -1,1 +1,955 @@
-//! (being written)
+//! # The plant part of a scenario file
+//!
+//! A scenario TOML file carries tables for several programs. plant-proxy reads `[rig]` and
+//! `[plant]` (with its sub-tables) and ignores every other top-level table (`[service]`,
+//! `[controller]`, `[log]`, `[proxy]`, …). Inside `[rig]` and `[plant]` an unknown key is an
+//! error, so a typo never goes unnoticed. The file is read once into raw serde structures,
+//! then validated into typed parameters ([`Scenario`], [`RigParams`], [`PlantParams`]); every
+//! error names the file, the field as a dotted path (`plant.tf.yu[0][1].den`) and what is
+//! wrong ([`ScenarioError`]).
+//!
+//! ```toml
+//! [rig]
+//! name = "acoustic-rig"     # ASCII letters, digits, '-', '_' (1 to 64): iceoryx2 service names
+//! sample-period = 1.25e-4   # s; or sample-rate-hz = 8000.0 (exactly one of the two)
+//! duration = 10.0           # s of the default run
+//!
+//! [plant]
+//! kind = "transfer-function"   # or "state-space" or "modal"
+//! inputs = 2                   # control inputs u
+//! disturbances = 1             # disturbance inputs w (may be 0)
+//! outputs-y = 1                # measurements y
+//! outputs-z = 1                # performance outputs z
+//! input-delays = [9, 16]       # optional: pure delay in samples per control input (default 0)
+//! initial-state = [0.0, …]     # optional: continuous state at t = 0 (default zeros)
+//! commands = 0                 # optional: command channels r (default 0) …
+//! command = []                 # … held at this constant vector (default zeros)
+//!
+//! [plant.tf]                   # kind = "transfer-function": continuous-time G(s) matrices
+//! yu = [[ { num = [..], den = [..] }, 0 ]]   # outputs-y × inputs; 0 or a missing row = zero
+//! yw = [[ .. ]]                # outputs-y × disturbances
+//! zu = [[ .. ]]                # outputs-z × inputs
+//! zw = [[ .. ]]                # outputs-z × disturbances
+//!
+//! [plant.ss]                   # kind = "state-space": row-major arrays of rows
+//! a = [[..]]
+//! b-u = [[..]]                 # also b-w, c-y, c-z; d-yu, d-yw, d-zu, d-zw optional (zero)
+//!
+//! [plant.modal]                # kind = "modal": q̈ + 2ζω q̇ + ω² q = b_u·u + b_w·w
+//! modes = [ { frequency-hz = 520.0, damping = 0.02, b-u = [..], b-w = [..],
+//!             c-y = [..], c-z = [..] } ]     # also frequency-rad-s, c-y-vel, c-z-vel
+//!
+//! [plant.disturbance]
+//! tones = [ { input = 0, amplitude = 1.0, frequency-hz = 800.0, phase-deg = 0.0 } ]
+//! white-std = [0.0]            # per disturbance input (or one scalar): ZOH white noise
+//!
+//! [plant.noise]
+//! y-std = 0.0                  # white measurement noise: scalar or one per channel
+//! z-std = 0.0
+//! seed = 1
+//! ```
+//!
+//! Meaning of the plant (see [`crate::lti::generalized`] and [`crate::sim`]):
+//! `ẋ = A x + B_u u + B_w w`, `y = C_y x + D_yu u + D_yw w + v_y`,
+//! `z = C_z x + D_zu u + D_zw w + v_z`; the tones give `w_i(t) = Σ A sin(2π f t + φ)` on
+//! their input, the white part adds a new `N(0, σ_i²)` value each sample held over the
+//! period, and `v_y`, `v_z` are white `N(0, σ²)` measurement noises. For
+//! `kind = "transfer-function"` the states are those of the column-wise realization of
+//! `[[G_yu, G_yw], [G_zu, G_zw]]` ([`crate::lti::realize_tf_matrix_sized`]); for
+//! `kind = "modal"` they are `[q_1, q̇_1, q_2, q̇_2, …]`.
+
+use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, Mode, Tf};
+use nalgebra::DMatrix;
+use serde::Deserialize;
+use std::f64::consts::PI;
+use std::fmt;
+use std::path::Path;
+
+/// The largest accepted input delay, in samples (the ring buffers are allocated up front).
+pub const MAX_INPUT_DELAY: usize = 1 << 20;
+
+/// Why a scenario file was refused.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    Io {
+        /// The file.
+        origin: String,
+        /// The operating system's message.
+        message: String,
+    },
+    /// The text is not valid TOML, or a value has the wrong type (the message shows the
+    /// line, the column and the key).
+    Toml {
+        /// The file.
+        origin: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// A field has a missing, inconsistent or out-of-range value.
+    Field {
+        /// The file.
+        origin: String,
+        /// Dotted path of the field, e.g. `plant.tf.yu[0][1].den`.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+impl ScenarioError {
+    /// The dotted path of the offending field, when the error is about one field.
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            ScenarioError::Field { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ScenarioError::Io { origin, message } => {
+                write!(f, "{origin}: cannot read the file: {message}")
+            }
+            ScenarioError::Toml { origin, message } => {
+                write!(f, "{origin}: not valid TOML: {}", message.trim_end())
+            }
+            ScenarioError::Field {
+                origin,
+                field,
+                problem,
+            } => {
+                write!(f, "{origin}: field '{field}': {problem}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ScenarioError {}
+
+/// A validated scenario: the rig and the plant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// The file it was read from (or the origin given to [`parse`]).
+    pub origin: String,
+    /// The `[rig]` table.
+    pub rig: RigParams,
+    /// The `[plant]` table and its sub-tables.
+    pub plant: PlantParams,
+}
+
+/// The `[rig]` table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigParams {
+    /// Rig name, used in the iceoryx2 service names.
+    pub name: String,
+    /// Sample period `T_s`, s.
+    pub sample_period: f64,
+    /// Duration of the default run, s.
+    pub duration: f64,
+}
+
+/// How the plant was described in the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlantKind {
+    /// `kind = "transfer-function"`: `[plant.tf]`.
+    TransferFunction,
+    /// `kind = "state-space"`: `[plant.ss]`.
+    StateSpace,
+    /// `kind = "modal"`: `[plant.modal]`.
+    Modal,
+}
+
+impl PlantKind {
+    /// The name used in the file.
+    pub fn name(self) -> &'static str {
+        match self {
+            PlantKind::TransferFunction => "transfer-function",
+            PlantKind::StateSpace => "state-space",
+            PlantKind::Modal => "modal",
+        }
+    }
+}
+
+/// One harmonic disturbance tone `w_input(t) += amplitude · sin(omega t + phase)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tone {
+    /// Index of the disturbance input it drives.
+    pub input: usize,
+    /// Amplitude.
+    pub amplitude: f64,
+    /// Angular frequency, rad/s (≥ 0).
+    pub omega: f64,
+    /// Phase at `t = 0`, rad.
+    pub phase: f64,
+}
+
+/// The `[plant.disturbance]` table.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DisturbanceParams {
+    /// Harmonic tones, integrated exactly through an exosystem.
+    pub tones: Vec<Tone>,
+    /// Standard deviation of the white, sample-and-hold part of each disturbance input
+    /// (`n_w` entries).
+    pub white_std: Vec<f64>,
+}
+
+/// The `[plant.noise]` table.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NoiseParams {
+    /// Standard deviation of the white measurement noise on each `y` (`n_y` entries).
+    pub y_std: Vec<f64>,
+    /// Standard deviation of the white noise on each `z` (`n_z` entries).
+    pub z_std: Vec<f64>,
+    /// Seed of the random generator (ChaCha8).
+    pub seed: u64,
+}
+
+/// The validated `[plant]` table: the continuous-time generalized plant and what drives it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlantParams {
+    /// How the plant was described.
+    pub kind: PlantKind,
+    /// The continuous-time model (realized for `kind = "transfer-function"`).
+    pub model: GeneralizedPlant,
+    /// Pure delay of each control input, samples (`n_u` entries).
+    pub input_delays: Vec<usize>,
+    /// State at `t = 0` (`n_x` entries).
+    pub initial_state: Vec<f64>,
+    /// The constant command `r` (`n_r` entries).
+    pub command: Vec<f64>,
+    /// Disturbances.
+    pub disturbance: DisturbanceParams,
+    /// Measurement noise.
+    pub noise: NoiseParams,
+}
+
+impl PlantParams {
+    /// Parameters for `model` with no delay, a zero initial state, no command, no
+    /// disturbance and no noise (seed 0); `kind` is [`PlantKind::StateSpace`].
+    pub fn new(model: GeneralizedPlant) -> Self {
+        let d = model.dims();
+        Self {
+            kind: PlantKind::StateSpace,
+            input_delays: vec![0; d.n_u],
+            initial_state: vec![0.0; model.n_x()],
+            command: Vec::new(),
+            disturbance: DisturbanceParams {
+                tones: Vec::new(),
+                white_std: vec![0.0; d.n_w],
+            },
+            noise: NoiseParams {
+                y_std: vec![0.0; d.n_y],
+                z_std: vec![0.0; d.n_z],
+                seed: 0,
+            },
+            model,
+        }
+    }
+
+    /// Number of control inputs `u`.
+    pub fn n_u(&self) -> usize {
+        self.model.dims().n_u
+    }
+
+    /// Number of disturbance inputs `w`.
+    pub fn n_w(&self) -> usize {
+        self.model.dims().n_w
+    }
+
+    /// Number of measurements `y`.
+    pub fn n_y(&self) -> usize {
+        self.model.dims().n_y
+    }
+
+    /// Number of performance outputs `z`.
+    pub fn n_z(&self) -> usize {
+        self.model.dims().n_z
+    }
+
+    /// Number of command channels `r`.
+    pub fn n_r(&self) -> usize {
+        self.command.len()
+    }
+
+    /// Number of states of the continuous plant (without the exosystem of the tones).
+    pub fn n_x(&self) -> usize {
+        self.model.n_x()
+    }
+}
+
+/// Reads and validates the scenario file at `path`.
+pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
+        origin: origin.clone(),
+        message: e.to_string(),
+    })?;
+    parse(&text, &origin)
+}
+
+/// Validates the text of a scenario file; `origin` names it in errors.
+pub fn parse(text: &str, origin: &str) -> Result<Scenario, ScenarioError> {
+    let raw: RawFile = toml::from_str(text).map_err(|e| ScenarioError::Toml {
+        origin: origin.to_string(),
+        message: e.to_string(),
+    })?;
+    let cx = Cx { origin };
+    let rig = raw
+        .rig
+        .ok_or_else(|| cx.err("rig", "the [rig] table is missing"))?;
+    let rig = validate_rig(&cx, rig)?;
+    let plant = raw
+        .plant
+        .ok_or_else(|| cx.err("plant", "the [plant] table is missing"))?;
+    let plant = validate_plant(&cx, plant)?;
+    Ok(Scenario {
+        origin: origin.to_string(),
+        rig,
+        plant,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Raw file structure.
+
+#[derive(Deserialize)]
+struct RawFile {
+    rig: Option<RawRig>,
+    plant: Option<RawPlant>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawRig {
+    name: Option<String>,
+    sample_period: Option<f64>,
+    sample_rate_hz: Option<f64>,
+    duration: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawPlant {
+    kind: Option<String>,
+    inputs: Option<usize>,
+    disturbances: Option<usize>,
+    outputs_y: Option<usize>,
+    outputs_z: Option<usize>,
+    input_delays: Option<Vec<usize>>,
+    initial_state: Option<Vec<f64>>,
+    commands: Option<usize>,
+    command: Option<Vec<f64>>,
+    tf: Option<RawTf>,
+    ss: Option<RawSs>,
+    modal: Option<RawModal>,
+    disturbance: Option<RawDisturbance>,
+    noise: Option<RawNoise>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawTf {
+    yu: Option<toml::Value>,
+    yw: Option<toml::Value>,
+    zu: Option<toml::Value>,
+    zw: Option<toml::Value>,
+}
+
+type Rows = Vec<Vec<f64>>;
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawSs {
+    a: Option<Rows>,
+    b_u: Option<Rows>,
+    b_w: Option<Rows>,
+    c_y: Option<Rows>,
+    c_z: Option<Rows>,
+    d_yu: Option<Rows>,
+    d_yw: Option<Rows>,
+    d_zu: Option<Rows>,
+    d_zw: Option<Rows>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawModal {
+    modes: Option<Vec<RawMode>>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawMode {
+    frequency_hz: Option<f64>,
+    frequency_rad_s: Option<f64>,
+    damping: Option<f64>,
+    b_u: Option<Vec<f64>>,
+    b_w: Option<Vec<f64>>,
+    c_y: Option<Vec<f64>>,
+    c_y_vel: Option<Vec<f64>>,
+    c_z: Option<Vec<f64>>,
+    c_z_vel: Option<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawDisturbance {
+    tones: Option<Vec<RawTone>>,
+    white_std: Option<toml::Value>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawTone {
+    input: Option<usize>,
+    amplitude: Option<f64>,
+    frequency_hz: Option<f64>,
+    frequency_rad_s: Option<f64>,
+    phase_deg: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawNoise {
+    y_std: Option<toml::Value>,
+    z_std: Option<toml::Value>,
+    seed: Option<u64>,
+}
+
+// ---------------------------------------------------------------------------------------
+// Validation.
+
+/// Error context: the file name.
+struct Cx<'a> {
+    origin: &'a str,
+}
+
+impl Cx<'_> {
+    fn err(&self, field: impl Into<String>, problem: impl Into<String>) -> ScenarioError {
+        ScenarioError::Field {
+            origin: self.origin.to_string(),
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+
+    fn required<T>(&self, v: Option<T>, field: &str) -> Result<T, ScenarioError> {
+        v.ok_or_else(|| self.err(field, "is missing"))
+    }
+
+    fn finite(&self, v: f64, field: &str) -> Result<f64, ScenarioError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("{v} is not finite")))
+        }
+    }
+
+    fn positive(&self, v: f64, field: &str) -> Result<f64, ScenarioError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("{v} is not positive and finite")))
+        }
+    }
+
+    fn non_negative(&self, v: f64, field: &str) -> Result<f64, ScenarioError> {
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("{v} is negative or not finite")))
+        }
+    }
+
+    fn vector(&self, v: &[f64], len: usize, field: &str, what: &str) -> Result<(), ScenarioError> {
+        if v.len() != len {
+            return Err(self.err(
+                field,
+                format!("has {} entries, expected {len} (one per {what})", v.len()),
+            ));
+        }
+        for (i, x) in v.iter().enumerate() {
+            self.finite(*x, &format!("{field}[{i}]"))?;
+        }
+        Ok(())
+    }
+
+    /// A row-major matrix of `rows × cols`; `[]` stands for an empty matrix.
+    fn matrix(
+        &self,
+        m: &[Vec<f64>],
+        rows: usize,
+        cols: usize,
+        field: &str,
+    ) -> Result<DMatrix<f64>, ScenarioError> {
+        if m.is_empty() && (rows == 0 || cols == 0) {
+            return Ok(DMatrix::zeros(rows, cols));
+        }
+        if m.len() != rows {
+            return Err(self.err(field, format!("has {} rows, expected {rows}", m.len())));
+        }
+        for (i, r) in m.iter().enumerate() {
+            if r.len() != cols {
+                return Err(self.err(
+                    format!("{field}[{i}]"),
+                    format!("has {} entries, expected {cols}", r.len()),
+                ));
+            }
+            for (j, x) in r.iter().enumerate() {
+                self.finite(*x, &format!("{field}[{i}][{j}]"))?;
+            }
+        }
+        Ok(DMatrix::from_fn(rows, cols, |i, j| m[i][j]))
+    }
+
+    /// A scalar (applied to every channel) or one non-negative value per channel.
+    fn per_channel(
+        &self,
+        v: Option<&toml::Value>,
+        n: usize,
+        field: &str,
+        what: &str,
+    ) -> Result<Vec<f64>, ScenarioError> {
+        let out = match v {
+            None => vec![0.0; n],
+            Some(v) => match (number(v), v.as_array()) {
+                (Some(x), _) => vec![x; n],
+                (None, Some(a)) => {
+                    let xs: Option<Vec<f64>> = a.iter().map(number).collect();
+                    let xs = xs.ok_or_else(|| {
+                        self.err(field, "must be a number or an array of numbers")
+                    })?;
+                    if xs.len() != n {
+                        return Err(self.err(
+                            field,
+                            format!(
+                                "has {} entries, expected {n} (one per {what}) or one scalar",
+                                xs.len()
+                            ),
+                        ));
+                    }
+                    xs
+                }
+                (None, None) => {
+                    return Err(self.err(field, "must be a number or an array of numbers"));
+                }
+            },
+        };
+        for (i, x) in out.iter().enumerate() {
+            self.non_negative(*x, &format!("{field}[{i}]"))?;
+        }
+        Ok(out)
+    }
+}
+
+fn number(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Integer(i) => Some(*i as f64),
+        toml::Value::Float(x) => Some(*x),
+        _ => None,
+    }
+}
+
+fn validate_rig(cx: &Cx<'_>, raw: RawRig) -> Result<RigParams, ScenarioError> {
+    let name = cx.required(raw.name, "rig.name")?;
+    // The same rule as the service names derived from it (1 to 64 of [A-Za-z0-9_-]).
+    if let Err(e) = ipc_types::ports::service_names(&name) {
+        return Err(cx.err("rig.name", e.to_string()));
+    }
+    let sample_period = match (raw.sample_period, raw.sample_rate_hz) {
+        (Some(t), None) => cx.positive(t, "rig.sample-period")?,
+        (None, Some(f)) => 1.0 / cx.positive(f, "rig.sample-rate-hz")?,
+        (Some(_), Some(_)) => {
+            return Err(cx.err(
+                "rig.sample-period",
+                "give sample-period or sample-rate-hz, not both",
+            ));
+        }
+        (None, None) => {
+            return Err(cx.err(
+                "rig.sample-period",
+                "is missing (or give rig.sample-rate-hz)",
+            ));
+        }
+    };
+    let duration = cx.positive(cx.required(raw.duration, "rig.duration")?, "rig.duration")?;
+    Ok(RigParams {
+        name,
+        sample_period,
+        duration,
+    })
+}
+
+fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioError> {
+    let kind = match cx.required(raw.kind, "plant.kind")?.as_str() {
+        "transfer-function" => PlantKind::TransferFunction,
+        "state-space" => PlantKind::StateSpace,
+        "modal" => PlantKind::Modal,
+        other => {
+            return Err(cx.err(
+                "plant.kind",
+                format!(
+                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\""
+                ),
+            ));
+        }
+    };
+    let count =
+        |v: Option<usize>, field: &str, max: Option<usize>| -> Result<usize, ScenarioError> {
+            let n = cx.required(v, field)?;
+            match max {
+                Some(max) if n > max => Err(cx.err(
+                    field,
+                    format!("{n} channels, the contract carries at most {max}"),
+                )),
+                _ => Ok(n),
+            }
+        };
+    let dims = ChannelDims {
+        n_u: count(raw.inputs, "plant.inputs", Some(ipc_types::MAX_U))?,
+        n_w: count(raw.disturbances, "plant.disturbances", None)?,
+        n_y: count(raw.outputs_y, "plant.outputs-y", Some(ipc_types::MAX_Y))?,
+        n_z: count(raw.outputs_z, "plant.outputs-z", Some(ipc_types::MAX_Z))?,
+    };
+    let n_r = count(
+        raw.commands.or(Some(0)),
+        "plant.commands",
+        Some(ipc_types::MAX_R),
+    )?;
+
+    let given = [
+        ("tf", raw.tf.is_some()),
+        ("ss", raw.ss.is_some()),
+        ("modal", raw.modal.is_some()),
+    ];
+    let wanted = match kind {
+        PlantKind::TransferFunction => "tf",
+        PlantKind::StateSpace => "ss",
+        PlantKind::Modal => "modal",
+    };
+    for (table, present) in given {
+        if present && table != wanted {
+            return Err(cx.err(
+                format!("plant.{table}"),
+                format!(
+                    "given, but plant.kind = \"{}\" reads [plant.{wanted}]",
+                    kind.name()
+                ),
+            ));
+        }
+    }
+    let model = match kind {
+        PlantKind::TransferFunction => {
+            let tf = cx.required(raw.tf, "plant.tf")?;
+            tf_model(cx, tf, dims)?
+        }
+        PlantKind::StateSpace => {
+            let ss = cx.required(raw.ss, "plant.ss")?;
+            ss_model(cx, ss, dims)?
+        }
+        PlantKind::Modal => {
+            let modal = cx.required(raw.modal, "plant.modal")?;
+            modal_model(cx, modal, dims)?
+        }
+    };
+    let n_x = model.n_x();
+
+    let input_delays = raw.input_delays.unwrap_or_else(|| vec![0; dims.n_u]);
+    if input_delays.len() != dims.n_u {
+        return Err(cx.err(
+            "plant.input-delays",
+            format!(
+                "has {} entries, expected {} (one per input)",
+                input_delays.len(),
+                dims.n_u
+            ),
+        ));
+    }
+    if let Some(i) = input_delays.iter().position(|&d| d > MAX_INPUT_DELAY) {
+        return Err(cx.err(
+            format!("plant.input-delays[{i}]"),
+            format!(
+                "{} samples exceeds the limit of {MAX_INPUT_DELAY}",
+                input_delays[i]
+            ),
+        ));
+    }
+    let initial_state = raw.initial_state.unwrap_or_else(|| vec![0.0; n_x]);
+    let what = match kind {
+        PlantKind::TransferFunction => "state of the column-wise realization",
+        PlantKind::StateSpace => "state",
+        PlantKind::Modal => "state [q, q̇] of each mode",
+    };
+    cx.vector(&initial_state, n_x, "plant.initial-state", what)?;
+    let command = raw.command.unwrap_or_else(|| vec![0.0; n_r]);
+    cx.vector(
+        &command,
+        n_r,
+        "plant.command",
+        "command channel (plant.commands)",
+    )?;
+
+    let disturbance = match raw.disturbance {
+        None => DisturbanceParams {
+            tones: Vec::new(),
+            white_std: vec![0.0; dims.n_w],
+        },
+        Some(d) => disturbance(cx, d, dims.n_w)?,
+    };
+    let noise = match raw.noise {
+        None => NoiseParams {
+            y_std: vec![0.0; dims.n_y],
+            z_std: vec![0.0; dims.n_z],
+            seed: 0,
+        },
+        Some(n) => NoiseParams {
+            y_std: cx.per_channel(n.y_std.as_ref(), dims.n_y, "plant.noise.y-std", "output y")?,
+            z_std: cx.per_channel(n.z_std.as_ref(), dims.n_z, "plant.noise.z-std", "output z")?,
+            seed: n.seed.unwrap_or(0),
+        },
+    };
+    Ok(PlantParams {
+        kind,
+        model,
+        input_delays,
+        initial_state,
+        command,
+        disturbance,
+        noise,
+    })
+}
+
+/// One `[plant.tf]` block: an array of rows of entries (`0` or `{ num, den }`).
+fn tf_block(
+    cx: &Cx<'_>,
+    v: Option<&toml::Value>,
+    rows: usize,
+    cols: usize,
+    field: &str,
+) -> Result<Vec<Vec<Option<Tf>>>, ScenarioError> {
+    let Some(v) = v else { return Ok(Vec::new()) };
+    let shape = format!(
+        "an array of rows ({rows} × {cols}) whose entries are 0 or {{ num = [..], den = [..] }}"
+    );
+    let arr = v
+        .as_array()
+        .ok_or_else(|| cx.err(field, format!("must be {shape}")))?;
+    if arr.len() > rows {
+        return Err(cx.err(
+            field,
+            format!("has {} rows, expected at most {rows}", arr.len()),
+        ));
+    }
+    let mut out = Vec::with_capacity(arr.len());
+    for (i, row) in arr.iter().enumerate() {
+        let rf = format!("{field}[{i}]");
+        let row = match row {
+            toml::Value::Array(r) => r,
+            other if number(other) == Some(0.0) => {
+                out.push(vec![None; cols]);
+                continue;
+            }
+            _ => return Err(cx.err(rf, format!("must be an array of {cols} entries"))),
+        };
+        if row.is_empty() {
+            out.push(vec![None; cols]);
+            continue;
+        }
+        if row.len() != cols {
+            return Err(cx.err(rf, format!("has {} entries, expected {cols}", row.len())));
+        }
+        let mut r = Vec::with_capacity(cols);
+        for (j, e) in row.iter().enumerate() {
+            let ef = format!("{field}[{i}][{j}]");
+            r.push(tf_entry(cx, e, &ef)?);
+        }
+        out.push(r);
+    }
+    Ok(out)
+}
+
+fn tf_entry(cx: &Cx<'_>, e: &toml::Value, field: &str) -> Result<Option<Tf>, ScenarioError> {
+    if let Some(x) = number(e) {
+        return if x == 0.0 {
+            Ok(None)
+        } else {
+            Err(cx.err(
+                field,
+                format!("{x}: an entry is 0 or {{ num = [..], den = [..] }}"),
+            ))
+        };
+    }
+    let t = e
+        .as_table()
+        .ok_or_else(|| cx.err(field, "an entry is 0 or { num = [..], den = [..] }"))?;
+    if let Some(k) = t.keys().find(|k| *k != "num" && *k != "den") {
+        return Err(cx.err(format!("{field}.{k}"), "unknown key (expected num and den)"));
+    }
+    let coeffs = |key: &str| -> Result<Vec<f64>, ScenarioError> {
+        let f = format!("{field}.{key}");
+        let v = t.get(key).ok_or_else(|| cx.err(&f, "is missing"))?;
+        let a = v
+            .as_array()
+            .ok_or_else(|| cx.err(&f, "must be an array of numbers"))?;
+        let xs: Option<Vec<f64>> = a.iter().map(number).collect();
+        let xs = xs.ok_or_else(|| cx.err(&f, "must be an array of numbers"))?;
+        for (i, x) in xs.iter().enumerate() {
+            cx.finite(*x, &format!("{f}[{i}]"))?;
+        }
+        Ok(xs)
+    };
+    let (num, den) = (coeffs("num")?, coeffs("den")?);
+    match Tf::new(num, den) {
+        Ok(g) => Ok(Some(g).filter(|g| !g.is_zero())),
+        Err(e @ (LtiError::EmptyDenominator | LtiError::ZeroLeadingDenominator)) => {
+            Err(cx.err(format!("{field}.den"), e.to_string()))
+        }
+        Err(e) => Err(cx.err(field, e.to_string())),
+    }
+}
+
+fn tf_model(cx: &Cx<'_>, tf: RawTf, d: ChannelDims) -> Result<GeneralizedPlant, ScenarioError> {
+    let yu = tf_block(cx, tf.yu.as_ref(), d.n_y, d.n_u, "plant.tf.yu")?;
+    let yw = tf_block(cx, tf.yw.as_ref(), d.n_y, d.n_w, "plant.tf.yw")?;
+    let zu = tf_block(cx, tf.zu.as_ref(), d.n_z, d.n_u, "plant.tf.zu")?;
+    let zw = tf_block(cx, tf.zw.as_ref(), d.n_z, d.n_w, "plant.tf.zw")?;
+    GeneralizedPlant::from_tf_blocks(&yu, &yw, &zu, &zw, d)
+        .map_err(|e| cx.err("plant.tf", e.to_string()))
+}
+
+fn ss_model(cx: &Cx<'_>, ss: RawSs, d: ChannelDims) -> Result<GeneralizedPlant, ScenarioError> {
+    let a_rows = cx.required(ss.a, "plant.ss.a")?;
+    let n = a_rows.len();
+    let a = cx.matrix(&a_rows, n, n, "plant.ss.a")?;
+    // A matrix may be absent when it has no entry (zero inputs or outputs); `D`s are zero
+    // when absent.
+    let needed =
+        |m: Option<Rows>, r: usize, c: usize, f: &str| -> Result<DMatrix<f64>, ScenarioError> {
+            match m {
+                Some(m) => cx.matrix(&m, r, c, f),
+                None if r == 0 || c == 0 => Ok(DMatrix::zeros(r, c)),
+                None => Err(cx.err(f, format!("is missing ({r} × {c})"))),
+            }
+        };
+    let optional =
+        |m: Option<Rows>, r: usize, c: usize, f: &str| -> Result<DMatrix<f64>, ScenarioError> {
+            match m {
+                Some(m) => cx.matrix(&m, r, c, f),
+                None => Ok(DMatrix::zeros(r, c)),
+            }
+        };
+    let p = GeneralizedPlant {
+        a,
+        b_u: needed(ss.b_u, n, d.n_u, "plant.ss.b-u")?,
+        b_w: needed(ss.b_w, n, d.n_w, "plant.ss.b-w")?,
+        c_y: needed(ss.c_y, d.n_y, n, "plant.ss.c-y")?,
+        c_z: needed(ss.c_z, d.n_z, n, "plant.ss.c-z")?,
+        d_yu: optional(ss.d_yu, d.n_y, d.n_u, "plant.ss.d-yu")?,
+        d_yw: optional(ss.d_yw, d.n_y, d.n_w, "plant.ss.d-yw")?,
+        d_zu: optional(ss.d_zu, d.n_z, d.n_u, "plant.ss.d-zu")?,
+        d_zw: optional(ss.d_zw, d.n_z, d.n_w, "plant.ss.d-zw")?,
+    };
+    p.validate()
+        .map_err(|e| cx.err("plant.ss", e.to_string()))?;
+    Ok(p)
+}
+
+fn modal_model(
+    cx: &Cx<'_>,
+    m: RawModal,
+    d: ChannelDims,
+) -> Result<GeneralizedPlant, ScenarioError> {
+    let raw_modes = cx.required(m.modes, "plant.modal.modes")?;
+    let mut modes = Vec::with_capacity(raw_modes.len());
+    for (r, rm) in raw_modes.into_iter().enumerate() {
+        let f = |k: &str| format!("plant.modal.modes[{r}].{k}");
+        let omega = match (rm.frequency_hz, rm.frequency_rad_s) {
+            (Some(hz), None) => 2.0 * PI * cx.positive(hz, &f("frequency-hz"))?,
+            (None, Some(w)) => cx.positive(w, &f("frequency-rad-s"))?,
+            (Some(_), Some(_)) => {
+                return Err(cx.err(
+                    f("frequency-hz"),
+                    "give frequency-hz or frequency-rad-s, not both",
+                ));
+            }
+            (None, None) => {
+                return Err(cx.err(f("frequency-hz"), "is missing (or give frequency-rad-s)"));
+            }
+        };
+        let zeta = cx.non_negative(cx.required(rm.damping, &f("damping"))?, &f("damping"))?;
+        let vector = |v: Option<Vec<f64>>,
+                      n: usize,
+                      key: &str,
+                      what: &str|
+         -> Result<Vec<f64>, ScenarioError> {
+            let v = v.unwrap_or_else(|| vec![0.0; n]);
+            cx.vector(&v, n, &f(key), what)?;
+            Ok(v)
+        };
+        modes.push(Mode {
+            omega,
+            zeta,
+            b_u: vector(rm.b_u, d.n_u, "b-u", "input u")?,
+            b_w: vector(rm.b_w, d.n_w, "b-w", "disturbance input w")?,
+            c_y: vector(rm.c_y, d.n_y, "c-y", "output y")?,
+            c_y_vel: vector(rm.c_y_vel, d.n_y, "c-y-vel", "output y")?,
+            c_z: vector(rm.c_z, d.n_z, "c-z", "output z")?,
+            c_z_vel: vector(rm.c_z_vel, d.n_z, "c-z-vel", "output z")?,
+        });
+    }
+    GeneralizedPlant::from_modes(&modes, d).map_err(|e| cx.err("plant.modal.modes", e.to_string()))
+}
+
+fn disturbance(
+    cx: &Cx<'_>,
+    d: RawDisturbance,
+    n_w: usize,
+) -> Result<DisturbanceParams, ScenarioError> {
+    let mut tones = Vec::new();
+    for (i, t) in d.tones.unwrap_or_default().into_iter().enumerate() {
+        let f = |k: &str| format!("plant.disturbance.tones[{i}].{k}");
+        let input = cx.required(t.input, &f("input"))?;
+        if input >= n_w {
+            return Err(cx.err(
+                f("input"),
+                format!("{input} is not a disturbance input (plant.disturbances = {n_w})"),
+            ));
+        }
+        let omega = match (t.frequency_hz, t.frequency_rad_s) {
+            (Some(hz), None) => 2.0 * PI * cx.non_negative(hz, &f("frequency-hz"))?,
+            (None, Some(w)) => cx.non_negative(w, &f("frequency-rad-s"))?,
+            (Some(_), Some(_)) => {
+                return Err(cx.err(
+                    f("frequency-hz"),
+                    "give frequency-hz or frequency-rad-s, not both",
+                ));
+            }
+            (None, None) => {
+                return Err(cx.err(f("frequency-hz"), "is missing (or give frequency-rad-s)"));
+            }
+        };
+        let amplitude = cx.finite(cx.required(t.amplitude, &f("amplitude"))?, &f("amplitude"))?;
+        let phase = cx
+            .finite(t.phase_deg.unwrap_or(0.0), &f("phase-deg"))?
+            .to_radians();
+        tones.push(Tone {
+            input,
+            amplitude,
+            omega,
+            phase,
+        });
+    }
+    let white_std = cx.per_channel(
+        d.white_std.as_ref(),
+        n_w,
+        "plant.disturbance.white-std",
+        "disturbance input",
+    )?;
+    Ok(DisturbanceParams { tones, white_std })
+}
+
+#[cfg(test)]
+mod tests;

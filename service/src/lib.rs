@@ -12,11 +12,14 @@
 //! - [`logging`]: the bounded lock-free queue that carries signal logs out of the RT thread
 //!   and the CSV writer behind it.
 //! - [`runtime`]: the RT loop, the deadline and silence policy, the run report.
+//! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
+//!   counts every allocation made on it.
 
 #![warn(missing_docs)]
 
 pub mod config;
 pub mod controller;
 pub mod logging;
+pub mod rt_alloc;
 pub mod runtime;
 pub mod telemetry;

@@ -12,6 +12,7 @@
 //! ends, and prints the run report. `check` validates a configuration and exits.
 
 use clap::{Parser, Subcommand};
+use service::rt_alloc::RtAwareAllocator;
 use service::config::{ServiceConfig, WaitMode};
 use service::runtime::{RunOptions, run};
 use std::path::{Path, PathBuf};
@@ -19,6 +20,9 @@ use std::process::{Command as Process, ExitCode, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
+
+#[global_allocator]
+static ALLOCATOR: RtAwareAllocator = RtAwareAllocator;
 
 #[derive(Parser)]
 #[command(name = "service", version, about = "Adaptive real-time control service")]

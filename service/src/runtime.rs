@@ -210,6 +210,8 @@ pub struct LoopCore {
     record: LogRecord,
     internals: [f64; MAX_INTERNALS],
     pending_jitter: Option<u64>,
+    /// Allocations made on the RT thread during the loop (filled in when it ends).
+    pub rt_allocations: crate::rt_alloc::RtAllocStats,
 }
 
 /// What [`LoopCore::process`] decided for one sample.
@@ -272,6 +274,7 @@ impl LoopCore {
             record: LogRecord::zeroed(),
             internals: [0.0; MAX_INTERNALS],
             pending_jitter: None,
+            rt_allocations: Default::default(),
         }
     }
 
@@ -593,6 +596,9 @@ pub struct RunReport {
     pub log_dropped: u64,
     /// Response-time budget used for "over budget" (the sample period), ns.
     pub budget_ns: u64,
+    /// Allocations on the RT thread during the loop: served by its pool (iceoryx2's
+    /// per-sample loan state) and from the system allocator (should be 0).
+    pub rt_allocations: crate::rt_alloc::RtAllocStats,
 }
 
 impl RunReport {
@@ -628,6 +634,13 @@ impl RunReport {
         let fmt_v = |v: &[f64]| v.iter().map(|x| format!("{x:.4e}")).collect::<Vec<_>>().join(", ");
         out += &format!("RMS of z: [{}] (whole run), [{}] (after settling)\n", fmt_v(&self.z_rms), fmt_v(&self.z_rms_settled));
         out += &format!("signal log: {} records written, {} dropped\n", self.log_written, self.log_dropped);
+        let a = &self.rt_allocations;
+        if a.installed {
+            out += &format!(
+                "RT-thread allocations: {} from the system allocator, {} served by the RT pool (iceoryx2 sample loans)\n",
+                a.system_on_rt_thread, a.pool_served
+            );
+        }
         out += &self.latency.render_table(self.budget_ns);
         out
     }
@@ -756,6 +769,7 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
         log_written,
         log_dropped,
         budget_ns: cfg.budget_ns,
+        rt_allocations: core.rt_allocations,
     };
     write_json(&folder.join("report.json"), &report)?;
     Ok(report)
@@ -773,6 +787,9 @@ fn timestamp() -> String {
         .unwrap_or(0);
     format!("{secs}-{}", std::process::id())
 }
+
+/// Blocks in the RT thread's allocation pool (iceoryx2 holds at most a few at once).
+pub const RT_POOL_BLOCKS: usize = 256;
 
 type RtResult = Result<(LoopCore, RtSetup, StopReason), ServiceError>;
 
@@ -805,7 +822,10 @@ fn rt_thread_main(
         Err(e) => return Err(ServiceError::Connect(e)),
     };
     eprintln!("[service] connected to the plant; running ({:?})", cfg.wait);
+    crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
+    let before = crate::rt_alloc::thread_stats();
     let stop = rt_loop(&ports, &mut core, &shutdown, cfg.wait, cfg.sample_period_ns, max_cycles, exit_with_plant);
+    core.rt_allocations = crate::rt_alloc::thread_stats().since(&before);
     Ok((core, setup, stop))
 }
 

@@ -1,1 +1,231 @@
-//! Helpers for the closed-loop integration tests (see `tests/`).
+//! Helpers for the closed-loop integration tests in `tests/tests/`: finding the built
+//! binaries, writing scenario files into a fresh folder, starting `service` and
+//! `plant-proxy` as real processes, and watching what they print.
+//!
+//! The tests run the two processes in lockstep where the result must not depend on timing,
+//! and give every test its own rig name so that they can run in parallel.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{Receiver, channel};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// The path of a workspace binary built next to the test executable
+/// (`target/<profile>/<name>`); `cargo test --workspace` builds them.
+pub fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    let dir = exe.parent().and_then(|d| d.parent()).expect("target/<profile>");
+    let p = dir.join(name);
+    assert!(
+        p.exists(),
+        "{} is not built; run the tests with `cargo test --workspace` (it builds every binary)",
+        p.display()
+    );
+    p
+}
+
+/// A fresh folder for one test, removed when dropped unless the test failed.
+pub struct TestDir {
+    /// Its path.
+    pub path: PathBuf,
+}
+
+impl TestDir {
+    /// Creates `target/test-runs/<name>-<pid>`.
+    pub fn new(name: &str) -> Self {
+        let exe = std::env::current_exe().expect("test executable path");
+        let base = exe
+            .parent()
+            .and_then(|d| d.parent())
+            .and_then(|d| d.parent())
+            .expect("target dir")
+            .join("test-runs");
+        let path = base.join(format!("{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&path);
+        std::fs::create_dir_all(&path).expect("create test dir");
+        Self { path }
+    }
+
+    /// Writes `text` into `file` inside the folder and returns its path.
+    pub fn write(&self, file: &str, text: &str) -> PathBuf {
+        let p = self.path.join(file);
+        std::fs::write(&p, text).expect("write test file");
+        p
+    }
+}
+
+impl Drop for TestDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+}
+
+/// A running process whose stderr lines are collected.
+pub struct Proc {
+    /// The child.
+    pub child: Child,
+    lines: Arc<Mutex<Vec<String>>>,
+    rx: Receiver<String>,
+    name: String,
+}
+
+impl Proc {
+    /// Starts `program args…` with stdout and stderr captured.
+    pub fn start(name: &str, program: &Path, args: &[&str]) -> Self {
+        let mut child = Command::new(program)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {}: {e}", program.display()));
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let (tx, rx) = channel();
+        for stream in [
+            Box::new(child.stderr.take().unwrap()) as Box<dyn std::io::Read + Send>,
+            Box::new(child.stdout.take().unwrap()),
+        ] {
+            let lines = lines.clone();
+            let tx = tx.clone();
+            let tag = name.to_string();
+            std::thread::spawn(move || {
+                for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    eprintln!("  [{tag}] {line}");
+                    lines.lock().unwrap().push(line.clone());
+                    let _ = tx.send(line);
+                }
+            });
+        }
+        Self { child, lines, rx, name: name.to_string() }
+    }
+
+    /// Waits until a printed line contains `needle`; panics after `timeout`.
+    pub fn wait_for_line(&self, needle: &str, timeout: Duration) -> String {
+        let deadline = Instant::now() + timeout;
+        if let Some(l) = self.lines.lock().unwrap().iter().find(|l| l.contains(needle)) {
+            return l.clone();
+        }
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.rx.recv_timeout(left) {
+                Ok(l) if l.contains(needle) => return l,
+                Ok(_) => {}
+                Err(_) => panic!(
+                    "{} did not print '{needle}' within {:.1} s; it printed:\n{}",
+                    self.name,
+                    timeout.as_secs_f64(),
+                    self.output()
+                ),
+            }
+        }
+    }
+
+    /// Everything printed so far.
+    pub fn output(&self) -> String {
+        self.lines.lock().unwrap().join("\n")
+    }
+
+    /// Waits for the process to exit; panics after `timeout` (and kills it).
+    pub fn wait(&mut self, timeout: Duration) -> std::process::ExitStatus {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(st) = self.child.try_wait().expect("try_wait") {
+                // Let the reader threads catch the last lines.
+                std::thread::sleep(Duration::from_millis(50));
+                return st;
+            }
+            if Instant::now() > deadline {
+                let _ = self.child.kill();
+                panic!("{} did not exit within {:.1} s; it printed:\n{}", self.name, timeout.as_secs_f64(), self.output());
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Sends a signal (e.g. `libc::SIGKILL`, `libc::SIGTERM`).
+    pub fn signal(&self, sig: i32) {
+        // SAFETY: kill with a pid we own and a valid signal number.
+        unsafe { libc::kill(self.child.id() as i32, sig) };
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The service tables used by the tests: no RT privileges asked (the tests share two cores
+/// with the harness), blocking wait, quick silence detection.
+pub fn test_service_tables(extra_service: &str, controller: &str) -> String {
+    format!(
+        r#"
+[service]
+fifo-priority = 0
+mlockall = false
+wait = "block"
+silent-periods = 100
+peer-timeout = 20.0
+grace-periods = 10
+{extra_service}
+
+{controller}
+
+[log]
+decimation = 1
+"#
+    )
+}
+
+/// A scenario file from the repository's `scenarios/` folder.
+pub fn scenario_text(name: &str) -> String {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("scenarios").join(name);
+    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("reading {}: {e}", p.display()))
+}
+
+/// Replaces the rig name of a scenario text (so parallel tests do not share services).
+pub fn with_rig_name(text: &str, rig: &str) -> String {
+    let mut out = String::new();
+    let mut in_rig = false;
+    for line in text.lines() {
+        let t = line.trim();
+        if t.starts_with('[') {
+            in_rig = t == "[rig]";
+        }
+        if in_rig && t.starts_with("name") && t.contains('=') {
+            out += &format!("name = \"{rig}\"\n");
+        } else {
+            out += line;
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// A unique rig name for one test.
+pub fn rig_name(test: &str) -> String {
+    format!("t-{test}-{}", std::process::id())
+}
+
+/// Reads a CSV file into its header and rows of numbers (non-numbers become NaN).
+pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().expect("header").split(',').map(|s| s.to_string()).collect();
+    let rows = lines
+        .filter(|l| !l.is_empty())
+        .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap_or(f64::NAN)).collect())
+        .collect();
+    (header, rows)
+}
+
+/// Reads a JSON file.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+    serde_json::from_str(&text).expect("valid JSON")
+}

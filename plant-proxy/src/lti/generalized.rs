@@ -151,7 +151,12 @@ impl GeneralizedPlant {
         d.view_mut((0, n_u), (n_y, n_w)).copy_from(&self.d_yw);
         d.view_mut((n_y, 0), (n_z, n_u)).copy_from(&self.d_zu);
         d.view_mut((n_y, n_u), (n_z, n_w)).copy_from(&self.d_zw);
-        StateSpace { a: self.a.clone(), b, c, d }
+        StateSpace {
+            a: self.a.clone(),
+            b,
+            c,
+            d,
+        }
     }
 
     /// Realizes the four transfer-function matrices (rows = outputs, columns = inputs,
@@ -165,7 +170,12 @@ impl GeneralizedPlant {
         dims: ChannelDims,
     ) -> Result<Self, LtiError> {
         let ChannelDims { n_u, n_w, n_y, n_z } = dims;
-        let blocks = [("G_yu", yu, n_y, n_u), ("G_yw", yw, n_y, n_w), ("G_zu", zu, n_z, n_u), ("G_zw", zw, n_z, n_w)];
+        let blocks = [
+            ("G_yu", yu, n_y, n_u),
+            ("G_yw", yw, n_y, n_w),
+            ("G_zu", zu, n_z, n_u),
+            ("G_zw", zw, n_z, n_w),
+        ];
         for (what, g, rows, cols) in blocks {
             let bad_row = g.iter().position(|r| r.len() != cols);
             if g.len() > rows || bad_row.is_some() {
@@ -231,10 +241,14 @@ impl GeneralizedPlant {
                 super::check_finite(&what(name), v)?;
             }
             if !(mode.omega.is_finite() && mode.omega >= 0.0) {
-                return Err(LtiError::NonFinite { what: what("frequency (must be ≥ 0)") });
+                return Err(LtiError::NonFinite {
+                    what: what("frequency (must be ≥ 0)"),
+                });
             }
             if !(mode.zeta.is_finite() && mode.zeta >= 0.0) {
-                return Err(LtiError::NonFinite { what: what("damping (must be ≥ 0)") });
+                return Err(LtiError::NonFinite {
+                    what: what("damping (must be ≥ 0)"),
+                });
             }
             let (q, v) = (2 * r, 2 * r + 1);
             p.a[(q, v)] = 1.0;
@@ -268,7 +282,12 @@ mod tests {
     fn tf_blocks_are_realized_into_the_four_channels() {
         let g = Tf::new(vec![2.0, 1.0], vec![1.0, 0.4, 4.0]).unwrap();
         let h = Tf::new(vec![1.0], vec![1.0, 3.0]).unwrap();
-        let dims = ChannelDims { n_u: 1, n_w: 1, n_y: 1, n_z: 1 };
+        let dims = ChannelDims {
+            n_u: 1,
+            n_w: 1,
+            n_y: 1,
+            n_z: 1,
+        };
         let p = GeneralizedPlant::from_tf_blocks(
             &[vec![Some(g.clone())]],
             &[vec![Some(h.clone())]],
@@ -303,7 +322,12 @@ mod tests {
             c_z: vec![],
             c_z_vel: vec![],
         };
-        let dims = ChannelDims { n_u: 1, n_w: 0, n_y: 1, n_z: 0 };
+        let dims = ChannelDims {
+            n_u: 1,
+            n_w: 0,
+            n_y: 1,
+            n_z: 0,
+        };
         let p = GeneralizedPlant::from_modes(&[mode], dims).unwrap();
         let s = Complex::new(0.0, 25.0);
         let want = (s * 0.5 + 3.0) * 2.0 / (s * s + s * (2.0 * z * w) + w * w);

@@ -1,0 +1,314 @@
+//! The second process of the two-process measurements.
+//!
+//! The bench re-executes its own binary (`std::env::current_exe()`) with a hidden
+//! subcommand that selects the child's role: the real service ([`run_service_child`]) or a
+//! raw iceoryx2 echo (`crate::roundtrip::run_echo_child`). The child is started from the
+//! parent's main thread, which is never pinned nor given a real-time policy, so the child
+//! starts with default scheduling and all cores and does its own real-time set-up, exactly
+//! as a deployed service does. Its standard output and error go to a log file next to its
+//! results. [`ChildProc`] terminates the child (SIGTERM, then SIGKILL) if it is still
+//! running when the parent gives up on it.
+
+use service::config::{ServiceConfig, WaitMode};
+use service::runtime::{RunOptions, run};
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+/// A running child process of the bench.
+pub struct ChildProc {
+    child: Child,
+    /// The file that receives its standard output and error.
+    pub log: PathBuf,
+    /// What it is, for messages.
+    pub what: String,
+    exited: Option<ExitStatus>,
+}
+
+impl ChildProc {
+    /// Starts this executable again with `args`, output to `log`.
+    pub fn spawn(args: &[String], log: &Path, what: &str) -> Result<Self, String> {
+        let exe = std::env::current_exe().map_err(|e| format!("cannot find the bench executable: {e}"))?;
+        let out = File::create(log).map_err(|e| format!("creating {}: {e}", log.display()))?;
+        let err = out.try_clone().map_err(|e| format!("{}: {e}", log.display()))?;
+        let child = Command::new(exe)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(out)
+            .stderr(err)
+            .spawn()
+            .map_err(|e| format!("starting the {what} child: {e}"))?;
+        Ok(Self { child, log: log.to_path_buf(), what: what.to_string(), exited: None })
+    }
+
+    /// `Err` with the end of its log when the child has already exited.
+    pub fn check_alive(&mut self) -> Result<(), String> {
+        if let Some(st) = self.poll() {
+            return Err(format!("the {} child exited early ({st}): {}", self.what, self.log_tail(1500)));
+        }
+        Ok(())
+    }
+
+    fn poll(&mut self) -> Option<ExitStatus> {
+        if self.exited.is_none() {
+            if let Ok(Some(st)) = self.child.try_wait() {
+                self.exited = Some(st);
+            }
+        }
+        self.exited
+    }
+
+    /// Waits up to `timeout` for the child to exit; terminates it and fails if it does not.
+    /// A non-zero exit status is an error carrying the end of its log.
+    pub fn wait(&mut self, timeout: Duration) -> Result<(), String> {
+        let start = Instant::now();
+        loop {
+            if let Some(st) = self.poll() {
+                return if st.success() {
+                    Ok(())
+                } else {
+                    Err(format!("the {} child failed ({st}): {}", self.what, self.log_tail(1500)))
+                };
+            }
+            if start.elapsed() > timeout {
+                self.terminate();
+                return Err(format!(
+                    "the {} child did not exit within {:.0} s and was terminated: {}",
+                    self.what,
+                    timeout.as_secs_f64(),
+                    self.log_tail(1500)
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// SIGTERM, up to 2 s of grace, then SIGKILL.
+    pub fn terminate(&mut self) {
+        if self.poll().is_some() {
+            return;
+        }
+        // SAFETY: kill only sends a signal to our own child's pid.
+        unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(2) {
+            if self.poll().is_some() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = self.child.kill();
+        if let Ok(st) = self.child.wait() {
+            self.exited = Some(st);
+        }
+    }
+
+    /// The last `n` bytes of the child's log.
+    pub fn log_tail(&self, n: usize) -> String {
+        let text = std::fs::read_to_string(&self.log).unwrap_or_default();
+        let mut start = text.len().saturating_sub(n);
+        while !text.is_char_boundary(start) {
+            start += 1;
+        }
+        let tail = text[start..].trim();
+        if tail.is_empty() {
+            format!("(empty log {})", self.log.display())
+        } else {
+            format!("\n--- end of {} ---\n{tail}", self.log.display())
+        }
+    }
+}
+
+impl Drop for ChildProc {
+    fn drop(&mut self) {
+        self.terminate();
+    }
+}
+
+/// A flag set by SIGINT or SIGTERM, so a child asked to stop ends its loop and cleans up
+/// its iceoryx2 resources.
+pub fn shutdown_flag() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        let _ = signal_hook::flag::register(sig, flag.clone());
+    }
+    flag
+}
+
+/// The service child: parses `config` with `ServiceConfig::parse(text, "bench")` and runs
+/// the real service loop (`service::runtime::run`) in `wait` mode with its RT thread on
+/// `core`, writing into `run_folder`, until the plant sends its last sample. Prints the run
+/// report (also in `run_folder/report.json`). Returns the process exit code.
+pub fn run_service_child(config: &Path, wait: WaitMode, core: usize, run_folder: &Path) -> i32 {
+    let text = match std::fs::read_to_string(config) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("[bench child] reading {}: {e}", config.display());
+            return 2;
+        }
+    };
+    let cfg = match ServiceConfig::parse(&text, "bench") {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("[bench child] {e}");
+            return 2;
+        }
+    };
+    let opts = RunOptions {
+        exit_with_plant: true,
+        wait: Some(wait),
+        core: Some(core),
+        run_folder: Some(run_folder.to_path_buf()),
+        ..Default::default()
+    };
+    let pinner = repin_rt_thread(core, run_folder.to_path_buf());
+    let result = run(&cfg, &opts, shutdown_flag());
+    let _ = pinner.join();
+    match result {
+        Ok(report) => {
+            println!("{}", report.render());
+            0
+        }
+        Err(e) => {
+            eprintln!("[bench child] service failed: {e}");
+            1
+        }
+    }
+}
+
+/// Runs `work` on a new thread set up with `rt` (the plant side of a two-process
+/// measurement) while the calling thread watches `child`: if the child exits before `work`
+/// is done, the flag handed to `work` is raised so that it stops waiting, and the error
+/// carries the end of the child's log. Returns `work`'s result and the thread's RT set-up.
+///
+/// If `work` has not finished after `limit`, the flag is raised and the child is
+/// terminated: a plant thread that cannot run (for instance because a real-time thread of
+/// the child landed on its core and never yields) then gets its core back and returns.
+pub fn drive<T: Send>(
+    child: &mut ChildProc,
+    rt: ipc_types::rt::RtRequest,
+    limit: Duration,
+    work: impl FnOnce(&AtomicBool) -> Result<T, String> + Send,
+) -> Result<(T, ipc_types::rt::RtSetup), String> {
+    use std::sync::atomic::Ordering;
+    let abort = AtomicBool::new(false);
+    let started = Instant::now();
+    let mut timed_out = false;
+    let (result, setup) = std::thread::scope(|s| {
+        let handle = std::thread::Builder::new()
+            .name("bench-plant".into())
+            .spawn_scoped(s, || {
+                let setup = ipc_types::rt::setup_current_thread(&rt);
+                (work(&abort), setup)
+            })
+            .expect("spawning the plant thread");
+        while !handle.is_finished() {
+            if child.poll().is_some() {
+                abort.store(true, Ordering::Relaxed);
+            }
+            if !timed_out && started.elapsed() > limit {
+                timed_out = true;
+                abort.store(true, Ordering::Relaxed);
+                child.terminate();
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        handle.join().unwrap_or_else(|_| {
+            let skipped = ipc_types::rt::StepOutcome::Skipped;
+            let setup = ipc_types::rt::RtSetup {
+                affinity: skipped.clone(),
+                fifo: skipped.clone(),
+                mlockall: skipped,
+            };
+            (Err("the plant thread panicked".into()), setup)
+        })
+    });
+    match result {
+        Ok(v) => Ok((v, setup)),
+        Err(e) if timed_out => Err(format!(
+            "{e}; the measurement did not finish within {:.0} s, the {} child was terminated: {}",
+            limit.as_secs_f64(),
+            child.what,
+            child.log_tail(1500)
+        )),
+        Err(e) if abort.load(Ordering::Relaxed) => Err(format!("{e}; the {} child exited: {}", child.what, child.log_tail(1500))),
+        Err(e) => Err(e),
+    }
+}
+
+/// Name the service gives its real-time thread.
+pub const RT_THREAD_NAME: &str = "rt-loop";
+
+/// File in the run folder where the child notes that it re-pinned the service's RT thread.
+pub const REPIN_NOTE: &str = "bench-repin.txt";
+
+/// Workaround, on the child side, for a service that fails to pin its RT thread.
+///
+/// `service::runtime::run` restricts the calling thread to every core but the RT core
+/// (`keep_off_core`) before it starts the RT thread, which inherits that mask; the RT
+/// thread's `pin_current_thread(core)` then looks the core up among the cores of its
+/// *current* mask (`core_affinity::get_core_ids`), does not find it and refuses ("core N
+/// does not exist on this machine"). The RT thread then runs on the plant's core.
+///
+/// This helper thread, started before `run`, waits for the thread named
+/// [`RT_THREAD_NAME`] to appear, and if its affinity is not exactly `{core}` sets it
+/// (`sched_setaffinity` on its thread id) and writes [`REPIN_NOTE`] into the run folder.
+/// When the service pins correctly it finds the mask right and does nothing.
+pub fn repin_rt_thread(core: usize, run_folder: PathBuf) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(30) {
+            if let Some(tid) = find_thread(RT_THREAD_NAME) {
+                // Let the thread finish its own set-up first.
+                std::thread::sleep(Duration::from_millis(5));
+                match ensure_affinity(tid, core) {
+                    Ok(false) => {}
+                    Ok(true) => {
+                        let msg = format!(
+                            "the service's {RT_THREAD_NAME} thread (tid {tid}) was not pinned to core {core}; \
+                             latency-bench re-pinned it (workaround for the affinity inherited from keep_off_core)"
+                        );
+                        eprintln!("[bench child] {msg}");
+                        let _ = std::fs::write(run_folder.join(REPIN_NOTE), format!("{msg}\n"));
+                    }
+                    Err(e) => eprintln!("[bench child] could not re-pin the RT thread: {e}"),
+                }
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    })
+}
+
+fn find_thread(name: &str) -> Option<libc::pid_t> {
+    for entry in std::fs::read_dir("/proc/self/task").ok()?.flatten() {
+        let comm = std::fs::read_to_string(entry.path().join("comm")).unwrap_or_default();
+        if comm.trim() == name {
+            return entry.file_name().to_str()?.parse().ok();
+        }
+    }
+    None
+}
+
+/// Makes the affinity of thread `tid` exactly `{core}`; true when it had to be changed.
+fn ensure_affinity(tid: libc::pid_t, core: usize) -> Result<bool, String> {
+    // SAFETY: cpu_set_t is plain data; the calls only read or write the set given.
+    unsafe {
+        let mut current: libc::cpu_set_t = core::mem::zeroed();
+        if libc::sched_getaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &mut current) != 0 {
+            return Err(format!("sched_getaffinity({tid}): {}", std::io::Error::last_os_error()));
+        }
+        let mut wanted: libc::cpu_set_t = core::mem::zeroed();
+        libc::CPU_SET(core, &mut wanted);
+        if libc::CPU_EQUAL(&current, &wanted) {
+            return Ok(false);
+        }
+        if libc::sched_setaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &wanted) != 0 {
+            return Err(format!("sched_setaffinity({tid}, {{{core}}}): {}", std::io::Error::last_os_error()));
+        }
+    }
+    Ok(true)
+}

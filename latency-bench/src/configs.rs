@@ -1,0 +1,234 @@
+//! The configurations the bench runs, written as the same TOML a user writes, so that every
+//! measurement goes through the service's own configuration path
+//! (`service::config::ServiceConfig::parse`, then `ControllerConfig::build`).
+//!
+//! - [`service_toml`]: the file given to the service child process in the round-trip and
+//!   wake-up measurements: a `[rig]` with a name unique to the run, the 8 kHz period, the
+//!   channel counts, a policy that never goes to the safe state nor declares the plant
+//!   silent during a bench (so that the loop does the same work on every sample), and a
+//!   small controller ([`loop_controller`]).
+//! - [`step_cases`]: the named controller configurations whose step cost is measured.
+//!   Later controllers (RCAC, PCAC, …) add entries to that list.
+//!
+//! Test matrices are random with a fixed seed ([`crate::rng::Lcg`]); the state matrix of a
+//! dynamic controller is scaled to spectral radius 0.9 so the controller is stable and its
+//! state stays finite over hundreds of thousands of steps (a diverging state would make the
+//! controller take its reset path and time something else).
+
+use crate::rng::Lcg;
+use nalgebra::DMatrix;
+use std::fmt::Write as _;
+
+/// A discrete state-space controller `x⁺ = A x + B e`, `u = C x + D e`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateSpace {
+    /// State matrix, `n × n`.
+    pub a: DMatrix<f64>,
+    /// Input matrix, `n × n_e`.
+    pub b: DMatrix<f64>,
+    /// Output matrix, `n_u × n`.
+    pub c: DMatrix<f64>,
+    /// Feedthrough, `n_u × n_e`.
+    pub d: DMatrix<f64>,
+}
+
+impl StateSpace {
+    /// A static gain `u = D e` (no state).
+    pub fn static_gain(d: DMatrix<f64>) -> Self {
+        let (n_u, n_e) = d.shape();
+        Self { a: DMatrix::zeros(0, 0), b: DMatrix::zeros(0, n_e), c: DMatrix::zeros(n_u, 0), d }
+    }
+
+    /// A random controller with `n` states, `n_e` inputs and `n_u` outputs, `A` scaled to
+    /// spectral radius `rho`, the other matrices uniform in `[-scale, scale)`.
+    pub fn random(n: usize, n_e: usize, n_u: usize, rho: f64, scale: f64, seed: u64) -> Self {
+        let mut rng = Lcg::new(seed);
+        let a = random_stable(n, rho, &mut rng);
+        let mut m = |r: usize, c: usize| DMatrix::from_fn(r, c, |_, _| scale * rng.uniform());
+        Self { a, b: m(n, n_e), c: m(n_u, n), d: m(n_u, n_e) }
+    }
+
+    /// Number of states.
+    pub fn order(&self) -> usize {
+        self.a.nrows()
+    }
+
+    /// The `[controller]` table of an `lti` controller with input `y`.
+    pub fn controller_toml(&self) -> String {
+        let mut s = String::from("[controller]\nkind = \"lti\"\ninput = \"y\"\n[controller.ss]\n");
+        for (name, m) in [("a", &self.a), ("b", &self.b), ("c", &self.c), ("d", &self.d)] {
+            let _ = writeln!(s, "{name} = {}", toml_matrix(m));
+        }
+        s
+    }
+}
+
+/// A matrix as a TOML array of rows; `[]` when it has no rows or no columns (the service
+/// reads the missing dimension from the channel counts). Floats are written with Rust's
+/// `{:?}`, which round-trips exactly and always reads back as a TOML float.
+pub fn toml_matrix(m: &DMatrix<f64>) -> String {
+    if m.nrows() == 0 || m.ncols() == 0 {
+        return "[]".to_string();
+    }
+    let rows: Vec<String> = (0..m.nrows())
+        .map(|i| {
+            let row: Vec<String> = (0..m.ncols()).map(|j| format!("{:?}", m[(i, j)])).collect();
+            format!("[{}]", row.join(", "))
+        })
+        .collect();
+    format!("[{}]", rows.join(", "))
+}
+
+/// Spectral radius (largest eigenvalue modulus) of a square matrix; 0 for an empty one.
+pub fn spectral_radius(a: &DMatrix<f64>) -> f64 {
+    if a.nrows() == 0 {
+        return 0.0;
+    }
+    a.clone().complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max)
+}
+
+/// A random `n × n` matrix (entries uniform in `[-1, 1)`) scaled to spectral radius `rho`.
+pub fn random_stable(n: usize, rho: f64, rng: &mut Lcg) -> DMatrix<f64> {
+    let a = DMatrix::from_fn(n, n, |_, _| rng.uniform());
+    let r = spectral_radius(&a);
+    if r > 0.0 { a * (rho / r) } else { a }
+}
+
+/// Channel counts of a bench configuration, as `[service.channels]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Channels {
+    /// Measurements `y` (the controller inputs, `input = "y"`).
+    pub y: usize,
+    /// Performance channels `z`.
+    pub z: usize,
+    /// Actuation channels `u`.
+    pub u: usize,
+}
+
+/// The small controller the service runs in the round-trip and wake-up measurements: two
+/// states, SISO.
+pub fn loop_controller() -> StateSpace {
+    StateSpace {
+        a: DMatrix::from_row_slice(2, 2, &[0.5, 0.1, 0.0, 0.3]),
+        b: DMatrix::from_row_slice(2, 1, &[1.0, 0.5]),
+        c: DMatrix::from_row_slice(1, 2, &[-0.2, 0.1]),
+        d: DMatrix::from_row_slice(1, 1, &[0.0]),
+    }
+}
+
+/// A complete service configuration for rig `rig` at the 8 kHz period.
+///
+/// The wait mode and the RT core are not in the file: the bench passes them in
+/// `RunOptions`. `SCHED_FIFO` at [`crate::RT_PRIORITY`] and `mlockall` are requested but
+/// not required, so the bench also runs (and says so) where the OS refuses them.
+pub fn service_toml(rig: &str, channels: Channels, controller: &StateSpace, log: bool) -> String {
+    format!(
+        r#"# Written by latency-bench for one measurement.
+[rig]
+name = "{rig}"
+sample-period = 1.25e-4
+
+[service]
+fifo-priority = {prio}
+mlockall = true
+require-rt = false
+grace-periods = 100
+# A bench measures the loop doing its normal work on every sample: never go to the safe
+# state, never declare the plant silent (misses are still counted).
+max-consecutive-misses = 1000000000
+silent-periods = 1000000000
+peer-timeout = 30.0
+histogram-interval = 1.0
+channels = {{ y = {y}, z = {z}, u = {u} }}
+
+{controller}
+[log]
+enabled = {log}
+"#,
+        prio = crate::RT_PRIORITY,
+        y = channels.y,
+        z = channels.z,
+        u = channels.u,
+        controller = controller.controller_toml(),
+    )
+}
+
+/// One controller configuration whose step cost is measured.
+#[derive(Debug, Clone)]
+pub struct StepCase {
+    /// Name in the table and in file names (`step-<slug>.hgrm`).
+    pub name: String,
+    /// File-name form of the name.
+    pub slug: String,
+    /// The configuration text, parsed by `ServiceConfig::parse`.
+    pub toml: String,
+}
+
+impl StepCase {
+    /// A case named `name` for an `lti` controller `ss` on `channels`.
+    pub fn lti(name: &str, slug: &str, channels: Channels, ss: &StateSpace) -> Self {
+        Self {
+            name: name.to_string(),
+            slug: slug.to_string(),
+            toml: service_toml("bench-step", channels, ss, false),
+        }
+    }
+}
+
+/// The controller configurations the bench knows, in table order. Add new controllers
+/// (RCAC, PCAC, …) here.
+pub fn step_cases() -> Vec<StepCase> {
+    let siso = Channels { y: 1, z: 1, u: 1 };
+    let two_in = Channels { y: 2, z: 2, u: 1 };
+    vec![
+        StepCase::lti(
+            "lti static gain (SISO)",
+            "lti-static-gain",
+            siso,
+            &StateSpace::static_gain(DMatrix::from_element(1, 1, -0.5)),
+        ),
+        StepCase::lti("lti 10-state SISO", "lti-10-state", siso, &StateSpace::random(10, 1, 1, 0.9, 0.5, 10)),
+        StepCase::lti(
+            "lti 50-state 2-in/1-out",
+            "lti-50-state-2x1",
+            two_in,
+            &StateSpace::random(50, 2, 1, 0.9, 0.5, 50),
+        ),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use service::config::ServiceConfig;
+
+    #[test]
+    fn random_state_matrices_have_the_requested_spectral_radius() {
+        let mut rng = Lcg::new(1);
+        for n in [1, 10, 50] {
+            let a = random_stable(n, 0.9, &mut rng);
+            assert!((spectral_radius(&a) - 0.9).abs() < 1e-9, "n = {n}");
+        }
+    }
+
+    #[test]
+    fn every_step_case_is_accepted_by_the_service_configuration() {
+        for case in step_cases() {
+            let cfg = ServiceConfig::parse(&case.toml, "bench")
+                .unwrap_or_else(|e| panic!("{}: {e}\n{}", case.name, case.toml));
+            cfg.controller.build(cfg.counts).unwrap();
+        }
+        let text = service_toml("bench-1", Channels { y: 1, z: 1, u: 1 }, &loop_controller(), true);
+        let cfg = ServiceConfig::parse(&text, "bench").unwrap();
+        assert_eq!(cfg.sample_period_ns, crate::PERIOD_NS);
+        assert_eq!(cfg.rig, "bench-1");
+        assert!(cfg.log.enabled);
+    }
+
+    #[test]
+    fn matrices_are_written_as_toml_floats() {
+        let m = DMatrix::from_row_slice(2, 2, &[1.0, -2.5, 1e-7, 0.0]);
+        assert_eq!(toml_matrix(&m), "[[1.0, -2.5], [1e-7, 0.0]]");
+        assert_eq!(toml_matrix(&DMatrix::zeros(0, 3)), "[]");
+    }
+}

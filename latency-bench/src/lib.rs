@@ -1,0 +1,55 @@
+//! # latency-bench: does the service fit the 8 kHz budget on this machine?
+//!
+//! One run of `cargo run --release -p latency-bench` answers three questions, each against
+//! a reference measured in the same run on the same machine, so that a noisy machine
+//! moves both numbers of a comparison together:
+//!
+//! 1. **What does the contract cost over raw iceoryx2?** ([`roundtrip`]) Two processes —
+//!    the bench re-executes its own binary for the second one — exchange `N` samples in
+//!    lockstep. The parent is pinned on the plant core and busy-polls; the child is pinned
+//!    on the RT core and busy-polls. With the *contract* the parent plays the plant through
+//!    `ipc_types::ports::connect` and the child is the real service
+//!    (`service::runtime::run`, controller and telemetry included); with *raw* the child
+//!    is a minimal iceoryx2 echo with payloads of the same sizes and the same QoS. The
+//!    round trip is timed by the parent alone (`CLOCK_MONOTONIC` before the send, after the
+//!    receipt of the answer with the same sequence number), so both variants are timed by
+//!    the same code. The ratio contract/raw at p50 and p99 is the figure of merit; the
+//!    issue's target is ≤ 1.5.
+//! 2. **How late does the loop wake up at 8 kHz?** ([`paced`]) The parent paces
+//!    measurements on `CLOCK_MONOTONIC` absolute sleeps at 8 kHz with a deadline of half a
+//!    period, like plant-proxy in real-time mode; the child runs the real service in
+//!    busy-poll and then in blocking mode, and its run report gives the wake-up latency
+//!    (sample timestamp → receipt by the RT thread). The parent also records its own
+//!    pacing lateness (the floor under every wake-up figure) and the plant-publish →
+//!    actuation-publish time. [`cyclictest`] measures the machine's own timer wake-up floor
+//!    on the RT core at the same interval, when it is installed.
+//! 3. **What does one controller step cost?** ([`step_cost`]) Each named controller
+//!    configuration ([`configs::step_cases`]) is built through the service's configuration
+//!    path and stepped many times on the pinned RT core under `SCHED_FIFO`, timing each
+//!    step; the cost is also given as a share of the 125 µs period.
+//!
+//! Every distribution is an HdrHistogram ([`hist`]), written as a percentile distribution
+//! (`.hgrm`, µs) and as an interval log (`.hlog`, V2 + deflate, ns) into the output folder,
+//! next to a `summary.json` and the printed [`table`]. [`machine`] records what the OS
+//! granted (pinning, `SCHED_FIFO`, `mlockall`) and the kernel, since the figures mean
+//! little without them.
+
+#![warn(missing_docs)]
+
+pub mod child;
+pub mod configs;
+pub mod cyclictest;
+pub mod hist;
+pub mod machine;
+pub mod paced;
+pub mod rng;
+pub mod roundtrip;
+pub mod step_cost;
+pub mod table;
+
+/// Sampling period of the budget the bench checks: 8 kHz.
+pub const PERIOD_NS: u64 = 125_000;
+
+/// `SCHED_FIFO` priority of every real-time thread of the bench (both processes), the
+/// service's default and the one given to cyclictest.
+pub const RT_PRIORITY: i32 = 80;

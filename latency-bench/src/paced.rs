@@ -1,0 +1,144 @@
+//! Service loop wake-up latency at 8 kHz: the parent is a real-time plant.
+//!
+//! ## Method
+//!
+//! The parent thread (plant core, `SCHED_FIFO`) does what plant-proxy does in real-time
+//! mode, sample by sample:
+//!
+//! ```text
+//!  t_k = t_0 + k·T                                  (T = 125 µs, CLOCK_MONOTONIC)
+//!  sleep_until_ns(t_k); t_wake = monotonic_ns()     pacing lateness = t_wake − t_k
+//!  publish Measurement{seq k, t_sample_ns = t_k, deadline_ns = T/2, real-time flags}
+//!  notify the measurement event                     (wakes a blocking service)
+//!  sleep_until_ns(t_k + T/2); drain the actuations  answer k there? in time : late/missing
+//! ```
+//!
+//! The service child stamps each receipt and records the wake-up latency
+//! `t_recv − t_sample_ns` in its own histograms (its run report, `report.json`, and
+//! `wakeup.hgrm` in its run folder): the figure a deployed service reports. Because
+//! `t_sample_ns` is the nominal sample time `t_k`, that latency contains the plant's own
+//! timer lateness, which the parent records here as the floor under it. The parent also
+//! records `t_publish(u_k) − t_publish(y_k)` from the actuation's timestamp: the part the
+//! IPC, the service's wake-up and its step add after the plant has actually published
+//! (both processes read the same `CLOCK_MONOTONIC`).
+//!
+//! Every sample is recorded, including the first ones after the service connects: the
+//! service records from its first sample on, and the parent does the same so that both
+//! cover the same cycles.
+
+use crate::PERIOD_NS;
+use crate::hist::new_histogram;
+use crate::roundtrip::test_signal;
+use hdrhistogram::Histogram;
+use ipc_types::clock::{monotonic_ns, sleep_until_ns};
+use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
+use ipc_types::{ChannelCounts, Measurement, measurement_flags};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, SystemTime};
+
+/// What the paced plant measured.
+#[derive(Debug, Clone)]
+pub struct PacedResult {
+    /// Pacing lateness `t_wake − t_k`, ns.
+    pub pacing: Histogram<u64>,
+    /// `t_publish(u_k) − t_publish(y_k)`, ns, for answers that came in time.
+    pub publish_to_answer: Histogram<u64>,
+    /// Samples published.
+    pub samples: u64,
+    /// Answers present at the deadline check of their own sample.
+    pub in_time: u64,
+    /// Answers found only at a later sample's check.
+    pub late: u64,
+    /// Wall-clock start, for the interval logs.
+    pub start: SystemTime,
+    /// Duration of the run.
+    pub duration: Duration,
+}
+
+impl PacedResult {
+    /// Samples never answered (or whose answer was overwritten before it was read).
+    pub fn missing(&self) -> u64 {
+        self.samples.saturating_sub(self.in_time + self.late)
+    }
+}
+
+/// Runs the plant of rig `rig` at 8 kHz for `seconds`, deadline half a period; see the
+/// module docs. `abort` ends it early (the child died).
+pub fn paced_plant(
+    rig: &str,
+    counts: ChannelCounts,
+    seconds: f64,
+    connect_timeout: Duration,
+    abort: &AtomicBool,
+) -> Result<PacedResult, String> {
+    let own = ContractInfo::new(Side::Plant, counts, PERIOD_NS);
+    let opts = ConnectOptions { peer_timeout: connect_timeout, shutdown: Some(abort), listen: false };
+    let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts).map_err(|e| format!("connecting as the plant: {e}"))?;
+    let n = ((seconds * 1e9 / PERIOD_NS as f64).round() as u64).max(1);
+    let deadline = PERIOD_NS / 2;
+    let mut pacing = new_histogram();
+    let mut publish_to_answer = new_histogram();
+    let (mut in_time, mut late) = (0u64, 0u64);
+    let mut m = Measurement::zeroed(counts);
+    m.period_ns = PERIOD_NS;
+    m.deadline_ns = deadline;
+    let start = SystemTime::now();
+    // Leave the service a few ms to enter its loop after the connection.
+    let t0 = monotonic_ns() + 10_000_000;
+    let mut previous_missed = false;
+    let mut published = 0u64;
+    for k in 0..n {
+        if abort.load(Ordering::Relaxed) {
+            return Err(format!("aborted at sample {k} of {n}"));
+        }
+        let t_k = t0 + k * PERIOD_NS;
+        sleep_until_ns(t_k);
+        let t_wake = monotonic_ns();
+        pacing.saturating_record(t_wake.saturating_sub(t_k));
+        m.seq = k;
+        m.t_sample_ns = t_k;
+        m.flags = if previous_missed { measurement_flags::PREVIOUS_ACTUATION_MISSED } else { 0 };
+        if k + 1 == n {
+            m.flags |= measurement_flags::LAST_SAMPLE;
+        }
+        m.y[0] = test_signal(k);
+        let t_pub = monotonic_ns();
+        ports.publisher.send_copy(m).map_err(|e| format!("sending measurement {k}: {e:?}"))?;
+        published += 1;
+        let _ = ports.notifier.notify();
+        sleep_until_ns(t_k + deadline);
+        let mut got = false;
+        loop {
+            match ports.subscriber.receive() {
+                Ok(Some(a)) => {
+                    if a.seq == k {
+                        got = true;
+                        publish_to_answer.saturating_record(a.t_publish_ns.saturating_sub(t_pub));
+                    } else if a.seq < k {
+                        late += 1;
+                    }
+                }
+                Ok(None) => break,
+                Err(e) => return Err(format!("receiving an actuation: {e:?}")),
+            }
+        }
+        if got {
+            in_time += 1;
+        }
+        previous_missed = !got;
+    }
+    // An answer to the last sample that came after its check.
+    let end = monotonic_ns() + 2_000_000;
+    while monotonic_ns() < end {
+        match ports.subscriber.receive() {
+            Ok(Some(a)) if a.seq + 1 == n && previous_missed => {
+                late += 1;
+                break;
+            }
+            Ok(Some(_)) => {}
+            _ => std::thread::sleep(Duration::from_micros(100)),
+        }
+    }
+    let duration = start.elapsed().unwrap_or_default();
+    Ok(PacedResult { pacing, publish_to_answer, samples: published, in_time, late, start, duration })
+}

@@ -1,0 +1,223 @@
+//! The real-time path does not allocate. The service's global allocator
+//! ([`RtAwareAllocator`]) counts every allocation made on a thread marked real-time:
+//!
+//! - the controller step, and the loop's own per-sample work (validation, deadline policy,
+//!   histograms with interval swaps, the signal-log queue) make none at all;
+//! - the full loop over real iceoryx2 ports makes exactly one per published sample, which
+//!   is iceoryx2 0.10's per-loan `Rc` (see `service::rt_alloc`), served from the RT pool,
+//!   and none from the system allocator.
+
+use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, ServicePorts, Side};
+use ipc_types::{Actuation, Measurement, measurement_flags};
+use service::config::{ServiceConfig, WaitMode};
+use service::controller::StepInput;
+use service::runtime::{LoopCore, StopReason, rt_loop};
+use service::rt_alloc::{RtAwareAllocator, enter_rt_thread, thread_stats};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[global_allocator]
+static GLOBAL: RtAwareAllocator = RtAwareAllocator;
+
+fn config(rig: &str) -> ServiceConfig {
+    let text = format!(
+        r#"
+[rig]
+name = "{rig}"
+sample-period = 0.001
+[service]
+channels = {{ y = 2, z = 1, u = 2 }}
+fifo-priority = 0
+mlockall = false
+wait = "busy-poll"
+histogram-interval = 0.25
+y-min = -100.0
+y-max = 100.0
+[controller]
+kind = "lti"
+u-min = -5.0
+u-max = 5.0
+[controller.ss]
+a = [[0.5, 0.1, 0.0], [0.0, 0.4, 0.1], [0.0, 0.0, 0.3]]
+b = [[1.0, 0.0], [0.0, 1.0], [0.5, 0.5]]
+c = [[0.1, 0.2, 0.3], [0.3, 0.2, 0.1]]
+d = [[0.01, 0.0], [0.0, 0.01]]
+[log]
+queue-capacity = 1024
+"#
+    );
+    ServiceConfig::parse(&text, "no_alloc").unwrap()
+}
+
+#[test]
+fn a_controller_step_does_not_allocate() {
+    let cfg = config("unit-noalloc-step");
+    let mut ctl = cfg.controller.build(cfg.counts).unwrap();
+    let mut u = [0.0; 2];
+    for k in 0..100 {
+        ctl.step(&StepInput { seq: k, y: &[0.1, -0.2], z: &[0.0], r: &[] }, &mut u);
+    }
+    enter_rt_thread(16);
+    let before = thread_stats();
+    for k in 0..100_000u64 {
+        let y = [(k as f64 * 0.01).sin(), (k as f64 * 0.02).cos()];
+        ctl.step(&StepInput { seq: k, y: &y, z: &[0.0], r: &[] }, &mut u);
+    }
+    let d = thread_stats().since(&before);
+    assert!(d.installed);
+    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+}
+
+#[test]
+fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
+    let rig = format!("unit-noalloc-{}", std::process::id());
+    let cfg = config(&rig);
+    let counts = cfg.counts;
+    let period_ns = cfg.sample_period_ns;
+    let folder = std::env::temp_dir().join(format!("noalloc-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).unwrap();
+
+    // Everything that allocates, built before the RT phase.
+    let controller = cfg.controller.build(counts).unwrap();
+    let (tele_rt, mut reporter) =
+        service::telemetry::channel(cfg.budget_ns, cfg.histogram_interval_cycles, 4, &folder).unwrap();
+    let layout = service::logging::LogLayout {
+        n_y: 2,
+        n_z: 1,
+        n_u: 2,
+        internal_names: controller.internal_names(),
+        decimation: 1,
+    };
+    let (producer, writer) = service::logging::channel(cfg.log.queue_capacity, layout);
+    let writer = writer.spawn(folder.join("signals.csv")).unwrap();
+    let (events_tx, mut events_rx) = rtrb::RingBuffer::new(64);
+    let mut core = LoopCore::new(&cfg, controller, tele_rt, Some(producer), events_tx);
+
+    // The plant: a thread that answers in lockstep with a simple first-order response.
+    const STEPS: u64 = 30_000;
+    const WARM_UP: u64 = 3_000;
+    let stop_reporter = Arc::new(AtomicBool::new(false));
+    let reporter_thread = {
+        let stop = stop_reporter.clone();
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::Acquire) {
+                reporter.poll().unwrap();
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            reporter
+        })
+    };
+    let plant_rig = rig.clone();
+    let plant = std::thread::spawn(move || {
+        let own = ContractInfo::new(Side::Plant, counts, period_ns);
+        let opts = ConnectOptions { peer_timeout: Duration::from_secs(20), shutdown: None, listen: false };
+        let ports: PlantPorts = ipc_types::ports::connect(&plant_rig, own, "noalloc-plant", opts).unwrap();
+        let mut x = [1.0_f64, -1.0];
+        for k in 0..STEPS {
+            let mut m = Measurement::zeroed(counts);
+            m.seq = k;
+            m.t_sample_ns = ipc_types::clock::monotonic_ns();
+            m.period_ns = period_ns;
+            m.flags = measurement_flags::LOCKSTEP;
+            if k + 1 == STEPS {
+                m.flags |= measurement_flags::LAST_SAMPLE;
+            }
+            m.y[..2].copy_from_slice(&x);
+            m.z[0] = x[0];
+            if k == WARM_UP + 100 {
+                m.y[0] = f64::NAN; // a rejected sample in the counted phase
+            }
+            ports.publisher.send_copy(m).unwrap();
+            let start = Instant::now();
+            let a: Actuation = loop {
+                if let Some(s) = ports.subscriber.receive().unwrap() {
+                    if s.seq == k {
+                        break *s;
+                    }
+                }
+                assert!(start.elapsed() < Duration::from_secs(10), "no answer to {k}");
+                std::hint::spin_loop();
+            };
+            x = [0.9 * x[0] + 0.05 * a.u[0], 0.8 * x[1] + 0.05 * a.u[1]];
+        }
+    });
+
+    let own = ContractInfo::new(Side::Service, counts, period_ns);
+    let opts = ConnectOptions { peer_timeout: Duration::from_secs(20), shutdown: None, listen: false };
+    let ports: ServicePorts = ipc_types::ports::connect(&rig, own, "noalloc-service", opts).unwrap();
+    let shutdown = AtomicBool::new(false);
+
+    // Warm-up: first connections, first swaps.
+    let r = rt_loop(&ports, &mut core, &shutdown, WaitMode::BusyPoll, period_ns, Some(WARM_UP), false);
+    assert_eq!(r, StopReason::MaxCycles);
+
+    enter_rt_thread(256);
+    let published_before = core.stats.published;
+    let before = thread_stats();
+    let r = rt_loop(&ports, &mut core, &shutdown, WaitMode::BusyPoll, period_ns, None, true);
+    let d = thread_stats().since(&before);
+    let published = core.stats.published - published_before;
+
+    assert_eq!(r, StopReason::PlantEnded);
+    plant.join().unwrap();
+    assert_eq!(core.stats.received, STEPS);
+    assert_eq!(core.stats.rejected_non_finite, 1);
+    assert_eq!(core.stats.published, STEPS);
+    assert_eq!(d.system_on_rt_thread, 0, "the RT loop reached the system allocator: {d:?}");
+    assert_eq!(d.pool_served, published, "exactly iceoryx2's one loan state per published sample: {d:?}");
+    assert_eq!(d.foreign_frees, 0);
+
+    core.flush_telemetry();
+    stop_reporter.store(true, Ordering::Release);
+    let reporter = reporter_thread.join().unwrap();
+    let summary = reporter.finish().unwrap();
+    // Missed swaps (the reporter was slower than the loop) lose no sample.
+    assert_eq!(summary.response.count, STEPS, "{summary:?}");
+    let stats = writer.finish().unwrap();
+    assert_eq!(stats.written + stats.dropped, STEPS);
+    while events_rx.pop().is_ok() {}
+    let _ = std::fs::remove_dir_all(&folder);
+}
+
+#[test]
+fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
+    use ipc_types::Actuation;
+    let cfg = config("unit-noalloc-core");
+    let folder = std::env::temp_dir().join(format!("noalloc-core-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).unwrap();
+    let controller = cfg.controller.build(cfg.counts).unwrap();
+    let (tele_rt, mut reporter) = service::telemetry::channel(cfg.budget_ns, 100, 2, &folder).unwrap();
+    let layout = service::logging::LogLayout { n_y: 2, n_z: 1, n_u: 2, internal_names: controller.internal_names(), decimation: 1 };
+    let (producer, writer) = service::logging::channel(64, layout);
+    let (events_tx, _events_rx) = rtrb::RingBuffer::new(64);
+    let mut core = LoopCore::new(&cfg, controller, tele_rt, Some(producer), events_tx);
+    let mut m = Measurement::zeroed(cfg.counts);
+    let mut act = Actuation::zeroed(cfg.counts);
+    let mut cycle = |core: &mut LoopCore, k: u64| {
+        m.seq = k;
+        m.t_sample_ns = ipc_types::clock::monotonic_ns();
+        m.y[0] = (k as f64 * 0.1).sin();
+        m.y[1] = if k % 1000 == 7 { f64::INFINITY } else { 0.5 };
+        let t_recv = ipc_types::clock::monotonic_ns();
+        core.process(&m, t_recv, &mut act);
+        core.finish_cycle(&m, &act, t_recv, ipc_types::clock::monotonic_ns(), true);
+    };
+    for k in 0..1000 {
+        cycle(&mut core, k);
+        reporter.poll().unwrap();
+    }
+    enter_rt_thread(16);
+    let before = thread_stats();
+    // The reporter is not polled now: the RT side runs out of spare boxes and keeps
+    // recording (missed swaps), and the log queue fills and drops; neither may allocate.
+    for k in 1000..50_000 {
+        cycle(&mut core, k);
+    }
+    let d = thread_stats().since(&before);
+    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+    assert_eq!(core.stats.rejected_non_finite, 50);
+    assert!(core.stats.controller_steps > 49_000);
+    drop(writer);
+    let _ = std::fs::remove_dir_all(&folder);
+}
