@@ -372,10 +372,6 @@ where
         .max_loaned_samples(2)
         .create()
         .map_err(|e| ipc_err("creating the publisher of", &own_name, e))?;
-    let subscriber = peer_service
-        .subscriber_builder()
-        .create()
-        .map_err(|e| ipc_err("creating the subscriber of", &peer_name, e))?;
     let own_event = open_event(&node, &own_name)?;
     let peer_event = open_event(&node, &peer_name)?;
     let notifier = own_event
@@ -392,13 +388,18 @@ where
     } else {
         None
     };
+    // The subscriber comes last: a peer that sees it knows this side's listener exists.
+    let subscriber = peer_service
+        .subscriber_builder()
+        .create()
+        .map_err(|e| ipc_err("creating the subscriber of", &peer_name, e))?;
     // Wait until the peer subscribes to this side's samples, so that the first sample sent
     // after connect() is not lost (lockstep runs depend on it).
     let start = Instant::now();
     while own_service.dynamic_config().number_of_subscribers() == 0 {
         wait_a_little(start, &own_name, &opts)?;
     }
-    Ok(Ports {
+    let ports = Ports {
         publisher,
         subscriber,
         notifier,
@@ -409,7 +410,21 @@ where
         _own_service: own_service,
         _peer_service: peer_service,
         _node: node,
-    })
+    };
+    ports.update_connections();
+    Ok(ports)
+}
+
+impl<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static> Ports<Out, In> {
+    /// Establishes the shared-memory connections to the peer's current ports now. iceoryx2
+    /// otherwise does it lazily on the first send, receive or notify, which allocates; call
+    /// this in set-up code (connect() already does) and after a peer has been replaced.
+    pub fn update_connections(&self) {
+        use iceoryx2::port::update_connections::UpdateConnections;
+        let _ = self.publisher.update_connections();
+        let _ = self.subscriber.update_connections();
+        let _ = self.notifier.update_connections();
+    }
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ConnectError> {

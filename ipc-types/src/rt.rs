@@ -91,18 +91,24 @@ pub fn setup_current_thread(req: &RtRequest) -> RtSetup {
     RtSetup { affinity, fifo, mlockall }
 }
 
-/// Pins the calling thread to `core`.
+/// Pins the calling thread to `core`. The core must be online; the calling thread's
+/// current affinity mask does not matter (a thread spawned by a process that kept itself
+/// off the RT core can still pin itself onto it).
 pub fn pin_current_thread(core: usize) -> StepOutcome {
-    let ids = core_affinity::get_core_ids().unwrap_or_default();
-    match ids.into_iter().find(|c| c.id == core) {
-        None => StepOutcome::Refused(format!("core {core} does not exist on this machine")),
-        Some(id) => {
-            if core_affinity::set_for_current(id) {
-                StepOutcome::Done
-            } else {
-                StepOutcome::Refused(format!("sched_setaffinity to core {core} failed"))
-            }
-        }
+    // SAFETY: sysconf has no preconditions.
+    let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) }.max(1) as usize;
+    if core >= online {
+        return StepOutcome::Refused(format!(
+            "core {core} does not exist on this machine ({online} cores online)"
+        ));
+    }
+    if core_affinity::set_for_current(core_affinity::CoreId { id: core }) {
+        StepOutcome::Done
+    } else {
+        StepOutcome::Refused(format!(
+            "sched_setaffinity to core {core} failed: {}",
+            std::io::Error::last_os_error()
+        ))
     }
 }
 
@@ -154,6 +160,34 @@ fn lock_memory() -> StepOutcome {
             std::io::Error::last_os_error()
         ))
     }
+}
+
+/// The kernel's real-time throttling budget: `Some((runtime_us, period_us))` when it is
+/// active (`/proc/sys/kernel/sched_rt_runtime_us` is not -1), `None` when it is off or
+/// unreadable. With throttling on, `SCHED_FIFO` threads together may run at most
+/// `runtime_us` of every `period_us`; a thread that busy-polls at `SCHED_FIFO` uses all of
+/// it and is then stalled for the rest of the period (50 ms every second by default).
+pub fn rt_throttling() -> Option<(i64, i64)> {
+    let read = |f: &str| -> Option<i64> {
+        std::fs::read_to_string(format!("/proc/sys/kernel/{f}")).ok()?.trim().parse().ok()
+    };
+    let runtime = read("sched_rt_runtime_us")?;
+    let period = read("sched_rt_period_us")?;
+    (runtime >= 0 && runtime < period).then_some((runtime, period))
+}
+
+/// A warning for a thread that will spin at `SCHED_FIFO` while throttling is active.
+pub fn busy_poll_throttling_warning() -> Option<String> {
+    rt_throttling().map(|(runtime, period)| {
+        format!(
+            "RT throttling is on (sched_rt_runtime_us = {runtime} of {period}): a SCHED_FIFO thread \
+             that busy-polls is stalled for {} ms every {} ms. Use wait = \"block\", \
+             fifo-priority = 0 with busy-poll, or disable throttling on a box with an isolated RT \
+             core (echo -1 > /proc/sys/kernel/sched_rt_runtime_us)",
+            (period - runtime) / 1000,
+            period / 1000
+        )
+    })
 }
 
 #[inline(never)]

@@ -7,7 +7,9 @@
 //! starts with default scheduling and all cores and does its own real-time set-up, exactly
 //! as a deployed service does. Its standard output and error go to a log file next to its
 //! results. [`ChildProc`] terminates the child (SIGTERM, then SIGKILL) if it is still
-//! running when the parent gives up on it.
+//! running when the parent gives up on it, and [`drive`] runs the parent's measuring
+//! thread while watching the child. [`repin_rt_thread`] checks, inside the service child,
+//! that the service's RT thread really runs on its core.
 
 use service::config::{ServiceConfig, WaitMode};
 use service::runtime::{RunOptions, run};
@@ -31,9 +33,12 @@ pub struct ChildProc {
 impl ChildProc {
     /// Starts this executable again with `args`, output to `log`.
     pub fn spawn(args: &[String], log: &Path, what: &str) -> Result<Self, String> {
-        let exe = std::env::current_exe().map_err(|e| format!("cannot find the bench executable: {e}"))?;
+        let exe = std::env::current_exe()
+            .map_err(|e| format!("cannot find the bench executable: {e}"))?;
         let out = File::create(log).map_err(|e| format!("creating {}: {e}", log.display()))?;
-        let err = out.try_clone().map_err(|e| format!("{}: {e}", log.display()))?;
+        let err = out
+            .try_clone()
+            .map_err(|e| format!("{}: {e}", log.display()))?;
         let child = Command::new(exe)
             .args(args)
             .stdin(Stdio::null())
@@ -41,22 +46,29 @@ impl ChildProc {
             .stderr(err)
             .spawn()
             .map_err(|e| format!("starting the {what} child: {e}"))?;
-        Ok(Self { child, log: log.to_path_buf(), what: what.to_string(), exited: None })
+        Ok(Self {
+            child,
+            log: log.to_path_buf(),
+            what: what.to_string(),
+            exited: None,
+        })
     }
 
     /// `Err` with the end of its log when the child has already exited.
     pub fn check_alive(&mut self) -> Result<(), String> {
         if let Some(st) = self.poll() {
-            return Err(format!("the {} child exited early ({st}): {}", self.what, self.log_tail(1500)));
+            return Err(format!(
+                "the {} child exited early ({st}): {}",
+                self.what,
+                self.log_tail(1500)
+            ));
         }
         Ok(())
     }
 
     fn poll(&mut self) -> Option<ExitStatus> {
         if self.exited.is_none() {
-            if let Ok(Some(st)) = self.child.try_wait() {
-                self.exited = Some(st);
-            }
+            self.exited = self.child.try_wait().ok().flatten();
         }
         self.exited
     }
@@ -70,7 +82,11 @@ impl ChildProc {
                 return if st.success() {
                     Ok(())
                 } else {
-                    Err(format!("the {} child failed ({st}): {}", self.what, self.log_tail(1500)))
+                    Err(format!(
+                        "the {} child failed ({st}): {}",
+                        self.what,
+                        self.log_tail(1500)
+                    ))
                 };
             }
             if start.elapsed() > timeout {
@@ -234,7 +250,11 @@ pub fn drive<T: Send>(
             child.what,
             child.log_tail(1500)
         )),
-        Err(e) if abort.load(Ordering::Relaxed) => Err(format!("{e}; the {} child exited: {}", child.what, child.log_tail(1500))),
+        Err(e) if abort.load(Ordering::Relaxed) => Err(format!(
+            "{e}; the {} child exited: {}",
+            child.what,
+            child.log_tail(1500)
+        )),
         Err(e) => Err(e),
     }
 }
@@ -245,18 +265,21 @@ pub const RT_THREAD_NAME: &str = "rt-loop";
 /// File in the run folder where the child notes that it re-pinned the service's RT thread.
 pub const REPIN_NOTE: &str = "bench-repin.txt";
 
-/// Workaround, on the child side, for a service that fails to pin its RT thread.
+/// Guard, on the child side, against a service whose RT thread is not on its core.
 ///
-/// `service::runtime::run` restricts the calling thread to every core but the RT core
-/// (`keep_off_core`) before it starts the RT thread, which inherits that mask; the RT
-/// thread's `pin_current_thread(core)` then looks the core up among the cores of its
-/// *current* mask (`core_affinity::get_core_ids`), does not find it and refuses ("core N
-/// does not exist on this machine"). The RT thread then runs on the plant's core.
+/// A bench whose service RT thread busy-polls on the plant's core measures nothing useful
+/// and can even stall (two `SCHED_FIFO` spinners of equal priority on one core). This
+/// happened while the bench was written: `service::runtime::run` restricts the calling
+/// thread to every core but the RT core (`keep_off_core`) before it starts the RT thread,
+/// which inherits that mask, and `ipc_types::rt::pin_current_thread` then looked the core
+/// up among the cores of the thread's *current* mask (`core_affinity::get_core_ids`), did
+/// not find it and refused ("core N does not exist on this machine").
 ///
 /// This helper thread, started before `run`, waits for the thread named
 /// [`RT_THREAD_NAME`] to appear, and if its affinity is not exactly `{core}` sets it
-/// (`sched_setaffinity` on its thread id) and writes [`REPIN_NOTE`] into the run folder.
-/// When the service pins correctly it finds the mask right and does nothing.
+/// (`sched_setaffinity` on its thread id) and writes [`REPIN_NOTE`] into the run folder,
+/// which the bench reports. When the service pins correctly it finds the mask right and
+/// does nothing.
 pub fn repin_rt_thread(core: usize, run_folder: PathBuf) -> std::thread::JoinHandle<()> {
     std::thread::spawn(move || {
         let start = Instant::now();
@@ -269,7 +292,7 @@ pub fn repin_rt_thread(core: usize, run_folder: PathBuf) -> std::thread::JoinHan
                     Ok(true) => {
                         let msg = format!(
                             "the service's {RT_THREAD_NAME} thread (tid {tid}) was not pinned to core {core}; \
-                             latency-bench re-pinned it (workaround for the affinity inherited from keep_off_core)"
+                             latency-bench re-pinned it"
                         );
                         eprintln!("[bench child] {msg}");
                         let _ = std::fs::write(run_folder.join(REPIN_NOTE), format!("{msg}\n"));
@@ -298,8 +321,12 @@ fn ensure_affinity(tid: libc::pid_t, core: usize) -> Result<bool, String> {
     // SAFETY: cpu_set_t is plain data; the calls only read or write the set given.
     unsafe {
         let mut current: libc::cpu_set_t = core::mem::zeroed();
-        if libc::sched_getaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &mut current) != 0 {
-            return Err(format!("sched_getaffinity({tid}): {}", std::io::Error::last_os_error()));
+        if libc::sched_getaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &mut current) != 0
+        {
+            return Err(format!(
+                "sched_getaffinity({tid}): {}",
+                std::io::Error::last_os_error()
+            ));
         }
         let mut wanted: libc::cpu_set_t = core::mem::zeroed();
         libc::CPU_SET(core, &mut wanted);
@@ -307,7 +334,10 @@ fn ensure_affinity(tid: libc::pid_t, core: usize) -> Result<bool, String> {
             return Ok(false);
         }
         if libc::sched_setaffinity(tid, core::mem::size_of::<libc::cpu_set_t>(), &wanted) != 0 {
-            return Err(format!("sched_setaffinity({tid}, {{{core}}}): {}", std::io::Error::last_os_error()));
+            return Err(format!(
+                "sched_setaffinity({tid}, {{{core}}}): {}",
+                std::io::Error::last_os_error()
+            ));
         }
     }
     Ok(true)

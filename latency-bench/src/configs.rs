@@ -36,7 +36,12 @@ impl StateSpace {
     /// A static gain `u = D e` (no state).
     pub fn static_gain(d: DMatrix<f64>) -> Self {
         let (n_u, n_e) = d.shape();
-        Self { a: DMatrix::zeros(0, 0), b: DMatrix::zeros(0, n_e), c: DMatrix::zeros(n_u, 0), d }
+        Self {
+            a: DMatrix::zeros(0, 0),
+            b: DMatrix::zeros(0, n_e),
+            c: DMatrix::zeros(n_u, 0),
+            d,
+        }
     }
 
     /// A random controller with `n` states, `n_e` inputs and `n_u` outputs, `A` scaled to
@@ -45,7 +50,12 @@ impl StateSpace {
         let mut rng = Lcg::new(seed);
         let a = random_stable(n, rho, &mut rng);
         let mut m = |r: usize, c: usize| DMatrix::from_fn(r, c, |_, _| scale * rng.uniform());
-        Self { a, b: m(n, n_e), c: m(n_u, n), d: m(n_u, n_e) }
+        Self {
+            a,
+            b: m(n, n_e),
+            c: m(n_u, n),
+            d: m(n_u, n_e),
+        }
     }
 
     /// Number of states.
@@ -56,7 +66,12 @@ impl StateSpace {
     /// The `[controller]` table of an `lti` controller with input `y`.
     pub fn controller_toml(&self) -> String {
         let mut s = String::from("[controller]\nkind = \"lti\"\ninput = \"y\"\n[controller.ss]\n");
-        for (name, m) in [("a", &self.a), ("b", &self.b), ("c", &self.c), ("d", &self.d)] {
+        for (name, m) in [
+            ("a", &self.a),
+            ("b", &self.b),
+            ("c", &self.c),
+            ("d", &self.d),
+        ] {
             let _ = writeln!(s, "{name} = {}", toml_matrix(m));
         }
         s
@@ -84,7 +99,11 @@ pub fn spectral_radius(a: &DMatrix<f64>) -> f64 {
     if a.nrows() == 0 {
         return 0.0;
     }
-    a.clone().complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max)
+    a.clone()
+        .complex_eigenvalues()
+        .iter()
+        .map(|l| l.norm())
+        .fold(0.0, f64::max)
 }
 
 /// A random `n × n` matrix (entries uniform in `[-1, 1)`) scaled to spectral radius `rho`.
@@ -187,7 +206,12 @@ pub fn step_cases() -> Vec<StepCase> {
             siso,
             &StateSpace::static_gain(DMatrix::from_element(1, 1, -0.5)),
         ),
-        StepCase::lti("lti 10-state SISO", "lti-10-state", siso, &StateSpace::random(10, 1, 1, 0.9, 0.5, 10)),
+        StepCase::lti(
+            "lti 10-state SISO",
+            "lti-10-state",
+            siso,
+            &StateSpace::random(10, 1, 1, 0.9, 0.5, 10),
+        ),
         StepCase::lti(
             "lti 50-state 2-in/1-out",
             "lti-50-state-2x1",
@@ -218,7 +242,12 @@ mod tests {
                 .unwrap_or_else(|e| panic!("{}: {e}\n{}", case.name, case.toml));
             cfg.controller.build(cfg.counts).unwrap();
         }
-        let text = service_toml("bench-1", Channels { y: 1, z: 1, u: 1 }, &loop_controller(), true);
+        let text = service_toml(
+            "bench-1",
+            Channels { y: 1, z: 1, u: 1 },
+            &loop_controller(),
+            true,
+        );
         let cfg = ServiceConfig::parse(&text, "bench").unwrap();
         assert_eq!(cfg.sample_period_ns, crate::PERIOD_NS);
         assert_eq!(cfg.rig, "bench-1");

@@ -73,8 +73,12 @@ impl CyclictestHistogram {
                 continue;
             }
             let mut cols = line.split_whitespace();
-            let (Some(a), Some(b)) = (cols.next(), cols.next()) else { continue };
-            let (Ok(i), Ok(n)) = (a.parse::<usize>(), b.parse::<u64>()) else { continue };
+            let (Some(a), Some(b)) = (cols.next(), cols.next()) else {
+                continue;
+            };
+            let (Ok(i), Ok(n)) = (a.parse::<usize>(), b.parse::<u64>()) else {
+                continue;
+            };
             if i > 10_000_000 {
                 return Err(format!("histogram row '{line}' has an implausible bucket"));
             }
@@ -86,7 +90,13 @@ impl CyclictestHistogram {
         if buckets.is_empty() && overflows == 0 {
             return Err("no histogram in cyclictest's output (was -h given?)".into());
         }
-        Ok(Self { buckets, overflows, min_us, avg_us, max_us })
+        Ok(Self {
+            buckets,
+            overflows,
+            min_us,
+            avg_us,
+            max_us,
+        })
     }
 
     /// All wake-ups counted: histogram rows plus overflows.
@@ -109,14 +119,21 @@ impl CyclictestHistogram {
                 return Some(i as f64 + 0.5);
             }
         }
-        Some(self.max_us.map(|m| m as f64).unwrap_or(self.buckets.len() as f64))
+        Some(
+            self.max_us
+                .map(|m| m as f64)
+                .unwrap_or(self.buckets.len() as f64),
+        )
     }
 
     /// The maximum in µs: cyclictest's exact `Max Latencies`, else the last non-empty
     /// bucket's upper edge.
     pub fn max(&self) -> Option<f64> {
         self.max_us.map(|m| m as f64).or_else(|| {
-            self.buckets.iter().rposition(|n| *n > 0).map(|i| i as f64 + 1.0)
+            self.buckets
+                .iter()
+                .rposition(|n| *n > 0)
+                .map(|i| i as f64 + 1.0)
         })
     }
 
@@ -140,7 +157,9 @@ impl CyclictestHistogram {
 /// Where cyclictest is on `PATH`, if it is.
 pub fn find() -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path).map(|d| d.join("cyclictest")).find(|p| p.is_file())
+    std::env::split_paths(&path)
+        .map(|d| d.join("cyclictest"))
+        .find(|p| p.is_file())
 }
 
 /// What one cyclictest run gave.
@@ -156,7 +175,12 @@ pub struct CyclictestRun {
 
 /// Runs cyclictest on `core` every `interval_us` for `seconds` at [`crate::RT_PRIORITY`],
 /// histogram up to 1000 µs.
-pub fn run(exe: &std::path::Path, core: usize, interval_us: u64, seconds: u64) -> Result<CyclictestRun, String> {
+pub fn run(
+    exe: &std::path::Path,
+    core: usize,
+    interval_us: u64,
+    seconds: u64,
+) -> Result<CyclictestRun, String> {
     let args: Vec<String> = [
         "-m".to_string(),
         "-q".into(),
@@ -175,14 +199,25 @@ pub fn run(exe: &std::path::Path, core: usize, interval_us: u64, seconds: u64) -
     ]
     .into();
     let command = format!("{} {}", exe.display(), args.join(" "));
-    let out = Command::new(exe).args(&args).output().map_err(|e| format!("{command}: {e}"))?;
+    let out = Command::new(exe)
+        .args(&args)
+        .output()
+        .map_err(|e| format!("{command}: {e}"))?;
     let mut output = String::from_utf8_lossy(&out.stdout).into_owned();
     output.push_str(&String::from_utf8_lossy(&out.stderr));
     if !out.status.success() {
-        return Err(format!("{command} failed ({}): {}", out.status, tail(&output, 600)));
+        return Err(format!(
+            "{command} failed ({}): {}",
+            out.status,
+            tail(&output, 600)
+        ));
     }
     let histogram = CyclictestHistogram::parse(&output).map_err(|e| format!("{command}: {e}"))?;
-    Ok(CyclictestRun { command, output, histogram })
+    Ok(CyclictestRun {
+        command,
+        output,
+        histogram,
+    })
 }
 
 fn tail(s: &str, n: usize) -> &str {
@@ -232,8 +267,10 @@ mod tests {
 
     #[test]
     fn a_percentile_among_the_overflows_is_the_maximum() {
-        let text = SAMPLE.replace("# Histogram Overflows: 00000", "# Histogram Overflows: 00010")
-            + "# Thread 0: 00012 00013 00014\n";
+        let text = SAMPLE.replace(
+            "# Histogram Overflows: 00000",
+            "# Histogram Overflows: 00010",
+        ) + "# Thread 0: 00012 00013 00014\n";
         let h = CyclictestHistogram::parse(&text).unwrap();
         assert_eq!(h.total(), 110);
         assert_eq!(h.percentile_us(0.5), Some(3.5));
@@ -242,7 +279,10 @@ mod tests {
 
     #[test]
     fn output_without_a_histogram_is_refused() {
-        assert!(CyclictestHistogram::parse("T: 0 ( 1) P:80 I:125 C: 100 Min: 2 Act: 3 Avg: 3 Max: 9").is_err());
+        assert!(
+            CyclictestHistogram::parse("T: 0 ( 1) P:80 I:125 C: 100 Min: 2 Act: 3 Avg: 3 Max: 9")
+                .is_err()
+        );
     }
 
     #[test]

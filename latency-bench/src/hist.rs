@@ -58,7 +58,15 @@ impl Summary {
     /// Summarises `h`; all zero when it is empty.
     pub fn of(h: &Histogram<u64>) -> Self {
         if h.is_empty() {
-            return Self { count: 0, min_ns: 0, p50_ns: 0, p99_ns: 0, p99_9_ns: 0, max_ns: 0, mean_ns: 0.0 };
+            return Self {
+                count: 0,
+                min_ns: 0,
+                p50_ns: 0,
+                p99_ns: 0,
+                p99_9_ns: 0,
+                max_ns: 0,
+                mean_ns: 0.0,
+            };
         }
         Self {
             count: h.len(),
@@ -93,13 +101,22 @@ impl Summary {
     /// The four table columns (p50, p99, p99.9, max) in µs.
     pub fn columns_us(&self) -> [Option<f64>; 4] {
         let us = |ns: u64| Some(ns as f64 / 1_000.0);
-        [us(self.p50_ns), us(self.p99_ns), us(self.p99_9_ns), us(self.max_ns)]
+        [
+            us(self.p50_ns),
+            us(self.p99_ns),
+            us(self.p99_9_ns),
+            us(self.max_ns),
+        ]
     }
 }
 
 /// `a / b` of two nanosecond values, `None` when `b` is zero.
 pub fn ratio(a: u64, b: u64) -> Option<f64> {
-    if b == 0 { None } else { Some(a as f64 / b as f64) }
+    if b == 0 {
+        None
+    } else {
+        Some(a as f64 / b as f64)
+    }
 }
 
 /// Writes `dir/name.hgrm` (µs) and `dir/name.hlog` (ns, one interval starting at `start`
@@ -113,7 +130,12 @@ pub fn write_files(
 ) -> io::Result<Vec<PathBuf>> {
     let hgrm = dir.join(format!("{name}.hgrm"));
     let mut w = BufWriter::new(File::create(&hgrm)?);
-    service::telemetry::write_percentile_distribution(h, &mut w, service::telemetry::TICKS_PER_HALF_DISTANCE, 1_000.0)?;
+    service::telemetry::write_percentile_distribution(
+        h,
+        &mut w,
+        service::telemetry::TICKS_PER_HALF_DISTANCE,
+        1_000.0,
+    )?;
     w.flush()?;
 
     let hlog = dir.join(format!("{name}.hlog"));
@@ -159,7 +181,10 @@ mod tests {
             "p99": 4, "p99_9": 5, "p99_99": 6, "max": 7, "mean": 2.5, "over_budget": 0, "worst": []
         });
         let s = Summary::from_service_json(&v).unwrap();
-        assert_eq!((s.count, s.p50_ns, s.p99_ns, s.p99_9_ns, s.max_ns), (10, 2, 4, 5, 7));
+        assert_eq!(
+            (s.count, s.p50_ns, s.p99_ns, s.p99_9_ns, s.max_ns),
+            (10, 2, 4, 5, 7)
+        );
         assert!(Summary::from_service_json(&serde_json::json!({"p50": 1})).is_err());
     }
 
@@ -169,13 +194,20 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let mut h = new_histogram();
         h.saturating_record_n(12_345, 10);
-        let files = write_files(&dir, "unit", &h, SystemTime::now(), Duration::from_secs(1)).unwrap();
+        let files =
+            write_files(&dir, "unit", &h, SystemTime::now(), Duration::from_secs(1)).unwrap();
         let hgrm = std::fs::read_to_string(&files[0]).unwrap();
-        assert!(hgrm.contains("Percentile") && hgrm.contains("#[Max"), "{hgrm}");
+        assert!(
+            hgrm.contains("Percentile") && hgrm.contains("#[Max"),
+            "{hgrm}"
+        );
         let hlog = std::fs::read(&files[1]).unwrap();
         let n = hdrhistogram::serialization::interval_log::IntervalLogIterator::new(&hlog)
             .filter(|e| {
-                matches!(e, Ok(hdrhistogram::serialization::interval_log::LogEntry::Interval(_)))
+                matches!(
+                    e,
+                    Ok(hdrhistogram::serialization::interval_log::LogEntry::Interval(_))
+                )
             })
             .count();
         assert_eq!(n, 1);

@@ -13,8 +13,10 @@
 //!    is a minimal iceoryx2 echo with payloads of the same sizes and the same QoS. The
 //!    round trip is timed by the parent alone (`CLOCK_MONOTONIC` before the send, after the
 //!    receipt of the answer with the same sequence number), so both variants are timed by
-//!    the same code. The ratio contract/raw at p50 and p99 is the figure of merit; the
-//!    issue's target is ≤ 1.5.
+//!    the same code. The two variants alternate in rounds of fresh processes in ABBA order
+//!    (contract, raw, raw, contract, …) and each variant's rounds are merged, so that a
+//!    change of the machine's load during the run weighs on both alike. The ratio
+//!    contract/raw at p50 and p99 is the figure of merit; the target is ≤ 1.5.
 //! 2. **How late does the loop wake up at 8 kHz?** ([`paced`]) The parent paces
 //!    measurements on `CLOCK_MONOTONIC` absolute sleeps at 8 kHz with a deadline of half a
 //!    period, like plant-proxy in real-time mode; the child runs the real service in

@@ -20,6 +20,9 @@ pub struct MachineFacts {
     pub rt_throttling: String,
     /// Kernel command-line parameters that affect latency (`isolcpus`, `nohz_full`, …).
     pub latency_boot_params: Vec<String>,
+    /// `/proc/loadavg` when the facts were collected: other work on the machine moves
+    /// every figure.
+    pub load_average: String,
     /// Outcome of pinning, `SCHED_FIFO` and `mlockall` for the plant-side thread of the
     /// bench (parent process), one line.
     pub plant_rt_setup: String,
@@ -28,7 +31,16 @@ pub struct MachineFacts {
 }
 
 fn read(path: &str) -> Option<String> {
-    std::fs::read_to_string(path).ok().map(|s| s.trim().to_string())
+    std::fs::read_to_string(path)
+        .ok()
+        .map(|s| s.trim().to_string())
+}
+
+/// The 1, 5 and 15 minute load averages, from `/proc/loadavg`.
+pub fn load_average() -> String {
+    read("/proc/loadavg")
+        .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|| "unknown".into())
 }
 
 /// `uname -srvm`.
@@ -40,10 +52,20 @@ pub fn uname() -> String {
         return "unknown".into();
     }
     let field = |f: &[libc::c_char]| {
-        let bytes: Vec<u8> = f.iter().take_while(|c| **c != 0).map(|c| *c as u8).collect();
+        let bytes: Vec<u8> = f
+            .iter()
+            .take_while(|c| **c != 0)
+            .map(|c| *c as u8)
+            .collect();
         String::from_utf8_lossy(&bytes).into_owned()
     };
-    format!("{} {} {} {}", field(&u.sysname), field(&u.release), field(&u.version), field(&u.machine))
+    format!(
+        "{} {} {} {}",
+        field(&u.sysname),
+        field(&u.release),
+        field(&u.version),
+        field(&u.machine)
+    )
 }
 
 /// Collects the facts; `plant_rt` is the outcome of the parent's RT set-up.
@@ -59,21 +81,25 @@ pub fn collect(plant_rt: &ipc_types::rt::RtSetup) -> MachineFacts {
         })
         .unwrap_or_else(|| "unknown".into());
     let kernel = uname();
-    let preemption = if read("/sys/kernel/realtime").as_deref() == Some("1") || kernel.contains("PREEMPT_RT") {
-        "PREEMPT_RT".to_string()
-    } else if kernel.contains("PREEMPT_DYNAMIC") {
-        let mode = read("/sys/kernel/debug/sched/preempt").unwrap_or_default();
-        if mode.is_empty() {
-            "PREEMPT_DYNAMIC (no PREEMPT_RT)".into()
+    let preemption =
+        if read("/sys/kernel/realtime").as_deref() == Some("1") || kernel.contains("PREEMPT_RT") {
+            "PREEMPT_RT".to_string()
+        } else if kernel.contains("PREEMPT_DYNAMIC") {
+            let mode = read("/sys/kernel/debug/sched/preempt").unwrap_or_default();
+            if mode.is_empty() {
+                "PREEMPT_DYNAMIC (no PREEMPT_RT)".into()
+            } else {
+                format!("PREEMPT_DYNAMIC, mode {mode} (no PREEMPT_RT)")
+            }
+        } else if kernel.contains("PREEMPT") {
+            "PREEMPT (no PREEMPT_RT)".into()
         } else {
-            format!("PREEMPT_DYNAMIC, mode {mode} (no PREEMPT_RT)")
-        }
-    } else if kernel.contains("PREEMPT") {
-        "PREEMPT (no PREEMPT_RT)".into()
-    } else {
-        "unknown (no PREEMPT_RT)".into()
-    };
-    let rt_throttling = match (read("/proc/sys/kernel/sched_rt_runtime_us"), read("/proc/sys/kernel/sched_rt_period_us")) {
+            "unknown (no PREEMPT_RT)".into()
+        };
+    let rt_throttling = match (
+        read("/proc/sys/kernel/sched_rt_runtime_us"),
+        read("/proc/sys/kernel/sched_rt_period_us"),
+    ) {
         (Some(r), Some(p)) if r == "-1" => format!("off (runtime -1 of {p} µs)"),
         (Some(r), Some(p)) => format!("RT tasks may use {r} of every {p} µs"),
         _ => "unknown".into(),
@@ -82,9 +108,19 @@ pub fn collect(plant_rt: &ipc_types::rt::RtSetup) -> MachineFacts {
         .map(|c| {
             c.split_whitespace()
                 .filter(|p| {
-                    ["isolcpus", "nohz_full", "rcu_nocbs", "irqaffinity", "idle=", "processor.max_cstate", "intel_idle", "threadirqs", "preempt="]
-                        .iter()
-                        .any(|k| p.starts_with(k))
+                    [
+                        "isolcpus",
+                        "nohz_full",
+                        "rcu_nocbs",
+                        "irqaffinity",
+                        "idle=",
+                        "processor.max_cstate",
+                        "intel_idle",
+                        "threadirqs",
+                        "preempt=",
+                    ]
+                    .iter()
+                    .any(|k| p.starts_with(k))
                 })
                 .map(str::to_string)
                 .collect()
@@ -97,6 +133,7 @@ pub fn collect(plant_rt: &ipc_types::rt::RtSetup) -> MachineFacts {
         preemption,
         rt_throttling,
         latency_boot_params,
+        load_average: load_average(),
         plant_rt_setup: plant_rt.describe(),
         plant_rt_granted: !plant_rt.any_refused(),
     }
@@ -111,8 +148,15 @@ impl MachineFacts {
             self.latency_boot_params.join(" ")
         };
         format!(
-            "machine: {} cores, {}\nkernel:  {}\npreemption: {}; RT throttling: {}; latency boot parameters: {}\nplant thread (parent): {}\n",
-            self.cores, self.cpu_model, self.kernel, self.preemption, self.rt_throttling, boot, self.plant_rt_setup
+            "machine: {} cores, {}; load average {}\nkernel:  {}\npreemption: {}; RT throttling: {}; latency boot parameters: {}\nplant thread (parent): {}\n",
+            self.cores,
+            self.cpu_model,
+            self.load_average,
+            self.kernel,
+            self.preemption,
+            self.rt_throttling,
+            boot,
+            self.plant_rt_setup
         )
     }
 }

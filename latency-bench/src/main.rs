@@ -49,12 +49,16 @@ struct Cli {
 
 #[derive(clap::Args, Debug, Clone)]
 struct Options {
-    /// Round trips recorded per variant (default 50000; 5000 with --quick).
+    /// Round trips recorded per variant, over all rounds (default 50000; 5000 with --quick).
     #[arg(long)]
     samples: Option<u64>,
-    /// Round trips run before recording (default samples / 10).
+    /// Round trips run before recording per variant, over all rounds (default samples / 10).
     #[arg(long)]
     warmup: Option<u64>,
+    /// Rounds of the round-trip comparison, each with fresh child processes, in ABBA order
+    /// (default 5; 2 with --quick).
+    #[arg(long)]
+    rounds: Option<u64>,
     /// Busy-wait between an answer and the next round trip, µs; the same for both variants
     /// (0: back-to-back).
     #[arg(long, default_value_t = 20.0)]
@@ -112,7 +116,12 @@ enum Role {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let code = match cli.role {
-        Some(Role::ChildService { config, wait, core, run_folder }) => {
+        Some(Role::ChildService {
+            config,
+            wait,
+            core,
+            run_folder,
+        }) => {
             let wait = match wait.as_str() {
                 "busy-poll" => WaitMode::BusyPoll,
                 "block" => WaitMode::Block,
@@ -132,7 +141,9 @@ fn main() -> ExitCode {
 /// The settings of one run, defaults resolved.
 #[derive(Debug, Clone)]
 struct Settings {
+    /// The plan of one round (samples and warm-up per round).
     plan: RoundTripPlan,
+    rounds: u64,
     seconds: f64,
     steps: u64,
     step_warmup: u64,
@@ -144,17 +155,32 @@ struct Settings {
 
 impl Settings {
     fn from(o: &Options) -> Self {
-        let samples = o.samples.unwrap_or(if o.quick { 5_000 } else { 50_000 }).max(1);
-        let steps = o.steps.unwrap_or(if o.quick { 20_000 } else { 200_000 }).max(1);
+        let samples = o
+            .samples
+            .unwrap_or(if o.quick { 5_000 } else { 50_000 })
+            .max(1);
+        let warmup = o.warmup.unwrap_or(samples / 10);
+        let rounds = o
+            .rounds
+            .unwrap_or(if o.quick { 2 } else { 5 })
+            .clamp(1, samples);
+        let steps = o
+            .steps
+            .unwrap_or(if o.quick { 20_000 } else { 200_000 })
+            .max(1);
         Self {
+            rounds,
             plan: RoundTripPlan {
-                warmup: o.warmup.unwrap_or(samples / 10),
-                samples,
+                warmup: warmup.div_ceil(rounds),
+                samples: samples.div_ceil(rounds),
                 gap_ns: (o.gap_us.max(0.0) * 1_000.0) as u64,
                 answer_timeout: Duration::from_secs(2),
                 connect_timeout: Duration::from_secs(20),
             },
-            seconds: o.seconds.unwrap_or(if o.quick { 1.0 } else { 5.0 }).max(0.01),
+            seconds: o
+                .seconds
+                .unwrap_or(if o.quick { 1.0 } else { 5.0 })
+                .max(0.01),
             steps,
             step_warmup: (steps / 20).max(100),
             plant_core: o.plant_core,
@@ -183,8 +209,9 @@ impl Settings {
 
     fn json(&self) -> Value {
         json!({
-            "round_trip_samples": self.plan.samples,
-            "round_trip_warmup": self.plan.warmup,
+            "round_trip_rounds": self.rounds,
+            "round_trip_samples_per_round": self.plan.samples,
+            "round_trip_warmup_per_round": self.plan.warmup,
             "round_trip_spacing": if self.plan.gap_ns == 0 {
                 "back-to-back".to_string()
             } else {
@@ -277,7 +304,10 @@ impl Measured {
 }
 
 fn unix_now() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0)
 }
 
 fn progress(msg: &str) {
@@ -287,7 +317,10 @@ fn progress(msg: &str) {
 fn bench(o: &Options) -> i32 {
     let s = Settings::from(o);
     let started = unix_now();
-    let out = o.out.clone().unwrap_or_else(|| PathBuf::from("bench-results").join(started.to_string()));
+    let out = o
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("bench-results").join(started.to_string()));
     if let Err(e) = std::fs::create_dir_all(&out) {
         eprintln!("cannot create {}: {e}", out.display());
         return 2;
@@ -303,7 +336,9 @@ fn bench(o: &Options) -> i32 {
     let facts = machine::collect(&probe);
     println!("{}", facts.render());
     if probe.any_refused() {
-        println!("WARNING: the OS refused part of the real-time set-up; latency figures are not those of an RT setup\n");
+        println!(
+            "WARNING: the OS refused part of the real-time set-up; latency figures are not those of an RT setup\n"
+        );
     }
     progress(&format!("writing to {}", out.display()));
 
@@ -314,64 +349,45 @@ fn bench(o: &Options) -> i32 {
     let mut extra = serde_json::Map::new();
     let mut details: Vec<String> = Vec::new();
 
-    // 1. Contract round trip and raw ping-pong.
-    progress(&format!(
-        "1/6 contract round trip: {} + {} warm-up samples against the service (busy-poll)",
-        s.plan.samples, s.plan.warmup
-    ));
-    let rig = format!("bench-{pid}-rtt");
-    let contract = contract_phase(&s, &out.join("contract-rtt"), &rig, counts);
-    let mut contract = record_rtt(contract, &out.join("contract-rtt"), "contract-rtt", "contract round trip (service)", &mut reports, &mut details);
-    progress("2/6 raw iceoryx2 ping-pong");
-    let rig = format!("bench-{pid}-raw");
-    let raw = raw_phase(&s, &out.join("raw-rtt"), &rig);
-    let raw = raw.map(|(h, setup, t)| (h, setup, t, Value::Null));
-    let mut raw = record_rtt(raw, &out.join("raw-rtt"), "raw-rtt", "raw iceoryx2 ping-pong", &mut reports, &mut details);
-    let contract_ratio = match (&contract.summary, &raw.summary) {
-        (Some(c), Some(r)) => {
-            let p50 = ratio(c.p50_ns, r.p50_ns);
-            let p99 = ratio(c.p99_ns, r.p99_ns);
-            let pass = p50.zip(p99).map(|(a, b)| a <= TARGET_RATIO && b <= TARGET_RATIO);
-            contract.note = format!(
-                "÷ raw: p50 {}, p99 {} → {} (target ≤ {TARGET_RATIO})",
-                fmt_ratio(p50),
-                fmt_ratio(p99),
-                match pass {
-                    Some(true) => "PASS",
-                    Some(false) => "FAIL",
-                    None => "n/a",
-                }
-            );
-            raw.note = "reference for the contract row".into();
-            json!({ "p50": p50, "p99": p99, "target": TARGET_RATIO, "pass": pass })
-        }
-        _ => Value::Null,
-    };
-    let spacing = if s.plan.gap_ns == 0 {
-        "back-to-back".to_string()
-    } else {
-        format!("{:.0} µs busy-wait after each answer", s.plan.gap_ns as f64 / 1e3)
-    };
-    details.push(format!(
-        "round trips: parent on core {} and child on core {}, both busy-polling; {} samples after {} warm-up, {spacing}, same for both variants",
-        s.plant_core, s.rt_core, s.plan.samples, s.plan.warmup
-    ));
-    measured.push(contract);
-    measured.push(raw);
+    // 1. Contract round trip and raw ping-pong, interleaved.
+    let contract_ratio = round_trip_phase(
+        &s,
+        &out,
+        pid,
+        counts,
+        &mut measured,
+        &mut reports,
+        &mut details,
+    );
 
     // 2. Wake-up latency at 8 kHz.
     let mut plant_rows: Vec<Measured> = Vec::new();
-    for (i, (mode, wait)) in [("busy-poll", "busy-poll"), ("block", "block")].into_iter().enumerate() {
-        progress(&format!("{}/6 service wake-up at 8 kHz, {mode}, {:.1} s", 3 + i, s.seconds));
+    for (i, (mode, wait)) in [("busy-poll", "busy-poll"), ("block", "block")]
+        .into_iter()
+        .enumerate()
+    {
+        progress(&format!(
+            "{}/6 service wake-up at 8 kHz, {mode}, {:.1} s",
+            3 + i,
+            s.seconds
+        ));
         let dir = out.join(format!("wakeup-{mode}"));
         let rig = format!("bench-{pid}-{mode}");
         let label = format!("service wake-up 8 kHz {mode}");
         match paced_phase(&s, &dir, &rig, wait, counts) {
             Ok((p, setup, report)) => {
-                let wk = report.pointer("/latency/wakeup").ok_or("report.json has no latency.wakeup".to_string()).and_then(Summary::from_service_json);
+                let wk = report
+                    .pointer("/latency/wakeup")
+                    .ok_or("report.json has no latency.wakeup".to_string())
+                    .and_then(Summary::from_service_json);
                 match wk {
                     Ok(sum) => {
-                        let mut m = Measured::from_summary(&format!("wakeup-{mode}"), &label, sum, vec![dir.join("wakeup.hgrm"), dir.join("wakeup.hlog")]);
+                        let mut m = Measured::from_summary(
+                            &format!("wakeup-{mode}"),
+                            &label,
+                            sum,
+                            vec![dir.join("wakeup.hgrm"), dir.join("wakeup.hlog")],
+                        );
                         m.files.retain(|f| f.exists());
                         measured.push(m);
                     }
@@ -379,14 +395,22 @@ fn bench(o: &Options) -> i32 {
                         measured.push(Measured::failed(&format!("wakeup-{mode}"), &label, e));
                     }
                 }
-                let files = hist::write_files(&dir, "plant-pacing", &p.pacing, p.start, p.duration).unwrap_or_default();
+                let files = hist::write_files(&dir, "plant-pacing", &p.pacing, p.start, p.duration)
+                    .unwrap_or_default();
                 plant_rows.push(Measured::from_summary(
                     &format!("pacing-{mode}"),
                     &format!("  plant pacing lateness ({mode} run)"),
                     Summary::of(&p.pacing),
                     files,
                 ));
-                let files = hist::write_files(&dir, "plant-publish-to-answer", &p.publish_to_answer, p.start, p.duration).unwrap_or_default();
+                let files = hist::write_files(
+                    &dir,
+                    "plant-publish-to-answer",
+                    &p.publish_to_answer,
+                    p.start,
+                    p.duration,
+                )
+                .unwrap_or_default();
                 let mut m = Measured::from_summary(
                     &format!("publish-to-answer-{mode}"),
                     &format!("  plant publish → u_k published ({mode})"),
@@ -395,7 +419,9 @@ fn bench(o: &Options) -> i32 {
                 );
                 m.note = format!("{} of {} answers in time", p.in_time, p.samples);
                 plant_rows.push(m);
-                let misses = report.pointer("/stats/deadline_misses").and_then(Value::as_u64);
+                let misses = report
+                    .pointer("/stats/deadline_misses")
+                    .and_then(Value::as_u64);
                 details.push(format!(
                     "8 kHz {mode}: {} samples, deadline {} µs: {} answered in time, {} late, {} missing (plant view); service counted {} misses; service RT set-up: {}; plant thread: {}",
                     p.samples,
@@ -431,7 +457,12 @@ fn bench(o: &Options) -> i32 {
     let ct_measured = match &ct {
         Ok(Some((run, files))) => {
             let h = &run.histogram;
-            let us = [h.percentile_us(0.5), h.percentile_us(0.99), h.percentile_us(0.999), h.max()];
+            let us = [
+                h.percentile_us(0.5),
+                h.percentile_us(0.99),
+                h.percentile_us(0.999),
+                h.max(),
+            ];
             extra.insert(
                 "cyclictest".into(),
                 json!({
@@ -453,7 +484,11 @@ fn bench(o: &Options) -> i32 {
             }
         }
         Ok(None) => {
-            let why = if s.cyclictest { "cyclictest not installed" } else { "skipped (--skip-cyclictest)" };
+            let why = if s.cyclictest {
+                "cyclictest not installed"
+            } else {
+                "skipped (--skip-cyclictest)"
+            };
             extra.insert("cyclictest".into(), json!(why));
             Measured::empty("cyclictest", &ct_label, why)
         }
@@ -465,9 +500,21 @@ fn bench(o: &Options) -> i32 {
         for m in measured.iter_mut().filter(|m| m.id.starts_with("wakeup-")) {
             if let Some(sum) = m.summary {
                 let r = |v: u64, c: Option<f64>| c.filter(|c| *c > 0.0).map(|c| v as f64 / 1e3 / c);
-                let (p50, p99, max) = (r(sum.p50_ns, ct_measured.us[0]), r(sum.p99_ns, ct_measured.us[1]), r(sum.max_ns, ct_measured.us[3]));
-                m.note = format!("÷ cyclictest: p50 {}, p99 {}, max {}", fmt_ratio(p50), fmt_ratio(p99), fmt_ratio(max));
-                wake_ratios.insert(m.id.trim_start_matches("wakeup-").to_string(), json!({ "p50": p50, "p99": p99, "max": max }));
+                let (p50, p99, max) = (
+                    r(sum.p50_ns, ct_measured.us[0]),
+                    r(sum.p99_ns, ct_measured.us[1]),
+                    r(sum.max_ns, ct_measured.us[3]),
+                );
+                m.note = format!(
+                    "÷ cyclictest: p50 {}, p99 {}, max {}",
+                    fmt_ratio(p50),
+                    fmt_ratio(p99),
+                    fmt_ratio(max)
+                );
+                wake_ratios.insert(
+                    m.id.trim_start_matches("wakeup-").to_string(),
+                    json!({ "p50": p50, "p99": p99, "max": max }),
+                );
             }
         }
     }
@@ -486,8 +533,13 @@ fn bench(o: &Options) -> i32 {
     for d in &details {
         println!("{d}");
     }
+    let load_end = machine::load_average();
+    println!("load average at the end: {load_end}");
     println!("results: {}", out.display());
-    let _ = std::fs::write(out.join("table.txt"), format!("{}\n{table}\n{}\n", facts.render(), details.join("\n")));
+    let _ = std::fs::write(
+        out.join("table.txt"),
+        format!("{}\n{table}\n{}\n", facts.render(), details.join("\n")),
+    );
     let summary = json!({
         "bench": "latency-bench",
         "started_unix": started,
@@ -500,6 +552,7 @@ fn bench(o: &Options) -> i32 {
             "wakeup_over_cyclictest": Value::Object(wake_ratios),
         },
         "details": details,
+        "load_average_at_end": load_end,
         "extra": Value::Object(extra),
         "service_reports": Value::Object(reports),
     });
@@ -508,13 +561,22 @@ fn bench(o: &Options) -> i32 {
         eprintln!("writing summary.json: {e}");
         return 1;
     }
-    if measured.iter().any(|m| m.error.is_some()) { 1 } else { 0 }
+    if measured.iter().any(|m| m.error.is_some()) {
+        1
+    } else {
+        0
+    }
 }
 
 /// Writes a service configuration for `rig` into `dir` and starts the service child on it.
 fn spawn_service(s: &Settings, dir: &Path, rig: &str, wait: &str) -> Result<ChildProc, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-    let text = configs::service_toml(rig, Channels { y: 1, z: 1, u: 1 }, &configs::loop_controller(), s.service_log);
+    let text = configs::service_toml(
+        rig,
+        Channels { y: 1, z: 1, u: 1 },
+        &configs::loop_controller(),
+        s.service_log,
+    );
     let config = dir.join("config.toml");
     std::fs::write(&config, text).map_err(|e| format!("writing {}: {e}", config.display()))?;
     let args = vec![
@@ -533,10 +595,18 @@ fn spawn_service(s: &Settings, dir: &Path, rig: &str, wait: &str) -> Result<Chil
 
 fn read_report(dir: &Path) -> Result<Value, String> {
     let path = dir.join("report.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
-    let mut report: Value = serde_json::from_str(&text).map_err(|e| format!("parsing {}: {e}", path.display()))?;
-    if let (Ok(note), Some(obj)) = (std::fs::read_to_string(dir.join(child::REPIN_NOTE)), report.as_object_mut()) {
-        obj.insert("latency_bench_repin".into(), Value::String(note.trim().to_string()));
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    let mut report: Value =
+        serde_json::from_str(&text).map_err(|e| format!("parsing {}: {e}", path.display()))?;
+    if let (Ok(note), Some(obj)) = (
+        std::fs::read_to_string(dir.join(child::REPIN_NOTE)),
+        report.as_object_mut(),
+    ) {
+        obj.insert(
+            "latency_bench_repin".into(),
+            Value::String(note.trim().to_string()),
+        );
     }
     Ok(report)
 }
@@ -544,88 +614,271 @@ fn read_report(dir: &Path) -> Result<Value, String> {
 /// The service's RT set-up as its report states it, and whether the bench had to re-pin
 /// its RT thread.
 fn service_rt_line(report: &Value) -> String {
-    let setup = report.get("rt_setup").and_then(Value::as_str).unwrap_or("?");
+    let setup = report
+        .get("rt_setup")
+        .and_then(Value::as_str)
+        .unwrap_or("?");
     if report.get("latency_bench_repin").is_some() {
-        format!("{setup} → RT thread re-pinned to its core by the bench (service pinning bug, see child.log)")
+        format!(
+            "{setup} → RT thread re-pinned to its core by the bench (service pinning bug, see child.log)"
+        )
     } else {
         setup.to_string()
     }
 }
 
-type RttOutcome = Result<(Histogram<u64>, RtSetup, (SystemTime, Duration), Value), String>;
+/// One round of one round-trip variant: its histogram, the plant thread's RT set-up and
+/// the service's run report (`Null` for the raw variant).
+type RoundOutcome = Result<(Histogram<u64>, RtSetup, Value), String>;
 
-fn contract_phase(s: &Settings, dir: &Path, rig: &str, counts: ChannelCounts) -> RttOutcome {
+fn contract_round(s: &Settings, dir: &Path, rig: &str, counts: ChannelCounts) -> RoundOutcome {
     let mut child = spawn_service(s, dir, rig, "busy-poll")?;
-    let start = SystemTime::now();
-    let t = Instant::now();
     let plan = s.plan;
-    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| roundtrip::contract_round_trips(rig, counts, &plan, abort))?;
-    let elapsed = t.elapsed();
+    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| {
+        roundtrip::contract_round_trips(rig, counts, &plan, abort)
+    })?;
     child.wait(Duration::from_secs(30))?;
     let report = read_report(dir)?;
-    Ok((h, setup, (start, elapsed), report))
+    Ok((h, setup, report))
 }
 
-fn raw_phase(s: &Settings, dir: &Path, rig: &str) -> Result<(Histogram<u64>, RtSetup, (SystemTime, Duration)), String> {
+fn raw_round(s: &Settings, dir: &Path, rig: &str) -> RoundOutcome {
     std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-    let args = vec!["child-echo".to_string(), "--rig".into(), rig.into(), "--core".into(), s.rt_core.to_string()];
+    let args = vec![
+        "child-echo".to_string(),
+        "--rig".into(),
+        rig.into(),
+        "--core".into(),
+        s.rt_core.to_string(),
+    ];
     let mut child = ChildProc::spawn(&args, &dir.join("child.log"), "raw echo")?;
-    let start = SystemTime::now();
-    let t = Instant::now();
     let plan = s.plan;
-    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| roundtrip::raw_round_trips(rig, &plan, abort))?;
-    let elapsed = t.elapsed();
+    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| {
+        roundtrip::raw_round_trips(rig, &plan, abort)
+    })?;
     child.wait(Duration::from_secs(30))?;
-    Ok((h, setup, (start, elapsed)))
+    Ok((h, setup, Value::Null))
 }
 
-fn record_rtt(
-    outcome: RttOutcome,
-    dir: &Path,
-    id: &str,
-    label: &str,
-    reports: &mut serde_json::Map<String, Value>,
-    details: &mut Vec<String>,
-) -> Measured {
-    match outcome {
-        Ok((h, setup, (start, elapsed), report)) => {
-            let files = hist::write_files(dir, "rtt", &h, start, elapsed).unwrap_or_default();
-            let m = Measured::from_summary(id, label, Summary::of(&h), files);
-            if report.is_null() {
-                details.push(format!("{label}: plant thread: {}", setup.describe()));
-            } else {
-                details.push(format!("{label}: service RT set-up: {}; plant thread: {}", service_rt_line(&report), setup.describe()));
-            }
-            if !report.is_null() {
-                reports.insert(id.to_string(), report);
-            }
-            m
-        }
-        Err(e) => Measured::failed(id, label, e),
+/// Min and max of some values, as "a–b" with two decimals (or one value when equal).
+fn range(values: &[f64], unit: &str) -> String {
+    let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return "-".into();
+    }
+    let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = finite.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if (hi - lo).abs() < 0.005 {
+        format!("{lo:.2}{unit}")
+    } else {
+        format!("{lo:.2}–{hi:.2}{unit}")
     }
 }
 
-fn paced_phase(s: &Settings, dir: &Path, rig: &str, wait: &str, counts: ChannelCounts) -> Result<(PacedResult, RtSetup, Value), String> {
+/// The contract and raw round trips, in `s.rounds` rounds of fresh child processes in ABBA
+/// order (contract, raw, raw, contract, …), so that slow changes of the machine's load
+/// weigh on both variants alike. Each round records `s.plan.samples` round trips after
+/// `s.plan.warmup`; the rows are the merged histograms. Returns the ratio block of
+/// `summary.json`.
+fn round_trip_phase(
+    s: &Settings,
+    out: &Path,
+    pid: u32,
+    counts: ChannelCounts,
+    measured: &mut Vec<Measured>,
+    reports: &mut serde_json::Map<String, Value>,
+    details: &mut Vec<String>,
+) -> Value {
+    const IDS: [&str; 2] = ["contract-rtt", "raw-rtt"];
+    const LABELS: [&str; 2] = ["contract round trip (service)", "raw iceoryx2 ping-pong"];
+    let mut merged = [hist::new_histogram(), hist::new_histogram()];
+    let mut per_round: [Vec<Summary>; 2] = [Vec::new(), Vec::new()];
+    let mut errors: [Option<String>; 2] = [None, None];
+    let mut setups: Vec<String> = Vec::new();
+    let mut service_side: Vec<[f64; 3]> = Vec::new();
+    let start = SystemTime::now();
+    let t = Instant::now();
+    for r in 0..s.rounds {
+        let order = if r % 2 == 0 { [0, 1] } else { [1, 0] };
+        for v in order {
+            if errors[v].is_some() {
+                continue;
+            }
+            progress(&format!(
+                "{}/6 {}, round {}/{}: {} round trips after {} warm-up",
+                v + 1,
+                LABELS[v],
+                r + 1,
+                s.rounds,
+                s.plan.samples,
+                s.plan.warmup
+            ));
+            let dir = out.join(IDS[v]).join(format!("round-{r}"));
+            let outcome = if v == 0 {
+                contract_round(s, &dir, &format!("bench-{pid}-rtt{r}"), counts)
+            } else {
+                raw_round(s, &dir, &format!("bench-{pid}-raw{r}"))
+            };
+            match outcome {
+                Ok((h, setup, report)) => {
+                    let _ = merged[v].add(&h);
+                    per_round[v].push(Summary::of(&h));
+                    setups.push(setup.describe());
+                    if !report.is_null() {
+                        let p50 = |k: &str| {
+                            report
+                                .pointer(&format!("/latency/{k}/p50"))
+                                .and_then(Value::as_u64)
+                                .map(|ns| ns as f64 / 1e3)
+                        };
+                        if let (Some(w), Some(rsp), Some(c)) =
+                            (p50("wakeup"), p50("response"), p50("compute"))
+                        {
+                            service_side.push([w, rsp, c]);
+                        }
+                        if r == 0 {
+                            details.push(format!(
+                                "contract rounds: service RT set-up: {}",
+                                service_rt_line(&report)
+                            ));
+                        }
+                        reports.insert(format!("{}-round-{r}", IDS[v]), report);
+                    }
+                }
+                Err(e) => errors[v] = Some(format!("round {}: {e}", r + 1)),
+            }
+        }
+    }
+    let elapsed = t.elapsed();
+    let mut rows = Vec::new();
+    for v in 0..2 {
+        let dir = out.join(IDS[v]);
+        match &errors[v] {
+            Some(e) => rows.push(Measured::failed(IDS[v], LABELS[v], e.clone())),
+            None => {
+                let files =
+                    hist::write_files(&dir, "rtt", &merged[v], start, elapsed).unwrap_or_default();
+                rows.push(Measured::from_summary(
+                    IDS[v],
+                    LABELS[v],
+                    Summary::of(&merged[v]),
+                    files,
+                ));
+            }
+        }
+    }
+    let [mut contract, mut raw] = <[Measured; 2]>::try_from(rows).ok().expect("two rows");
+    let ratios = match (&contract.summary, &raw.summary) {
+        (Some(c), Some(r)) => {
+            let p50 = ratio(c.p50_ns, r.p50_ns);
+            let p99 = ratio(c.p99_ns, r.p99_ns);
+            let pass = p50
+                .zip(p99)
+                .map(|(a, b)| a <= TARGET_RATIO && b <= TARGET_RATIO);
+            contract.note = format!(
+                "÷ raw: p50 {}, p99 {} → {} (target ≤ {TARGET_RATIO})",
+                fmt_ratio(p50),
+                fmt_ratio(p99),
+                match pass {
+                    Some(true) => "PASS",
+                    Some(false) => "FAIL",
+                    None => "n/a",
+                }
+            );
+            raw.note = "reference for the contract row".into();
+            let round_ratio = |f: fn(&Summary) -> u64| -> Vec<f64> {
+                per_round[0]
+                    .iter()
+                    .zip(&per_round[1])
+                    .filter_map(|(c, r)| ratio(f(c), f(r)))
+                    .collect()
+            };
+            let (r50, r99) = (round_ratio(|s| s.p50_ns), round_ratio(|s| s.p99_ns));
+            details.push(format!(
+                "contract ÷ raw per round: p50 {}, p99 {} ({} rounds, ABBA order)",
+                range(&r50, ""),
+                range(&r99, ""),
+                r50.len()
+            ));
+            json!({
+                "p50": p50, "p99": p99, "target": TARGET_RATIO, "pass": pass,
+                "per_round_p50": r50, "per_round_p99": r99,
+                "per_round_contract": per_round[0], "per_round_raw": per_round[1],
+            })
+        }
+        _ => Value::Null,
+    };
+    if !service_side.is_empty() {
+        let col = |i: usize| service_side.iter().map(|v| v[i]).collect::<Vec<_>>();
+        details.push(format!(
+            "contract rounds, service side (p50 per round): plant send → receipt {}, plant send → u_k published {}, controller step {}",
+            range(&col(0), " µs"),
+            range(&col(1), " µs"),
+            range(&col(2), " µs")
+        ));
+    }
+    let spacing = if s.plan.gap_ns == 0 {
+        "back-to-back".to_string()
+    } else {
+        format!(
+            "{:.0} µs busy-wait after each answer",
+            s.plan.gap_ns as f64 / 1e3
+        )
+    };
+    details.push(format!(
+        "round trips: parent on core {} and child on core {}, both busy-polling, SCHED_FIFO {RT_PRIORITY}; {} rounds × {} samples after {} warm-up each, {spacing}, same for both variants; plant thread: {}",
+        s.plant_core,
+        s.rt_core,
+        s.rounds,
+        s.plan.samples,
+        s.plan.warmup,
+        setups.first().map(String::as_str).unwrap_or("?")
+    ));
+    measured.push(contract);
+    measured.push(raw);
+    ratios
+}
+
+fn paced_phase(
+    s: &Settings,
+    dir: &Path,
+    rig: &str,
+    wait: &str,
+    counts: ChannelCounts,
+) -> Result<(PacedResult, RtSetup, Value), String> {
     let mut child = spawn_service(s, dir, rig, wait)?;
     let seconds = s.seconds;
-    let (p, setup) = child::drive(&mut child, s.plant_rt(), Duration::from_secs_f64(40.0 + 3.0 * seconds), |abort| paced::paced_plant(rig, counts, seconds, Duration::from_secs(20), abort))?;
+    let (p, setup) = child::drive(
+        &mut child,
+        s.plant_rt(),
+        Duration::from_secs_f64(40.0 + 3.0 * seconds),
+        |abort| paced::paced_plant(rig, counts, seconds, Duration::from_secs(20), abort),
+    )?;
     child.wait(Duration::from_secs(30))?;
     let report = read_report(dir)?;
     Ok((p, setup, report))
 }
 
-fn cyclictest_phase(s: &Settings, dir: &Path) -> Result<Option<(CyclictestRun, Vec<PathBuf>)>, String> {
+fn cyclictest_phase(
+    s: &Settings,
+    dir: &Path,
+) -> Result<Option<(CyclictestRun, Vec<PathBuf>)>, String> {
     if !s.cyclictest {
         return Ok(None);
     }
-    let Some(exe) = cyclictest::find() else { return Ok(None) };
+    let Some(exe) = cyclictest::find() else {
+        return Ok(None);
+    };
     std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
     let seconds = s.seconds.ceil().max(1.0) as u64;
     let start = SystemTime::now();
     let t = Instant::now();
     let run = cyclictest::run(&exe, s.rt_core, PERIOD_NS / 1_000, seconds)?;
     let elapsed = t.elapsed();
-    let _ = std::fs::write(dir.join("cyclictest.txt"), format!("$ {}\n{}", run.command, run.output));
+    let _ = std::fs::write(
+        dir.join("cyclictest.txt"),
+        format!("$ {}\n{}", run.command, run.output),
+    );
     let mut files = vec![dir.join("cyclictest.txt")];
     if let Ok(f) = hist::write_files(dir, "cyclictest", &run.histogram.to_hdr(), start, elapsed) {
         files.extend(f);
@@ -635,7 +888,11 @@ fn cyclictest_phase(s: &Settings, dir: &Path) -> Result<Option<(CyclictestRun, V
 
 fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     if let Err(e) = std::fs::create_dir_all(dir) {
-        return vec![Measured::failed("step-cost", "step cost", format!("creating {}: {e}", dir.display()))];
+        return vec![Measured::failed(
+            "step-cost",
+            "step cost",
+            format!("creating {}: {e}", dir.display()),
+        )];
     }
     let cases = configs::step_cases();
     let rt = RtRequest {
@@ -647,15 +904,26 @@ fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     let (warmup, steps) = (s.step_warmup, s.steps);
     let start = SystemTime::now();
     let t = Instant::now();
-    let worker = std::thread::Builder::new().name("bench-step".into()).spawn(move || {
-        let setup = ipc_types::rt::setup_current_thread(&rt);
-        let results: Vec<_> = cases.iter().map(|c| (c.clone(), step_cost::measure(c, warmup, steps))).collect();
-        let overhead = step_cost::timer_overhead(steps);
-        (setup, results, overhead)
-    });
+    let worker = std::thread::Builder::new()
+        .name("bench-step".into())
+        .spawn(move || {
+            let setup = ipc_types::rt::setup_current_thread(&rt);
+            let results: Vec<_> = cases
+                .iter()
+                .map(|c| (c.clone(), step_cost::measure(c, warmup, steps)))
+                .collect();
+            let overhead = step_cost::timer_overhead(steps);
+            (setup, results, overhead)
+        });
     let (setup, results, overhead) = match worker.map(|h| h.join()) {
         Ok(Ok(v)) => v,
-        _ => return vec![Measured::failed("step-cost", "step cost", "the step-cost thread failed".into())],
+        _ => {
+            return vec![Measured::failed(
+                "step-cost",
+                "step cost",
+                "the step-cost thread failed".into(),
+            )];
+        }
     };
     let elapsed = t.elapsed();
     let mut out = Vec::new();
@@ -664,18 +932,29 @@ fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
         let label = format!("step: {}", case.name);
         match r {
             Ok((h, _kind)) => {
-                let files = hist::write_files(dir, &case.slug, &h, start, elapsed).unwrap_or_default();
+                let files =
+                    hist::write_files(dir, &case.slug, &h, start, elapsed).unwrap_or_default();
                 let sum = Summary::of(&h);
                 let mut m = Measured::from_summary(&id, &label, sum, files);
                 let pct = |ns: u64| 100.0 * ns as f64 / PERIOD_NS as f64;
-                m.note = format!("of 125 µs: p99 {:.2} %, max {:.1} %", pct(sum.p99_ns), pct(sum.max_ns));
+                m.note = format!(
+                    "of 125 µs: p99 {:.2} %, max {:.1} %",
+                    pct(sum.p99_ns),
+                    pct(sum.max_ns)
+                );
                 out.push(m);
             }
             Err(e) => out.push(Measured::failed(&id, &label, e)),
         }
     }
-    let files = hist::write_files(dir, "timer-overhead", &overhead, start, elapsed).unwrap_or_default();
-    let mut m = Measured::from_summary("timer-overhead", "  timer overhead (2× clock_gettime)", Summary::of(&overhead), files);
+    let files =
+        hist::write_files(dir, "timer-overhead", &overhead, start, elapsed).unwrap_or_default();
+    let mut m = Measured::from_summary(
+        "timer-overhead",
+        "  timer overhead (2× clock_gettime)",
+        Summary::of(&overhead),
+        files,
+    );
     m.note = format!("inside every step value; step thread: {}", setup.describe());
     out.push(m);
     out

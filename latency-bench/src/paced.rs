@@ -72,8 +72,13 @@ pub fn paced_plant(
     abort: &AtomicBool,
 ) -> Result<PacedResult, String> {
     let own = ContractInfo::new(Side::Plant, counts, PERIOD_NS);
-    let opts = ConnectOptions { peer_timeout: connect_timeout, shutdown: Some(abort), listen: false };
-    let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts).map_err(|e| format!("connecting as the plant: {e}"))?;
+    let opts = ConnectOptions {
+        peer_timeout: connect_timeout,
+        shutdown: Some(abort),
+        listen: false,
+    };
+    let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
+        .map_err(|e| format!("connecting as the plant: {e}"))?;
     let n = ((seconds * 1e9 / PERIOD_NS as f64).round() as u64).max(1);
     let deadline = PERIOD_NS / 2;
     let mut pacing = new_histogram();
@@ -97,13 +102,20 @@ pub fn paced_plant(
         pacing.saturating_record(t_wake.saturating_sub(t_k));
         m.seq = k;
         m.t_sample_ns = t_k;
-        m.flags = if previous_missed { measurement_flags::PREVIOUS_ACTUATION_MISSED } else { 0 };
+        m.flags = if previous_missed {
+            measurement_flags::PREVIOUS_ACTUATION_MISSED
+        } else {
+            0
+        };
         if k + 1 == n {
             m.flags |= measurement_flags::LAST_SAMPLE;
         }
         m.y[0] = test_signal(k);
         let t_pub = monotonic_ns();
-        ports.publisher.send_copy(m).map_err(|e| format!("sending measurement {k}: {e:?}"))?;
+        ports
+            .publisher
+            .send_copy(m)
+            .map_err(|e| format!("sending measurement {k}: {e:?}"))?;
         published += 1;
         let _ = ports.notifier.notify();
         sleep_until_ns(t_k + deadline);
@@ -140,5 +152,13 @@ pub fn paced_plant(
         }
     }
     let duration = start.elapsed().unwrap_or_default();
-    Ok(PacedResult { pacing, publish_to_answer, samples: published, in_time, late, start, duration })
+    Ok(PacedResult {
+        pacing,
+        publish_to_answer,
+        samples: published,
+        in_time,
+        late,
+        start,
+        duration,
+    })
 }

@@ -15,14 +15,19 @@ pub struct Lcg {
 impl Lcg {
     /// A generator started from `seed`.
     pub fn new(seed: u64) -> Self {
-        let mut g = Self { state: seed ^ 0x9E37_79B9_7F4A_7C15 };
+        let mut g = Self {
+            state: seed ^ 0x9E37_79B9_7F4A_7C15,
+        };
         g.next_u32();
         g
     }
 
     /// The next 32 random bits.
     pub fn next_u32(&mut self) -> u32 {
-        self.state = self.state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        self.state = self
+            .state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
         let x = self.state;
         let xorshifted = (((x >> 18) ^ x) >> 27) as u32;
         let rot = (x >> 59) as u32;

@@ -68,7 +68,12 @@ pub struct RoundTripPlan {
 /// sends sample `k` (the last one when `last`) stamped `t0`; `poll()` returns the sequence
 /// number of an answer if one is pending. `abort` stops the wait for an answer (the child
 /// died).
-pub fn time_round_trips<S, P>(plan: &RoundTripPlan, abort: &AtomicBool, mut send: S, mut poll: P) -> Result<Histogram<u64>, String>
+pub fn time_round_trips<S, P>(
+    plan: &RoundTripPlan,
+    abort: &AtomicBool,
+    mut send: S,
+    mut poll: P,
+) -> Result<Histogram<u64>, String>
 where
     S: FnMut(u64, bool, u64) -> Result<(), String>,
     P: FnMut() -> Result<Option<u64>, String>,
@@ -91,9 +96,11 @@ where
                 None => {
                     spin_loop();
                     spins = spins.wrapping_add(1);
-                    if spins % 65_536 == 0 {
+                    if spins & 0xFFFF == 0 {
                         if abort.load(Ordering::Relaxed) {
-                            return Err(format!("aborted while waiting for the answer to sample {k}"));
+                            return Err(format!(
+                                "aborted while waiting for the answer to sample {k}"
+                            ));
                         }
                         if monotonic_ns().saturating_sub(t0) > timeout_ns {
                             return Err(format!(
@@ -122,19 +129,38 @@ pub fn test_signal(k: u64) -> f64 {
 
 /// The contract variant, parent side: connects as the plant of rig `rig` with `counts` and
 /// runs [`time_round_trips`] against the service child.
-pub fn contract_round_trips(rig: &str, counts: ChannelCounts, plan: &RoundTripPlan, abort: &AtomicBool) -> Result<Histogram<u64>, String> {
+pub fn contract_round_trips(
+    rig: &str,
+    counts: ChannelCounts,
+    plan: &RoundTripPlan,
+    abort: &AtomicBool,
+) -> Result<Histogram<u64>, String> {
     let own = ContractInfo::new(Side::Plant, counts, PERIOD_NS);
-    let opts = ConnectOptions { peer_timeout: plan.connect_timeout, shutdown: Some(abort), listen: false };
-    let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts).map_err(|e| format!("connecting as the plant: {e}"))?;
+    let opts = ConnectOptions {
+        peer_timeout: plan.connect_timeout,
+        shutdown: Some(abort),
+        listen: false,
+    };
+    let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
+        .map_err(|e| format!("connecting as the plant: {e}"))?;
     let mut m = Measurement::zeroed(counts);
     m.period_ns = PERIOD_NS;
     m.deadline_ns = 0;
     let send = |k: u64, last: bool, t0: u64| {
         m.seq = k;
         m.t_sample_ns = t0;
-        m.flags = measurement_flags::LOCKSTEP | if last { measurement_flags::LAST_SAMPLE } else { 0 };
+        m.flags = measurement_flags::LOCKSTEP
+            | if last {
+                measurement_flags::LAST_SAMPLE
+            } else {
+                0
+            };
         m.y[0] = test_signal(k);
-        ports.publisher.send_copy(m).map(|_| ()).map_err(|e| format!("sending measurement {k}: {e:?}"))
+        ports
+            .publisher
+            .send_copy(m)
+            .map(|_| ())
+            .map_err(|e| format!("sending measurement {k}: {e:?}"))
     };
     let poll = || match ports.subscriber.receive() {
         Ok(Some(a)) => Ok(Some(a.seq)),
@@ -207,7 +233,10 @@ pub fn pong_service(rig: &str) -> String {
     format!("latency-bench/{rig}/pong")
 }
 
-fn open_pubsub<T: Debug + ZeroCopySend + 'static>(node: &Node<ipc::Service>, name: &str) -> Result<PubSubFactory<ipc::Service, T, ()>, String> {
+fn open_pubsub<T: Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<PubSubFactory<ipc::Service, T, ()>, String> {
     let service_name = ServiceName::new(name).map_err(|e| format!("service name {name}: {e:?}"))?;
     // The QoS of ipc_types::ports (pubsub_builder): the same buffers and overflow policy.
     node.service_builder(&service_name)
@@ -248,7 +277,10 @@ where
             return Err(format!("aborted while {what}"));
         }
         if start.elapsed() > timeout {
-            return Err(format!("{what}: no peer within {:.0} s", timeout.as_secs_f64()));
+            return Err(format!(
+                "{what}: no peer within {:.0} s",
+                timeout.as_secs_f64()
+            ));
         }
         std::thread::sleep(Duration::from_millis(5));
         Ok(())
@@ -271,23 +303,51 @@ where
         .max_loaned_samples(2)
         .create()
         .map_err(|e| format!("creating the publisher of {out_name}: {e:?}"))?;
-    let subscriber = inp.subscriber_builder().create().map_err(|e| format!("creating the subscriber of {in_name}: {e:?}"))?;
+    let subscriber = inp
+        .subscriber_builder()
+        .create()
+        .map_err(|e| format!("creating the subscriber of {in_name}: {e:?}"))?;
     while out.dynamic_config().number_of_subscribers() == 0 {
         retry(format!("waiting for a subscriber of {out_name}"))?;
     }
-    Ok(RawPorts { publisher, subscriber, _out: out, _in: inp, _node: node })
+    Ok(RawPorts {
+        publisher,
+        subscriber,
+        _out: out,
+        _in: inp,
+        _node: node,
+    })
 }
 
 /// The raw variant, parent side: runs [`time_round_trips`] against the echo child of rig
 /// `rig`.
-pub fn raw_round_trips(rig: &str, plan: &RoundTripPlan, abort: &AtomicBool) -> Result<Histogram<u64>, String> {
-    let ports: RawPorts<RawPing, RawPong> = raw_connect(&ping_service(rig), &pong_service(rig), "bench-raw-ping", plan.connect_timeout, abort)?;
-    let mut p = RawPing { seq: 0, flags: 0, t_send_ns: 0, fill: [0; PING_FILL] };
+pub fn raw_round_trips(
+    rig: &str,
+    plan: &RoundTripPlan,
+    abort: &AtomicBool,
+) -> Result<Histogram<u64>, String> {
+    let ports: RawPorts<RawPing, RawPong> = raw_connect(
+        &ping_service(rig),
+        &pong_service(rig),
+        "bench-raw-ping",
+        plan.connect_timeout,
+        abort,
+    )?;
+    let mut p = RawPing {
+        seq: 0,
+        flags: 0,
+        t_send_ns: 0,
+        fill: [0; PING_FILL],
+    };
     let send = |k: u64, last: bool, t0: u64| {
         p.seq = k;
         p.t_send_ns = t0;
         p.flags = if last { RAW_LAST } else { 0 };
-        ports.publisher.send_copy(p).map(|_| ()).map_err(|e| format!("sending ping {k}: {e:?}"))
+        ports
+            .publisher
+            .send_copy(p)
+            .map(|_| ())
+            .map_err(|e| format!("sending ping {k}: {e:?}"))
     };
     let poll = || match ports.subscriber.receive() {
         Ok(Some(a)) => Ok(Some(a.seq)),
@@ -310,14 +370,19 @@ pub fn run_echo_child(rig: &str, core: usize) -> i32 {
     });
     eprintln!("[echo] real-time set-up: {}", setup.describe());
     let shutdown = crate::child::shutdown_flag();
-    let ports: RawPorts<RawPong, RawPing> =
-        match raw_connect(&pong_service(rig), &ping_service(rig), "bench-raw-echo", Duration::from_secs(60), &shutdown) {
-            Ok(p) => p,
-            Err(e) => {
-                eprintln!("[echo] {e}");
-                return 1;
-            }
-        };
+    let ports: RawPorts<RawPong, RawPing> = match raw_connect(
+        &pong_service(rig),
+        &ping_service(rig),
+        "bench-raw-echo",
+        Duration::from_secs(60),
+        &shutdown,
+    ) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("[echo] {e}");
+            return 1;
+        }
+    };
     eprintln!("[echo] connected; echoing");
     let mut answered: u64 = 0;
     let mut spins: u32 = 0;
@@ -327,7 +392,12 @@ pub fn run_echo_child(rig: &str, core: usize) -> i32 {
             Ok(Some(ping)) => {
                 let (seq, flags) = (ping.seq, ping.flags);
                 drop(ping);
-                let pong = RawPong { seq, flags: 0, t_send_ns: 0, fill: [0; PONG_FILL] };
+                let pong = RawPong {
+                    seq,
+                    flags: 0,
+                    t_send_ns: 0,
+                    fill: [0; PONG_FILL],
+                };
                 match ports.publisher.loan_uninit() {
                     Ok(sample) => {
                         if let Err(e) = sample.write_payload(pong).send() {
@@ -345,7 +415,10 @@ pub fn run_echo_child(rig: &str, core: usize) -> i32 {
             Ok(None) => {
                 spin_loop();
                 spins = spins.wrapping_add(1);
-                if spins % 65_536 == 0 && (shutdown.load(Ordering::Relaxed) || last_rx.elapsed() > Duration::from_secs(60)) {
+                if spins & 0xFFFF == 0
+                    && (shutdown.load(Ordering::Relaxed)
+                        || last_rx.elapsed() > Duration::from_secs(60))
+                {
                     eprintln!("[echo] stopping without the last ping");
                     break;
                 }

@@ -30,7 +30,11 @@ const TABLE: usize = 1024;
 /// Builds `case` through the service's configuration path and times `steps` steps after
 /// `warmup` untimed ones. Returns the histogram of step durations (ns) and the controller
 /// kind.
-pub fn measure(case: &StepCase, warmup: u64, steps: u64) -> Result<(Histogram<u64>, &'static str), String> {
+pub fn measure(
+    case: &StepCase,
+    warmup: u64,
+    steps: u64,
+) -> Result<(Histogram<u64>, &'static str), String> {
     let cfg = ServiceConfig::parse(&case.toml, "bench").map_err(|e| e.to_string())?;
     let mut controller = cfg.controller.build(cfg.counts)?;
     let n_y = cfg.counts.n_y as usize;
@@ -51,7 +55,12 @@ pub fn measure(case: &StepCase, warmup: u64, steps: u64) -> Result<(Histogram<u6
     let mut h = new_histogram();
     for k in 0..warmup + steps {
         let y = &ys[(k as usize) % TABLE];
-        let input = StepInput { seq: k, y: &y[..n_y], z: &z[..n_z], r: &r[..n_r] };
+        let input = StepInput {
+            seq: k,
+            y: &y[..n_y],
+            z: &z[..n_z],
+            r: &r[..n_r],
+        };
         let t0 = monotonic_ns();
         let status = controller.step(&input, &mut u[..n_u]);
         let t1 = monotonic_ns();
@@ -61,7 +70,10 @@ pub fn measure(case: &StepCase, warmup: u64, steps: u64) -> Result<(Histogram<u6
         }
     }
     if u[..n_u].iter().any(|v| !v.is_finite()) {
-        return Err(format!("{}: the controller output is not finite", case.name));
+        return Err(format!(
+            "{}: the controller output is not finite",
+            case.name
+        ));
     }
     Ok((h, controller.kind()))
 }

@@ -16,8 +16,18 @@ pub struct Row {
 
 impl Row {
     /// A row with values.
-    pub fn new(label: impl Into<String>, count: Option<u64>, us: [Option<f64>; 4], note: impl Into<String>) -> Self {
-        Self { label: label.into(), count, us, note: note.into() }
+    pub fn new(
+        label: impl Into<String>,
+        count: Option<u64>,
+        us: [Option<f64>; 4],
+        note: impl Into<String>,
+    ) -> Self {
+        Self {
+            label: label.into(),
+            count,
+            us,
+            note: note.into(),
+        }
     }
 
     /// A row without values, e.g. a skipped or failed measurement.
@@ -47,7 +57,12 @@ pub fn fmt_ratio(v: Option<f64>) -> String {
 
 /// Renders the rows under a header; the label column is as wide as the longest label.
 pub fn render(rows: &[Row]) -> String {
-    let w = rows.iter().map(|r| r.label.chars().count()).max().unwrap_or(0).max("measurement".len());
+    let w = rows
+        .iter()
+        .map(|r| r.label.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max("measurement".len());
     let mut out = format!(
         "{:<w$}  {:>9}  {:>9}  {:>9}  {:>9}  {:>9}  {}\n",
         "measurement", "count", "p50 µs", "p99 µs", "p99.9 µs", "max µs", "notes"
@@ -89,7 +104,12 @@ mod tests {
     #[test]
     fn rows_line_up_under_the_header() {
         let rows = [
-            Row::new("contract round trip", Some(50_000), [Some(4.1), Some(6.0), Some(12.5), Some(80.0)], "x 1.10"),
+            Row::new(
+                "contract round trip",
+                Some(50_000),
+                [Some(4.1), Some(6.0), Some(12.5), Some(80.0)],
+                "x 1.10",
+            ),
             Row::empty("cyclictest (core 1, 125 µs)", "cyclictest not installed"),
         ];
         let t = render(&rows);
@@ -99,7 +119,10 @@ mod tests {
         // The right edge of the p50 column is the same in the header and in a row.
         let header_end = col(lines[0], "p50 µs") + "p50 µs".len();
         let row_end = col(lines[2], "4.100") + "4.100".len();
-        assert_eq!(lines[0][..header_end].chars().count(), lines[2][..row_end].chars().count());
+        assert_eq!(
+            lines[0][..header_end].chars().count(),
+            lines[2][..row_end].chars().count()
+        );
         assert!(lines[3].starts_with("cyclictest (core 1, 125 µs)"));
         assert!(lines[3].ends_with("cyclictest not installed"));
         assert!(lines[3].contains("  -  "));

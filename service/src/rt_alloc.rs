@@ -226,3 +226,13 @@ pub fn enter_rt_thread(blocks: usize) {
     let pool = Box::into_raw(Box::new(Pool { free, base: b, end: e, served: 0, system: 0 }));
     POOL.with(|p| p.set(pool));
 }
+
+/// Runs `f` with this thread's pool and counting suspended: its allocations go to the system
+/// allocator uncounted. For housekeeping the RT thread does while it is not controlling
+/// (the plant is silent), never for the control path.
+pub fn outside_rt<R>(f: impl FnOnce() -> R) -> R {
+    let saved = POOL.with(|p| p.replace(core::ptr::null_mut()));
+    let r = f();
+    POOL.with(|p| p.set(saved));
+    r
+}

@@ -807,6 +807,14 @@ fn rt_thread_main(
             return Err(ServiceError::RtRefused(setup.describe()));
         }
     }
+    if cfg.wait == WaitMode::BusyPoll && setup.fifo == ipc_types::rt::StepOutcome::Done {
+        if let Some(w) = ipc_types::rt::busy_poll_throttling_warning() {
+            eprintln!("[service] WARNING: {w}");
+            if cfg.require_rt {
+                return Err(ServiceError::RtRefused(w));
+            }
+        }
+    }
     let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns);
     let opts = ConnectOptions {
         peer_timeout: cfg.peer_timeout,
@@ -905,7 +913,11 @@ pub fn rt_loop(
         if core.on_idle(now) && now.saturating_sub(last_cleanup_ns) > 100_000_000 {
             // Silent plant: not controlling anything now, so housekeeping is allowed here.
             last_cleanup_ns = now;
-            let n = ipc_types::ports::cleanup_dead_nodes();
+            let n = crate::rt_alloc::outside_rt(|| {
+                let n = ipc_types::ports::cleanup_dead_nodes();
+                ports.update_connections();
+                n
+            });
             core.note_cleanup(n);
             if wait == WaitMode::BusyPoll {
                 std::thread::sleep(Duration::from_micros(200));
