@@ -132,7 +132,9 @@ impl ChannelCounts {
         ];
         for (what, mine, theirs) in fields {
             if mine != theirs {
-                out.push(format!("{what}: {peer_name} uses {theirs}, {own} uses {mine}"));
+                out.push(format!(
+                    "{what}: {peer_name} uses {theirs}, {own} uses {mine}"
+                ));
             }
         }
         out
@@ -257,7 +259,9 @@ mod layout_tests {
             if it.next() == Some("#define") && it.next() == Some(name) {
                 let v = it.next().expect("value after the name");
                 let v = v.trim_end_matches('u').trim_end_matches('U');
-                return v.parse().unwrap_or_else(|_| panic!("{name} = {v} is not a number"));
+                return v
+                    .parse()
+                    .unwrap_or_else(|_| panic!("{name} = {v} is not a number"));
             }
         }
         panic!("the C header does not define {name}");
@@ -265,7 +269,10 @@ mod layout_tests {
 
     #[test]
     fn the_c_header_states_the_rust_constants() {
-        assert_eq!(header_value("AR_CONTRACT_VERSION"), CONTRACT_VERSION as usize);
+        assert_eq!(
+            header_value("AR_CONTRACT_VERSION"),
+            CONTRACT_VERSION as usize
+        );
         assert_eq!(header_value("AR_MAX_Y"), MAX_Y);
         assert_eq!(header_value("AR_MAX_Z"), MAX_Z);
         assert_eq!(header_value("AR_MAX_R"), MAX_R);
@@ -274,16 +281,40 @@ mod layout_tests {
 
     #[test]
     fn the_measurement_layout_matches_the_c_header() {
-        assert_eq!(size_of::<Measurement>(), header_value("AR_MEASUREMENT_SIZE"));
-        assert_eq!(align_of::<Measurement>(), header_value("AR_MEASUREMENT_ALIGN"));
+        assert_eq!(
+            size_of::<Measurement>(),
+            header_value("AR_MEASUREMENT_SIZE")
+        );
+        assert_eq!(
+            align_of::<Measurement>(),
+            header_value("AR_MEASUREMENT_ALIGN")
+        );
         let offsets = [
-            ("AR_MEASUREMENT_OFFSET_CONTRACT_VERSION", offset_of!(Measurement, contract_version)),
-            ("AR_MEASUREMENT_OFFSET_FLAGS", offset_of!(Measurement, flags)),
+            (
+                "AR_MEASUREMENT_OFFSET_CONTRACT_VERSION",
+                offset_of!(Measurement, contract_version),
+            ),
+            (
+                "AR_MEASUREMENT_OFFSET_FLAGS",
+                offset_of!(Measurement, flags),
+            ),
             ("AR_MEASUREMENT_OFFSET_SEQ", offset_of!(Measurement, seq)),
-            ("AR_MEASUREMENT_OFFSET_T_SAMPLE_NS", offset_of!(Measurement, t_sample_ns)),
-            ("AR_MEASUREMENT_OFFSET_PERIOD_NS", offset_of!(Measurement, period_ns)),
-            ("AR_MEASUREMENT_OFFSET_DEADLINE_NS", offset_of!(Measurement, deadline_ns)),
-            ("AR_MEASUREMENT_OFFSET_COUNTS", offset_of!(Measurement, counts)),
+            (
+                "AR_MEASUREMENT_OFFSET_T_SAMPLE_NS",
+                offset_of!(Measurement, t_sample_ns),
+            ),
+            (
+                "AR_MEASUREMENT_OFFSET_PERIOD_NS",
+                offset_of!(Measurement, period_ns),
+            ),
+            (
+                "AR_MEASUREMENT_OFFSET_DEADLINE_NS",
+                offset_of!(Measurement, deadline_ns),
+            ),
+            (
+                "AR_MEASUREMENT_OFFSET_COUNTS",
+                offset_of!(Measurement, counts),
+            ),
             ("AR_MEASUREMENT_OFFSET_Y", offset_of!(Measurement, y)),
             ("AR_MEASUREMENT_OFFSET_Z", offset_of!(Measurement, z)),
             ("AR_MEASUREMENT_OFFSET_R", offset_of!(Measurement, r)),
@@ -298,12 +329,24 @@ mod layout_tests {
         assert_eq!(size_of::<Actuation>(), header_value("AR_ACTUATION_SIZE"));
         assert_eq!(align_of::<Actuation>(), header_value("AR_ACTUATION_ALIGN"));
         let offsets = [
-            ("AR_ACTUATION_OFFSET_CONTRACT_VERSION", offset_of!(Actuation, contract_version)),
+            (
+                "AR_ACTUATION_OFFSET_CONTRACT_VERSION",
+                offset_of!(Actuation, contract_version),
+            ),
             ("AR_ACTUATION_OFFSET_STATUS", offset_of!(Actuation, status)),
             ("AR_ACTUATION_OFFSET_SEQ", offset_of!(Actuation, seq)),
-            ("AR_ACTUATION_OFFSET_T_SAMPLE_NS", offset_of!(Actuation, t_sample_ns)),
-            ("AR_ACTUATION_OFFSET_T_PUBLISH_NS", offset_of!(Actuation, t_publish_ns)),
-            ("AR_ACTUATION_OFFSET_COMPUTE_NS", offset_of!(Actuation, compute_ns)),
+            (
+                "AR_ACTUATION_OFFSET_T_SAMPLE_NS",
+                offset_of!(Actuation, t_sample_ns),
+            ),
+            (
+                "AR_ACTUATION_OFFSET_T_PUBLISH_NS",
+                offset_of!(Actuation, t_publish_ns),
+            ),
+            (
+                "AR_ACTUATION_OFFSET_COMPUTE_NS",
+                offset_of!(Actuation, compute_ns),
+            ),
             ("AR_ACTUATION_OFFSET_COUNTS", offset_of!(Actuation, counts)),
             ("AR_ACTUATION_OFFSET_U", offset_of!(Actuation, u)),
         ];
@@ -314,11 +357,26 @@ mod layout_tests {
 
     #[test]
     fn the_channel_counts_layout_matches_the_c_header() {
-        assert_eq!(size_of::<ChannelCounts>(), header_value("AR_CHANNEL_COUNTS_SIZE"));
-        assert_eq!(offset_of!(ChannelCounts, n_y), header_value("AR_CHANNEL_COUNTS_OFFSET_N_Y"));
-        assert_eq!(offset_of!(ChannelCounts, n_z), header_value("AR_CHANNEL_COUNTS_OFFSET_N_Z"));
-        assert_eq!(offset_of!(ChannelCounts, n_r), header_value("AR_CHANNEL_COUNTS_OFFSET_N_R"));
-        assert_eq!(offset_of!(ChannelCounts, n_u), header_value("AR_CHANNEL_COUNTS_OFFSET_N_U"));
+        assert_eq!(
+            size_of::<ChannelCounts>(),
+            header_value("AR_CHANNEL_COUNTS_SIZE")
+        );
+        assert_eq!(
+            offset_of!(ChannelCounts, n_y),
+            header_value("AR_CHANNEL_COUNTS_OFFSET_N_Y")
+        );
+        assert_eq!(
+            offset_of!(ChannelCounts, n_z),
+            header_value("AR_CHANNEL_COUNTS_OFFSET_N_Z")
+        );
+        assert_eq!(
+            offset_of!(ChannelCounts, n_r),
+            header_value("AR_CHANNEL_COUNTS_OFFSET_N_R")
+        );
+        assert_eq!(
+            offset_of!(ChannelCounts, n_u),
+            header_value("AR_CHANNEL_COUNTS_OFFSET_N_U")
+        );
     }
 
     #[test]
@@ -327,7 +385,10 @@ mod layout_tests {
         // SAFETY: type_name only returns the constant given in #[type_name].
         let names = unsafe { [Measurement::type_name(), Actuation::type_name()] };
         for name in names {
-            assert!(C_HEADER.contains(&format!("\"{name}\"")), "header lacks {name}");
+            assert!(
+                C_HEADER.contains(&format!("\"{name}\"")),
+                "header lacks {name}"
+            );
         }
     }
 
@@ -338,11 +399,21 @@ mod layout_tests {
         let dir = std::env::temp_dir().join(format!("ar-header-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let src = dir.join("check.c");
-        std::fs::write(&src, "#include \"adaptive_rig_contract.h\"\nint main(void){return 0;}\n")
-            .unwrap();
+        std::fs::write(
+            &src,
+            "#include \"adaptive_rig_contract.h\"\nint main(void){return 0;}\n",
+        )
+        .unwrap();
         let include = concat!(env!("CARGO_MANIFEST_DIR"), "/include");
         let out = match std::process::Command::new("cc")
-            .args(["-std=c11", "-Wall", "-Werror", "-fsyntax-only", "-I", include])
+            .args([
+                "-std=c11",
+                "-Wall",
+                "-Werror",
+                "-fsyntax-only",
+                "-I",
+                include,
+            ])
             .arg(&src)
             .output()
         {
@@ -353,6 +424,10 @@ mod layout_tests {
             }
         };
         let _ = std::fs::remove_dir_all(&dir);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
 }

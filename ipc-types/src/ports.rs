@@ -77,7 +77,12 @@ pub struct ContractInfo {
 impl ContractInfo {
     /// Info of this build's contract version.
     pub fn new(side: Side, counts: ChannelCounts, period_ns: u64) -> Self {
-        Self { side, version: CONTRACT_VERSION, counts, period_ns }
+        Self {
+            side,
+            version: CONTRACT_VERSION,
+            counts,
+            period_ns,
+        }
     }
 
     fn specifier(&self) -> Result<AttributeSpecifier, ConnectError> {
@@ -93,8 +98,13 @@ impl ContractInfo {
         let mut spec = AttributeSpecifier::new();
         for (k, v) in kv {
             let key = k.try_into().map_err(|e| ipc_err("attribute key", k, e))?;
-            let value = v.as_str().try_into().map_err(|e| ipc_err("attribute value", k, e))?;
-            spec = spec.define(&key, &value).map_err(|e| ipc_err("attribute", k, e))?;
+            let value = v
+                .as_str()
+                .try_into()
+                .map_err(|e| ipc_err("attribute value", k, e))?;
+            spec = spec
+                .define(&key, &value)
+                .map_err(|e| ipc_err("attribute", k, e))?;
         }
         Ok(spec)
     }
@@ -102,12 +112,12 @@ impl ContractInfo {
     fn from_attributes(set: &AttributeSet, service: &str) -> Result<Self, ConnectError> {
         let get = |k: &str| -> Result<String, ConnectError> {
             let key = k.try_into().map_err(|e| ipc_err("attribute key", k, e))?;
-            set.key_value(&key, 0).map(|v| v.to_string()).ok_or_else(|| {
-                ConnectError::NotAContractService {
+            set.key_value(&key, 0)
+                .map(|v| v.to_string())
+                .ok_or_else(|| ConnectError::NotAContractService {
                     service: service.to_string(),
                     detail: format!("it has no attribute '{k}'"),
-                }
-            })
+                })
         };
         let num = |k: &str| -> Result<u64, ConnectError> {
             let v = get(k)?;
@@ -216,7 +226,11 @@ pub enum ConnectError {
 }
 
 fn ipc_err(what: &str, item: &str, e: impl fmt::Debug) -> ConnectError {
-    ConnectError::Ipc { what: what.to_string(), item: item.to_string(), detail: format!("{e:?}") }
+    ConnectError::Ipc {
+        what: what.to_string(),
+        item: item.to_string(),
+        detail: format!("{e:?}"),
+    }
 }
 
 impl fmt::Display for ConnectError {
@@ -225,7 +239,11 @@ impl fmt::Display for ConnectError {
             ConnectError::InvalidRigName { rig, detail } => {
                 write!(f, "invalid rig name '{rig}': {detail}")
             }
-            ConnectError::Mismatch { service, holder, differences } => {
+            ConnectError::Mismatch {
+                service,
+                holder,
+                differences,
+            } => {
                 write!(
                     f,
                     "contract mismatch on '{service}' (defined by the {}), refusing to connect:",
@@ -243,7 +261,10 @@ impl fmt::Display for ConnectError {
                  contract version {CONTRACT_VERSION}"
             ),
             ConnectError::NotAContractService { service, detail } => {
-                write!(f, "'{service}' is not an adaptive-rig contract service: {detail}")
+                write!(
+                    f,
+                    "'{service}' is not an adaptive-rig contract service: {detail}"
+                )
             }
             ConnectError::PeerTimeout { service, waited } => write!(
                 f,
@@ -273,11 +294,17 @@ pub struct RigServiceNames {
 /// Service names derived from a rig name, so that several rigs run side by side. A rig name
 /// is 1 to 64 characters of ASCII letters, digits, `-` and `_`.
 pub fn service_names(rig: &str) -> Result<RigServiceNames, ConnectError> {
-    let bad = |detail: &str| ConnectError::InvalidRigName { rig: rig.into(), detail: detail.into() };
+    let bad = |detail: &str| ConnectError::InvalidRigName {
+        rig: rig.into(),
+        detail: detail.into(),
+    };
     if rig.is_empty() || rig.len() > 64 {
         return Err(bad("it must have 1 to 64 characters"));
     }
-    if !rig.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+    if !rig
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+    {
         return Err(bad("only ASCII letters, digits, '-' and '_' are allowed"));
     }
     Ok(RigServiceNames {
@@ -303,7 +330,8 @@ pub fn cleanup_dead_nodes() -> usize {
 
 /// The ports of one side: publishes `Out`, subscribes to `In`, notifies after each send and
 /// listens for the peer's notifications.
-pub struct Ports<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static> {
+pub struct Ports<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static>
+{
     /// Publisher of this side's samples.
     pub publisher: Publisher<ipc::Service, Out, ()>,
     /// Subscriber to the peer's samples.
@@ -336,6 +364,9 @@ pub struct ConnectOptions<'a> {
     pub shutdown: Option<&'a AtomicBool>,
     /// Create a listener on the peer's event service (for blocking waits).
     pub listen: bool,
+    /// Printed to stderr once this side's own service exists and the wait for the peer
+    /// begins (so that a person or a test knows the peer can be started now).
+    pub waiting_message: Option<&'a str>,
 }
 
 /// Opens this side's own publish-subscribe service (creating it with `own`'s attributes if
@@ -359,12 +390,19 @@ where
     set_log_level(LogLevel::Error);
     cleanup_dead_nodes();
     let node = NodeBuilder::new()
-        .name(&node_name.try_into().map_err(|e| ipc_err("naming the node", node_name, e))?)
+        .name(
+            &node_name
+                .try_into()
+                .map_err(|e| ipc_err("naming the node", node_name, e))?,
+        )
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
         .map_err(|e| ipc_err("creating the node", node_name, e))?;
 
     let own_service = open_own::<Out>(&node, &own_name, &own, &opts)?;
+    if let Some(msg) = opts.waiting_message {
+        eprintln!("{msg}");
+    }
     let (peer_service, peer) = open_peer::<In>(&node, &peer_name, &own, &opts)?;
 
     let publisher = own_service
@@ -415,7 +453,9 @@ where
     Ok(ports)
 }
 
-impl<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static> Ports<Out, In> {
+impl<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static>
+    Ports<Out, In>
+{
     /// Establishes the shared-memory connections to the peer's current ports now. iceoryx2
     /// otherwise does it lazily on the first send, receive or notify, which allocates; call
     /// this in set-up code (connect() already does) and after a peer has been replaced.
@@ -458,16 +498,16 @@ fn pubsub_builder<T: fmt::Debug + ZeroCopySend + 'static>(
         .enable_safe_overflow(true))
 }
 
-fn verify(
-    existing: &ContractInfo,
-    own: &ContractInfo,
-    service: &str,
-) -> Result<(), ConnectError> {
+fn verify(existing: &ContractInfo, own: &ContractInfo, service: &str) -> Result<(), ConnectError> {
     let differences = own.differences(existing);
     if differences.is_empty() {
         Ok(())
     } else {
-        Err(ConnectError::Mismatch { service: service.to_string(), holder: existing.side, differences })
+        Err(ConnectError::Mismatch {
+            service: service.to_string(),
+            holder: existing.side,
+            differences,
+        })
     }
 }
 
@@ -483,14 +523,19 @@ fn open_own<T: fmt::Debug + ZeroCopySend + 'static>(
             Ok(f) => {
                 let existing = ContractInfo::from_attributes(f.attributes(), name)?;
                 // The service may survive a crash of this side, held open by the peer.
-                let existing = ContractInfo { side: own.side, ..existing };
+                let existing = ContractInfo {
+                    side: own.side,
+                    ..existing
+                };
                 verify(&existing, own, name)?;
                 return Ok(f);
             }
             Err(PublishSubscribeOpenError::DoesNotExist)
             | Err(PublishSubscribeOpenError::IsMarkedForDestruction) => {}
             Err(PublishSubscribeOpenError::IncompatibleTypes) => {
-                return Err(ConnectError::IncompatibleType { service: name.to_string() });
+                return Err(ConnectError::IncompatibleType {
+                    service: name.to_string(),
+                });
             }
             Err(e) => return Err(ipc_err("opening", name, e)),
         }
@@ -534,7 +579,9 @@ fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
                 cleanup_dead_nodes();
             }
             Err(PublishSubscribeOpenError::IncompatibleTypes) => {
-                return Err(ConnectError::IncompatibleType { service: name.to_string() });
+                return Err(ConnectError::IncompatibleType {
+                    service: name.to_string(),
+                });
             }
             Err(e) => return Err(ipc_err("opening", name, e)),
         }
@@ -542,12 +589,19 @@ fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
     }
 }
 
-fn wait_a_little(start: Instant, name: &str, opts: &ConnectOptions<'_>) -> Result<(), ConnectError> {
+fn wait_a_little(
+    start: Instant,
+    name: &str,
+    opts: &ConnectOptions<'_>,
+) -> Result<(), ConnectError> {
     if opts.shutdown.is_some_and(|s| s.load(Ordering::Relaxed)) {
         return Err(ConnectError::Interrupted);
     }
     if start.elapsed() >= opts.peer_timeout {
-        return Err(ConnectError::PeerTimeout { service: name.to_string(), waited: start.elapsed() });
+        return Err(ConnectError::PeerTimeout {
+            service: name.to_string(),
+            waited: start.elapsed(),
+        });
     }
     std::thread::sleep(Duration::from_millis(5));
     Ok(())
@@ -558,7 +612,16 @@ mod tests {
     use super::*;
 
     fn info(side: Side, n_y: u16, n_u: u16, period_ns: u64) -> ContractInfo {
-        ContractInfo::new(side, ChannelCounts { n_y, n_z: n_y, n_r: 0, n_u }, period_ns)
+        ContractInfo::new(
+            side,
+            ChannelCounts {
+                n_y,
+                n_z: n_y,
+                n_r: 0,
+                n_u,
+            },
+            period_ns,
+        )
     }
 
     #[test]
@@ -577,10 +640,21 @@ mod tests {
         service.version = 7;
         let d = service.differences(&plant);
         assert_eq!(d.len(), 4, "{d:?}");
-        assert!(d[0].contains("contract version: plant has 1, service has 7"), "{}", d[0]);
-        assert!(d.iter().any(|l| l.contains("measurement channels (y): plant uses 1, service uses 2")));
+        assert!(
+            d[0].contains("contract version: plant has 1, service has 7"),
+            "{}",
+            d[0]
+        );
+        assert!(
+            d.iter()
+                .any(|l| l.contains("measurement channels (y): plant uses 1, service uses 2"))
+        );
         assert!(d.iter().any(|l| l.contains("sample period")));
-        assert!(plant.differences(&info(Side::Service, 1, 2, 125_000)).is_empty());
+        assert!(
+            plant
+                .differences(&info(Side::Service, 1, 2, 125_000))
+                .is_empty()
+        );
     }
 
     #[test]
@@ -589,19 +663,37 @@ mod tests {
         let plant = info(Side::Plant, 1, 2, 1_000_000);
         let service = info(Side::Service, 1, 1, 1_000_000);
         let rig2 = rig.clone();
+        // The service is up first and waits; the plant that then arrives with other counts
+        // sees the service's attributes and refuses, naming the difference.
         let t = std::thread::spawn(move || {
-            let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None, listen: false };
-            connect::<Measurement, Actuation>(&rig2, plant, "unit-plant", opts).map(|_| ())
+            let opts = ConnectOptions {
+                peer_timeout: Duration::from_secs(2),
+                shutdown: None,
+                listen: false,
+                waiting_message: None,
+            };
+            connect::<Actuation, Measurement>(&rig2, service, "unit-service", opts).map(|_| ())
         });
-        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None, listen: false };
-        let err = connect::<Actuation, Measurement>(&rig, service, "unit-service", opts)
+        std::thread::sleep(Duration::from_millis(300));
+        let opts = ConnectOptions {
+            peer_timeout: Duration::from_secs(5),
+            shutdown: None,
+            listen: false,
+            waiting_message: None,
+        };
+        let err = connect::<Measurement, Actuation>(&rig, plant, "unit-plant", opts)
             .err()
             .expect("the mismatch must be refused");
         let msg = err.to_string();
         assert!(msg.contains("contract mismatch"), "{msg}");
-        assert!(msg.contains("actuation channels (u): plant uses 2, service uses 1"), "{msg}");
-        let plant_side = t.join().unwrap();
-        assert!(plant_side.is_err(), "the plant must refuse too");
+        assert!(
+            msg.contains("actuation channels (u): service uses 1, plant uses 2"),
+            "{msg}"
+        );
+        assert!(
+            t.join().unwrap().is_err(),
+            "the service never gets a compatible plant"
+        );
     }
 
     #[test]
@@ -609,10 +701,16 @@ mod tests {
         let rig = format!("unit-match-{}", std::process::id());
         let plant = info(Side::Plant, 2, 1, 1_000_000);
         let service = info(Side::Service, 2, 1, 1_000_000);
-        let opts = ConnectOptions { peer_timeout: Duration::from_secs(5), shutdown: None, listen: false };
+        let opts = ConnectOptions {
+            peer_timeout: Duration::from_secs(5),
+            shutdown: None,
+            listen: false,
+            waiting_message: None,
+        };
         let rig2 = rig.clone();
         let t = std::thread::spawn(move || {
-            let ports = connect::<Measurement, Actuation>(&rig2, plant, "unit-plant2", opts).unwrap();
+            let ports =
+                connect::<Measurement, Actuation>(&rig2, plant, "unit-plant2", opts).unwrap();
             let mut m = Measurement::zeroed(plant.counts);
             m.seq = 42;
             m.y[1] = 3.5;
@@ -626,7 +724,8 @@ mod tests {
                 std::thread::sleep(Duration::from_millis(1));
             }
         });
-        let ports = connect::<Actuation, Measurement>(&rig, service, "unit-service2", opts).unwrap();
+        let ports =
+            connect::<Actuation, Measurement>(&rig, service, "unit-service2", opts).unwrap();
         assert_eq!(ports.peer.side, Side::Plant);
         let start = Instant::now();
         loop {

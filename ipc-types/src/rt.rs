@@ -84,11 +84,19 @@ pub fn setup_current_thread(req: &RtRequest) -> RtSetup {
         None => StepOutcome::Skipped,
         Some(prio) => set_fifo(prio),
     };
-    let mlockall = if req.mlockall { lock_memory() } else { StepOutcome::Skipped };
+    let mlockall = if req.mlockall {
+        lock_memory()
+    } else {
+        StepOutcome::Skipped
+    };
     if req.prefault_stack_bytes > 0 {
         prefault_stack(req.prefault_stack_bytes);
     }
-    RtSetup { affinity, fifo, mlockall }
+    RtSetup {
+        affinity,
+        fifo,
+        mlockall,
+    }
 }
 
 /// Pins the calling thread to `core`. The core must be online; the calling thread's
@@ -135,7 +143,9 @@ pub fn keep_off_core(rt_core: Option<usize>) {
 }
 
 fn set_fifo(prio: i32) -> StepOutcome {
-    let param = libc::sched_param { sched_priority: prio };
+    let param = libc::sched_param {
+        sched_priority: prio,
+    };
     // SAFETY: `param` is valid; pid 0 is the calling thread.
     let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
     if rc == 0 {
@@ -169,7 +179,11 @@ fn lock_memory() -> StepOutcome {
 /// it and is then stalled for the rest of the period (50 ms every second by default).
 pub fn rt_throttling() -> Option<(i64, i64)> {
     let read = |f: &str| -> Option<i64> {
-        std::fs::read_to_string(format!("/proc/sys/kernel/{f}")).ok()?.trim().parse().ok()
+        std::fs::read_to_string(format!("/proc/sys/kernel/{f}"))
+            .ok()?
+            .trim()
+            .parse()
+            .ok()
     };
     let runtime = read("sched_rt_runtime_us")?;
     let period = read("sched_rt_period_us")?;

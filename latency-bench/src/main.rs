@@ -389,6 +389,10 @@ fn bench(o: &Options) -> i32 {
                             vec![dir.join("wakeup.hgrm"), dir.join("wakeup.hlog")],
                         );
                         m.files.retain(|f| f.exists());
+                        // Samples the service never saw are in no histogram of its own.
+                        if let Some(n) = report.pointer("/stats/skipped").and_then(Value::as_u64) {
+                            m.note = format!("{n} samples skipped by the service");
+                        }
                         measured.push(m);
                     }
                     Err(e) => {
@@ -423,9 +427,9 @@ fn bench(o: &Options) -> i32 {
                     .pointer("/stats/deadline_misses")
                     .and_then(Value::as_u64);
                 details.push(format!(
-                    "8 kHz {mode}: {} samples, deadline {} µs: {} answered in time, {} late, {} missing (plant view); service counted {} misses; service RT set-up: {}; plant thread: {}",
+                    "8 kHz {mode}: {} samples, deadline {:.1} µs: {} answered in time, {} late, {} missing (plant view); service counted {} misses; service RT set-up: {}; plant thread: {}",
                     p.samples,
-                    PERIOD_NS / 2_000,
+                    PERIOD_NS as f64 / 2_000.0,
                     p.in_time,
                     p.late,
                     p.missing(),
@@ -505,12 +509,16 @@ fn bench(o: &Options) -> i32 {
                     r(sum.p99_ns, ct_measured.us[1]),
                     r(sum.max_ns, ct_measured.us[3]),
                 );
+                let skipped = std::mem::take(&mut m.note);
                 m.note = format!(
                     "÷ cyclictest: p50 {}, p99 {}, max {}",
                     fmt_ratio(p50),
                     fmt_ratio(p99),
                     fmt_ratio(max)
                 );
+                if !skipped.is_empty() {
+                    m.note = format!("{}; {skipped}", m.note);
+                }
                 wake_ratios.insert(
                     m.id.trim_start_matches("wakeup-").to_string(),
                     json!({ "p50": p50, "p99": p99, "max": max }),
@@ -810,10 +818,13 @@ fn round_trip_phase(
     };
     if !service_side.is_empty() {
         let col = |i: usize| service_side.iter().map(|v| v[i]).collect::<Vec<_>>();
+        let in_service: Vec<f64> = service_side.iter().map(|v| v[1] - v[0]).collect();
         details.push(format!(
-            "contract rounds, service side (p50 per round): plant send → receipt {}, plant send → u_k published {}, controller step {}",
+            "contract rounds, service side (p50 per round): plant send → receipt {}, plant send → u_k published {} \
+             (so ≈ {} from receipt to publication), of which controller step {}",
             range(&col(0), " µs"),
             range(&col(1), " µs"),
+            range(&in_service, " µs"),
             range(&col(2), " µs")
         ));
     }

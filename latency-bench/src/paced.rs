@@ -76,6 +76,7 @@ pub fn paced_plant(
         peer_timeout: connect_timeout,
         shutdown: Some(abort),
         listen: false,
+        waiting_message: None,
     };
     let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
         .map_err(|e| format!("connecting as the plant: {e}"))?;

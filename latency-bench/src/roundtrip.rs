@@ -140,6 +140,7 @@ pub fn contract_round_trips(
         peer_timeout: plan.connect_timeout,
         shutdown: Some(abort),
         listen: false,
+        waiting_message: None,
     };
     let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
         .map_err(|e| format!("connecting as the plant: {e}"))?;

@@ -13,7 +13,11 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 #[derive(Parser)]
-#[command(name = "plant-proxy", version, about = "The simulated plant behind the adaptive-rig contract")]
+#[command(
+    name = "plant-proxy",
+    version,
+    about = "The simulated plant behind the adaptive-rig contract"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -69,7 +73,10 @@ fn main() -> ExitCode {
             };
             match plant_proxy::sim::PlantSim::new(&sc.plant, sc.rig.sample_period) {
                 Ok(sim) => {
-                    println!("{}", serde_json::to_string_pretty(&sim.describe()).expect("JSON"));
+                    println!(
+                        "{}",
+                        serde_json::to_string_pretty(&sim.describe()).expect("JSON")
+                    );
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
@@ -78,7 +85,14 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Command::Run { scenario, mode, steps, trace, report, quiet } => {
+        Command::Run {
+            scenario,
+            mode,
+            steps,
+            trace,
+            report,
+            quiet,
+        } => {
             let sc = match plant_proxy::scenario::load(&scenario) {
                 Ok(s) => s,
                 Err(e) => {
@@ -102,7 +116,11 @@ fn main() -> ExitCode {
             for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
                 let _ = signal_hook::flag::register(sig, shutdown.clone());
             }
-            let opts = PlantRunOptions { steps, trace, verbose: !quiet };
+            let opts = PlantRunOptions {
+                steps,
+                trace,
+                verbose: !quiet,
+            };
             match run_plant(&sc, &proxy, &opts, &shutdown) {
                 Ok(r) => {
                     eprintln!(

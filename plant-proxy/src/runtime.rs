@@ -25,7 +25,9 @@ use crate::sim::PlantSim;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
 use ipc_types::rt::RtRequest;
-use ipc_types::{Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, Measurement, measurement_flags};
+use ipc_types::{
+    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, Measurement, measurement_flags,
+};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::io::Write;
@@ -165,23 +167,30 @@ impl std::error::Error for ProxyConfigError {}
 impl ProxyConfig {
     /// Reads the `[proxy]` table from the scenario text (defaults when absent).
     pub fn parse(text: &str, origin: &str, n_u: usize) -> Result<Self, ProxyConfigError> {
-        let err = |field: &str, m: String| ProxyConfigError(format!("{origin}: field 'proxy.{field}': {m}"));
+        let err = |field: &str, m: String| {
+            ProxyConfigError(format!("{origin}: field 'proxy.{field}': {m}"))
+        };
         let table: toml::Table = toml::from_str(text)
             .map_err(|e| ProxyConfigError(format!("{origin}: not valid TOML: {e}")))?;
         let raw: RawProxy = match table.get("proxy") {
             None => RawProxy::default(),
-            Some(v) => v
-                .clone()
-                .try_into()
-                .map_err(|e: toml::de::Error| ProxyConfigError(format!("{origin}: table 'proxy': {e}")))?,
+            Some(v) => v.clone().try_into().map_err(|e: toml::de::Error| {
+                ProxyConfigError(format!("{origin}: table 'proxy': {e}"))
+            })?,
         };
         let deadline = raw.deadline.unwrap_or(0.5);
         if !(deadline > 0.0 && deadline <= 1.0) {
-            return Err(err("deadline", format!("{deadline} is not a fraction of the period in (0, 1]")));
+            return Err(err(
+                "deadline",
+                format!("{deadline} is not a fraction of the period in (0, 1]"),
+            ));
         }
         let safe_input = raw.safe_input.unwrap_or_else(|| vec![0.0; n_u]);
         if safe_input.len() != n_u || safe_input.iter().any(|v| !v.is_finite()) {
-            return Err(err("safe-input", format!("needs {n_u} finite values (one per control input)")));
+            return Err(err(
+                "safe-input",
+                format!("needs {n_u} finite values (one per control input)"),
+            ));
         }
         let watchdog_periods = raw.watchdog_periods.unwrap_or(100);
         if watchdog_periods == 0 {
@@ -189,13 +198,22 @@ impl ProxyConfig {
         }
         let secs = |v: Option<f64>, d: f64, f: &str| {
             let v = v.unwrap_or(d);
-            if v.is_finite() && v > 0.0 { Ok(Duration::from_secs_f64(v)) } else { Err(err(f, format!("{v} s is not positive"))) }
+            if v.is_finite() && v > 0.0 {
+                Ok(Duration::from_secs_f64(v))
+            } else {
+                Err(err(f, format!("{v} s is not positive")))
+            }
         };
         let fifo_priority = match raw.fifo_priority {
             None => Some(70),
             Some(0) => None,
             Some(p) if (1..=99).contains(&p) => Some(p),
-            Some(p) => return Err(err("fifo-priority", format!("{p} is not in 1..=99 (0 disables)"))),
+            Some(p) => {
+                return Err(err(
+                    "fifo-priority",
+                    format!("{p} is not in 1..=99 (0 disables)"),
+                ));
+            }
         };
         Ok(Self {
             mode: raw.mode.unwrap_or(Mode::RealTime),
@@ -303,7 +321,8 @@ impl Trace {
             header += &format!(",u{i}");
         }
         header += ",flags,actuation_status\n";
-        out.write_all(header.as_bytes()).map_err(|e| PlantError::Io(e.to_string()))?;
+        out.write_all(header.as_bytes())
+            .map_err(|e| PlantError::Io(e.to_string()))?;
         Ok(Self { out })
     }
 
@@ -326,16 +345,22 @@ pub fn run_plant(
 ) -> Result<PlantReport, PlantError> {
     let ts = scenario.rig.sample_period;
     let period_ns = (ts * 1e9).round() as u64;
-    let mut sim = PlantSim::new(&scenario.plant, ts).map_err(|e| PlantError::Config(e.to_string()))?;
+    let mut sim =
+        PlantSim::new(&scenario.plant, ts).map_err(|e| PlantError::Config(e.to_string()))?;
     if proxy.intersample == Intersample::AtDeadline && proxy.deadline < 1.0 {
-        sim.set_apply_offset(Some(proxy.deadline)).map_err(|e| PlantError::Config(e.to_string()))?;
+        sim.set_apply_offset(Some(proxy.deadline))
+            .map_err(|e| PlantError::Config(e.to_string()))?;
     }
     let (n_y, n_z, n_r, n_u) = (sim.n_y(), sim.n_z(), sim.n_r(), sim.n_u());
     let counts = ChannelCounts::new(n_y, n_z, n_r, n_u).map_err(PlantError::Config)?;
     if proxy.safe_input.len() != n_u {
-        return Err(PlantError::Config(format!("proxy.safe-input needs {n_u} values")));
+        return Err(PlantError::Config(format!(
+            "proxy.safe-input needs {n_u} values"
+        )));
     }
-    let steps = opts.steps.unwrap_or_else(|| (scenario.rig.duration / ts).round() as u64);
+    let steps = opts
+        .steps
+        .unwrap_or_else(|| (scenario.rig.duration / ts).round() as u64);
     let mut trace = match &opts.trace {
         Some(p) => Some(Trace::create(p, n_y, n_z, n_u)?),
         None => None,
@@ -344,7 +369,10 @@ pub fn run_plant(
     let rt_setup = if proxy.mode == Mode::RealTime {
         let s = ipc_types::rt::setup_current_thread(&proxy.rt);
         if s.any_refused() {
-            eprintln!("[plant-proxy] WARNING: real-time set-up incomplete: {}", s.describe());
+            eprintln!(
+                "[plant-proxy] WARNING: real-time set-up incomplete: {}",
+                s.describe()
+            );
         }
         s.describe()
     } else {
@@ -352,16 +380,19 @@ pub fn run_plant(
     };
 
     let own = ContractInfo::new(Side::Plant, counts, period_ns);
+    let waiting = format!(
+        "[plant-proxy] rig '{}': waiting for the service ...",
+        scenario.rig.name
+    );
     let copts = ConnectOptions {
         peer_timeout: proxy.peer_timeout,
         shutdown: Some(shutdown),
         listen: proxy.mode == Mode::Lockstep,
+        waiting_message: opts.verbose.then_some(waiting.as_str()),
     };
-    if opts.verbose {
-        eprintln!("[plant-proxy] rig '{}': waiting for the service ...", scenario.rig.name);
-    }
-    let ports: PlantPorts = ipc_types::ports::connect(&scenario.rig.name, own, "adaptive-rig-plant", copts)
-        .map_err(PlantError::Connect)?;
+    let ports: PlantPorts =
+        ipc_types::ports::connect(&scenario.rig.name, own, "adaptive-rig-plant", copts)
+            .map_err(PlantError::Connect)?;
     if opts.verbose {
         eprintln!(
             "[plant-proxy] connected; {} steps at {:.1} Hz in {:?} mode",
@@ -402,7 +433,8 @@ pub fn run_plant(
             }
             Mode::Lockstep => monotonic_ns(),
         };
-        sim.sample(&mut y, &mut z, &mut r).map_err(|e| PlantError::Config(e.to_string()))?;
+        sim.sample(&mut y, &mut z, &mut r)
+            .map_err(|e| PlantError::Config(e.to_string()))?;
         let mut m = Measurement::zeroed(counts);
         m.seq = k;
         m.t_sample_ns = t_k;
@@ -456,7 +488,8 @@ pub fn run_plant(
                         break None;
                     }
                     if let Some(l) = &ports.listener {
-                        let _ = l.timed_wait(|_| {}, (deadline - now).min(Duration::from_millis(10)));
+                        let _ =
+                            l.timed_wait(|_| {}, (deadline - now).min(Duration::from_millis(10)));
                     }
                 }
             }
@@ -473,7 +506,9 @@ pub fn run_plant(
                 if tripped {
                     tripped = false;
                     report.watchdog_recoveries += 1;
-                    eprintln!("[plant-proxy] valid actuation again at seq {k}: leaving the safe output");
+                    eprintln!(
+                        "[plant-proxy] valid actuation again at seq {k}: leaving the safe output"
+                    );
                 }
                 u_applied[..n_u].copy_from_slice(&a.u[..n_u]);
                 a.status
@@ -494,7 +529,9 @@ pub fn run_plant(
                     );
                     let n = ipc_types::ports::cleanup_dead_nodes();
                     if n > 0 {
-                        eprintln!("[plant-proxy] removed stale resources of {n} dead iceoryx2 node(s)");
+                        eprintln!(
+                            "[plant-proxy] removed stale resources of {n} dead iceoryx2 node(s)"
+                        );
                     }
                 }
                 u32::MAX
@@ -505,21 +542,40 @@ pub fn run_plant(
             report.safe_output_samples += 1;
         }
         if let Some(t) = trace.as_mut() {
-            t.row(k, sim.time(), &m.y[..n_y], &z, &u_applied[..n_u], m.flags, status);
+            t.row(
+                k,
+                sim.time(),
+                &m.y[..n_y],
+                &z,
+                &u_applied[..n_u],
+                m.flags,
+                status,
+            );
         }
-        sim.advance(&u_applied[..n_u]).map_err(|e| PlantError::Config(e.to_string()))?;
+        sim.advance(&u_applied[..n_u])
+            .map_err(|e| PlantError::Config(e.to_string()))?;
     }
     if let Some(mut t) = trace {
-        t.out.flush().map_err(|e| PlantError::Io(format!("writing the trace: {e}")))?;
+        t.out
+            .flush()
+            .map_err(|e| PlantError::Io(format!("writing the trace: {e}")))?;
     }
-    report.z_rms = z_sum_sq.iter().map(|s| (s / report.samples.max(1) as f64).sqrt()).collect();
+    report.z_rms = z_sum_sq
+        .iter()
+        .map(|s| (s / report.samples.max(1) as f64).sqrt())
+        .collect();
     report.wall_time_s = wall.elapsed().as_secs_f64();
     Ok(report)
 }
 
 /// Drains the actuation subscriber; returns the valid actuation for sample `k`, counting
 /// late and invalid ones.
-fn drain_for(ports: &PlantPorts, k: u64, counts: ChannelCounts, report: &mut PlantReport) -> Option<Actuation> {
+fn drain_for(
+    ports: &PlantPorts,
+    k: u64,
+    counts: ChannelCounts,
+    report: &mut PlantReport,
+) -> Option<Actuation> {
     let mut found = None;
     while let Ok(Some(sample)) = ports.subscriber.receive() {
         let a: Actuation = *sample;

@@ -20,6 +20,7 @@
 //! wait = "busy-poll"              # or "block"
 //! grace-periods = 800             # start-up cycles whose misses do not count toward the limit
 //! max-consecutive-misses = 10     # then go to the safe state
+//! miss-source = "plant"           # misses the plant reports, or "response-time" (measured here)
 //! recover-after = 0               # 0: the safe state latches; N: leave it after N good cycles
 //! silent-periods = 400            # no sample for this many periods: the plant is silent
 //! peer-timeout = 30.0             # s to wait for the plant at start
@@ -98,6 +99,18 @@ pub enum WaitMode {
     Block,
 }
 
+/// Which misses count toward the safe-state limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MissSource {
+    /// The plant's own verdict, carried in the next sample (`PREVIOUS_ACTUATION_MISSED`):
+    /// the plant is the clock master and applies `u` at its deadline, so it decides.
+    Plant,
+    /// The service's measurement: publish time − sample time > the deadline. Stricter: it
+    /// also counts the plant process's own lateness in waking up.
+    ResponseTime,
+}
+
 /// The deadline and silence policy.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeadlinePolicy {
@@ -111,6 +124,8 @@ pub struct DeadlinePolicy {
     pub silent_periods: u64,
     /// Reset the controller when a silent plant comes back.
     pub reset_on_resume: bool,
+    /// Which misses count toward `max_consecutive_misses`.
+    pub miss_source: MissSource,
 }
 
 /// Accepted range of each measurement channel.
@@ -163,7 +178,15 @@ impl ControllerConfig {
     /// Builds the controller (allocating; before the RT thread starts).
     pub fn build(&self, counts: ChannelCounts) -> Result<Box<dyn Controller>, String> {
         match self {
-            ControllerConfig::Lti { a, b, c, d, x0, input, limits } => {
+            ControllerConfig::Lti {
+                a,
+                b,
+                c,
+                d,
+                x0,
+                input,
+                limits,
+            } => {
                 let mut ctl = LtiController::new(
                     a.clone(),
                     b.clone(),
@@ -272,6 +295,7 @@ struct RawService {
     recover_after: Option<u64>,
     silent_periods: Option<u64>,
     reset_on_resume: Option<bool>,
+    miss_source: Option<MissSource>,
     peer_timeout: Option<f64>,
     safe_input: Option<ScalarOrVec>,
     y_min: Option<ScalarOrVec>,
@@ -351,47 +375,70 @@ impl ServiceConfig {
             if !KNOWN_TABLES.contains(&key.as_str()) {
                 return Err(err(
                     key,
-                    format!("unknown table; the known ones are {}", KNOWN_TABLES.join(", ")),
+                    format!(
+                        "unknown table; the known ones are {}",
+                        KNOWN_TABLES.join(", ")
+                    ),
                 ));
             }
         }
         let raw: RawFile = toml::from_str(text).map_err(|e| err("", e.to_string()))?;
-        let rig = raw.rig.ok_or_else(|| err("rig", "the [rig] table is missing".into()))?;
+        let rig = raw
+            .rig
+            .ok_or_else(|| err("rig", "the [rig] table is missing".into()))?;
         if let Err(e) = ipc_types::ports::service_names(&rig.name) {
             return Err(err("rig.name", e.to_string()));
         }
         let period = match (rig.sample_period, rig.sample_rate_hz) {
             (Some(t), None) => t,
             (None, Some(f)) if f > 0.0 => 1.0 / f,
-            (None, Some(f)) => return Err(err("rig.sample-rate-hz", format!("{f} is not positive"))),
+            (None, Some(f)) => {
+                return Err(err("rig.sample-rate-hz", format!("{f} is not positive")));
+            }
             (Some(_), Some(_)) => {
-                return Err(err("rig", "give sample-period or sample-rate-hz, not both".into()));
+                return Err(err(
+                    "rig",
+                    "give sample-period or sample-rate-hz, not both".into(),
+                ));
             }
             (None, None) => return Err(err("rig.sample-period", "missing".into())),
         };
         if !(period.is_finite() && period > 1e-7 && period < 100.0) {
-            return Err(err("rig.sample-period", format!("{period} s is not a usable period")));
+            return Err(err(
+                "rig.sample-period",
+                format!("{period} s is not a usable period"),
+            ));
         }
         let sample_period_ns = (period * 1e9).round() as u64;
         let s = raw.service.unwrap_or_default();
 
-        let counts = match &s.channels {
-            Some(c) => ChannelCounts::new(c.y, c.z, c.r, c.u)
-                .map_err(|m| err("service.channels", m))?,
-            None => channels_from_plant(raw.plant.as_ref()).map_err(|m| err("service.channels", m))?,
-        };
+        let counts =
+            match &s.channels {
+                Some(c) => ChannelCounts::new(c.y, c.z, c.r, c.u)
+                    .map_err(|m| err("service.channels", m))?,
+                None => channels_from_plant(raw.plant.as_ref())
+                    .map_err(|m| err("service.channels", m))?,
+            };
         let n_y = counts.n_y as usize;
         let n_z = counts.n_z as usize;
         let n_u = counts.n_u as usize;
         if n_u == 0 {
-            return Err(err("service.channels.u", "the service needs at least one input u".into()));
+            return Err(err(
+                "service.channels.u",
+                "the service needs at least one input u".into(),
+            ));
         }
 
         let fifo_priority = match s.fifo_priority {
             None => Some(80),
             Some(0) => None,
             Some(p) if (1..=99).contains(&p) => Some(p),
-            Some(p) => return Err(err("service.fifo-priority", format!("{p} is not in 1..=99 (0 disables)"))),
+            Some(p) => {
+                return Err(err(
+                    "service.fifo-priority",
+                    format!("{p} is not in 1..=99 (0 disables)"),
+                ));
+            }
         };
         let rt = RtRequest {
             core: s.core,
@@ -401,17 +448,36 @@ impl ServiceConfig {
         };
         let policy = DeadlinePolicy {
             grace_cycles: s.grace_periods.unwrap_or(100),
-            max_consecutive_misses: positive(s.max_consecutive_misses.unwrap_or(10), "service.max-consecutive-misses", &err)?,
+            max_consecutive_misses: positive(
+                s.max_consecutive_misses.unwrap_or(10),
+                "service.max-consecutive-misses",
+                &err,
+            )?,
             recover_after: s.recover_after.filter(|n| *n > 0),
-            silent_periods: positive(s.silent_periods.unwrap_or(400), "service.silent-periods", &err)?,
+            silent_periods: positive(
+                s.silent_periods.unwrap_or(400),
+                "service.silent-periods",
+                &err,
+            )?,
             reset_on_resume: s.reset_on_resume.unwrap_or(true),
+            miss_source: s.miss_source.unwrap_or(MissSource::Plant),
         };
-        let per_channel = |v: &Option<ScalarOrVec>, n: usize, default: f64, field: &str| -> Result<Vec<f64>, ConfigError> {
+        let per_channel = |v: &Option<ScalarOrVec>,
+                           n: usize,
+                           default: f64,
+                           field: &str|
+         -> Result<Vec<f64>, ConfigError> {
             match v {
                 None => Ok(vec![default; n]),
                 Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n]),
                 Some(ScalarOrVec::Vec(xs)) if xs.len() == n => Ok(xs.clone()),
-                Some(ScalarOrVec::Vec(xs)) => Err(err(field, format!("has {} values, expected {n} (one per channel) or a scalar", xs.len()))),
+                Some(ScalarOrVec::Vec(xs)) => Err(err(
+                    field,
+                    format!(
+                        "has {} values, expected {n} (one per channel) or a scalar",
+                        xs.len()
+                    ),
+                )),
             }
         };
         let limits = MeasurementLimits {
@@ -422,12 +488,18 @@ impl ServiceConfig {
         };
         for (i, (lo, hi)) in limits.y_min.iter().zip(&limits.y_max).enumerate() {
             if lo.is_nan() || hi.is_nan() || lo >= hi {
-                return Err(err("service.y-min", format!("channel {i}: y-min {lo} must be below y-max {hi}")));
+                return Err(err(
+                    "service.y-min",
+                    format!("channel {i}: y-min {lo} must be below y-max {hi}"),
+                ));
             }
         }
         for (i, (lo, hi)) in limits.z_min.iter().zip(&limits.z_max).enumerate() {
             if lo.is_nan() || hi.is_nan() || lo >= hi {
-                return Err(err("service.z-min", format!("channel {i}: z-min {lo} must be below z-max {hi}")));
+                return Err(err(
+                    "service.z-min",
+                    format!("channel {i}: z-min {lo} must be below z-max {hi}"),
+                ));
             }
         }
         let safe_input = per_channel(&s.safe_input, n_u, 0.0, "service.safe-input")?;
@@ -436,11 +508,17 @@ impl ServiceConfig {
         }
         let peer_timeout = s.peer_timeout.unwrap_or(30.0);
         if !(peer_timeout.is_finite() && peer_timeout > 0.0) {
-            return Err(err("service.peer-timeout", format!("{peer_timeout} s is not positive")));
+            return Err(err(
+                "service.peer-timeout",
+                format!("{peer_timeout} s is not positive"),
+            ));
         }
         let interval = s.histogram_interval.unwrap_or(1.0);
         if !(interval.is_finite() && interval > 0.0) {
-            return Err(err("service.histogram-interval", format!("{interval} s is not positive")));
+            return Err(err(
+                "service.histogram-interval",
+                format!("{interval} s is not positive"),
+            ));
         }
         let histogram_interval_cycles = ((interval / period).round() as u64).max(1);
         let l = raw.log.unwrap_or_default();
@@ -484,7 +562,11 @@ fn positive(
     field: &str,
     err: &dyn Fn(&str, String) -> ConfigError,
 ) -> Result<u64, ConfigError> {
-    if v == 0 { Err(err(field, "must be at least 1".into())) } else { Ok(v) }
+    if v == 0 {
+        Err(err(field, "must be at least 1".into()))
+    } else {
+        Ok(v)
+    }
 }
 
 fn channels_from_plant(plant: Option<&toml::Value>) -> Result<ChannelCounts, String> {
@@ -495,10 +577,17 @@ fn channels_from_plant(plant: Option<&toml::Value>) -> Result<ChannelCounts, Str
         match plant.get(k).and_then(|v| v.as_integer()).or(default) {
             Some(n) if n >= 0 => Ok(n as usize),
             Some(n) => Err(format!("plant.{k} = {n} is negative")),
-            None => Err(format!("plant.{k} is missing, and [service.channels] is not given")),
+            None => Err(format!(
+                "plant.{k} is missing, and [service.channels] is not given"
+            )),
         }
     };
-    ChannelCounts::new(get("outputs-y", None)?, get("outputs-z", None)?, get("commands", Some(0))?, get("inputs", None)?)
+    ChannelCounts::new(
+        get("outputs-y", None)?,
+        get("outputs-z", None)?,
+        get("commands", Some(0))?,
+        get("inputs", None)?,
+    )
 }
 
 fn matrix(rows: &[Vec<f64>], cols_if_empty: usize, field: &str) -> Result<DMatrix<f64>, String> {
@@ -507,7 +596,10 @@ fn matrix(rows: &[Vec<f64>], cols_if_empty: usize, field: &str) -> Result<DMatri
     }
     let n = rows[0].len();
     if let Some((i, r)) = rows.iter().enumerate().find(|(_, r)| r.len() != n) {
-        return Err(format!("{field}: row {i} has {} entries, row 0 has {n}", r.len()));
+        return Err(format!(
+            "{field}: row {i} has {} entries, row 0 has {n}",
+            r.len()
+        ));
     }
     Ok(DMatrix::from_fn(rows.len(), n, |i, j| rows[i][j]))
 }
@@ -521,15 +613,27 @@ fn parse_controller(
     match kind {
         "lti" => {}
         "" => return Err(err("controller.kind", "missing; known kinds: lti".into())),
-        other => return Err(err("controller.kind", format!("unknown controller '{other}'; known kinds: lti"))),
+        other => {
+            return Err(err(
+                "controller.kind",
+                format!("unknown controller '{other}'; known kinds: lti"),
+            ));
+        }
     }
-    let raw: RawLti = value.try_into().map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
+    let raw: RawLti = value
+        .try_into()
+        .map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
     debug_assert_eq!(raw.kind, "lti");
     let input = match raw.input.as_deref().unwrap_or("y") {
         "y" => ControllerInput::Y,
         "error" => ControllerInput::Error,
         "y-and-r" => ControllerInput::YAndR,
-        other => return Err(err("controller.input", format!("'{other}' is not one of y, error, y-and-r"))),
+        other => {
+            return Err(err(
+                "controller.input",
+                format!("'{other}' is not one of y, error, y-and-r"),
+            ));
+        }
     };
     let n_u = counts.n_u as usize;
     let n_e = match input {
@@ -543,7 +647,9 @@ fn parse_controller(
                 None => Ok(vec![d; n_u]),
                 Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n_u]),
                 Some(ScalarOrVec::Vec(x)) if x.len() == n_u => Ok(x.clone()),
-                Some(ScalarOrVec::Vec(x)) => Err(err(f, format!("has {} values, expected {n_u}", x.len()))),
+                Some(ScalarOrVec::Vec(x)) => {
+                    Err(err(f, format!("has {} values, expected {n_u}", x.len())))
+                }
             };
             Some(OutputLimits {
                 min: expand(lo, f64::NEG_INFINITY, "controller.u-min")?,
@@ -569,10 +675,28 @@ fn parse_controller(
                 .map_err(|m| err("controller.tf.entries", m))?;
             (a, b, c, d, None)
         }
-        (Some(_), Some(_)) => return Err(err("controller", "give [controller.ss] or [controller.tf], not both".into())),
-        (None, None) => return Err(err("controller", "an lti controller needs [controller.ss] or [controller.tf]".into())),
+        (Some(_), Some(_)) => {
+            return Err(err(
+                "controller",
+                "give [controller.ss] or [controller.tf], not both".into(),
+            ));
+        }
+        (None, None) => {
+            return Err(err(
+                "controller",
+                "an lti controller needs [controller.ss] or [controller.tf]".into(),
+            ));
+        }
     };
-    let cfg = ControllerConfig::Lti { a, b, c, d, x0, input, limits };
+    let cfg = ControllerConfig::Lti {
+        a,
+        b,
+        c,
+        d,
+        x0,
+        input,
+        limits,
+    };
     // Build once now so that size errors are reported at load time, naming the table.
     cfg.build(counts).map_err(|m| err("controller", m))?;
     Ok(cfg)
@@ -587,18 +711,26 @@ fn realize_tf_entries(
 ) -> Result<(DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>), String> {
     use plant_proxy::lti::{Tf, realize_tf_matrix};
     if entries.len() != n_u {
-        return Err(format!("{} rows, expected one per input u ({n_u})", entries.len()));
+        return Err(format!(
+            "{} rows, expected one per input u ({n_u})",
+            entries.len()
+        ));
     }
     let mut m = Vec::with_capacity(n_u);
     for (i, row) in entries.iter().enumerate() {
         if row.len() != n_e {
-            return Err(format!("row {i} has {} entries, expected one per controller input ({n_e})", row.len()));
+            return Err(format!(
+                "row {i} has {} entries, expected one per controller input ({n_e})",
+                row.len()
+            ));
         }
         let mut r = Vec::with_capacity(n_e);
         for (j, e) in row.iter().enumerate() {
             r.push(match e {
                 RawTfEntry::Zero(0) => None,
-                RawTfEntry::Zero(v) => return Err(format!("[{i}][{j}] = {v}: an entry is 0 or {{ num, den }}")),
+                RawTfEntry::Zero(v) => {
+                    return Err(format!("[{i}][{j}] = {v}: an entry is 0 or {{ num, den }}"));
+                }
                 RawTfEntry::Tf { num, den } => Some(
                     Tf::new(num.clone(), den.clone()).map_err(|e| format!("[{i}][{j}]: {e}"))?,
                 ),
@@ -635,13 +767,24 @@ d = [[-2.0]]
     fn a_good_file_gives_typed_parameters() {
         let c = ServiceConfig::parse(GOOD, "good.toml").unwrap();
         assert_eq!(c.sample_period_ns, 1_000_000);
-        assert_eq!(c.counts, ChannelCounts { n_y: 1, n_z: 1, n_r: 0, n_u: 1 });
+        assert_eq!(
+            c.counts,
+            ChannelCounts {
+                n_y: 1,
+                n_z: 1,
+                n_r: 0,
+                n_u: 1
+            }
+        );
         assert_eq!(c.limits.y_max, vec![5.0]);
         assert_eq!(c.wait, WaitMode::BusyPoll);
     }
 
     fn refused(text: &str) -> String {
-        ServiceConfig::parse(text, "bad.toml").err().expect("must be refused").to_string()
+        ServiceConfig::parse(text, "bad.toml")
+            .err()
+            .expect("must be refused")
+            .to_string()
     }
 
     #[test]
@@ -649,13 +792,19 @@ d = [[-2.0]]
         let m = refused(&GOOD.replace("y-max = 5.0", "y-max = -6.0"));
         assert!(m.starts_with("bad.toml: field 'service.y-min'"), "{m}");
         let m = refused(&GOOD.replace("d = [[-2.0]]", "d = [[-2.0, 1.0]]"));
-        assert!(m.contains("field 'controller'") && m.contains("d is 1×2, expected 1×1"), "{m}");
+        assert!(
+            m.contains("field 'controller'") && m.contains("d is 1×2, expected 1×1"),
+            "{m}"
+        );
         let m = refused(&GOOD.replace("kind = \"lti\"", "kind = \"pid\""));
         assert!(m.contains("controller.kind") && m.contains("pid"), "{m}");
         let m = refused(&GOOD.replace("[service]", "[service]\nwiat = \"block\""));
         assert!(m.contains("wiat"), "{m}");
         let m = refused(&GOOD.replace("[rig]", "[rigg]\n[rig]"));
-        assert!(m.contains("field 'rigg'") && m.contains("unknown table"), "{m}");
+        assert!(
+            m.contains("field 'rigg'") && m.contains("unknown table"),
+            "{m}"
+        );
         let m = refused(&GOOD.replace("sample-period = 0.001", "sample-period = -1.0"));
         assert!(m.contains("rig.sample-period"), "{m}");
         let m = refused(&GOOD.replace("name = \"unit\"", "name = \"a/b\""));

@@ -189,7 +189,11 @@ impl LtiController {
     /// Sets the initial state (also used by [`Controller::reset`]).
     pub fn with_initial_state(mut self, x0: DVector<f64>) -> Result<Self, String> {
         if x0.len() != self.x.len() {
-            return Err(format!("initial state has {} entries, the controller has {} states", x0.len(), self.x.len()));
+            return Err(format!(
+                "initial state has {} entries, the controller has {} states",
+                x0.len(),
+                self.x.len()
+            ));
         }
         self.x.copy_from(&x0);
         self.x0 = x0;
@@ -226,7 +230,11 @@ impl Controller for LtiController {
             }
             ControllerInput::YAndR => {
                 for (i, e) in self.e.iter_mut().enumerate() {
-                    *e = if i < n_y { input.y[i] } else { input.r[i - n_y] };
+                    *e = if i < n_y {
+                        input.y[i]
+                    } else {
+                        input.r[i - n_y]
+                    };
                 }
             }
         }
@@ -274,7 +282,9 @@ impl Controller for LtiController {
     }
 
     fn internal_names(&self) -> Vec<String> {
-        (0..self.x.len().min(MAX_INTERNALS)).map(|i| format!("x{i}")).collect()
+        (0..self.x.len().min(MAX_INTERNALS))
+            .map(|i| format!("x{i}"))
+            .collect()
     }
 
     fn internals(&self, out: &mut [f64]) -> usize {
@@ -289,7 +299,12 @@ mod tests {
     use super::*;
 
     fn counts(n_y: u16, n_r: u16, n_u: u16) -> ChannelCounts {
-        ChannelCounts { n_y, n_z: n_y, n_r, n_u }
+        ChannelCounts {
+            n_y,
+            n_z: n_y,
+            n_r,
+            n_u,
+        }
     }
 
     fn step(c: &mut LtiController, y: &[f64], r: &[f64], u: &mut [f64]) -> u32 {
@@ -329,7 +344,10 @@ mod tests {
             DMatrix::from_element(1, 1, 10.0),
             ControllerInput::Error,
             counts(1, 1, 1),
-            Some(OutputLimits { min: vec![-1.0], max: vec![1.0] }),
+            Some(OutputLimits {
+                min: vec![-1.0],
+                max: vec![1.0],
+            }),
         )
         .unwrap();
         let mut u = [0.0];

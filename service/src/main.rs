@@ -12,8 +12,8 @@
 //! ends, and prints the run report. `check` validates a configuration and exits.
 
 use clap::{Parser, Subcommand};
-use service::rt_alloc::RtAwareAllocator;
 use service::config::{ServiceConfig, WaitMode};
+use service::rt_alloc::RtAwareAllocator;
 use service::runtime::{RunOptions, run};
 use std::path::{Path, PathBuf};
 use std::process::{Command as Process, ExitCode, Stdio};
@@ -25,7 +25,11 @@ use std::time::Duration;
 static ALLOCATOR: RtAwareAllocator = RtAwareAllocator;
 
 #[derive(Parser)]
-#[command(name = "service", version, about = "Adaptive real-time control service")]
+#[command(
+    name = "service",
+    version,
+    about = "Adaptive real-time control service"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -119,7 +123,11 @@ fn main() -> ExitCode {
             }
             Err(code) => code,
         },
-        Command::Run { common, exit_with_plant, max_cycles } => {
+        Command::Run {
+            common,
+            exit_with_plant,
+            max_cycles,
+        } => {
             let cfg = match load(&common.config) {
                 Ok(c) => c,
                 Err(code) => return code,
@@ -142,7 +150,11 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Command::Launch { common, mode, duration } => launch(common, &mode, duration),
+        Command::Launch {
+            common,
+            mode,
+            duration,
+        } => launch(common, &mode, duration),
     }
 }
 
@@ -152,7 +164,10 @@ fn launch(common: Common, mode: &str, duration: Option<f64>) -> ExitCode {
         Err(code) => return code,
     };
     let exe = std::env::current_exe().ok();
-    let plant_bin = exe.as_ref().and_then(|e| e.parent()).map(|d| d.join("plant-proxy"));
+    let plant_bin = exe
+        .as_ref()
+        .and_then(|e| e.parent())
+        .map(|d| d.join("plant-proxy"));
     let Some(plant_bin) = plant_bin.filter(|p| p.exists()) else {
         eprintln!(
             "service: plant-proxy was not found next to this executable; build the workspace first \

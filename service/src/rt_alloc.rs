@@ -223,7 +223,13 @@ pub fn enter_rt_thread(blocks: usize) {
     }
     POOL_RANGES[slot].0.store(b, Ordering::Relaxed);
     POOL_RANGES[slot].1.store(e, Ordering::Relaxed);
-    let pool = Box::into_raw(Box::new(Pool { free, base: b, end: e, served: 0, system: 0 }));
+    let pool = Box::into_raw(Box::new(Pool {
+        free,
+        base: b,
+        end: e,
+        served: 0,
+        system: 0,
+    }));
     POOL.with(|p| p.set(pool));
 }
 

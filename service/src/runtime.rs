@@ -12,8 +12,10 @@
 //!  u_k = controller.step(y_k, z_k, r_k)            (or the safe input in the safe state)
 //!  publish actuation k; record wake-up, compute, response time and period jitter
 //!  push the signals to the log queue (drop and count when full)
-//!  deadline policy: response > deadline ⇒ miss; N consecutive misses after the grace
-//!  period ⇒ safe state (latched, or left after M good cycles)
+//!  deadline policy: every late response is counted; N consecutive misses after the grace
+//!  period ⇒ safe state (latched, or left after M good cycles), where a miss is what the
+//!  plant reports (its actuation k−1 was absent or late at its deadline; the default) or
+//!  what the service measures (response time past the deadline)
 //! ```
 //!
 //! Nothing in that path allocates, locks, does I/O or panics (a counting-allocator test in
@@ -23,7 +25,7 @@
 //! and only then, the loop cleans up stale iceoryx2 resources of dead processes every 100 ms
 //! so that a restarted plant can connect, and it resumes on the next sample.
 
-use crate::config::{ServiceConfig, WaitMode};
+use crate::config::{MissSource, ServiceConfig, WaitMode};
 use crate::controller::{Controller, MAX_INTERNALS, StepInput};
 use crate::logging::{self, LogLayout, LogProducer, LogRecord};
 use crate::telemetry::{self, CycleTiming, TelemetryRt, TelemetrySummary};
@@ -31,8 +33,8 @@ use ipc_types::clock::monotonic_ns;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
 use ipc_types::rt::RtSetup;
 use ipc_types::{
-    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, MAX_Y, MAX_Z, Measurement,
-    actuation_status, measurement_flags,
+    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, MAX_Y, MAX_Z, Measurement, actuation_status,
+    measurement_flags,
 };
 use serde::Serialize;
 use std::fmt;
@@ -112,7 +114,10 @@ impl fmt::Display for LoopEvent {
             LoopEvent::SafeStateLeft { seq } => write!(f, "safe state left at seq {seq}"),
             LoopEvent::PlantEnded { seq } => write!(f, "plant ended its run at seq {seq}"),
             LoopEvent::DeadNodesCleaned { count } => {
-                write!(f, "removed stale resources of {count} dead iceoryx2 node(s)")
+                write!(
+                    f,
+                    "removed stale resources of {count} dead iceoryx2 node(s)"
+                )
             }
         }
     }
@@ -210,6 +215,8 @@ pub struct LoopCore {
     record: LogRecord,
     internals: [f64; MAX_INTERNALS],
     pending_jitter: Option<u64>,
+    plant_reported_miss: bool,
+    miss_source: MissSource,
     /// Allocations made on the RT thread during the loop (filled in when it ends).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
 }
@@ -255,7 +262,10 @@ impl LoopCore {
             grace_cycles: cfg.policy.grace_cycles,
             max_consecutive_misses: cfg.policy.max_consecutive_misses,
             recover_after: cfg.policy.recover_after,
-            silent_ns: cfg.policy.silent_periods.saturating_mul(cfg.sample_period_ns),
+            silent_ns: cfg
+                .policy
+                .silent_periods
+                .saturating_mul(cfg.sample_period_ns),
             silent_periods: cfg.policy.silent_periods,
             reset_on_resume: cfg.policy.reset_on_resume,
             rms_settle_cycles: cfg.rms_settle_cycles,
@@ -274,6 +284,8 @@ impl LoopCore {
             record: LogRecord::zeroed(),
             internals: [0.0; MAX_INTERNALS],
             pending_jitter: None,
+            plant_reported_miss: false,
+            miss_source: cfg.policy.miss_source,
             rt_allocations: Default::default(),
         }
     }
@@ -295,8 +307,14 @@ impl LoopCore {
             self.stats.rejected_non_finite += 1;
             return false;
         }
-        let y_ok = y.iter().enumerate().all(|(i, v)| *v >= self.y_min[i] && *v <= self.y_max[i]);
-        let z_ok = z.iter().enumerate().all(|(i, v)| *v >= self.z_min[i] && *v <= self.z_max[i]);
+        let y_ok = y
+            .iter()
+            .enumerate()
+            .all(|(i, v)| *v >= self.y_min[i] && *v <= self.y_max[i]);
+        let z_ok = z
+            .iter()
+            .enumerate()
+            .all(|(i, v)| *v >= self.z_min[i] && *v <= self.z_max[i]);
         if !(y_ok && z_ok) {
             self.stats.rejected_out_of_range += 1;
             return false;
@@ -306,7 +324,12 @@ impl LoopCore {
 
     /// Handles measurement `m` received at `t_recv_ns` and writes the answer into `act`
     /// (all fields but `t_publish_ns`).
-    pub fn process(&mut self, m: &Measurement, t_recv_ns: u64, act: &mut Actuation) -> CycleDecision {
+    pub fn process(
+        &mut self,
+        m: &Measurement,
+        t_recv_ns: u64,
+        act: &mut Actuation,
+    ) -> CycleDecision {
         self.stats.received += 1;
         // Session bookkeeping: first sample, resume after silence, sequence restart, gaps.
         match self.last_seq {
@@ -318,14 +341,19 @@ impl LoopCore {
                     self.event(LoopEvent::PlantResumed { seq: m.seq });
                     self.new_session();
                 } else if m.seq <= last {
-                    self.event(LoopEvent::SequenceRestarted { from: last, to: m.seq });
+                    self.event(LoopEvent::SequenceRestarted {
+                        from: last,
+                        to: m.seq,
+                    });
                     self.new_session();
                 } else if m.seq > last + 1 {
                     self.stats.skipped += m.seq - last - 1;
                 }
             }
         }
-        if m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0 && self.cycles_in_session > 0 {
+        self.plant_reported_miss = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
+            && self.cycles_in_session > 0;
+        if self.plant_reported_miss {
             self.stats.plant_reported_misses += 1;
         }
         let jitter = self.last_recv_ns.map(|prev| {
@@ -356,7 +384,12 @@ impl LoopCore {
             self.stats.safe_state_cycles += 1;
             self.accumulate_z(m);
         } else {
-            let input = StepInput { seq: m.seq, y: m.y(), z: m.z(), r: m.r() };
+            let input = StepInput {
+                seq: m.seq,
+                y: m.y(),
+                z: m.z(),
+                r: m.r(),
+            };
             let t0 = monotonic_ns();
             let s = self.controller.step(&input, &mut act.u[..n_u]);
             compute_ns = monotonic_ns().saturating_sub(t0);
@@ -380,7 +413,10 @@ impl LoopCore {
         act.status = status;
         act.compute_ns = compute_ns;
         self.pending_jitter = jitter;
-        CycleDecision { compute_ns, last_sample: m.flags & measurement_flags::LAST_SAMPLE != 0 }
+        CycleDecision {
+            compute_ns,
+            last_sample: m.flags & measurement_flags::LAST_SAMPLE != 0,
+        }
     }
 
     fn accumulate_z(&mut self, m: &Measurement) {
@@ -407,19 +443,35 @@ impl LoopCore {
     }
 
     /// Completes the cycle after publishing at `t_pub_ns`: deadline policy, histograms, log.
-    pub fn finish_cycle(&mut self, m: &Measurement, act: &Actuation, t_recv_ns: u64, t_pub_ns: u64, published: bool) {
+    pub fn finish_cycle(
+        &mut self,
+        m: &Measurement,
+        act: &Actuation,
+        t_recv_ns: u64,
+        t_pub_ns: u64,
+        published: bool,
+    ) {
         if published {
             self.stats.published += 1;
         } else {
             self.stats.publish_failures += 1;
         }
         let response_ns = t_pub_ns.saturating_sub(m.t_sample_ns);
-        let missed = !published || (m.deadline_ns > 0 && response_ns > m.deadline_ns);
-        if missed {
+        let late = m.deadline_ns > 0 && response_ns > m.deadline_ns;
+        if late {
             self.stats.deadline_misses += 1;
+        }
+        let missed = !published
+            || match self.miss_source {
+                MissSource::Plant => self.plant_reported_miss,
+                MissSource::ResponseTime => late,
+            };
+        if missed {
             self.consecutive_misses += 1;
-            self.stats.max_consecutive_misses =
-                self.stats.max_consecutive_misses.max(self.consecutive_misses);
+            self.stats.max_consecutive_misses = self
+                .stats
+                .max_consecutive_misses
+                .max(self.consecutive_misses);
             self.good_in_safe_state = 0;
             let counts_toward_limit = self.cycles_in_session > self.grace_cycles;
             if counts_toward_limit
@@ -435,7 +487,10 @@ impl LoopCore {
             self.consecutive_misses = 0;
             if self.in_safe_state {
                 self.good_in_safe_state += 1;
-                if self.recover_after.is_some_and(|n| self.good_in_safe_state >= n) {
+                if self
+                    .recover_after
+                    .is_some_and(|n| self.good_in_safe_state >= n)
+                {
                     self.in_safe_state = false;
                     self.good_in_safe_state = 0;
                     self.controller.reset();
@@ -444,13 +499,11 @@ impl LoopCore {
             }
         }
         let jitter = self.pending_jitter.take();
-        self.telemetry.record(&CycleTiming {
-            seq: m.seq,
-            wakeup_ns: t_recv_ns.saturating_sub(m.t_sample_ns),
-            compute_ns: act.compute_ns,
-            response_ns,
-            period_jitter_ns: jitter,
-        });
+        // The first sample of a session waited for the connection, not for the loop: it
+        // would only pollute the latency figures.
+        if self.cycles_in_session > 1 {
+            self.record_timing(m, act, t_recv_ns, response_ns, jitter);
+        }
         if let Some(log) = self.log.as_mut() {
             let r = &mut self.record;
             r.seq = m.seq;
@@ -469,6 +522,23 @@ impl LoopCore {
         }
     }
 
+    fn record_timing(
+        &mut self,
+        m: &Measurement,
+        act: &Actuation,
+        t_recv_ns: u64,
+        response_ns: u64,
+        jitter: Option<u64>,
+    ) {
+        self.telemetry.record(&CycleTiming {
+            seq: m.seq,
+            wakeup_ns: t_recv_ns.saturating_sub(m.t_sample_ns),
+            compute_ns: act.compute_ns,
+            response_ns,
+            period_jitter_ns: jitter,
+        });
+    }
+
     /// Called while no sample is pending; returns true when the plant has just been declared
     /// silent or is silent.
     pub fn on_idle(&mut self, now_ns: u64) -> bool {
@@ -480,7 +550,10 @@ impl LoopCore {
                 self.silent = true;
                 self.stats.plant_silent_events += 1;
                 let periods = self.silent_periods;
-                self.event(LoopEvent::PlantSilent { last_seq: seq, periods });
+                self.event(LoopEvent::PlantSilent {
+                    last_seq: seq,
+                    periods,
+                });
                 return true;
             }
         }
@@ -490,7 +563,9 @@ impl LoopCore {
     /// Reports the result of a stale-resource clean-up done while the plant is silent.
     pub fn note_cleanup(&mut self, count: usize) {
         if count > 0 {
-            self.event(LoopEvent::DeadNodesCleaned { count: count as u64 });
+            self.event(LoopEvent::DeadNodesCleaned {
+                count: count as u64,
+            });
         }
     }
 
@@ -498,9 +573,21 @@ impl LoopCore {
     pub fn z_rms(&self) -> (Vec<f64>, Vec<f64>) {
         let n = self.counts.n_z as usize;
         let rms = |s: &[f64; MAX_Z], c: u64| {
-            s[..n].iter().map(|v| if c > 0 { (v / c as f64).sqrt() } else { f64::NAN }).collect()
+            s[..n]
+                .iter()
+                .map(|v| {
+                    if c > 0 {
+                        (v / c as f64).sqrt()
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect()
         };
-        (rms(&self.z_sum_sq, self.z_count), rms(&self.z_sum_sq_settled, self.z_count_settled))
+        (
+            rms(&self.z_sum_sq, self.z_count),
+            rms(&self.z_sum_sq_settled, self.z_count_settled),
+        )
     }
 
     /// Hands the histogram box back at the end of a run.
@@ -578,6 +665,8 @@ pub struct RunReport {
     pub rt_setup: String,
     /// True when any RT set-up step was refused.
     pub rt_degraded: bool,
+    /// Conditions that make the latency figures worse than the set-up could give.
+    pub warnings: Vec<String>,
     /// Why the loop stopped.
     pub stop_reason: StopReason,
     /// Counters.
@@ -606,13 +695,23 @@ impl RunReport {
     pub fn render(&self) -> String {
         let s = &self.stats;
         let mut out = String::new();
-        out += &format!("=== run report: rig '{}', controller {}, wait {} ===\n", self.rig, self.controller, self.wait);
+        out += &format!(
+            "=== run report: rig '{}', controller {}, wait {} ===\n",
+            self.rig, self.controller, self.wait
+        );
         out += &format!("run folder: {}\n", self.run_folder);
         out += &format!(
             "real-time set-up: {}{}\n",
             self.rt_setup,
-            if self.rt_degraded { "  (DEGRADED: latency figures are not those of an RT setup)" } else { "" }
+            if self.rt_degraded {
+                "  (DEGRADED: latency figures are not those of an RT setup)"
+            } else {
+                ""
+            }
         );
+        for w in &self.warnings {
+            out += &format!("WARNING: {w}\n");
+        }
         out += &format!("stopped: {:?}\n", self.stop_reason);
         out += &format!(
             "samples: {} received, {} published, {} controller steps, {} skipped\n",
@@ -621,7 +720,11 @@ impl RunReport {
         out += &format!(
             "deadline: {} misses (service-measured), {} reported by the plant, longest run {}, \
              safe state entered {}× ({} cycles)\n",
-            s.deadline_misses, s.plant_reported_misses, s.max_consecutive_misses, s.safe_state_entries, s.safe_state_cycles
+            s.deadline_misses,
+            s.plant_reported_misses,
+            s.max_consecutive_misses,
+            s.safe_state_entries,
+            s.safe_state_cycles
         );
         out += &format!(
             "rejected measurements: {} non-finite, {} out of range, {} contract\n",
@@ -631,9 +734,21 @@ impl RunReport {
             "plant silent {}×, resumed {}×; controller faults {}, saturated cycles {}\n",
             s.plant_silent_events, s.plant_resumes, s.controller_faults, s.saturated_cycles
         );
-        let fmt_v = |v: &[f64]| v.iter().map(|x| format!("{x:.4e}")).collect::<Vec<_>>().join(", ");
-        out += &format!("RMS of z: [{}] (whole run), [{}] (after settling)\n", fmt_v(&self.z_rms), fmt_v(&self.z_rms_settled));
-        out += &format!("signal log: {} records written, {} dropped\n", self.log_written, self.log_dropped);
+        let fmt_v = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.4e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        out += &format!(
+            "RMS of z: [{}] (whole run), [{}] (after settling)\n",
+            fmt_v(&self.z_rms),
+            fmt_v(&self.z_rms_settled)
+        );
+        out += &format!(
+            "signal log: {} records written, {} dropped\n",
+            self.log_written, self.log_dropped
+        );
         let a = &self.rt_allocations;
         if a.installed {
             out += &format!(
@@ -649,7 +764,11 @@ impl RunReport {
 /// Runs the service with `cfg` until a signal sets `shutdown`, the plant ends (with
 /// `exit_with_plant`), or `max_cycles` samples have been received. Prints events as they
 /// happen; returns the report (also written to `report.json` in the run folder).
-pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) -> Result<RunReport, ServiceError> {
+pub fn run(
+    cfg: &ServiceConfig,
+    opts: &RunOptions,
+    shutdown: Arc<AtomicBool>,
+) -> Result<RunReport, ServiceError> {
     let mut cfg = cfg.clone();
     if let Some(w) = opts.wait {
         cfg.wait = w;
@@ -661,14 +780,24 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
         Some(f) => f.clone(),
         None => cfg.run_dir.join(format!("{}-{}", cfg.rig, timestamp())),
     };
-    std::fs::create_dir_all(&folder)
-        .map_err(|error| ServiceError::Io { what: format!("creating run folder {}", folder.display()), error })?;
-    let controller = cfg.controller.build(cfg.counts).map_err(ServiceError::Controller)?;
+    std::fs::create_dir_all(&folder).map_err(|error| ServiceError::Io {
+        what: format!("creating run folder {}", folder.display()),
+        error,
+    })?;
+    let controller = cfg
+        .controller
+        .build(cfg.counts)
+        .map_err(ServiceError::Controller)?;
     let controller_kind = controller.kind();
     let internal_names = controller.internal_names();
 
-    let (tele_rt, tele_reporter) = telemetry::channel(cfg.budget_ns, cfg.histogram_interval_cycles, 4, &folder)
-        .map_err(|error| ServiceError::Io { what: "creating histogram logs".into(), error })?;
+    let (tele_rt, tele_reporter) =
+        telemetry::channel(cfg.budget_ns, cfg.histogram_interval_cycles, 4, &folder).map_err(
+            |error| ServiceError::Io {
+                what: "creating histogram logs".into(),
+                error,
+            },
+        )?;
     let (log_producer, log_writer) = if cfg.log.enabled {
         let layout = LogLayout {
             n_y: cfg.counts.n_y as usize,
@@ -691,7 +820,10 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
     let log_handle = match log_writer {
         Some(w) => Some(
             w.spawn(folder.join("signals.csv"))
-                .map_err(|error| ServiceError::Io { what: "starting the CSV writer".into(), error })?,
+                .map_err(|error| ServiceError::Io {
+                    what: "starting the CSV writer".into(),
+                    error,
+                })?,
         ),
         None => None,
     };
@@ -710,7 +842,10 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
                 }
                 reporter
             })
-            .map_err(|error| ServiceError::Io { what: "starting the histogram thread".into(), error })?
+            .map_err(|error| ServiceError::Io {
+                what: "starting the histogram thread".into(),
+                error,
+            })?
     };
 
     let core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx);
@@ -721,7 +856,10 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
     let rt_thread = std::thread::Builder::new()
         .name("rt-loop".into())
         .spawn(move || rt_thread_main(rt_cfg, core, rt_shutdown, max_cycles, exit_with_plant))
-        .map_err(|error| ServiceError::Io { what: "starting the RT thread".into(), error })?;
+        .map_err(|error| ServiceError::Io {
+            what: "starting the RT thread".into(),
+            error,
+        })?;
 
     // Supervise: print events while the RT thread runs.
     let mut events = Vec::new();
@@ -735,23 +873,38 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
         drain(&mut events);
         std::thread::sleep(Duration::from_millis(20));
     }
-    let rt_result = rt_thread.join().map_err(|_| ServiceError::RtThread("panicked".into()))?;
+    let rt_result = rt_thread
+        .join()
+        .map_err(|_| ServiceError::RtThread("panicked".into()))?;
     drain(&mut events);
     reporter_stop.store(true, Ordering::Release);
-    let reporter = reporter_thread.join().map_err(|_| ServiceError::RtThread("histogram thread panicked".into()))?;
+    let reporter = reporter_thread
+        .join()
+        .map_err(|_| ServiceError::RtThread("histogram thread panicked".into()))?;
     let (mut core, setup, stop_reason) = rt_result?;
     core.flush_telemetry();
-    let latency = reporter
-        .finish()
-        .map_err(|error| ServiceError::Io { what: "writing histogram files".into(), error })?;
+    let latency = reporter.finish().map_err(|error| ServiceError::Io {
+        what: "writing histogram files".into(),
+        error,
+    })?;
     let (log_written, log_dropped) = match log_handle {
         Some(h) => {
-            let st = h.finish().map_err(|error| ServiceError::Io { what: "writing signals.csv".into(), error })?;
+            let st = h.finish().map_err(|error| ServiceError::Io {
+                what: "writing signals.csv".into(),
+                error,
+            })?;
             (st.written, st.dropped)
         }
         None => (0, 0),
     };
     let (z_rms, z_rms_settled) = core.z_rms();
+    let mut warnings = Vec::new();
+    if setup.any_refused() {
+        warnings.push(format!("real-time set-up incomplete: {}", setup.describe()));
+    }
+    if cfg.wait == WaitMode::BusyPoll && setup.fifo == ipc_types::rt::StepOutcome::Done {
+        warnings.extend(ipc_types::rt::busy_poll_throttling_warning());
+    }
     let report = RunReport {
         rig: cfg.rig.clone(),
         config: cfg.origin.clone(),
@@ -760,6 +913,7 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
         wait: format!("{:?}", cfg.wait),
         rt_setup: setup.describe(),
         rt_degraded: setup.any_refused(),
+        warnings,
         stop_reason,
         stats: core.stats,
         events,
@@ -777,7 +931,10 @@ pub fn run(cfg: &ServiceConfig, opts: &RunOptions, shutdown: Arc<AtomicBool>) ->
 
 fn write_json(path: &Path, report: &RunReport) -> Result<(), ServiceError> {
     let text = serde_json::to_string_pretty(report).expect("the report serializes");
-    std::fs::write(path, text).map_err(|error| ServiceError::Io { what: format!("writing {}", path.display()), error })
+    std::fs::write(path, text).map_err(|error| ServiceError::Io {
+        what: format!("writing {}", path.display()),
+        error,
+    })
 }
 
 fn timestamp() -> String {
@@ -802,7 +959,10 @@ fn rt_thread_main(
 ) -> RtResult {
     let setup = ipc_types::rt::setup_current_thread(&cfg.rt);
     if setup.any_refused() {
-        eprintln!("[service] WARNING: real-time set-up incomplete: {}", setup.describe());
+        eprintln!(
+            "[service] WARNING: real-time set-up incomplete: {}",
+            setup.describe()
+        );
         if cfg.require_rt {
             return Err(ServiceError::RtRefused(setup.describe()));
         }
@@ -816,23 +976,33 @@ fn rt_thread_main(
         }
     }
     let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns);
+    let waiting = format!("[service] waiting for the plant on rig '{}' ...", cfg.rig);
     let opts = ConnectOptions {
         peer_timeout: cfg.peer_timeout,
         shutdown: Some(&shutdown),
         listen: cfg.wait == WaitMode::Block,
+        waiting_message: Some(&waiting),
     };
-    eprintln!("[service] waiting for the plant on rig '{}' ...", cfg.rig);
-    let ports: ServicePorts = match ipc_types::ports::connect(&cfg.rig, own, "adaptive-rig-service", opts) {
-        Ok(p) => p,
-        Err(ipc_types::ports::ConnectError::Interrupted) => {
-            return Ok((core, setup, StopReason::Signal));
-        }
-        Err(e) => return Err(ServiceError::Connect(e)),
-    };
+    let ports: ServicePorts =
+        match ipc_types::ports::connect(&cfg.rig, own, "adaptive-rig-service", opts) {
+            Ok(p) => p,
+            Err(ipc_types::ports::ConnectError::Interrupted) => {
+                return Ok((core, setup, StopReason::Signal));
+            }
+            Err(e) => return Err(ServiceError::Connect(e)),
+        };
     eprintln!("[service] connected to the plant; running ({:?})", cfg.wait);
     crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let before = crate::rt_alloc::thread_stats();
-    let stop = rt_loop(&ports, &mut core, &shutdown, cfg.wait, cfg.sample_period_ns, max_cycles, exit_with_plant);
+    let stop = rt_loop(
+        &ports,
+        &mut core,
+        &shutdown,
+        cfg.wait,
+        cfg.sample_period_ns,
+        max_cycles,
+        exit_with_plant,
+    );
     core.rt_allocations = crate::rt_alloc::thread_stats().since(&before);
     Ok((core, setup, stop))
 }

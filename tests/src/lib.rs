@@ -16,7 +16,10 @@ use std::time::{Duration, Instant};
 /// (`target/<profile>/<name>`); `cargo test --workspace` builds them.
 pub fn bin(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe.parent().and_then(|d| d.parent()).expect("target/<profile>");
+    let dir = exe
+        .parent()
+        .and_then(|d| d.parent())
+        .expect("target/<profile>");
     let p = dir.join(name);
     assert!(
         p.exists(),
@@ -100,13 +103,24 @@ impl Proc {
                 }
             });
         }
-        Self { child, lines, rx, name: name.to_string() }
+        Self {
+            child,
+            lines,
+            rx,
+            name: name.to_string(),
+        }
     }
 
     /// Waits until a printed line contains `needle`; panics after `timeout`.
     pub fn wait_for_line(&self, needle: &str, timeout: Duration) -> String {
         let deadline = Instant::now() + timeout;
-        if let Some(l) = self.lines.lock().unwrap().iter().find(|l| l.contains(needle)) {
+        if let Some(l) = self
+            .lines
+            .lock()
+            .unwrap()
+            .iter()
+            .find(|l| l.contains(needle))
+        {
             return l.clone();
         }
         loop {
@@ -140,7 +154,12 @@ impl Proc {
             }
             if Instant::now() > deadline {
                 let _ = self.child.kill();
-                panic!("{} did not exit within {:.1} s; it printed:\n{}", self.name, timeout.as_secs_f64(), self.output());
+                panic!(
+                    "{} did not exit within {:.1} s; it printed:\n{}",
+                    self.name,
+                    timeout.as_secs_f64(),
+                    self.output()
+                );
             }
             std::thread::sleep(Duration::from_millis(10));
         }
@@ -184,7 +203,10 @@ decimation = 1
 
 /// A scenario file from the repository's `scenarios/` folder.
 pub fn scenario_text(name: &str) -> String {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("scenarios").join(name);
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("scenarios")
+        .join(name);
     std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("reading {}: {e}", p.display()))
 }
 
@@ -214,18 +236,29 @@ pub fn rig_name(test: &str) -> String {
 
 /// Reads a CSV file into its header and rows of numbers (non-numbers become NaN).
 pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+    let text =
+        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
     let mut lines = text.lines();
-    let header: Vec<String> = lines.next().expect("header").split(',').map(|s| s.to_string()).collect();
+    let header: Vec<String> = lines
+        .next()
+        .expect("header")
+        .split(',')
+        .map(|s| s.to_string())
+        .collect();
     let rows = lines
         .filter(|l| !l.is_empty())
-        .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap_or(f64::NAN)).collect())
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse::<f64>().unwrap_or(f64::NAN))
+                .collect()
+        })
         .collect();
     (header, rows)
 }
 
 /// Reads a JSON file.
 pub fn read_json(path: &Path) -> serde_json::Value {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+    let text =
+        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
     serde_json::from_str(&text).expect("valid JSON")
 }

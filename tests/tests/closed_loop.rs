@@ -16,7 +16,13 @@ fn first_order_ab() -> (f64, f64) {
 
 /// Runs plant-proxy (lockstep, `steps` samples, with a trace) against the service with the
 /// given controller tables; returns the trace rows and the service's report.
-fn run_lockstep(test: &str, controller: &str, extra_service: &str, extra: &str, steps: u64) -> (Vec<Vec<f64>>, serde_json::Value, TestDir) {
+fn run_lockstep(
+    test: &str,
+    controller: &str,
+    extra_service: &str,
+    extra: &str,
+    steps: u64,
+) -> (Vec<Vec<f64>>, serde_json::Value, TestDir) {
     let dir = TestDir::new(test);
     let rig = rig_name(test);
     let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), &rig)
@@ -29,15 +35,38 @@ fn run_lockstep(test: &str, controller: &str, extra_service: &str, extra: &str, 
     let mut service = Proc::start(
         "service",
         &bin("service"),
-        &["run", scenario.to_str().unwrap(), "--exit-with-plant", "--run-folder", run_folder.to_str().unwrap()],
+        &[
+            "run",
+            scenario.to_str().unwrap(),
+            "--exit-with-plant",
+            "--run-folder",
+            run_folder.to_str().unwrap(),
+        ],
     );
     let mut plant = Proc::start(
         "plant",
         &bin("plant-proxy"),
-        &["run", scenario.to_str().unwrap(), "--mode", "lockstep", "--steps", &steps_s, "--trace", trace.to_str().unwrap()],
+        &[
+            "run",
+            scenario.to_str().unwrap(),
+            "--mode",
+            "lockstep",
+            "--steps",
+            &steps_s,
+            "--trace",
+            trace.to_str().unwrap(),
+        ],
     );
-    assert!(plant.wait(PLANT_TIMEOUT).success(), "plant-proxy failed:\n{}", plant.output());
-    assert!(service.wait(Duration::from_secs(30)).success(), "service failed:\n{}", service.output());
+    assert!(
+        plant.wait(PLANT_TIMEOUT).success(),
+        "plant-proxy failed:\n{}",
+        plant.output()
+    );
+    assert!(
+        service.wait(Duration::from_secs(30)).success(),
+        "service failed:\n{}",
+        service.output()
+    );
     let (header, rows) = read_csv(&trace);
     assert_eq!(header[0], "k");
     assert_eq!(header[2], "y0");
@@ -122,7 +151,13 @@ neg-inf-at = [30]
 out-of-range-at = [40, 41, 42]
 out-of-range-value = 50.0
 "#;
-    let (rows, report, dir) = run_lockstep("faults", STATIC_GAIN, "y-min = -10.0\ny-max = 10.0", faults, 200);
+    let (rows, report, dir) = run_lockstep(
+        "faults",
+        STATIC_GAIN,
+        "y-min = -10.0\ny-max = 10.0",
+        faults,
+        200,
+    );
     let stats = &report["stats"];
     assert_eq!(stats["rejected_non_finite"], 4, "{stats}");
     assert_eq!(stats["rejected_out_of_range"], 3, "{stats}");
@@ -137,8 +172,14 @@ out-of-range-value = 50.0
     // The service's own signal log agrees: u finite, status flags the rejections.
     let (header, log) = read_csv(&dir.path.join("service-run").join("signals.csv"));
     let u_col = header.iter().position(|h| h == "u0").expect("u0 column");
-    let status_col = header.iter().position(|h| h == "status").expect("status column");
+    let status_col = header
+        .iter()
+        .position(|h| h == "status")
+        .expect("status column");
     assert!(log.iter().all(|r| r[u_col].is_finite()));
-    let rejected = log.iter().filter(|r| (r[status_col] as u32) & ipc_types::actuation_status::MEASUREMENT_REJECTED != 0).count();
+    let rejected = log
+        .iter()
+        .filter(|r| (r[status_col] as u32) & ipc_types::actuation_status::MEASUREMENT_REJECTED != 0)
+        .count();
     assert_eq!(rejected, 7);
 }

@@ -27,8 +27,16 @@ fn killing_the_plant_is_detected_and_a_new_plant_is_served() {
     let sc = scenario(&dir, "kill-plant", "", "");
     let sc = sc.to_str().unwrap();
     let run_folder = dir.path.join("service-run");
-    let mut service = Proc::start("service", &bin("service"), &["run", sc, "--run-folder", run_folder.to_str().unwrap()]);
-    let plant1 = Proc::start("plant-1", &bin("plant-proxy"), &["run", sc, "--mode", "lockstep", "--steps", "100000000"]);
+    let mut service = Proc::start(
+        "service",
+        &bin("service"),
+        &["run", sc, "--run-folder", run_folder.to_str().unwrap()],
+    );
+    let plant1 = Proc::start(
+        "plant-1",
+        &bin("plant-proxy"),
+        &["run", sc, "--mode", "lockstep", "--steps", "100000000"],
+    );
     service.wait_for_line("plant connected", Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(300));
     plant1.signal(libc::SIGKILL);
@@ -39,17 +47,38 @@ fn killing_the_plant_is_detected_and_a_new_plant_is_served() {
     let mut plant2 = Proc::start(
         "plant-2",
         &bin("plant-proxy"),
-        &["run", sc, "--mode", "lockstep", "--steps", "500", "--trace", trace.to_str().unwrap()],
+        &[
+            "run",
+            sc,
+            "--mode",
+            "lockstep",
+            "--steps",
+            "500",
+            "--trace",
+            trace.to_str().unwrap(),
+        ],
     );
     service.wait_for_line("plant resumed", Duration::from_secs(30));
-    assert!(plant2.wait(Duration::from_secs(60)).success(), "{}", plant2.output());
+    assert!(
+        plant2.wait(Duration::from_secs(60)).success(),
+        "{}",
+        plant2.output()
+    );
     let (_, rows) = read_csv(&trace);
     // The new plant was controlled: every sample got the controller's answer u = −2 y.
     assert!(rows.iter().all(|r| (r[4] + 2.0 * r[2]).abs() < 1e-12));
-    assert!(plant2.output().contains("500 actuations applied"), "{}", plant2.output());
+    assert!(
+        plant2.output().contains("500 actuations applied"),
+        "{}",
+        plant2.output()
+    );
 
     service.signal(libc::SIGTERM);
-    assert!(service.wait(Duration::from_secs(20)).success(), "{}", service.output());
+    assert!(
+        service.wait(Duration::from_secs(20)).success(),
+        "{}",
+        service.output()
+    );
     let report = read_json(&run_folder.join("report.json"));
     assert!(report["stats"]["plant_silent_events"].as_u64().unwrap() >= 1);
     assert!(report["stats"]["plant_resumes"].as_u64().unwrap() >= 1);
@@ -57,7 +86,8 @@ fn killing_the_plant_is_detected_and_a_new_plant_is_served() {
 }
 
 #[test]
-fn killing_the_service_puts_the_plant_into_its_safe_output_and_a_restarted_service_resumes_control() {
+fn killing_the_service_puts_the_plant_into_its_safe_output_and_a_restarted_service_resumes_control()
+{
     let dir = TestDir::new("kill-service");
     let proxy = r#"
 [proxy]
@@ -73,54 +103,117 @@ late-policy = "safe"
     let mut plant = Proc::start(
         "plant",
         &bin("plant-proxy"),
-        &["run", sc, "--mode", "lockstep", "--steps", "100000000", "--trace", trace.to_str().unwrap(), "--report", report_path.to_str().unwrap()],
+        &[
+            "run",
+            sc,
+            "--mode",
+            "lockstep",
+            "--steps",
+            "100000000",
+            "--trace",
+            trace.to_str().unwrap(),
+            "--report",
+            report_path.to_str().unwrap(),
+        ],
     );
-    let service1 = Proc::start("service-1", &bin("service"), &["run", sc, "--run-folder", dir.path.join("s1").to_str().unwrap()]);
+    let service1 = Proc::start(
+        "service-1",
+        &bin("service"),
+        &[
+            "run",
+            sc,
+            "--run-folder",
+            dir.path.join("s1").to_str().unwrap(),
+        ],
+    );
     service1.wait_for_line("plant connected", Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(300));
     service1.signal(libc::SIGKILL);
     plant.wait_for_line("WATCHDOG", Duration::from_secs(20));
 
-    let service2 = Proc::start("service-2", &bin("service"), &["run", sc, "--run-folder", dir.path.join("s2").to_str().unwrap()]);
+    let service2 = Proc::start(
+        "service-2",
+        &bin("service"),
+        &[
+            "run",
+            sc,
+            "--run-folder",
+            dir.path.join("s2").to_str().unwrap(),
+        ],
+    );
     plant.wait_for_line("leaving the safe output", Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(200));
     plant.signal(libc::SIGTERM);
-    assert!(plant.wait(Duration::from_secs(30)).success(), "{}", plant.output());
+    assert!(
+        plant.wait(Duration::from_secs(30)).success(),
+        "{}",
+        plant.output()
+    );
     drop(service2);
 
     let report = read_json(&report_path);
     assert!(report["watchdog_trips"].as_u64().unwrap() >= 1, "{report}");
-    assert!(report["watchdog_recoveries"].as_u64().unwrap() >= 1, "{report}");
+    assert!(
+        report["watchdog_recoveries"].as_u64().unwrap() >= 1,
+        "{report}"
+    );
     let (_, rows) = read_csv(&trace);
     let safe_rows = rows.iter().filter(|r| r[4] == 0.25).count() as u64;
     assert!(safe_rows >= report["safe_output_samples"].as_u64().unwrap());
     // After the recovery the loop is closed again: the last rows have u = −2 y.
     let tail = &rows[rows.len() - 20..];
-    assert!(tail.iter().all(|r| (r[4] + 2.0 * r[2]).abs() < 1e-12), "control resumed");
+    assert!(
+        tail.iter().all(|r| (r[4] + 2.0 * r[2]).abs() < 1e-12),
+        "control resumed"
+    );
 }
 
 #[test]
 fn a_malformed_configuration_is_refused_naming_the_file_and_the_field() {
     let dir = TestDir::new("bad-config");
     let bad = scenario(&dir, "bad-config", "wait = \"sometimes\"", "");
-    let mut p = Proc::start("service", &bin("service"), &["check", bad.to_str().unwrap()]);
+    let mut p = Proc::start(
+        "service",
+        &bin("service"),
+        &["check", bad.to_str().unwrap()],
+    );
     let st = p.wait(Duration::from_secs(20));
     assert_eq!(st.code(), Some(2));
     let out = p.output();
-    assert!(out.contains("scenario.toml") && out.contains("sometimes"), "{out}");
+    assert!(
+        out.contains("scenario.toml") && out.contains("sometimes"),
+        "{out}"
+    );
 
     let bad_num = scenario(&dir, "bad-config", "max-consecutive-misses = 0", "");
-    let mut p = Proc::start("service", &bin("service"), &["run", bad_num.to_str().unwrap()]);
+    let mut p = Proc::start(
+        "service",
+        &bin("service"),
+        &["run", bad_num.to_str().unwrap()],
+    );
     assert_eq!(p.wait(Duration::from_secs(20)).code(), Some(2));
-    assert!(p.output().contains("field 'service.max-consecutive-misses'"), "{}", p.output());
+    assert!(
+        p.output()
+            .contains("field 'service.max-consecutive-misses'"),
+        "{}",
+        p.output()
+    );
 
     let bad_proxy = scenario(&dir, "bad-config", "", "[proxy]\ndeadline = 1.5\n");
-    let mut p = Proc::start("plant", &bin("plant-proxy"), &["run", bad_proxy.to_str().unwrap()]);
+    let mut p = Proc::start(
+        "plant",
+        &bin("plant-proxy"),
+        &["run", bad_proxy.to_str().unwrap()],
+    );
     assert_eq!(p.wait(Duration::from_secs(20)).code(), Some(2));
     assert!(p.output().contains("proxy.deadline"), "{}", p.output());
 
     let missing = dir.path.join("does-not-exist.toml");
-    let mut p = Proc::start("service", &bin("service"), &["check", missing.to_str().unwrap()]);
+    let mut p = Proc::start(
+        "service",
+        &bin("service"),
+        &["check", missing.to_str().unwrap()],
+    );
     assert_eq!(p.wait(Duration::from_secs(20)).code(), Some(2));
     assert!(p.output().contains("does-not-exist.toml"), "{}", p.output());
 }
@@ -138,33 +231,68 @@ d = [[-2.0], [0.0]]
 "#;
     let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), &rig_name(test))
         + &test_service_tables("channels = { y = 1, z = 1, u = 2 }", controller);
-    dir.write("scenario.toml", &text).to_str().unwrap().to_string()
+    dir.write("scenario.toml", &text)
+        .to_str()
+        .unwrap()
+        .to_string()
 }
 
 #[test]
 fn a_service_that_expects_other_channel_counts_than_the_running_plant_is_refused() {
     let dir = TestDir::new("mismatch-a");
     let sc = mismatched_scenario(&dir, "mismatch-a");
-    let plant = Proc::start("plant", &bin("plant-proxy"), &["run", &sc, "--mode", "lockstep", "--steps", "100"]);
+    let plant = Proc::start(
+        "plant",
+        &bin("plant-proxy"),
+        &["run", &sc, "--mode", "lockstep", "--steps", "100"],
+    );
     plant.wait_for_line("waiting for the service", Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(200));
-    let mut service = Proc::start("service", &bin("service"), &["run", &sc, "--run-folder", dir.path.join("s").to_str().unwrap()]);
+    let mut service = Proc::start(
+        "service",
+        &bin("service"),
+        &[
+            "run",
+            &sc,
+            "--run-folder",
+            dir.path.join("s").to_str().unwrap(),
+        ],
+    );
     assert!(!service.wait(Duration::from_secs(30)).success());
     let out = service.output();
     assert!(out.contains("contract mismatch"), "{out}");
-    assert!(out.contains("actuation channels (u): plant uses 1, service uses 2"), "{out}");
+    assert!(
+        out.contains("actuation channels (u): plant uses 1, service uses 2"),
+        "{out}"
+    );
 }
 
 #[test]
 fn a_plant_with_other_channel_counts_than_the_running_service_is_refused() {
     let dir = TestDir::new("mismatch-b");
     let sc = mismatched_scenario(&dir, "mismatch-b");
-    let service = Proc::start("service", &bin("service"), &["run", &sc, "--run-folder", dir.path.join("s").to_str().unwrap()]);
+    let service = Proc::start(
+        "service",
+        &bin("service"),
+        &[
+            "run",
+            &sc,
+            "--run-folder",
+            dir.path.join("s").to_str().unwrap(),
+        ],
+    );
     service.wait_for_line("waiting for the plant", Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(200));
-    let mut plant = Proc::start("plant", &bin("plant-proxy"), &["run", &sc, "--mode", "lockstep", "--steps", "100"]);
+    let mut plant = Proc::start(
+        "plant",
+        &bin("plant-proxy"),
+        &["run", &sc, "--mode", "lockstep", "--steps", "100"],
+    );
     assert!(!plant.wait(Duration::from_secs(30)).success());
     let out = plant.output();
     assert!(out.contains("contract mismatch"), "{out}");
-    assert!(out.contains("actuation channels (u): service uses 2, plant uses 1"), "{out}");
+    assert!(
+        out.contains("actuation channels (u): service uses 2, plant uses 1"),
+        "{out}"
+    );
 }
