@@ -17,65 +17,48 @@
 
 use crate::rng::Lcg;
 use nalgebra::DMatrix;
+pub use plant_proxy::lti::StateSpace;
 use std::fmt::Write as _;
 
-/// A discrete state-space controller `x⁺ = A x + B e`, `u = C x + D e`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StateSpace {
-    /// State matrix, `n × n`.
-    pub a: DMatrix<f64>,
-    /// Input matrix, `n × n_e`.
-    pub b: DMatrix<f64>,
-    /// Output matrix, `n_u × n`.
-    pub c: DMatrix<f64>,
-    /// Feedthrough, `n_u × n_e`.
-    pub d: DMatrix<f64>,
+/// A static gain `u = D e` (no state).
+pub fn static_gain(d: DMatrix<f64>) -> StateSpace {
+    let (n_u, n_e) = d.shape();
+    StateSpace {
+        a: DMatrix::zeros(0, 0),
+        b: DMatrix::zeros(0, n_e),
+        c: DMatrix::zeros(n_u, 0),
+        d,
+    }
 }
 
-impl StateSpace {
-    /// A static gain `u = D e` (no state).
-    pub fn static_gain(d: DMatrix<f64>) -> Self {
-        let (n_u, n_e) = d.shape();
-        Self {
-            a: DMatrix::zeros(0, 0),
-            b: DMatrix::zeros(0, n_e),
-            c: DMatrix::zeros(n_u, 0),
-            d,
-        }
+/// A random controller with `n` states, `n_e` inputs and `n_u` outputs, `A` scaled to
+/// spectral radius `rho`, the other matrices uniform in `[-scale, scale)`.
+pub fn random_controller(
+    n: usize,
+    n_e: usize,
+    n_u: usize,
+    rho: f64,
+    scale: f64,
+    seed: u64,
+) -> StateSpace {
+    let mut rng = Lcg::new(seed);
+    let a = random_stable(n, rho, &mut rng);
+    let mut m = |r: usize, c: usize| DMatrix::from_fn(r, c, |_, _| scale * rng.uniform());
+    StateSpace {
+        a,
+        b: m(n, n_e),
+        c: m(n_u, n),
+        d: m(n_u, n_e),
     }
+}
 
-    /// A random controller with `n` states, `n_e` inputs and `n_u` outputs, `A` scaled to
-    /// spectral radius `rho`, the other matrices uniform in `[-scale, scale)`.
-    pub fn random(n: usize, n_e: usize, n_u: usize, rho: f64, scale: f64, seed: u64) -> Self {
-        let mut rng = Lcg::new(seed);
-        let a = random_stable(n, rho, &mut rng);
-        let mut m = |r: usize, c: usize| DMatrix::from_fn(r, c, |_, _| scale * rng.uniform());
-        Self {
-            a,
-            b: m(n, n_e),
-            c: m(n_u, n),
-            d: m(n_u, n_e),
-        }
+/// The `[controller]` table of an `lti` controller with input `y`.
+pub fn controller_toml(ss: &StateSpace) -> String {
+    let mut s = String::from("[controller]\nkind = \"lti\"\ninput = \"y\"\n[controller.ss]\n");
+    for (name, m) in [("a", &ss.a), ("b", &ss.b), ("c", &ss.c), ("d", &ss.d)] {
+        let _ = writeln!(s, "{name} = {}", toml_matrix(m));
     }
-
-    /// Number of states.
-    pub fn order(&self) -> usize {
-        self.a.nrows()
-    }
-
-    /// The `[controller]` table of an `lti` controller with input `y`.
-    pub fn controller_toml(&self) -> String {
-        let mut s = String::from("[controller]\nkind = \"lti\"\ninput = \"y\"\n[controller.ss]\n");
-        for (name, m) in [
-            ("a", &self.a),
-            ("b", &self.b),
-            ("c", &self.c),
-            ("d", &self.d),
-        ] {
-            let _ = writeln!(s, "{name} = {}", toml_matrix(m));
-        }
-        s
-    }
+    s
 }
 
 /// A matrix as a TOML array of rows; `[]` when it has no rows or no columns (the service
@@ -96,14 +79,9 @@ pub fn toml_matrix(m: &DMatrix<f64>) -> String {
 
 /// Spectral radius (largest eigenvalue modulus) of a square matrix; 0 for an empty one.
 pub fn spectral_radius(a: &DMatrix<f64>) -> f64 {
-    if a.nrows() == 0 {
-        return 0.0;
-    }
-    a.clone()
-        .complex_eigenvalues()
-        .iter()
-        .map(|l| l.norm())
-        .fold(0.0, f64::max)
+    plant_proxy::lti::eigenvalues(a)
+        .map(|ls| ls.iter().map(|l| l.norm()).fold(0.0, f64::max))
+        .unwrap_or(f64::NAN)
 }
 
 /// A random `n × n` matrix (entries uniform in `[-1, 1)`) scaled to spectral radius `rho`.
@@ -168,7 +146,7 @@ enabled = {log}
         y = channels.y,
         z = channels.z,
         u = channels.u,
-        controller = controller.controller_toml(),
+        controller = controller_toml(controller),
     )
 }
 
@@ -204,19 +182,19 @@ pub fn step_cases() -> Vec<StepCase> {
             "lti static gain (SISO)",
             "lti-static-gain",
             siso,
-            &StateSpace::static_gain(DMatrix::from_element(1, 1, -0.5)),
+            &static_gain(DMatrix::from_element(1, 1, -0.5)),
         ),
         StepCase::lti(
             "lti 10-state SISO",
             "lti-10-state",
             siso,
-            &StateSpace::random(10, 1, 1, 0.9, 0.5, 10),
+            &random_controller(10, 1, 1, 0.9, 0.5, 10),
         ),
         StepCase::lti(
             "lti 50-state 2-in/1-out",
             "lti-50-state-2x1",
             two_in,
-            &StateSpace::random(50, 2, 1, 0.9, 0.5, 50),
+            &random_controller(50, 2, 1, 0.9, 0.5, 50),
         ),
     ]
 }

@@ -201,6 +201,17 @@ decimation = 1
     )
 }
 
+/// The controller most tests close the loop with: the static gain `u = −2 y`.
+pub const STATIC_GAIN_CONTROLLER: &str = r#"
+[controller]
+kind = "lti"
+[controller.ss]
+a = []
+b = []
+c = []
+d = [[-2.0]]
+"#;
+
 /// A scenario file from the repository's `scenarios/` folder.
 pub fn scenario_text(name: &str) -> String {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))

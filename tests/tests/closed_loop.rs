@@ -75,19 +75,9 @@ fn run_lockstep(
     (rows, report, dir)
 }
 
-const STATIC_GAIN: &str = r#"
-[controller]
-kind = "lti"
-[controller.ss]
-a = []
-b = []
-c = []
-d = [[-2.0]]
-"#;
-
 #[test]
 fn a_static_gain_loop_matches_the_hand_computed_response_to_1e_9() {
-    let (rows, report, _dir) = run_lockstep("static-gain", STATIC_GAIN, "", "", 2000);
+    let (rows, report, _dir) = run_lockstep("static-gain", STATIC_GAIN_CONTROLLER, "", "", 2000);
     let (a, b) = first_order_ab();
     let k_gain = 2.0;
     // y_k = (a − b K)^k y_0 with y_0 = 1: the closed loop computed by hand.
@@ -132,8 +122,8 @@ d = [[-1.0]]
 
 #[test]
 fn lockstep_runs_are_bit_for_bit_repeatable() {
-    let (r1, _, _d1) = run_lockstep("repeat-a", STATIC_GAIN, "", "", 500);
-    let (r2, _, _d2) = run_lockstep("repeat-b", STATIC_GAIN, "", "", 500);
+    let (r1, _, _d1) = run_lockstep("repeat-a", STATIC_GAIN_CONTROLLER, "", "", 500);
+    let (r2, _, _d2) = run_lockstep("repeat-b", STATIC_GAIN_CONTROLLER, "", "", 500);
     for (a, b) in r1.iter().zip(&r2) {
         for (x, y) in a.iter().zip(b) {
             assert_eq!(x.to_bits(), y.to_bits());
@@ -153,7 +143,7 @@ out-of-range-value = 50.0
 "#;
     let (rows, report, dir) = run_lockstep(
         "faults",
-        STATIC_GAIN,
+        STATIC_GAIN_CONTROLLER,
         "y-min = -10.0\ny-max = 10.0",
         faults,
         200,

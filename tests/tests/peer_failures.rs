@@ -4,19 +4,9 @@
 use rig_tests::*;
 use std::time::Duration;
 
-const CONTROLLER: &str = r#"
-[controller]
-kind = "lti"
-[controller.ss]
-a = []
-b = []
-c = []
-d = [[-2.0]]
-"#;
-
 fn scenario(dir: &TestDir, test: &str, extra_service: &str, extra: &str) -> std::path::PathBuf {
     let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), &rig_name(test))
-        + &test_service_tables(extra_service, CONTROLLER)
+        + &test_service_tables(extra_service, STATIC_GAIN_CONTROLLER)
         + extra;
     dir.write("scenario.toml", &text)
 }
