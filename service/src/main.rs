@@ -210,6 +210,7 @@ fn launch(common: Common, mode: &str, duration: Option<f64>) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    let plant_pid = child.id() as i32;
     let shutdown = shutdown_flag();
     // If the plant exits on its own (error or end), stop the service shortly after, so that a
     // plant that failed before connecting does not leave the service waiting.
@@ -233,6 +234,11 @@ fn launch(common: Common, mode: &str, duration: Option<f64>) -> ExitCode {
     };
     let result = run(&cfg, &opts, shutdown.clone());
     shutdown.store(true, Ordering::Relaxed);
+    if result.is_err() {
+        // The service could not run: do not leave the plant waiting for it.
+        // SAFETY: kill with our child's pid and a valid signal.
+        unsafe { libc::kill(plant_pid, libc::SIGTERM) };
+    }
     let _ = watcher.join();
     let plant_ok = child_status.lock().unwrap().is_some_and(|s| s.success());
     match result {

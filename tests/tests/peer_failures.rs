@@ -73,6 +73,13 @@ fn killing_the_plant_is_detected_and_a_new_plant_is_served() {
     assert!(report["stats"]["plant_silent_events"].as_u64().unwrap() >= 1);
     assert!(report["stats"]["plant_resumes"].as_u64().unwrap() >= 1);
     assert_eq!(report["stop_reason"], "signal");
+    // SIGTERM flushed everything logged so far: every received sample is in the CSV.
+    let (_, log) = read_csv(&run_folder.join("signals.csv"));
+    assert_eq!(log.len() as u64, report["log_written"].as_u64().unwrap());
+    assert_eq!(
+        log.len() as u64,
+        report["stats"]["received"].as_u64().unwrap()
+    );
 }
 
 #[test]
