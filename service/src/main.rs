@@ -234,17 +234,27 @@ fn launch(common: Common, mode: &str, duration: Option<f64>) -> ExitCode {
     };
     let result = run(&cfg, &opts, shutdown.clone());
     shutdown.store(true, Ordering::Relaxed);
-    if result.is_err() {
-        // The service could not run: do not leave the plant waiting for it.
+    // The plant normally ends by itself (its last sample ended the service). If it has not
+    // within 2 s (the service failed, or was stopped by a signal), stop it too.
+    let deadline = std::time::Instant::now() + Duration::from_secs(2);
+    while child_status.lock().unwrap().is_none()
+        && std::time::Instant::now() < deadline
+        && !watcher.is_finished()
+    {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if child_status.lock().unwrap().is_none() {
         // SAFETY: kill with our child's pid and a valid signal.
         unsafe { libc::kill(plant_pid, libc::SIGTERM) };
     }
     let _ = watcher.join();
     let plant_ok = child_status.lock().unwrap().is_some_and(|s| s.success());
+    let stopped_by_signal =
+        matches!(&result, Ok(r) if r.stop_reason == service::runtime::StopReason::Signal);
     match result {
         Ok(report) => {
             println!("{}", report.render());
-            if !plant_ok {
+            if !plant_ok && !stopped_by_signal {
                 eprintln!("service: plant-proxy did not end cleanly");
                 return ExitCode::FAILURE;
             }
