@@ -280,6 +280,38 @@ mod layout_tests {
     }
 
     #[test]
+    fn the_flag_and_status_bits_in_the_c_header_match_the_rust_constants() {
+        use crate::{actuation_status as a, measurement_flags as m};
+        let pairs = [
+            ("AR_MEAS_LOCKSTEP", m::LOCKSTEP),
+            ("AR_MEAS_PLANT_SAFE_OUTPUT", m::PLANT_SAFE_OUTPUT),
+            (
+                "AR_MEAS_PREVIOUS_ACTUATION_MISSED",
+                m::PREVIOUS_ACTUATION_MISSED,
+            ),
+            ("AR_MEAS_LAST_SAMPLE", m::LAST_SAMPLE),
+            ("AR_ACT_OK", a::OK),
+            ("AR_ACT_SAFE_STATE", a::SAFE_STATE),
+            ("AR_ACT_MEASUREMENT_REJECTED", a::MEASUREMENT_REJECTED),
+            ("AR_ACT_SATURATED", a::SATURATED),
+            ("AR_ACT_STARTING", a::STARTING),
+            ("AR_ACT_CONTROLLER_FAULT", a::CONTROLLER_FAULT),
+        ];
+        for (name, value) in pairs {
+            let text = C_HEADER
+                .lines()
+                .find_map(|l| l.strip_prefix(&format!("#define {name} ")))
+                .unwrap_or_else(|| panic!("the C header does not define {name}"));
+            let v = u32::from_str_radix(
+                text.trim().trim_start_matches("0x").trim_end_matches('u'),
+                16,
+            )
+            .unwrap();
+            assert_eq!(v, value, "{name}");
+        }
+    }
+
+    #[test]
     fn the_measurement_layout_matches_the_c_header() {
         assert_eq!(
             size_of::<Measurement>(),

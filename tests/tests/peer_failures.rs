@@ -293,3 +293,26 @@ fn a_plant_with_other_channel_counts_than_the_running_service_is_refused() {
         "{out}"
     );
 }
+
+#[test]
+fn require_rt_makes_a_refused_real_time_set_up_fatal() {
+    let dir = TestDir::new("require-rt");
+    // Core 4096 does not exist: pinning is refused, and require-rt turns that into an error.
+    let sc = scenario(&dir, "require-rt", "require-rt = true\ncore = 4096", "");
+    let mut service = Proc::start(
+        "service",
+        &bin("service"),
+        &[
+            "run",
+            sc.to_str().unwrap(),
+            "--run-folder",
+            dir.path.join("s").to_str().unwrap(),
+        ],
+    );
+    assert!(!service.wait(Duration::from_secs(30)).success());
+    let out = service.output();
+    assert!(
+        out.contains("require-rt") && out.contains("core 4096 does not exist"),
+        "{out}"
+    );
+}
