@@ -10,14 +10,15 @@
 //! - [`step_cases`]: the named controller configurations whose step cost is measured.
 //!   Later controllers (RCAC, PCAC, …) add entries to that list.
 //!
-//! Test matrices are random with a fixed seed ([`crate::rng::Lcg`]); the state matrix of a
+//! Test matrices are random with a fixed seed (ChaCha8 from `rand_chacha`); the state matrix of a
 //! dynamic controller is scaled to spectral radius 0.9 so the controller is stable and its
 //! state stays finite over hundreds of thousands of steps (a diverging state would make the
 //! controller take its reset path and time something else).
 
-use crate::rng::Lcg;
 use nalgebra::DMatrix;
 pub use plant_proxy::lti::StateSpace;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::fmt::Write as _;
 
 /// A static gain `u = D e` (no state).
@@ -41,9 +42,10 @@ pub fn random_controller(
     scale: f64,
     seed: u64,
 ) -> StateSpace {
-    let mut rng = Lcg::new(seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let a = random_stable(n, rho, &mut rng);
-    let mut m = |r: usize, c: usize| DMatrix::from_fn(r, c, |_, _| scale * rng.uniform());
+    let mut m =
+        |r: usize, c: usize| DMatrix::from_fn(r, c, |_, _| scale * rng.random_range(-1.0..1.0));
     StateSpace {
         a,
         b: m(n, n_e),
@@ -85,8 +87,8 @@ pub fn spectral_radius(a: &DMatrix<f64>) -> f64 {
 }
 
 /// A random `n × n` matrix (entries uniform in `[-1, 1)`) scaled to spectral radius `rho`.
-pub fn random_stable(n: usize, rho: f64, rng: &mut Lcg) -> DMatrix<f64> {
-    let a = DMatrix::from_fn(n, n, |_, _| rng.uniform());
+pub fn random_stable(n: usize, rho: f64, rng: &mut ChaCha8Rng) -> DMatrix<f64> {
+    let a = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
     let r = spectral_radius(&a);
     if r > 0.0 { a * (rho / r) } else { a }
 }
@@ -206,7 +208,7 @@ mod tests {
 
     #[test]
     fn random_state_matrices_have_the_requested_spectral_radius() {
-        let mut rng = Lcg::new(1);
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
         for n in [1, 10, 50] {
             let a = random_stable(n, 0.9, &mut rng);
             assert!((spectral_radius(&a) - 0.9).abs() < 1e-9, "n = {n}");

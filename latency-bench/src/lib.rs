@@ -44,7 +44,6 @@ pub mod cyclictest;
 pub mod hist;
 pub mod machine;
 pub mod paced;
-pub mod rng;
 pub mod roundtrip;
 pub mod step_cost;
 pub mod table;
