@@ -48,6 +48,17 @@ impl fmt::Display for StepOutcome {
     }
 }
 
+/// Reads a configured `SCHED_FIFO` priority: absent → `default`, 0 → none (stay
+/// `SCHED_OTHER`), 1–99 → that priority; anything else is refused with the reason.
+pub fn fifo_priority_from_config(value: Option<i32>, default: i32) -> Result<Option<i32>, String> {
+    match value {
+        None => Ok(Some(default)),
+        Some(0) => Ok(None),
+        Some(p) if (1..=99).contains(&p) => Ok(Some(p)),
+        Some(p) => Err(format!("{p} is not in 1..=99 (0 disables)")),
+    }
+}
+
 /// What the set-up achieved, step by step.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RtSetup {

@@ -204,17 +204,8 @@ impl ProxyConfig {
                 Err(err(f, format!("{v} s is not positive")))
             }
         };
-        let fifo_priority = match raw.fifo_priority {
-            None => Some(70),
-            Some(0) => None,
-            Some(p) if (1..=99).contains(&p) => Some(p),
-            Some(p) => {
-                return Err(err(
-                    "fifo-priority",
-                    format!("{p} is not in 1..=99 (0 disables)"),
-                ));
-            }
-        };
+        let fifo_priority = ipc_types::rt::fifo_priority_from_config(raw.fifo_priority, 70)
+            .map_err(|m| err("fifo-priority", m))?;
         Ok(Self {
             mode: raw.mode.unwrap_or(Mode::RealTime),
             deadline,

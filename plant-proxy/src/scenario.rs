@@ -456,6 +456,35 @@ impl Cx<'_> {
         }
     }
 
+    /// An angular frequency in rad/s from `frequency-hz` or `frequency-rad-s` (exactly one),
+    /// positive (or, with `allow_zero`, non-negative); `f` makes the field path.
+    fn frequency(
+        &self,
+        hz: Option<f64>,
+        rad_s: Option<f64>,
+        f: &dyn Fn(&str) -> String,
+        allow_zero: bool,
+    ) -> Result<f64, ScenarioError> {
+        let check = |v: f64, key: &str| {
+            if allow_zero {
+                self.non_negative(v, &f(key))
+            } else {
+                self.positive(v, &f(key))
+            }
+        };
+        match (hz, rad_s) {
+            (Some(hz), None) => Ok(2.0 * PI * check(hz, "frequency-hz")?),
+            (None, Some(w)) => check(w, "frequency-rad-s"),
+            (Some(_), Some(_)) => Err(self.err(
+                f("frequency-hz"),
+                "give frequency-hz or frequency-rad-s, not both",
+            )),
+            (None, None) => {
+                Err(self.err(f("frequency-hz"), "is missing (or give frequency-rad-s)"))
+            }
+        }
+    }
+
     fn non_negative(&self, v: f64, field: &str) -> Result<f64, ScenarioError> {
         if v.is_finite() && v >= 0.0 {
             Ok(v)
@@ -866,19 +895,7 @@ fn modal_model(
     let mut modes = Vec::with_capacity(raw_modes.len());
     for (r, rm) in raw_modes.into_iter().enumerate() {
         let f = |k: &str| format!("plant.modal.modes[{r}].{k}");
-        let omega = match (rm.frequency_hz, rm.frequency_rad_s) {
-            (Some(hz), None) => 2.0 * PI * cx.positive(hz, &f("frequency-hz"))?,
-            (None, Some(w)) => cx.positive(w, &f("frequency-rad-s"))?,
-            (Some(_), Some(_)) => {
-                return Err(cx.err(
-                    f("frequency-hz"),
-                    "give frequency-hz or frequency-rad-s, not both",
-                ));
-            }
-            (None, None) => {
-                return Err(cx.err(f("frequency-hz"), "is missing (or give frequency-rad-s)"));
-            }
-        };
+        let omega = cx.frequency(rm.frequency_hz, rm.frequency_rad_s, &f, false)?;
         let zeta = cx.non_negative(cx.required(rm.damping, &f("damping"))?, &f("damping"))?;
         let vector = |v: Option<Vec<f64>>,
                       n: usize,
@@ -918,19 +935,7 @@ fn disturbance(
                 format!("{input} is not a disturbance input (plant.disturbances = {n_w})"),
             ));
         }
-        let omega = match (t.frequency_hz, t.frequency_rad_s) {
-            (Some(hz), None) => 2.0 * PI * cx.non_negative(hz, &f("frequency-hz"))?,
-            (None, Some(w)) => cx.non_negative(w, &f("frequency-rad-s"))?,
-            (Some(_), Some(_)) => {
-                return Err(cx.err(
-                    f("frequency-hz"),
-                    "give frequency-hz or frequency-rad-s, not both",
-                ));
-            }
-            (None, None) => {
-                return Err(cx.err(f("frequency-hz"), "is missing (or give frequency-rad-s)"));
-            }
-        };
+        let omega = cx.frequency(t.frequency_hz, t.frequency_rad_s, &f, true)?;
         let amplitude = cx.finite(cx.required(t.amplitude, &f("amplitude"))?, &f("amplitude"))?;
         let phase = cx
             .finite(t.phase_deg.unwrap_or(0.0), &f("phase-deg"))?

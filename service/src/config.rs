@@ -429,17 +429,8 @@ impl ServiceConfig {
             ));
         }
 
-        let fifo_priority = match s.fifo_priority {
-            None => Some(80),
-            Some(0) => None,
-            Some(p) if (1..=99).contains(&p) => Some(p),
-            Some(p) => {
-                return Err(err(
-                    "service.fifo-priority",
-                    format!("{p} is not in 1..=99 (0 disables)"),
-                ));
-            }
-        };
+        let fifo_priority = ipc_types::rt::fifo_priority_from_config(s.fifo_priority, 80)
+            .map_err(|m| err("service.fifo-priority", m))?;
         let rt = RtRequest {
             core: s.core,
             fifo_priority,
