@@ -44,6 +44,7 @@ pub mod cyclictest;
 pub mod hist;
 pub mod machine;
 pub mod paced;
+pub mod rls_cost;
 pub mod roundtrip;
 pub mod step_cost;
 pub mod table;

@@ -4,6 +4,10 @@
 //! measurement `k`, runs the controller step and publishes actuation `k`; non-real-time
 //! threads write signal logs, latency histograms and the run report.
 //!
+//! - [`rls`]: recursive least squares with variable-rate forgetting (2.12)–(2.14), an
+//!   allocation-free kernel and a textbook oracle.
+//! - [`forgetting`]: forgetting factors for RLS: constant, F-test (Algorithm 1, (5.1)–(5.7))
+//!   and RMS ratio (Proposition 5.2.1).
 //! - [`controller`]: the controller interface and the controllers (pure math kernels, no I/O).
 //! - [`config`]: the service's TOML configuration, read once and validated into typed
 //!   parameters.
@@ -19,7 +23,9 @@
 
 pub mod config;
 pub mod controller;
+pub mod forgetting;
 pub mod logging;
+pub mod rls;
 pub mod rt_alloc;
 pub mod runtime;
 pub mod telemetry;
