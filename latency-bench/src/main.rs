@@ -903,7 +903,11 @@ fn cyclictest_phase(
 /// interleaved on the pinned RT core (see `latency_bench::rls_cost`).
 fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     if let Err(e) = std::fs::create_dir_all(dir) {
-        return vec![Measured::failed("rls", "rls update", format!("creating {}: {e}", dir.display()))];
+        return vec![Measured::failed(
+            "rls",
+            "rls update",
+            format!("creating {}: {e}", dir.display()),
+        )];
     }
     let rt = RtRequest {
         core: Some(s.rt_core),
@@ -914,19 +918,31 @@ fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     let base = (s.steps / 10).max(1000);
     let start = SystemTime::now();
     let t = Instant::now();
-    let worker = std::thread::Builder::new().name("bench-rls".into()).spawn(move || {
-        ipc_types::rt::setup_current_thread(&rt);
-        latency_bench::rls_cost::RLS_SIZES
-            .iter()
-            .map(|&(n, p)| {
-                let steps = latency_bench::rls_cost::updates_for(n, p, base);
-                (n, p, latency_bench::rls_cost::measure(n, p, steps / 10, steps))
-            })
-            .collect::<Vec<_>>()
-    });
+    let worker = std::thread::Builder::new()
+        .name("bench-rls".into())
+        .spawn(move || {
+            ipc_types::rt::setup_current_thread(&rt);
+            latency_bench::rls_cost::RLS_SIZES
+                .iter()
+                .map(|&(n, p)| {
+                    let steps = latency_bench::rls_cost::updates_for(n, p, base);
+                    (
+                        n,
+                        p,
+                        latency_bench::rls_cost::measure(n, p, steps / 10, steps),
+                    )
+                })
+                .collect::<Vec<_>>()
+        });
     let results = match worker.map(|h| h.join()) {
         Ok(Ok(v)) => v,
-        _ => return vec![Measured::failed("rls", "rls update", "the RLS thread failed".into())],
+        _ => {
+            return vec![Measured::failed(
+                "rls",
+                "rls update",
+                "the RLS thread failed".into(),
+            )];
+        }
     };
     let elapsed = t.elapsed();
     let mut out = Vec::new();
@@ -934,10 +950,17 @@ fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
         let slug = format!("rls-{n}x{p}");
         match r {
             Ok((fast, text, diff)) => {
-                let ff = hist::write_files(dir, &format!("{slug}-fast"), &fast, start, elapsed).unwrap_or_default();
-                let tf = hist::write_files(dir, &format!("{slug}-textbook"), &text, start, elapsed).unwrap_or_default();
+                let ff = hist::write_files(dir, &format!("{slug}-fast"), &fast, start, elapsed)
+                    .unwrap_or_default();
+                let tf = hist::write_files(dir, &format!("{slug}-textbook"), &text, start, elapsed)
+                    .unwrap_or_default();
                 let (sf, st) = (Summary::of(&fast), Summary::of(&text));
-                let mut m = Measured::from_summary(&format!("{slug}-fast"), &format!("rls ({n}, {p}) fast"), sf, ff);
+                let mut m = Measured::from_summary(
+                    &format!("{slug}-fast"),
+                    &format!("rls ({n}, {p}) fast"),
+                    sf,
+                    ff,
+                );
                 let ratio = |a: u64, b: u64| if b > 0 { a as f64 / b as f64 } else { f64::NAN };
                 m.note = format!(
                     "textbook ÷ fast: p50 {:.1}×, p99 {:.1}×; p99 {:.1} % of 125 µs; θ agree to {diff:.0e}",
@@ -946,7 +969,12 @@ fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
                     100.0 * sf.p99_ns as f64 / PERIOD_NS as f64
                 );
                 out.push(m);
-                out.push(Measured::from_summary(&format!("{slug}-textbook"), &format!("  rls ({n}, {p}) textbook"), st, tf));
+                out.push(Measured::from_summary(
+                    &format!("{slug}-textbook"),
+                    &format!("  rls ({n}, {p}) textbook"),
+                    st,
+                    tf,
+                ));
             }
             Err(e) => out.push(Measured::failed(&slug, &format!("rls ({n}, {p})"), e)),
         }

@@ -36,13 +36,23 @@ pub fn updates_for(n: usize, p: usize, base: u64) -> u64 {
 /// Times `steps` updates of each kernel after `warmup` untimed ones; returns the
 /// histograms (ns) of the fast and of the textbook kernel, and the largest relative
 /// difference of their parameter vectors at the end (they must agree).
-pub fn measure(n: usize, p: usize, warmup: u64, steps: u64) -> Result<(Histogram<u64>, Histogram<u64>, f64), String> {
+pub fn measure(
+    n: usize,
+    p: usize,
+    warmup: u64,
+    steps: u64,
+) -> Result<(Histogram<u64>, Histogram<u64>, f64), String> {
     let cfg = RlsConfig {
         n,
         p,
         theta0: vec![0.0; n],
         p0: 100.0,
-        rule: ForgettingRule::FTest { tau_n: 10, tau_d: 80, eta: 1.0, alpha: 0.001 },
+        rule: ForgettingRule::FTest {
+            tau_n: 10,
+            tau_d: 80,
+            eta: 1.0,
+            alpha: 0.001,
+        },
         trace_limit: 1e12,
     };
     let mut fast = Rls::new(&cfg)?;
@@ -74,7 +84,11 @@ pub fn measure(n: usize, p: usize, warmup: u64, steps: u64) -> Result<(Histogram
                 let phi = &phis[row * p * n..(row + 1) * p * n];
                 let y = &ys[row * p..(row + 1) * p];
                 let t0 = monotonic_ns();
-                let step = if kernel == 0 { fast.update(phi, y) } else { text.update(phi, y) };
+                let step = if kernel == 0 {
+                    fast.update(phi, y)
+                } else {
+                    text.update(phi, y)
+                };
                 let t1 = monotonic_ns();
                 core::hint::black_box(step);
                 if j >= warmup {

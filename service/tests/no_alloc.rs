@@ -291,24 +291,47 @@ fn an_rls_update_with_each_forgetting_rule_does_not_allocate() {
     for (n, p) in [(5, 1), (35, 5), (60, 3)] {
         for rule in [
             ForgettingRule::Constant { lambda: 0.99 },
-            ForgettingRule::FTest { tau_n: 10, tau_d: 80, eta: 1.0, alpha: 0.001 },
-            ForgettingRule::RmsRatio { tau_n: 10, tau_d: 80, eta: 1.0 },
+            ForgettingRule::FTest {
+                tau_n: 10,
+                tau_d: 80,
+                eta: 1.0,
+                alpha: 0.001,
+            },
+            ForgettingRule::RmsRatio {
+                tau_n: 10,
+                tau_d: 80,
+                eta: 1.0,
+            },
         ] {
-            let cfg = RlsConfig { n, p, theta0: vec![0.0; n], p0: 100.0, rule, trace_limit: 1e12 };
+            let cfg = RlsConfig {
+                n,
+                p,
+                theta0: vec![0.0; n],
+                p0: 100.0,
+                rule,
+                trace_limit: 1e12,
+            };
             // Built outside the counted region.
             let mut rls = service::rt_alloc::outside_rt(|| Rls::new(&cfg).unwrap());
-            let phi: Vec<f64> = (0..n * p).map(|i| ((i * 7 + 3) % 11) as f64 / 11.0 - 0.5).collect();
+            let phi: Vec<f64> = (0..n * p)
+                .map(|i| ((i * 7 + 3) % 11) as f64 / 11.0 - 0.5)
+                .collect();
             let mut y = vec![0.0; p];
             let before = thread_stats();
             for k in 0..2_000 {
                 for (i, v) in y.iter_mut().enumerate() {
                     // A parameter change at k = 1000 so that forgetting engages.
-                    *v = if k < 1000 { 1.0 } else { -2.0 } * (i as f64 + 1.0) + ((k * 13 % 7) as f64) * 0.01;
+                    *v = if k < 1000 { 1.0 } else { -2.0 } * (i as f64 + 1.0)
+                        + ((k * 13 % 7) as f64) * 0.01;
                 }
                 rls.update(&phi, &y);
             }
             let d = thread_stats().since(&before);
-            assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "({n}, {p}) {cfg:?}: {d:?}");
+            assert_eq!(
+                (d.pool_served, d.system_on_rt_thread),
+                (0, 0),
+                "({n}, {p}) {cfg:?}: {d:?}"
+            );
         }
     }
 }
