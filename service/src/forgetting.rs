@@ -584,20 +584,7 @@ pub(crate) fn cholesky_solve(c: &[f64], p: usize, b: &mut [f64]) {
 mod tests {
     use super::*;
 
-    /// Small deterministic generator (xorshift + Box–Muller) for the tests.
-    struct Gauss(u64);
-    impl Gauss {
-        fn uniform(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let (u, v) = (self.uniform(), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        }
-    }
+    use crate::test_support::Gauss;
 
     fn direct_cov(errs: &[Vec<f64>], p: usize) -> Vec<f64> {
         let m = errs.len() as f64;
@@ -676,7 +663,7 @@ mod tests {
             eta: 1.0,
         };
         let mut f = Forgetting::new(&rule, p).unwrap();
-        let mut g = Gauss(7);
+        let mut g = Gauss::new(7);
         let mut hist: Vec<Vec<f64>> = Vec::new();
         let steps = 1_000_000;
         for k in 0..steps {
@@ -736,7 +723,7 @@ mod tests {
                 eta: 1.0,
             };
             let mut f = Forgetting::new(&rule, p).unwrap();
-            let mut g = Gauss(3);
+            let mut g = Gauss::new(3);
             let e = vec![0.0; p];
             // A transient of order one, then errors at the roundoff level (and exact zeros).
             for k in 0..2000 {
@@ -773,7 +760,7 @@ mod tests {
             alpha: 0.01,
         };
         let mut f = Forgetting::new(&rule, 1).unwrap();
-        let mut g = Gauss(5);
+        let mut g = Gauss::new(5);
         for _ in 0..100 {
             f.beta(&[g.normal()]);
         }
@@ -805,7 +792,7 @@ mod tests {
             Forgetting::new(&ft, 1).unwrap(),
             Forgetting::new(&rms, 1).unwrap(),
         );
-        let mut g = Gauss(11);
+        let mut g = Gauss::new(11);
         let mut forgot = 0;
         for k in 0..20_000 {
             let s = if (k / 500) % 2 == 0 { 1.0 } else { 3.0 };
@@ -827,7 +814,7 @@ mod tests {
                 alpha: 0.001,
             };
             let mut f = Forgetting::new(&rule, p).unwrap();
-            let mut g = Gauss(21 + p as u64);
+            let mut g = Gauss::new(21 + p as u64);
             let mut first = None;
             for k in 0..400 {
                 let s = if k < 300 { 0.1 } else { 1.0 };
@@ -852,7 +839,7 @@ mod tests {
                 alpha: 0.001,
             };
             let mut f = Forgetting::new(&rule, p).unwrap();
-            let mut g = Gauss(99 + p as u64);
+            let mut g = Gauss::new(99 + p as u64);
             let n = 100_000;
             let mut fired = 0;
             for _ in 0..n {

@@ -29,3 +29,5 @@ pub mod rls;
 pub mod rt_alloc;
 pub mod runtime;
 pub mod telemetry;
+#[cfg(test)]
+mod test_support;

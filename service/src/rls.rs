@@ -680,22 +680,7 @@ mod tests {
     use super::*;
     use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
-    struct Gauss(u64);
-    impl Gauss {
-        fn uniform(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let (u, v) = (self.uniform(), self.uniform());
-            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-        }
-        fn vec(&mut self, len: usize) -> Vec<f64> {
-            (0..len).map(|_| self.normal()).collect()
-        }
-    }
+    use crate::test_support::Gauss;
 
     fn cfg(n: usize, p: usize, p0: f64, rule: ForgettingRule) -> RlsConfig {
         RlsConfig {
@@ -734,7 +719,7 @@ mod tests {
             let p0 = 1e8;
             let mut rls =
                 Rls::new(&cfg(n, p, p0, ForgettingRule::Constant { lambda: 1.0 })).unwrap();
-            let mut g = Gauss(42 + n as u64);
+            let mut g = Gauss::new(42 + n as u64);
             let truth = g.vec(n);
             let mut ata = DMatrix::<f64>::identity(n, n) / p0; // R_θ = P0⁻¹ (2.5)
             let mut aty = DVector::<f64>::zeros(n);
@@ -759,7 +744,7 @@ mod tests {
             let mut rls = Rls::new(&cfg(n, p, 10.0, ForgettingRule::Constant { lambda })).unwrap();
             let mut th = DVector::<f64>::zeros(n);
             let mut pk = DMatrix::<f64>::identity(n, n) * 10.0;
-            let mut g = Gauss(5 + p as u64);
+            let mut g = Gauss::new(5 + p as u64);
             let truth = g.vec(n);
             for _ in 0..1000 {
                 let (phi, y) = sample(&mut g, &truth, p, 0.05);
@@ -791,7 +776,7 @@ mod tests {
                 alpha: 0.001,
             };
             let mut rls = Rls::new(&cfg(n, p, 1e4, rule)).unwrap();
-            let mut g = Gauss(77 + p as u64);
+            let mut g = Gauss::new(77 + p as u64);
             let truth = g.vec(n);
             let mut last = None;
             for _ in 0..500 {
@@ -811,7 +796,7 @@ mod tests {
         let c = cfg(n, p, 10.0, rule);
         let mut fast = Rls::new(&c).unwrap();
         let mut book = TextbookRls::new(&c).unwrap();
-        let mut g = Gauss(1234 + n as u64);
+        let mut g = Gauss::new(1234 + n as u64);
         let mut truth = g.vec(n);
         let mut forgot = 0;
         for k in 0..steps {
@@ -879,7 +864,7 @@ mod tests {
         let mut c = cfg(n, 1, 10.0, rule);
         c.theta0 = vec![0.5; n];
         let mut rls = Rls::new(&c).unwrap();
-        let mut g = Gauss(9);
+        let mut g = Gauss::new(9);
         let truth = g.vec(n);
         for _ in 0..100 {
             let (phi, y) = sample(&mut g, &truth, 1, 0.01);
@@ -957,7 +942,7 @@ mod tests {
         let before = [1.64, -0.8187, 0.0, 0.4606, 0.4307];
         let after = [0.3116, -0.998, 0.0, 0.4218, 0.4215];
         let mut rls = Rls::new(&cfg(5, 1, 100.0, rule)).unwrap();
-        let mut g = Gauss(seed);
+        let mut g = Gauss::new(seed);
         let (mut y1, mut y2, mut u1, mut u2) = (0.0, 0.0, 0.0, 0.0);
         let mut out = Vec::with_capacity(steps);
         let mut th = before;
@@ -1036,7 +1021,7 @@ mod tests {
         // Exact initial estimate: every error is roundoff from the first step.
         for p in [1, 3] {
             let n = 12;
-            let mut g = Gauss(8 + p as u64);
+            let mut g = Gauss::new(8 + p as u64);
             let truth = g.vec(n);
             let mut c = cfg(
                 n,
