@@ -47,9 +47,11 @@
 //! entry is read once and feeds a fused dot product and a fused axpy; and the symmetric
 //! rank-p update, each stored entry written once, with `p ≤ 4` unrolled at compile time)
 //! and are written as
-//! plain loops that the compiler vectorizes; on x86-64 they are compiled a second time
-//! with AVX2 enabled and selected at run time (bit-identical results, no FMA
-//! contraction). `cargo bench -p latency-bench --bench rls` measures it against
+//! plain loops that the compiler vectorizes; the symmetric matvec handles two packed rows
+//! per pass, so each entry of `G` is loaded and stored once per row pair. On x86-64 they
+//! are compiled again with AVX2 (no FMA contraction, bit-identical to the baseline build)
+//! and with AVX2+FMA (explicit fused multiply-adds in the `p ≤ 4` hot loops: different
+//! rounding, still exactly symmetric), selected at run time. `cargo bench -p latency-bench --bench rls` measures it against
 //! [`TextbookRls`] (on the 2-core development VM: p50 65–100 µs per update at
 //! `(n, p) = (300, 3)` and 350–390 µs at `(600, 4)`, 15–35× faster than the textbook one).
 //!
@@ -380,12 +382,12 @@ fn fill_packed_identity(pk: &mut [f64], n: usize, p0: f64) {
 /// and contributes `P_ij φ_l[j]` to `G[i, l]` (a fused dot product along row `i`) and, for
 /// `j > i`, `P_ij φ_l[i]` to `G[j, l]` (a fused axpy into the rest of column `l` of `G`).
 #[inline(always)]
-fn g_pass_impl(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
+fn g_pass_impl<const FMA: bool>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
     match p {
-        1 => g_pass_fixed::<1>(pk, phi, g, n),
-        2 => g_pass_fixed::<2>(pk, phi, g, n),
-        3 => g_pass_fixed::<3>(pk, phi, g, n),
-        4 => g_pass_fixed::<4>(pk, phi, g, n),
+        1 => g_pass_one_row::<1>(pk, phi, g, n),
+        2 => g_pass_fixed::<2, FMA>(pk, phi, g, n),
+        3 => g_pass_fixed::<3, FMA>(pk, phi, g, n),
+        4 => g_pass_fixed::<4, FMA>(pk, phi, g, n),
         _ => {
             let g = &mut g[..n * p];
             g.fill(0.0);
@@ -405,11 +407,108 @@ fn g_pass_impl(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
     }
 }
 
+#[inline(always)]
+fn g_pass_fixed<const P: usize, const FMA: bool>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize) {
+    let rows: [&[f64]; P] = std::array::from_fn(|l| &phi[l * n..][..n]);
+    let g = &mut g[..P * n];
+    g.fill(0.0);
+    let mut chunks = g.chunks_exact_mut(n);
+    let mut gs: [&mut [f64]; P] = std::array::from_fn(|_| chunks.next().unwrap());
+    let mut off = 0;
+    let mut i = 0;
+    // Two packed rows (i, i+1) per pass: each loaded entry of G feeds both rows' axpys,
+    // halving the loads and stores of G.
+    while i + 1 < n {
+        let len_a = n - i;
+        let row_a = &pk[off..][..len_a];
+        let row_b = &pk[off + len_a..][..len_a - 1];
+        off += 2 * len_a - 1;
+        let fa: [f64; P] = std::array::from_fn(|l| rows[l][i]);
+        let fb: [f64; P] = std::array::from_fn(|l| rows[l][i + 1]);
+        // Columns j = i+2 .. n are shared by both rows.
+        let m = len_a - 2;
+        let ca_all = &row_a[2..][..m];
+        let cb_all = &row_b[1..][..m];
+        let mut acc_a = [[0.0; LANES2]; P];
+        let mut acc_b = [[0.0; LANES2]; P];
+        let mut heads: [&mut [f64]; P] = std::array::from_fn(|_| Default::default());
+        let mut gsl: [&mut [f64]; P] = std::array::from_fn(|_| Default::default());
+        for (l, gl) in gs.iter_mut().enumerate() {
+            let (h, t) = gl.split_at_mut(i + 2);
+            heads[l] = &mut h[i..];
+            gsl[l] = &mut t[..m];
+        }
+        let fr: [&[f64]; P] = std::array::from_fn(|l| &rows[l][i + 2..][..m]);
+        let ca_it = ca_all.chunks_exact(LANES2);
+        let cb_it = cb_all.chunks_exact(LANES2);
+        let body = m - m % LANES2;
+        for (t, (ca, cb)) in ca_it.zip(cb_it).enumerate() {
+            let ca: &[f64; LANES2] = ca.try_into().unwrap();
+            let cb: &[f64; LANES2] = cb.try_into().unwrap();
+            let t = t * LANES2;
+            for l in 0..P {
+                let f: &[f64; LANES2] = fr[l][t..t + LANES2].try_into().unwrap();
+                for k in 0..LANES2 {
+                    acc_a[l][k] = madd::<FMA>(ca[k], f[k], acc_a[l][k]);
+                    acc_b[l][k] = madd::<FMA>(cb[k], f[k], acc_b[l][k]);
+                }
+                let gl: &mut [f64; LANES2] = (&mut gsl[l][t..t + LANES2]).try_into().unwrap();
+                for k in 0..LANES2 {
+                    gl[k] = madd::<FMA>(fb[l], cb[k], madd::<FMA>(fa[l], ca[k], gl[k]));
+                }
+            }
+        }
+        for l in 0..P {
+            let mut sa = hsum(&acc_a[l]);
+            let mut sb = hsum(&acc_b[l]);
+            for u in body..m {
+                sa += ca_all[u] * fr[l][u];
+                sb += cb_all[u] * fr[l][u];
+                gsl[l][u] += fa[l] * ca_all[u] + fb[l] * cb_all[u];
+            }
+            // Column i+1: P_{i,i+1} couples rows i and i+1; diagonals P_ii, P_{i+1,i+1}.
+            let pab = row_a[1];
+            heads[l][0] += row_a[0] * fa[l] + pab * fb[l] + sa;
+            heads[l][1] += pab * fa[l] + row_b[0] * fb[l] + sb;
+        }
+        i += 2;
+    }
+    if i < n {
+        // Last row alone: only its diagonal entry.
+        let d = pk[off];
+        for l in 0..P {
+            gs[l][i] += d * rows[l][i];
+        }
+    }
+}
+
+/// `a · b + c`: a fused multiply-add (one rounding) when `FMA` (only instantiated inside
+/// functions compiled with the `fma` target feature), else a multiply then an add.
+#[inline(always)]
+fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA { a.mul_add(b, c) } else { a * b + c }
+}
+
+/// Lanes of the fused two-row dot products.
+const LANES2: usize = 4;
+
+#[inline(always)]
+fn hsum<const L: usize>(a: &[f64; L]) -> f64 {
+    let mut s = 0.0;
+    let mut k = 0;
+    while k < L {
+        s += a[k];
+        k += 1;
+    }
+    s
+}
+
 /// Lanes of the fused dot products (two AVX2 registers per output).
 const LANES: usize = 8;
 
+/// One packed row per pass (used for `p = 1`, where the two-row pass measured no faster).
 #[inline(always)]
-fn g_pass_fixed<const P: usize>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize) {
+fn g_pass_one_row<const P: usize>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize) {
     let rows: [&[f64]; P] = std::array::from_fn(|l| &phi[l * n..][..n]);
     let g = &mut g[..P * n];
     g.fill(0.0);
@@ -456,18 +555,23 @@ fn g_pass_fixed<const P: usize>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize
     }
 }
 
-/// Runtime dispatch of the two `O(n² p)` passes: the same scalar code compiled once for the
-/// baseline target and once with AVX2 enabled. Rust never contracts `a * b + c` into an
-/// FMA, so both variants produce bit-identical results; only the vector width differs.
+/// Runtime dispatch of the two `O(n² p)` passes: the same scalar code compiled for the
+/// baseline target, with AVX2, and with AVX2+FMA. Rust never contracts `a * b + c` into an
+/// FMA, so the first two are bit-identical; the FMA variant uses `mul_add` (via `madd`) in
+/// the `p ≤ 4` loops and rounds differently (well within the 1e-10 test tolerance).
 mod simd {
     /// `G = P φᵀ`, see `g_pass_impl`.
     pub(super) fn g_pass(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
+            if std::arch::is_x86_feature_detected!("fma") {
+                // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+                return unsafe { g_pass_avx2_fma(pk, phi, g, n, p) };
+            }
             // SAFETY: the CPU supports AVX2 (checked just above).
             return unsafe { g_pass_avx2(pk, phi, g, n, p) };
         }
-        super::g_pass_impl(pk, phi, g, n, p)
+        super::g_pass_impl::<false>(pk, phi, g, n, p)
     }
 
     /// `P ← β P − W Wᵀ`, see `rank_update_impl`.
@@ -480,16 +584,20 @@ mod simd {
     ) -> (f64, bool, f64) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
+            if std::arch::is_x86_feature_detected!("fma") {
+                // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+                return unsafe { rank_update_avx2_fma(pk, w, n, p, beta) };
+            }
             // SAFETY: the CPU supports AVX2 (checked just above).
             return unsafe { rank_update_avx2(pk, w, n, p, beta) };
         }
-        super::rank_update_impl(pk, w, n, p, beta)
+        super::rank_update_impl::<false>(pk, w, n, p, beta)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn g_pass_avx2(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
-        super::g_pass_impl(pk, phi, g, n, p)
+        super::g_pass_impl::<false>(pk, phi, g, n, p)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -501,7 +609,25 @@ mod simd {
         p: usize,
         beta: f64,
     ) -> (f64, bool, f64) {
-        super::rank_update_impl(pk, w, n, p, beta)
+        super::rank_update_impl::<false>(pk, w, n, p, beta)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn g_pass_avx2_fma(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
+        super::g_pass_impl::<true>(pk, phi, g, n, p)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn rank_update_avx2_fma(
+        pk: &mut [f64],
+        w: &[f64],
+        n: usize,
+        p: usize,
+        beta: f64,
+    ) -> (f64, bool, f64) {
+        super::rank_update_impl::<true>(pk, w, n, p, beta)
     }
 }
 
@@ -511,12 +637,18 @@ mod simd {
 /// and is stored once, so `P` is symmetric by construction. Each packed row is written
 /// in one contiguous vectorizable pass. Returns `(trace, all_finite, min_diag)`.
 #[inline(always)]
-fn rank_update_impl(pk: &mut [f64], w: &[f64], n: usize, p: usize, beta: f64) -> (f64, bool, f64) {
+fn rank_update_impl<const FMA: bool>(
+    pk: &mut [f64],
+    w: &[f64],
+    n: usize,
+    p: usize,
+    beta: f64,
+) -> (f64, bool, f64) {
     match p {
-        1 => rank_update_fixed::<1>(pk, w, n, beta),
-        2 => rank_update_fixed::<2>(pk, w, n, beta),
-        3 => rank_update_fixed::<3>(pk, w, n, beta),
-        4 => rank_update_fixed::<4>(pk, w, n, beta),
+        1 => rank_update_fixed::<1, FMA>(pk, w, n, beta),
+        2 => rank_update_fixed::<2, FMA>(pk, w, n, beta),
+        3 => rank_update_fixed::<3, FMA>(pk, w, n, beta),
+        4 => rank_update_fixed::<4, FMA>(pk, w, n, beta),
         _ => rank_update_passes(pk, w, n, p, beta),
     }
 }
@@ -524,7 +656,7 @@ fn rank_update_impl(pk: &mut [f64], w: &[f64], n: usize, p: usize, beta: f64) ->
 /// [`rank_update_impl`] for a compile-time `p`: one fused pass per packed row, with
 /// exactly the same operation order as the multi-pass version.
 #[inline(always)]
-fn rank_update_fixed<const P: usize>(
+fn rank_update_fixed<const P: usize, const FMA: bool>(
     pk: &mut [f64],
     w: &[f64],
     n: usize,
@@ -545,7 +677,7 @@ fn rank_update_fixed<const P: usize>(
         for t in 0..len {
             let mut x = beta * row[t];
             for l in 0..P {
-                x -= ws[l][t] * wi[l];
+                x = madd::<FMA>(-ws[l][t], wi[l], x);
             }
             row[t] = x;
             ok &= x.is_finite();
