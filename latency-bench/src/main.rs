@@ -899,6 +899,30 @@ fn cyclictest_phase(
     Ok(Some((run, files)))
 }
 
+/// Runs `work` on a thread pinned to the RT core at `SCHED_FIFO` (helper threads of the
+/// bench phases that time kernels); returns the RT set-up outcome and `work`'s result.
+fn on_rt_core<T: Send + 'static>(
+    s: &Settings,
+    name: &str,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> Result<(ipc_types::rt::RtSetup, T), String> {
+    let rt = RtRequest {
+        core: Some(s.rt_core),
+        fifo_priority: Some(RT_PRIORITY),
+        mlockall: true,
+        prefault_stack_bytes: 256 * 1024,
+    };
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn(move || {
+            let setup = ipc_types::rt::setup_current_thread(&rt);
+            (setup, work())
+        })
+        .map_err(|e| format!("starting the {name} thread: {e}"))?
+        .join()
+        .map_err(|_| format!("the {name} thread failed"))
+}
+
 /// The RLS update at the sizes of `rls_cost::RLS_SIZES`, fast and textbook kernels
 /// interleaved on the pinned RT core (see `latency_bench::rls_cost`).
 fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
@@ -909,40 +933,24 @@ fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
             format!("creating {}: {e}", dir.display()),
         )];
     }
-    let rt = RtRequest {
-        core: Some(s.rt_core),
-        fifo_priority: Some(RT_PRIORITY),
-        mlockall: true,
-        prefault_stack_bytes: 256 * 1024,
-    };
     let base = (s.steps / 10).max(1000);
     let start = SystemTime::now();
     let t = Instant::now();
-    let worker = std::thread::Builder::new()
-        .name("bench-rls".into())
-        .spawn(move || {
-            ipc_types::rt::setup_current_thread(&rt);
-            latency_bench::rls_cost::RLS_SIZES
-                .iter()
-                .map(|&(n, p)| {
-                    let steps = latency_bench::rls_cost::updates_for(n, p, base);
-                    (
-                        n,
-                        p,
-                        latency_bench::rls_cost::measure(n, p, steps / 10, steps),
-                    )
-                })
-                .collect::<Vec<_>>()
-        });
-    let results = match worker.map(|h| h.join()) {
-        Ok(Ok(v)) => v,
-        _ => {
-            return vec![Measured::failed(
-                "rls",
-                "rls update",
-                "the RLS thread failed".into(),
-            )];
-        }
+    let results = match on_rt_core(s, "bench-rls", move || {
+        latency_bench::rls_cost::RLS_SIZES
+            .iter()
+            .map(|&(n, p)| {
+                let steps = latency_bench::rls_cost::updates_for(n, p, base);
+                (
+                    n,
+                    p,
+                    latency_bench::rls_cost::measure(n, p, steps / 10, steps),
+                )
+            })
+            .collect::<Vec<_>>()
+    }) {
+        Ok((_, v)) => v,
+        Err(e) => return vec![Measured::failed("rls", "rls update", e)],
     };
     let elapsed = t.elapsed();
     let mut out = Vec::new();
@@ -991,35 +999,18 @@ fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
         )];
     }
     let cases = configs::step_cases();
-    let rt = RtRequest {
-        core: Some(s.rt_core),
-        fifo_priority: Some(RT_PRIORITY),
-        mlockall: true,
-        prefault_stack_bytes: 256 * 1024,
-    };
     let (warmup, steps) = (s.step_warmup, s.steps);
     let start = SystemTime::now();
     let t = Instant::now();
-    let worker = std::thread::Builder::new()
-        .name("bench-step".into())
-        .spawn(move || {
-            let setup = ipc_types::rt::setup_current_thread(&rt);
-            let results: Vec<_> = cases
-                .iter()
-                .map(|c| (c.clone(), step_cost::measure(c, warmup, steps)))
-                .collect();
-            let overhead = step_cost::timer_overhead(steps);
-            (setup, results, overhead)
-        });
-    let (setup, results, overhead) = match worker.map(|h| h.join()) {
-        Ok(Ok(v)) => v,
-        _ => {
-            return vec![Measured::failed(
-                "step-cost",
-                "step cost",
-                "the step-cost thread failed".into(),
-            )];
-        }
+    let (setup, (results, overhead)) = match on_rt_core(s, "bench-step", move || {
+        let results: Vec<_> = cases
+            .iter()
+            .map(|c| (c.clone(), step_cost::measure(c, warmup, steps)))
+            .collect();
+        (results, step_cost::timer_overhead(steps))
+    }) {
+        Ok(v) => v,
+        Err(e) => return vec![Measured::failed("step-cost", "step cost", e)],
     };
     let elapsed = t.elapsed();
     let mut out = Vec::new();
