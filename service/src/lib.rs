@@ -16,6 +16,8 @@
 //! - [`logging`]: the bounded lock-free queue that carries signal logs out of the RT thread
 //!   and the CSV writer behind it.
 //! - [`runtime`]: the RT loop, the deadline and silence policy, the run report.
+//! - [`design`]: offline design tools: model and measured frequency responses, Markov
+//!   parameters, dereverberated transfer functions and RCAC target models (section 3.2).
 //! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
 //!   counts every allocation made on it.
 
@@ -23,6 +25,7 @@
 
 pub mod config;
 pub mod controller;
+pub mod design;
 pub mod forgetting;
 pub mod logging;
 pub mod rls;
