@@ -23,7 +23,13 @@
 
 #![allow(clippy::needless_range_loop)]
 
+pub mod csvlog;
+pub mod dtf;
+pub mod markov;
 pub mod model;
+pub mod plots;
+pub mod target;
+pub mod welch;
 
 use nalgebra::Complex;
 
