@@ -48,13 +48,21 @@
 //! d = [[0.0]]
 //! # … or [controller.tf] entries = [[{ num = [..], den = [..] }]]  (discrete, in z, n_u × n_e)
 //!
+//! # or, for an identification run, independent white Gaussian inputs:
+//! # [controller]
+//! # kind = "excitation"
+//! # std = [2.0, 2.0]              # per input (or one scalar)
+//! # seed = 1
+//!
 //! [log]
 //! enabled = true
 //! decimation = 1
 //! queue-capacity = 65536
 //! ```
 
-use crate::controller::{Controller, ControllerInput, LtiController, OutputLimits};
+use crate::controller::{
+    Controller, ControllerInput, ExcitationSource, LtiController, OutputLimits,
+};
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
 use nalgebra::{DMatrix, DVector};
@@ -172,6 +180,15 @@ pub enum ControllerConfig {
         /// Output saturation.
         limits: Option<OutputLimits>,
     },
+    /// Independent white Gaussian inputs for identification ([`ExcitationSource`]).
+    Excitation {
+        /// Standard deviation per input.
+        std: Vec<f64>,
+        /// Generator seed.
+        seed: u64,
+        /// Output saturation.
+        limits: Option<OutputLimits>,
+    },
 }
 
 impl ControllerConfig {
@@ -201,6 +218,9 @@ impl ControllerConfig {
                 }
                 Ok(Box::new(ctl))
             }
+            ControllerConfig::Excitation { std, seed, limits } => Ok(Box::new(
+                ExcitationSource::new(counts, std.clone(), *seed, limits.clone())?,
+            )),
         }
     }
 }
@@ -358,6 +378,56 @@ impl ServiceConfig {
             file: origin.clone(),
             field: String::new(),
             message: format!("cannot read the file: {e}"),
+        })?;
+        Self::parse(&text, &origin)
+    }
+
+    /// Reads a scenario file whose `[controller]` table (and `[log]` table, if present) is
+    /// replaced by those of `controller_file`: the same rig, plant and service, another
+    /// controller (for example an identification run with `kind = "excitation"`). Errors
+    /// in the replaced tables name `controller_file`.
+    pub fn load_with_controller(path: &Path, controller_file: &Path) -> Result<Self, ConfigError> {
+        let read = |p: &Path| -> Result<toml::Table, ConfigError> {
+            let origin = p.display().to_string();
+            let e = |message: String| ConfigError {
+                file: origin.clone(),
+                field: String::new(),
+                message,
+            };
+            let text = std::fs::read_to_string(p)
+                .map_err(|x| e(format!("cannot read the file: {x}")))?;
+            toml::from_str(&text).map_err(|x| e(format!("not valid TOML: {x}")))
+        };
+        let mut base = read(path)?;
+        let over = read(controller_file)?;
+        let origin = format!(
+            "{} (controller from {})",
+            path.display(),
+            controller_file.display()
+        );
+        for key in over.keys() {
+            if key != "controller" && key != "log" {
+                return Err(ConfigError {
+                    file: controller_file.display().to_string(),
+                    field: key.clone(),
+                    message: "a controller file may hold only [controller] and [log]".into(),
+                });
+            }
+        }
+        if !over.contains_key("controller") {
+            return Err(ConfigError {
+                file: controller_file.display().to_string(),
+                field: "controller".into(),
+                message: "the [controller] table is missing".into(),
+            });
+        }
+        for (k, v) in over {
+            base.insert(k, v);
+        }
+        let text = toml::to_string(&base).map_err(|e| ConfigError {
+            file: origin.clone(),
+            field: String::new(),
+            message: format!("cannot merge the tables: {e}"),
         })?;
         Self::parse(&text, &origin)
     }
@@ -595,6 +665,8 @@ fn matrix(rows: &[Vec<f64>], cols_if_empty: usize, field: &str) -> Result<DMatri
     Ok(DMatrix::from_fn(rows.len(), n, |i, j| rows[i][j]))
 }
 
+const CONTROLLER_KINDS: &str = "lti, excitation";
+
 fn parse_controller(
     value: toml::Value,
     counts: ChannelCounts,
@@ -603,11 +675,17 @@ fn parse_controller(
     let kind = value.get("kind").and_then(|v| v.as_str()).unwrap_or("");
     match kind {
         "lti" => {}
-        "" => return Err(err("controller.kind", "missing; known kinds: lti".into())),
+        "excitation" => return parse_excitation(value, counts, err),
+        "" => {
+            return Err(err(
+                "controller.kind",
+                format!("missing; known kinds: {CONTROLLER_KINDS}"),
+            ));
+        }
         other => {
             return Err(err(
                 "controller.kind",
-                format!("unknown controller '{other}'; known kinds: lti"),
+                format!("unknown controller '{other}'; known kinds: {CONTROLLER_KINDS}"),
             ));
         }
     }
@@ -631,23 +709,7 @@ fn parse_controller(
         ControllerInput::YAndR => (counts.n_y + counts.n_r) as usize,
         _ => counts.n_y as usize,
     };
-    let limits = match (&raw.u_min, &raw.u_max) {
-        (None, None) => None,
-        (lo, hi) => {
-            let expand = |v: &Option<ScalarOrVec>, d: f64, f: &str| match v {
-                None => Ok(vec![d; n_u]),
-                Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n_u]),
-                Some(ScalarOrVec::Vec(x)) if x.len() == n_u => Ok(x.clone()),
-                Some(ScalarOrVec::Vec(x)) => {
-                    Err(err(f, format!("has {} values, expected {n_u}", x.len())))
-                }
-            };
-            Some(OutputLimits {
-                min: expand(lo, f64::NEG_INFINITY, "controller.u-min")?,
-                max: expand(hi, f64::INFINITY, "controller.u-max")?,
-            })
-        }
-    };
+    let limits = output_limits(&raw.u_min, &raw.u_max, n_u, err)?;
     let (a, b, c, d, x0) = match (raw.ss, raw.tf) {
         (Some(ss), None) => {
             let a = matrix(&ss.a, 0, "a").map_err(|m| err("controller.ss.a", m))?;
@@ -690,6 +752,62 @@ fn parse_controller(
     };
     // Build once now so that size errors are reported at load time, naming the table.
     cfg.build(counts).map_err(|m| err("controller", m))?;
+    Ok(cfg)
+}
+
+/// The optional `u-min`/`u-max` pair of a controller table (scalar or one per input).
+fn output_limits(
+    lo: &Option<ScalarOrVec>,
+    hi: &Option<ScalarOrVec>,
+    n_u: usize,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<Option<OutputLimits>, ConfigError> {
+    if lo.is_none() && hi.is_none() {
+        return Ok(None);
+    }
+    let expand = |v: &Option<ScalarOrVec>, d: f64, f: &str| match v {
+        None => Ok(vec![d; n_u]),
+        Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n_u]),
+        Some(ScalarOrVec::Vec(x)) if x.len() == n_u => Ok(x.clone()),
+        Some(ScalarOrVec::Vec(x)) => Err(err(f, format!("has {} values, expected {n_u}", x.len()))),
+    };
+    Ok(Some(OutputLimits {
+        min: expand(lo, f64::NEG_INFINITY, "controller.u-min")?,
+        max: expand(hi, f64::INFINITY, "controller.u-max")?,
+    }))
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawExcitation {
+    #[allow(dead_code)]
+    kind: String,
+    std: ScalarOrVec,
+    seed: Option<u64>,
+    u_min: Option<ScalarOrVec>,
+    u_max: Option<ScalarOrVec>,
+}
+
+/// `kind = "excitation"`: white Gaussian identification inputs.
+fn parse_excitation(
+    value: toml::Value,
+    counts: ChannelCounts,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<ControllerConfig, ConfigError> {
+    let raw: RawExcitation = value
+        .try_into()
+        .map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
+    let n_u = counts.n_u as usize;
+    let std = match raw.std {
+        ScalarOrVec::Scalar(x) => vec![x; n_u],
+        ScalarOrVec::Vec(v) => v,
+    };
+    let cfg = ControllerConfig::Excitation {
+        std,
+        seed: raw.seed.unwrap_or(1),
+        limits: output_limits(&raw.u_min, &raw.u_max, n_u, err)?,
+    };
+    cfg.build(counts).map_err(|m| err("controller.std", m))?;
     Ok(cfg)
 }
 

@@ -48,6 +48,10 @@ struct Common {
     /// Override service.core (the RT core).
     #[arg(long)]
     core: Option<usize>,
+    /// Replace the scenario's [controller] (and [log]) table by this file's, e.g. an
+    /// identification run with `kind = "excitation"`.
+    #[arg(long)]
+    controller: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -89,8 +93,12 @@ fn parse_wait(s: &str) -> Result<WaitMode, String> {
     }
 }
 
-fn load(path: &Path) -> Result<ServiceConfig, ExitCode> {
-    ServiceConfig::load(path).map_err(|e| {
+fn load(path: &Path, controller: Option<&Path>) -> Result<ServiceConfig, ExitCode> {
+    match controller {
+        Some(c) => ServiceConfig::load_with_controller(path, c),
+        None => ServiceConfig::load(path),
+    }
+    .map_err(|e| {
         eprintln!("service: configuration refused: {e}");
         ExitCode::from(2)
     })
@@ -107,7 +115,7 @@ fn shutdown_flag() -> Arc<AtomicBool> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Check { config } => match load(&config) {
+        Command::Check { config } => match load(&config, None) {
             Ok(c) => {
                 println!(
                     "{}: ok (rig '{}', {} Hz, channels y={} z={} r={} u={})",
@@ -128,7 +136,7 @@ fn main() -> ExitCode {
             exit_with_plant,
             max_cycles,
         } => {
-            let cfg = match load(&common.config) {
+            let cfg = match load(&common.config, common.controller.as_deref()) {
                 Ok(c) => c,
                 Err(code) => return code,
             };
@@ -159,7 +167,7 @@ fn main() -> ExitCode {
 }
 
 fn launch(common: Common, mode: &str, duration: Option<f64>) -> ExitCode {
-    let cfg = match load(&common.config) {
+    let cfg = match load(&common.config, common.controller.as_deref()) {
         Ok(c) => c,
         Err(code) => return code,
     };

@@ -15,9 +15,15 @@
 //!
 //! whose input `e_k` is `y_k`, the tracking error `r_k − y_k`, or the stack `[y_k; r_k]`
 //! ([`ControllerInput`]), given as a matrix of discrete transfer functions or in state space.
+//!
+//! [`ExcitationSource`] is not a feedback law: it drives the inputs with independent white
+//! noise for identification experiments (the data of the design tools, section 3.2).
 
 use ipc_types::{ChannelCounts, actuation_status};
 use nalgebra::{DMatrix, DVector};
+
+mod excitation;
+pub use excitation::ExcitationSource;
 
 /// Maximum number of internal signals a controller exposes to the signal log.
 pub const MAX_INTERNALS: usize = 16;
