@@ -112,7 +112,12 @@ mod tests {
     #[test]
     fn inputs_have_the_configured_spread_and_are_uncorrelated() {
         let mut src = ExcitationSource::new(counts(), vec![2.0, 0.5], 7, None).unwrap();
-        let input = StepInput { seq: 0, y: &[0.0], z: &[0.0], r: &[] };
+        let input = StepInput {
+            seq: 0,
+            y: &[0.0],
+            z: &[0.0],
+            r: &[],
+        };
         let n = 200_000;
         let (mut s0, mut s1, mut s01, mut lag) = (0.0, 0.0, 0.0, 0.0);
         let mut prev = 0.0;
@@ -136,9 +141,17 @@ mod tests {
 
     #[test]
     fn reset_repeats_the_sequence_and_limits_clip() {
-        let l = OutputLimits { min: vec![-1.0; 2], max: vec![1.0; 2] };
+        let l = OutputLimits {
+            min: vec![-1.0; 2],
+            max: vec![1.0; 2],
+        };
         let mut src = ExcitationSource::new(counts(), vec![3.0, 3.0], 1, Some(l)).unwrap();
-        let input = StepInput { seq: 0, y: &[0.0], z: &[0.0], r: &[] };
+        let input = StepInput {
+            seq: 0,
+            y: &[0.0],
+            z: &[0.0],
+            r: &[],
+        };
         let mut first = Vec::new();
         let mut saturated = 0;
         let mut u = [0.0; 2];
