@@ -18,6 +18,7 @@
 //! - [`runtime`]: the RT loop, the deadline and silence policy, the run report.
 //! - [`design`]: offline design tools: model and measured frequency responses, Markov
 //!   parameters, dereverberated transfer functions and RCAC target models (section 3.2).
+//! - [`plot`]: PNG figures (line panels, pole–zero maps) for the offline tools.
 //! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
 //!   counts every allocation made on it.
 
@@ -28,6 +29,7 @@ pub mod controller;
 pub mod design;
 pub mod forgetting;
 pub mod logging;
+pub mod plot;
 pub mod rls;
 pub mod rt_alloc;
 pub mod runtime;

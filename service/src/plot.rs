@@ -1,0 +1,294 @@
+//! PNG figures for the offline tools: panels of line series (linear or logarithmic axes)
+//! and pole–zero maps, drawn with plotters' bitmap backend and the DejaVu Sans font
+//! embedded from the `dejavu` crate, so no system font is needed.
+//!
+//! A figure is a grid of [`Panel`]s; each panel holds [`Series`] (lines, or markers for a
+//! pole–zero map) and optionally the unit circle. Non-finite points are skipped, and
+//! values are clipped to the panel's range so a stray spike does not flatten the rest.
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+/// Font family under which the embedded font is registered.
+const FONT: &str = "sans-serif";
+
+/// A palette of distinguishable colors, in the order series usually take them.
+pub const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(0, 0, 0),
+];
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mark {
+    /// A solid line.
+    Line,
+    /// A dashed line.
+    Dashed,
+    /// A cross at each point (poles).
+    Cross,
+    /// A circle at each point (zeros).
+    Circle,
+}
+
+/// One labelled series of `(x, y)` points.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend text.
+    pub label: String,
+    /// The points.
+    pub points: Vec<(f64, f64)>,
+    /// Color.
+    pub color: RGBColor,
+    /// How it is drawn.
+    pub mark: Mark,
+}
+
+impl Series {
+    /// A solid line of color `color` from `x` and `y`.
+    pub fn line(label: &str, x: &[f64], y: &[f64], color: RGBColor) -> Self {
+        Self {
+            label: label.into(),
+            points: x.iter().copied().zip(y.iter().copied()).collect(),
+            color,
+            mark: Mark::Line,
+        }
+    }
+
+    /// The same series drawn with `mark`.
+    pub fn with(mut self, mark: Mark) -> Self {
+        self.mark = mark;
+        self
+    }
+}
+
+/// One panel of a figure.
+#[derive(Debug, Clone, Default)]
+pub struct Panel {
+    /// Caption.
+    pub title: String,
+    /// Label of the x axis.
+    pub x_label: String,
+    /// Label of the y axis.
+    pub y_label: String,
+    /// Logarithmic x axis (positive x only).
+    pub x_log: bool,
+    /// Logarithmic y axis (positive y only).
+    pub y_log: bool,
+    /// Fixed x range (default: the data's).
+    pub x_range: Option<(f64, f64)>,
+    /// Fixed y range (default: the data's, with a margin).
+    pub y_range: Option<(f64, f64)>,
+    /// Draw the unit circle and use equal axes (pole–zero maps).
+    pub unit_circle: bool,
+    /// The series.
+    pub series: Vec<Series>,
+}
+
+fn register_font() -> Result<(), String> {
+    static ONCE: Once = Once::new();
+    let mut result = Ok(());
+    ONCE.call_once(|| {
+        result = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
+            .map_err(|_| "cannot load the embedded DejaVu Sans font".to_string());
+    });
+    result
+}
+
+/// Range of the finite values of `v` (positive only when `log`), with a margin.
+fn data_range(v: impl Iterator<Item = f64>, log: bool, margin: bool) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for x in v.filter(|x| x.is_finite() && (!log || *x > 0.0)) {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    if !lo.is_finite() {
+        return if log { (1e-3, 1.0) } else { (-1.0, 1.0) };
+    }
+    if log {
+        if hi <= lo {
+            return (lo / 2.0, lo * 2.0);
+        }
+        return if margin {
+            (lo / 1.5, hi * 1.5)
+        } else {
+            (lo, hi)
+        };
+    }
+    let m = if margin {
+        ((hi - lo) * 0.06).max(1e-12)
+    } else {
+        0.0
+    };
+    if hi - lo < 1e-12 {
+        return (lo - 1.0, hi + 1.0);
+    }
+    (lo - m, hi + m)
+}
+
+fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result<(), String> {
+    let pts = || p.series.iter().flat_map(|s| s.points.iter());
+    let (mut x0, mut x1) = p
+        .x_range
+        .unwrap_or_else(|| data_range(pts().map(|q| q.0), p.x_log, false));
+    let (mut y0, mut y1) = p
+        .y_range
+        .unwrap_or_else(|| data_range(pts().map(|q| q.1), p.y_log, true));
+    if p.unit_circle {
+        let r = [x0.abs(), x1.abs(), y0.abs(), y1.abs(), 1.05]
+            .into_iter()
+            .fold(0.0, f64::max)
+            * 1.05;
+        (x0, x1, y0, y1) = (-r, r, -r, r);
+    }
+    let mut b = ChartBuilder::on(area);
+    b.caption(&p.title, (FONT, 16))
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(64);
+    // The four axis kinds give four chart types; one macro body serves them.
+    macro_rules! body {
+        ($chart:expr) => {{
+            let mut chart = $chart.map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc(p.x_label.as_str())
+                .y_desc(p.y_label.as_str())
+                .label_style((FONT, 12))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            if p.unit_circle {
+                let circle: Vec<(f64, f64)> = (0..=200)
+                    .map(|i| {
+                        let a = i as f64 * std::f64::consts::TAU / 200.0;
+                        (a.cos(), a.sin())
+                    })
+                    .collect();
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        circle,
+                        4,
+                        4,
+                        ShapeStyle::from(&BLACK.mix(0.5)),
+                    ))
+                    .map_err(|e| e.to_string())?;
+            }
+            for s in &p.series {
+                let ok = |&&(x, y): &&(f64, f64)| {
+                    x.is_finite() && y.is_finite() && (!p.x_log || x > 0.0) && (!p.y_log || y > 0.0)
+                };
+                let clipped: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .filter(ok)
+                    .map(|&(x, y)| (x, y.clamp(y0, y1)))
+                    .collect();
+                let style = ShapeStyle::from(&s.color).stroke_width(2);
+                let color = s.color;
+                let anno = match s.mark {
+                    Mark::Line => chart.draw_series(LineSeries::new(clipped, style)),
+                    Mark::Dashed => chart.draw_series(DashedLineSeries::new(clipped, 6, 4, style)),
+                    Mark::Cross => {
+                        chart.draw_series(clipped.into_iter().map(|q| Cross::new(q, 5, style)))
+                    }
+                    Mark::Circle => {
+                        chart.draw_series(clipped.into_iter().map(|q| Circle::new(q, 5, style)))
+                    }
+                }
+                .map_err(|e| e.to_string())?;
+                if !s.label.is_empty() {
+                    anno.label(s.label.as_str()).legend(move |(x, y)| {
+                        PathElement::new(
+                            vec![(x, y), (x + 16, y)],
+                            ShapeStyle::from(&color).stroke_width(2),
+                        )
+                    });
+                }
+            }
+            if p.series.iter().any(|s| !s.label.is_empty()) {
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .label_font((FONT, 12))
+                    .position(SeriesLabelPosition::UpperRight)
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+            }
+        }};
+    }
+    match (p.x_log, p.y_log) {
+        (false, false) => body!(b.build_cartesian_2d(x0..x1, y0..y1)),
+        (true, false) => body!(b.build_cartesian_2d((x0..x1).log_scale(), y0..y1)),
+        (false, true) => body!(b.build_cartesian_2d(x0..x1, (y0..y1).log_scale())),
+        (true, true) => body!(b.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())),
+    }
+    Ok(())
+}
+
+/// Draws `panels` on a grid of `rows × cols` into the PNG `path` (`width × height`
+/// pixels) under `title`.
+pub fn figure(
+    path: &Path,
+    title: &str,
+    (rows, cols): (usize, usize),
+    (width, height): (u32, u32),
+    panels: &[Panel],
+) -> Result<(), String> {
+    register_font()?;
+    let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
+    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let root = root.titled(title, (FONT, 20)).map_err(|e| fail(&e))?;
+    for (area, p) in root.split_evenly((rows, cols)).iter().zip(panels) {
+        draw_panel(area, p).map_err(|e| fail(&e))?;
+    }
+    root.present().map_err(|e| fail(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_figure_of_every_axis_kind_is_written() {
+        let dir = std::env::temp_dir().join(format!("plot-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let x: Vec<f64> = (1..200).map(|i| i as f64 * 0.01).collect();
+        let y: Vec<f64> = x.iter().map(|v| v.powi(2)).collect();
+        let mut panels = Vec::new();
+        for (x_log, y_log) in [(false, false), (true, false), (false, true), (true, true)] {
+            panels.push(Panel {
+                title: format!("log x {x_log}, log y {y_log}"),
+                x_log,
+                y_log,
+                series: vec![
+                    Series::line("x²", &x, &y, PALETTE[0]),
+                    Series::line("dashed", &x, &x, PALETTE[1]).with(Mark::Dashed),
+                ],
+                ..Default::default()
+            });
+        }
+        panels.push(Panel {
+            title: "pole-zero".into(),
+            unit_circle: true,
+            series: vec![
+                Series::line("poles", &[0.5, 0.5], &[0.3, -0.3], PALETTE[0]).with(Mark::Cross),
+                Series::line("zeros", &[-0.9], &[0.0], PALETTE[1]).with(Mark::Circle),
+            ],
+            ..Default::default()
+        });
+        let path = dir.join("f.png");
+        figure(&path, "test", (3, 2), (900, 900), &panels).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        assert!(bytes.len() > 10_000, "a non-trivial image");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
