@@ -1,1 +1,176 @@
-//! (being written)
+//! The design tools' figures: Bode plots of responses side by side with a pole–zero map,
+//! in the manner of Figures 3.3, 3.4, 3.6 and 3.9 of the dissertation, and coherence.
+//!
+//! Magnitudes are in dB (`20 log10 |G(e^{jθ})|`), phases in degrees, unwrapped along the
+//! grid, frequencies in Hz on a logarithmic axis (the bin at θ = 0 is left out).
+
+use super::C64;
+use crate::plot::{Mark, PALETTE, Panel, Series, figure};
+use std::path::Path;
+
+/// A named response on the figure's grid.
+pub struct Curve<'a> {
+    /// Legend text.
+    pub label: &'a str,
+    /// `G(e^{jθ_k})` on the grid.
+    pub response: &'a [C64],
+    /// Draw dashed.
+    pub dashed: bool,
+}
+
+/// A named set of poles and zeros.
+pub struct PoleZero<'a> {
+    /// Legend text (", poles"/", zeros" appended).
+    pub label: &'a str,
+    /// Poles.
+    pub poles: &'a [C64],
+    /// Zeros.
+    pub zeros: &'a [C64],
+}
+
+/// Phase in degrees, unwrapped along the grid.
+pub fn unwrapped_phase_deg(g: &[C64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(g.len());
+    let mut offset = 0.0;
+    let mut prev: Option<f64> = None;
+    for v in g {
+        let a = v.arg().to_degrees();
+        if let Some(p) = prev {
+            let mut d = a + offset - p;
+            while d > 180.0 {
+                offset -= 360.0;
+                d -= 360.0;
+            }
+            while d < -180.0 {
+                offset += 360.0;
+                d += 360.0;
+            }
+        }
+        let u = a + offset;
+        out.push(u);
+        prev = Some(u);
+    }
+    out
+}
+
+/// Writes a figure with magnitude and phase of `curves` over `hz` and, when `pz` is not
+/// empty, a pole–zero map.
+pub fn bode_figure(
+    path: &Path,
+    title: &str,
+    hz: &[f64],
+    curves: &[Curve<'_>],
+    pz: &[PoleZero<'_>],
+) -> Result<(), String> {
+    let keep: Vec<usize> = (0..hz.len()).filter(|&k| hz[k] > 0.0).collect();
+    let x: Vec<f64> = keep.iter().map(|&k| hz[k]).collect();
+    let mut mag = Panel {
+        title: "magnitude".into(),
+        x_label: "Hz".into(),
+        y_label: "dB".into(),
+        x_log: true,
+        ..Default::default()
+    };
+    let mut phase = Panel {
+        title: "phase".into(),
+        x_label: "Hz".into(),
+        y_label: "degrees".into(),
+        x_log: true,
+        ..Default::default()
+    };
+    for (i, c) in curves.iter().enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        let mark = if c.dashed { Mark::Dashed } else { Mark::Line };
+        let g: Vec<C64> = keep.iter().map(|&k| c.response[k]).collect();
+        let db: Vec<f64> = g.iter().map(|v| 20.0 * v.norm().log10()).collect();
+        mag.series
+            .push(Series::line(c.label, &x, &db, color).with(mark));
+        phase
+            .series
+            .push(Series::line(c.label, &x, &unwrapped_phase_deg(&g), color).with(mark));
+    }
+    let mut panels = vec![mag, phase];
+    if !pz.is_empty() {
+        let mut map = Panel {
+            title: "poles (×) and zeros (o)".into(),
+            x_label: "Re z".into(),
+            y_label: "Im z".into(),
+            unit_circle: true,
+            ..Default::default()
+        };
+        for (i, s) in pz.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            let re = |v: &[C64]| v.iter().map(|c| c.re).collect::<Vec<_>>();
+            let im = |v: &[C64]| v.iter().map(|c| c.im).collect::<Vec<_>>();
+            map.series.push(
+                Series::line(
+                    &format!("{}, poles", s.label),
+                    &re(s.poles),
+                    &im(s.poles),
+                    color,
+                )
+                .with(Mark::Cross),
+            );
+            map.series.push(
+                Series::line(
+                    &format!("{}, zeros", s.label),
+                    &re(s.zeros),
+                    &im(s.zeros),
+                    color,
+                )
+                .with(Mark::Circle),
+            );
+        }
+        panels.push(map);
+        figure(path, title, (1, 3), (1800, 600), &panels)
+    } else {
+        figure(path, title, (2, 1), (1000, 900), &panels)
+    }
+}
+
+/// Writes the multiple coherence of each output over `hz`.
+pub fn coherence_figure(
+    path: &Path,
+    title: &str,
+    hz: &[f64],
+    coherence: &[Vec<f64>],
+) -> Result<(), String> {
+    let keep: Vec<usize> = (0..hz.len()).filter(|&k| hz[k] > 0.0).collect();
+    let x: Vec<f64> = keep.iter().map(|&k| hz[k]).collect();
+    let series = coherence
+        .iter()
+        .enumerate()
+        .map(|(o, c)| {
+            let y: Vec<f64> = keep.iter().map(|&k| c[k]).collect();
+            Series::line(&format!("output {o}"), &x, &y, PALETTE[o % PALETTE.len()])
+        })
+        .collect();
+    let panel = Panel {
+        title: "multiple coherence".into(),
+        x_label: "Hz".into(),
+        y_label: "γ²".into(),
+        x_log: true,
+        y_range: Some((0.0, 1.05)),
+        series,
+        ..Default::default()
+    };
+    figure(path, title, (1, 1), (1000, 450), &[panel])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phase_is_unwrapped_across_the_branch_cut() {
+        // A pure delay of 3 samples: phase −3θ, crossing −180° twice on [0, π].
+        let th: Vec<f64> = (0..100)
+            .map(|k| k as f64 * std::f64::consts::PI / 99.0)
+            .collect();
+        let g: Vec<C64> = th.iter().map(|t| C64::from_polar(1.0, -3.0 * t)).collect();
+        let ph = unwrapped_phase_deg(&g);
+        for (p, t) in ph.iter().zip(&th) {
+            assert!((p + 3.0 * t.to_degrees()).abs() < 1e-9, "{p} at {t}");
+        }
+    }
+}
