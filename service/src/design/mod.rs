@@ -25,6 +25,7 @@
 
 pub mod csvlog;
 pub mod dtf;
+pub mod frf_file;
 pub mod markov;
 pub mod model;
 pub mod plots;
