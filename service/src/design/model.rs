@@ -125,3 +125,58 @@ impl DiscreteModel {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use plant_proxy::scenario;
+
+    /// Two inputs with delays 3 and 5 and a feedthrough on the first: a 2-state plant.
+    const PLANT: &str = r#"
+[rig]
+name = "model-test"
+sample-period = 0.01
+duration = 1.0
+[plant]
+kind = "state-space"
+inputs = 2
+disturbances = 0
+outputs-y = 1
+outputs-z = 1
+input-delays = [3, 5]
+[plant.ss]
+a = [[0.0, 1.0], [-400.0, -4.0]]
+b-u = [[0.0, 0.0], [1.0, -2.0]]
+c-y = [[100.0, 0.0]]
+c-z = [[0.0, 1.0]]
+d-yu = [[0.5, 0.0]]
+"#;
+
+    #[test]
+    fn the_response_is_the_sum_of_the_markov_parameters() {
+        let sc = scenario::parse(PLANT, "test").unwrap();
+        let m = DiscreteModel::from_scenario(&sc, OutputSet::Y).unwrap();
+        let h = m.markov(3000);
+        // Delays: nothing before sample d_j + 1; the late feedthrough shows at d_0 + 1.
+        for k in 0..=3 {
+            assert_eq!(h[k][(0, 0)], 0.0);
+        }
+        for k in 0..=5 {
+            assert_eq!(h[k][(0, 1)], 0.0);
+        }
+        assert!(h[4][(0, 0)].abs() > 0.4 && h[6][(0, 1)] != 0.0);
+        let theta = [0.05, 0.2, 0.7, 2.0, 3.1];
+        let g = m.frf(&theta).unwrap();
+        for (k, &t) in theta.iter().enumerate() {
+            for j in 0..2 {
+                let fir: C64 = h
+                    .iter()
+                    .enumerate()
+                    .map(|(i, hi)| C64::from_polar(hi[(0, j)], -t * i as f64))
+                    .sum();
+                let exact = g.channel(0, j)[k];
+                assert!((fir - exact).norm() < 1e-9 * exact.norm(), "θ = {t}, input {j}");
+            }
+        }
+    }
+}
