@@ -2,12 +2,39 @@
 //!
 //! The same measurement as the RLS rows of `cargo run --release -p latency-bench`
 //! (see `latency_bench::rls_cost`), printed as its own table: fast kernel against the
-//! textbook one, p50/p99/max, at the sizes of issue 3.
+//! textbook one, p50/p99/max, at the sizes of issue 3, plus the fast updates left out by
+//! the cold-cache rule (count and largest).
+//!
+//! The measuring thread is pinned to core 1 (as the RT core of the full bench) and locks
+//! its memory; `SCHED_FIFO` is not requested by default, because a thread that computes
+//! for a minute at real-time priority is throttled by the kernel (`sched_rt_runtime_us`),
+//! which shows up as multi-millisecond gaps. Options (after `--`):
+//! `--core <c>` pins to another core, `--no-pin` leaves the affinity alone,
+//! `--fifo <prio>` also requests `SCHED_FIFO` at that priority.
 
-use latency_bench::rls_cost::{RLS_SIZES, measure, updates_for};
+use ipc_types::rt::{RtRequest, setup_current_thread};
+use latency_bench::rls_cost::{RLS_SIZES, measure_detailed, updates_for};
 
 fn main() {
-    // `cargo bench` passes `--bench`; nothing else to parse.
+    let mut core = Some(1usize);
+    let mut fifo = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--core" => core = args.next().and_then(|v| v.parse().ok()),
+            "--no-pin" => core = None,
+            "--fifo" => fifo = args.next().and_then(|v| v.parse().ok()),
+            // `cargo bench` passes `--bench`; anything else is ignored.
+            _ => {}
+        }
+    }
+    let setup = setup_current_thread(&RtRequest {
+        core,
+        fifo_priority: fifo,
+        mlockall: true,
+        prefault_stack_bytes: 256 * 1024,
+    });
+    println!("{}", setup.describe());
     println!(
         "{:<12} {:>10} {:>10} {:>10} {:>12} {:>12} {:>12} {:>9} {:>9}",
         "(n, p)",
@@ -22,23 +49,27 @@ fn main() {
     );
     for (n, p) in RLS_SIZES {
         let steps = updates_for(n, p, 20_000);
-        match measure(n, p, steps / 10, steps) {
-            Ok((f, t, diff)) => {
+        match measure_detailed(n, p, steps / 10, steps) {
+            Ok(r) => {
+                let (f, t) = (&r.fast, &r.text);
                 let us =
                     |h: &hdrhistogram::Histogram<u64>, q: f64| h.value_at_quantile(q) as f64 / 1e3;
                 println!(
-                    "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>12.2} {:>12.2} {:>12.2} {:>9.2} {:>9.2}   (µs; {} updates; θ agree to {:.1e})",
+                    "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>12.2} {:>12.2} {:>12.2} {:>9.2} {:>9.2}   (µs; {}/{} updates; {} cold left out, max {:.2}; θ agree to {:.1e})",
                     format!("({n}, {p})"),
-                    us(&f, 0.5),
-                    us(&f, 0.99),
+                    us(f, 0.5),
+                    us(f, 0.99),
                     f.max() as f64 / 1e3,
-                    us(&t, 0.5),
-                    us(&t, 0.99),
+                    us(t, 0.5),
+                    us(t, 0.99),
                     t.max() as f64 / 1e3,
-                    us(&t, 0.5) / us(&f, 0.5),
-                    us(&t, 0.99) / us(&f, 0.99),
-                    steps,
-                    diff
+                    us(t, 0.5) / us(f, 0.5),
+                    us(t, 0.99) / us(f, 0.99),
+                    f.len(),
+                    t.len(),
+                    r.cold.len(),
+                    r.cold.max() as f64 / 1e3,
+                    r.diff
                 );
             }
             Err(e) => println!("({n}, {p}): {e}"),

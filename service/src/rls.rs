@@ -24,36 +24,51 @@
 //! P_{k+1} = β P_k − W Wᵀ,        θ_{k+1} = θ_k + W (C⁻¹ e_k),
 //! ```
 //!
-//! because `P_{k+1} φᵀ = L φᵀ (I + φ L φᵀ)⁻¹ = β G S⁻¹` and `β² G S⁻¹ Gᵀ = W Wᵀ`. The cost
-//! is one pass over `P` for `G` and one rank-p pass for the update, `O(n² p)`, with no
-//! `n×n` temporary and no allocation (every buffer is sized in [`Rls::new`]). Entry
-//! `(i, j)` is computed as `β P_ij − Σ_l W_il W_jl` with the same operation order as entry
-//! `(j, i)`, so `P` stays **exactly** symmetric in floating point. For `p = 1` the
-//! "factorization" is a scalar square root; no matrix inverse is formed for any `p`.
+//! because `P_{k+1} φᵀ = L φᵀ (I + φ L φᵀ)⁻¹ = β G S⁻¹` and `β² G S⁻¹ Gᵀ = W Wᵀ`. For
+//! `p = 1` the "factorization" is a scalar square root; no matrix inverse is formed for
+//! any `p`, no `n×n` temporary exists and nothing is allocated (every buffer is sized in
+//! [`Rls::new`]).
+//!
+//! **Deferred rank-p update.** Step `k` does not apply `P_{k+1} = β_k P_k − W_k W_kᵀ`; it
+//! keeps `W_k` and `β_k`, and step `k + 1` applies them in the same sweep over `P` that
+//! computes `G_{k+1} = P_{k+1} φ_{k+1}ᵀ`: each stored entry is read once, updated, written
+//! once and used at once (one read and one write of `P` per step instead of two reads and
+//! a write). Entry `(i, j)` is computed as `(…(β P_ij − W_j0 W_i0) − …) − W_j,p−1 W_i,p−1`
+//! and stored once for both `(i, j)` and `(j, i)`, so `P` stays **exactly** symmetric in
+//! floating point. What `P` the user sees is unaffected: [`Rls::covariance`] applies the
+//! pending update on the fly (bit-for-bit as the next sweep will), [`Rls::trace_p`] is
+//! `tr(P_{k+1})` summed from its diagonal computed in step `k` (`O(n p)`, again
+//! bit-for-bit the stored values), and [`Rls::reset`] discards the pending update.
 //!
 //! # Guard
 //!
 //! A step is rejected and the state reset to `θ_0, P_0` (and the forgetting windows
 //! emptied) when the input `φ_k` or `y_k` is non-finite, the innovation matrix `S` is not
-//! positive definite, or the new `θ`/`P` is non-finite, has a non-positive diagonal
-//! entry, or `tr(P) > trace_limit`. The event is reported in [`RlsStep::reset`] and
-//! counted by [`Rls::resets`]; NaN never enters the state.
+//! positive definite, or the new `θ` is non-finite, or the new `P` has a non-finite or
+//! non-positive diagonal entry or `tr(P) > trace_limit`. The event is reported in
+//! [`RlsStep::reset`] and counted by [`Rls::resets`]; NaN never enters `θ`.
+//!
+//! Timing of the checks: `θ_{k+1}` and the diagonal and trace of `P_{k+1}` are checked in
+//! step `k` itself. The off-diagonal entries of `P_{k+1}` only exist once the deferred
+//! update is applied, in the sweep of step `k + 1`, which checks every entry it writes;
+//! a non-finite one (possible only by overflow of a finite computation, since `W_k`, `β_k`
+//! and the diagonal were finite) rejects step `k + 1`: the state is reset before `P_{k+1}`
+//! is used for anything, the data of step `k + 1` is discarded, and the reset is reported
+//! by that step. [`Rls::covariance`] called in between would show the bad entry.
 //!
 //! # Performance
 //!
-//! Only the upper triangle of `P` is stored, row-packed (`n(n+1)/2` doubles: 360 KB at
-//! `n = 300`, which fits a 512 KB L2 where the full 720 KB matrix does not). The two
-//! `O(n² p)` passes run on the packed rows (`G = P φᵀ` as a symmetric matvec: each stored
-//! entry is read once and feeds a fused dot product and a fused axpy; and the symmetric
-//! rank-p update, each stored entry written once, with `p ≤ 4` unrolled at compile time)
-//! and are written as
-//! plain loops that the compiler vectorizes; the symmetric matvec handles two packed rows
-//! per pass, so each entry of `G` is loaded and stored once per row pair. On x86-64 they
-//! are compiled again with AVX2 (no FMA contraction, bit-identical to the baseline build)
-//! and with AVX2+FMA (explicit fused multiply-adds in the `p ≤ 4` hot loops: different
-//! rounding, still exactly symmetric), selected at run time. `cargo bench -p latency-bench --bench rls` measures it against
-//! [`TextbookRls`] (on the 2-core development VM: p50 65–100 µs per update at
-//! `(n, p) = (300, 3)` and 350–390 µs at `(600, 4)`, 15–35× faster than the textbook one).
+//! Only the upper triangle of `P` is stored, row-packed (`n(n+1)/2` doubles: 361 KB at
+//! `n = 300`, which fits the 1 MB L2 of the development VM with room for the controller).
+//! The sweep (submodule `simd`, `O(n² p)`: `1 + 3p` multiply-adds per stored entry)
+//! is the only part that is not `O(n p)`. With AVX2 and FMA (detected at run time) it runs
+//! as explicit intrinsics for `p ≤ 4`, two packed rows per pass (each vector of `W`, `φ`
+//! and `G` loaded serves both rows) and with the `β` multiplication skipped when `β = 1`
+//! (exact); otherwise as plain loops that the compiler vectorizes.
+//! `cargo bench -p latency-bench --bench rls` measures it against [`TextbookRls`] (on the
+//! 2-core development VM, pinned: p50 ≈ 24 µs and p99 ≈ 45 µs per update at
+//! `(n, p) = (300, 3)`, 11–12 µs at `(300, 1)`, ≈ 145 µs at `(600, 4)` where `P` (1.4 MB)
+//! no longer fits L2; 65–130× faster than the textbook one at `n = 300`).
 //!
 //! [`TextbookRls`] writes the same equations literally (allocating, with an explicit
 //! inverse) and serves as the test oracle and benchmark baseline.
@@ -61,6 +76,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::forgetting::{Forgetting, ForgettingRule, cholesky_in_place};
+
+mod simd;
 
 /// Configuration of an RLS estimator.
 #[derive(Debug, Clone, PartialEq)]
@@ -134,9 +151,16 @@ pub struct Rls {
     trace_limit: f64,
     forgetting: Forgetting,
     theta: Vec<f64>,
-    /// Upper triangle of `P_k`, row-packed: row `i` (`P[i, i..n]`, diagonal first) at
-    /// `[i n − i(i−1)/2 ..][.. n − i]`; `n(n+1)/2` entries, symmetric by construction.
+    /// Upper triangle of `P_{k−1}`-before-the-pending-update, row-packed: row `i`
+    /// (`P[i, i..n]`, diagonal first) at `[i n − i(i−1)/2 ..][.. n − i]`; `n(n+1)/2`
+    /// entries, symmetric by construction. The current `P_k = β_pend cov − W_pend W_pendᵀ`.
     cov: Vec<f64>,
+    /// `W` of the previous step (n×p, column `l` at `[l n .. (l+1) n]`), not yet applied
+    /// to `cov` (zeros after construction and reset).
+    w_pend: Vec<f64>,
+    /// `β` of the previous step, not yet applied to `cov` (1 after construction and reset).
+    beta_pend: f64,
+    /// `tr(P_k)`, the sum of the diagonal of `P_k` exactly as the next sweep will store it.
     trace: f64,
     /// Prior error `e_k` of the last update.
     err: Vec<f64>,
@@ -147,6 +171,8 @@ pub struct Rls {
     /// `C⁻¹ e`.
     z: Vec<f64>,
     resets: u64,
+    /// The compiled form of the `O(n² p)` kernels (detected once, in [`Rls::new`]).
+    level: simd::Level,
 }
 
 impl Rls {
@@ -173,6 +199,9 @@ impl Rls {
             s: vec![0.0; p * p],
             z: vec![0.0; p],
             resets: 0,
+            w_pend: vec![0.0; n * p],
+            beta_pend: 1.0,
+            level: simd::Level::detect(),
         })
     }
 
@@ -214,8 +243,23 @@ impl Rls {
         let beta = self.forgetting.beta_scaled(&self.err, y2);
         let lambda = 1.0 / beta;
 
-        // G = P φᵀ: one symmetric pass over the packed upper triangle of P.
-        simd::g_pass(&self.cov, phi, &mut self.g, n, p);
+        // P_k = β_{k−1} P_{k−1} − W_{k−1} W_{k−1}ᵀ (the deferred update of the previous
+        // step) and G = P_k φᵀ, in one sweep over the packed upper triangle of P. The sweep
+        // also checks every new entry: a non-finite off-diagonal entry of P_k (its diagonal
+        // was checked in the previous step) is caught here.
+        let finite = simd::fused_pass(
+            self.level,
+            &mut self.cov,
+            &self.w_pend,
+            self.beta_pend,
+            phi,
+            &mut self.g,
+            n,
+            p,
+        );
+        if !finite {
+            return self.fail(lambda, error_norm);
+        }
 
         // S = I + β φ G (symmetric: lower triangle computed, then mirrored).
         for l in 0..p {
@@ -259,12 +303,16 @@ impl Rls {
             axpy(self.z[l], &self.g[l * n..(l + 1) * n], &mut self.theta);
         }
 
-        // P_{k+1} = β P_k − W Wᵀ on the packed upper triangle (symmetric by construction).
-        let (trace, finite, min_diag) = simd::rank_update(&mut self.cov, &self.g, n, p, beta);
+        // P_{k+1} = β P_k − W Wᵀ is deferred to the next sweep; its diagonal (O(n p)) is
+        // computed now, exactly as the sweep will store it, for the guard and tr(P).
+        let (trace, min_diag, diag_ok) =
+            simd::next_diag(self.level, &self.cov, &self.g, beta, n, p);
         let theta_ok = self.theta.iter().all(|x| x.is_finite());
-        if !(finite && theta_ok && min_diag > 0.0 && trace <= self.trace_limit) {
+        if !(diag_ok && theta_ok && min_diag > 0.0 && trace <= self.trace_limit) {
             return self.fail(lambda, error_norm);
         }
+        std::mem::swap(&mut self.g, &mut self.w_pend);
+        self.beta_pend = beta;
         self.trace = trace;
         RlsStep {
             lambda,
@@ -298,15 +346,23 @@ impl Rls {
     }
 
     /// The covariance `P_k` (n×n, exactly symmetric), expanded from the packed triangle
-    /// kept internally. Allocates: meant for tests and inspection, not the hot path.
+    /// kept internally with the deferred update `β P − W Wᵀ` of the last step applied on
+    /// the fly (bit-for-bit as the next update will apply it). Allocates: meant for tests
+    /// and inspection, not the hot path.
     pub fn covariance(&self) -> DMatrix<f64> {
-        let n = self.n;
+        let (n, p) = (self.n, self.p);
         let mut m = DMatrix::zeros(n, n);
         let mut off = 0;
         for i in 0..n {
             for (t, &v) in self.cov[off..off + n - i].iter().enumerate() {
-                m[(i, i + t)] = v;
-                m[(i + t, i)] = v;
+                let j = i + t;
+                let v = if self.level.fma() {
+                    simd::entry::<true>(self.beta_pend, v, &self.w_pend, n, p, i, j)
+                } else {
+                    simd::entry::<false>(self.beta_pend, v, &self.w_pend, n, p, i, j)
+                };
+                m[(i, j)] = v;
+                m[(j, i)] = v;
             }
             off += n - i;
         }
@@ -329,6 +385,8 @@ impl Rls {
     pub fn reset(&mut self) {
         self.theta.copy_from_slice(&self.theta0);
         fill_packed_identity(&mut self.cov, self.n, self.p0);
+        self.w_pend.fill(0.0);
+        self.beta_pend = 1.0;
         self.trace = self.n as f64 * self.p0;
         self.forgetting.reset();
     }
@@ -377,349 +435,12 @@ fn fill_packed_identity(pk: &mut [f64], n: usize, p0: f64) {
     }
 }
 
-/// `G = P φᵀ` (column `l` of `G` at `g[l n .. (l+1) n]`) from the row-packed upper
-/// triangle `pk` of the symmetric `P`: every stored entry `P_ij` (`j ≥ i`) is read once
-/// and contributes `P_ij φ_l[j]` to `G[i, l]` (a fused dot product along row `i`) and, for
-/// `j > i`, `P_ij φ_l[i]` to `G[j, l]` (a fused axpy into the rest of column `l` of `G`).
-#[inline(always)]
-fn g_pass_impl<const FMA: bool>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
-    match p {
-        1 => g_pass_one_row::<1>(pk, phi, g, n),
-        2 => g_pass_fixed::<2, FMA>(pk, phi, g, n),
-        3 => g_pass_fixed::<3, FMA>(pk, phi, g, n),
-        4 => g_pass_fixed::<4, FMA>(pk, phi, g, n),
-        _ => {
-            let g = &mut g[..n * p];
-            g.fill(0.0);
-            let mut off = 0;
-            for i in 0..n {
-                let row = &pk[off..off + n - i];
-                off += n - i;
-                for l in 0..p {
-                    let f = &phi[l * n..(l + 1) * n];
-                    let gl = &mut g[l * n..(l + 1) * n];
-                    let s = row[0] * f[i] + dot(&row[1..], &f[i + 1..]);
-                    gl[i] += s;
-                    axpy(f[i], &row[1..], &mut gl[i + 1..]);
-                }
-            }
-        }
-    }
-}
-
-#[inline(always)]
-fn g_pass_fixed<const P: usize, const FMA: bool>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize) {
-    let rows: [&[f64]; P] = std::array::from_fn(|l| &phi[l * n..][..n]);
-    let g = &mut g[..P * n];
-    g.fill(0.0);
-    let mut chunks = g.chunks_exact_mut(n);
-    let mut gs: [&mut [f64]; P] = std::array::from_fn(|_| chunks.next().unwrap());
-    let mut off = 0;
-    let mut i = 0;
-    // Two packed rows (i, i+1) per pass: each loaded entry of G feeds both rows' axpys,
-    // halving the loads and stores of G.
-    while i + 1 < n {
-        let len_a = n - i;
-        let row_a = &pk[off..][..len_a];
-        let row_b = &pk[off + len_a..][..len_a - 1];
-        off += 2 * len_a - 1;
-        let fa: [f64; P] = std::array::from_fn(|l| rows[l][i]);
-        let fb: [f64; P] = std::array::from_fn(|l| rows[l][i + 1]);
-        // Columns j = i+2 .. n are shared by both rows.
-        let m = len_a - 2;
-        let ca_all = &row_a[2..][..m];
-        let cb_all = &row_b[1..][..m];
-        let mut acc_a = [[0.0; LANES2]; P];
-        let mut acc_b = [[0.0; LANES2]; P];
-        let mut heads: [&mut [f64]; P] = std::array::from_fn(|_| Default::default());
-        let mut gsl: [&mut [f64]; P] = std::array::from_fn(|_| Default::default());
-        for (l, gl) in gs.iter_mut().enumerate() {
-            let (h, t) = gl.split_at_mut(i + 2);
-            heads[l] = &mut h[i..];
-            gsl[l] = &mut t[..m];
-        }
-        let fr: [&[f64]; P] = std::array::from_fn(|l| &rows[l][i + 2..][..m]);
-        let ca_it = ca_all.chunks_exact(LANES2);
-        let cb_it = cb_all.chunks_exact(LANES2);
-        let body = m - m % LANES2;
-        for (t, (ca, cb)) in ca_it.zip(cb_it).enumerate() {
-            let ca: &[f64; LANES2] = ca.try_into().unwrap();
-            let cb: &[f64; LANES2] = cb.try_into().unwrap();
-            let t = t * LANES2;
-            for l in 0..P {
-                let f: &[f64; LANES2] = fr[l][t..t + LANES2].try_into().unwrap();
-                for k in 0..LANES2 {
-                    acc_a[l][k] = madd::<FMA>(ca[k], f[k], acc_a[l][k]);
-                    acc_b[l][k] = madd::<FMA>(cb[k], f[k], acc_b[l][k]);
-                }
-                let gl: &mut [f64; LANES2] = (&mut gsl[l][t..t + LANES2]).try_into().unwrap();
-                for k in 0..LANES2 {
-                    gl[k] = madd::<FMA>(fb[l], cb[k], madd::<FMA>(fa[l], ca[k], gl[k]));
-                }
-            }
-        }
-        for l in 0..P {
-            let mut sa = hsum(&acc_a[l]);
-            let mut sb = hsum(&acc_b[l]);
-            for u in body..m {
-                sa += ca_all[u] * fr[l][u];
-                sb += cb_all[u] * fr[l][u];
-                gsl[l][u] += fa[l] * ca_all[u] + fb[l] * cb_all[u];
-            }
-            // Column i+1: P_{i,i+1} couples rows i and i+1; diagonals P_ii, P_{i+1,i+1}.
-            let pab = row_a[1];
-            heads[l][0] += row_a[0] * fa[l] + pab * fb[l] + sa;
-            heads[l][1] += pab * fa[l] + row_b[0] * fb[l] + sb;
-        }
-        i += 2;
-    }
-    if i < n {
-        // Last row alone: only its diagonal entry.
-        let d = pk[off];
-        for l in 0..P {
-            gs[l][i] += d * rows[l][i];
-        }
-    }
-}
-
 /// `a · b + c`: a fused multiply-add (one rounding) when `FMA` (only instantiated inside
-/// functions compiled with the `fma` target feature), else a multiply then an add.
+/// functions compiled with the `fma` target feature, or off the hot path), else a multiply
+/// then an add.
 #[inline(always)]
 fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     if FMA { a.mul_add(b, c) } else { a * b + c }
-}
-
-/// Lanes of the fused two-row dot products.
-const LANES2: usize = 4;
-
-#[inline(always)]
-fn hsum<const L: usize>(a: &[f64; L]) -> f64 {
-    let mut s = 0.0;
-    let mut k = 0;
-    while k < L {
-        s += a[k];
-        k += 1;
-    }
-    s
-}
-
-/// Lanes of the fused dot products (two AVX2 registers per output).
-const LANES: usize = 8;
-
-/// One packed row per pass (used for `p = 1`, where the two-row pass measured no faster).
-#[inline(always)]
-fn g_pass_one_row<const P: usize>(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize) {
-    let rows: [&[f64]; P] = std::array::from_fn(|l| &phi[l * n..][..n]);
-    let g = &mut g[..P * n];
-    g.fill(0.0);
-    let mut chunks = g.chunks_exact_mut(n);
-    let gs: [&mut [f64]; P] = std::array::from_fn(|_| chunks.next().unwrap());
-    let mut off = 0;
-    for i in 0..n {
-        let len = n - i;
-        let row = &pk[off..][..len];
-        off += len;
-        let fi: [f64; P] = std::array::from_fn(|l| rows[l][i]);
-        // Off-diagonal part of row i: columns j = i+1 .. n.
-        let m = len - 1;
-        let rest = &row[1..][..m];
-        let fr: [&[f64]; P] = std::array::from_fn(|l| &rows[l][i + 1..][..m]);
-        let body = m - m % LANES;
-        let mut acc = [[0.0; LANES]; P];
-        let mut t = 0;
-        while t < body {
-            let c: &[f64; LANES] = rest[t..t + LANES].try_into().unwrap();
-            for l in 0..P {
-                let f: &[f64; LANES] = fr[l][t..t + LANES].try_into().unwrap();
-                for k in 0..LANES {
-                    acc[l][k] += c[k] * f[k];
-                }
-                let gl: &mut [f64; LANES] = (&mut gs[l][i + 1 + t..i + 1 + t + LANES])
-                    .try_into()
-                    .unwrap();
-                for k in 0..LANES {
-                    gl[k] += fi[l] * c[k];
-                }
-            }
-            t += LANES;
-        }
-        for l in 0..P {
-            let a = &acc[l];
-            let mut s = ((a[0] + a[4]) + (a[1] + a[5])) + ((a[2] + a[6]) + (a[3] + a[7]));
-            for u in body..m {
-                s += rest[u] * fr[l][u];
-                gs[l][i + 1 + u] += fi[l] * rest[u];
-            }
-            gs[l][i] += row[0] * fi[l] + s;
-        }
-    }
-}
-
-/// Runtime dispatch of the two `O(n² p)` passes: the same scalar code compiled for the
-/// baseline target, with AVX2, and with AVX2+FMA. Rust never contracts `a * b + c` into an
-/// FMA, so the first two are bit-identical; the FMA variant uses `mul_add` (via `madd`) in
-/// the `p ≤ 4` loops and rounds differently (well within the 1e-10 test tolerance).
-mod simd {
-    /// `G = P φᵀ`, see `g_pass_impl`.
-    pub(super) fn g_pass(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            if std::arch::is_x86_feature_detected!("fma") {
-                // SAFETY: the CPU supports AVX2 and FMA (checked just above).
-                return unsafe { g_pass_avx2_fma(pk, phi, g, n, p) };
-            }
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { g_pass_avx2(pk, phi, g, n, p) };
-        }
-        super::g_pass_impl::<false>(pk, phi, g, n, p)
-    }
-
-    /// `P ← β P − W Wᵀ`, see `rank_update_impl`.
-    pub(super) fn rank_update(
-        pk: &mut [f64],
-        w: &[f64],
-        n: usize,
-        p: usize,
-        beta: f64,
-    ) -> (f64, bool, f64) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            if std::arch::is_x86_feature_detected!("fma") {
-                // SAFETY: the CPU supports AVX2 and FMA (checked just above).
-                return unsafe { rank_update_avx2_fma(pk, w, n, p, beta) };
-            }
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { rank_update_avx2(pk, w, n, p, beta) };
-        }
-        super::rank_update_impl::<false>(pk, w, n, p, beta)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn g_pass_avx2(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
-        super::g_pass_impl::<false>(pk, phi, g, n, p)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn rank_update_avx2(
-        pk: &mut [f64],
-        w: &[f64],
-        n: usize,
-        p: usize,
-        beta: f64,
-    ) -> (f64, bool, f64) {
-        super::rank_update_impl::<false>(pk, w, n, p, beta)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn g_pass_avx2_fma(pk: &[f64], phi: &[f64], g: &mut [f64], n: usize, p: usize) {
-        super::g_pass_impl::<true>(pk, phi, g, n, p)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn rank_update_avx2_fma(
-        pk: &mut [f64],
-        w: &[f64],
-        n: usize,
-        p: usize,
-        beta: f64,
-    ) -> (f64, bool, f64) {
-        super::rank_update_impl::<true>(pk, w, n, p, beta)
-    }
-}
-
-/// `P ← β P − W Wᵀ` on the row-packed upper triangle `pk` (`W` columns of length `n`).
-///
-/// Entry `(i, j)`, `j ≥ i`, becomes `(…((β P_ij − W_j0 W_i0) − W_j1 W_i1) …) − W_j,p−1 W_i,p−1`
-/// and is stored once, so `P` is symmetric by construction. Each packed row is written
-/// in one contiguous vectorizable pass. Returns `(trace, all_finite, min_diag)`.
-#[inline(always)]
-fn rank_update_impl<const FMA: bool>(
-    pk: &mut [f64],
-    w: &[f64],
-    n: usize,
-    p: usize,
-    beta: f64,
-) -> (f64, bool, f64) {
-    match p {
-        1 => rank_update_fixed::<1, FMA>(pk, w, n, beta),
-        2 => rank_update_fixed::<2, FMA>(pk, w, n, beta),
-        3 => rank_update_fixed::<3, FMA>(pk, w, n, beta),
-        4 => rank_update_fixed::<4, FMA>(pk, w, n, beta),
-        _ => rank_update_passes(pk, w, n, p, beta),
-    }
-}
-
-/// [`rank_update_impl`] for a compile-time `p`: one fused pass per packed row, with
-/// exactly the same operation order as the multi-pass version.
-#[inline(always)]
-fn rank_update_fixed<const P: usize, const FMA: bool>(
-    pk: &mut [f64],
-    w: &[f64],
-    n: usize,
-    beta: f64,
-) -> (f64, bool, f64) {
-    let cols: [&[f64]; P] = std::array::from_fn(|l| &w[l * n..][..n]);
-    let mut trace = 0.0;
-    let mut min_diag = f64::INFINITY;
-    let mut finite = true;
-    let mut off = 0;
-    for i in 0..n {
-        let len = n - i;
-        let row = &mut pk[off..][..len];
-        off += len;
-        let wi: [f64; P] = std::array::from_fn(|l| cols[l][i]);
-        let ws: [&[f64]; P] = std::array::from_fn(|l| &cols[l][i..][..len]);
-        let mut ok = true;
-        for t in 0..len {
-            let mut x = beta * row[t];
-            for l in 0..P {
-                x = madd::<FMA>(-ws[l][t], wi[l], x);
-            }
-            row[t] = x;
-            ok &= x.is_finite();
-        }
-        finite &= ok;
-        let d = row[0];
-        trace += d;
-        min_diag = min_diag.min(d);
-    }
-    (trace, finite, min_diag)
-}
-
-/// [`rank_update_impl`] for any `p`: `p + 1` vectorizable passes per packed row (in L1).
-#[inline(always)]
-fn rank_update_passes(
-    pk: &mut [f64],
-    w: &[f64],
-    n: usize,
-    p: usize,
-    beta: f64,
-) -> (f64, bool, f64) {
-    let mut trace = 0.0;
-    let mut min_diag = f64::INFINITY;
-    let mut finite = true;
-    let mut off = 0;
-    for i in 0..n {
-        let len = n - i;
-        let row = &mut pk[off..][..len];
-        off += len;
-        for v in row.iter_mut() {
-            *v *= beta;
-        }
-        for wl in w.chunks_exact(n).take(p) {
-            axpy(-wl[i], &wl[i..], row);
-        }
-        // Branch-free, vectorizable finiteness check (NaN or ±∞ anywhere ⇒ false).
-        finite &= row.iter().fold(true, |ok, x| ok & x.is_finite());
-        let d = row[0];
-        trace += d;
-        min_diag = min_diag.min(d);
-    }
-    (trace, finite, min_diag)
 }
 
 /// The RLS-VRF equations (2.12)–(2.14) written literally with nalgebra (allocating, with
