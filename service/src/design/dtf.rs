@@ -189,7 +189,10 @@ impl Dtf {
 
 /// Roots of a polynomial in descending powers (leading zeros ignored).
 fn roots(coeffs: &[f64]) -> Result<Vec<C64>, String> {
-    let first = coeffs.iter().position(|&c| c != 0.0).ok_or("the zero polynomial has no roots")?;
+    let first = coeffs
+        .iter()
+        .position(|&c| c != 0.0)
+        .ok_or("the zero polynomial has no roots")?;
     let c = &coeffs[first..];
     let n = c.len() - 1;
     if n == 0 {
@@ -215,10 +218,19 @@ fn poly_from_roots(r: &[C64]) -> Vec<f64> {
 /// A grid must be finite, strictly increasing and within `[0, π]`.
 fn check_grid(theta: &[f64], what: &str) -> Result<(), String> {
     if theta.len() < 2 {
-        return Err(format!("{what}: the grid needs at least 2 points, got {}", theta.len()));
+        return Err(format!(
+            "{what}: the grid needs at least 2 points, got {}",
+            theta.len()
+        ));
     }
-    if let Some(k) = theta.iter().position(|t| !(t.is_finite() && (0.0..=PI + 1e-12).contains(t))) {
-        return Err(format!("{what}: θ[{k}] = {} is not within [0, π]", theta[k]));
+    if let Some(k) = theta
+        .iter()
+        .position(|t| !(t.is_finite() && (0.0..=PI + 1e-12).contains(t)))
+    {
+        return Err(format!(
+            "{what}: θ[{k}] = {} is not within [0, π]",
+            theta[k]
+        ));
     }
     if let Some(k) = theta.windows(2).position(|w| w[1] <= w[0]) {
         return Err(format!(
@@ -240,8 +252,14 @@ fn check_response(theta: &[f64], g: &[C64], what: &str) -> Result<(), String> {
             theta.len()
         ));
     }
-    if let Some(k) = g.iter().position(|v| !(v.re.is_finite() && v.im.is_finite())) {
-        return Err(format!("{what}: the response at θ = {} is not finite", theta[k]));
+    if let Some(k) = g
+        .iter()
+        .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+    {
+        return Err(format!(
+            "{what}: the response at θ = {} is not finite",
+            theta[k]
+        ));
     }
     Ok(())
 }
@@ -255,7 +273,9 @@ fn check_delta(delta: f64) -> Result<(), String> {
     if delta.is_finite() && delta > 0.0 && delta <= PI {
         Ok(())
     } else {
-        Err(format!("window half-width Δ = {delta} rad/sample must be in (0, π]"))
+        Err(format!(
+            "window half-width Δ = {delta} rad/sample must be in (0, π]"
+        ))
     }
 }
 
@@ -267,7 +287,10 @@ fn integrate_linear(theta: &[f64], g: &[C64], lo: f64, hi: f64) -> C64 {
         g[i] * (1.0 - s) + g[i + 1] * s
     };
     let last = theta.len() - 2;
-    let mut i = theta.partition_point(|&t| t <= lo).saturating_sub(1).min(last);
+    let mut i = theta
+        .partition_point(|&t| t <= lo)
+        .saturating_sub(1)
+        .min(last);
     let mut sum = C64::new(0.0, 0.0);
     while i <= last && theta[i] < hi {
         let a = theta[i].max(lo);
@@ -305,7 +328,10 @@ pub fn windowed_average(theta: &[f64], g: &[C64], delta: f64) -> Result<Vec<C64>
                 ));
             }
             let (lo, hi) = (lo.max(first), hi.min(last));
-            let inside = theta.iter().filter(|&&v| v >= lo - tol && v <= hi + tol).count();
+            let inside = theta
+                .iter()
+                .filter(|&&v| v >= lo - tol && v <= hi + tol)
+                .count();
             if inside < MIN_POINTS_PER_WINDOW {
                 return Err(format!(
                     "{what}: only {inside} grid points in the window [{lo:.6}, {hi:.6}] at \
@@ -394,7 +420,10 @@ fn weighted_ls(a: DMatrix<f64>, b: DVector<f64>) -> Result<DVector<f64>, String>
         .svd(true, true)
         .solve(&b, 1e-14)
         .map_err(|e| format!("least squares: {e}"))?;
-    Ok(DVector::from_iterator(x.len(), x.iter().zip(&scale).map(|(v, s)| v / s)))
+    Ok(DVector::from_iterator(
+        x.len(),
+        x.iter().zip(&scale).map(|(v, s)| v / s),
+    ))
 }
 
 /// Fits `Ĝ(z) = (b_0 z^m + … + b_m)/(z^n + a_1 z^{n−1} + … + a_n)` (relative degree
@@ -425,7 +454,9 @@ pub fn fit_iterations(
     check_grid(theta, what)?;
     check_response(theta, target, what)?;
     if m > n {
-        return Err(format!("{what}: {m} zeros exceed {n} poles (the DTF must be proper)"));
+        return Err(format!(
+            "{what}: {m} zeros exceed {n} poles (the DTF must be proper)"
+        ));
     }
     let unknowns = m + 1 + n;
     if 2 * theta.len() < unknowns {
@@ -565,8 +596,12 @@ impl LogCost<'_> {
         self.z
             .iter()
             .map(|&z| {
-                let num = t.iter().fold(C64::new(1.0, 0.0), |acc, &v| acc * (z + MAX_ROOT * v.tanh()));
-                let den = s.iter().fold(C64::new(1.0, 0.0), |acc, &v| acc * (z + MAX_ROOT * v.tanh()));
+                let num = t.iter().fold(C64::new(1.0, 0.0), |acc, &v| {
+                    acc * (z + MAX_ROOT * v.tanh())
+                });
+                let den = s.iter().fold(C64::new(1.0, 0.0), |acc, &v| {
+                    acc * (z + MAX_ROOT * v.tanh())
+                });
                 num / den
             })
             .collect()
@@ -633,9 +668,15 @@ fn nelder_mead(problem: &LogCost<'_>, x0: &[f64], step: f64) -> Result<(Vec<f64>
 /// Starting points in root space: poles `−a` and zeros `−b` spread around a few values.
 fn starts(poles: usize, zeros: usize) -> Vec<Vec<f64>> {
     let pole_at = [0.8, 0.4, 0.0, -0.4, -0.8];
-    let zero_at: &[f64] = if zeros == 0 { &[0.0] } else { &[-0.8, 0.0, 0.8] };
+    let zero_at: &[f64] = if zeros == 0 {
+        &[0.0]
+    } else {
+        &[-0.8, 0.0, 0.8]
+    };
     let to_param = |root: f64| (-root / MAX_ROOT).clamp(-0.99, 0.99).atanh();
-    let spread = |c: f64, i: usize| (c - 0.15 * i as f64 * if c >= 0.0 { 1.0 } else { -1.0 }).clamp(-0.95, 0.95);
+    let spread = |c: f64, i: usize| {
+        (c - 0.15 * i as f64 * if c >= 0.0 { 1.0 } else { -1.0 }).clamp(-0.95, 0.95)
+    };
     let mut out = Vec::new();
     for &p in &pole_at {
         for &q in zero_at {
@@ -705,9 +746,18 @@ pub fn optimize_all(
             let (x, _) = best.expect("at least one start");
             let (gain, cost) = problem.gain_and_cost(&x);
             let (s, t) = x.split_at(n);
-            let pole_roots: Vec<C64> = s.iter().map(|v| C64::new(-MAX_ROOT * v.tanh(), 0.0)).collect();
-            let zero_roots: Vec<C64> = t.iter().map(|v| C64::new(-MAX_ROOT * v.tanh(), 0.0)).collect();
-            let num: Vec<f64> = poly_from_roots(&zero_roots).iter().map(|c| c * gain).collect();
+            let pole_roots: Vec<C64> = s
+                .iter()
+                .map(|v| C64::new(-MAX_ROOT * v.tanh(), 0.0))
+                .collect();
+            let zero_roots: Vec<C64> = t
+                .iter()
+                .map(|v| C64::new(-MAX_ROOT * v.tanh(), 0.0))
+                .collect();
+            let num: Vec<f64> = poly_from_roots(&zero_roots)
+                .iter()
+                .map(|c| c * gain)
+                .collect();
             let dtf = Dtf::new(num, poly_from_roots(&pole_roots))?;
             candidates.push(Candidate {
                 poles: n,
@@ -761,4 +811,4 @@ pub fn linear_fit_error(theta: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, Stri
 }
 
 mod example;
-pub use example::{Example341, example_3_41};
+pub use example::{EXAMPLE_LINEAR_POINTS, EXAMPLE_WINDOW_INTERVALS, Example341, example_3_41};

@@ -46,7 +46,9 @@ fn search_length(model: &DiscreteModel) -> usize {
 
 /// The largest `|H_i(o, j)|` over the Markov parameters `h`.
 fn largest_entry(h: &[DMatrix<f64>]) -> f64 {
-    h.iter().flat_map(|m| m.iter()).fold(0.0_f64, |acc, v| acc.max(v.abs()))
+    h.iter()
+        .flat_map(|m| m.iter())
+        .fold(0.0_f64, |acc, v| acc.max(v.abs()))
 }
 
 /// The first nonzero Markov parameter of `model`, matrix-wise (see the module docs):
@@ -120,7 +122,10 @@ impl FirTarget {
         let (d, hd) = first_nonzero(model, rel_tol)?;
         let mut markov = vec![DMatrix::zeros(hd.nrows(), hd.ncols()); d];
         markov.push(hd);
-        Ok(Self { markov, ts: model.ts })
+        Ok(Self {
+            markov,
+            ts: model.ts,
+        })
     }
 
     /// The order `n_f` (the number of Markov parameters minus one).
@@ -264,7 +269,10 @@ modes = [
         let (d, hd) = first_nonzero(&model, 1e-9).unwrap();
         assert_eq!(d, 4, "input 0 delayed 3 samples plus one of the hold");
         assert_eq!(hd, model.markov(5)[4]);
-        assert!(hd.column(1).iter().all(|&v| v == 0.0), "input 1 is still delayed");
+        assert!(
+            hd.column(1).iter().all(|&v| v == 0.0),
+            "input 1 is still delayed"
+        );
         let per = first_nonzero_per_channel(&model, 1e-9).unwrap();
         let idx: Vec<usize> = per.iter().map(|c| c.unwrap().0).collect();
         assert_eq!(idx, vec![4, 6, 4, 6]);
@@ -286,10 +294,22 @@ modes = [
         for j in 0..2 {
             let (e, f, s) = (exact.channel(0, j), fir.channel(0, j), short.channel(0, j));
             let peak = e.iter().fold(0.0_f64, |a, v| a.max(v.norm()));
-            let err_long = e.iter().zip(f).fold(0.0_f64, |a, (x, y)| a.max((x - y).norm()));
-            let err_short = e.iter().zip(s).fold(0.0_f64, |a, (x, y)| a.max((x - y).norm()));
-            assert!(err_long < 1e-3 * peak, "channel {j}: {err_long} vs peak {peak}");
-            assert!(err_short > 0.1 * peak, "a 30-tap FIR cannot hold a lightly damped mode");
+            let err_long = e
+                .iter()
+                .zip(f)
+                .fold(0.0_f64, |a, (x, y)| a.max((x - y).norm()));
+            let err_short = e
+                .iter()
+                .zip(s)
+                .fold(0.0_f64, |a, (x, y)| a.max((x - y).norm()));
+            assert!(
+                err_long < 1e-3 * peak,
+                "channel {j}: {err_long} vs peak {peak}"
+            );
+            assert!(
+                err_short > 0.1 * peak,
+                "a 30-tap FIR cannot hold a lightly damped mode"
+            );
         }
     }
 }

@@ -40,7 +40,10 @@
 //! tests assert properties of the averaged DTF (stability, relative degree, fit error, the
 //! phase trend, poles near the resonance frequency) rather than the printed coefficients.
 
-use super::{Dtf, ZeroCount, default_log_grid, fit, fit_iterations, linear_fit_error, log_cost, optimize_all, windowed_average_of};
+use super::{
+    Dtf, ZeroCount, default_log_grid, fit, fit_iterations, linear_fit_error, log_cost,
+    optimize_all, windowed_average_of,
+};
 use crate::design::C64;
 use plant_proxy::lti::Tf;
 use std::f64::consts::PI;
@@ -104,8 +107,12 @@ pub fn example_3_41() -> Result<Example341, String> {
 
     let delta = 10.0 * PI * ts;
     let linear_grid = crate::design::grid(0.0, PI, EXAMPLE_LINEAR_POINTS, false)?;
-    let averaged_response =
-        windowed_average_of(|nu| gd.eval(nu), &linear_grid, delta, EXAMPLE_WINDOW_INTERVALS)?;
+    let averaged_response = windowed_average_of(
+        |nu| gd.eval(nu),
+        &linear_grid,
+        delta,
+        EXAMPLE_WINDOW_INTERVALS,
+    )?;
     let m = gd.order() - gd.relative_degree();
     let averaged = fit(&linear_grid, &averaged_response, None, 2, m)?;
     let levy = fit_iterations(&linear_grid, &averaged_response, None, 2, m, 1)?;
@@ -115,7 +122,12 @@ pub fn example_3_41() -> Result<Example341, String> {
 
     let log_grid = default_log_grid();
     let response = gd.response(&log_grid);
-    let opt = optimize_all(&log_grid, &response, 1, ZeroCount::RelativeDegree(gd.relative_degree()))?;
+    let opt = optimize_all(
+        &log_grid,
+        &response,
+        1,
+        ZeroCount::RelativeDegree(gd.relative_degree()),
+    )?;
     let printed_3_48_cost = log_cost(&log_grid, &response, &printed_3_48)?;
     Ok(Example341 {
         ts,
@@ -152,7 +164,11 @@ fn poly(c: &[f64]) -> String {
         } else {
             s.push_str(&format!(" {sign} "));
         }
-        let coef = if mag == 1.0 && p > 0 { String::new() } else { format!("{mag:.6}") };
+        let coef = if mag == 1.0 && p > 0 {
+            String::new()
+        } else {
+            format!("{mag:.6}")
+        };
         let sep = if coef.is_empty() || p == 0 { "" } else { " " };
         match p {
             0 => s.push_str(&coef),
@@ -208,20 +224,35 @@ impl Example341 {
             self.linear_grid.len()
         ));
         s.push_str(&line("SK fit (this code)", &self.averaged));
-        s.push_str(&format!("  {:<22} relative RMS error to Ḡ_d {:.4}\n", "", self.averaged_fit_error));
+        s.push_str(&format!(
+            "  {:<22} relative RMS error to Ḡ_d {:.4}\n",
+            "", self.averaged_fit_error
+        ));
         s.push_str(&line("Levy (1 SK iteration)", &self.levy));
-        s.push_str(&format!("  {:<22} relative RMS error to Ḡ_d {:.4}\n", "", self.levy_fit_error));
+        s.push_str(&format!(
+            "  {:<22} relative RMS error to Ḡ_d {:.4}\n",
+            "", self.levy_fit_error
+        ));
         s.push_str(&line("printed (3.43)", &self.printed_3_43));
-        s.push_str(&format!("  {:<22} relative RMS error to Ḡ_d {:.4}\n", "", self.printed_3_43_fit_error));
+        s.push_str(&format!(
+            "  {:<22} relative RMS error to Ḡ_d {:.4}\n",
+            "", self.printed_3_43_fit_error
+        ));
         s.push_str(&format!(
             "\n§3.2.2.1 optimization, n̂_max = 1, {} log-spaced points {:.5}…π rad/sample\n",
             self.log_grid.len(),
             self.log_grid[0]
         ));
         s.push_str(&line("optimized (this code)", &self.optimized));
-        s.push_str(&format!("  {:<22} relative cost (3.44) {:.6}\n", "", self.optimized_cost));
+        s.push_str(&format!(
+            "  {:<22} relative cost (3.44) {:.6}\n",
+            "", self.optimized_cost
+        ));
         s.push_str(&line("printed (3.48)", &self.printed_3_48));
-        s.push_str(&format!("  {:<22} relative cost (3.44) {:.6}\n", "", self.printed_3_48_cost));
+        s.push_str(&format!(
+            "  {:<22} relative cost (3.44) {:.6}\n",
+            "", self.printed_3_48_cost
+        ));
         s
     }
 }
