@@ -41,6 +41,9 @@
 //! The default weights `w_k` are the trapezoid weights of the grid, so the cost
 //! approximates `∫ |B/A − Ḡ|² dθ`.
 //!
+//! [`averaged_dtfs`] does both steps for every channel of an [`Frf`] (MIMO: channel by
+//! channel, as in the dissertation).
+//!
 //! ## Optimization, §3.2.2
 //!
 //! ```text
@@ -64,6 +67,7 @@
 //! crate from several starting points. Every `(n̂, m̂)` allowed by [`ZeroCount`] is tried
 //! and the lowest cost wins (a higher order must lower the cost by more than a relative
 //! `10⁻⁹` to replace a lower one).
+//! [`optimized_dtfs`] does it for every channel of an [`Frf`].
 
 use super::{C64, Frf, eval_tf};
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
@@ -337,7 +341,7 @@ pub fn windowed_average(theta: &[f64], g: &[C64], delta: f64) -> Result<Vec<C64>
                     "{what}: only {inside} grid points in the window [{lo:.6}, {hi:.6}] at \
                      θ = {t:.6} (Δ = {delta} rad/sample); at least {MIN_POINTS_PER_WINDOW} \
                      are needed: use a grid finer than {:.3e} rad/sample",
-                    delta / MIN_POINTS_PER_WINDOW as f64
+                    delta / (MIN_POINTS_PER_WINDOW - 1) as f64
                 ));
             }
             Ok(integrate_linear(theta, g, lo, hi) / (hi - lo))
@@ -808,6 +812,41 @@ pub fn linear_fit_error(theta: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, Stri
         n += w[k] * g[k].norm_sqr();
     }
     Ok((e / n).sqrt())
+}
+
+/// The windowed-average DTF of every channel of `frf` (MIMO: channel by channel, §3.2.1):
+/// (3.40) with half-width `delta` rad/sample on the FRF's own grid ([`windowed_average`],
+/// so the grid must run from 0 to π), then [`fit`] with `n` poles and `m` zeros.
+/// Channel-major, like [`Frf::response`].
+pub fn averaged_dtfs(frf: &Frf, delta: f64, n: usize, m: usize) -> Result<Vec<Dtf>, String> {
+    frf.response
+        .iter()
+        .enumerate()
+        .map(|(c, g)| {
+            let avg =
+                windowed_average(&frf.theta, g, delta).map_err(|e| format!("channel {c}: {e}"))?;
+            fit(&frf.theta, &avg, None, n, m).map_err(|e| format!("channel {c}: {e}"))
+        })
+        .collect()
+}
+
+/// The optimization DTF (3.44)–(3.47) of every channel of `frf` (channel by channel,
+/// §3.2.2), on the FRF's grid without its points at `θ = 0` (where `log θ` is undefined);
+/// the grid should be logarithmic (e.g. [`default_log_grid`]) for the trapezoid weights in
+/// `log θ` to approximate (3.44) well. Channel-major.
+pub fn optimized_dtfs(frf: &Frf, n_max: usize, zeros: ZeroCount) -> Result<Vec<Dtf>, String> {
+    let keep: Vec<usize> = (0..frf.theta.len())
+        .filter(|&k| frf.theta[k] > 0.0)
+        .collect();
+    let theta: Vec<f64> = keep.iter().map(|&k| frf.theta[k]).collect();
+    frf.response
+        .iter()
+        .enumerate()
+        .map(|(c, g)| {
+            let g: Vec<C64> = keep.iter().map(|&k| g[k]).collect();
+            optimize(&theta, &g, n_max, zeros).map_err(|e| format!("channel {c}: {e}"))
+        })
+        .collect()
 }
 
 mod example;

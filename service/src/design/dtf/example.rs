@@ -33,7 +33,7 @@
 //! one SK iteration), SK to convergence, true output error (Gauss–Newton) and a zero fixed
 //! near −0.98. The closest is Levy's equation-error fit on a uniform grid
 //! ([`Example341::levy`]): denominator `z² − 1.308 z + 0.659` (pole radius 0.812 vs 0.826,
-//! angle 0.634 vs 0.631 rad/sample), numerator `0.186 z + 0.207` (zero −1.11 vs −0.983).
+//! angle 0.634 vs 0.631 rad/sample), numerator (re-solved for that denominator) `0.182 z + 0.200` (zero −1.10 vs −0.983).
 //! The printed zero (−0.983) lies close to that of `G_d` (−0.979) and inside the unit circle,
 //! which suggests that Algorithm 1 of [65] constrains or initializes the numerator
 //! differently (for example minimum-phase zeros); without [65] this is not settled, so the

@@ -288,3 +288,45 @@ fn the_windowed_average_dtf_is_stable_with_the_structures_relative_degree() {
     let report = e.report();
     assert!(report.contains("printed (3.43)") && report.contains("printed (3.48)"));
 }
+
+#[test]
+fn channel_wise_helpers_treat_each_channel_on_its_own() {
+    let a = Dtf::new(vec![0.4], vec![1.0, -0.7]).unwrap();
+    let b = Dtf::new(vec![-0.2, 0.1], vec![1.0, -0.9, 0.18]).unwrap(); // poles 0.6, 0.3, zero 0.5
+    let frf_on = |theta: &[f64]| crate::design::Frf {
+        ts: 0.01,
+        theta: theta.to_vec(),
+        n_outputs: 1,
+        n_inputs: 2,
+        response: vec![a.response(theta), b.response(theta)],
+    };
+    let mut theta = vec![0.0];
+    theta.extend(default_log_grid());
+    let d = optimized_dtfs(&frf_on(&theta), 2, ZeroCount::RelativeDegree(1)).unwrap();
+    assert_eq!(d.len(), 2);
+    assert!(
+        close(d[0].den[1], -0.7, 1e-4) && close(d[0].num[0], 0.4, 1e-4),
+        "{:?}",
+        d[0]
+    );
+    assert_eq!(d[0].order(), 1);
+    for (x, y) in d[1]
+        .num
+        .iter()
+        .chain(&d[1].den)
+        .zip(b.num.iter().chain(&b.den))
+    {
+        assert!(close(*x, *y, 1e-4), "{:?}", d[1]);
+    }
+    // Averaging then fitting a smooth response changes it little: the fit of the averaged
+    // first-order channel keeps its pole near 0.7.
+    let lin = grid(0.0, PI, 400, false).unwrap();
+    let d = averaged_dtfs(&frf_on(&lin), 0.1, 1, 0).unwrap();
+    assert_eq!(d.len(), 2);
+    assert!(close(d[0].den[1], -0.7, 0.02), "{:?}", d[0]);
+    assert!(
+        averaged_dtfs(&frf_on(&lin[1..]), 0.1, 1, 0)
+            .unwrap_err()
+            .contains("channel 0")
+    );
+}
