@@ -705,6 +705,99 @@ mod tests {
         compare_fast_and_textbook(300, 3, 2000, rule);
     }
 
+    /// The packed triangle as stored (the sweep's output), in the order of
+    /// [`Rls::covariance`]'s upper triangle.
+    fn stored_upper(rls: &Rls) -> Vec<f64> {
+        rls.cov.clone()
+    }
+
+    fn upper_packed(m: &DMatrix<f64>) -> Vec<f64> {
+        let n = m.nrows();
+        (0..n)
+            .flat_map(|i| (i..n).map(move |j| (i, j)))
+            .map(|ij| m[ij])
+            .collect()
+    }
+
+    #[test]
+    fn deferred_update_is_seen_bit_for_bit_and_both_kernel_forms_agree() {
+        for (n, p) in [(37, 1), (38, 2), (41, 3), (40, 4), (21, 6), (1, 1), (2, 3)] {
+            for rule in [
+                ForgettingRule::Constant { lambda: 0.995 },
+                ForgettingRule::FTest {
+                    tau_n: 10,
+                    tau_d: 80,
+                    eta: 0.3,
+                    alpha: 0.01,
+                },
+            ] {
+                let c = cfg(n, p, 10.0, rule);
+                let mut fast = Rls::new(&c).unwrap();
+                let mut portable = Rls::new(&c).unwrap();
+                portable.level = simd::Level::Portable;
+                let mut g = Gauss::new(99 + (n * p) as u64);
+                let truth = g.vec(n);
+                for k in 0..600 {
+                    let (phi, y) = sample(&mut g, &truth, p, 0.1);
+                    for rls in [&mut fast, &mut portable] {
+                        // What the accessors show before the step is exactly what the
+                        // step's sweep stores (the diagonal, hence tr P, included).
+                        let shown = rls.covariance();
+                        let trace = rls.trace_p();
+                        assert!(!rls.update(&phi, &y).reset);
+                        let stored = stored_upper(rls);
+                        assert!(
+                            upper_packed(&shown) == stored,
+                            "(n, p) = ({n}, {p}), k = {k}: covariance() ≠ stored P"
+                        );
+                        let diag_sum = (0..n).fold(0.0, |s, i| s + shown[(i, i)]);
+                        assert_eq!(diag_sum, trace, "(n, p) = ({n}, {p}), k = {k}");
+                    }
+                }
+                let d = rel_diff(fast.theta(), portable.theta());
+                assert!(d < 1e-12, "(n, p) = ({n}, {p}): theta differs by {d}");
+                let (a, b) = (fast.covariance(), portable.covariance());
+                let dp = rel_diff(a.as_slice(), b.as_slice());
+                assert!(dp < 1e-12, "(n, p) = ({n}, {p}): P differs by {dp}");
+                assert!(is_exactly_symmetric(&a) && is_exactly_symmetric(&b));
+            }
+        }
+    }
+
+    #[test]
+    fn an_off_diagonal_overflow_of_the_deferred_update_is_caught_by_the_next_sweep() {
+        for level in [simd::Level::detect(), simd::Level::Portable] {
+            for p in [1, 3] {
+                let n = 6;
+                let mut c = cfg(n, p, 1.0, ForgettingRule::Constant { lambda: 1.0 });
+                c.theta0 = vec![0.25; n];
+                let mut rls = Rls::new(&c).unwrap();
+                rls.level = level;
+                // A state whose pending update has a finite, positive diagonal but an
+                // off-diagonal entry that overflows: β P_01 = 4 · 1e308 = ∞.
+                rls.cov[1] = 1e308;
+                rls.beta_pend = 4.0;
+                let mut g = Gauss::new(3);
+                let phi = g.vec(n * p);
+                // The sweep itself reports it (S would also fail to factor, as ∞·0 = NaN).
+                let mut pk = rls.cov.clone();
+                let mut gg = vec![0.0; n * p];
+                let (w, beta) = (&rls.w_pend, rls.beta_pend);
+                assert!(!simd::fused_pass(
+                    level, &mut pk, w, beta, &phi, &mut gg, n, p
+                ));
+                let st = rls.update(&phi, &vec![1.0; p]);
+                assert!(st.reset, "level {level:?}, p = {p}: {st:?}");
+                assert_eq!(rls.resets(), 1);
+                assert_eq!(rls.theta(), &c.theta0[..]);
+                assert_eq!(rls.trace_p(), n as f64);
+                assert!(rls.covariance().iter().all(|x| x.is_finite()));
+                assert!(!rls.update(&phi, &vec![1.0; p]).reset);
+                assert!(rls.theta().iter().all(|x| x.is_finite()));
+            }
+        }
+    }
+
     #[test]
     fn non_finite_input_resets_and_is_reported_without_propagating_nan() {
         let n = 4;
