@@ -16,6 +16,8 @@ pub struct Curve<'a> {
     pub response: &'a [C64],
     /// Draw dashed.
     pub dashed: bool,
+    /// Also draw its phase (false for an error curve, whose phase means nothing).
+    pub phase: bool,
 }
 
 /// A named set of poles and zeros.
@@ -28,7 +30,32 @@ pub struct PoleZero<'a> {
     pub zeros: &'a [C64],
 }
 
-/// Phase in degrees, unwrapped along the grid.
+impl<'a> Curve<'a> {
+    /// A solid curve with magnitude and phase.
+    pub fn new(label: &'a str, response: &'a [C64]) -> Self {
+        Self {
+            label,
+            response,
+            dashed: false,
+            phase: true,
+        }
+    }
+
+    /// The same curve dashed.
+    pub fn dashed(mut self) -> Self {
+        self.dashed = true;
+        self
+    }
+
+    /// The same curve without its phase.
+    pub fn magnitude_only(mut self) -> Self {
+        self.phase = false;
+        self
+    }
+}
+
+/// Phase in degrees, unwrapped along the grid, starting in `(−270°, 90°]` (so that curves
+/// with a negative low-frequency gain all start near −180°, not some at +180°).
 pub fn unwrapped_phase_deg(g: &[C64]) -> Vec<f64> {
     let mut out = Vec::with_capacity(g.len());
     let mut offset = 0.0;
@@ -49,6 +76,9 @@ pub fn unwrapped_phase_deg(g: &[C64]) -> Vec<f64> {
         let u = a + offset;
         out.push(u);
         prev = Some(u);
+    }
+    if out.first().is_some_and(|p| *p > 90.0) {
+        out.iter_mut().for_each(|p| *p -= 360.0);
     }
     out
 }
@@ -85,9 +115,11 @@ pub fn bode_figure(
         let db: Vec<f64> = g.iter().map(|v| 20.0 * v.norm().log10()).collect();
         mag.series
             .push(Series::line(c.label, &x, &db, color).with(mark));
-        phase
-            .series
-            .push(Series::line(c.label, &x, &unwrapped_phase_deg(&g), color).with(mark));
+        if c.phase {
+            phase
+                .series
+                .push(Series::line(c.label, &x, &unwrapped_phase_deg(&g), color).with(mark));
+        }
     }
     let mut panels = vec![mag, phase];
     if !pz.is_empty() {
