@@ -586,10 +586,11 @@ pub struct Optimized {
 
 /// The cost (3.44) for a structure `(n̂, m̂)` as a function of the unconstrained parameters
 /// `[s_1 … s_n̂, t_1 … t_m̂]`, `a_i = ρ tanh(s_i)`, `b_i = ρ tanh(t_i)`.
+#[derive(Clone, Copy)]
 struct LogCost<'a> {
-    z: Vec<C64>,
+    z: &'a [C64],
     g: &'a [C64],
-    w: Vec<f64>,
+    w: &'a [f64],
     poles: usize,
 }
 
@@ -648,18 +649,10 @@ fn nelder_mead(problem: &LogCost<'_>, x0: &[f64], step: f64) -> Result<(Vec<f64>
     let solver = NelderMead::new(simplex)
         .with_sd_tolerance(1e-15)
         .map_err(|e| format!("Nelder–Mead: {e}"))?;
-    let res = Executor::new(
-        LogCost {
-            z: problem.z.clone(),
-            g: problem.g,
-            w: problem.w.clone(),
-            poles: problem.poles,
-        },
-        solver,
-    )
-    .configure(|s| s.max_iters(1000 * (d as u64 + 1)))
-    .run()
-    .map_err(|e| format!("Nelder–Mead: {e}"))?;
+    let res = Executor::new(*problem, solver)
+        .configure(|s| s.max_iters(1000 * (d as u64 + 1)))
+        .run()
+        .map_err(|e| format!("Nelder–Mead: {e}"))?;
     let best = res
         .state()
         .get_best_param()
@@ -733,9 +726,9 @@ pub fn optimize_all(
         };
         for m in ms {
             let problem = LogCost {
-                z: z.clone(),
+                z: &z,
                 g,
-                w: w.clone(),
+                w: &w,
                 poles: n,
             };
             let mut best: Option<(Vec<f64>, f64)> = None;
