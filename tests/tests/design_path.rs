@@ -1,0 +1,209 @@
+//! The identification path of issue 4 end to end, on data logged by the real processes:
+//! an excitation run of the acoustic rig (service + plant-proxy over iceoryx2, lockstep)
+//! → `rig-design identify` (H1 frequency response, coherence, pure delays, dereverberated
+//! transfer function per channel) → a target-model file that RCAC's configuration reads.
+
+use rig_tests::*;
+use service::design::target::{TargetForm, TargetModel};
+use std::process::Command;
+use std::time::Duration;
+
+/// The `[rig]` and `[plant…]` tables of a scenario text (its service, controller, log and
+/// proxy tables are dropped so a test can give its own).
+fn rig_and_plant(text: &str) -> String {
+    let mut out = String::new();
+    let mut keep = true;
+    for line in text.lines() {
+        let t = line.trim();
+        if t.starts_with('[') {
+            let name = t.trim_start_matches('[').trim_end_matches(']');
+            keep = name == "rig" || name == "plant" || name.starts_with("plant.");
+        }
+        if keep {
+            out += line;
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// Runs the acoustic rig for `steps` samples in lockstep with the excitation source of
+/// `scenarios/identify/excitation.toml`; returns the folder and the log path.
+fn excitation_run(test: &str, steps: u64) -> (TestDir, std::path::PathBuf, std::path::PathBuf) {
+    let dir = TestDir::new(test);
+    let rig = rig_name(test);
+    let excitation = scenario_text("identify/excitation.toml");
+    let controller = excitation
+        .split("[log]")
+        .next()
+        .expect("excitation file has a [controller] table");
+    let text = with_rig_name(&rig_and_plant(&scenario_text("acoustic-rig.toml")), &rig)
+        + &test_service_tables("", controller);
+    let scenario = dir.write("scenario.toml", &text);
+    let run_folder = dir.path.join("run");
+    let mut service = Proc::start(
+        "service",
+        &bin("service"),
+        &[
+            "run",
+            scenario.to_str().unwrap(),
+            "--exit-with-plant",
+            "--run-folder",
+            run_folder.to_str().unwrap(),
+        ],
+    );
+    let mut plant = Proc::start(
+        "plant",
+        &bin("plant-proxy"),
+        &[
+            "run",
+            scenario.to_str().unwrap(),
+            "--mode",
+            "lockstep",
+            "--steps",
+            &steps.to_string(),
+        ],
+    );
+    assert!(
+        plant.wait(Duration::from_secs(300)).success(),
+        "plant-proxy failed:\n{}",
+        plant.output()
+    );
+    assert!(
+        service.wait(Duration::from_secs(60)).success(),
+        "service failed:\n{}",
+        service.output()
+    );
+    (dir, scenario, run_folder.join("signals.csv"))
+}
+
+fn rig_design(args: &[&str]) -> (bool, String) {
+    let out = Command::new(bin("rig-design"))
+        .args(args)
+        .output()
+        .expect("run rig-design");
+    let text =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.success(), text)
+}
+
+#[test]
+fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() {
+    let (dir, scenario, log) = excitation_run("design-path", 40_000);
+    let out = dir.path.join("design");
+    let (ok, text) = rig_design(&[
+        "identify",
+        log.to_str().unwrap(),
+        "--inputs",
+        "u0,u1",
+        "--outputs",
+        "y0",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--compare",
+        "--method",
+        "average",
+        "--delta-hz",
+        "500",
+        "--order",
+        "6",
+        "--beta",
+        "0.8",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "rig-design identify failed:\n{text}");
+    // The delays of the rig (9 and 16 samples, §3.5) are found from the data.
+    assert!(text.contains("delays found [9, 16]"), "{text}");
+    // The H1 estimate agrees with the model: median relative error on coherent bins < 3 %.
+    let medians: Vec<f64> = text
+        .lines()
+        .filter_map(|l| l.split("median ").nth(1))
+        .filter_map(|r| r.split(" %").next()?.parse().ok())
+        .collect();
+    assert_eq!(medians.len(), 2, "{text}");
+    assert!(medians.iter().all(|m| *m < 3.0), "{medians:?}\n{text}");
+    // The target model is a file RCAC's configuration reads: two channels with the delays
+    // added back, β as asked, stable denominators, the response finite.
+    let tm = TargetModel::load(&out.join("target-model.toml")).expect("target model reads back");
+    assert_eq!((tm.outputs, tm.inputs, tm.beta), (1, 2, 0.8));
+    assert_eq!(tm.sample_period, 1.25e-4);
+    let TargetForm::TransferFunction(ch) = &tm.form else {
+        panic!("a transfer-function target model")
+    };
+    let delays: Vec<usize> = ch.iter().map(|c| c.delay).collect();
+    assert_eq!(delays, vec![9, 16]);
+    for c in ch {
+        assert_eq!(c.den.len(), 7, "order 6");
+        let roots = plant_proxy::lti::eigenvalues(&companion(&c.den)).unwrap();
+        assert!(roots.iter().all(|r| r.norm() < 1.0), "stable: {roots:?}");
+    }
+    let h = tm.markov(40);
+    for k in 0..=9 {
+        assert_eq!(h[k][(0, 0)], 0.0, "no response before the delay, k = {k}");
+    }
+    for k in 0..=16 {
+        assert_eq!(h[k][(0, 1)], 0.0, "k = {k}");
+    }
+    for name in [
+        "frf.csv",
+        "coherence.png",
+        "frf-0.png",
+        "dtf-0.png",
+        "dtf-1.png",
+    ] {
+        assert!(out.join(name).exists(), "{name} written");
+    }
+
+    // Bad input: a log cut to fewer samples than one segment, and a missing channel.
+    let short = dir.write(
+        "short.csv",
+        &std::fs::read_to_string(&log)
+            .unwrap()
+            .lines()
+            .take(500)
+            .collect::<Vec<_>>()
+            .join("\n"),
+    );
+    let (ok, text) = rig_design(&[
+        "frf",
+        short.to_str().unwrap(),
+        "--inputs",
+        "u0,u1",
+        "--outputs",
+        "y0",
+        "--sample-period",
+        "1.25e-4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("short.csv"), "{text}");
+    let (ok, text) = rig_design(&[
+        "frf",
+        log.to_str().unwrap(),
+        "--inputs",
+        "u0,u2",
+        "--outputs",
+        "y0",
+        "--sample-period",
+        "1.25e-4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("u2"), "{text}");
+}
+
+/// The companion matrix of a monic polynomial (descending powers): its eigenvalues are the
+/// roots.
+fn companion(den: &[f64]) -> nalgebra::DMatrix<f64> {
+    let n = den.len() - 1;
+    nalgebra::DMatrix::from_fn(n, n, |i, j| {
+        if i == 0 {
+            -den[j + 1]
+        } else if i == j + 1 {
+            1.0
+        } else {
+            0.0
+        }
+    })
+}
