@@ -144,7 +144,7 @@ enum Command {
         /// Number of Markov parameters H_0 … H_{N−1} kept.
         #[arg(long, conflicts_with = "first_nonzero")]
         count: Option<usize>,
-        /// Keep only the first nonzero Markov parameter (minimum-phase plants).
+        /// Keep only each channel's first nonzero Markov parameter (minimum-phase plants).
         #[arg(long)]
         first_nonzero: bool,
         /// β of the target model, in (0, 1].
@@ -289,7 +289,7 @@ fn markov(
     out_dir(out)?;
     let model = load_model(scenario, output)?;
     let fir = match (count, first_nonzero) {
-        (_, true) => FirTarget::first_nonzero(&model, 1e-9)?,
+        (_, true) => FirTarget::first_nonzero_per_channel(&model, 1e-9)?,
         (Some(n), false) if n >= 1 => FirTarget::from_model(&model, n - 1),
         _ => return Err("give --count N (N ≥ 1) or --first-nonzero".into()),
     };

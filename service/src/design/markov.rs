@@ -107,6 +107,32 @@ fn check_tol(rel_tol: f64) -> Result<(), String> {
 }
 
 impl FirTarget {
+    /// The minimum-phase case of (3.39) channel by channel: entry `(o, j)` of `G_f` is the
+    /// channel's own first nonzero Markov parameter at its own delay,
+    /// `G_f(q)_{o,j} = H_{d_oj}(o, j) q^{−d_oj}` (see [`first_nonzero_per_channel`]); for a
+    /// MIMO plant whose inputs have different delays this keeps every channel, where the
+    /// matrix-wise rule keeps only the earliest ones.
+    pub fn first_nonzero_per_channel(model: &DiscreteModel, rel_tol: f64) -> Result<Self, String> {
+        let firsts = first_nonzero_per_channel(model, rel_tol)?;
+        let (p, m) = (model.n_outputs(), model.n_inputs());
+        let last = firsts
+            .iter()
+            .flatten()
+            .map(|(d, _)| *d)
+            .max()
+            .ok_or("the model is zero")?;
+        let mut markov = vec![DMatrix::zeros(p, m); last + 1];
+        for (c, f) in firsts.iter().enumerate() {
+            if let Some((d, h)) = f {
+                markov[*d][(c / m, c % m)] = *h;
+            }
+        }
+        Ok(Self {
+            markov,
+            ts: model.ts,
+        })
+    }
+
     /// (3.39) with order `n_f`: `H_0 … H_{n_f}` of `model` (delays included).
     pub fn from_model(model: &DiscreteModel, n_f: usize) -> Self {
         Self {
@@ -279,6 +305,18 @@ modes = [
         let fir = FirTarget::first_nonzero(&model, 1e-9).unwrap();
         assert_eq!(fir.order(), 4);
         assert!(fir.markov[..4].iter().all(|m| m.iter().all(|&v| v == 0.0)));
+        // Per channel: every channel keeps its own first parameter at its own delay.
+        let fir = FirTarget::first_nonzero_per_channel(&model, 1e-9).unwrap();
+        let h = model.markov(7);
+        assert_eq!(fir.order(), 6);
+        for (i, m) in fir.markov.iter().enumerate() {
+            for o in 0..2 {
+                for j in 0..2 {
+                    let want = if i == [4, 6][j] { h[i][(o, j)] } else { 0.0 };
+                    assert_eq!(m[(o, j)], want, "H_{i}({o}, {j})");
+                }
+            }
+        }
         assert!(first_nonzero(&model, 1.0).is_err());
     }
 
