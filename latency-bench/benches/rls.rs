@@ -5,25 +5,29 @@
 //! textbook one, p50/p99/max, at the sizes of issue 3, plus the fast updates left out by
 //! the cold-cache rule (count and largest).
 //!
-//! The measuring thread is pinned to core 1 (as the RT core of the full bench) and locks
-//! its memory; `SCHED_FIFO` is not requested by default, because a thread that computes
-//! for a minute at real-time priority is throttled by the kernel (`sched_rt_runtime_us`),
-//! which shows up as multi-millisecond gaps. Options (after `--`):
-//! `--core <c>` pins to another core, `--no-pin` leaves the affinity alone,
-//! `--fifo <prio>` also requests `SCHED_FIFO` at that priority.
+//! The measuring thread is pinned to core 1 (the RT core of the full bench), runs at
+//! `SCHED_FIFO` priority [`latency_bench::RT_PRIORITY`] (as the full bench's RT phases do)
+//! and locks its memory, so that the numbers reflect a dedicated RT core even while other
+//! work runs on the machine. A thread that computes for a minute at real-time priority is
+//! throttled by the kernel (`sched_rt_runtime_us`: 50 ms of every second left to others),
+//! which shows up as isolated ≈ 50 ms values in the max columns, never in the p99 (one
+//! sample per second). The outcome of each request is printed first. Options (after
+//! `--`): `--core <c>` pins to another core, `--no-pin` leaves the affinity alone,
+//! `--fifo <prio>` changes the priority, `--no-fifo` stays `SCHED_OTHER`.
 
 use ipc_types::rt::{RtRequest, setup_current_thread};
 use latency_bench::rls_cost::{RLS_SIZES, measure_detailed, updates_for};
 
 fn main() {
     let mut core = Some(1usize);
-    let mut fifo = None;
+    let mut fifo = Some(latency_bench::RT_PRIORITY);
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--core" => core = args.next().and_then(|v| v.parse().ok()),
             "--no-pin" => core = None,
             "--fifo" => fifo = args.next().and_then(|v| v.parse().ok()),
+            "--no-fifo" => fifo = None,
             // `cargo bench` passes `--bench`; anything else is ignored.
             _ => {}
         }
