@@ -563,3 +563,40 @@ fn onset_rule_finds_a_small_first_sample_above_the_floor() {
     assert_eq!(onset(&h).map(|o| o.0), Some(6));
     assert_eq!(onset(&[0.0; 64]), None);
 }
+
+#[test]
+fn from_a_service_csv_log_to_the_delays() {
+    // The path an engineer takes: a log in the service's CSV format (written here from the
+    // simulated rig, 2^16 samples = 8.2 s), read with csvlog, estimated with welch.
+    let (sc, u, y) = acoustic_run(true, 1 << 16);
+    let mut text = String::from(
+        "# acoustic rig, white noise on both loudspeakers\nseq,t_sample_ns,status,flags,y0,z0,u0,u1\n",
+    );
+    for k in 0..y.len() {
+        text.push_str(&format!(
+            "{k},{},0,0,{},{},{},{}\n",
+            k * 125_000,
+            y[k],
+            y[k],
+            u[0][k],
+            u[1][k]
+        ));
+    }
+    let dir = std::env::temp_dir().join(format!("welch-csv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("run.csv");
+    std::fs::write(&path, text).unwrap();
+    let log = crate::design::csvlog::read(&path).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(log.len(), 1 << 16);
+    let cols = log.select(&["u0", "u1", "y0"]).unwrap();
+    assert_eq!(cols[0], &u[0][..]); // shortest round-trip: the same bits
+    let opts = WelchOptions {
+        segment: 2048,
+        ..Default::default()
+    };
+    let est = estimate(&cols[..2], &cols[2..], sc.rig.sample_period, &opts).unwrap();
+    assert_eq!(est.delays, vec![9, 16]);
+    assert_eq!(est.segments, 62);
+    assert!(est.warnings.is_empty(), "{:?}", est.warnings);
+}
