@@ -131,7 +131,7 @@ enum Command {
         #[arg(long, default_value_t = 4097)]
         points: usize,
         /// Output folder.
-        #[arg(long, default_value = "design/model-frf")]
+        #[arg(long, default_value = "runs/design/model-frf")]
         out: PathBuf,
     },
     /// Markov parameters of a scenario's plant and the FIR target model (3.39).
@@ -151,7 +151,7 @@ enum Command {
         #[arg(long, default_value_t = 1.0)]
         beta: f64,
         /// Output folder.
-        #[arg(long, default_value = "design/markov")]
+        #[arg(long, default_value = "runs/design/markov")]
         out: PathBuf,
     },
     /// H1 frequency response, coherence and pure delays from a CSV log (Welch).
@@ -161,7 +161,7 @@ enum Command {
         #[command(flatten)]
         frf: FrfArgs,
         /// Output folder.
-        #[arg(long, default_value = "design/frf")]
+        #[arg(long, default_value = "runs/design/frf")]
         out: PathBuf,
     },
     /// Dereverberated transfer function per channel and the target model (3.49).
@@ -171,7 +171,7 @@ enum Command {
         #[command(flatten)]
         dtf: DtfArgs,
         /// Output folder.
-        #[arg(long, default_value = "design/dtf")]
+        #[arg(long, default_value = "runs/design/dtf")]
         out: PathBuf,
     },
     /// The whole path: log → FRF → delays → DTF → target model.
@@ -183,14 +183,14 @@ enum Command {
         #[command(flatten)]
         dtf: DtfArgs,
         /// Output folder.
-        #[arg(long, default_value = "design/identify")]
+        #[arg(long, default_value = "runs/design/identify")]
         out: PathBuf,
     },
     /// The checks of sections 3.2.1.1 and 3.2.2.1: DTFs of (3.41) beside (3.43), (3.48).
     #[command(name = "example-3-41")]
     Example341 {
         /// Output folder.
-        #[arg(long, default_value = "design/example-3-41")]
+        #[arg(long, default_value = "runs/design/example-3-41")]
         out: PathBuf,
     },
 }
