@@ -66,9 +66,11 @@
 //! and `G` loaded serves both rows) and with the `β` multiplication skipped when `β = 1`
 //! (exact); otherwise as plain loops that the compiler vectorizes.
 //! `cargo bench -p latency-bench --bench rls` measures it against [`TextbookRls`] (on the
-//! 2-core development VM, pinned: p50 ≈ 24 µs and p99 ≈ 45 µs per update at
-//! `(n, p) = (300, 3)`, 11–12 µs at `(300, 1)`, ≈ 145 µs at `(600, 4)` where `P` (1.4 MB)
-//! no longer fits L2; 65–130× faster than the textbook one at `n = 300`).
+//! 2-core development VM, pinned at `SCHED_FIFO`, medians of 9 runs: p50 24 µs and p99
+//! 43 µs per update at `(n, p) = (300, 3)` (p99 35–59 µs, once 83 µs under heavy load from
+//! the other core), p50 11 µs at `(300, 1)`, 151 µs at `(600, 4)` where `P` (1.4 MB) no
+//! longer fits L2; 65–140× faster than the textbook one at `n = 300`). An update that
+//! finds `P` evicted from L2 (first one after the textbook kernel ran) costs 70–220 µs.
 //!
 //! [`TextbookRls`] writes the same equations literally (allocating, with an explicit
 //! inverse) and serves as the test oracle and benchmark baseline.
@@ -151,9 +153,10 @@ pub struct Rls {
     trace_limit: f64,
     forgetting: Forgetting,
     theta: Vec<f64>,
-    /// Upper triangle of `P_{k−1}`-before-the-pending-update, row-packed: row `i`
-    /// (`P[i, i..n]`, diagonal first) at `[i n − i(i−1)/2 ..][.. n − i]`; `n(n+1)/2`
-    /// entries, symmetric by construction. The current `P_k = β_pend cov − W_pend W_pendᵀ`.
+    /// Upper triangle of the stored matrix `Q` (`P_{k−1}`, or `P_0` after a reset),
+    /// row-packed: row `i` (`Q[i, i..n]`, diagonal first) at `[i n − i(i−1)/2 ..][.. n − i]`;
+    /// `n(n+1)/2` entries, symmetric by construction. The current covariance is
+    /// `P_k = β_pend Q − W_pend W_pendᵀ` (the deferred update, see the module docs).
     cov: Vec<f64>,
     /// `W` of the previous step (n×p, column `l` at `[l n .. (l+1) n]`), not yet applied
     /// to `cov` (zeros after construction and reset).
@@ -208,11 +211,15 @@ impl Rls {
     /// One update with regressor `φ_k` (p×n, row-major, length `p·n`) and measurement
     /// `y_k` (length `p`), (2.12)–(2.14): `e_k = y_k − φ_k θ_k`, `β_k` from the rule,
     /// `L_k = β_k P_k`, `P_{k+1} = L_k − L_k φᵀ (I_p + φ L_k φᵀ)⁻¹ φ L_k`,
-    /// `θ_{k+1} = θ_k + P_{k+1} φᵀ e_k`, computed as described in the module docs.
+    /// `θ_{k+1} = θ_k + P_{k+1} φᵀ e_k`, computed as described in the module docs: one
+    /// sweep over `P` applies the deferred `P_k = β_{k−1} P_{k−1} − W_{k−1} W_{k−1}ᵀ` and
+    /// forms `G = P_k φ_kᵀ`; the rank-p update to `P_{k+1}` is deferred to the next call
+    /// (its diagonal and trace are computed and checked now).
     ///
     /// Never allocates. `P` stays exactly symmetric. A non-finite input or a guarded
     /// blow-up resets `θ, P` to `θ_0, P_0`, sets [`RlsStep::reset`] and increments
-    /// [`Rls::resets`].
+    /// [`Rls::resets`] (an off-diagonal overflow of `P_{k+1}` is caught by the next call,
+    /// see "Guard" in the module docs).
     ///
     /// # Panics
     ///
