@@ -29,6 +29,7 @@ use super::{axpy, dot, madd};
 
 /// Which compiled form of the kernels an estimator uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(super) enum Level {
     /// Baseline x86-64 / other targets: no FMA, plain vectorizable loops.
     Portable,
