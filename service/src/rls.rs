@@ -68,8 +68,9 @@
 //! `cargo bench -p latency-bench --bench rls` measures it against [`TextbookRls`] (on the
 //! 2-core development VM, pinned at `SCHED_FIFO`, medians of 11 runs: p50 24 µs and p99
 //! 45 µs per update at `(n, p) = (300, 3)` (p99 35–83 µs, above 60 µs in 3 runs taken
-//! while other builds loaded the machine), p50 11 µs at `(300, 1)`, 151 µs at `(600, 4)` where `P` (1.4 MB) no
-//! longer fits L2; 65–140× faster than the textbook one at `n = 300`). An update that
+//! while other builds loaded the machine), p50 11 µs at `(300, 1)`, 151 µs at `(600, 4)`
+//! where `P` (1.4 MB) no longer fits L2; 65–140× faster than the textbook one at
+//! `n = 300`). An update that
 //! finds `P` evicted from L2 (first one after the textbook kernel ran) costs 70–220 µs.
 //!
 //! [`TextbookRls`] writes the same equations literally (allocating, with an explicit
