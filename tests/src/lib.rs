@@ -273,3 +273,43 @@ pub fn read_json(path: &Path) -> serde_json::Value {
         std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
     serde_json::from_str(&text).expect("valid JSON")
 }
+
+/// Runs the service (`run --exit-with-plant`) against plant-proxy in lockstep for `steps`
+/// samples of `scenario`, plant-proxy getting `plant_extra` arguments too; asserts that both
+/// exit successfully (plant within 300 s, service 60 s after) and returns the service's
+/// run folder (`<dir>/service-run`).
+pub fn run_lockstep_pair(
+    dir: &TestDir,
+    scenario: &Path,
+    steps: u64,
+    plant_extra: &[&str],
+) -> PathBuf {
+    let run_folder = dir.path.join("service-run");
+    let scenario = scenario.to_str().expect("UTF-8 path");
+    let mut service = Proc::start(
+        "service",
+        &bin("service"),
+        &[
+            "run",
+            scenario,
+            "--exit-with-plant",
+            "--run-folder",
+            run_folder.to_str().expect("UTF-8 path"),
+        ],
+    );
+    let steps = steps.to_string();
+    let mut args = vec!["run", scenario, "--mode", "lockstep", "--steps", &steps];
+    args.extend_from_slice(plant_extra);
+    let mut plant = Proc::start("plant", &bin("plant-proxy"), &args);
+    assert!(
+        plant.wait(Duration::from_secs(300)).success(),
+        "plant-proxy failed:\n{}",
+        plant.output()
+    );
+    assert!(
+        service.wait(Duration::from_secs(60)).success(),
+        "service failed:\n{}",
+        service.output()
+    );
+    run_folder
+}

@@ -2,9 +2,6 @@
 //! result does not depend on timing.
 
 use rig_tests::*;
-use std::time::Duration;
-
-const PLANT_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// The first-order plant 1/(s + p) of `scenarios/first-order-lockstep.toml` discretized
 /// exactly under ZOH at T: x⁺ = a x + b u, y = x, with a = e^{−pT}, b = (1 − a)/p.
@@ -30,42 +27,11 @@ fn run_lockstep(
         + extra;
     let scenario = dir.write("scenario.toml", &text);
     let trace = dir.path.join("trace.csv");
-    let run_folder = dir.path.join("service-run");
-    let steps_s = steps.to_string();
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            scenario.to_str().unwrap(),
-            "--exit-with-plant",
-            "--run-folder",
-            run_folder.to_str().unwrap(),
-        ],
-    );
-    let mut plant = Proc::start(
-        "plant",
-        &bin("plant-proxy"),
-        &[
-            "run",
-            scenario.to_str().unwrap(),
-            "--mode",
-            "lockstep",
-            "--steps",
-            &steps_s,
-            "--trace",
-            trace.to_str().unwrap(),
-        ],
-    );
-    assert!(
-        plant.wait(PLANT_TIMEOUT).success(),
-        "plant-proxy failed:\n{}",
-        plant.output()
-    );
-    assert!(
-        service.wait(Duration::from_secs(30)).success(),
-        "service failed:\n{}",
-        service.output()
+    let run_folder = run_lockstep_pair(
+        &dir,
+        &scenario,
+        steps,
+        &["--trace", trace.to_str().unwrap()],
     );
     let (header, rows) = read_csv(&trace);
     assert_eq!(header[0], "k");

@@ -6,7 +6,6 @@
 use rig_tests::*;
 use service::design::target::{TargetForm, TargetModel};
 use std::process::Command;
-use std::time::Duration;
 
 /// The `[rig]` and `[plant…]` tables of a scenario text (its service, controller, log and
 /// proxy tables are dropped so a test can give its own).
@@ -40,40 +39,7 @@ fn excitation_run(test: &str, steps: u64) -> (TestDir, std::path::PathBuf, std::
     let text = with_rig_name(&rig_and_plant(&scenario_text("acoustic-rig.toml")), &rig)
         + &test_service_tables("", controller);
     let scenario = dir.write("scenario.toml", &text);
-    let run_folder = dir.path.join("run");
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            scenario.to_str().unwrap(),
-            "--exit-with-plant",
-            "--run-folder",
-            run_folder.to_str().unwrap(),
-        ],
-    );
-    let mut plant = Proc::start(
-        "plant",
-        &bin("plant-proxy"),
-        &[
-            "run",
-            scenario.to_str().unwrap(),
-            "--mode",
-            "lockstep",
-            "--steps",
-            &steps.to_string(),
-        ],
-    );
-    assert!(
-        plant.wait(Duration::from_secs(300)).success(),
-        "plant-proxy failed:\n{}",
-        plant.output()
-    );
-    assert!(
-        service.wait(Duration::from_secs(60)).success(),
-        "service failed:\n{}",
-        service.output()
-    );
+    let run_folder = run_lockstep_pair(&dir, &scenario, steps, &[]);
     (dir, scenario, run_folder.join("signals.csv"))
 }
 
@@ -165,31 +131,24 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
             .collect::<Vec<_>>()
             .join("\n"),
     );
-    let (ok, text) = rig_design(&[
-        "frf",
-        short.to_str().unwrap(),
-        "--inputs",
-        "u0,u1",
-        "--outputs",
-        "y0",
-        "--sample-period",
-        "1.25e-4",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(!ok && text.contains("short.csv"), "{text}");
-    let (ok, text) = rig_design(&[
-        "frf",
-        log.to_str().unwrap(),
-        "--inputs",
-        "u0,u2",
-        "--outputs",
-        "y0",
-        "--sample-period",
-        "1.25e-4",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let frf = |log: &std::path::Path, inputs: &str| {
+        let args = [
+            "frf",
+            log.to_str().unwrap(),
+            "--inputs",
+            inputs,
+            "--outputs",
+            "y0",
+        ];
+        let more = ["--sample-period", "1.25e-4", "--out", out.to_str().unwrap()];
+        rig_design(&[&args[..], &more[..]].concat())
+    };
+    let (ok, text) = frf(&short, "u0,u1");
+    assert!(
+        !ok && text.contains("short.csv") && text.contains("samples"),
+        "{text}"
+    );
+    let (ok, text) = frf(&log, "u0,u2");
     assert!(!ok && text.contains("u2"), "{text}");
 }
 
