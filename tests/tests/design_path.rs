@@ -121,6 +121,34 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
         assert!(out.join(name).exists(), "{name} written");
     }
 
+    // The target model against the plant at the rig's seven tones: one row per tone and
+    // channel, finite errors.
+    let tones = "800,900,1060,1300,1600,2200,3000";
+    let tm_path = out.join("target-model.toml");
+    let (ok, text) = rig_design(&[
+        "compare",
+        tm_path.to_str().unwrap(),
+        scenario.to_str().unwrap(),
+        "--hz",
+        tones,
+    ]);
+    assert!(ok, "{text}");
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split_whitespace()
+                .filter_map(|v| v.parse().ok())
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), 14, "{text}");
+    assert!(
+        rows.iter()
+            .all(|r| r.len() == 4 && r.iter().all(|v| v.is_finite())),
+        "{text}"
+    );
+
     // Bad input: a log cut to fewer samples than one segment, and a missing channel.
     let short = dir.write(
         "short.csv",

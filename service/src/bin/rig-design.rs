@@ -9,6 +9,7 @@
 //! rig-design dtf       FRF.csv --method average|optimize [--delta-hz D] [--order N] [--zeros M]
 //!                      [--n-max N] [--beta B] [--out DIR]
 //! rig-design identify  LOG --inputs … --outputs … [frf options] --method … [dtf options]
+//! rig-design compare     TARGET.toml SCENARIO --hz F1,F2,… [--output y|z]
 //! rig-design example-3-41 [--out DIR]
 //! ```
 //!
@@ -186,6 +187,20 @@ enum Command {
         #[arg(long, default_value = "runs/design/identify")]
         out: PathBuf,
     },
+    /// Magnitude and phase error of a target model against a scenario's plant at given
+    /// frequencies (what decides RCAC's performance at a tone, Figures 3.5 and 3.8).
+    Compare {
+        /// Target-model file.
+        target: PathBuf,
+        /// Scenario TOML file.
+        scenario: PathBuf,
+        /// Frequencies, Hz, comma separated.
+        #[arg(long, value_delimiter = ',', required = true)]
+        hz: Vec<f64>,
+        /// Outputs of the plant the target model stands for.
+        #[arg(long, value_enum, default_value = "z")]
+        output: Output,
+    },
     /// The checks of sections 3.2.1.1 and 3.2.2.1: DTFs of (3.41) beside (3.43), (3.48).
     #[command(name = "example-3-41")]
     Example341 {
@@ -217,6 +232,12 @@ fn main() -> ExitCode {
             .and_then(|f| design_dtf(&f, &dtf, &out, &frf_file.display().to_string())),
         Command::Identify { log, frf, dtf, out } => measured_frf(&log, &frf, &out)
             .and_then(|f| design_dtf(&f, &dtf, &out, &log.display().to_string())),
+        Command::Compare {
+            target,
+            scenario,
+            hz,
+            output,
+        } => compare(&target, &scenario, &hz, output),
         Command::Example341 { out } => example_3_41(&out),
     };
     match result {
@@ -592,6 +613,48 @@ fn poly(c: &[f64]) -> String {
         })
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result<(), String> {
+    let tm = TargetModel::load(target)?;
+    let model = load_model(scenario, output)?;
+    if (tm.outputs, tm.inputs) != (model.n_outputs(), model.n_inputs()) {
+        return Err(format!(
+            "{} is {}×{} but the plant of {} is {}×{}",
+            target.display(),
+            tm.outputs,
+            tm.inputs,
+            scenario.display(),
+            model.n_outputs(),
+            model.n_inputs()
+        ));
+    }
+    let nyquist = 0.5 / model.ts;
+    if let Some(f) = hz.iter().find(|f| !(**f > 0.0 && **f < nyquist)) {
+        return Err(format!("--hz {f} is outside (0, {nyquist}) Hz"));
+    }
+    let theta: Vec<f64> = hz
+        .iter()
+        .map(|f| 2.0 * std::f64::consts::PI * f * model.ts)
+        .collect();
+    let (g, gf) = (model.frf(&theta)?, tm.frf(&theta));
+    println!(
+        "{:>10} {:>8} {:>12} {:>12} {:>12}",
+        "Hz", "channel", "|G_f/G| dB", "phase err °", "|G| dB"
+    );
+    for (k, f) in hz.iter().enumerate() {
+        for c in 0..g.response.len() {
+            let r = gf.response[c][k] / g.response[c][k];
+            println!(
+                "{f:>10.2} {:>8} {:>12.2} {:>12.1} {:>12.2}",
+                format!("{}←{}", c / g.n_inputs, c % g.n_inputs),
+                20.0 * r.norm().log10(),
+                r.arg().to_degrees(),
+                20.0 * g.response[c][k].norm().log10()
+            );
+        }
+    }
+    Ok(())
 }
 
 fn example_3_41(out: &Path) -> Result<(), String> {
