@@ -35,8 +35,8 @@
 //! ([`Example341::levy`]): denominator `z² − 1.308 z + 0.659` (pole radius 0.812 vs 0.826,
 //! angle 0.634 vs 0.631 rad/sample), numerator (re-solved for that denominator) `0.182 z + 0.200` (zero −1.10 vs −0.983).
 //! The printed zero (−0.983) lies close to that of `G_d` (−0.979) and inside the unit circle,
-//! which suggests that Algorithm 1 of [65] constrains or initializes the numerator
-//! differently (for example minimum-phase zeros); without [65] this is not settled, so the
+//! which suggests that Algorithm 1 of \[65\] constrains or initializes the numerator
+//! differently (for example minimum-phase zeros); without \[65\] this is not settled, so the
 //! tests assert properties of the averaged DTF (stability, relative degree, fit error, the
 //! phase trend, poles near the resonance frequency) rather than the printed coefficients.
 
