@@ -48,6 +48,32 @@
 //! d = [[0.0]]
 //! # … or [controller.tf] entries = [[{ num = [..], den = [..] }]]  (discrete, in z, n_u × n_e)
 //!
+//! # or retrospective cost adaptive control (controller::Rcac, (2.15)–(2.23), (3.51)–(3.63)):
+//! # [controller]
+//! # kind = "rcac"
+//! # update = "rls"                # or "gradient"
+//! # input = "y"                   # the only input RCAC takes
+//! # nc = 50                       # controller order n_c (≥ 1)
+//! # kw = 100                      # u = 0, no update for the first kw steps (default: nc plus
+//! #                               # the largest lag of G_f)
+//! # rz = 1.0                      # R_z: scalar (times I) or l_z×l_z matrix, positive definite
+//! # ru = 0.0                      # R_u: scalar or l_u×l_u matrix, ≥ 0 (default 0)
+//! # theta0 = [...]                # optional, l_θ = l_u nc (l_u + l_y) values (default 0)
+//! # u-min = -1.0                  # optional saturation, scalar or per input (must contain 0)
+//! # u-max = 1.0
+//! # target-model-file = "target-model.toml"   # relative to this file's folder, or inline:
+//! # # [controller.target-model] with the fields of design::target (form, sample-period, …)
+//! # # update = "rls":
+//! # p0 = 1.0                      # P_0 = p0 I (R_θ = I / p0), required
+//! # lambda = 0.999                # constant forgetting (default 1), or a table:
+//! # # [controller.forgetting] rule = "f-test" (tau-n, tau-d, eta, alpha) | "rms-ratio"
+//! # #   (tau-n, tau-d, eta) | "constant" (lambda)
+//! # trace-limit = 1e9             # tr P above this resets θ, P (default 10⁶ l_θ p0)
+//! # # update = "gradient":
+//! # # step-size = "exp"           # "opt" (3.57), "sigma" (3.60), "frobenius" (3.61), "exp" (3.63)
+//! # # alpha = 0.5                 # in (0, 1], required
+//! # # r = 0.0                     # R = r I ≥ 0 (default 0)
+//! #
 //! # or, for an identification run, independent white Gaussian inputs:
 //! # [controller]
 //! # kind = "excitation"
@@ -61,8 +87,11 @@
 //! ```
 
 use crate::controller::{
-    Controller, ControllerInput, ExcitationSource, LtiController, OutputLimits,
+    Controller, ControllerInput, ExcitationSource, LtiController, OutputLimits, Rcac, RcacParams,
+    RcacUpdate, StepSize,
 };
+use crate::design::target::TargetModel;
+use crate::forgetting::ForgettingRule;
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
 use nalgebra::{DMatrix, DVector};
@@ -189,6 +218,11 @@ pub enum ControllerConfig {
         /// Output saturation.
         limits: Option<OutputLimits>,
     },
+    /// Retrospective cost adaptive control ([`Rcac`]).
+    Rcac {
+        /// The validated parameters.
+        params: Box<RcacParams>,
+    },
 }
 
 impl ControllerConfig {
@@ -221,6 +255,7 @@ impl ControllerConfig {
             ControllerConfig::Excitation { std, seed, limits } => Ok(Box::new(
                 ExcitationSource::new(counts, std.clone(), *seed, limits.clone())?,
             )),
+            ControllerConfig::Rcac { params } => Ok(Box::new(Rcac::new(params, counts)?)),
         }
     }
 }
@@ -394,8 +429,8 @@ impl ServiceConfig {
                 field: String::new(),
                 message,
             };
-            let text = std::fs::read_to_string(p)
-                .map_err(|x| e(format!("cannot read the file: {x}")))?;
+            let text =
+                std::fs::read_to_string(p).map_err(|x| e(format!("cannot read the file: {x}")))?;
             toml::from_str(&text).map_err(|x| e(format!("not valid TOML: {x}")))
         };
         let mut base = read(path)?;
@@ -420,6 +455,16 @@ impl ServiceConfig {
                 field: "controller".into(),
                 message: "the [controller] table is missing".into(),
             });
+        }
+        let mut over = over;
+        // A relative RCAC target-model file is relative to the controller file's folder.
+        if let Some(ctl) = over.get_mut("controller").and_then(|c| c.as_table_mut())
+            && let Some(toml::Value::String(f)) = ctl.get("target-model-file")
+            && Path::new(f).is_relative()
+        {
+            let dir = controller_file.parent().unwrap_or(Path::new(""));
+            let joined = dir.join(f).display().to_string();
+            ctl.insert("target-model-file".into(), toml::Value::String(joined));
         }
         for (k, v) in over {
             base.insert(k, v);
@@ -594,7 +639,11 @@ impl ServiceConfig {
         let controller_value = raw
             .controller
             .ok_or_else(|| err("controller", "the [controller] table is missing".into()))?;
-        let controller = parse_controller(controller_value, counts, &err)?;
+        let base_dir = Path::new(origin)
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let controller = parse_controller(controller_value, counts, period, &base_dir, &err)?;
 
         Ok(ServiceConfig {
             origin: origin.to_string(),
@@ -665,17 +714,20 @@ fn matrix(rows: &[Vec<f64>], cols_if_empty: usize, field: &str) -> Result<DMatri
     Ok(DMatrix::from_fn(rows.len(), n, |i, j| rows[i][j]))
 }
 
-const CONTROLLER_KINDS: &str = "lti, excitation";
+const CONTROLLER_KINDS: &str = "lti, excitation, rcac";
 
 fn parse_controller(
     value: toml::Value,
     counts: ChannelCounts,
+    period: f64,
+    base_dir: &Path,
     err: &dyn Fn(&str, String) -> ConfigError,
 ) -> Result<ControllerConfig, ConfigError> {
     let kind = value.get("kind").and_then(|v| v.as_str()).unwrap_or("");
     match kind {
         "lti" => {}
         "excitation" => return parse_excitation(value, counts, err),
+        "rcac" => return parse_rcac(value, counts, period, base_dir, err),
         "" => {
             return Err(err(
                 "controller.kind",
@@ -809,6 +861,373 @@ fn parse_excitation(
     };
     cfg.build(counts).map_err(|m| err("controller.std", m))?;
     Ok(cfg)
+}
+
+/// A scalar (times the identity) or a square matrix.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum ScalarOrMatrix {
+    Scalar(f64),
+    Matrix(Vec<Vec<f64>>),
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawRcac {
+    #[allow(dead_code)]
+    kind: String,
+    update: Option<String>,
+    input: Option<String>,
+    nc: Option<usize>,
+    kw: Option<usize>,
+    target_model: Option<toml::Value>,
+    target_model_file: Option<String>,
+    rz: Option<ScalarOrMatrix>,
+    ru: Option<ScalarOrMatrix>,
+    theta0: Option<Vec<f64>>,
+    u_min: Option<ScalarOrVec>,
+    u_max: Option<ScalarOrVec>,
+    p0: Option<f64>,
+    lambda: Option<f64>,
+    forgetting: Option<RawForgetting>,
+    trace_limit: Option<f64>,
+    step_size: Option<String>,
+    alpha: Option<f64>,
+    r: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawForgetting {
+    rule: String,
+    lambda: Option<f64>,
+    tau_n: Option<usize>,
+    tau_d: Option<usize>,
+    eta: Option<f64>,
+    alpha: Option<f64>,
+}
+
+/// `n × n` weight from a scalar (times I) or a matrix; `None` gives `default · I`.
+fn weight(
+    v: &Option<ScalarOrMatrix>,
+    n: usize,
+    default: f64,
+    field: &str,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<DMatrix<f64>, ConfigError> {
+    match v {
+        None => Ok(DMatrix::identity(n, n) * default),
+        Some(ScalarOrMatrix::Scalar(x)) => Ok(DMatrix::identity(n, n) * *x),
+        Some(ScalarOrMatrix::Matrix(rows)) => {
+            let m = matrix(rows, 0, field).map_err(|m| err(field, m))?;
+            if m.nrows() != n || m.ncols() != n {
+                return Err(err(
+                    field,
+                    format!("is {}×{}, expected {n}×{n}", m.nrows(), m.ncols()),
+                ));
+            }
+            Ok(m)
+        }
+    }
+}
+
+/// `kind = "rcac"`: retrospective cost adaptive control.
+fn parse_rcac(
+    value: toml::Value,
+    counts: ChannelCounts,
+    period: f64,
+    base_dir: &Path,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<ControllerConfig, ConfigError> {
+    let raw: RawRcac = value
+        .try_into()
+        .map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
+    let (n_y, n_z, n_u) = (
+        counts.n_y as usize,
+        counts.n_z as usize,
+        counts.n_u as usize,
+    );
+    match raw.input.as_deref().unwrap_or("y") {
+        "y" => {}
+        other => {
+            return Err(err(
+                "controller.input",
+                format!("'{other}': RCAC takes input = \"y\" only"),
+            ));
+        }
+    }
+    let nc = raw
+        .nc
+        .ok_or_else(|| err("controller.nc", "missing (the controller order n_c)".into()))?;
+    if nc == 0 {
+        return Err(err(
+            "controller.nc",
+            "0: the controller order n_c must be at least 1".into(),
+        ));
+    }
+    let ltheta = n_u * nc * (n_u + n_y);
+    let target = match (raw.target_model, raw.target_model_file) {
+        (Some(v), None) => {
+            const TAG: &str = "@inline";
+            TargetModel::from_value(v, TAG).map_err(|m| {
+                let m = m
+                    .strip_prefix(&format!("{TAG}: "))
+                    .unwrap_or(&m)
+                    .to_string();
+                match m.split_once(": ") {
+                    Some((field, rest)) if field.starts_with("target-model") => {
+                        err(&format!("controller.{field}"), rest.to_string())
+                    }
+                    _ => err("controller.target-model", m),
+                }
+            })?
+        }
+        (None, Some(f)) => {
+            let p = Path::new(&f);
+            let path = if p.is_relative() {
+                base_dir.join(p)
+            } else {
+                p.to_path_buf()
+            };
+            if !path.is_file() {
+                return Err(err(
+                    "controller.target-model-file",
+                    format!(
+                        "'{f}' resolves to {}, which is not a readable file",
+                        path.display()
+                    ),
+                ));
+            }
+            TargetModel::load(&path).map_err(|m| err("controller.target-model-file", m))?
+        }
+        (Some(_), Some(_)) => {
+            return Err(err(
+                "controller.target-model",
+                "give [controller.target-model] or target-model-file, not both".into(),
+            ));
+        }
+        (None, None) => {
+            return Err(err(
+                "controller.target-model",
+                "missing: give [controller.target-model] or target-model-file".into(),
+            ));
+        }
+    };
+    if target.outputs != n_z || target.inputs != n_u {
+        return Err(err(
+            "controller.target-model",
+            format!(
+                "has {} outputs and {} inputs; the rig has l_z = {n_z} performance \
+                 variables and l_u = {n_u} inputs",
+                target.outputs, target.inputs
+            ),
+        ));
+    }
+    if (target.sample_period - period).abs() > 1e-9 * period {
+        return Err(err(
+            "controller.target-model.sample-period",
+            format!(
+                "{} s differs from the rig's sample period {period} s",
+                target.sample_period
+            ),
+        ));
+    }
+    let rz = weight(&raw.rz, n_z, 1.0, "controller.rz", err)?;
+    let ru = weight(&raw.ru, n_u, 0.0, "controller.ru", err)?;
+    let update = match raw.update.as_deref().unwrap_or("rls") {
+        "rls" => {
+            for (given, name) in [
+                (raw.step_size.is_some(), "step-size"),
+                (raw.alpha.is_some(), "alpha"),
+                (raw.r.is_some(), "r"),
+            ] {
+                if given {
+                    return Err(err(
+                        &format!("controller.{name}"),
+                        "only for update = \"gradient\"".into(),
+                    ));
+                }
+            }
+            let p0 = raw.p0.ok_or_else(|| {
+                err(
+                    "controller.p0",
+                    "missing (P_0 = p0 I, R_θ = I / p0) for update = \"rls\"".into(),
+                )
+            })?;
+            if !(p0 > 0.0 && p0.is_finite()) {
+                return Err(err(
+                    "controller.p0",
+                    format!("{p0} must be positive and finite"),
+                ));
+            }
+            let rule = match (raw.lambda, raw.forgetting) {
+                (Some(_), Some(_)) => {
+                    return Err(err(
+                        "controller.lambda",
+                        "give lambda or [controller.forgetting], not both".into(),
+                    ));
+                }
+                (l, None) => {
+                    let lambda = l.unwrap_or(1.0);
+                    if !(lambda > 0.0 && lambda <= 1.0) {
+                        return Err(err(
+                            "controller.lambda",
+                            format!("{lambda} is outside (0, 1]"),
+                        ));
+                    }
+                    ForgettingRule::Constant { lambda }
+                }
+                (None, Some(f)) => parse_forgetting(&f, err)?,
+            };
+            let trace_limit = raw.trace_limit.unwrap_or(1e6 * ltheta as f64 * p0);
+            if trace_limit.is_nan() || trace_limit <= ltheta as f64 * p0 {
+                return Err(err(
+                    "controller.trace-limit",
+                    format!(
+                        "{trace_limit} must exceed tr(P_0) = l_θ p0 = {}",
+                        ltheta as f64 * p0
+                    ),
+                ));
+            }
+            RcacUpdate::Rls {
+                p0,
+                rule,
+                trace_limit,
+            }
+        }
+        "gradient" => {
+            for (given, name) in [
+                (raw.p0.is_some(), "p0"),
+                (raw.lambda.is_some(), "lambda"),
+                (raw.forgetting.is_some(), "forgetting"),
+                (raw.trace_limit.is_some(), "trace-limit"),
+            ] {
+                if given {
+                    return Err(err(
+                        &format!("controller.{name}"),
+                        "only for update = \"rls\"".into(),
+                    ));
+                }
+            }
+            let step_size = match raw.step_size.as_deref().unwrap_or("exp") {
+                "opt" => StepSize::Opt,
+                "sigma" => StepSize::Sigma,
+                "frobenius" => StepSize::Frobenius,
+                "exp" => StepSize::Exp,
+                other => {
+                    return Err(err(
+                        "controller.step-size",
+                        format!("'{other}' is not one of opt, sigma, frobenius, exp"),
+                    ));
+                }
+            };
+            let alpha = raw.alpha.ok_or_else(|| {
+                err(
+                    "controller.alpha",
+                    "missing (the step-size factor α ∈ (0, 1])".into(),
+                )
+            })?;
+            if !(alpha > 0.0 && alpha <= 1.0) {
+                return Err(err(
+                    "controller.alpha",
+                    format!("{alpha} is outside (0, 1]"),
+                ));
+            }
+            let r = raw.r.unwrap_or(0.0);
+            if !(r >= 0.0 && r.is_finite()) {
+                return Err(err("controller.r", format!("{r} must be finite and ≥ 0")));
+            }
+            RcacUpdate::Gradient {
+                step_size,
+                alpha,
+                r,
+            }
+        }
+        other => {
+            return Err(err(
+                "controller.update",
+                format!("'{other}' is not \"rls\" or \"gradient\""),
+            ));
+        }
+    };
+    let limits = output_limits(&raw.u_min, &raw.u_max, n_u, err)?;
+    let params = RcacParams {
+        nc,
+        kw: raw.kw,
+        target,
+        rz,
+        ru,
+        theta0: raw.theta0,
+        update,
+        limits,
+        sample_period: period,
+    };
+    // Build once now so that every remaining check (R_z definite, R_u semidefinite, the
+    // target model's poles and feedthrough, θ_0, forgetting windows) reports at load time.
+    Rcac::new(&params, counts).map_err(|m| {
+        let field = if m.starts_with("rz") {
+            "controller.rz"
+        } else if m.starts_with("ru") {
+            "controller.ru"
+        } else if m.starts_with("theta0") {
+            "controller.theta0"
+        } else if m.starts_with("forgetting") {
+            "controller.forgetting"
+        } else if m.starts_with("output limits") {
+            "controller.u-min"
+        } else if m.starts_with("target model") {
+            "controller.target-model"
+        } else {
+            "controller"
+        };
+        err(field, m)
+    })?;
+    Ok(ControllerConfig::Rcac {
+        params: Box::new(params),
+    })
+}
+
+/// The `[controller.forgetting]` table of RCAC's RLS update.
+fn parse_forgetting(
+    f: &RawForgetting,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<ForgettingRule, ConfigError> {
+    let need = |v: Option<f64>, name: &str| {
+        v.ok_or_else(|| {
+            err(
+                &format!("controller.forgetting.{name}"),
+                format!("missing for rule = \"{}\"", f.rule),
+            )
+        })
+    };
+    let need_n = |v: Option<usize>, name: &str| {
+        v.ok_or_else(|| {
+            err(
+                &format!("controller.forgetting.{name}"),
+                format!("missing for rule = \"{}\"", f.rule),
+            )
+        })
+    };
+    match f.rule.as_str() {
+        "constant" => Ok(ForgettingRule::Constant {
+            lambda: need(f.lambda, "lambda")?,
+        }),
+        "f-test" => Ok(ForgettingRule::FTest {
+            tau_n: need_n(f.tau_n, "tau-n")?,
+            tau_d: need_n(f.tau_d, "tau-d")?,
+            eta: need(f.eta, "eta")?,
+            alpha: need(f.alpha, "alpha")?,
+        }),
+        "rms-ratio" => Ok(ForgettingRule::RmsRatio {
+            tau_n: need_n(f.tau_n, "tau-n")?,
+            tau_d: need_n(f.tau_d, "tau-d")?,
+            eta: need(f.eta, "eta")?,
+        }),
+        other => Err(err(
+            "controller.forgetting.rule",
+            format!("'{other}' is not one of constant, f-test, rms-ratio"),
+        )),
+    }
 }
 
 /// Realizes an `n_u × n_e` matrix of discrete transfer functions with plant-proxy's

@@ -16,6 +16,9 @@
 //! whose input `e_k` is `y_k`, the tracking error `r_k − y_k`, or the stack `[y_k; r_k]`
 //! ([`ControllerInput`]), given as a matrix of discrete transfer functions or in state space.
 //!
+//! [`Rcac`] is retrospective cost adaptive control (2.15)–(2.23) with a target model `G_f`
+//! (3.39)/(3.49), updated by RLS or by the instantaneous-cost gradient (3.51)–(3.63).
+//!
 //! [`ExcitationSource`] is not a feedback law: it drives the inputs with independent white
 //! noise for identification experiments (the data of the design tools, section 3.2).
 
@@ -23,7 +26,9 @@ use ipc_types::{ChannelCounts, actuation_status};
 use nalgebra::{DMatrix, DVector};
 
 mod excitation;
+mod rcac;
 pub use excitation::ExcitationSource;
+pub use rcac::{Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};
 
 /// Maximum number of internal signals a controller exposes to the signal log.
 pub const MAX_INTERNALS: usize = 16;
