@@ -59,7 +59,7 @@
 //! # rz = 1.0                      # R_z: scalar (times I) or l_z×l_z matrix, positive definite
 //! # ru = 0.0                      # R_u: scalar or l_u×l_u matrix, ≥ 0 (default 0)
 //! # theta0 = [...]                # optional, l_θ = l_u nc (l_u + l_y) values (default 0)
-//! # u-min = -1.0                  # optional saturation, scalar or per input (must contain 0)
+//! # u-min = -1.0                  # optional saturation, scalar or per input
 //! # u-max = 1.0
 //! # target-model-file = "target-model.toml"   # relative to this file's folder, or inline:
 //! # # [controller.target-model] with the fields of design::target (form, sample-period, …)
@@ -1347,5 +1347,266 @@ d = [[-2.0]]
             + "\n[plant]\nkind = \"transfer-function\"\ninputs = 1\noutputs-y = 1\noutputs-z = 1\ndisturbances = 0\n";
         let c = ServiceConfig::parse(&text, "x.toml").unwrap();
         assert_eq!(c.counts.n_u, 1);
+    }
+
+    const RCAC: &str = r#"
+[rig]
+name = "unit"
+sample-period = 0.01
+[service]
+channels = { y = 1, z = 1, u = 2 }
+[controller]
+kind = "rcac"
+update = "rls"
+nc = 4
+p0 = 10.0
+u-min = -1.0
+u-max = 1.0
+lambda = 0.999
+[controller.target-model]
+form = "transfer-function"
+sample-period = 0.01
+outputs = 1
+inputs = 2
+beta = 0.8
+[[controller.target-model.channel]]
+output = 0
+input = 0
+delay = 1
+num = [0.5]
+den = [1.0, -0.5]
+[[controller.target-model.channel]]
+output = 0
+input = 1
+delay = 3
+num = [0.2]
+den = [1.0]
+"#;
+
+    #[test]
+    fn an_rcac_controller_is_read_with_an_inline_target_model_and_built() {
+        let c = ServiceConfig::parse(RCAC, "rcac.toml").unwrap();
+        let ControllerConfig::Rcac { params } = &c.controller else {
+            panic!("not rcac: {:?}", c.controller);
+        };
+        assert_eq!(params.nc, 4);
+        assert_eq!(params.target.inputs, 2);
+        assert_eq!(
+            params.update,
+            RcacUpdate::Rls {
+                p0: 10.0,
+                rule: ForgettingRule::Constant { lambda: 0.999 },
+                trace_limit: 1e6 * 24.0 * 10.0,
+            }
+        );
+        let ctl = c.controller.build(c.counts).unwrap();
+        assert_eq!(ctl.kind(), "rcac");
+        assert_eq!(ctl.internal_names().len(), 6);
+        // The gradient variant, and the forgetting table.
+        let g = RCAC
+            .replace("update = \"rls\"", "update = \"gradient\"")
+            .replace(
+                "p0 = 10.0\n",
+                "step-size = \"sigma\"\nalpha = 0.3\nr = 0.01\n",
+            )
+            .replace("lambda = 0.999\n", "");
+        let c = ServiceConfig::parse(&g, "rcac.toml").unwrap();
+        let ControllerConfig::Rcac { params } = &c.controller else {
+            panic!()
+        };
+        assert_eq!(
+            params.update,
+            RcacUpdate::Gradient {
+                step_size: StepSize::Sigma,
+                alpha: 0.3,
+                r: 0.01
+            }
+        );
+        let f = RCAC.replace(
+            "lambda = 0.999",
+            "[controller.forgetting]\nrule = \"f-test\"\ntau-n = 10\ntau-d = 80\neta = 0.5\nalpha = 0.01",
+        );
+        let c = ServiceConfig::parse(&f, "rcac.toml");
+        assert!(c.is_ok(), "{c:?}");
+    }
+
+    #[test]
+    fn a_target_model_file_is_found_next_to_the_scenario() {
+        let dir = std::env::temp_dir().join(format!("rcac-config-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let (head, tm) = RCAC.split_once("[controller.target-model]").unwrap();
+        let tm = format!(
+            "[target-model]{}",
+            tm.replace("controller.target-model.", "target-model.")
+        );
+        std::fs::write(dir.join("sub/tm.toml"), tm).unwrap();
+        let text = head.replace(
+            "kind = \"rcac\"",
+            "kind = \"rcac\"\ntarget-model-file = \"sub/tm.toml\"",
+        );
+        let origin = dir.join("scenario.toml").display().to_string();
+        let c = ServiceConfig::parse(&text, &origin).unwrap();
+        assert!(matches!(c.controller, ControllerConfig::Rcac { .. }));
+        // A controller file elsewhere: relative to its own folder.
+        std::fs::write(
+            dir.join("scenario.toml"),
+            GOOD.replace("u = 1", "u = 2").replace("0.001", "0.01"),
+        )
+        .unwrap();
+        std::fs::write(
+            dir.join("sub/ctl.toml"),
+            text.split_once("[controller]")
+                .unwrap()
+                .1
+                .replace("sub/tm.toml", "tm.toml")
+                .replace("kind", "[controller]\nkind"),
+        )
+        .unwrap();
+        let c = ServiceConfig::load_with_controller(
+            &dir.join("scenario.toml"),
+            &dir.join("sub/ctl.toml"),
+        );
+        assert!(
+            matches!(
+                c,
+                Ok(ServiceConfig {
+                    controller: ControllerConfig::Rcac { .. },
+                    ..
+                })
+            ),
+            "{c:?}"
+        );
+        // Not there: the field is named.
+        let m = ServiceConfig::parse(&text.replace("sub/tm.toml", "nope.toml"), &origin)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            m.contains("field 'controller.target-model-file'") && m.contains("nope.toml"),
+            "{m}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn bad_rcac_settings_are_refused_naming_file_and_field() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("nc = 4", "nc = 0", "controller.nc"),
+            ("outputs = 1", "outputs = 2", "controller.target-model"),
+            (
+                "sample-period = 0.01\noutputs",
+                "sample-period = 0.001\noutputs",
+                "controller.target-model.sample-period",
+            ),
+            ("beta = 0.8", "beta = 1.8", "controller.target-model.beta"),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nrz = -1.0",
+                "controller.rz",
+            ),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nrz = [[1.0, 0.0]]",
+                "controller.rz",
+            ),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nru = [[1.0, 2.0], [2.0, 1.0]]",
+                "controller.ru",
+            ),
+            ("lambda = 0.999", "lambda = 1.5", "controller.lambda"),
+            ("p0 = 10.0\n", "", "controller.p0"),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nalpha = 0.5",
+                "controller.alpha",
+            ),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\ntheta0 = [1.0, 2.0]",
+                "controller.theta0",
+            ),
+            ("update = \"rls\"", "update = \"lms\"", "controller.update"),
+            (
+                "kind = \"rcac\"",
+                "kind = \"rcac\"\ninput = \"error\"",
+                "controller.input",
+            ),
+            (
+                "den = [1.0, -0.5]",
+                "den = [1.0, -1.5]",
+                "controller.target-model",
+            ),
+            (
+                "delay = 1\nnum = [0.5]",
+                "delay = 0\nnum = [0.5, 0.1]",
+                "controller.target-model",
+            ),
+            ("u-max = 1.0", "u-max = -1.5", "controller.u-min"),
+            (
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"rms-ratio\"\ntau-n = 10\neta = 1.0",
+                "controller.forgetting.tau-d",
+            ),
+            (
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"rms-ratio\"\ntau-n = 10\ntau-d = 5\neta = 1.0",
+                "controller.forgetting",
+            ),
+            (
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"newton\"",
+                "controller.forgetting.rule",
+            ),
+            (
+                "kind = \"rcac\"",
+                "kind = \"rcac\"\ntarget-model-file = \"x.toml\"",
+                "controller.target-model",
+            ),
+        ];
+        for (from, to, field) in cases {
+            let text = RCAC.replacen(from, to, 1);
+            assert_ne!(text, RCAC, "{from}");
+            let m = ServiceConfig::parse(&text, "bad.toml")
+                .err()
+                .unwrap_or_else(|| panic!("accepted: {to}"))
+                .to_string();
+            eprintln!("{m}");
+            assert!(
+                m.starts_with(&format!("bad.toml: field '{field}'")),
+                "{to}: {m}"
+            );
+        }
+        let grad = RCAC
+            .replace("update = \"rls\"", "update = \"gradient\"")
+            .replace("p0 = 10.0\n", "alpha = 0.5\n")
+            .replace("lambda = 0.999\n", "");
+        for (from, to, field) in [
+            ("alpha = 0.5", "alpha = 1.5", "controller.alpha"),
+            ("alpha = 0.5", "alpha = 0.0", "controller.alpha"),
+            ("alpha = 0.5", "", "controller.alpha"),
+            (
+                "alpha = 0.5",
+                "alpha = 0.5\nstep-size = \"fast\"",
+                "controller.step-size",
+            ),
+            ("alpha = 0.5", "alpha = 0.5\nr = -1.0", "controller.r"),
+            (
+                "alpha = 0.5",
+                "alpha = 0.5\nlambda = 0.9",
+                "controller.lambda",
+            ),
+        ] {
+            let text = grad.replacen(from, to, 1);
+            assert_ne!(text, grad, "{from}");
+            let m = ServiceConfig::parse(&text, "bad.toml")
+                .err()
+                .unwrap_or_else(|| panic!("accepted: {to}"))
+                .to_string();
+            eprintln!("{m}");
+            assert!(
+                m.starts_with(&format!("bad.toml: field '{field}'")),
+                "{to}: {m}"
+            );
+        }
     }
 }

@@ -386,13 +386,6 @@ impl Rcac {
             {
                 return Err("output limits need u-min ≤ u-max for every input".into());
             }
-            if l.min
-                .iter()
-                .zip(&l.max)
-                .any(|(lo, hi)| !(*lo <= 0.0 && 0.0 <= *hi))
-            {
-                return Err("output limits must contain 0 (RCAC applies u = 0 before k_w)".into());
-            }
         }
         let p = lz + ru_rows;
         let law = match &params.update {
