@@ -25,6 +25,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::publish_subscribe::{
     PublishSubscribeCreateError, PublishSubscribeOpenError,
@@ -319,13 +320,32 @@ pub fn cleanup_dead_nodes() -> usize {
     let mut n = 0;
     let _ = Node::<ipc::Service>::list(Config::global_config(), |state| {
         if let NodeState::<ipc::Service>::Dead(view) = state {
-            if view.try_remove_stale_resources().is_ok() {
+            // A node whose process is alive is not dead: it is being created (its monitor
+            // file exists, its lock is not taken yet) or being dropped. Removing it then
+            // would take the services of a live peer away (seen under load as a peer whose
+            // service never appears). Only a node whose process is gone is cleaned up.
+            let alive = view
+                .id()
+                .pid::<ipc::Service>()
+                .is_ok_and(|p| process_alive(p.value()));
+            if !alive && view.try_remove_stale_resources().is_ok() {
                 n += 1;
             }
         }
         CallbackProgression::Continue
     });
     n
+}
+
+/// Whether a process with this id exists (`kill(pid, 0)`: 0, or `EPERM` for another
+/// user's process).
+fn process_alive(pid: i32) -> bool {
+    if pid <= 0 {
+        return false;
+    }
+    // SAFETY: signal 0 performs the existence and permission check only.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
 /// The ports of one side: publishes `Out`, subscribes to `In`, notifies after each send and
@@ -556,6 +576,7 @@ fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
     opts: &ConnectOptions<'_>,
 ) -> Result<(PubSubFactory<ipc::Service, T, ()>, ContractInfo), ConnectError> {
     let start = Instant::now();
+    let mut last_cleanup = start;
     loop {
         match pubsub_builder::<T>(node, name)?.open() {
             Ok(f) => {
@@ -574,9 +595,14 @@ fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
                 return Ok((f, peer));
             }
             Err(PublishSubscribeOpenError::DoesNotExist)
-            | Err(PublishSubscribeOpenError::IsMarkedForDestruction)
-            | Err(PublishSubscribeOpenError::HangsInCreation) => {
-                cleanup_dead_nodes();
+            | Err(PublishSubscribeOpenError::IsMarkedForDestruction) => {}
+            // A service left half-created by a crashed peer: remove the dead node's
+            // resources, at most once a second (a cleanup lists every node of the machine).
+            Err(PublishSubscribeOpenError::HangsInCreation) => {
+                if last_cleanup.elapsed() >= Duration::from_secs(1) {
+                    cleanup_dead_nodes();
+                    last_cleanup = Instant::now();
+                }
             }
             Err(PublishSubscribeOpenError::IncompatibleTypes) => {
                 return Err(ConnectError::IncompatibleType {
