@@ -335,3 +335,112 @@ fn an_rls_update_with_each_forgetting_rule_does_not_allocate() {
         }
     }
 }
+
+/// An RCAC scenario of the acoustic rig's shape (`l_u = 2`, `l_y = l_z = 1`, 8 kHz) with a
+/// dereverberated target model with delays 9 and 16; `update` holds the update-law keys.
+fn rcac_config(update: &str) -> ServiceConfig {
+    let text = format!(
+        r#"
+[rig]
+name = "unit-noalloc-rcac"
+sample-rate-hz = 8000
+[service]
+channels = {{ y = 1, z = 1, u = 2 }}
+[controller]
+kind = "rcac"
+nc = 50
+kw = 100
+u-min = -2.0
+u-max = 2.0
+{update}
+[controller.target-model]
+form = "transfer-function"
+sample-period = 1.25e-4
+outputs = 1
+inputs = 2
+beta = 0.8
+[[controller.target-model.channel]]
+output = 0
+input = 0
+delay = 9
+num = [0.012, 0.0045]
+den = [1.0, -0.71, 0.2]
+[[controller.target-model.channel]]
+output = 0
+input = 1
+delay = 16
+num = [-0.008]
+den = [1.0, -0.5]
+"#
+    );
+    ServiceConfig::parse(&text, "no_alloc_rcac").unwrap()
+}
+
+/// Steady-state RCAC steps (l_θ = 300) under the counting allocator: past `k_w`, with
+/// saturation, a non-finite sample and, for RLS, the R_u rows and a windowed forgetting
+/// rule.
+fn rcac_steps_do_not_allocate(update: &str) {
+    // Built outside the counted region (the gradient test runs several on one thread).
+    let mut ctl = service::rt_alloc::outside_rt(|| {
+        let cfg = rcac_config(update);
+        cfg.controller.build(cfg.counts).unwrap()
+    });
+    assert_eq!(ctl.kind(), "rcac");
+    let mut u = [0.0; 2];
+    let mut internals = [0.0; service::controller::MAX_INTERNALS];
+    let signal = |k: u64, u: &[f64; 2]| {
+        let t = k as f64 / 8000.0;
+        (2.0 * std::f64::consts::PI * 800.0 * t).sin() + 0.1 * u[0] - 0.05 * u[1]
+    };
+    for k in 0..300 {
+        let z = signal(k, &u);
+        ctl.step(
+            &StepInput {
+                seq: k,
+                y: &[z],
+                z: &[z],
+                r: &[],
+            },
+            &mut u,
+        );
+    }
+    enter_rt_thread(16);
+    let before = thread_stats();
+    for k in 300..5_300u64 {
+        let z = if k == 1000 { f64::NAN } else { signal(k, &u) };
+        ctl.step(
+            &StepInput {
+                seq: k,
+                y: &[z],
+                z: &[z],
+                r: &[],
+            },
+            &mut u,
+        );
+        ctl.internals(&mut internals);
+        assert!(u.iter().all(|v| v.is_finite()));
+    }
+    let d = thread_stats().since(&before);
+    assert!(d.installed);
+    assert_eq!(
+        (d.pool_served, d.system_on_rt_thread),
+        (0, 0),
+        "{update}: {d:?}"
+    );
+}
+
+#[test]
+fn an_rcac_step_with_the_rls_update_does_not_allocate() {
+    rcac_steps_do_not_allocate(
+        "update = \"rls\"\np0 = 1.0\nru = 0.01\n[controller.forgetting]\nrule = \"f-test\"\ntau-n = 10\ntau-d = 100\neta = 0.5\nalpha = 0.001",
+    );
+}
+
+#[test]
+fn an_rcac_step_with_the_gradient_update_does_not_allocate() {
+    for step in ["opt", "sigma", "frobenius", "exp"] {
+        rcac_steps_do_not_allocate(&format!(
+            "update = \"gradient\"\nstep-size = \"{step}\"\nalpha = 0.5\nr = 0.001\nru = [[0.01, 0.0], [0.0, 0.02]]"
+        ));
+    }
+}
