@@ -533,7 +533,18 @@ fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), 
                     Some(m) => dtf::ZeroCount::Fixed(m),
                     None => dtf::ZeroCount::Choose,
                 };
-                (dtf::optimize(&theta, &g, a.n_max, zeros)?, None)
+                let opt = dtf::optimize_all(&theta, &g, a.n_max, zeros)?;
+                let tried: Vec<String> = opt
+                    .candidates
+                    .iter()
+                    .map(|c| format!("({},{}) {:.4}", c.poles, c.zeros, c.relative_cost))
+                    .collect();
+                println!(
+                    "output {o} ← input {i}: optimization (3.44), relative cost per structure (n̂,m̂): {}; chosen {:.4}",
+                    tried.join(", "),
+                    opt.relative_cost,
+                );
+                (opt.best, None)
             }
         };
         let resp = fit.response(&theta);
