@@ -71,8 +71,9 @@
 //! ```
 //!
 //! because `W_z ẑ_k(θ̂) = W_z Φ_{f,k} θ̂ − y_z` (2.20), so
-//! `|φ θ̂ − y|² = ẑ_kᵀ R_z ẑ_k + (Φ_k θ̂)ᵀ R_u (Φ_k θ̂)`, the bracket of (2.21). Sign check against (2.22): the RLS
-//! prior error is `e = y − φ θ_k = −[W_z(Φ_{f,k} θ_k + z_k − u_{f,k}); W_u Φ_k θ_k]`, and
+//! `|φ θ̂ − y|² = ẑ_kᵀ R_z ẑ_k + (Φ_k θ̂)ᵀ R_u (Φ_k θ̂)`, the bracket of (2.21).
+//!
+//! Sign check against (2.22): the RLS prior error is `e = y − φ θ_k = −[W_z(Φ_{f,k} θ_k + z_k − u_{f,k}); W_u Φ_k θ_k]`, and
 //! `θ_{k+1} = θ_k + β P_k φᵀ (I + β φ P_k φᵀ)⁻¹ e
 //!          = θ_k − P_k Φ̄ᵀ (λ R̄⁻¹ + Φ̄ P_k Φ̄ᵀ)⁻¹ (Φ̄ θ_k + [z_k − u_{f,k}; 0])` with
 //! `Φ̄ = [Φ_{f,k}; Φ_k]`, `R̄ = diag(R_z, R_u)`, `λ = 1/β` — (2.22), and the covariance
@@ -115,6 +116,11 @@
 //! input and reports [`actuation_status::CONTROLLER_FAULT`] (the non-finite entries of
 //! `y_k` are replaced by the last finite ones in the history). A guard reset of `θ` also
 //! reports `CONTROLLER_FAULT`.
+//!
+//! Cost per step at the acoustic rig's size (`l_u = 2`, `l_y = l_z = 1`, `n_c = 50`,
+//! `l_θ = 300`, DTF target with delays 9 and 16), release build, unpinned on the 2-core
+//! development VM: RLS p50 12.5 µs, p99 19 µs (the `O(l_θ² p)` covariance sweep of
+//! [`Rls`]); gradient p50 2.1–2.3 µs for every step size.
 //!
 //! # Internals (signal log)
 //!
