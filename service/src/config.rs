@@ -1476,6 +1476,26 @@ den = [1.0]
             ),
             "{c:?}"
         );
+        // A Markov (FIR) model as the design tools write it (TargetModel::save), as is.
+        let fir = TargetModel {
+            sample_period: 0.01,
+            outputs: 1,
+            inputs: 2,
+            beta: 0.9,
+            source: "rig-design markov".into(),
+            form: crate::design::target::TargetForm::Markov(vec![
+                DMatrix::zeros(1, 2),
+                DMatrix::from_row_slice(1, 2, &[0.05, 0.0]),
+                DMatrix::from_row_slice(1, 2, &[0.0, -0.02]),
+            ]),
+        };
+        fir.save(&dir.join("sub/fir.toml")).unwrap();
+        let c = ServiceConfig::parse(&text.replace("sub/tm.toml", "sub/fir.toml"), &origin);
+        assert!(
+            matches!(&c, Ok(ServiceConfig { controller: ControllerConfig::Rcac { params }, .. })
+                if params.target == fir),
+            "{c:?}"
+        );
         // Not there: the field is named.
         let m = ServiceConfig::parse(&text.replace("sub/tm.toml", "nope.toml"), &origin)
             .unwrap_err()
