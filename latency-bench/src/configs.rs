@@ -161,6 +161,35 @@ pub struct StepCase {
     pub slug: String,
     /// The configuration text, parsed by `ServiceConfig::parse`.
     pub toml: String,
+    /// Least number of untimed steps before timing starts, whatever the bench's warm-up
+    /// setting (an adaptive controller's `k_w` and its start of adaptation).
+    pub min_warmup: u64,
+    /// A plant closing the loop around the controller during the measurement, or `None`
+    /// (then `y_k` comes from a fixed table of sines and `z_k = 0`). See [`LoopPlant`].
+    pub plant: Option<LoopPlant>,
+}
+
+/// An FIR plant that closes the loop in the step-cost phase of an adaptive controller, so
+/// that it adapts on the data of a real loop:
+///
+/// ```text
+/// z_k = d_k + Σ_{i=1}^{n} H_i u_{k−i},   y_k = z_k   (H_0 is ignored: z_k is sampled before u_k)
+/// ```
+///
+/// with `d_k` a tone plus white Gaussian noise from a seeded generator. Computed outside
+/// the timed region.
+#[derive(Debug, Clone)]
+pub struct LoopPlant {
+    /// `H_0 … H_n`, `l_z × l_u` each (`H_0 = 0`).
+    pub markov: Vec<DMatrix<f64>>,
+    /// Amplitude of the disturbance tone in `z`.
+    pub tone: f64,
+    /// Frequency of the tone, rad/sample.
+    pub tone_w: f64,
+    /// Standard deviation of the white noise in `z`.
+    pub noise_std: f64,
+    /// Seed of the noise.
+    pub seed: u64,
 }
 
 impl StepCase {
@@ -170,15 +199,102 @@ impl StepCase {
             name: name.to_string(),
             slug: slug.to_string(),
             toml: service_toml("bench-step", channels, ss, false),
+            min_warmup: 0,
+            plant: None,
+        }
+    }
+
+    /// A case named `name` for the `[controller]` table `controller` (any kind) on
+    /// `channels`, in the loop of `plant`, timed after at least `min_warmup` steps.
+    pub fn in_loop(
+        name: &str,
+        slug: &str,
+        channels: Channels,
+        controller: &str,
+        min_warmup: u64,
+        plant: LoopPlant,
+    ) -> Self {
+        Self {
+            name: name.to_string(),
+            slug: slug.to_string(),
+            toml: step_toml(channels, controller),
+            min_warmup,
+            plant: Some(plant),
         }
     }
 }
 
+/// A service configuration at the 8 kHz period around a `[controller]` table given as text.
+pub fn step_toml(channels: Channels, controller: &str) -> String {
+    format!(
+        "[rig]\nname = \"bench-step\"\nsample-period = 1.25e-4\n\n[service]\n\
+         channels = {{ y = {}, z = {}, u = {} }}\n\n{controller}\n[log]\nenabled = false\n",
+        channels.y, channels.z, channels.u
+    )
+}
+
+/// RCAC's `k_w` in the bench cases: `n_c = 50` plus the largest delay (16) plus margin.
+pub const RCAC_KW: u64 = 100;
+
+/// The acoustic rig's dereverberated target model (3.49): one output, two inputs, delays 9
+/// and 16 samples, 6th-order `Ĝ_d` per channel, β = 0.9, as `rig-design dtf --method
+/// average` wrote it from the identification run (`runs/design/acoustic/target-model.toml`).
+pub const ACOUSTIC_TARGET: &str = r#"[controller.target-model]
+form = "transfer-function"
+sample-period = 1.25e-4
+outputs = 1
+inputs = 2
+beta = 0.9
+source = "rig-design dtf --method average (acoustic rig identification)"
+[[controller.target-model.channel]]
+output = 0
+input = 0
+delay = 9
+num = [-0.05016012400620995, 0.08879620055185959, -0.0618694748412579, 0.029814566814328886, -0.004406028155685372, -0.002605765254407065]
+den = [1.0, -3.194107638430421, 4.768417404012421, -4.846782004116789, 3.62870254105471, -1.7504295726667782, 0.3952646368383396]
+[[controller.target-model.channel]]
+output = 0
+input = 1
+delay = 16
+num = [0.11576027354482188, -0.22579935458178954, 0.11015674914149816, 0.11387417860468606, -0.1876151403933193, 0.07705850541881361]
+den = [1.0, -3.5234543531271285, 5.658553373179581, -5.368039876629378, 3.1444112020561565, -1.1249541511812335, 0.2185537812604875]
+"#;
+
+/// The `[controller]` table of an RCAC controller of the acoustic rig's size (`n_c = 50`,
+/// `l_u = 2`, `l_y = l_z = 1`, so `l_θ = 300`) with [`ACOUSTIC_TARGET`]; `update` holds
+/// the keys of the update law (and any `[controller.forgetting]` table comes after).
+pub fn acoustic_rcac_toml(update: &str, tables: &str) -> String {
+    format!(
+        "[controller]\nkind = \"rcac\"\ninput = \"y\"\nnc = 50\nkw = {RCAC_KW}\nrz = 1.0\n\
+         u-min = -2.0\nu-max = 2.0\n{update}\n{ACOUSTIC_TARGET}{tables}"
+    )
+}
+
+/// The loop of the RCAC cases: the plant is the target model itself (its first 400 Markov
+/// parameters, 50 ms), the disturbance a 400 Hz tone of amplitude 0.5 plus white noise of
+/// σ = 0.1.
+pub fn acoustic_plant() -> LoopPlant {
+    let target = service::design::target::TargetModel::parse(
+        &ACOUSTIC_TARGET.replace("controller.target-model", "target-model"),
+        "acoustic target",
+    )
+    .expect("the acoustic target model is valid");
+    LoopPlant {
+        markov: target.markov(400),
+        tone: 0.5,
+        tone_w: 2.0 * std::f64::consts::PI * 400.0 * 1.25e-4,
+        noise_std: 0.1,
+        seed: 5,
+    }
+}
+
 /// The controller configurations the bench knows, in table order. Add new controllers
-/// (RCAC, PCAC, …) here.
+/// (PCAC, …) here.
 pub fn step_cases() -> Vec<StepCase> {
     let siso = Channels { y: 1, z: 1, u: 1 };
     let two_in = Channels { y: 2, z: 2, u: 1 };
+    let acoustic = Channels { y: 1, z: 1, u: 2 };
+    let warm = 2 * RCAC_KW;
     vec![
         StepCase::lti(
             "lti static gain (SISO)",
@@ -197,6 +313,36 @@ pub fn step_cases() -> Vec<StepCase> {
             "lti-50-state-2x1",
             two_in,
             &random_controller(50, 2, 1, 0.9, 0.5, 50),
+        ),
+        StepCase::in_loop(
+            "rcac gradient exp, nc 50, 2u/1y (lθ 300)",
+            "rcac-gradient-exp-300",
+            acoustic,
+            &acoustic_rcac_toml(
+                "update = \"gradient\"\nstep-size = \"exp\"\nalpha = 0.05\nr = 0.0",
+                "",
+            ),
+            warm,
+            acoustic_plant(),
+        ),
+        StepCase::in_loop(
+            "rcac RLS λ=1, nc 50, 2u/1y (lθ 300, p 1)",
+            "rcac-rls-300x1",
+            acoustic,
+            &acoustic_rcac_toml("update = \"rls\"\np0 = 1.0\nlambda = 1.0\nru = 0.0", ""),
+            warm,
+            acoustic_plant(),
+        ),
+        StepCase::in_loop(
+            "rcac RLS F-test, Ru>0, nc 50, 2u/1y (lθ 300, p 3)",
+            "rcac-rls-ftest-300x3",
+            acoustic,
+            &acoustic_rcac_toml(
+                "update = \"rls\"\np0 = 1.0\nru = 1e-3",
+                "[controller.forgetting]\nrule = \"f-test\"\ntau-n = 10\ntau-d = 80\neta = 1.0\nalpha = 0.001\n",
+            ),
+            warm,
+            acoustic_plant(),
         ),
     ]
 }
