@@ -149,6 +149,47 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
         "{text}"
     );
 
+    // The FIR target (3.39) from the measured impulse response: zeros up to the delays,
+    // then the model's Markov parameters to within 5 % (relative 2-norm over 200).
+    let fir_out = dir.path.join("fir");
+    let frf_csv = out.join("frf.csv");
+    let (ok, text) = rig_design(&[
+        "dtf",
+        frf_csv.to_str().unwrap(),
+        "--method",
+        "fir",
+        "--count",
+        "200",
+        "--out",
+        fir_out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let fir = TargetModel::load(&fir_out.join("target-model.toml")).expect("FIR target reads back");
+    let TargetForm::Markov(h_est) = &fir.form else {
+        panic!("a Markov target model")
+    };
+    let sc = plant_proxy::scenario::load(&scenario).unwrap();
+    let model = service::design::model::DiscreteModel::from_scenario(
+        &sc,
+        service::design::model::OutputSet::Y,
+    )
+    .unwrap();
+    let h_true = model.markov(200);
+    for j in 0..2 {
+        let (mut err, mut norm) = (0.0, 0.0);
+        for (e, t) in h_est.iter().zip(&h_true) {
+            err += (e[(0, j)] - t[(0, j)]).powi(2);
+            norm += t[(0, j)].powi(2);
+        }
+        let rel = (err / norm).sqrt();
+        assert!(
+            rel < 0.05,
+            "input {j}: relative error of the Markov parameters {rel}"
+        );
+        let d = [9, 16][j];
+        assert!(h_est[..=d].iter().all(|h| h[(0, j)] == 0.0));
+    }
+
     // Bad input: a log cut to fewer samples than one segment, and a missing channel.
     let short = dir.write(
         "short.csv",

@@ -67,6 +67,9 @@ enum Method {
     Average,
     /// Log-frequency optimization over real poles and zeros (3.44)–(3.47).
     Optimize,
+    /// No dereverberation: the FIR target (3.39) from the first `--count` samples of the
+    /// measured impulse response (exact phase, `count` coefficients per channel).
+    Fir,
 }
 
 #[derive(Args, Clone)]
@@ -114,6 +117,9 @@ struct DtfArgs {
     /// β of (3.49), in (0, 1].
     #[arg(long, default_value_t = 1.0)]
     beta: f64,
+    /// Number of Markov parameters of the FIR target (fir).
+    #[arg(long, default_value_t = 200)]
+    count: usize,
     /// Lowest frequency of the fit, Hz (default: the first nonzero bin).
     #[arg(long)]
     from_hz: Option<f64>,
@@ -546,6 +552,7 @@ fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), 
                 );
                 (opt.best, None)
             }
+            Method::Fir => return measured_fir(f, a, out, origin),
         };
         let resp = fit.response(&theta);
         let err: Vec<C64> = g.iter().zip(&resp).map(|(x, y)| x - y).collect();
@@ -610,6 +617,60 @@ fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), 
     TargetModel::parse(&target.to_toml(), &path.display().to_string())?;
     target.save(&path)?;
     println!("wrote {} (β = {})", path.display(), a.beta);
+    Ok(())
+}
+
+/// The FIR target model (3.39) from the measured impulse response.
+fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), String> {
+    let fir = FirTarget::from_measured(&f.frf, &f.delays, a.count)?;
+    let target = TargetModel {
+        sample_period: f.frf.ts,
+        outputs: f.frf.n_outputs,
+        inputs: f.frf.n_inputs,
+        beta: a.beta,
+        source: format!(
+            "rig-design dtf --method fir --count {} of {origin}",
+            a.count
+        ),
+        form: TargetForm::Markov(fir.markov),
+    };
+    let path = out.join("target-model.toml");
+    TargetModel::parse(&target.to_toml(), &path.display().to_string())?;
+    target.save(&path)?;
+    let theta: Vec<f64> = f.frf.theta.iter().copied().filter(|t| *t > 0.0).collect();
+    let skip = f.frf.theta.len() - theta.len();
+    let hz: Vec<f64> = theta
+        .iter()
+        .map(|t| t / (2.0 * std::f64::consts::PI * f.frf.ts))
+        .collect();
+    let gf = target.frf(&theta);
+    for c in 0..f.frf.response.len() {
+        let g = &f.frf.response[c][skip..];
+        let gf_c: Vec<C64> = gf.response[c].iter().map(|v| v / a.beta).collect();
+        let err: Vec<C64> = g.iter().zip(&gf_c).map(|(x, y)| x - y).collect();
+        bode_figure(
+            &out.join(format!("fir-{c}.png")),
+            &format!(
+                "FIR target ({} Markov parameters), {}",
+                a.count,
+                channel_name(&f.frf, c)
+            ),
+            &hz,
+            &[
+                Curve::new("G_d (measured)", g),
+                Curve::new("FIR Σ H_i z^-i", &gf_c).dashed(),
+                Curve::new("error", &err).dashed().magnitude_only(),
+            ],
+            &[],
+        )?;
+    }
+    println!(
+        "FIR target from the measured impulse response: {} Markov parameters per channel, delays {:?} kept as zeros; wrote {} (β = {})",
+        a.count,
+        f.delays,
+        path.display(),
+        a.beta
+    );
     Ok(())
 }
 

@@ -133,6 +133,37 @@ impl FirTarget {
         })
     }
 
+    /// (3.39) from measured data: `H_0 … H_{count−1}` are the first samples of the impulse
+    /// response of a Welch estimate ([`super::welch::impulse_response`]), with `H_i(·, j)`
+    /// set to zero for `i ≤ d_j` (the pure delay of input `j` and the sample of the hold,
+    /// where the estimate is noise). `count` must leave the last quarter of the impulse
+    /// response out (that part is estimation noise for a causal plant).
+    pub fn from_measured(frf: &Frf, delays: &[usize], count: usize) -> Result<Self, String> {
+        let (p, m) = (frf.n_outputs, frf.n_inputs);
+        if delays.len() != m {
+            return Err(format!("{} delays for {m} inputs", delays.len()));
+        }
+        let h = super::welch::impulse_response(frf)?;
+        let l = h.first().map_or(0, |c| c.len());
+        if count == 0 || count > l - l / 4 {
+            return Err(format!(
+                "{count} Markov parameters from an impulse response of {l} samples: use 1 … {} \
+                 (or a longer Welch segment)",
+                l - l / 4
+            ));
+        }
+        let markov = (0..count)
+            .map(|i| {
+                DMatrix::from_fn(
+                    p,
+                    m,
+                    |o, j| if i <= delays[j] { 0.0 } else { h[o * m + j][i] },
+                )
+            })
+            .collect();
+        Ok(Self { markov, ts: frf.ts })
+    }
+
     /// (3.39) with order `n_f`: `H_0 … H_{n_f}` of `model` (delays included).
     pub fn from_model(model: &DiscreteModel, n_f: usize) -> Self {
         Self {

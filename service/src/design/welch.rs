@@ -519,27 +519,61 @@ fn onset(h: &[f64]) -> Option<(usize, f64, f64)> {
         .map(|i0| (i0, sigma, peak))
 }
 
-/// The impulse-response estimate of every channel of `frf` (bins `2πk/l`, `k = 0 … ⌊l/2⌋`)
-/// and the delay of each input; appends warnings.
-fn estimate_delays(frf: &Frf, l: usize, warnings: &mut Vec<String>) -> Vec<usize> {
-    let (p, m) = (frf.n_outputs, frf.n_inputs);
+/// The impulse response of every channel of an estimate on the bins `θ_k = 2πk/L`,
+/// `k = 0 … L/2` (as [`estimate`] returns it, `L` even): the inverse FFT of the response
+/// extended to the full circle by `G(e^{−jθ}) = conj G(e^{jθ})`, `L` samples per channel,
+/// channel-major. Its first samples estimate the Markov parameters `H_0, H_1, …` (the FIR
+/// target model (3.39) from data); the last quarter is estimation noise for a causal plant.
+pub fn impulse_response(frf: &Frf) -> Result<Vec<Vec<f64>>, String> {
+    let nb = frf.theta.len();
+    if nb < 3 {
+        return Err(format!(
+            "an impulse response needs at least 3 bins, got {nb}"
+        ));
+    }
+    let l = 2 * (nb - 1);
+    let uniform = frf
+        .theta
+        .iter()
+        .enumerate()
+        .all(|(k, t)| (t - 2.0 * std::f64::consts::PI * k as f64 / l as f64).abs() < 1e-9);
+    if !uniform {
+        return Err(format!(
+            "an impulse response needs the bins 2πk/L, k = 0 … L/2 (L = {l}) of a Welch estimate"
+        ));
+    }
+    Ok(inverse_fft(frf, l))
+}
+
+/// The inverse FFT of length `l` of every channel of `frf` (bins `2πk/l`, `k = 0 … ⌊l/2⌋`),
+/// extended to the full circle by conjugate symmetry.
+fn inverse_fft(frf: &Frf, l: usize) -> Vec<Vec<f64>> {
     let nb = frf.theta.len();
     let ifft = FftPlanner::<f64>::new().plan_fft_inverse(l);
     let mut buf = vec![C64::new(0.0, 0.0); l];
-    let mut h = vec![0.0; l];
-    let mut delays = vec![0; m];
-    for j in 0..m {
-        let mut found: Option<usize> = None;
-        for o in 0..p {
-            let g = frf.channel(o, j);
+    frf.response
+        .iter()
+        .map(|g| {
             for k in 0..l {
                 buf[k] = if k < nb { g[k] } else { g[l - k].conj() };
             }
             ifft.process(&mut buf);
-            for (hv, b) in h.iter_mut().zip(&buf) {
-                *hv = b.re / l as f64;
-            }
-            match onset(&h) {
+            buf.iter().map(|b| b.re / l as f64).collect()
+        })
+        .collect()
+}
+
+/// The impulse-response estimate of every channel of `frf` (bins `2πk/l`, `k = 0 … ⌊l/2⌋`)
+/// and the delay of each input; appends warnings.
+fn estimate_delays(frf: &Frf, l: usize, warnings: &mut Vec<String>) -> Vec<usize> {
+    let (p, m) = (frf.n_outputs, frf.n_inputs);
+    let responses = inverse_fft(frf, l);
+    let mut delays = vec![0; m];
+    for j in 0..m {
+        let mut found: Option<usize> = None;
+        for o in 0..p {
+            let h = &responses[o * m + j];
+            match onset(h) {
                 None => warnings.push(format!(
                     "y{o}/u{j}: no impulse-response sample stands {ONSET_FACTOR}× above the \
                      noise floor of the tail: channel left out of the delay of u{j}"
