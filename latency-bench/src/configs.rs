@@ -7,8 +7,9 @@
 //!   channel counts, a policy that never goes to the safe state nor declares the plant
 //!   silent during a bench (so that the loop does the same work on every sample), and a
 //!   small controller ([`loop_controller`]).
-//! - [`step_cases`]: the named controller configurations whose step cost is measured.
-//!   Later controllers (RCAC, PCAC, …) add entries to that list.
+//! - [`step_cases`]: the named controller configurations whose step cost is measured: LTI
+//!   controllers, and RCAC at the acoustic rig's size ([`acoustic_rcac_toml`]) run in the
+//!   closed loop of a [`LoopPlant`]. Later controllers (PCAC, …) add entries to that list.
 //!
 //! Test matrices are random with a fixed seed (ChaCha8 from `rand_chacha`); the state matrix of a
 //! dynamic controller is scaled to spectral radius 0.9 so the controller is stable and its
