@@ -21,11 +21,11 @@
 use crate::{Actuation, CONTRACT_VERSION, ChannelCounts, Measurement};
 use core::fmt;
 use core::time::Duration;
+use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
-use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::publish_subscribe::{
     PublishSubscribeCreateError, PublishSubscribeOpenError,
@@ -423,7 +423,23 @@ where
     if let Some(msg) = opts.waiting_message {
         eprintln!("{msg}");
     }
-    let (peer_service, peer) = open_peer::<In>(&node, &peer_name, &own, &opts)?;
+    let (peer_service, peer) = match open_peer::<In>(&node, &peer_name, &own, &opts) {
+        Ok(p) => p,
+        Err(e @ ConnectError::Mismatch { .. }) => {
+            // Keep this side's service up a moment, so that a peer polling for it also
+            // finds it and reports the same mismatch, instead of seeing it vanish and
+            // timing out with "no peer".
+            let until = Instant::now() + MISMATCH_LINGER;
+            while Instant::now() < until
+                && !opts.shutdown.is_some_and(|s| s.load(Ordering::Relaxed))
+            {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            drop(own_service);
+            return Err(e);
+        }
+        Err(e) => return Err(e),
+    };
 
     let publisher = own_service
         .publisher_builder()
@@ -614,6 +630,10 @@ fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
         wait_a_little(start, name, opts)?;
     }
 }
+
+/// How long a side that refuses a peer for a contract mismatch keeps its own service up,
+/// so that the peer can read it and refuse too.
+const MISMATCH_LINGER: Duration = Duration::from_secs(3);
 
 fn wait_a_little(
     start: Instant,

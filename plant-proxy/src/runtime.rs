@@ -450,10 +450,10 @@ pub fn run_plant(
         m.y[..n_y].copy_from_slice(&y);
         m.z[..n_z].copy_from_slice(&z);
         m.r[..n_r].copy_from_slice(&r);
-        if let Some(v) = proxy.faults.at(k) {
-            if n_y > 0 {
-                m.y[0] = v;
-            }
+        if let Some(v) = proxy.faults.at(k)
+            && n_y > 0
+        {
+            m.y[0] = v;
         }
         for (s, v) in z_sum_sq.iter_mut().zip(&z) {
             *s += v * v;

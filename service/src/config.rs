@@ -1310,8 +1310,7 @@ d = [[-2.0]]
 
     fn refused(text: &str) -> String {
         ServiceConfig::parse(text, "bad.toml")
-            .err()
-            .expect("must be refused")
+            .expect_err("must be refused")
             .to_string()
     }
 

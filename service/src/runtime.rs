@@ -545,17 +545,17 @@ impl LoopCore {
         if self.silent {
             return true;
         }
-        if let (Some(last), Some(seq)) = (self.last_recv_ns, self.last_seq) {
-            if now_ns.saturating_sub(last) > self.silent_ns {
-                self.silent = true;
-                self.stats.plant_silent_events += 1;
-                let periods = self.silent_periods;
-                self.event(LoopEvent::PlantSilent {
-                    last_seq: seq,
-                    periods,
-                });
-                return true;
-            }
+        if let (Some(last), Some(seq)) = (self.last_recv_ns, self.last_seq)
+            && now_ns.saturating_sub(last) > self.silent_ns
+        {
+            self.silent = true;
+            self.stats.plant_silent_events += 1;
+            let periods = self.silent_periods;
+            self.event(LoopEvent::PlantSilent {
+                last_seq: seq,
+                periods,
+            });
+            return true;
         }
         false
     }
@@ -967,12 +967,13 @@ fn rt_thread_main(
             return Err(ServiceError::RtRefused(setup.describe()));
         }
     }
-    if cfg.wait == WaitMode::BusyPoll && setup.fifo == ipc_types::rt::StepOutcome::Done {
-        if let Some(w) = ipc_types::rt::busy_poll_throttling_warning() {
-            eprintln!("[service] WARNING: {w}");
-            if cfg.require_rt {
-                return Err(ServiceError::RtRefused(w));
-            }
+    if cfg.wait == WaitMode::BusyPoll
+        && setup.fifo == ipc_types::rt::StepOutcome::Done
+        && let Some(w) = ipc_types::rt::busy_poll_throttling_warning()
+    {
+        eprintln!("[service] WARNING: {w}");
+        if cfg.require_rt {
+            return Err(ServiceError::RtRefused(w));
         }
     }
     let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns);
@@ -1074,7 +1075,7 @@ pub fn rt_loop(
             _ => {
                 core::hint::spin_loop();
                 spins = spins.wrapping_add(1);
-                if spins % 256 != 0 {
+                if !spins.is_multiple_of(256) {
                     continue;
                 }
             }

@@ -154,10 +154,10 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
             ports.publisher.send_copy(m).unwrap();
             let start = Instant::now();
             let a: Actuation = loop {
-                if let Some(s) = ports.subscriber.receive().unwrap() {
-                    if s.seq == k {
-                        break *s;
-                    }
+                if let Some(s) = ports.subscriber.receive().unwrap()
+                    && s.seq == k
+                {
+                    break *s;
                 }
                 assert!(
                     start.elapsed() < Duration::from_secs(10),

@@ -76,13 +76,20 @@ impl Frf {
 /// (a logarithmic grid needs `θ_lo > 0`). Errors name the bad value.
 pub fn grid(theta_lo: f64, theta_hi: f64, points: usize, log: bool) -> Result<Vec<f64>, String> {
     let pi = std::f64::consts::PI;
-    if !(theta_lo.is_finite() && theta_hi.is_finite() && 0.0 <= theta_lo && theta_lo < theta_hi && theta_hi <= pi) {
+    if !(theta_lo.is_finite()
+        && theta_hi.is_finite()
+        && 0.0 <= theta_lo
+        && theta_lo < theta_hi
+        && theta_hi <= pi)
+    {
         return Err(format!(
             "frequency grid [{theta_lo}, {theta_hi}] rad/sample must satisfy 0 ≤ low < high ≤ π"
         ));
     }
     if points < 2 {
-        return Err(format!("frequency grid needs at least 2 points, got {points}"));
+        return Err(format!(
+            "frequency grid needs at least 2 points, got {points}"
+        ));
     }
     if log && theta_lo <= 0.0 {
         return Err("a logarithmic frequency grid needs a lower end above 0".into());

@@ -175,7 +175,10 @@ d-yu = [[0.5, 0.0]]
                     .map(|(i, hi)| C64::from_polar(hi[(0, j)], -t * i as f64))
                     .sum();
                 let exact = g.channel(0, j)[k];
-                assert!((fir - exact).norm() < 1e-9 * exact.norm(), "θ = {t}, input {j}");
+                assert!(
+                    (fir - exact).norm() < 1e-9 * exact.norm(),
+                    "θ = {t}, input {j}"
+                );
             }
         }
     }
