@@ -420,7 +420,8 @@ impl ServiceConfig {
     /// Reads a scenario file whose `[controller]` table (and `[log]` table, if present) is
     /// replaced by those of `controller_file`: the same rig, plant and service, another
     /// controller (for example an identification run with `kind = "excitation"`). Errors
-    /// in the replaced tables name `controller_file`.
+    /// in the replaced tables name `controller_file`; a relative target-model file in it is
+    /// found from `controller_file`'s folder.
     pub fn load_with_controller(path: &Path, controller_file: &Path) -> Result<Self, ConfigError> {
         let read = |p: &Path| -> Result<toml::Table, ConfigError> {
             let origin = p.display().to_string();
@@ -456,16 +457,6 @@ impl ServiceConfig {
                 message: "the [controller] table is missing".into(),
             });
         }
-        let mut over = over;
-        // A relative RCAC target-model file is relative to the controller file's folder.
-        if let Some(ctl) = over.get_mut("controller").and_then(|c| c.as_table_mut())
-            && let Some(toml::Value::String(f)) = ctl.get("target-model-file")
-            && Path::new(f).is_relative()
-        {
-            let dir = controller_file.parent().unwrap_or(Path::new(""));
-            let joined = dir.join(f).display().to_string();
-            ctl.insert("target-model-file".into(), toml::Value::String(joined));
-        }
         for (k, v) in over {
             base.insert(k, v);
         }
@@ -474,11 +465,25 @@ impl ServiceConfig {
             field: String::new(),
             message: format!("cannot merge the tables: {e}"),
         })?;
-        Self::parse(&text, &origin)
+        let base_dir = controller_file
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        Self::parse_in(&text, &origin, &base_dir)
     }
 
     /// Validates the text of a scenario file; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let base_dir = Path::new(origin)
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        Self::parse_in(text, origin, &base_dir)
+    }
+
+    /// [`ServiceConfig::parse`] with relative file names in the controller table (a
+    /// target-model file) resolved from `base_dir`.
+    fn parse_in(text: &str, origin: &str, base_dir: &Path) -> Result<Self, ConfigError> {
         let err = |field: &str, message: String| ConfigError {
             file: origin.to_string(),
             field: field.to_string(),
@@ -639,11 +644,7 @@ impl ServiceConfig {
         let controller_value = raw
             .controller
             .ok_or_else(|| err("controller", "the [controller] table is missing".into()))?;
-        let base_dir = Path::new(origin)
-            .parent()
-            .map(Path::to_path_buf)
-            .unwrap_or_default();
-        let controller = parse_controller(controller_value, counts, period, &base_dir, &err)?;
+        let controller = parse_controller(controller_value, counts, period, base_dir, &err)?;
 
         Ok(ServiceConfig {
             origin: origin.to_string(),
