@@ -400,12 +400,14 @@ impl Rls {
     }
 }
 
+/// `Σ a_i b_i` over the common length, with four accumulators (lets the compiler vectorize
+/// without reassociation licence). Shared with the controllers' kernels.
 #[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    // Four accumulators: lets the compiler vectorize without reassociation licence.
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
     let mut acc = [0.0; 4];
-    let ca = a.chunks_exact(4);
-    let cb = b.chunks_exact(4);
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
     let (ra, rb) = (ca.remainder(), cb.remainder());
     for (x, y) in ca.zip(cb) {
         for i in 0..4 {
@@ -419,8 +421,9 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     s
 }
 
+/// `y += a x` over the common length.
 #[inline(always)]
-fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
+pub(crate) fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
     for (yi, xi) in y.iter_mut().zip(x) {
         *yi += a * xi;
     }

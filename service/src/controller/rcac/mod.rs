@@ -138,7 +138,7 @@ pub use filter::TargetFilter;
 use super::{Controller, OutputLimits, StepInput};
 use crate::design::target::TargetModel;
 use crate::forgetting::ForgettingRule;
-use crate::rls::{Rls, RlsConfig};
+use crate::rls::{Rls, RlsConfig, axpy, dot};
 use ipc_types::{ChannelCounts, actuation_status};
 use nalgebra::DMatrix;
 
@@ -543,34 +543,6 @@ impl Rcac {
             }
         }
     }
-}
-
-#[inline]
-fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += a * xi;
-    }
-}
-
-/// `Σ a_i b_i` over the common length, with four accumulators (vectorizable without
-/// reassociation).
-#[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            acc[i] += x[i] * y[i];
-        }
-    }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for (x, y) in ra.iter().zip(rb) {
-        s += x * y;
-    }
-    s
 }
 
 /// Largest eigenvalue of the symmetric `n × n` matrix `m` (row-major, overwritten) by
