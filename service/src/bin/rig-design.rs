@@ -674,6 +674,17 @@ fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<()
     Ok(())
 }
 
+/// Pole–zero sets of a figure from `(label, poles, zeros)`.
+fn pole_zero_sets<'a>(r: &'a [(&'a str, Vec<C64>, Vec<C64>)]) -> Vec<PoleZero<'a>> {
+    r.iter()
+        .map(|(label, poles, zeros)| PoleZero {
+            label,
+            poles,
+            zeros,
+        })
+        .collect()
+}
+
 fn poly(c: &[f64]) -> String {
     let n = c.len().saturating_sub(1);
     c.iter()
@@ -749,11 +760,14 @@ fn example_3_41(out: &Path) -> Result<(), String> {
         ex.averaged.response(th),
         ex.printed_3_43.response(th),
     );
-    let pz =
-        |d: &dtf::Dtf| -> Result<(Vec<C64>, Vec<C64>), String> { Ok((d.poles()?, d.zeros()?)) };
-    let (p0, z0) = pz(&ex.gd)?;
-    let (p1, z1) = pz(&ex.averaged)?;
-    let (p2, z2) = pz(&ex.printed_3_43)?;
+    let roots = |sets: &[(&'static str, &dtf::Dtf)]| -> Result<Vec<(&'static str, Vec<C64>, Vec<C64>)>, String> {
+        sets.iter().map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?))).collect()
+    };
+    let r = roots(&[
+        ("G_d", &ex.gd),
+        ("DTF", &ex.averaged),
+        ("(3.43)", &ex.printed_3_43),
+    ])?;
     bode_figure(
         &out.join("figure-3.3-windowed-average.png"),
         "(3.41): complex windowed average DTF, Δ = 10π rad/s, n̂ = 2",
@@ -764,23 +778,7 @@ fn example_3_41(out: &Path) -> Result<(), String> {
             Curve::new("DTF Ĝ_d (this code)", &fit),
             Curve::new("printed (3.43)", &printed).dashed(),
         ],
-        &[
-            PoleZero {
-                label: "G_d",
-                poles: &p0,
-                zeros: &z0,
-            },
-            PoleZero {
-                label: "DTF",
-                poles: &p1,
-                zeros: &z1,
-            },
-            PoleZero {
-                label: "(3.43)",
-                poles: &p2,
-                zeros: &z2,
-            },
-        ],
+        &pole_zero_sets(&r),
     )?;
     // Figure 3.4: G_d and the optimization DTF.
     let th = &ex.log_grid;
@@ -789,8 +787,11 @@ fn example_3_41(out: &Path) -> Result<(), String> {
         ex.optimized.response(th),
         ex.printed_3_48.response(th),
     );
-    let (p1, z1) = pz(&ex.optimized)?;
-    let (p2, z2) = pz(&ex.printed_3_48)?;
+    let r = roots(&[
+        ("G_d", &ex.gd),
+        ("DTF", &ex.optimized),
+        ("(3.48)", &ex.printed_3_48),
+    ])?;
     bode_figure(
         &out.join("figure-3.4-optimization.png"),
         "(3.41): optimization DTF, n̂_max = 1",
@@ -800,23 +801,7 @@ fn example_3_41(out: &Path) -> Result<(), String> {
             Curve::new("DTF Ĝ_d (this code)", &opt),
             Curve::new("printed (3.48)", &printed).dashed(),
         ],
-        &[
-            PoleZero {
-                label: "G_d",
-                poles: &p0,
-                zeros: &z0,
-            },
-            PoleZero {
-                label: "DTF",
-                poles: &p1,
-                zeros: &z1,
-            },
-            PoleZero {
-                label: "(3.48)",
-                poles: &p2,
-                zeros: &z2,
-            },
-        ],
+        &pole_zero_sets(&r),
     )?;
     println!("wrote {} and the figures", path.display());
     Ok(())
