@@ -582,13 +582,9 @@ fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), 
         println!(
             "output {o} ← input {i}: delay {} samples; Ĝ_d(z) = ({}) / ({}); poles {}",
             f.delays[i],
-            poly(&fit.num),
-            poly(&fit.den),
-            poles
-                .iter()
-                .map(|p| format!("{:.4}{:+.4}j", p.re, p.im))
-                .collect::<Vec<_>>()
-                .join(", ")
+            dtf::format_poly(&fit.num),
+            dtf::format_poly(&fit.den),
+            dtf::format_roots(&poles)
         );
         channels.push(TargetChannel {
             output: o,
@@ -683,19 +679,6 @@ fn pole_zero_sets<'a>(r: &'a [(&'a str, Vec<C64>, Vec<C64>)]) -> Vec<PoleZero<'a
             zeros,
         })
         .collect()
-}
-
-fn poly(c: &[f64]) -> String {
-    let n = c.len().saturating_sub(1);
-    c.iter()
-        .enumerate()
-        .map(|(i, v)| match n - i {
-            0 => format!("{v:+.4}"),
-            1 => format!("{v:+.4} z"),
-            p => format!("{v:+.4} z^{p}"),
-        })
-        .collect::<Vec<_>>()
-        .join(" ")
 }
 
 fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result<(), String> {

@@ -614,7 +614,10 @@ pub fn optimized_dtfs(frf: &Frf, n_max: usize, zeros: ZeroCount) -> Result<Vec<D
 
 mod example;
 mod optimization;
-pub use example::{EXAMPLE_LINEAR_POINTS, EXAMPLE_WINDOW_INTERVALS, Example341, example_3_41};
+pub use example::{
+    EXAMPLE_LINEAR_POINTS, EXAMPLE_WINDOW_INTERVALS, Example341, example_3_41, format_poly,
+    format_roots,
+};
 pub use optimization::{
     COST_GAIN_FLOOR, Candidate, DEFAULT_COST_CELLS, DEFAULT_MAX_ITERS_PER_PARAMETER,
     DEFAULT_MIN_GAIN, DEFAULT_MIN_SEPARATION, OptimizeOptions, Optimized, POLISH_SD_TOLERANCE,

@@ -150,7 +150,9 @@ pub fn example_3_41() -> Result<Example341, String> {
     })
 }
 
-fn poly(c: &[f64]) -> String {
+/// `c_0 z^n + … + c_n` as text, six decimals, `z^k` powers (coefficients in descending
+/// powers, as [`Dtf`] holds them).
+pub fn format_poly(c: &[f64]) -> String {
     let n = c.len() - 1;
     let mut s = String::new();
     for (i, &v) in c.iter().enumerate() {
@@ -179,29 +181,21 @@ fn poly(c: &[f64]) -> String {
     s
 }
 
+/// Roots as text, `re±imj`, four decimals, comma separated.
+pub fn format_roots(r: &[C64]) -> String {
+    r.iter()
+        .map(|v| format!("{:.4}{:+.4}j", v.re, v.im))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn line(name: &str, d: &Dtf) -> String {
-    let poles = d
-        .poles()
-        .map(|p| {
-            p.iter()
-                .map(|v| format!("{:.4}{:+.4}j", v.re, v.im))
-                .collect::<Vec<_>>()
-                .join(", ")
-        })
-        .unwrap_or_else(|e| e);
-    let zeros = d
-        .zeros()
-        .map(|p| {
-            p.iter()
-                .map(|v| format!("{:.4}{:+.4}j", v.re, v.im))
-                .collect::<Vec<_>>()
-                .join(", ")
-        })
-        .unwrap_or_else(|e| e);
+    let poles = d.poles().map(|r| format_roots(&r)).unwrap_or_else(|e| e);
+    let zeros = d.zeros().map(|r| format_roots(&r)).unwrap_or_else(|e| e);
     format!(
         "  {name:<22} ({}) / ({})\n  {:<22} poles [{poles}], zeros [{zeros}], DC gain {:.4}\n",
-        poly(&d.num),
-        poly(&d.den),
+        format_poly(&d.num),
+        format_poly(&d.den),
         "",
         d.dc_gain()
     )
