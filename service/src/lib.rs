@@ -19,11 +19,16 @@
 //! - [`design`]: offline design tools: model and measured frequency responses, Markov
 //!   parameters, dereverberated transfer functions and RCAC target models (section 3.2).
 //! - [`plot`]: PNG figures (line panels, pole–zero maps) for the offline tools.
+//! - [`analysis`]: amplitudes of known tones (least squares) and Welch PSDs, for run
+//!   reports and studies.
+//! - [`simulate`]: a controller against the simulated plant in one process (lockstep),
+//!   for studies.
 //! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
 //!   counts every allocation made on it.
 
 #![warn(missing_docs)]
 
+pub mod analysis;
 pub mod config;
 pub mod controller;
 pub mod design;
@@ -32,6 +37,7 @@ pub mod logging;
 pub mod plot;
 pub mod rls;
 pub mod rt_alloc;
+pub mod simulate;
 pub mod runtime;
 pub mod telemetry;
 #[cfg(test)]

@@ -1,0 +1,218 @@
+//! Signal analysis for run reports and studies: amplitudes of known tones and power
+//! spectral densities.
+//!
+//! ## Tone amplitudes by least squares
+//!
+//! The disturbances of chapter 3 of the dissertation are sums of harmonics at known
+//! frequencies `ω_i` (rad/sample). Over a window `x_n`, `n = n_0 … n_0+N−1`, the model
+//!
+//! ```text
+//!   x_n ≈ c_0 + Σ_i ( a_i cos(ω_i n) + b_i sin(ω_i n) )
+//! ```
+//!
+//! is fitted by least squares (normal equations of the `(2m+1)`-column regressor, solved
+//! by Cholesky), and the amplitude of tone `i` is `√(a_i² + b_i²)`. Fitting all tones and
+//! the mean together makes the estimate exact for a noiseless sum of tones on any window,
+//! whole periods or not, as long as the tones are resolvable (`N` larger than about
+//! `2π / min |ω_i − ω_j|`); [`tone_amplitudes`] refuses windows where the normal
+//! equations are singular. Broadband noise of variance `σ²` adds about `σ √(2/N)` to
+//! each amplitude: that is the floor a suppression measured this way can show.
+//!
+//! ## Power spectral density (Welch)
+//!
+//! [`psd`] is Welch's method: segments of `L` samples with 50 % overlap, mean removed,
+//! periodic Hann window `w_n = ½ − ½ cos(2πn/L)`, one-sided density
+//!
+//! ```text
+//!   S(f_k) = c_k / (f_s Σ w_n² K) Σ_s |Σ_n w_n x^{(s)}_n e^{−j2πkn/L}|²,   f_k = k f_s / L,
+//! ```
+//!
+//! with `c_k = 2` except at DC and Nyquist (`c_k = 1`), `K` segments; `Σ_k S(f_k) f_s/L`
+//! is the variance of `x` (Parseval), so `S` is in units²/Hz.
+
+use nalgebra::{DMatrix, DVector};
+use rustfft::{FftPlanner, num_complex::Complex};
+
+/// Amplitudes of the tones at `omegas` (rad/sample) in `x`, whose first sample has index
+/// `start` (the phase reference), fitted jointly with the mean by least squares.
+///
+/// Errors when `x` is too short to resolve the tones (singular normal equations) or a
+/// frequency is not in `(0, π]`.
+pub fn tone_amplitudes(x: &[f64], start: usize, omegas: &[f64]) -> Result<Vec<f64>, String> {
+    for &w in omegas {
+        if !(w > 0.0 && w <= std::f64::consts::PI + 1e-12) {
+            return Err(format!(
+                "tone frequency {w} rad/sample is not in (0, π]: above Nyquist or not positive"
+            ));
+        }
+    }
+    let m = 2 * omegas.len() + 1;
+    if x.len() < m {
+        return Err(format!(
+            "{} samples cannot resolve {} tones and a mean",
+            x.len(),
+            omegas.len()
+        ));
+    }
+    let mut g = DMatrix::<f64>::zeros(m, m);
+    let mut rhs = DVector::<f64>::zeros(m);
+    let mut row = vec![0.0; m];
+    for (n, &v) in x.iter().enumerate() {
+        let t = (start + n) as f64;
+        row[0] = 1.0;
+        for (i, &w) in omegas.iter().enumerate() {
+            let (s, c) = (w * t).sin_cos();
+            row[1 + 2 * i] = c;
+            row[2 + 2 * i] = s;
+        }
+        for a in 0..m {
+            rhs[a] += row[a] * v;
+            for b in 0..=a {
+                g[(a, b)] += row[a] * row[b];
+            }
+        }
+    }
+    for a in 0..m {
+        for b in 0..a {
+            g[(b, a)] = g[(a, b)];
+        }
+    }
+    // A tone at Nyquist has no sine component: drop that column's unknown.
+    for (i, &w) in omegas.iter().enumerate() {
+        if (w - std::f64::consts::PI).abs() < 1e-12 {
+            let j = 2 + 2 * i;
+            g.row_mut(j).fill(0.0);
+            g.column_mut(j).fill(0.0);
+            g[(j, j)] = 1.0;
+            rhs[j] = 0.0;
+        }
+    }
+    let scale = x.len() as f64;
+    let chol = (g / scale).cholesky().ok_or_else(|| {
+        format!(
+            "{} samples cannot separate the tones {:?} rad/sample (singular fit); use a longer window",
+            x.len(),
+            omegas
+        )
+    })?;
+    let coef = chol.solve(&(rhs / scale));
+    Ok((0..omegas.len())
+        .map(|i| coef[1 + 2 * i].hypot(coef[2 + 2 * i]))
+        .collect())
+}
+
+/// Suppression in dB of an amplitude `closed` against `open`: `20 log10(open / closed)`.
+pub fn suppression_db(open: f64, closed: f64) -> f64 {
+    20.0 * (open / closed).log10()
+}
+
+/// A one-sided power spectral density.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Psd {
+    /// Frequencies in Hz, `k f_s / L`, `k = 0 … L/2`.
+    pub freq_hz: Vec<f64>,
+    /// Density in units²/Hz.
+    pub density: Vec<f64>,
+}
+
+/// Welch PSD of `x` sampled at `fs` Hz with segments of `segment` samples (50 % overlap).
+/// When `x` is shorter than one segment the segment is shortened to `x.len()`.
+pub fn psd(x: &[f64], fs: f64, segment: usize) -> Result<Psd, String> {
+    let l = segment.min(x.len());
+    if l < 8 {
+        return Err(format!(
+            "a PSD needs at least 8 samples per segment, got {l}"
+        ));
+    }
+    let hop = (l / 2).max(1);
+    let segments = (x.len() - l) / hop + 1;
+    let w: Vec<f64> = (0..l)
+        .map(|n| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * n as f64 / l as f64).cos())
+        .collect();
+    let w2: f64 = w.iter().map(|v| v * v).sum();
+    let fft = FftPlanner::<f64>::new().plan_fft_forward(l);
+    let bins = l / 2 + 1;
+    let mut acc = vec![0.0; bins];
+    let mut buf = vec![Complex::new(0.0, 0.0); l];
+    for s in 0..segments {
+        let seg = &x[s * hop..s * hop + l];
+        let mean = seg.iter().sum::<f64>() / l as f64;
+        for ((b, v), wn) in buf.iter_mut().zip(seg).zip(&w) {
+            *b = Complex::new((v - mean) * wn, 0.0);
+        }
+        fft.process(&mut buf);
+        for (a, b) in acc.iter_mut().zip(&buf) {
+            *a += b.norm_sqr();
+        }
+    }
+    let norm = fs * w2 * segments as f64;
+    let density = acc
+        .iter()
+        .enumerate()
+        .map(|(k, a)| {
+            let c = if k == 0 || (l % 2 == 0 && k == l / 2) {
+                1.0
+            } else {
+                2.0
+            };
+            c * a / norm
+        })
+        .collect();
+    Ok(Psd {
+        freq_hz: (0..bins).map(|k| k as f64 * fs / l as f64).collect(),
+        density,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_fit_is_exact_for_close_tones_on_a_window_of_partial_periods() {
+        let w = [0.31, 0.37, 2.9];
+        let amp = [1.5, 0.02, 0.7];
+        let x: Vec<f64> = (0..300)
+            .map(|n| {
+                let t = (1000 + n) as f64;
+                0.3 + amp[0] * (w[0] * t + 0.4).sin()
+                    + amp[1] * (w[1] * t - 1.0).cos()
+                    + amp[2] * (w[2] * t).sin()
+            })
+            .collect();
+        let a = tone_amplitudes(&x, 1000, &w).unwrap();
+        for (got, want) in a.iter().zip(amp) {
+            assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+        }
+        assert_eq!(suppression_db(1.0, 0.01), 40.0);
+    }
+
+    #[test]
+    fn unresolvable_tones_and_bad_frequencies_are_refused() {
+        let x = vec![0.0; 20];
+        assert!(tone_amplitudes(&x, 0, &[0.5, 0.5]).is_err());
+        assert!(tone_amplitudes(&x, 0, &[4.0]).unwrap_err().contains("Nyquist"));
+        assert!(tone_amplitudes(&x[..3], 0, &[0.5, 1.0]).is_err());
+    }
+
+    #[test]
+    fn the_psd_integrates_to_the_variance_and_peaks_at_the_tone() {
+        let fs = 100.0;
+        let x: Vec<f64> = (0..10_000)
+            .map(|n| 2.0 * (2.0 * std::f64::consts::PI * 12.5 * n as f64 / fs).sin())
+            .collect();
+        let p = psd(&x, fs, 512).unwrap();
+        let df = fs / 512.0;
+        let power: f64 = p.density.iter().sum::<f64>() * df;
+        // Variance of a sine of amplitude 2 is 2.
+        assert!((power - 2.0).abs() < 0.02, "{power}");
+        let k = p
+            .density
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .unwrap()
+            .0;
+        assert!((p.freq_hz[k] - 12.5).abs() <= df);
+    }
+}
