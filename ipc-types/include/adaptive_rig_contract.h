@@ -25,20 +25,22 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define AR_CONTRACT_VERSION 1
+#define AR_CONTRACT_VERSION 2
 #define AR_MAX_Y 16
 #define AR_MAX_Z 16
 #define AR_MAX_R 16
 #define AR_MAX_U 8
 
-#define AR_MEASUREMENT_TYPE_NAME "adaptive_rig::Measurement.v1"
-#define AR_ACTUATION_TYPE_NAME "adaptive_rig::Actuation.v1"
+#define AR_MEASUREMENT_TYPE_NAME "adaptive_rig::Measurement.v2"
+#define AR_ACTUATION_TYPE_NAME "adaptive_rig::Actuation.v2"
 
 /* Measurement flags */
 #define AR_MEAS_LOCKSTEP 0x1u
 #define AR_MEAS_PLANT_SAFE_OUTPUT 0x2u
 #define AR_MEAS_PREVIOUS_ACTUATION_MISSED 0x4u
 #define AR_MEAS_LAST_SAMPLE 0x8u
+/* u_applied holds the input applied after sample k-1 */
+#define AR_MEAS_U_APPLIED 0x10u
 
 /* Actuation status bits */
 #define AR_ACT_OK 0x0u
@@ -47,6 +49,7 @@
 #define AR_ACT_SATURATED 0x4u
 #define AR_ACT_STARTING 0x8u
 #define AR_ACT_CONTROLLER_FAULT 0x10u
+#define AR_ACT_OPEN_LOOP 0x20u
 
 typedef struct ar_channel_counts {
     uint16_t n_y;
@@ -72,9 +75,10 @@ typedef struct ar_measurement {
     double y[AR_MAX_Y];
     double z[AR_MAX_Z];
     double r[AR_MAX_R];
+    double u_applied[AR_MAX_U]; /* input applied after sample k-1; valid with AR_MEAS_U_APPLIED */
 } ar_measurement_t;
 
-#define AR_MEASUREMENT_SIZE 432
+#define AR_MEASUREMENT_SIZE 496
 #define AR_MEASUREMENT_ALIGN 8
 #define AR_MEASUREMENT_OFFSET_CONTRACT_VERSION 0
 #define AR_MEASUREMENT_OFFSET_FLAGS 4
@@ -86,6 +90,7 @@ typedef struct ar_measurement {
 #define AR_MEASUREMENT_OFFSET_Y 48
 #define AR_MEASUREMENT_OFFSET_Z 176
 #define AR_MEASUREMENT_OFFSET_R 304
+#define AR_MEASUREMENT_OFFSET_U_APPLIED 432
 
 typedef struct ar_actuation {
     uint32_t contract_version;
@@ -118,6 +123,7 @@ _Static_assert(offsetof(ar_measurement_t, counts) == AR_MEASUREMENT_OFFSET_COUNT
 _Static_assert(offsetof(ar_measurement_t, y) == AR_MEASUREMENT_OFFSET_Y, "y offset");
 _Static_assert(offsetof(ar_measurement_t, z) == AR_MEASUREMENT_OFFSET_Z, "z offset");
 _Static_assert(offsetof(ar_measurement_t, r) == AR_MEASUREMENT_OFFSET_R, "r offset");
+_Static_assert(offsetof(ar_measurement_t, u_applied) == AR_MEASUREMENT_OFFSET_U_APPLIED, "u_applied offset");
 _Static_assert(sizeof(ar_actuation_t) == AR_ACTUATION_SIZE, "ar_actuation_t size");
 _Static_assert(_Alignof(ar_actuation_t) == AR_ACTUATION_ALIGN, "ar_actuation_t align");
 _Static_assert(offsetof(ar_actuation_t, compute_ns) == AR_ACTUATION_OFFSET_COMPUTE_NS, "compute_ns offset");

@@ -36,7 +36,7 @@ pub mod rt;
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of this contract. Bumped on every change of layout or meaning.
-pub const CONTRACT_VERSION: u32 = 1;
+pub const CONTRACT_VERSION: u32 = 2;
 /// Capacity of the measurement vector `y`.
 pub const MAX_Y: usize = 16;
 /// Capacity of the performance vector `z`.
@@ -56,6 +56,10 @@ pub mod measurement_flags {
     pub const PREVIOUS_ACTUATION_MISSED: u32 = 1 << 2;
     /// The plant ends its run after this sample; it will publish no more.
     pub const LAST_SAMPLE: u32 = 1 << 3;
+    /// [`Measurement::u_applied`](crate::Measurement::u_applied) holds the input the plant
+    /// really applied after the previous sample (a DAQ process that cannot read its outputs
+    /// back leaves this bit clear).
+    pub const U_APPLIED: u32 = 1 << 4;
 }
 
 /// Status bits the service sets in [`Actuation::status`].
@@ -72,6 +76,9 @@ pub mod actuation_status {
     pub const STARTING: u32 = 1 << 3;
     /// The controller reported an internal fault (for example a reset of adaptive state).
     pub const CONTROLLER_FAULT: u32 = 1 << 4;
+    /// The service is in its open-loop phase (`service.open-loop`): `u` is the safe input
+    /// and the controller only observes.
+    pub const OPEN_LOOP: u32 = 1 << 5;
 }
 
 /// Channel counts used by one side of the contract.
@@ -144,7 +151,7 @@ impl ChannelCounts {
 /// One sample of the plant, published at the start of period `seq`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, ZeroCopySend)]
-#[type_name("adaptive_rig::Measurement.v1")]
+#[type_name("adaptive_rig::Measurement.v2")]
 pub struct Measurement {
     /// Must equal [`CONTRACT_VERSION`].
     pub contract_version: u32,
@@ -167,6 +174,12 @@ pub struct Measurement {
     pub z: [f64; MAX_Z],
     /// Command `r_k`; entries past `counts.n_r` are zero.
     pub r: [f64; MAX_R],
+    /// The input the plant applied in answer to sample `k − 1`, held over the period that
+    /// ends at this sample: `u_{k−1}` when that actuation arrived in time, otherwise what the
+    /// plant's late policy or watchdog applied instead (the held or the safe input). Valid
+    /// when [`measurement_flags::U_APPLIED`] is set; entries past `counts.n_u` are zero.
+    /// At `seq = 0` it is the input held before the run.
+    pub u_applied: [f64; MAX_U],
 }
 
 impl Measurement {
@@ -183,6 +196,7 @@ impl Measurement {
             y: [0.0; MAX_Y],
             z: [0.0; MAX_Z],
             r: [0.0; MAX_R],
+            u_applied: [0.0; MAX_U],
         }
     }
 
@@ -198,12 +212,18 @@ impl Measurement {
     pub fn r(&self) -> &[f64] {
         &self.r[..(self.counts.n_r as usize).min(MAX_R)]
     }
+    /// The used part of `u_applied` when the plant reports it
+    /// ([`measurement_flags::U_APPLIED`]), clamped to the capacity.
+    pub fn u_applied(&self) -> Option<&[f64]> {
+        (self.flags & measurement_flags::U_APPLIED != 0)
+            .then(|| &self.u_applied[..(self.counts.n_u as usize).min(MAX_U)])
+    }
 }
 
 /// The service's answer to the measurement with the same `seq`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, ZeroCopySend)]
-#[type_name("adaptive_rig::Actuation.v1")]
+#[type_name("adaptive_rig::Actuation.v2")]
 pub struct Actuation {
     /// Must equal [`CONTRACT_VERSION`].
     pub contract_version: u32,
@@ -290,12 +310,14 @@ mod layout_tests {
                 m::PREVIOUS_ACTUATION_MISSED,
             ),
             ("AR_MEAS_LAST_SAMPLE", m::LAST_SAMPLE),
+            ("AR_MEAS_U_APPLIED", m::U_APPLIED),
             ("AR_ACT_OK", a::OK),
             ("AR_ACT_SAFE_STATE", a::SAFE_STATE),
             ("AR_ACT_MEASUREMENT_REJECTED", a::MEASUREMENT_REJECTED),
             ("AR_ACT_SATURATED", a::SATURATED),
             ("AR_ACT_STARTING", a::STARTING),
             ("AR_ACT_CONTROLLER_FAULT", a::CONTROLLER_FAULT),
+            ("AR_ACT_OPEN_LOOP", a::OPEN_LOOP),
         ];
         for (name, value) in pairs {
             let text = C_HEADER
@@ -350,6 +372,10 @@ mod layout_tests {
             ("AR_MEASUREMENT_OFFSET_Y", offset_of!(Measurement, y)),
             ("AR_MEASUREMENT_OFFSET_Z", offset_of!(Measurement, z)),
             ("AR_MEASUREMENT_OFFSET_R", offset_of!(Measurement, r)),
+            (
+                "AR_MEASUREMENT_OFFSET_U_APPLIED",
+                offset_of!(Measurement, u_applied),
+            ),
         ];
         for (name, off) in offsets {
             assert_eq!(off, header_value(name), "{name}");

@@ -147,6 +147,7 @@ pub fn measure(
             y: &y[..n_y],
             z: &z[..n_z],
             r: &r[..n_r],
+            ..Default::default()
         };
         let t0 = monotonic_ns();
         let status = controller.step(&input, &mut u[..n_u]);
@@ -240,6 +241,7 @@ mod tests {
                         y: &z,
                         z: &z,
                         r: &[],
+                        ..Default::default()
                     },
                     &mut u,
                 );

@@ -450,6 +450,8 @@ pub fn run_plant(
         m.y[..n_y].copy_from_slice(&y);
         m.z[..n_z].copy_from_slice(&z);
         m.r[..n_r].copy_from_slice(&r);
+        m.u_applied[..n_u].copy_from_slice(&u_applied[..n_u]);
+        m.flags |= measurement_flags::U_APPLIED;
         if let Some(v) = proxy.faults.at(k)
             && n_y > 0
         {

@@ -39,6 +39,41 @@ use rustfft::{FftPlanner, num_complex::Complex};
 /// Errors when `x` is too short to resolve the tones (singular normal equations) or a
 /// frequency is not in `(0, π]`.
 pub fn tone_amplitudes(x: &[f64], start: usize, omegas: &[f64]) -> Result<Vec<f64>, String> {
+    fit_tones(
+        x.iter().enumerate().map(|(n, v)| ((start + n) as f64, *v)),
+        x.len(),
+        omegas,
+    )
+}
+
+/// [`tone_amplitudes`] for samples at arbitrary indexes (a record with gaps): sample `i`
+/// is `x[i]` at index `index[i]`. Errors as [`tone_amplitudes`], or when the lengths
+/// differ.
+pub fn tone_amplitudes_indexed(
+    index: &[u64],
+    x: &[f64],
+    omegas: &[f64],
+) -> Result<Vec<f64>, String> {
+    if index.len() != x.len() {
+        return Err(format!(
+            "{} indexes for {} samples",
+            index.len(),
+            x.len()
+        ));
+    }
+    fit_tones(
+        index.iter().zip(x).map(|(n, v)| (*n as f64, *v)),
+        x.len(),
+        omegas,
+    )
+}
+
+/// The joint least-squares fit of the module docs over `(index, value)` samples.
+fn fit_tones(
+    samples: impl Iterator<Item = (f64, f64)>,
+    count: usize,
+    omegas: &[f64],
+) -> Result<Vec<f64>, String> {
     for &w in omegas {
         if !(w > 0.0 && w <= std::f64::consts::PI + 1e-12) {
             return Err(format!(
@@ -47,18 +82,16 @@ pub fn tone_amplitudes(x: &[f64], start: usize, omegas: &[f64]) -> Result<Vec<f6
         }
     }
     let m = 2 * omegas.len() + 1;
-    if x.len() < m {
+    if count < m {
         return Err(format!(
-            "{} samples cannot resolve {} tones and a mean",
-            x.len(),
+            "{count} samples cannot resolve {} tones and a mean",
             omegas.len()
         ));
     }
     let mut g = DMatrix::<f64>::zeros(m, m);
     let mut rhs = DVector::<f64>::zeros(m);
     let mut row = vec![0.0; m];
-    for (n, &v) in x.iter().enumerate() {
-        let t = (start + n) as f64;
+    for (t, v) in samples {
         row[0] = 1.0;
         for (i, &w) in omegas.iter().enumerate() {
             let (s, c) = (w * t).sin_cos();
@@ -87,12 +120,10 @@ pub fn tone_amplitudes(x: &[f64], start: usize, omegas: &[f64]) -> Result<Vec<f6
             rhs[j] = 0.0;
         }
     }
-    let scale = x.len() as f64;
+    let scale = count as f64;
     let chol = (g / scale).cholesky().ok_or_else(|| {
         format!(
-            "{} samples cannot separate the tones {:?} rad/sample (singular fit); use a longer window",
-            x.len(),
-            omegas
+            "{count} samples cannot separate the tones {omegas:?} rad/sample (singular fit); use a longer window"
         )
     })?;
     let coef = chol.solve(&(rhs / scale));
@@ -150,7 +181,7 @@ pub fn psd(x: &[f64], fs: f64, segment: usize) -> Result<Psd, String> {
         .iter()
         .enumerate()
         .map(|(k, a)| {
-            let c = if k == 0 || (l % 2 == 0 && k == l / 2) {
+            let c = if k == 0 || (l.is_multiple_of(2) && k == l / 2) {
                 1.0
             } else {
                 2.0
@@ -185,6 +216,17 @@ mod tests {
             assert!((got - want).abs() < 1e-9, "{got} vs {want}");
         }
         assert_eq!(suppression_db(1.0, 0.01), 40.0);
+        // The same record with every third sample missing.
+        let (idx, xs): (Vec<u64>, Vec<f64>) = x
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| n % 3 != 1)
+            .map(|(n, v)| (1000 + n as u64, *v))
+            .unzip();
+        let b = tone_amplitudes_indexed(&idx, &xs, &w).unwrap();
+        for (got, want) in b.iter().zip(amp) {
+            assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+        }
     }
 
     #[test]

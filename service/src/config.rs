@@ -30,6 +30,11 @@
 //! histogram-interval = 1.0        # s between interval-log entries
 //! run-dir = "runs"
 //! rms-settle = 2.0                # s after which the "settled" RMS of z starts
+//! open-loop = 1.0                 # s of each session run open loop (u = safe-input) before
+//!                                 # the controller acts; it observes those samples
+//! [service.report]                # per-tone suppression of z in the run report
+//! tones-hz = [800.0, 900.0]       # default: the tones of [plant.disturbance], if any
+//! window = 0.5                    # s: the end of the open-loop phase against the end of the run
 //! [service.channels]              # optional; default from [plant]
 //! y = 1
 //! z = 1
@@ -297,6 +302,23 @@ pub struct ServiceConfig {
     pub controller: ControllerConfig,
     /// Cycles after which the "settled" RMS of `z` starts accumulating.
     pub rms_settle_cycles: u64,
+    /// Cycles at the start of each session run open loop (`u` = safe input) while the
+    /// controller only observes.
+    pub open_loop_cycles: u64,
+    /// The per-tone suppression report.
+    pub tone_report: ToneReportConfig,
+}
+
+/// What the run report measures tone by tone (`[service.report]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToneReportConfig {
+    /// Tone frequencies in Hz (empty: no tone report).
+    pub tones_hz: Vec<f64>,
+    /// Where they came from (`service.report.tones-hz` or `plant.disturbance`).
+    pub source: String,
+    /// Samples in each window (the open-loop window ends when the controller starts; the
+    /// closed-loop window is the end of the run).
+    pub window_cycles: u64,
 }
 
 #[derive(Deserialize)]
@@ -360,7 +382,16 @@ struct RawService {
     histogram_interval: Option<f64>,
     run_dir: Option<PathBuf>,
     rms_settle: Option<f64>,
+    open_loop: Option<f64>,
+    report: Option<RawReport>,
     channels: Option<RawChannels>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawReport {
+    tones_hz: Option<Vec<f64>>,
+    window: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -641,6 +672,21 @@ impl ServiceConfig {
         if log.queue_capacity < 16 {
             return Err(err("log.queue-capacity", "must be at least 16".into()));
         }
+        let open_loop = s.open_loop.unwrap_or(0.0);
+        if !(open_loop.is_finite() && open_loop >= 0.0) {
+            return Err(err(
+                "service.open-loop",
+                format!("{open_loop} s is not a duration ≥ 0"),
+            ));
+        }
+        let open_loop_cycles = (open_loop / period).round() as u64;
+        let tone_report = tone_report(
+            s.report.unwrap_or_default(),
+            raw.plant.as_ref(),
+            period,
+            open_loop_cycles,
+            &err,
+        )?;
         let controller_value = raw
             .controller
             .ok_or_else(|| err("controller", "the [controller] table is missing".into()))?;
@@ -664,8 +710,68 @@ impl ServiceConfig {
             run_dir: s.run_dir.unwrap_or_else(|| PathBuf::from("runs")),
             controller,
             rms_settle_cycles: (s.rms_settle.unwrap_or(0.0).max(0.0) / period).round() as u64,
+            open_loop_cycles,
+            tone_report,
         })
     }
+}
+
+/// `[service.report]`: the tones (given, or those of `[plant.disturbance]`) and the
+/// window, which must fit in the open-loop phase when there is one.
+fn tone_report(
+    raw: RawReport,
+    plant: Option<&toml::Value>,
+    period: f64,
+    open_loop_cycles: u64,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<ToneReportConfig, ConfigError> {
+    let nyquist = 0.5 / period;
+    let (tones_hz, source) = match raw.tones_hz {
+        Some(t) => (t, "service.report.tones-hz".to_string()),
+        None => {
+            let tones = plant
+                .and_then(|p| p.get("disturbance"))
+                .and_then(|d| d.get("tones"))
+                .and_then(|t| t.as_array());
+            let mut hz = Vec::new();
+            for t in tones.into_iter().flatten() {
+                if let Some(f) = t
+                    .get("frequency-hz")
+                    .and_then(|f| f.as_float().or(f.as_integer().map(|i| i as f64)))
+                    && !hz.contains(&f)
+                {
+                    hz.push(f);
+                }
+            }
+            (hz, "plant.disturbance".to_string())
+        }
+    };
+    for f in &tones_hz {
+        if !(f.is_finite() && *f > 0.0 && *f < nyquist) {
+            return Err(err(
+                "service.report.tones-hz",
+                format!("{f} Hz is not between 0 and the Nyquist frequency {nyquist} Hz"),
+            ));
+        }
+    }
+    let window = raw.window.unwrap_or(0.5);
+    if !(window.is_finite() && window > 0.0) {
+        return Err(err(
+            "service.report.window",
+            format!("{window} s is not positive"),
+        ));
+    }
+    let mut window_cycles = ((window / period).round() as u64).max(1);
+    if open_loop_cycles > 0 {
+        // The open-loop window is the second half of the open-loop phase at most, so that
+        // the transient of the start is not measured.
+        window_cycles = window_cycles.min(open_loop_cycles / 2).max(1);
+    }
+    Ok(ToneReportConfig {
+        tones_hz,
+        source,
+        window_cycles,
+    })
 }
 
 fn positive(
@@ -1401,7 +1507,7 @@ den = [1.0]
         );
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "rcac");
-        assert_eq!(ctl.internal_names().len(), 6);
+        assert_eq!(ctl.internal_names().len(), 7);
         // The gradient variant, and the forgetting table.
         let g = RCAC
             .replace("update = \"rls\"", "update = \"gradient\"")

@@ -25,6 +25,9 @@
 //! and only then, the loop cleans up stale iceoryx2 resources of dead processes every 100 ms
 //! so that a restarted plant can connect, and it resumes on the next sample.
 
+mod tones;
+pub use tones::{ToneLine, ToneMeter, ToneReport};
+
 use crate::config::{MissSource, ServiceConfig, WaitMode};
 use crate::controller::{Controller, MAX_INTERNALS, StepInput};
 use crate::logging::{self, LogLayout, LogProducer, LogRecord};
@@ -140,6 +143,9 @@ pub struct LoopStats {
     pub rejected_out_of_range: u64,
     /// Samples never seen (gaps in the sequence).
     pub skipped: u64,
+    /// Samples received too late to answer (a newer one was waiting); the controller
+    /// observed them ([`Controller::observe`]) and only the newest was answered.
+    pub caught_up: u64,
     /// Cycles whose response came after the plant's deadline.
     pub deadline_misses: u64,
     /// Misses the plant reported (its view: the actuation was late or absent).
@@ -191,6 +197,10 @@ pub struct LoopCore {
     z_max: [f64; MAX_Z],
     safe_input: [f64; MAX_U],
     last_u: [f64; MAX_U],
+    scratch_u: [f64; MAX_U],
+    open_loop_cycles: u64,
+    /// Windows of `z` for the per-tone report.
+    pub tones: ToneMeter,
     period_ns: u64,
     grace_cycles: u64,
     max_consecutive_misses: u64,
@@ -258,6 +268,14 @@ impl LoopCore {
             z_max: fill(&cfg.limits.z_max, f64::INFINITY),
             safe_input,
             last_u: safe_input,
+            scratch_u: [0.0; MAX_U],
+            open_loop_cycles: cfg.open_loop_cycles,
+            tones: ToneMeter::new(
+                &cfg.tone_report,
+                cfg.open_loop_cycles,
+                cfg.counts.n_z as usize,
+                cfg.sample_period_ns as f64 * 1e-9,
+            ),
             period_ns: cfg.sample_period_ns,
             grace_cycles: cfg.policy.grace_cycles,
             max_consecutive_misses: cfg.policy.max_consecutive_misses,
@@ -322,16 +340,11 @@ impl LoopCore {
         true
     }
 
-    /// Handles measurement `m` received at `t_recv_ns` and writes the answer into `act`
-    /// (all fields but `t_publish_ns`).
-    pub fn process(
-        &mut self,
-        m: &Measurement,
-        t_recv_ns: u64,
-        act: &mut Actuation,
-    ) -> CycleDecision {
+    /// Session bookkeeping of a received sample (first sample, resume after silence,
+    /// sequence restart, gaps); returns the number of samples lost just before it.
+    fn admit(&mut self, m: &Measurement) -> u64 {
         self.stats.received += 1;
-        // Session bookkeeping: first sample, resume after silence, sequence restart, gaps.
+        let mut lost = 0;
         match self.last_seq {
             None => self.event(LoopEvent::FirstSample { seq: m.seq }),
             Some(last) => {
@@ -347,10 +360,47 @@ impl LoopCore {
                     });
                     self.new_session();
                 } else if m.seq > last + 1 {
-                    self.stats.skipped += m.seq - last - 1;
+                    lost = m.seq - last - 1;
+                    self.stats.skipped += lost;
                 }
             }
         }
+        self.last_seq = Some(m.seq);
+        lost
+    }
+
+    /// Takes in a measurement that was received too late to be answered, because a newer
+    /// one was already waiting: the controller records it ([`Controller::observe`]) so that
+    /// its memory keeps every sample, but no actuation is computed for the plant.
+    pub fn observe(&mut self, m: &Measurement) {
+        let lost = self.admit(m);
+        self.stats.caught_up += 1;
+        self.cycles_in_session += 1;
+        if !self.valid(m) {
+            return;
+        }
+        let n_u = self.counts.n_u as usize;
+        let input = StepInput {
+            seq: m.seq,
+            y: m.y(),
+            z: m.z(),
+            r: m.r(),
+            u_applied: m.u_applied(),
+            lost,
+        };
+        self.controller.observe(&input, &mut self.scratch_u[..n_u]);
+        self.accumulate_z(m);
+    }
+
+    /// Handles measurement `m` received at `t_recv_ns` and writes the answer into `act`
+    /// (all fields but `t_publish_ns`).
+    pub fn process(
+        &mut self,
+        m: &Measurement,
+        t_recv_ns: u64,
+        act: &mut Actuation,
+    ) -> CycleDecision {
+        let lost = self.admit(m);
         self.plant_reported_miss = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
             && self.cycles_in_session > 0;
         if self.plant_reported_miss {
@@ -360,7 +410,6 @@ impl LoopCore {
             let dt = t_recv_ns.saturating_sub(prev);
             dt.abs_diff(self.period_ns)
         });
-        self.last_seq = Some(m.seq);
         self.last_recv_ns = Some(t_recv_ns);
         self.cycles_in_session += 1;
 
@@ -375,21 +424,34 @@ impl LoopCore {
         if self.cycles_in_session <= self.grace_cycles {
             status |= actuation_status::STARTING;
         }
+        let input = StepInput {
+            seq: m.seq,
+            y: m.y(),
+            z: m.z(),
+            r: m.r(),
+            u_applied: m.u_applied(),
+            lost,
+        };
         if !self.valid(m) {
             status |= actuation_status::MEASUREMENT_REJECTED;
             act.u[..n_u].copy_from_slice(&self.last_u[..n_u]);
-        } else if self.in_safe_state {
-            status |= actuation_status::SAFE_STATE;
+        } else if self.in_safe_state || self.cycles_in_session <= self.open_loop_cycles {
+            // Safe state, or the open-loop phase: the safe input goes out and the
+            // controller only observes, so that its memory follows the plant (the plant
+            // reports the safe input it applied) and it resumes from the present.
+            if self.in_safe_state {
+                status |= actuation_status::SAFE_STATE;
+                self.stats.safe_state_cycles += 1;
+            } else {
+                status |= actuation_status::OPEN_LOOP;
+            }
             act.u[..n_u].copy_from_slice(&self.safe_input[..n_u]);
-            self.stats.safe_state_cycles += 1;
+            let t0 = monotonic_ns();
+            self.controller.observe(&input, &mut self.scratch_u[..n_u]);
+            compute_ns = monotonic_ns().saturating_sub(t0);
+            self.last_u[..n_u].copy_from_slice(&act.u[..n_u]);
             self.accumulate_z(m);
         } else {
-            let input = StepInput {
-                seq: m.seq,
-                y: m.y(),
-                z: m.z(),
-                r: m.r(),
-            };
             let t0 = monotonic_ns();
             let s = self.controller.step(&input, &mut act.u[..n_u]);
             compute_ns = monotonic_ns().saturating_sub(t0);
@@ -420,6 +482,7 @@ impl LoopCore {
     }
 
     fn accumulate_z(&mut self, m: &Measurement) {
+        self.tones.record(self.cycles_in_session, m.seq, m.z());
         self.z_count += 1;
         let settled = self.z_count > self.rms_settle_cycles;
         if settled {
@@ -440,6 +503,7 @@ impl LoopCore {
         self.cycles_in_session = 0;
         self.consecutive_misses = 0;
         self.last_recv_ns = None;
+        self.tones.new_session();
     }
 
     /// Completes the cycle after publishing at `t_pub_ns`: deadline policy, histograms, log.
@@ -688,6 +752,36 @@ pub struct RunReport {
     /// Allocations on the RT thread during the loop: served by its pool (iceoryx2's
     /// per-sample loan state) and from the system allocator (should be 0).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
+    /// Per-tone amplitudes of `z` at the end of the open-loop phase and at the end of the
+    /// run (`[service.report]`), when tones are known.
+    pub tones: Option<ToneReport>,
+}
+
+impl ToneReport {
+    /// The human-readable table.
+    pub fn render(&self) -> String {
+        let mut out = format!(
+            "tones of z ({}; windows of {:.3} s: {} samples at the end of the open-loop phase, {} at the end of the run):
+",
+            self.source, self.window_s, self.samples[0], self.samples[1]
+        );
+        if let Some(e) = &self.error {
+            out += &format!("  could not measure: {e}
+");
+        }
+        out += "  channel   tone Hz    open loop   closed loop   suppression\n";
+        for t in &self.tones {
+            let open = t.open.map_or("-".to_string(), |o| format!("{o:.3e}"));
+            let db = t
+                .suppression_db
+                .map_or("-".to_string(), |d| format!("{d:.1} dB"));
+            out += &format!(
+                "  z{:<7} {:>8.1} {:>12} {:>13.3e} {:>13}\n",
+                t.channel, t.hz, open, t.closed, db
+            );
+        }
+        out
+    }
 }
 
 impl RunReport {
@@ -714,8 +808,8 @@ impl RunReport {
         }
         out += &format!("stopped: {:?}\n", self.stop_reason);
         out += &format!(
-            "samples: {} received, {} published, {} controller steps, {} skipped\n",
-            s.received, s.published, s.controller_steps, s.skipped
+            "samples: {} received, {} published, {} controller steps, {} caught up, {} lost\n",
+            s.received, s.published, s.controller_steps, s.caught_up, s.skipped
         );
         out += &format!(
             "deadline: {} misses (service-measured), {} reported by the plant, longest run {}, \
@@ -755,6 +849,9 @@ impl RunReport {
                 "RT-thread allocations: {} from the system allocator, {} served by the RT pool (iceoryx2 sample loans)\n",
                 a.system_on_rt_thread, a.pool_served
             );
+        }
+        if let Some(t) = &self.tones {
+            out += &t.render();
         }
         out += &self.latency.render_table(self.budget_ns);
         out
@@ -924,6 +1021,7 @@ pub fn run(
         log_dropped,
         budget_ns: cfg.budget_ns,
         rt_allocations: core.rt_allocations,
+        tones: core.tones.report(),
     };
     write_json(&folder.join("report.json"), &report)?;
     Ok(report)
@@ -1008,15 +1106,20 @@ fn rt_thread_main(
     Ok((core, setup, stop))
 }
 
-/// Takes the newest pending measurement, if any, into `m`.
+/// Measurements kept per wake-up; the subscriber buffer holds at most 4
+/// (`ipc_types::ports`), so none is dropped here.
+const PENDING: usize = 8;
+
+/// Takes every pending measurement, oldest first, into the ring `pending`; returns how
+/// many arrived (only the newest `PENDING` are kept when more did).
 #[inline]
-fn take_newest(ports: &ServicePorts, m: &mut Measurement) -> bool {
-    let mut got = false;
+fn take_pending(ports: &ServicePorts, pending: &mut [Measurement; PENDING]) -> usize {
+    let mut n = 0;
     while let Ok(Some(sample)) = ports.subscriber.receive() {
-        *m = *sample;
-        got = true;
+        pending[n % PENDING] = *sample;
+        n += 1;
     }
-    got
+    n
 }
 
 /// Publishes `act` with its publish time stamped; returns (published, t_pub).
@@ -1046,7 +1149,7 @@ pub fn rt_loop(
     max_cycles: Option<u64>,
     exit_with_plant: bool,
 ) -> StopReason {
-    let mut m = Measurement::zeroed(ChannelCounts::default());
+    let mut pending = [Measurement::zeroed(ChannelCounts::default()); PENDING];
     let mut act = Actuation::zeroed(ChannelCounts::default());
     let mut spins: u32 = 0;
     let mut last_cleanup_ns = 0u64;
@@ -1055,11 +1158,18 @@ pub fn rt_loop(
         if shutdown.load(Ordering::Relaxed) {
             return StopReason::Signal;
         }
-        if take_newest(ports, &mut m) {
+        let n = take_pending(ports, &mut pending);
+        if n > 0 {
             let t_recv = monotonic_ns();
-            let d = core.process(&m, t_recv, &mut act);
+            // Late samples first (a newer one is waiting): observed, not answered.
+            let first = n.saturating_sub(PENDING);
+            for i in first..n - 1 {
+                core.observe(&pending[i % PENDING]);
+            }
+            let m = &pending[(n - 1) % PENDING];
+            let d = core.process(m, t_recv, &mut act);
             let (ok, t_pub) = publish(ports, &mut act);
-            core.finish_cycle(&m, &act, t_recv, t_pub, ok);
+            core.finish_cycle(m, &act, t_recv, t_pub, ok);
             if d.last_sample && exit_with_plant {
                 return StopReason::PlantEnded;
             }

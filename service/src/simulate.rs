@@ -111,6 +111,7 @@ pub fn closed_loop<C: Controller + ?Sized>(
                     y: &y,
                     z: &z,
                     r: &r,
+                    ..Default::default()
                 },
                 &mut u,
             );

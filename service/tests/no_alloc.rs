@@ -21,6 +21,11 @@ use std::time::{Duration, Instant};
 static GLOBAL: RtAwareAllocator = RtAwareAllocator;
 
 fn config(rig: &str) -> ServiceConfig {
+    config_with(rig, "")
+}
+
+/// [`config`] with extra lines at the end of the `[service]` table.
+fn config_with(rig: &str, service_extra: &str) -> ServiceConfig {
     let text = format!(
         r#"
 [rig]
@@ -34,6 +39,7 @@ wait = "busy-poll"
 histogram-interval = 0.25
 y-min = -100.0
 y-max = 100.0
+{service_extra}
 [controller]
 kind = "lti"
 u-min = -5.0
@@ -62,6 +68,7 @@ fn a_controller_step_does_not_allocate() {
                 y: &[0.1, -0.2],
                 z: &[0.0],
                 r: &[],
+                ..Default::default()
             },
             &mut u,
         );
@@ -76,6 +83,7 @@ fn a_controller_step_does_not_allocate() {
                 y: &y,
                 z: &[0.0],
                 r: &[],
+                ..Default::default()
             },
             &mut u,
         );
@@ -237,7 +245,11 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
 #[test]
 fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
     use ipc_types::Actuation;
-    let cfg = config("unit-noalloc-core");
+    // An open-loop phase that ends inside the counted region, and a tone report.
+    let cfg = config_with(
+        "unit-noalloc-core",
+        "open-loop = 2.0\nreport = { tones-hz = [50.0], window = 0.5 }",
+    );
     let folder = std::env::temp_dir().join(format!("noalloc-core-{}", std::process::id()));
     std::fs::create_dir_all(&folder).unwrap();
     let controller = cfg.controller.build(cfg.counts).unwrap();
@@ -256,11 +268,23 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
     let mut m = Measurement::zeroed(cfg.counts);
     let mut act = Actuation::zeroed(cfg.counts);
     let mut cycle = |core: &mut LoopCore, k: u64| {
+        if k % 500 == 250 {
+            // A sample lost on the way: a gap in the sequence.
+            return;
+        }
         m.seq = k;
         m.t_sample_ns = ipc_types::clock::monotonic_ns();
         m.y[0] = (k as f64 * 0.1).sin();
         m.y[1] = if k % 1000 == 7 { f64::INFINITY } else { 0.5 };
+        m.z[0] = (2.0 * std::f64::consts::PI * 50.0 * k as f64 * 1e-3).sin();
+        m.flags = ipc_types::measurement_flags::U_APPLIED;
+        m.u_applied[..2].copy_from_slice(&act.u[..2]);
         let t_recv = ipc_types::clock::monotonic_ns();
+        if k % 100 == 30 {
+            // Received too late: a newer sample was waiting.
+            core.observe(&m);
+            return;
+        }
         core.process(&m, t_recv, &mut act);
         core.finish_cycle(&m, &act, t_recv, ipc_types::clock::monotonic_ns(), true);
     };
@@ -278,7 +302,14 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
     let d = thread_stats().since(&before);
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
     assert_eq!(core.stats.rejected_non_finite, 50);
-    assert!(core.stats.controller_steps > 49_000);
+    assert!(core.stats.controller_steps > 45_000);
+    assert_eq!(core.stats.caught_up, 500);
+    assert_eq!(core.stats.skipped, 100);
+    // The tone report saw both windows (the tone is the same in both: 0 dB).
+    let r = core.tones.report().unwrap();
+    assert!(r.error.is_none(), "{:?}", r.error);
+    assert!(r.samples[0] > 400 && r.samples[1] > 400, "{:?}", r.samples);
+    assert!(r.tones[0].suppression_db.unwrap().abs() < 1e-6);
     drop(writer);
     let _ = std::fs::remove_dir_all(&folder);
 }
@@ -377,8 +408,8 @@ den = [1.0, -0.5]
 }
 
 /// Steady-state RCAC steps (l_θ = 300) under the counting allocator: past `k_w`, with
-/// saturation, a non-finite sample and, for RLS, the R_u rows and a windowed forgetting
-/// rule.
+/// saturation, a non-finite sample, the applied-input correction, bridged gaps, observed
+/// samples and, for RLS, the R_u rows and a windowed forgetting rule.
 fn rcac_steps_do_not_allocate(update: &str) {
     // Built outside the counted region (the gradient test runs several on one thread).
     let mut ctl = service::rt_alloc::outside_rt(|| {
@@ -400,23 +431,32 @@ fn rcac_steps_do_not_allocate(update: &str) {
                 y: &[z],
                 z: &[z],
                 r: &[],
+                ..Default::default()
             },
             &mut u,
         );
     }
     enter_rt_thread(16);
     let before = thread_stats();
+    let mut scratch = [0.0; 2];
     for k in 300..5_300u64 {
         let z = if k == 1000 { f64::NAN } else { signal(k, &u) };
-        ctl.step(
-            &StepInput {
-                seq: k,
-                y: &[z],
-                z: &[z],
-                r: &[],
-            },
-            &mut u,
-        );
+        // The imperfect-loop paths too: the applied input reported, samples lost (a gap
+        // bridged) and samples only observed.
+        let prev = u;
+        let input = StepInput {
+            seq: k,
+            y: &[z],
+            z: &[z],
+            r: &[],
+            u_applied: Some(&prev),
+            lost: if k % 997 == 0 { 3 } else { 0 },
+        };
+        if k % 101 == 0 {
+            ctl.observe(&input, &mut scratch);
+        } else {
+            ctl.step(&input, &mut u);
+        }
         ctl.internals(&mut internals);
         assert!(u.iter().all(|v| v.is_finite()));
     }

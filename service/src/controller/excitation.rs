@@ -117,6 +117,7 @@ mod tests {
             y: &[0.0],
             z: &[0.0],
             r: &[],
+            ..Default::default()
         };
         let n = 200_000;
         let (mut s0, mut s1, mut s01, mut lag) = (0.0, 0.0, 0.0, 0.0);
@@ -151,6 +152,7 @@ mod tests {
             y: &[0.0],
             z: &[0.0],
             r: &[],
+            ..Default::default()
         };
         let mut first = Vec::new();
         let mut saturated = 0;

@@ -34,7 +34,13 @@ pub use rcac::{Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};
 pub const MAX_INTERNALS: usize = 16;
 
 /// The signals of sample `k` handed to a controller; slices have the configured lengths.
-#[derive(Debug, Clone, Copy)]
+///
+/// `u_applied` and `lost` tell a controller what happened between its calls when the loop
+/// is not perfect: the plant may have held an older input because an actuation arrived
+/// after its deadline, and samples may never have reached the service. A controller whose
+/// state depends on the past inputs (RCAC's regressor and filtered input) uses them to
+/// keep that state equal to what the plant saw.
+#[derive(Debug, Clone, Copy, Default)]
 pub struct StepInput<'a> {
     /// Sample index `k`.
     pub seq: u64,
@@ -44,6 +50,12 @@ pub struct StepInput<'a> {
     pub z: &'a [f64],
     /// Command `r_k`.
     pub r: &'a [f64],
+    /// The input the plant actually applied after sample `k − 1` (held over the period
+    /// ending at sample `k`), when the plant reports it (contract flag
+    /// `measurement_flags::U_APPLIED`); `None` when unknown.
+    pub u_applied: Option<&'a [f64]>,
+    /// Samples lost between the previous call and this one (`k − k_prev − 1`); 0 normally.
+    pub lost: u64,
 }
 
 /// A controller the service can run.
@@ -57,6 +69,16 @@ pub trait Controller: Send {
     ///
     /// Must not allocate, lock, do I/O or panic, and must leave `u` finite.
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32;
+    /// Takes in sample `k` without being asked for an input to apply: the loop received it
+    /// too late (a newer sample was already waiting), so no actuation of it will be
+    /// applied. A controller with memory must still record it so that its state stays
+    /// aligned with the plant's samples; `u` is scratch of length `n_u`.
+    ///
+    /// The default runs [`Controller::step`] and discards the output. Same real-time rules
+    /// as `step`.
+    fn observe(&mut self, input: &StepInput<'_>, u: &mut [f64]) {
+        let _ = self.step(input, u);
+    }
     /// Returns to the initial state (used when a plant comes back after silence).
     fn reset(&mut self);
     /// Names of the internal signals written by [`Controller::internals`].
@@ -319,7 +341,7 @@ mod tests {
     }
 
     fn step(c: &mut LtiController, y: &[f64], r: &[f64], u: &mut [f64]) -> u32 {
-        c.step(&StepInput { seq: 0, y, z: y, r }, u)
+        c.step(&StepInput { seq: 0, y, z: y, r, ..Default::default() }, u)
     }
 
     #[test]

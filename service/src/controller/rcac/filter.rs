@@ -284,6 +284,20 @@ impl TargetFilter {
         }
     }
 
+    /// Replaces the newest stored input (`u_{k−1}` during step `k`) by what the plant
+    /// really applied. Call before [`TargetFilter::filter`] of step `k`: the filter reads
+    /// `u_{k−1}` first in that call (its lags are ≥ 1), so nothing computed so far used it.
+    pub fn correct_last_u(&mut self, u: &[f64]) {
+        let (len, lu) = (self.len, self.lu);
+        for s in [self.pos, self.pos + len] {
+            if let Some(d) = self.u_hist.get_mut(s * lu..(s + 1) * lu) {
+                for (d, v) in d.iter_mut().zip(u) {
+                    *d = *v;
+                }
+            }
+        }
+    }
+
     /// Zero history and zero filter states (the state after construction).
     pub fn reset(&mut self) {
         self.pos = 0;

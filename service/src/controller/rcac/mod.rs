@@ -108,6 +108,22 @@
 //! (no data yet) the step is skipped (`μ_k = 0`). A non-finite `θ` is reset to `θ_0`
 //! (counted).
 //!
+//! # Imperfect loops: late actuations and lost samples
+//!
+//! `φ`, `u_f` and `Φ_f` must hold what the plant saw. In real time two things break that:
+//!
+//! - **A late actuation.** The plant then held an older (or its safe) input instead of
+//!   `u_{k−1}`. When the measurement reports the input really applied
+//!   ([`StepInput::u_applied`]), it replaces the stored `u_{k−1}` at the start of step `k`,
+//!   before anything reads it (the filter's lags are ≥ 1), so the history stays exact.
+//! - **Samples the loop received late or never.** A sample that arrived while a newer
+//!   one was waiting is recorded without an update or an input
+//!   ([`Controller::observe`]: filter and history advance). `m` samples that never
+//!   arrived ([`StepInput::lost`]) are bridged by `m` history entries with the held `y`
+//!   and the held `u` (at most `L`, the history length; a longer gap clears the history);
+//!   the update is then suspended for `L` steps, until the bridged entries have left every
+//!   window, while the input is still computed. Each gap is counted (internal `gaps`).
+//!
 //! # Real time
 //!
 //! [`Controller::step`] does not allocate (every buffer is sized in [`Rcac::new`]), does
@@ -248,6 +264,10 @@ pub struct Rcac {
     /// Last finite `y`.
     y_hold: Vec<f64>,
     k: u64,
+    /// No update before this step: the windows still hold samples bridged over a gap.
+    update_from: u64,
+    /// Gaps bridged (lost samples, counted once per gap).
+    gaps: u64,
     limits: Option<OutputLimits>,
     // Internals.
     theta_norm: f64,
@@ -451,6 +471,8 @@ impl Rcac {
             u_last: vec![0.0; lu],
             y_hold: vec![0.0; ly],
             k: 0,
+            update_from: 0,
+            gaps: 0,
             limits: params.limits.clone(),
             theta_norm: 0.0,
             trace_or_mu: 0.0,
@@ -499,6 +521,50 @@ impl Rcac {
     }
 
     /// Builds the stacked rows `A`, `b` of step `k` from `Φ_{f,k}`, `u_{f,k}`, `z_k`, `φ_k`.
+    /// Gaps bridged so far (each run of lost samples counts once).
+    pub fn gaps(&self) -> u64 {
+        self.gaps
+    }
+
+    /// Brings the history in line with the plant before sample `k` is used: the input the
+    /// plant really applied after sample `k − 1` replaces the one stored, and samples lost
+    /// before `k` are bridged (module docs, "Imperfect loops").
+    fn absorb(&mut self, input: &StepInput<'_>) {
+        if let Some(ua) = input.u_applied
+            && ua.len() >= self.lu
+            && ua.iter().take(self.lu).all(|v| v.is_finite())
+        {
+            self.u_last.copy_from_slice(&ua[..self.lu]);
+            self.filter.correct_last_u(&self.u_last);
+        }
+        if input.lost > 0 {
+            let len = self.filter.history_len() as u64;
+            if input.lost >= len {
+                self.filter.reset();
+            } else {
+                for _ in 0..input.lost {
+                    self.filter.filter(&mut self.phi_f, &mut self.u_f);
+                    self.filter.push(&self.u_last, &self.y_hold);
+                }
+            }
+            self.k = self.k.saturating_add(input.lost);
+            self.update_from = self.k.saturating_add(len);
+            self.gaps += 1;
+        }
+    }
+
+    /// Stores `y_k` (non-finite entries held) with the applied `u_k` at the end of step
+    /// `k`.
+    fn store(&mut self, y: &[f64]) {
+        for (h, v) in self.y_hold.iter_mut().zip(y) {
+            if v.is_finite() {
+                *h = *v;
+            }
+        }
+        self.filter.push(&self.u_last, &self.y_hold);
+        self.k = self.k.saturating_add(1);
+    }
+
     fn build_rows(&mut self, z: &[f64]) {
         let (lz, lt, nphi) = (self.lz, self.ltheta, self.nphi);
         self.a.fill(0.0);
@@ -680,6 +746,7 @@ impl Controller for Rcac {
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
         let mut status = actuation_status::OK;
+        self.absorb(input);
         let (lz, lt) = (self.lz, self.ltheta);
         let y_ok = input.y.len() >= self.ly && input.y.iter().all(|v| v.is_finite());
         let z_ok = input.z.len() >= lz && input.z.iter().take(lz).all(|v| v.is_finite());
@@ -694,9 +761,10 @@ impl Controller for Rcac {
         }
         let ok = y_ok && z_ok && filt_ok;
         let active = self.k >= self.kw;
+        let learn = active && self.k >= self.update_from;
         self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
-        // (2) θ_k → θ_{k+1} (from k = k_w on).
-        if ok && active {
+        // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows).
+        if ok && learn {
             self.build_rows(input.z);
             let reset = match &mut self.law {
                 Law::Rls(rls) => {
@@ -791,14 +859,18 @@ impl Controller for Rcac {
         for (d, s) in self.u_last.iter_mut().zip(u.iter()) {
             *d = *s;
         }
-        for (h, v) in self.y_hold.iter_mut().zip(input.y) {
-            if v.is_finite() {
-                *h = *v;
-            }
-        }
-        self.filter.push(&self.u_last, &self.y_hold);
-        self.k = self.k.saturating_add(1);
+        self.store(input.y);
         status
+    }
+
+    /// Records sample `k` without an update or a new input: the history advances with
+    /// `y_k` and the input the plant holds (the last applied one, corrected by the next
+    /// sample's `u_applied` when the plant reports it).
+    fn observe(&mut self, input: &StepInput<'_>, _u: &mut [f64]) {
+        self.absorb(input);
+        self.filter.filter(&mut self.phi_f, &mut self.u_f);
+        self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
+        self.store(input.y);
     }
 
     fn reset(&mut self) {
@@ -818,6 +890,7 @@ impl Controller for Rcac {
         self.u_last.fill(0.0);
         self.y_hold.fill(0.0);
         self.k = 0;
+        self.update_from = 0;
         self.theta_norm = self.theta0.iter().map(|v| v * v).sum::<f64>().sqrt();
         self.z0 = 0.0;
         self.zhat0 = 0.0;
@@ -829,7 +902,7 @@ impl Controller for Rcac {
             Law::Rls(_) => "trace_p",
             Law::Gradient { .. } => "mu",
         };
-        ["theta_norm", second, "z0", "zhat0", "lambda", "resets"]
+        ["theta_norm", second, "rcac_z0", "rcac_zhat0", "lambda", "resets", "gaps"]
             .iter()
             .map(|s| s.to_string())
             .collect()
@@ -843,6 +916,7 @@ impl Controller for Rcac {
             self.zhat0,
             self.lambda,
             self.resets() as f64,
+            self.gaps as f64,
         ];
         let n = vals.len().min(out.len());
         for (d, v) in out.iter_mut().zip(vals) {

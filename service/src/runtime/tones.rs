@@ -1,0 +1,229 @@
+//! Per-tone suppression of `z` for the run report.
+//!
+//! The disturbances of chapter 3 are sums of tones; what a user of the acoustic rig asks
+//! after a run is how far each tone fell. [`ToneMeter`] keeps two windows of `z` in
+//! buffers sized before the loop starts: the end of the open-loop phase of the session
+//! (`service.open-loop`: `u` is the safe input while the controller only observes) and the
+//! last samples of the run. The real-time thread only stores into them. After the loop,
+//! [`ToneMeter::report`] fits the amplitudes of all tones jointly in each window by least
+//! squares ([`crate::analysis::tone_amplitudes_indexed`], which takes the sequence numbers,
+//! so lost samples leave gaps rather than shifting the phase) and gives, per tone and
+//! channel, `20 log10(A_open / A_closed)`.
+
+use serde::Serialize;
+
+use crate::analysis::{suppression_db, tone_amplitudes_indexed};
+use crate::config::ToneReportConfig;
+
+/// The two windows of `z` (see the module docs).
+#[derive(Debug)]
+pub struct ToneMeter {
+    n_z: usize,
+    window: usize,
+    open_loop_cycles: u64,
+    hz: Vec<f64>,
+    source: String,
+    period: f64,
+    open_seq: Vec<u64>,
+    open_z: Vec<f64>,
+    ring_seq: Vec<u64>,
+    ring_z: Vec<f64>,
+    head: usize,
+    filled: usize,
+}
+
+/// One tone on one channel.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ToneLine {
+    /// Frequency in Hz.
+    pub hz: f64,
+    /// Performance channel.
+    pub channel: usize,
+    /// Amplitude at the end of the open-loop phase (none without one).
+    pub open: Option<f64>,
+    /// Amplitude at the end of the run.
+    pub closed: f64,
+    /// `20 log10(open / closed)`.
+    pub suppression_db: Option<f64>,
+}
+
+/// The tone part of the run report.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ToneReport {
+    /// Where the tone list came from.
+    pub source: String,
+    /// Window length in s.
+    pub window_s: f64,
+    /// Samples in the open-loop and closed-loop windows.
+    pub samples: [usize; 2],
+    /// Per tone and channel.
+    pub tones: Vec<ToneLine>,
+    /// Why nothing could be measured, if so.
+    pub error: Option<String>,
+}
+
+impl ToneMeter {
+    /// Sizes the buffers (allocating; before the loop).
+    pub fn new(cfg: &ToneReportConfig, open_loop_cycles: u64, n_z: usize, period: f64) -> Self {
+        let window = if cfg.tones_hz.is_empty() || n_z == 0 {
+            0
+        } else {
+            cfg.window_cycles as usize
+        };
+        let open = if open_loop_cycles > 0 { window } else { 0 };
+        Self {
+            n_z,
+            window,
+            open_loop_cycles,
+            hz: cfg.tones_hz.clone(),
+            source: cfg.source.clone(),
+            period,
+            open_seq: Vec::with_capacity(open),
+            open_z: Vec::with_capacity(open * n_z),
+            ring_seq: vec![0; window],
+            ring_z: vec![0.0; window * n_z],
+            head: 0,
+            filled: 0,
+        }
+    }
+
+    /// Stores `z` of the sample `seq`, the `cycle`-th (from 1) of the session. No
+    /// allocation: the vectors never grow past their capacity.
+    #[inline]
+    pub fn record(&mut self, cycle: u64, seq: u64, z: &[f64]) {
+        if self.window == 0 {
+            return;
+        }
+        if cycle <= self.open_loop_cycles {
+            let w = self.window as u64;
+            if cycle + w > self.open_loop_cycles && self.open_seq.len() < self.open_seq.capacity() {
+                self.open_seq.push(seq);
+                self.open_z.extend(z.iter().take(self.n_z).copied());
+            }
+            return;
+        }
+        if let Some(s) = self.ring_seq.get_mut(self.head) {
+            *s = seq;
+        }
+        let at = self.head * self.n_z;
+        if let Some(dst) = self.ring_z.get_mut(at..at + self.n_z) {
+            for (d, v) in dst.iter_mut().zip(z) {
+                *d = *v;
+            }
+        }
+        self.head = (self.head + 1) % self.window;
+        self.filled = (self.filled + 1).min(self.window);
+    }
+
+    /// Forgets both windows (a new session starts with its own open-loop phase).
+    pub fn new_session(&mut self) {
+        self.open_seq.clear();
+        self.open_z.clear();
+        self.head = 0;
+        self.filled = 0;
+    }
+
+    /// Fits the tones in both windows (after the loop; allocates). `None` when no tones
+    /// are configured.
+    pub fn report(&self) -> Option<ToneReport> {
+        if self.window == 0 {
+            return None;
+        }
+        let omegas: Vec<f64> = self
+            .hz
+            .iter()
+            .map(|f| 2.0 * std::f64::consts::PI * f * self.period)
+            .collect();
+        // Ring in time order.
+        let start = if self.filled < self.window { 0 } else { self.head };
+        let order: Vec<usize> = (0..self.filled).map(|i| (start + i) % self.window).collect();
+        let closed_seq: Vec<u64> = order.iter().map(|&i| self.ring_seq[i]).collect();
+        let mut out = ToneReport {
+            source: self.source.clone(),
+            window_s: self.window as f64 * self.period,
+            samples: [self.open_seq.len(), self.filled],
+            tones: Vec::new(),
+            error: None,
+        };
+        let fail = |e: String, out: &mut ToneReport| {
+            if out.error.is_none() {
+                out.error = Some(e);
+            }
+        };
+        for ch in 0..self.n_z {
+            let closed_z: Vec<f64> = order
+                .iter()
+                .map(|&i| self.ring_z[i * self.n_z + ch])
+                .collect();
+            let closed = match tone_amplitudes_indexed(&closed_seq, &closed_z, &omegas) {
+                Ok(a) => a,
+                Err(e) => {
+                    fail(format!("closed-loop window: {e}"), &mut out);
+                    continue;
+                }
+            };
+            let open = if self.open_seq.is_empty() {
+                None
+            } else {
+                let z: Vec<f64> = (0..self.open_seq.len())
+                    .map(|i| self.open_z[i * self.n_z + ch])
+                    .collect();
+                match tone_amplitudes_indexed(&self.open_seq, &z, &omegas) {
+                    Ok(a) => Some(a),
+                    Err(e) => {
+                        fail(format!("open-loop window: {e}"), &mut out);
+                        None
+                    }
+                }
+            };
+            for (i, hz) in self.hz.iter().enumerate() {
+                let o = open.as_ref().map(|a| a[i]);
+                out.tones.push(ToneLine {
+                    hz: *hz,
+                    channel: ch,
+                    open: o,
+                    closed: closed[i],
+                    suppression_db: o.map(|o| suppression_db(o, closed[i])),
+                });
+            }
+        }
+        Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_meter_compares_the_end_of_the_open_loop_phase_with_the_end_of_the_run() {
+        let cfg = ToneReportConfig {
+            tones_hz: vec![50.0, 120.0],
+            source: "test".into(),
+            window_cycles: 400,
+        };
+        let period = 1e-3;
+        let mut m = ToneMeter::new(&cfg, 1000, 1, period);
+        let tone = |k: u64, a: f64, b: f64| {
+            let t = k as f64 * period;
+            a * (2.0 * std::f64::consts::PI * 50.0 * t).sin()
+                + b * (2.0 * std::f64::consts::PI * 120.0 * t + 1.0).cos()
+        };
+        for k in 0..3000u64 {
+            // 1 and 0.5 open loop, 0.01 and 0.5 closed loop; one sample in 7 lost.
+            let z = if k < 1000 { tone(k, 1.0, 0.5) } else { tone(k, 0.01, 0.5) };
+            if k % 7 != 3 {
+                m.record(k + 1, k, &[z]);
+            }
+        }
+        let r = m.report().unwrap();
+        assert!(r.error.is_none(), "{:?}", r.error);
+        let s: Vec<f64> = r.tones.iter().map(|t| t.suppression_db.unwrap()).collect();
+        assert!((s[0] - 40.0).abs() < 1e-6, "{s:?}");
+        assert!(s[1].abs() < 1e-6, "{s:?}");
+        // The closed window holds the last 400 recorded samples; the open one the last
+        // of the open-loop phase.
+        assert_eq!(r.samples[1], 400);
+        assert!(r.samples[0] <= 400 && r.samples[0] > 300);
+    }
+}
