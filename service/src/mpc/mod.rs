@@ -1,0 +1,14 @@
+//! # mpc: the receding-horizon optimization of PCAC (section 2.3.2.2)
+//!
+//! PCAC predicts the outputs over a horizon of `ℓ` steps as
+//! `Y = Γ x + T U` (2.43)–(2.46), with `T` block Toeplitz in the Markov parameters
+//! `H_i = C A^{i−1} B`, and at every step minimizes the tracking and move-size cost (2.48)
+//! subject to output constraints (2.49), input bounds (2.50) and move bounds (2.51).
+//! Condensed in the future inputs `U ∈ R^{ℓm}` this is a dense, strictly convex quadratic
+//! program with box bounds and general inequality rows.
+//!
+//! - [`qp`]: the allocation-free dense QP solver for that problem (a dual active-set method
+//!   of Goldfarb–Idnani type, warm-startable) and the clarabel reference it is checked
+//!   against.
+
+pub mod qp;

@@ -1,0 +1,934 @@
+//! # qp: a dense, allocation-free QP solver for PCAC's MPC
+//!
+//! ## The problem
+//!
+//! PCAC's receding-horizon problem (2.48)–(2.51) of the dissertation,
+//!
+//! ```text
+//! min_U  (Y_t − R)ᵀ Q (Y_t − R) + ΔUᵀ R ΔU                         (2.48)
+//! s.t.   C_ℓ Y + D_ℓ ≤ 0                                           (2.49)
+//!        U_min ≤ U ≤ U_max                                         (2.50)
+//!        ΔU_min ≤ ΔU ≤ ΔU_max                                      (2.51)
+//! ```
+//!
+//! with `Y = Γ x + T U` (2.43) and the move sizes `ΔU` of (2.47) relative to the current
+//! input `u_k`, is, once condensed in the `n = ℓ·m` future inputs `U`, the dense strictly
+//! convex quadratic program
+//!
+//! ```text
+//! min_U  ½ Uᵀ H U + fᵀ U
+//! s.t.   lb ≤ U ≤ ub          (the input bounds (2.50), entries may be ±∞)
+//!        G U ≤ h              (move bounds (2.51): rows of the difference matrix, both
+//!                              signs; output constraints (2.49): rows C_ℓ T)
+//! ```
+//!
+//! with `H = 2(C_{t,ℓ} T)ᵀ Q (C_{t,ℓ} T) + 2 Dᵀ R D` symmetric positive definite. Building
+//! `H, f, G, h` from the model is the condensing step and lives elsewhere; this module takes
+//! the condensed data ([`QpProblem`]).
+//!
+//! ## The method: a dual active-set method (Goldfarb–Idnani)
+//!
+//! With Lagrange multipliers `λ ≥ 0` for the inequalities `a_iᵀ U ≤ b_i` (the boxes are
+//! the rows `±e_iᵀ`), the KKT conditions are
+//! `H U + f + Σ λ_i a_i = 0`, `a_iᵀ U ≤ b_i`, `λ_i ≥ 0`, `λ_i (a_iᵀ U − b_i) = 0`.
+//! The dual method starts from the unconstrained minimizer `U = −H⁻¹ f` (dual feasible,
+//! empty active set `A`) and keeps dual feasibility throughout: it picks a violated
+//! constraint `p`, raises its multiplier `t` while moving `U` so that the active
+//! constraints stay satisfied with equality, and stops either when `p` becomes satisfied
+//! (full step: `p` joins `A`) or when an active multiplier reaches zero first (partial
+//! step: that constraint leaves `A`). With `H = L Lᵀ` (Cholesky), `w = L⁻¹ a_p` and the
+//! active normals `W = L⁻¹ N_A = Q R` (thin QR, `Q` orthonormal), the step directions are
+//!
+//! ```text
+//! r = Qᵀ w,    u = R⁻¹ r,    ρ = w − Q r,    z = L⁻ᵀ ρ,
+//! U(t) = U − t z,   λ_A(t) = λ_A − t u,   λ_p(t) = λ_p + t,
+//! a_pᵀ U(t) − b_p = s_p − t ‖ρ‖²,
+//! ```
+//!
+//! so the full step is `t₁ = s_p / ‖ρ‖²` and the partial step
+//! `t₂ = min_{u_j > 0} λ_j / u_j`. If `ρ = 0` (`a_p` depends on the active normals) only a
+//! dual step is possible, and if in addition no `u_j > 0` the problem is primal
+//! infeasible. The objective increases strictly at every full step, so the method
+//! terminates; a configurable iteration cap bounds the work in the real-time step.
+//!
+//! Why this method rather than an interior-point method: an interior-point iteration costs
+//! a fresh `O(n³)` factorization of `H + Gᵀ D G` (≈ 0.3 Mflop at `n = 100`, about the same
+//! as the whole factorization here) and needs 10–20 of them, whereas the dual method
+//! factors `H` once and then pays `O(n²)` per active-set change (two triangular solves and
+//! a Gram–Schmidt step against the `|A|` active directions). MPC problems have few active
+//! constraints compared with `n`, the solution is exact on the final active set (no
+//! barrier residual, so it matches clarabel to round-off), and warm starts are natural:
+//! constraints active at the previous step are tried first ([`WarmStart`]).
+//!
+//! Implementation notes:
+//! - `Q` and `R` are kept by classical Gram–Schmidt with one re-orthogonalization (CGS2) on
+//!   addition and by Givens rotations on deletion (`O(n·|A|)`), never a Gram matrix.
+//! - Box bounds are not stored as rows: `L⁻¹(±e_i)` is a forward solve that starts at
+//!   row `i`, and their violations are read off `U` directly.
+//! - The rows of `G` are copied at the start of each solve into a compressed (sparse-row)
+//!   buffer sized at construction, so the two-nonzero move-bound rows cost two flops each
+//!   when violations are checked.
+//! - The Cholesky factorization is an in-place row-oriented one on a pre-sized buffer
+//!   (`nalgebra`'s `cholesky()` allocates).
+//!
+//! ## Real-time use
+//!
+//! [`DenseQpSolver::new`] allocates every workspace for given `(n, n_ineq)`;
+//! [`DenseQpSolver::solve`] takes only borrowed slices and allocates nothing, and it never
+//! panics: the outcome is a [`QpStatus`]. [`solve_with_clarabel`] solves the same problem
+//! with clarabel (it allocates; for tests and benchmarks).
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
+};
+
+#[cfg(test)]
+mod tests;
+
+/// The condensed QP `min ½ Uᵀ H U + fᵀ U  s.t.  lb ≤ U ≤ ub,  G U ≤ h`, borrowed.
+///
+/// `n = f.len()` variables and `n_ineq = h.len()` general rows. Matrices are dense and
+/// row-major.
+#[derive(Clone, Copy, Debug)]
+pub struct QpProblem<'a> {
+    /// The Hessian `H` (`n × n`, row-major, symmetric positive definite; only the lower
+    /// triangle is read).
+    pub hess: &'a [f64],
+    /// The linear term `f` (`n`).
+    pub f: &'a [f64],
+    /// Lower bounds `lb` (`n`); `-∞` for none.
+    pub lb: &'a [f64],
+    /// Upper bounds `ub` (`n`); `+∞` for none.
+    pub ub: &'a [f64],
+    /// The inequality matrix `G` (`n_ineq × n`, row-major).
+    pub g: &'a [f64],
+    /// The right-hand side `h` (`n_ineq`); `+∞` disables a row.
+    pub h: &'a [f64],
+}
+
+/// The outcome of [`DenseQpSolver::solve`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QpStatus {
+    /// The KKT conditions hold to the tolerances of [`QpSettings`].
+    Solved,
+    /// The iteration cap was reached; the iterate is finite and within the box bounds but
+    /// may violate rows of `G U ≤ h` (and is not optimal).
+    MaxIterations,
+    /// The constraints admit no solution (contradictory bounds or rows); the iterate is
+    /// the last dual iterate clipped into the box (finite when the data are finite).
+    Infeasible,
+    /// The data are not finite, `H` is not (numerically) positive definite, or a step
+    /// produced a non-finite value.
+    NumericalError,
+    /// The problem's dimensions differ from the ones the solver was built for (`n`,
+    /// `n_ineq`), or a slice has the wrong length.
+    InvalidDimensions,
+}
+
+/// Tolerances and limits of [`DenseQpSolver`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QpSettings {
+    /// Maximum number of active-set changes (additions and deletions) per solve.
+    pub max_iterations: usize,
+    /// A constraint counts as violated when `(a_iᵀ U − b_i) / ‖a_i‖ > feasibility_tol`.
+    pub feasibility_tol: f64,
+    /// A new constraint counts as linearly dependent on the active ones when
+    /// `‖ρ‖ ≤ dependence_tol · ‖L⁻¹ a_p‖`.
+    pub dependence_tol: f64,
+}
+
+impl Default for QpSettings {
+    fn default() -> Self {
+        Self { max_iterations: 1000, feasibility_tol: 1e-10, dependence_tol: 1e-10 }
+    }
+}
+
+/// One constraint of the QP, as reported in the active set and accepted by
+/// [`WarmStart::ActiveSet`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ConstraintId {
+    /// The upper bound `U_i ≤ ub_i`.
+    Upper(usize),
+    /// The lower bound `U_i ≥ lb_i`.
+    Lower(usize),
+    /// Row `j` of `G U ≤ h`.
+    Row(usize),
+}
+
+/// How [`DenseQpSolver::solve`] starts.
+#[derive(Clone, Copy, Debug)]
+pub enum WarmStart<'a> {
+    /// From the unconstrained minimizer, choosing the most violated constraint each time.
+    Cold,
+    /// Constraints in this list (e.g. the previous step's active set shifted by one
+    /// horizon step, `m` variables) are added first while they are violated. Invalid ids
+    /// are ignored.
+    ActiveSet(&'a [ConstraintId]),
+    /// The constraints active or violated at this point (e.g. the previous solution
+    /// shifted by one horizon step), within `1e-7` relative, are added first. A slice of
+    /// the wrong length is ignored.
+    Primal(&'a [f64]),
+}
+
+/// The dense dual active-set QP solver, with every workspace allocated at construction.
+///
+/// ```
+/// use service::mpc::qp::{DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart};
+/// // min ½(u₁² + u₂²) − u₁ − u₂  s.t.  u ≤ 0.8,  u₁ + u₂ ≤ 1
+/// let mut solver = DenseQpSolver::new(2, 1, QpSettings::default());
+/// let p = QpProblem {
+///     hess: &[1.0, 0.0, 0.0, 1.0],
+///     f: &[-1.0, -1.0],
+///     lb: &[f64::NEG_INFINITY; 2],
+///     ub: &[0.8, 0.8],
+///     g: &[1.0, 1.0],
+///     h: &[1.0],
+/// };
+/// assert_eq!(solver.solve(&p, WarmStart::Cold), QpStatus::Solved);
+/// assert!((solver.x()[0] - 0.5).abs() < 1e-12 && (solver.x()[1] - 0.5).abs() < 1e-12);
+/// assert!((solver.lambda_ineq()[0] - 0.5).abs() < 1e-12);
+/// ```
+#[derive(Clone, Debug)]
+pub struct DenseQpSolver {
+    n: usize,
+    n_ineq: usize,
+    settings: QpSettings,
+    /// Cholesky factor `L` (row-major, lower triangle).
+    l: Vec<f64>,
+    x: Vec<f64>,
+    /// Compressed rows of `G`: `row_ptr[j]..row_ptr[j+1]` index `cols`/`vals`.
+    row_ptr: Vec<usize>,
+    cols: Vec<usize>,
+    vals: Vec<f64>,
+    row_norm: Vec<f64>,
+    /// Active constraints (internal ids: `0..n` upper, `n..2n` lower, `2n..` rows).
+    active: Vec<usize>,
+    lambda_active: Vec<f64>,
+    is_active: Vec<bool>,
+    priority: Vec<bool>,
+    /// `Q` (one orthonormal `n`-vector per active constraint, row-major `n × n`).
+    q: Vec<f64>,
+    /// `R` (upper triangular, row-major with stride `n`).
+    r: Vec<f64>,
+    w: Vec<f64>,
+    rho: Vec<f64>,
+    z: Vec<f64>,
+    rv: Vec<f64>,
+    rv2: Vec<f64>,
+    uv: Vec<f64>,
+    lam_lower: Vec<f64>,
+    lam_upper: Vec<f64>,
+    lam_ineq: Vec<f64>,
+    objective: f64,
+    iterations: usize,
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let k = a.len().min(b.len());
+    let (a, b) = (&a[..k], &b[..k]);
+    let mut acc = [0.0f64; 4];
+    let mut ca = a.chunks_exact(4);
+    let mut cb = b.chunks_exact(4);
+    for (x, y) in (&mut ca).zip(&mut cb) {
+        acc[0] += x[0] * y[0];
+        acc[1] += x[1] * y[1];
+        acc[2] += x[2] * y[2];
+        acc[3] += x[3] * y[3];
+    }
+    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
+        s += x * y;
+    }
+    s
+}
+
+#[inline]
+fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += alpha * xi;
+    }
+}
+
+/// In-place Cholesky `A = L Lᵀ` of the row-major `n × n` matrix `a` (lower triangle read,
+/// `L` written over it, the strict upper triangle left alone). Returns `false` if a pivot
+/// is not positive and finite.
+pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    if a.len() < n * n {
+        return false;
+    }
+    for i in 0..n {
+        let (before, rest) = a.split_at_mut(i * n);
+        let row_i = &mut rest[..n];
+        for j in 0..i {
+            let row_j = &before[j * n..j * n + j + 1];
+            let s = row_i[j] - dot(&row_i[..j], &row_j[..j]);
+            row_i[j] = s / row_j[j];
+        }
+        let d = row_i[i] - dot(&row_i[..i], &row_i[..i]);
+        if !(d > 0.0 && d.is_finite()) {
+            return false;
+        }
+        row_i[i] = d.sqrt();
+    }
+    true
+}
+
+/// Solves `L y = b` in place (`b` is zero before `start`).
+fn forward_solve(l: &[f64], n: usize, b: &mut [f64], start: usize) {
+    for i in start..n {
+        let row = &l[i * n..i * n + i + 1];
+        let s = b[i] - dot(&row[start..i], &b[start..i]);
+        b[i] = s / row[i];
+    }
+}
+
+/// Solves `Lᵀ z = y` in place.
+fn backward_solve(l: &[f64], n: usize, y: &mut [f64]) {
+    for i in (0..n).rev() {
+        let row = &l[i * n..i * n + i + 1];
+        let zi = y[i] / row[i];
+        y[i] = zi;
+        axpy(-zi, &row[..i], &mut y[..i]);
+    }
+}
+
+impl DenseQpSolver {
+    /// A solver for problems with `n` variables and `n_ineq` rows in `G U ≤ h`; allocates
+    /// all workspaces (`O(n² + n_ineq·n)`).
+    pub fn new(n: usize, n_ineq: usize, settings: QpSettings) -> Self {
+        let n_con = 2 * n + n_ineq;
+        Self {
+            n,
+            n_ineq,
+            settings,
+            l: vec![0.0; n * n],
+            x: vec![0.0; n],
+            row_ptr: vec![0; n_ineq + 1],
+            cols: vec![0; n_ineq * n],
+            vals: vec![0.0; n_ineq * n],
+            row_norm: vec![0.0; n_ineq],
+            active: Vec::with_capacity(n),
+            lambda_active: Vec::with_capacity(n),
+            is_active: vec![false; n_con],
+            priority: vec![false; n_con],
+            q: vec![0.0; n * n],
+            r: vec![0.0; n * n],
+            w: vec![0.0; n],
+            rho: vec![0.0; n],
+            z: vec![0.0; n],
+            rv: vec![0.0; n],
+            rv2: vec![0.0; n],
+            uv: vec![0.0; n],
+            lam_lower: vec![0.0; n],
+            lam_upper: vec![0.0; n],
+            lam_ineq: vec![0.0; n_ineq],
+            objective: f64::NAN,
+            iterations: 0,
+        }
+    }
+
+    /// The number of variables `n` this solver was built for.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// The number of rows of `G` this solver was built for.
+    pub fn n_ineq(&self) -> usize {
+        self.n_ineq
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &QpSettings {
+        &self.settings
+    }
+
+    /// Replaces the settings (e.g. the iteration cap).
+    pub fn set_settings(&mut self, settings: QpSettings) {
+        self.settings = settings;
+    }
+
+    /// The last iterate `U` (the solution after [`QpStatus::Solved`]).
+    pub fn x(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// Multipliers of the lower bounds `U ≥ lb` (`≥ 0`).
+    pub fn lambda_lower(&self) -> &[f64] {
+        &self.lam_lower
+    }
+
+    /// Multipliers of the upper bounds `U ≤ ub` (`≥ 0`).
+    pub fn lambda_upper(&self) -> &[f64] {
+        &self.lam_upper
+    }
+
+    /// Multipliers of the rows `G U ≤ h` (`≥ 0`). Stationarity reads
+    /// `H U + f − λ_lower + λ_upper + Gᵀ λ_ineq = 0`.
+    pub fn lambda_ineq(&self) -> &[f64] {
+        &self.lam_ineq
+    }
+
+    /// The objective `½ Uᵀ H U + fᵀ U` at the last iterate.
+    pub fn objective(&self) -> f64 {
+        self.objective
+    }
+
+    /// Active-set changes made by the last solve.
+    pub fn iterations(&self) -> usize {
+        self.iterations
+    }
+
+    /// The number of constraints in the final active set.
+    pub fn active_len(&self) -> usize {
+        self.active.len()
+    }
+
+    /// The `k`-th constraint of the final active set (`k < active_len()`).
+    pub fn active_constraint(&self, k: usize) -> Option<ConstraintId> {
+        self.active.get(k).map(|&id| self.to_public(id))
+    }
+
+    /// Writes the final active set into `out` (as many as fit) and returns how many were
+    /// written; allocation-free, for [`WarmStart::ActiveSet`] at the next step.
+    pub fn active_set_into(&self, out: &mut [ConstraintId]) -> usize {
+        let k = self.active.len().min(out.len());
+        for (o, &id) in out.iter_mut().zip(&self.active[..k]) {
+            *o = self.to_public(id);
+        }
+        k
+    }
+
+    fn to_public(&self, id: usize) -> ConstraintId {
+        if id < self.n {
+            ConstraintId::Upper(id)
+        } else if id < 2 * self.n {
+            ConstraintId::Lower(id - self.n)
+        } else {
+            ConstraintId::Row(id - 2 * self.n)
+        }
+    }
+
+    fn to_internal(&self, c: ConstraintId) -> Option<usize> {
+        match c {
+            ConstraintId::Upper(i) if i < self.n => Some(i),
+            ConstraintId::Lower(i) if i < self.n => Some(self.n + i),
+            ConstraintId::Row(j) if j < self.n_ineq => Some(2 * self.n + j),
+            _ => None,
+        }
+    }
+
+    /// `a_pᵀ x − b_p` and `‖a_p‖` for internal id `p` (`NaN`-free for finite `b_p`).
+    fn slack(&self, p: &QpProblem, id: usize, x: &[f64]) -> (f64, f64) {
+        let n = self.n;
+        if id < n {
+            (x[id] - p.ub[id], 1.0)
+        } else if id < 2 * n {
+            let i = id - n;
+            (p.lb[i] - x[i], 1.0)
+        } else {
+            let j = id - 2 * n;
+            let (a, b) = (self.row_ptr[j], self.row_ptr[j + 1]);
+            let mut s = 0.0;
+            for k in a..b {
+                s += self.vals[k] * x[self.cols[k]];
+            }
+            (s - p.h[j], self.row_norm[j])
+        }
+    }
+
+    /// Whether constraint `id` exists (finite bound or right-hand side, nonzero row).
+    fn present(&self, p: &QpProblem, id: usize) -> bool {
+        let n = self.n;
+        if id < n {
+            p.ub[id].is_finite()
+        } else if id < 2 * n {
+            p.lb[id - n].is_finite()
+        } else {
+            let j = id - 2 * n;
+            p.h[j].is_finite() && self.row_ptr[j + 1] > self.row_ptr[j]
+        }
+    }
+
+    /// Writes `L⁻¹ a_id` into `self.w`.
+    fn load_w(&mut self, id: usize) {
+        let n = self.n;
+        self.w.fill(0.0);
+        let start;
+        if id < n {
+            self.w[id] = 1.0;
+            start = id;
+        } else if id < 2 * n {
+            self.w[id - n] = -1.0;
+            start = id - n;
+        } else {
+            let j = id - 2 * n;
+            let (a, b) = (self.row_ptr[j], self.row_ptr[j + 1]);
+            for k in a..b {
+                self.w[self.cols[k]] = self.vals[k];
+            }
+            start = if b > a { self.cols[a] } else { n };
+        }
+        forward_solve(&self.l, n, &mut self.w, start);
+    }
+
+    /// Solves the problem; allocation-free. See [`QpStatus`] for what the iterate means.
+    pub fn solve(&mut self, p: &QpProblem, warm: WarmStart) -> QpStatus {
+        self.iterations = 0;
+        self.objective = f64::NAN;
+        self.active.clear();
+        self.lambda_active.clear();
+        let n = self.n;
+        let m = self.n_ineq;
+        if p.hess.len() != n * n
+            || p.f.len() != n
+            || p.lb.len() != n
+            || p.ub.len() != n
+            || p.g.len() != m * n
+            || p.h.len() != m
+        {
+            self.x.fill(0.0);
+            self.clear_multipliers();
+            return QpStatus::InvalidDimensions;
+        }
+        let status = self.run(p, warm);
+        self.finish(p, status)
+    }
+
+    fn clear_multipliers(&mut self) {
+        self.lam_lower.fill(0.0);
+        self.lam_upper.fill(0.0);
+        self.lam_ineq.fill(0.0);
+    }
+
+    fn run(&mut self, p: &QpProblem, warm: WarmStart) -> QpStatus {
+        let n = self.n;
+        let m = self.n_ineq;
+        self.x.fill(0.0);
+        self.is_active.fill(false);
+        self.priority.fill(false);
+
+        // Data checks: NaN anywhere, infinities only where allowed.
+        if !p.hess.iter().chain(p.f).chain(p.g).all(|v| v.is_finite())
+            || p.lb.iter().any(|v| v.is_nan() || *v == f64::INFINITY)
+            || p.ub.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
+            || p.h.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
+        {
+            return QpStatus::NumericalError;
+        }
+
+        // Factor H = L Lᵀ.
+        self.l.copy_from_slice(p.hess);
+        if !cholesky_in_place(&mut self.l, n) {
+            return QpStatus::NumericalError;
+        }
+        // Unconstrained minimizer x = −H⁻¹ f.
+        for (xi, fi) in self.x.iter_mut().zip(p.f) {
+            *xi = -fi;
+        }
+        forward_solve(&self.l, n, &mut self.x, 0);
+        backward_solve(&self.l, n, &mut self.x);
+
+        // Compressed rows of G.
+        let mut nnz = 0;
+        self.row_ptr[0] = 0;
+        for j in 0..m {
+            let row = &p.g[j * n..(j + 1) * n];
+            let mut s2 = 0.0;
+            for (c, &v) in row.iter().enumerate() {
+                if v != 0.0 {
+                    self.cols[nnz] = c;
+                    self.vals[nnz] = v;
+                    nnz += 1;
+                    s2 += v * v;
+                }
+            }
+            self.row_ptr[j + 1] = nnz;
+            self.row_norm[j] = s2.sqrt();
+        }
+
+        // Trivially infeasible data: crossed bounds, zero rows with negative h.
+        for i in 0..n {
+            if p.lb[i] > p.ub[i] {
+                return QpStatus::Infeasible;
+            }
+        }
+        for j in 0..m {
+            if self.row_ptr[j + 1] == self.row_ptr[j] && p.h[j] < 0.0 {
+                return QpStatus::Infeasible;
+            }
+        }
+
+        // Warm start: priorities.
+        let n_con = 2 * n + m;
+        match warm {
+            WarmStart::Cold => {}
+            WarmStart::ActiveSet(ids) => {
+                for &c in ids {
+                    if let Some(id) = self.to_internal(c) {
+                        self.priority[id] = true;
+                    }
+                }
+            }
+            WarmStart::Primal(xg) => {
+                if xg.len() == n && xg.iter().all(|v| v.is_finite()) {
+                    for id in 0..n_con {
+                        if self.present(p, id) {
+                            let (s, nrm) = self.slack(p, id, xg);
+                            let b = self.rhs(p, id).abs();
+                            if s >= -1e-7 * (nrm + b) {
+                                self.priority[id] = true;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+
+        let max_iter = self.settings.max_iterations;
+        let tol = self.settings.feasibility_tol;
+        loop {
+            // Choose the violated constraint: prioritized first, then the most violated.
+            let mut best = usize::MAX;
+            let mut best_v = tol;
+            let mut best_pri = usize::MAX;
+            let mut best_pri_v = tol;
+            for id in 0..n_con {
+                if self.is_active[id] || !self.present(p, id) {
+                    continue;
+                }
+                let (s, nrm) = self.slack(p, id, &self.x);
+                let v = s / nrm;
+                if v > best_v {
+                    best_v = v;
+                    best = id;
+                }
+                if self.priority[id] && v > best_pri_v {
+                    best_pri_v = v;
+                    best_pri = id;
+                }
+            }
+            let pid = if best_pri != usize::MAX { best_pri } else { best };
+            if pid == usize::MAX {
+                return QpStatus::Solved;
+            }
+            if !best_v.is_finite() {
+                return QpStatus::NumericalError;
+            }
+            match self.add_constraint(p, pid, max_iter) {
+                Ok(()) => {}
+                Err(status) => return status,
+            }
+        }
+    }
+
+    fn rhs(&self, p: &QpProblem, id: usize) -> f64 {
+        let n = self.n;
+        if id < n {
+            p.ub[id]
+        } else if id < 2 * n {
+            -p.lb[id - n]
+        } else {
+            p.h[id - 2 * n]
+        }
+    }
+
+    /// Steps until constraint `pid` is satisfied and added (or the problem is found
+    /// infeasible, or the iteration cap is hit).
+    fn add_constraint(&mut self, p: &QpProblem, pid: usize, max_iter: usize) -> Result<(), QpStatus> {
+        let n = self.n;
+        let mut lam_p = 0.0;
+        loop {
+            if self.iterations >= max_iter {
+                return Err(QpStatus::MaxIterations);
+            }
+            self.iterations += 1;
+            let q = self.active.len();
+            self.load_w(pid);
+            let w_norm = dot(&self.w, &self.w).sqrt();
+            // CGS2: r = Qᵀw, ρ = w − Q r, twice.
+            self.rho.copy_from_slice(&self.w);
+            for k in 0..q {
+                let c = dot(&self.q[k * n..(k + 1) * n], &self.w);
+                self.rv[k] = c;
+            }
+            for k in 0..q {
+                axpy(-self.rv[k], &self.q[k * n..(k + 1) * n], &mut self.rho);
+            }
+            for k in 0..q {
+                self.rv2[k] = dot(&self.q[k * n..(k + 1) * n], &self.rho);
+            }
+            for k in 0..q {
+                axpy(-self.rv2[k], &self.q[k * n..(k + 1) * n], &mut self.rho);
+                self.rv[k] += self.rv2[k];
+            }
+            // u = R⁻¹ r.
+            for i in (0..q).rev() {
+                let row = &self.r[i * n..i * n + q];
+                let s = self.rv[i] - dot(&row[i + 1..q], &self.uv[i + 1..q]);
+                self.uv[i] = s / row[i];
+            }
+            let rho2 = dot(&self.rho, &self.rho);
+            let dependent = q >= n || rho2.sqrt() <= self.settings.dependence_tol * w_norm;
+            let (s_p, _) = self.slack(p, pid, &self.x);
+            let t1 = if dependent { f64::INFINITY } else { s_p / rho2 };
+            let mut t2 = f64::INFINITY;
+            let mut k_drop = usize::MAX;
+            for k in 0..q {
+                let uk = self.uv[k];
+                if uk > 0.0 {
+                    let t = self.lambda_active[k] / uk;
+                    if t < t2 {
+                        t2 = t;
+                        k_drop = k;
+                    }
+                }
+            }
+            if !(t1.is_finite() || t2.is_finite()) {
+                if t1.is_nan() || t2.is_nan() {
+                    return Err(QpStatus::NumericalError);
+                }
+                return Err(QpStatus::Infeasible);
+            }
+            if !t1.is_nan() && t1 <= t2 {
+                // Full step: p becomes satisfied and joins the active set.
+                let t = t1.max(0.0);
+                self.z.copy_from_slice(&self.rho);
+                backward_solve(&self.l, n, &mut self.z);
+                axpy(-t, &self.z, &mut self.x);
+                for k in 0..q {
+                    self.lambda_active[k] -= t * self.uv[k];
+                }
+                lam_p += t;
+                let delta = rho2.sqrt();
+                // Q gains ρ/δ, R gains the column [r; δ].
+                let (qs, qn) = (q * n, (q + 1) * n);
+                for (dst, src) in self.q[qs..qn].iter_mut().zip(&self.rho) {
+                    *dst = src / delta;
+                }
+                for i in 0..q {
+                    self.r[i * n + q] = self.rv[i];
+                }
+                self.r[q * n + q] = delta;
+                self.active.push(pid);
+                self.lambda_active.push(lam_p);
+                self.is_active[pid] = true;
+                if !self.x.iter().all(|v| v.is_finite()) {
+                    return Err(QpStatus::NumericalError);
+                }
+                return Ok(());
+            }
+            // Partial step: the active constraint k_drop leaves.
+            let t = t2.max(0.0);
+            if !dependent {
+                self.z.copy_from_slice(&self.rho);
+                backward_solve(&self.l, n, &mut self.z);
+                axpy(-t, &self.z, &mut self.x);
+            }
+            for k in 0..q {
+                self.lambda_active[k] -= t * self.uv[k];
+            }
+            lam_p += t;
+            self.drop_active(k_drop);
+            if !self.x.iter().all(|v| v.is_finite()) || !lam_p.is_finite() {
+                return Err(QpStatus::NumericalError);
+            }
+        }
+    }
+
+    /// Removes the `k`-th active constraint: column `k` of `R` goes, Givens rotations
+    /// restore the triangle and rotate `Q` alike.
+    fn drop_active(&mut self, k: usize) {
+        let n = self.n;
+        let q = self.active.len();
+        let id = self.active[k];
+        self.is_active[id] = false;
+        // Shift columns k+1..q of R left.
+        for i in 0..q {
+            let row = &mut self.r[i * n..i * n + q];
+            row.copy_within(k + 1..q, k);
+        }
+        // R is now q × (q−1), upper Hessenberg from column k.
+        for j in k..q - 1 {
+            let a = self.r[j * n + j];
+            let b = self.r[(j + 1) * n + j];
+            let h = a.hypot(b);
+            if h == 0.0 {
+                continue;
+            }
+            let (c, s) = (a / h, b / h);
+            for col in j..q - 1 {
+                let x0 = self.r[j * n + col];
+                let x1 = self.r[(j + 1) * n + col];
+                self.r[j * n + col] = c * x0 + s * x1;
+                self.r[(j + 1) * n + col] = -s * x0 + c * x1;
+            }
+            self.r[(j + 1) * n + j] = 0.0;
+            let (lo, hi) = self.q.split_at_mut((j + 1) * n);
+            let qj = &mut lo[j * n..];
+            let qj1 = &mut hi[..n];
+            for (a0, a1) in qj.iter_mut().zip(qj1.iter_mut()) {
+                let (x0, x1) = (*a0, *a1);
+                *a0 = c * x0 + s * x1;
+                *a1 = -s * x0 + c * x1;
+            }
+        }
+        self.active.remove(k);
+        self.lambda_active.remove(k);
+    }
+
+    /// Multipliers, objective and (unless solved) the clipped iterate.
+    fn finish(&mut self, p: &QpProblem, status: QpStatus) -> QpStatus {
+        let n = self.n;
+        self.clear_multipliers();
+        if status == QpStatus::Solved {
+            for (&id, &lam) in self.active.iter().zip(&self.lambda_active) {
+                let lam = lam.max(0.0);
+                if id < n {
+                    self.lam_upper[id] = lam;
+                } else if id < 2 * n {
+                    self.lam_lower[id - n] = lam;
+                } else {
+                    self.lam_ineq[id - 2 * n] = lam;
+                }
+            }
+        } else {
+            for i in 0..n {
+                let v = self.x[i];
+                let v = if v.is_finite() { v } else { 0.0 };
+                let lo = if p.lb[i].is_finite() { p.lb[i] } else { f64::NEG_INFINITY };
+                let hi = if p.ub[i].is_finite() { p.ub[i] } else { f64::INFINITY };
+                self.x[i] = if lo <= hi { v.max(lo).min(hi) } else { v };
+            }
+        }
+        if p.hess.len() == n * n && p.f.len() == n {
+            let mut obj = 0.0;
+            for i in 0..n {
+                obj += self.x[i] * (0.5 * dot(&p.hess[i * n..(i + 1) * n], &self.x) + p.f[i]);
+            }
+            self.objective = obj;
+        }
+        status
+    }
+}
+
+/// The result of [`solve_with_clarabel`].
+#[derive(Clone, Debug)]
+pub struct ClarabelSolution {
+    /// clarabel's status.
+    pub status: SolverStatus,
+    /// The primal solution `U`.
+    pub x: Vec<f64>,
+    /// The objective `½ Uᵀ H U + fᵀ U`.
+    pub objective: f64,
+    /// Multipliers of the lower bounds (zero where `lb = −∞`).
+    pub lambda_lower: Vec<f64>,
+    /// Multipliers of the upper bounds (zero where `ub = +∞`).
+    pub lambda_upper: Vec<f64>,
+    /// Multipliers of the rows of `G U ≤ h` (zero where `h = +∞`).
+    pub lambda_ineq: Vec<f64>,
+}
+
+/// Solves the same [`QpProblem`] with clarabel (set-up and solve; allocates). The reference
+/// for tests and benchmarks: boxes become rows `±e_iᵀ U ≤ ±b` of one nonnegative cone with
+/// the rows of `G`, infinite bounds are left out. `tol` sets clarabel's gap and feasibility
+/// tolerances (its default is `1e-8`). Returns `None` if the data are malformed (clarabel
+/// refuses them).
+pub fn solve_with_clarabel(p: &QpProblem, tol: f64) -> Option<ClarabelSolution> {
+    let n = p.f.len();
+    let m = p.h.len();
+    if p.hess.len() != n * n || p.lb.len() != n || p.ub.len() != n || p.g.len() != m * n {
+        return None;
+    }
+    // P: upper triangle of H in CSC.
+    let (mut pi, mut pj, mut pv) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..n {
+        for i in 0..=j {
+            let v = 0.5 * (p.hess[i * n + j] + p.hess[j * n + i]);
+            if v != 0.0 {
+                pi.push(i);
+                pj.push(j);
+                pv.push(v);
+            }
+        }
+    }
+    let pm = CscMatrix::new_from_triplets(n, n, pi, pj, pv);
+    // A and b: upper bounds, lower bounds, rows.
+    let (mut ai, mut aj, mut av, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // (kind, index) for each row of A, to map the multipliers back.
+    let mut map = Vec::new();
+    for i in 0..n {
+        if p.ub[i].is_finite() {
+            ai.push(b.len());
+            aj.push(i);
+            av.push(1.0);
+            b.push(p.ub[i]);
+            map.push((0u8, i));
+        }
+    }
+    for i in 0..n {
+        if p.lb[i].is_finite() {
+            ai.push(b.len());
+            aj.push(i);
+            av.push(-1.0);
+            b.push(-p.lb[i]);
+            map.push((1u8, i));
+        }
+    }
+    for j in 0..m {
+        if p.h[j].is_finite() {
+            let r = b.len();
+            for c in 0..n {
+                let v = p.g[j * n + c];
+                if v != 0.0 {
+                    ai.push(r);
+                    aj.push(c);
+                    av.push(v);
+                }
+            }
+            b.push(p.h[j]);
+            map.push((2u8, j));
+        }
+    }
+    let rows = b.len();
+    let am = CscMatrix::new_from_triplets(rows, n, ai, aj, av);
+    let cones: Vec<SupportedConeT<f64>> =
+        if rows > 0 { vec![NonnegativeConeT(rows)] } else { Vec::new() };
+    let settings = DefaultSettings::<f64> {
+        verbose: false,
+        tol_gap_abs: tol,
+        tol_gap_rel: tol,
+        tol_feas: tol,
+        tol_ktratio: tol.max(1e-10),
+        max_iter: 200,
+        ..DefaultSettings::default()
+    };
+    let mut solver = DefaultSolver::new(&pm, p.f, &am, &b, &cones, settings).ok()?;
+    solver.solve();
+    let x = solver.solution.x.clone();
+    let mut objective = 0.0;
+    for i in 0..n {
+        let hx: f64 = (0..n).map(|j| p.hess[i * n + j] * x[j]).sum();
+        objective += x[i] * (0.5 * hx + p.f[i]);
+    }
+    let mut lambda_lower = vec![0.0; n];
+    let mut lambda_upper = vec![0.0; n];
+    let mut lambda_ineq = vec![0.0; m];
+    for (k, &(kind, i)) in map.iter().enumerate() {
+        let z = solver.solution.z[k];
+        match kind {
+            0 => lambda_upper[i] = z,
+            1 => lambda_lower[i] = z,
+            _ => lambda_ineq[i] = z,
+        }
+    }
+    Some(ClarabelSolution {
+        status: solver.solution.status,
+        x,
+        objective,
+        lambda_lower,
+        lambda_upper,
+        lambda_ineq,
+    })
+}

@@ -1,0 +1,587 @@
+//! Tests of the dense QP solver against clarabel and the KKT conditions.
+
+use super::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+/// An owned QP (the tests' counterpart of [`QpProblem`]).
+#[derive(Clone, Debug)]
+struct Owned {
+    n: usize,
+    hess: Vec<f64>,
+    f: Vec<f64>,
+    lb: Vec<f64>,
+    ub: Vec<f64>,
+    g: Vec<f64>,
+    h: Vec<f64>,
+}
+
+impl Owned {
+    fn problem(&self) -> QpProblem<'_> {
+        QpProblem { hess: &self.hess, f: &self.f, lb: &self.lb, ub: &self.ub, g: &self.g, h: &self.h }
+    }
+    fn n_ineq(&self) -> usize {
+        self.h.len()
+    }
+}
+
+fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    rng.sample(StandardNormal)
+}
+
+/// `H = L Lᵀ / n + ε I` with a random `L`.
+fn random_spd(n: usize, eps: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let l: Vec<f64> = (0..n * n).map(|_| normal(rng)).collect();
+    let mut h = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            let s: f64 = (0..n).map(|k| l[i * n + k] * l[j * n + k]).sum();
+            h[i * n + j] = s / n as f64 + if i == j { eps } else { 0.0 };
+        }
+    }
+    h
+}
+
+/// Move-bound rows (2.51) for `ℓ` steps of `m` inputs: `ΔU_min ≤ D U − c ≤ ΔU_max` as
+/// `[D; −D] U ≤ [ΔU_max + c; −ΔU_min − c]`, `c = [u_k; 0; …]`.
+fn move_rows(ell: usize, m: usize, u_k: &[f64], du_max: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = ell * m;
+    let mut d = vec![0.0; n * n];
+    for i in 0..n {
+        d[i * n + i] = 1.0;
+        if i >= m {
+            d[i * n + i - m] = -1.0;
+        }
+    }
+    let mut g = vec![0.0; 2 * n * n];
+    let mut h = vec![0.0; 2 * n];
+    for i in 0..n {
+        let c = if i < m { u_k[i] } else { 0.0 };
+        for j in 0..n {
+            g[i * n + j] = d[i * n + j];
+            g[(n + i) * n + j] = -d[i * n + j];
+        }
+        h[i] = du_max + c;
+        h[n + i] = du_max - c;
+    }
+    (g, h)
+}
+
+/// A random dense problem with boxes, move rows and `n_out` dense output-like rows.
+fn random_problem(ell: usize, m: usize, n_out: usize, active: bool, rng: &mut ChaCha8Rng) -> Owned {
+    let n = ell * m;
+    let hess = random_spd(n, 0.1, rng);
+    let scale = if active { 5.0 } else { 0.05 };
+    let f: Vec<f64> = (0..n).map(|_| scale * normal(rng)).collect();
+    let lb = vec![-1.0; n];
+    let ub = vec![1.0; n];
+    let u_k: Vec<f64> = (0..m).map(|_| 0.3 * normal(rng)).collect();
+    let du = if active { 0.5 } else { 10.0 };
+    let (mut g, mut h) = move_rows(ell, m, &u_k, du);
+    for _ in 0..n_out {
+        let row: Vec<f64> = (0..n).map(|_| normal(rng) / (n as f64).sqrt()).collect();
+        g.extend_from_slice(&row);
+        h.push(if active { 0.2 } else { 50.0 });
+    }
+    Owned { n, hess, f, lb, ub, g, h }
+}
+
+/// A PCAC-shaped problem (2.43)–(2.51): one output, `m` inputs, Markov parameters of a
+/// lightly damped mode, `T` block Toeplitz (2.46), `Q = I`, `R = r I`, a step command.
+fn pcac_problem(ell: usize, m: usize, with_moves: bool, n_out: usize, amp: f64, rng: &mut ChaCha8Rng) -> Owned {
+    let n = ell * m;
+    let (rho, omega): (f64, f64) = (0.97, 0.3 + 0.2 * rng.random::<f64>());
+    let phase: Vec<f64> = (0..m).map(|_| rng.random::<f64>() * 3.0).collect();
+    let gain: Vec<f64> = (0..m).map(|_| 0.5 + rng.random::<f64>()).collect();
+    // markov[i][j] = H_{i+1}, input j.
+    let markov = |i: usize, j: usize| gain[j] * rho.powi(i as i32) * (omega * i as f64 + phase[j]).sin();
+    // T: row i (y_{i+1|k}) depends on u_{1..i} through H_i, …, H_1; row 0 is zero.
+    let mut t = vec![0.0; ell * n];
+    for i in 1..ell {
+        for blk in 0..i {
+            for j in 0..m {
+                t[i * n + blk * m + j] = markov(i - 1 - blk, j);
+            }
+        }
+    }
+    let free: Vec<f64> = (0..ell).map(|i| 0.3 * rho.powi(i as i32) * (omega * i as f64).cos()).collect();
+    let reference: Vec<f64> = (0..ell).map(|i| if i > 2 { amp } else { 0.0 }).collect();
+    let r_w = 0.05;
+    let u_k: Vec<f64> = (0..m).map(|_| 0.1 * normal(rng)).collect();
+    // D and c.
+    let mut d = vec![0.0; n * n];
+    for i in 0..n {
+        d[i * n + i] = 1.0;
+        if i >= m {
+            d[i * n + i - m] = -1.0;
+        }
+    }
+    let mut c = vec![0.0; n];
+    c[..m].copy_from_slice(&u_k);
+    // H = 2(TᵀT + r DᵀD), f = 2Tᵀ(free − ref) − 2 r Dᵀ c.
+    let mut hess = vec![0.0; n * n];
+    for a in 0..n {
+        for b in 0..n {
+            let tt: f64 = (0..ell).map(|i| t[i * n + a] * t[i * n + b]).sum();
+            let dd: f64 = (0..n).map(|i| d[i * n + a] * d[i * n + b]).sum();
+            hess[a * n + b] = 2.0 * (tt + r_w * dd);
+        }
+    }
+    let mut f = vec![0.0; n];
+    for a in 0..n {
+        let e: f64 = (0..ell).map(|i| t[i * n + a] * (free[i] - reference[i])).sum();
+        let dc: f64 = (0..n).map(|i| d[i * n + a] * c[i]).sum();
+        f[a] = 2.0 * e - 2.0 * r_w * dc;
+    }
+    let lb = vec![-1.0; n];
+    let ub = vec![1.0; n];
+    let (mut g, mut h) = if with_moves { move_rows(ell, m, &u_k, 0.2) } else { (Vec::new(), Vec::new()) };
+    // Output constraints (2.49): y_{i|k} ≤ y_max for the last n_out steps.
+    for k in 0..n_out {
+        let i = ell - 1 - k;
+        g.extend_from_slice(&t[i * n..(i + 1) * n]);
+        h.push(0.8 * amp - free[i]);
+    }
+    Owned { n, hess, f, lb, ub, g, h }
+}
+
+fn inf_norm(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |a, b| a.max(b.abs()))
+}
+
+/// Largest KKT residual (stationarity, primal feasibility, complementarity, dual sign),
+/// each relative to the data's scale.
+fn kkt_residual(p: &Owned, s: &DenseQpSolver) -> f64 {
+    let n = p.n;
+    let m = p.n_ineq();
+    let x = s.x();
+    let mut worst: f64 = 0.0;
+    let scale = 1.0 + inf_norm(&p.f);
+    for i in 0..n {
+        let mut r = p.f[i] - s.lambda_lower()[i] + s.lambda_upper()[i];
+        r += p.hess[i * n..(i + 1) * n].iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+        for j in 0..m {
+            r += p.g[j * n + i] * s.lambda_ineq()[j];
+        }
+        worst = worst.max(r.abs() / scale);
+    }
+    let mut feas = |slack: f64, lam: f64| {
+        worst = worst.max(slack.max(0.0));
+        worst = worst.max((-lam).max(0.0));
+        worst = worst.max((lam * slack).abs());
+    };
+    for (i, &xi) in x.iter().enumerate() {
+        feas(xi - p.ub[i], s.lambda_upper()[i]);
+        feas(p.lb[i] - xi, s.lambda_lower()[i]);
+    }
+    for j in 0..m {
+        let gx: f64 = (0..n).map(|c| p.g[j * n + c] * x[c]).sum();
+        feas(gx - p.h[j], s.lambda_ineq()[j]);
+    }
+    worst
+}
+
+/// Deviations of our solution from clarabel's.
+#[derive(Clone, Copy, Debug, Default)]
+struct Deviation {
+    /// `‖U − U_clarabel‖∞ / (1 + ‖U_clarabel‖∞)`.
+    u: f64,
+    /// `|J − J_clarabel| / (1 + |J_clarabel|)`.
+    objective: f64,
+    /// `‖U − U_polished‖∞ / (1 + ‖U_polished‖∞)`, where `U_polished` solves the
+    /// equality-constrained QP on clarabel's strongly active constraints exactly.
+    polished: f64,
+    /// Condition number of `H`.
+    cond_h: f64,
+}
+
+/// The exact minimizer of `½UᵀHU + fᵀU` subject to the constraints that clarabel reports
+/// as strongly active (multiplier above `1e-7` of the largest plus `1e-9`), held with equality: the
+/// KKT system solved by SVD (parallel active rows are allowed).
+fn polish(p: &Owned, c: &ClarabelSolution) -> Vec<f64> {
+    use nalgebra::{DMatrix, DVector};
+    let n = p.n;
+    let lam_max = c.lambda_lower.iter().chain(&c.lambda_upper).chain(&c.lambda_ineq).fold(0.0f64, |a, b| a.max(*b));
+    let thr = 1e-7 * lam_max + 1e-9;
+    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    for i in 0..n {
+        let mut e = vec![0.0; n];
+        if c.lambda_upper[i] > thr {
+            e[i] = 1.0;
+            rows.push((e.clone(), p.ub[i]));
+        }
+        if c.lambda_lower[i] > thr {
+            e[i] = -1.0;
+            rows.push((e, -p.lb[i]));
+        }
+    }
+    for j in 0..p.n_ineq() {
+        if c.lambda_ineq[j] > thr {
+            rows.push((p.g[j * n..(j + 1) * n].to_vec(), p.h[j]));
+        }
+    }
+    let k = rows.len();
+    let mut kkt = DMatrix::<f64>::zeros(n + k, n + k);
+    let mut rhs = DVector::<f64>::zeros(n + k);
+    for i in 0..n {
+        for j in 0..n {
+            kkt[(i, j)] = p.hess[i * n + j];
+        }
+        rhs[i] = -p.f[i];
+    }
+    for (r, (a, b)) in rows.iter().enumerate() {
+        for j in 0..n {
+            kkt[(n + r, j)] = a[j];
+            kkt[(j, n + r)] = a[j];
+        }
+        rhs[n + r] = *b;
+    }
+    let sol = kkt.svd(true, true).solve(&rhs, 1e-12).expect("SVD solve");
+    sol.as_slice()[..n].to_vec()
+}
+
+fn condition_number(p: &Owned) -> f64 {
+    let h = nalgebra::DMatrix::from_row_slice(p.n, p.n, &p.hess);
+    let ev = h.symmetric_eigenvalues();
+    ev.max() / ev.min()
+}
+
+fn deviation_from_clarabel(p: &Owned, s: &DenseQpSolver) -> Deviation {
+    let c = solve_with_clarabel(&p.problem(), 1e-12).expect("clarabel accepts the data");
+    assert!(
+        matches!(c.status, SolverStatus::Solved | SolverStatus::AlmostSolved),
+        "clarabel: {:?}",
+        c.status
+    );
+    let rel = |a: &[f64], b: &[f64]| {
+        a.iter().zip(b).fold(0.0f64, |m, (u, v)| m.max((u - v).abs())) / (1.0 + inf_norm(b))
+    };
+    let polished = polish(p, &c);
+    Deviation {
+        u: rel(s.x(), &c.x),
+        objective: (s.objective() - c.objective).abs() / (1.0 + c.objective.abs()),
+        polished: rel(s.x(), &polished),
+        cond_h: condition_number(p),
+    }
+}
+
+/// Solves `p`, checks the KKT conditions to `1e-8`, the objective against clarabel's to
+/// `1e-9`, `U` against the polished clarabel solution to `1e-8` and against clarabel's raw
+/// `U` to `raw_tol`.
+fn check_against_clarabel(p: &Owned, warm: WarmStart, raw_tol: f64) -> (usize, Deviation) {
+    let mut s = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
+    let status = s.solve(&p.problem(), warm);
+    assert_eq!(status, QpStatus::Solved);
+    let kkt = kkt_residual(p, &s);
+    assert!(kkt < 1e-8, "KKT residual {kkt:e}");
+    let d = deviation_from_clarabel(p, &s);
+    assert!(d.objective < 1e-9 && d.polished < 1e-8 && d.u < raw_tol, "deviation from clarabel: {d:?}");
+    (s.active_len(), d)
+}
+
+#[test]
+fn solutions_match_clarabel_and_satisfy_kkt_on_random_problems() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut worst: f64 = 0.0;
+    let mut active_seen = 0;
+    for (ell, m, n_out) in [(10, 2, 0), (10, 2, 3), (25, 2, 4), (50, 2, 2), (20, 1, 5)] {
+        for active in [false, true] {
+            let p = random_problem(ell, m, n_out, active, &mut rng);
+            let (n_active, d) = check_against_clarabel(&p, WarmStart::Cold, 1e-6);
+            eprintln!("random ℓ = {ell}, m = {m}: {n_active} active, {d:?}");
+            if !active {
+                assert_eq!(n_active, 0, "slack problem has no active constraints");
+            } else {
+                active_seen += n_active;
+            }
+            worst = worst.max(d.u).max(d.objective);
+        }
+    }
+    assert!(active_seen > 10);
+    eprintln!("random problems: worst relative deviation from clarabel {worst:e}");
+}
+
+#[test]
+fn solutions_match_clarabel_on_pcac_shaped_problems() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut worst: f64 = 0.0;
+    // (ℓ, m, move rows, output rows, command amplitude)
+    for (ell, m, moves, n_out, amp) in [
+        (50, 2, true, 3, 3.0),
+        (50, 2, true, 0, 0.2),
+        (40, 2, false, 0, 4.0),
+        (40, 2, false, 0, 0.1),
+        (15, 2, true, 2, 2.0),
+    ] {
+        let p = pcac_problem(ell, m, moves, n_out, amp, &mut rng);
+        // H = 2(TᵀT + r DᵀD) is ill-conditioned (cond ~1e6–1e7), so clarabel's U is only
+        // as accurate as its gap tolerance allows in the flat directions: the raw U is
+        // checked to 1e-4, the polished one to 1e-8.
+        let (n_active, d) = check_against_clarabel(&p, WarmStart::Cold, 1e-4);
+        assert!(d.cond_h > 1e4, "PCAC Hessians are ill-conditioned");
+        eprintln!("PCAC ℓ = {ell}, m = {m}: {n_active} active, {d:?}");
+        worst = worst.max(d.polished).max(d.objective);
+    }
+    eprintln!("PCAC problems: worst relative deviation from polished clarabel / objective {worst:e}");
+}
+
+#[test]
+fn an_unconstrained_problem_returns_the_newton_point() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let n = 30;
+    let hess = random_spd(n, 0.5, &mut rng);
+    let f: Vec<f64> = (0..n).map(|_| normal(&mut rng)).collect();
+    let p = Owned { n, hess, f, lb: vec![f64::NEG_INFINITY; n], ub: vec![f64::INFINITY; n], g: vec![], h: vec![] };
+    let mut s = DenseQpSolver::new(n, 0, QpSettings::default());
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Solved);
+    assert_eq!(s.iterations(), 0);
+    for i in 0..n {
+        let r: f64 = (0..n).map(|j| p.hess[i * n + j] * s.x()[j]).sum::<f64>() + p.f[i];
+        assert!(r.abs() < 1e-10);
+    }
+}
+
+#[test]
+fn warm_starts_reach_the_same_solution_in_fewer_iterations() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let p = pcac_problem(50, 2, true, 3, 3.0, &mut rng);
+    let mut s = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Solved);
+    let cold_iters = s.iterations();
+    let x_cold = s.x().to_vec();
+    let mut ids = vec![ConstraintId::Row(0); p.n];
+    let k = s.active_set_into(&mut ids);
+    assert_eq!(s.solve(&p.problem(), WarmStart::ActiveSet(&ids[..k])), QpStatus::Solved);
+    assert!(s.iterations() <= cold_iters);
+    eprintln!("cold: {cold_iters} iterations, warm from the exact active set ({k}): {}", s.iterations());
+    assert!(inf_norm(&x_cold.iter().zip(s.x()).map(|(a, b)| a - b).collect::<Vec<_>>()) < 1e-10);
+    // From a primal guess (the previous solution itself).
+    assert_eq!(s.solve(&p.problem(), WarmStart::Primal(&x_cold)), QpStatus::Solved);
+    assert!(s.iterations() <= cold_iters);
+    assert!(kkt_residual(&p, &s) < 1e-8);
+    // A perturbed problem warm-started from the old active set still solves exactly.
+    let mut p2 = p.clone();
+    for v in p2.f.iter_mut() {
+        *v += 0.05 * normal(&mut rng);
+    }
+    assert_eq!(s.solve(&p2.problem(), WarmStart::ActiveSet(&ids[..k])), QpStatus::Solved);
+    assert!(kkt_residual(&p2, &s) < 1e-8);
+    let d = deviation_from_clarabel(&p2, &s);
+    assert!(d.objective < 1e-9 && d.polished < 1e-8, "{d:?}");
+}
+
+#[test]
+fn contradictory_constraints_are_reported_infeasible() {
+    let n = 4;
+    let base = Owned {
+        n,
+        hess: (0..n * n).map(|k| if k % (n + 1) == 0 { 2.0 } else { 0.0 }).collect(),
+        f: vec![1.0, -1.0, 0.5, 0.0],
+        lb: vec![-1.0; n],
+        ub: vec![1.0; n],
+        g: vec![],
+        h: vec![],
+    };
+    let mut s = DenseQpSolver::new(n, 0, QpSettings::default());
+    // Crossed bounds.
+    let mut p = base.clone();
+    p.lb[2] = 2.0;
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    assert!(s.x().iter().all(|v| v.is_finite()));
+    // A row that the box cannot satisfy: u₀ + u₁ + u₂ + u₃ ≥ 5.
+    let mut p = base.clone();
+    p.g = vec![-1.0; n];
+    p.h = vec![-5.0];
+    let mut s1 = DenseQpSolver::new(n, 1, QpSettings::default());
+    assert_eq!(s1.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    assert!(s1.x().iter().all(|v| v.is_finite()));
+    // Two contradictory rows: u₀ − u₁ ≤ −1 and u₁ − u₀ ≤ −1, no boxes.
+    let mut p = base.clone();
+    p.lb = vec![f64::NEG_INFINITY; n];
+    p.ub = vec![f64::INFINITY; n];
+    p.g = vec![1.0, -1.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0];
+    p.h = vec![-1.0, -1.0];
+    let mut s2 = DenseQpSolver::new(n, 2, QpSettings::default());
+    assert_eq!(s2.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    // A zero row with a negative right-hand side.
+    let mut p = base.clone();
+    p.g = vec![0.0; n];
+    p.h = vec![-1.0];
+    assert_eq!(s1.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    // Random PCAC problem whose move bounds cannot reach the box: u_k far outside.
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let mut p = pcac_problem(10, 2, true, 0, 1.0, &mut rng);
+    let (g, h) = move_rows(10, 2, &[5.0, 5.0], 0.2);
+    p.g = g;
+    p.h = h;
+    let mut s3 = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
+    assert_eq!(s3.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    let c = solve_with_clarabel(&p.problem(), 1e-8).unwrap();
+    assert!(matches!(c.status, SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible));
+}
+
+#[test]
+fn the_iteration_cap_returns_a_finite_iterate_within_the_box() {
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let p = pcac_problem(50, 2, true, 3, 3.0, &mut rng);
+    let settings = QpSettings { max_iterations: 3, ..QpSettings::default() };
+    let mut s = DenseQpSolver::new(p.n, p.n_ineq(), settings);
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::MaxIterations);
+    assert_eq!(s.iterations(), 3);
+    assert!(s.objective().is_finite());
+    for i in 0..p.n {
+        assert!(s.x()[i].is_finite() && s.x()[i] >= p.lb[i] && s.x()[i] <= p.ub[i]);
+    }
+}
+
+#[test]
+fn bad_data_give_a_status_not_a_panic() {
+    let n = 3;
+    let good = Owned {
+        n,
+        hess: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        f: vec![1.0; n],
+        lb: vec![-1.0; n],
+        ub: vec![1.0; n],
+        g: vec![1.0; n],
+        h: vec![f64::INFINITY],
+    };
+    let mut s = DenseQpSolver::new(n, 1, QpSettings::default());
+    assert_eq!(s.solve(&good.problem(), WarmStart::Cold), QpStatus::Solved);
+    let mut p = good.clone();
+    p.f[1] = f64::NAN;
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::NumericalError);
+    let mut p = good.clone();
+    p.hess[4] = -1.0;
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::NumericalError);
+    let mut p = good.clone();
+    p.h.clear();
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::InvalidDimensions);
+    let mut s4 = DenseQpSolver::new(4, 1, QpSettings::default());
+    assert_eq!(s4.solve(&good.problem(), WarmStart::Cold), QpStatus::InvalidDimensions);
+    // Invalid warm-start ids are ignored.
+    let ids = [ConstraintId::Row(7), ConstraintId::Upper(99)];
+    assert_eq!(s.solve(&good.problem(), WarmStart::ActiveSet(&ids)), QpStatus::Solved);
+}
+
+#[test]
+fn parallel_box_and_move_rows_are_handled() {
+    // The first move row u_{1|k} − u_k ≤ Δ is parallel to the box on u_{1|k}; with
+    // u_k + Δ = ub both are active at the solution (degenerate).
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let mut p = pcac_problem(20, 2, true, 0, 3.0, &mut rng);
+    let (g, h) = move_rows(20, 2, &[0.8, 0.8], 0.2);
+    p.g = g;
+    p.h = h;
+    let (n_active, d) = check_against_clarabel(&p, WarmStart::Cold, 1e-4);
+    eprintln!("parallel rows: {n_active} active, {d:?}");
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Timing: `cargo test --release -p service --lib qp_timing -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn qp_timing_at_n_100_with_active_constraints() {
+    use std::time::Instant;
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let reps = 1000;
+    let problems: Vec<Owned> =
+        (0..20).map(|k| pcac_problem(50, 2, true, 3, 2.0 + 0.1 * k as f64, &mut rng)).collect();
+    let p0 = &problems[0];
+    let mut s = DenseQpSolver::new(p0.n, p0.n_ineq(), QpSettings::default());
+    let mut ids = vec![ConstraintId::Row(0); p0.n];
+    let mut k_ids = 0;
+    let mut cold = Vec::with_capacity(reps);
+    let mut warm = Vec::with_capacity(reps);
+    let mut n_active = Vec::new();
+    let mut iters_cold = Vec::new();
+    let mut iters_warm = Vec::new();
+    for r in 0..reps {
+        let p = &problems[r % problems.len()];
+        let t = Instant::now();
+        let st = s.solve(&p.problem(), WarmStart::Cold);
+        cold.push(t.elapsed().as_secs_f64() * 1e6);
+        assert_eq!(st, QpStatus::Solved);
+        n_active.push(s.active_len());
+        iters_cold.push(s.iterations());
+        // Warm start from the previous problem's active set (a neighbouring problem).
+        let t = Instant::now();
+        let st = s.solve(&p.problem(), WarmStart::ActiveSet(&ids[..k_ids]));
+        warm.push(t.elapsed().as_secs_f64() * 1e6);
+        assert_eq!(st, QpStatus::Solved);
+        iters_warm.push(s.iterations());
+        k_ids = s.active_set_into(&mut ids);
+    }
+    let mut clar = Vec::with_capacity(reps / 4);
+    for r in 0..reps / 4 {
+        let p = &problems[r % problems.len()];
+        let t = Instant::now();
+        let c = solve_with_clarabel(&p.problem(), 1e-8).unwrap();
+        clar.push(t.elapsed().as_secs_f64() * 1e6);
+        assert!(matches!(c.status, SolverStatus::Solved));
+    }
+    // The factorization alone: ours vs faer's in place.
+    let mut buf = p0.hess.clone();
+    let mut chol = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        buf.copy_from_slice(&p0.hess);
+        let t = Instant::now();
+        assert!(cholesky_in_place(&mut buf, p0.n));
+        chol.push(t.elapsed().as_secs_f64() * 1e6);
+    }
+    let mut faer_chol = Vec::with_capacity(reps);
+    {
+        use faer::dyn_stack::{MemBuffer, MemStack};
+        use faer::linalg::cholesky::llt::factor::{self, LltRegularization};
+        let n = p0.n;
+        let mut a = faer::Mat::<f64>::zeros(n, n);
+        let mut mem = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(n, faer::Par::Seq, Default::default()));
+        for _ in 0..reps {
+            for i in 0..n {
+                for j in 0..n {
+                    a[(i, j)] = p0.hess[i * n + j];
+                }
+            }
+            let t = Instant::now();
+            factor::cholesky_in_place(
+                a.as_mut(),
+                LltRegularization::default(),
+                faer::Par::Seq,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+            .unwrap();
+            faer_chol.push(t.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    for v in [&mut cold, &mut warm, &mut clar, &mut chol, &mut faer_chol] {
+        v.sort_by(f64::total_cmp);
+    }
+    let mean = |v: &[usize]| v.iter().sum::<usize>() as f64 / v.len() as f64;
+    println!(
+        "n = 100 (ℓ = 50, m = 2), {} rows; active constraints: mean {:.1}, max {}; iterations cold {:.1}, warm {:.1}",
+        p0.n_ineq(),
+        mean(&n_active),
+        n_active.iter().max().unwrap(),
+        mean(&iters_cold),
+        mean(&iters_warm)
+    );
+    for (name, v) in [
+        ("dense dual active set, cold", &cold),
+        ("dense dual active set, warm", &warm),
+        ("clarabel set-up + solve", &clar),
+        ("Cholesky n = 100, ours", &chol),
+        ("Cholesky n = 100, faer", &faer_chol),
+    ] {
+        println!(
+            "{name:32} p50 {:8.1} µs  p99 {:8.1} µs  max {:8.1} µs",
+            percentile(v, 0.5),
+            percentile(v, 0.99),
+            v[v.len() - 1]
+        );
+    }
+}
