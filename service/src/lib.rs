@@ -32,6 +32,8 @@ pub mod analysis;
 pub mod config;
 pub mod controller;
 pub mod design;
+/// Figures of adaptive runs (z open/closed, u, coefficients, PSD), Figures 3.7/3.10/3.14/3.17.
+pub mod figures;
 pub mod forgetting;
 pub mod logging;
 pub mod plot;

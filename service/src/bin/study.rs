@@ -2,7 +2,14 @@
 //!
 //! ```text
 //! cargo run --release -p service --bin study -- forgetting [--runs 1000] [--out DIR] [--seed S]
+//! cargo run --release -p service --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
+//! cargo run --release -p service --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
 //! ```
+//!
+//! `rcac-siso` and `rcac-miso` are the chapter 3 studies of RCAC with dereverberated
+//! target models (§3.3.1 on the structure (3.50), Figures 3.5–3.10; §3.3.2 on a 4-mode
+//! MISO structure, Figures 3.11–3.17); see the `rcac_siso`, `rcac_miso` and `rcac_common`
+//! modules for the equations, the settings and what they write.
 //!
 //! `forgetting` is the chapter 5 study of RLS with F-test variable-rate forgetting
 //! (RLS/FTVRF, Algorithm 1) against constant-rate forgetting (RLS/CRF, `λ = 0.99`) and
@@ -28,6 +35,12 @@ mod montecarlo;
 mod output;
 #[path = "../study/plant.rs"]
 mod plant;
+#[path = "../study/rcac_common.rs"]
+mod rcac_common;
+#[path = "../study/rcac_miso.rs"]
+mod rcac_miso;
+#[path = "../study/rcac_siso.rs"]
+mod rcac_siso;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -65,12 +78,50 @@ enum Study {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Chapter 3, §3.3.1: RCAC with dereverberated target models on the SISO structure
+    /// (3.50), disturbance frequency swept from 4π to 50π rad/s (Figures 3.5–3.10).
+    RcacSiso {
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-rcac-siso")]
+        out: PathBuf,
+        /// Disturbance frequencies per case (4π … 50π rad/s, equally spaced).
+        #[arg(long, default_value_t = 47)]
+        points: usize,
+        /// RCAC update law: gradient (μ_Exp, the dissertation's α and R), rls, or both.
+        #[arg(long, default_value = "both")]
+        update: String,
+    },
+    /// Chapter 3, §3.3.2: RCAC on a 4-mode 2-input 1-output structure whose damping is
+    /// swept from 0.01 to 0.5, target models from the ζ = 0.1 model (Figures 3.11–3.17).
+    RcacMiso {
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-rcac-miso")]
+        out: PathBuf,
+        /// Number of damping values (0.01 … 0.5, equally spaced).
+        #[arg(long, default_value_t = 50)]
+        points: usize,
+        /// RCAC update law: gradient (μ_Exp, the dissertation's α and R), rls, or both.
+        #[arg(long, default_value = "both")]
+        update: String,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.study {
         Study::Forgetting { runs, out, seed } => forgetting(runs, &out, seed),
+        Study::RcacSiso {
+            out,
+            points,
+            update,
+        } => rcac_common::Update::parse_set(&update)
+            .and_then(|updates| rcac_siso::run(&out, &rcac_siso::Options { points, updates })),
+        Study::RcacMiso {
+            out,
+            points,
+            update,
+        } => rcac_common::Update::parse_set(&update)
+            .and_then(|updates| rcac_miso::run(&out, &rcac_miso::Options { points, updates })),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
