@@ -10,6 +10,8 @@
 //! - [`sim`]: the sampled-data simulation of a scenario plant with per-input delays, harmonic
 //!   disturbances integrated exactly through an exosystem, and seeded white noise.
 //! - [`scenario`]: the plant part of a scenario TOML file, validated into typed parameters.
+//! - [`truss`]: the planar truss of chapter 6 (pinned members, (6.2)), assembled into a
+//!   modal plant at load time (`kind = "truss"`).
 //! - [`runtime`]: the plant process: real-time (paced on `CLOCK_MONOTONIC`) and lockstep modes,
 //!   deadline handling, watchdog, fault injection.
 
@@ -19,3 +21,4 @@ pub mod lti;
 pub mod runtime;
 pub mod scenario;
 pub mod sim;
+pub mod truss;

@@ -15,7 +15,7 @@
 //! duration = 10.0           # s of the default run
 //!
 //! [plant]
-//! kind = "transfer-function"   # or "state-space" or "modal"
+//! kind = "transfer-function"   # or "state-space", "modal" or "truss"
 //! inputs = 2                   # control inputs u
 //! disturbances = 1             # disturbance inputs w (may be 0)
 //! outputs-y = 1                # measurements y
@@ -39,9 +39,14 @@
 //! modes = [ { frequency-hz = 520.0, damping = 0.02, b-u = [..], b-w = [..],
 //!             c-y = [..], c-z = [..] } ]     # also frequency-rad-s, c-y-vel, c-z-vel
 //!
+//! [plant.truss]                # kind = "truss": a planar truss of pinned members, see
+//! …                            # crate::truss for its fields (nodes, members, ports, SNR)
+//!
 //! [plant.disturbance]
 //! tones = [ { input = 0, amplitude = 1.0, frequency-hz = 800.0, phase-deg = 0.0 } ]
 //! white-std = [0.0]            # per disturbance input (or one scalar): ZOH white noise
+//! band-limited = [ { input = 0, rms = 1.0, cutoff-hz = 25.0, order = 4 } ]
+//!                              # continuous white noise through a Butterworth low-pass
 //!
 //! [plant.noise]
 //! y-std = 0.0                  # white measurement noise: scalar or one per channel
@@ -56,7 +61,14 @@
 //! period, and `v_y`, `v_z` are white `N(0, σ²)` measurement noises. For
 //! `kind = "transfer-function"` the states are those of the column-wise realization of
 //! `[[G_yu, G_yw], [G_zu, G_zw]]` ([`crate::lti::realize_tf_matrix_sized`]); for
-//! `kind = "modal"` they are `[q_1, q̇_1, q_2, q̇_2, …]`.
+//! `kind = "modal"` they are `[q_1, q̇_1, q_2, q̇_2, …]`; for `kind = "truss"` they are the
+//! modal coordinates `[η_1, η̇_1, …]` of the truss ([`crate::truss`]).
+//!
+//! A band-limited disturbance is `w_i(t) += y_f(t)`, the output of a Butterworth low-pass
+//! of order `order` and cutoff `cutoff-hz` (unit DC gain) driven by continuous-time white
+//! noise whose intensity makes the stationary RMS of `y_f` equal to `rms`. It is defined in
+//! continuous time, independently of the sample period, and simulated exactly
+//! ([`crate::sim`], "Band-limited disturbances").
 
 use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, Mode, Tf};
 use nalgebra::DMatrix;
@@ -160,6 +172,8 @@ pub enum PlantKind {
     StateSpace,
     /// `kind = "modal"`: `[plant.modal]`.
     Modal,
+    /// `kind = "truss"`: `[plant.truss]` ([`crate::truss`]).
+    Truss,
 }
 
 impl PlantKind {
@@ -169,6 +183,7 @@ impl PlantKind {
             PlantKind::TransferFunction => "transfer-function",
             PlantKind::StateSpace => "state-space",
             PlantKind::Modal => "modal",
+            PlantKind::Truss => "truss",
         }
     }
 }
@@ -186,6 +201,23 @@ pub struct Tone {
     pub phase: f64,
 }
 
+/// One band-limited disturbance: `w_input(t) += y_f(t)`, the output of a Butterworth
+/// low-pass filter driven by continuous-time white noise (see [`crate::sim`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BandLimited {
+    /// Index of the disturbance input it drives.
+    pub input: usize,
+    /// Stationary RMS of `y_f`.
+    pub rms: f64,
+    /// Cutoff (−3 dB) angular frequency `ω_c` of the filter, rad/s (> 0).
+    pub omega_c: f64,
+    /// Order of the Butterworth filter, 1 to [`MAX_BAND_LIMITED_ORDER`].
+    pub order: usize,
+}
+
+/// The largest order of a band-limited disturbance's Butterworth filter.
+pub const MAX_BAND_LIMITED_ORDER: usize = 12;
+
 /// The `[plant.disturbance]` table.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct DisturbanceParams {
@@ -194,6 +226,8 @@ pub struct DisturbanceParams {
     /// Standard deviation of the white, sample-and-hold part of each disturbance input
     /// (`n_w` entries).
     pub white_std: Vec<f64>,
+    /// Band-limited disturbances (continuous white noise through low-pass filters).
+    pub band_limited: Vec<BandLimited>,
 }
 
 /// The `[plant.noise]` table.
@@ -239,6 +273,7 @@ impl PlantParams {
             disturbance: DisturbanceParams {
                 tones: Vec::new(),
                 white_std: vec![0.0; d.n_w],
+                band_limited: Vec::new(),
             },
             noise: NoiseParams {
                 y_std: vec![0.0; d.n_y],
@@ -345,6 +380,7 @@ struct RawPlant {
     tf: Option<RawTf>,
     ss: Option<RawSs>,
     modal: Option<RawModal>,
+    truss: Option<toml::Value>,
     disturbance: Option<RawDisturbance>,
     noise: Option<RawNoise>,
 }
@@ -399,6 +435,17 @@ struct RawMode {
 struct RawDisturbance {
     tones: Option<Vec<RawTone>>,
     white_std: Option<toml::Value>,
+    band_limited: Option<Vec<RawBandLimited>>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawBandLimited {
+    input: Option<usize>,
+    rms: Option<f64>,
+    cutoff_hz: Option<f64>,
+    cutoff_rad_s: Option<f64>,
+    order: Option<usize>,
 }
 
 #[derive(Deserialize)]
@@ -617,11 +664,12 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         "transfer-function" => PlantKind::TransferFunction,
         "state-space" => PlantKind::StateSpace,
         "modal" => PlantKind::Modal,
+        "truss" => PlantKind::Truss,
         other => {
             return Err(cx.err(
                 "plant.kind",
                 format!(
-                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\""
+                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\", \"truss\""
                 ),
             ));
         }
@@ -653,11 +701,13 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         ("tf", raw.tf.is_some()),
         ("ss", raw.ss.is_some()),
         ("modal", raw.modal.is_some()),
+        ("truss", raw.truss.is_some()),
     ];
     let wanted = match kind {
         PlantKind::TransferFunction => "tf",
         PlantKind::StateSpace => "ss",
         PlantKind::Modal => "modal",
+        PlantKind::Truss => "truss",
     };
     for (table, present) in given {
         if present && table != wanted {
@@ -670,6 +720,7 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             ));
         }
     }
+    let mut truss_y_std = None;
     let model = match kind {
         PlantKind::TransferFunction => {
             let tf = cx.required(raw.tf, "plant.tf")?;
@@ -682,6 +733,12 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         PlantKind::Modal => {
             let modal = cx.required(raw.modal, "plant.modal")?;
             modal_model(cx, modal, dims)?
+        }
+        PlantKind::Truss => {
+            let t = cx.required(raw.truss.as_ref(), "plant.truss")?;
+            let tp = crate::truss::from_toml(t, dims).map_err(|e| cx.err(e.field, e.problem))?;
+            truss_y_std = tp.y_noise_std;
+            tp.model
         }
     };
     let n_x = model.n_x();
@@ -711,6 +768,7 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         PlantKind::TransferFunction => "state of the column-wise realization",
         PlantKind::StateSpace => "state",
         PlantKind::Modal => "state [q, q̇] of each mode",
+        PlantKind::Truss => "state [η, η̇] of each mode of the truss",
     };
     cx.vector(&initial_state, n_x, "plant.initial-state", what)?;
     let command = raw.command.unwrap_or_else(|| vec![0.0; n_r]);
@@ -725,10 +783,11 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         None => DisturbanceParams {
             tones: Vec::new(),
             white_std: vec![0.0; dims.n_w],
+            band_limited: Vec::new(),
         },
         Some(d) => disturbance(cx, d, dims.n_w)?,
     };
-    let noise = match raw.noise {
+    let mut noise = match raw.noise {
         None => NoiseParams {
             y_std: vec![0.0; dims.n_y],
             z_std: vec![0.0; dims.n_z],
@@ -740,6 +799,15 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             seed: n.seed.unwrap_or(0),
         },
     };
+    if let Some(sigma) = truss_y_std {
+        if noise.y_std.iter().any(|&s| s != 0.0) {
+            return Err(cx.err(
+                "plant.noise.y-std",
+                "given, but [plant.truss.noise-snr] sets the noise on y; give one of the two",
+            ));
+        }
+        noise.y_std = vec![sigma; dims.n_y];
+    }
     Ok(PlantParams {
         kind,
         model,
@@ -953,7 +1021,46 @@ fn disturbance(
         "plant.disturbance.white-std",
         "disturbance input",
     )?;
-    Ok(DisturbanceParams { tones, white_std })
+    let mut band_limited = Vec::new();
+    for (i, b) in d.band_limited.unwrap_or_default().into_iter().enumerate() {
+        let f = |k: &str| format!("plant.disturbance.band-limited[{i}].{k}");
+        let input = cx.required(b.input, &f("input"))?;
+        if input >= n_w {
+            return Err(cx.err(
+                f("input"),
+                format!("{input} is not a disturbance input (plant.disturbances = {n_w})"),
+            ));
+        }
+        let rms = cx.non_negative(cx.required(b.rms, &f("rms"))?, &f("rms"))?;
+        let omega_c = match (b.cutoff_hz, b.cutoff_rad_s) {
+            (Some(hz), None) => 2.0 * PI * cx.positive(hz, &f("cutoff-hz"))?,
+            (None, Some(w)) => cx.positive(w, &f("cutoff-rad-s"))?,
+            (Some(_), Some(_)) => {
+                return Err(cx.err(f("cutoff-hz"), "give cutoff-hz or cutoff-rad-s, not both"));
+            }
+            (None, None) => {
+                return Err(cx.err(f("cutoff-hz"), "is missing (or give cutoff-rad-s)"));
+            }
+        };
+        let order = cx.required(b.order, &f("order"))?;
+        if !(1..=MAX_BAND_LIMITED_ORDER).contains(&order) {
+            return Err(cx.err(
+                f("order"),
+                format!("{order} is not between 1 and {MAX_BAND_LIMITED_ORDER}"),
+            ));
+        }
+        band_limited.push(BandLimited {
+            input,
+            rms,
+            omega_c,
+            order,
+        });
+    }
+    Ok(DisturbanceParams {
+        tones,
+        white_std,
+        band_limited,
+    })
 }
 
 #[cfg(test)]

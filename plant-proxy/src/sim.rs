@@ -26,6 +26,42 @@
 //! between samples. The white part `w_white` is a new `N(0, σ_i²)` value each sample, held
 //! over the period: an extra zero-order-held input, so it is exact too.
 //!
+//! ## Band-limited disturbances
+//!
+//! A band-limited disturbance on input `i` is the output `y_f = C_f ξ_f` of a Butterworth
+//! low-pass filter of order `n` and cutoff `ω_c` with unit DC gain ([`butterworth_lowpass`]:
+//! a cascade of the sections `ω_c²/(s² + 2ζ_k ω_c s + ω_c²)`,
+//! `ζ_k = sin((2k−1)π/(2n))`, and `ω_c/(s + ω_c)` when `n` is odd, so that
+//! `|H(jω)|² = 1/(1 + (ω/ω_c)^{2n})`), driven by continuous-time white noise `g ν(t)` of
+//! unit intensity (`E[ν(t)ν(s)] = δ(t − s)`):
+//!
+//! ```text
+//! ξ̇_f = A_f ξ_f + B_f g ν,   w_i(t) += C_f ξ_f(t),
+//! ```
+//!
+//! The stationary variance of `y_f` is `g² ∫|H(jω)|² dω/2π = g² ω_c / (2n sin(π/(2n)))`
+//! ([`butterworth_noise_variance`]); `g` is chosen so that it equals `rms²`. The filter
+//! states are appended to the state after the tones (they start at zero) and enter the
+//! plant through column `i` of `B_w` (and `D_yw`, `D_zw`), like a tone. The disturbance is
+//! thus defined in continuous time, independently of the sample period: at a slow sample
+//! rate its content above the Nyquist frequency really aliases.
+//!
+//! The simulation stays exact: over one period the state receives, besides the
+//! deterministic part, the Gaussian vector `∫_0^T e^{Ā(T−s)} G dν(s)` with covariance
+//!
+//! ```text
+//! Q_d = ∫_0^T e^{Āτ} G Gᵀ e^{Āᵀτ} dτ
+//! ```
+//!
+//! ([`white_noise_covariance`]; `G`: the columns `g B_f` in the filter rows), independent of the control input and of
+//! the apply offset. `Q_d` is computed by Van Loan's method over a short step `h = T/2^m`
+//! (`‖Ā‖h ≤ 1/2`: `exp([[−Ā, GGᵀ], [0, Āᵀ]] h) = [[·, F_12], [0, F_22]]`,
+//! `Q_h = F_22ᵀ F_12`, `Φ_h = F_22ᵀ`) and doubled `m` times
+//! (`Q_{2h} = Q_h + Φ_h Q_h Φ_hᵀ`, `Φ_{2h} = Φ_h²`), which avoids the cancellation of Van
+//! Loan's method over a long step. Each step adds `S η_k`, `S Sᵀ = Q_d` (from the symmetric
+//! eigendecomposition, columns with negligible eigenvalues dropped), `η_k` standard normal
+//! drawn after the other random numbers of the sample.
+//!
 //! ## Discretization
 //!
 //! With `v = [u_d; w_white]` held over a period, the augmented continuous system
@@ -67,7 +103,8 @@
 //! fixed order once per sample, at construction and reset for `k = 0` and at the end of
 //! each [`PlantSim::advance`] for the next `k`: the `n_y` measurement noises, then the `n_z`
 //! performance noises, then the `n_w` white disturbance values (always all of them, also
-//! when a standard deviation is zero). A seed thus gives bit-for-bit identical runs, and
+//! when a standard deviation is zero), then the process noise of the band-limited
+//! disturbances (only when there are any). A seed thus gives bit-for-bit identical runs, and
 //! [`PlantSim::sample`] returns the same values when called twice at the same `k`.
 //!
 //! ## Real-time use
@@ -77,8 +114,8 @@
 //! (all buffers are pre-allocated, products are written in place with `gemv`).
 
 use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, StateSpace, c2d_zoh, eigenvalues};
-use crate::scenario::{PlantParams, Tone};
-use nalgebra::{DMatrix, DVector, DVectorViewMut};
+use crate::scenario::{BandLimited, PlantParams, Tone};
+use nalgebra::{DMatrix, DVector, DVectorViewMut, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -208,6 +245,12 @@ pub struct PlantSim {
     seed: u64,
     rng: ChaCha8Rng,
     k: u64,
+    /// Band-limited disturbances and the index of each one's first filter state.
+    band_limited: Vec<(BandLimited, usize)>,
+    /// `S`, `S Sᵀ = Q_d`: the process noise of the band-limited disturbances per period.
+    noise_sqrt: DMatrix<f64>,
+    /// Its standard normal draws for the current period.
+    noise_eta: DVector<f64>,
 }
 
 fn param(field: &'static str, problem: String) -> SimError {
@@ -301,7 +344,25 @@ impl PlantSim {
         // Augmented continuous system x̄ = [x; ξ], inputs v = [u; w_white].
         let tones = params.disturbance.tones.clone();
         let n_e = 2 * tones.len();
-        let n_x = n_p + n_e;
+        for b in &params.disturbance.band_limited {
+            if b.input >= n_w
+                || !(b.rms.is_finite() && b.rms >= 0.0)
+                || !(b.omega_c.is_finite() && b.omega_c > 0.0)
+                || b.order == 0
+            {
+                return Err(param(
+                    "disturbance.band_limited",
+                    format!("{b:?} has an invalid value"),
+                ));
+            }
+        }
+        let n_f: usize = params
+            .disturbance
+            .band_limited
+            .iter()
+            .map(|b| b.order)
+            .sum();
+        let n_x = n_p + n_e + n_f;
         let n_v = n_u + n_w;
         let mut a_aug = DMatrix::zeros(n_x, n_x);
         a_aug.view_mut((0, 0), (n_p, n_p)).copy_from(&plant.a);
@@ -328,6 +389,32 @@ impl PlantSim {
             x0[e1] = tone.amplitude * tone.phase.sin();
             x0[e2] = tone.amplitude * tone.phase.cos();
         }
+        // Band-limited disturbances: Butterworth filters after the tones.
+        let mut band_limited = Vec::new();
+        let mut g_noise = DMatrix::zeros(n_x, params.disturbance.band_limited.len());
+        let mut at = n_p + n_e;
+        for (j, b) in params.disturbance.band_limited.iter().enumerate() {
+            let (af, bf, out) = butterworth_lowpass(b.order, b.omega_c);
+            let g = b.rms / butterworth_noise_variance(b.order, b.omega_c).sqrt();
+            a_aug.view_mut((at, at), (b.order, b.order)).copy_from(&af);
+            g_noise.view_mut((at, j), (b.order, 1)).copy_from(&(bf * g));
+            let o = at + out;
+            a_aug
+                .view_mut((0, o), (n_p, 1))
+                .copy_from(&plant.b_w.column(b.input));
+            c_y.view_mut((0, o), (n_y, 1))
+                .copy_from(&plant.d_yw.column(b.input));
+            c_z.view_mut((0, o), (n_z, 1))
+                .copy_from(&plant.d_zw.column(b.input));
+            band_limited.push((*b, at));
+            at += b.order;
+        }
+        let noise_sqrt = if band_limited.is_empty() {
+            DMatrix::zeros(n_x, 0)
+        } else {
+            covariance_sqrt(&white_noise_covariance(&a_aug, &g_noise, ts)?)
+        };
+        let noise_eta = DVector::zeros(noise_sqrt.ncols());
         let mut d_y = DMatrix::zeros(n_y, n_v);
         d_y.view_mut((0, 0), (n_y, n_u)).copy_from(&plant.d_yu);
         d_y.view_mut((0, n_u), (n_y, n_w)).copy_from(&plant.d_yw);
@@ -381,6 +468,9 @@ impl PlantSim {
             seed,
             rng: ChaCha8Rng::seed_from_u64(seed),
             k: 0,
+            band_limited,
+            noise_sqrt,
+            noise_eta,
         };
         sim.reset();
         Ok(sim)
@@ -445,7 +535,7 @@ impl PlantSim {
         self.n_p
     }
 
-    /// Number of exosystem states (two per tone).
+    /// Number of exosystem states (two per tone, then `order` per band-limited disturbance).
     pub fn n_exosystem_states(&self) -> usize {
         self.x.len() - self.n_p
     }
@@ -538,6 +628,9 @@ impl PlantSim {
                 self.tmp.gemv(1.0, &o.gamma2, &self.v_new, 1.0);
             }
         }
+        if !self.noise_eta.is_empty() {
+            self.tmp.gemv(1.0, &self.noise_sqrt, &self.noise_eta, 1.0);
+        }
         std::mem::swap(&mut self.x, &mut self.tmp);
         self.v_prev.copy_from(&self.v_new);
         self.k += 1;
@@ -567,6 +660,9 @@ impl PlantSim {
         }
         for (n, s) in self.white.iter_mut().zip(&self.white_std) {
             *n = s * self.rng.sample::<f64, _>(StandardNormal);
+        }
+        for n in self.noise_eta.iter_mut() {
+            *n = self.rng.sample::<f64, _>(StandardNormal);
         }
     }
 
@@ -643,6 +739,14 @@ impl PlantSim {
             "input-delays": self.delays,
             "tones": tones,
             "white-std": self.white_std,
+            "band-limited": self.band_limited.iter().map(|(b, at)| json!({
+                "input": b.input,
+                "rms": b.rms,
+                "cutoff-hz": b.omega_c / (2.0 * std::f64::consts::PI),
+                "order": b.order,
+                "states": (*at..*at + b.order).collect::<Vec<_>>(),
+                "white-noise-intensity": b.rms * b.rms / butterworth_noise_variance(b.order, b.omega_c),
+            })).collect::<Vec<_>>(),
             "noise": { "y-std": self.y_std, "z-std": self.z_std, "seed": self.seed },
             "command": self.command,
             "plant-poles": match eigenvalues(&phi_p) {
@@ -707,6 +811,97 @@ impl PlantSim {
             "plant-states": keep,
         }))
     }
+}
+
+/// The Butterworth low-pass filter of order `n ≥ 1` and cutoff `omega_c` (rad/s) with unit
+/// DC gain, as a cascade of sections (first-order `ω_c/(s + ω_c)` first when `n` is odd,
+/// then `ω_c²/(s² + 2ζ_k ω_c s + ω_c²)`, `ζ_k = sin((2k−1)π/(2n))`, states `[p, ṗ]`):
+/// `(A_f, B_f, index of the output state)`, the output being that state.
+pub fn butterworth_lowpass(n: usize, omega_c: f64) -> (DMatrix<f64>, DMatrix<f64>, usize) {
+    let mut a = DMatrix::zeros(n, n);
+    let mut b = DMatrix::zeros(n, 1);
+    let mut prev: Option<usize> = None;
+    let mut at = 0;
+    let mut feed = |a: &mut DMatrix<f64>, row: usize, gain: f64, prev: Option<usize>| match prev {
+        None => b[(row, 0)] = gain,
+        Some(p) => a[(row, p)] = gain,
+    };
+    if n % 2 == 1 {
+        a[(0, 0)] = -omega_c;
+        feed(&mut a, 0, omega_c, prev);
+        prev = Some(0);
+        at = 1;
+    }
+    let n_pairs = n / 2;
+    for k in 1..=n_pairs {
+        let zeta = ((2 * k - 1) as f64 * std::f64::consts::PI / (2 * n) as f64).sin();
+        a[(at, at + 1)] = 1.0;
+        a[(at + 1, at)] = -omega_c * omega_c;
+        a[(at + 1, at + 1)] = -2.0 * zeta * omega_c;
+        feed(&mut a, at + 1, omega_c * omega_c, prev);
+        prev = Some(at);
+        at += 2;
+    }
+    (a, b, prev.unwrap_or(0))
+}
+
+/// The stationary variance `∫|H(jω)|² dω/2π = ω_c / (2n sin(π/(2n)))` of the output of the
+/// Butterworth filter of [`butterworth_lowpass`] driven by unit-intensity white noise.
+pub fn butterworth_noise_variance(n: usize, omega_c: f64) -> f64 {
+    omega_c / (2.0 * n as f64 * (std::f64::consts::PI / (2 * n) as f64).sin())
+}
+
+/// The covariance `Q_d = ∫_0^t e^{Aτ} G Gᵀ e^{Aᵀτ} dτ` of the state increment of
+/// `ẋ = A x + G ν` over `t` under unit-intensity white noise `ν` (Van Loan over a short step,
+/// then doubling; see the module documentation).
+pub fn white_noise_covariance(
+    a: &DMatrix<f64>,
+    g: &DMatrix<f64>,
+    t: f64,
+) -> Result<DMatrix<f64>, LtiError> {
+    if !(t.is_finite() && t > 0.0) {
+        return Err(LtiError::SamplePeriod(t));
+    }
+    let n = a.nrows();
+    let mut m = 0u32;
+    while a.norm() * t / 2f64.powi(m as i32) > 0.5 && m < 60 {
+        m += 1;
+    }
+    let h = t / 2f64.powi(m as i32);
+    let mut vl = DMatrix::zeros(2 * n, 2 * n);
+    vl.view_mut((0, 0), (n, n)).copy_from(&(-a * h));
+    vl.view_mut((0, n), (n, n))
+        .copy_from(&(g * g.transpose() * h));
+    vl.view_mut((n, n), (n, n)).copy_from(&(a.transpose() * h));
+    let e = vl.exp();
+    if !e.iter().all(|v| v.is_finite()) {
+        return Err(LtiError::Numerical(
+            "the matrix exponential of the noise covariance overflowed".into(),
+        ));
+    }
+    let mut phi = e.view((n, n), (n, n)).transpose();
+    let mut q = &phi * e.view((0, n), (n, n));
+    for _ in 0..m {
+        q = &q + &phi * &q * phi.transpose();
+        phi = &phi * &phi;
+    }
+    Ok((&q + q.transpose()) * 0.5)
+}
+
+/// A square root `S` (`n × r`, `S Sᵀ = Q`) of a symmetric positive semidefinite `Q` from
+/// its eigendecomposition; eigenvalues below `n·ε·λ_max` are dropped.
+fn covariance_sqrt(q: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = q.nrows();
+    let eig = SymmetricEigen::new(q.clone());
+    let lmax = eig.eigenvalues.iter().fold(0.0f64, |a, &b| a.max(b));
+    let keep: Vec<usize> = (0..n)
+        .filter(|&i| lmax > 0.0 && eig.eigenvalues[i] > n as f64 * f64::EPSILON * lmax)
+        .collect();
+    let mut s = DMatrix::zeros(n, keep.len());
+    for (c, &i) in keep.iter().enumerate() {
+        s.set_column(c, &(eig.eigenvectors.column(i) * eig.eigenvalues[i].sqrt()));
+    }
+    s
 }
 
 fn matrix(m: &DMatrix<f64>) -> Value {

@@ -344,3 +344,177 @@ fn the_acoustic_rig_has_twelve_modes_seven_tones_and_an_open_loop_level_of_order
     assert!((0.8..1.1).contains(&rms_z), "open-loop RMS of z {rms_z}");
     assert!((rms_y - rms_z).abs() < 0.01, "{rms_y} vs {rms_z}");
 }
+
+// ---------------------------------------------------------------------------------------
+// Band-limited disturbances.
+
+/// `y = w`: a plant whose measurement is the disturbance itself (the state is unused).
+fn band_file(ts: f64, rms: f64, cutoff_hz: f64, order: usize) -> String {
+    format!(
+        r#"
+[rig]
+name = "band"
+sample-period = {ts}
+duration = 1.0
+
+[plant]
+kind = "state-space"
+inputs = 1
+disturbances = 1
+outputs-y = 1
+outputs-z = 1
+
+[plant.ss]
+a = [[-1.0]]
+b-u = [[0.0]]
+b-w = [[0.0]]
+c-y = [[0.0]]
+c-z = [[0.0]]
+d-yw = [[1.0]]
+
+[plant.disturbance]
+band-limited = [ {{ input = 0, rms = {rms}, cutoff-hz = {cutoff_hz}, order = {order} }} ]
+
+[plant.noise]
+seed = 5
+"#
+    )
+}
+
+#[test]
+fn the_butterworth_realization_has_the_butterworth_magnitude_and_unit_dc_gain() {
+    use crate::lti::StateSpace;
+    use nalgebra::Complex;
+    let wc = 2.0 * PI * 25.0;
+    for n in 1..=MAX_BAND_LIMITED_ORDER {
+        let (a, b, out) = crate::sim::butterworth_lowpass(n, wc);
+        let mut c = DMatrix::zeros(1, n);
+        c[(0, out)] = 1.0;
+        let ss = StateSpace {
+            a,
+            b,
+            c,
+            d: DMatrix::zeros(1, 1),
+        };
+        for w in [0.0, 0.3 * wc, wc, 2.0 * wc, 7.0 * wc] {
+            let h = ss.freq_response(Complex::new(0.0, w)).unwrap()[(0, 0)];
+            let want = 1.0 / (1.0 + (w / wc).powi(2 * n as i32));
+            assert!(
+                (h.norm_sqr() - want).abs() < 1e-10 * want.max(1e-300) + 1e-14,
+                "order {n}, ω = {w}: {} against {want}",
+                h.norm_sqr()
+            );
+        }
+    }
+}
+
+#[test]
+fn the_white_noise_covariance_is_exact_and_reaches_the_stationary_variance() {
+    use crate::sim::{butterworth_lowpass, butterworth_noise_variance, white_noise_covariance};
+    let wc = 2.0 * PI * 5.0;
+    for n in 1..=6 {
+        let (a, b, out) = butterworth_lowpass(n, wc);
+        // Over a long period (e^{−0.26·ω_c·T} ≈ e^{−40}): the stationary covariance.
+        let p = white_noise_covariance(&a, &b, 5.0).unwrap();
+        let var = butterworth_noise_variance(n, wc);
+        assert!(
+            (p[(out, out)] - var).abs() < 1e-9 * var,
+            "order {n}: {} against {var}",
+            p[(out, out)]
+        );
+        // Two periods are one period, then another one propagated: Q(2T) = Q + Φ Q Φᵀ.
+        let t = 0.013;
+        let q1 = white_noise_covariance(&a, &b, t).unwrap();
+        let q2 = white_noise_covariance(&a, &b, 2.0 * t).unwrap();
+        let phi = (&a * t).exp();
+        let q2_from_q1 = &q1 + &phi * &q1 * phi.transpose();
+        assert!((&q2 - q2_from_q1).norm() < 1e-10 * q2.norm(), "order {n}");
+    }
+}
+
+#[test]
+fn a_band_limited_disturbance_has_its_rms_and_correlation_at_any_sample_rate() {
+    use crate::sim::{butterworth_lowpass, butterworth_noise_variance, white_noise_covariance};
+    let (rms, cutoff, order) = (2.0, 5.0, 3);
+    let wc = 2.0 * PI * cutoff;
+    // Theory: stationary P of the unit-intensity filter, scaled; lag-T correlation
+    // C e^{A T} P Cᵀ / C P Cᵀ.
+    let (a, b, out) = butterworth_lowpass(order, wc);
+    let p = white_noise_covariance(&a, &b, 10.0).unwrap() * (rms * rms)
+        / butterworth_noise_variance(order, wc);
+    // T = 0.01 s (Nyquist 50 Hz) and T = 0.1 s (Nyquist 5 Hz: half the band aliases).
+    for ts in [0.01, 0.1] {
+        let s = parse(&band_file(ts, rms, cutoff, order), "band.toml").unwrap();
+        let b = s.plant.disturbance.band_limited[0];
+        assert_eq!((b.input, b.order), (0, order));
+        assert!((b.omega_c - wc).abs() < 1e-12 * wc);
+        let mut sim = PlantSim::new(&s.plant, ts).unwrap();
+        assert_eq!(sim.n_exosystem_states(), order);
+        let rho_theory = ((&a * ts).exp() * &p)[(out, out)] / p[(out, out)];
+        let (mut y, mut z, mut r) = ([0.0], [0.0], []);
+        let (mut sum2, mut lag, mut prev, mut n) = (0.0, 0.0, 0.0, 0.0);
+        for k in 0..60_000 {
+            sim.sample(&mut y, &mut z, &mut r).unwrap();
+            if k >= 1000 {
+                sum2 += y[0] * y[0];
+                lag += y[0] * prev;
+                n += 1.0;
+            }
+            prev = y[0];
+            sim.advance(&[0.0]).unwrap();
+        }
+        let var = sum2 / n;
+        let rho = lag / sum2;
+        assert!(
+            (var.sqrt() - rms).abs() < 0.06 * rms,
+            "T = {ts}: RMS {} against {rms}",
+            var.sqrt()
+        );
+        assert!(
+            (rho - rho_theory).abs() < 0.03,
+            "T = {ts}: lag-1 correlation {rho} against {rho_theory}"
+        );
+    }
+}
+
+#[test]
+fn bad_band_limited_entries_are_refused() {
+    let good = band_file(0.01, 1.0, 5.0, 2);
+    let cases = [
+        (
+            "input = 0, rms",
+            "input = 1, rms",
+            "plant.disturbance.band-limited[0].input",
+        ),
+        (
+            "order = 2",
+            "order = 0",
+            "plant.disturbance.band-limited[0].order",
+        ),
+        (
+            "order = 2",
+            "order = 13",
+            "plant.disturbance.band-limited[0].order",
+        ),
+        (
+            "rms = 1",
+            "rms = -1",
+            "plant.disturbance.band-limited[0].rms",
+        ),
+        (
+            "cutoff-hz = 5",
+            "cutoff-hz = 0",
+            "plant.disturbance.band-limited[0].cutoff-hz",
+        ),
+        (
+            "cutoff-hz = 5",
+            "cutoff-rad-s = 3.0, cutoff-hz = 5",
+            "plant.disturbance.band-limited[0].cutoff-hz",
+        ),
+    ];
+    for (from, to, field) in cases {
+        assert!(good.contains(from), "{from}");
+        let e = refused(&good.replacen(from, to, 1));
+        assert_eq!(e.field(), Some(field), "{e}");
+    }
+}
