@@ -324,3 +324,86 @@ fn a_bad_truss_is_refused_naming_the_field() {
         assert_eq!(e.field(), Some(field), "{e}");
     }
 }
+
+/// The stationary covariance of the truss plant driven by a band-limited disturbance on
+/// `w` (filter states appended), computed exactly.
+fn stationary_y_rms(tp: &TrussPlant, rms: f64, cutoff_hz: f64, order: usize) -> Vec<f64> {
+    use crate::sim::{butterworth_lowpass, butterworth_noise_variance, white_noise_covariance};
+    let p = &tp.model;
+    let n_p = p.n_x();
+    let wc = 2.0 * PI * cutoff_hz;
+    let (af, bf, out) = butterworth_lowpass(order, wc);
+    let n = n_p + order;
+    let mut a = DMatrix::zeros(n, n);
+    a.view_mut((0, 0), (n_p, n_p)).copy_from(&p.a);
+    a.view_mut((n_p, n_p), (order, order)).copy_from(&af);
+    a.view_mut((0, n_p + out), (n_p, 1))
+        .copy_from(&p.b_w.column(0));
+    let mut g = DMatrix::zeros(n, 1);
+    g.view_mut((n_p, 0), (order, 1))
+        .copy_from(&(bf * (rms / butterworth_noise_variance(order, wc).sqrt())));
+    // The slowest mode decays as e^{−ζω_1 t}, ζω_1 = 0.027 s⁻¹: 3000 s is e^{−80}.
+    let q = white_noise_covariance(&a, &g, 3000.0).unwrap();
+    (0..p.c_y.nrows())
+        .map(|i| {
+            let mut c = DMatrix::zeros(1, n);
+            c.view_mut((0, 0), (1, n_p)).copy_from(&p.c_y.row(i));
+            (&c * &q * c.transpose())[(0, 0)].sqrt()
+        })
+        .collect()
+}
+
+#[test]
+fn the_open_loop_levels_are_as_documented() {
+    let tp = section_6_2_truss();
+    let modes = tp.truss.plant_modes(&tp.modes);
+    // Tone amplitudes at y_3 (node 8) per newton on w (plant-proxy/MODELS.md).
+    for (hz, want) in [(0.354, 3.072e-4), (1.0, 8.033e-4), (1.55, 1.842e-4)] {
+        let amp = modal_response(&modes, 3, 0, 2.0 * PI * hz).norm();
+        assert!((amp - want).abs() < 1e-3 * want, "{hz} Hz: {amp:e}");
+    }
+    // Broadband: the exact stationary RMS of each y (noiseless), and a long simulation.
+    for (name, cutoff, want) in [
+        (
+            "broadband-25hz.toml",
+            25.0,
+            [4.729e-4, 4.723e-4, 7.346e-4, 7.336e-4],
+        ),
+        (
+            "broadband-50hz-aliasing.toml",
+            50.0,
+            [3.344e-4, 3.340e-4, 5.194e-4, 5.187e-4],
+        ),
+    ] {
+        let exact = stationary_y_rms(&tp, 1.0, cutoff, 4);
+        for (e, w) in exact.iter().zip(want) {
+            assert!((e - w).abs() < 1e-3 * w, "{name}: {exact:?}");
+        }
+        let sc = scenario::load(&scenario_file(name)).unwrap();
+        let ts = sc.rig.sample_period;
+        let mut sim = PlantSim::new(&sc.plant, ts).unwrap();
+        let (mut y, mut z, mut r) = ([0.0; 4], [0.0; 4], []);
+        let mut sum = [0.0; 4];
+        let mut n = 0.0;
+        // 10000 s: about 270 time constants of the first mode.
+        let (skip, steps) = ((200.0 / ts) as usize, (10_200.0 / ts) as usize);
+        for k in 0..steps {
+            sim.sample(&mut y, &mut z, &mut r).unwrap();
+            if k >= skip {
+                for i in 0..4 {
+                    sum[i] += z[i] * z[i];
+                }
+                n += 1.0;
+            }
+            sim.advance(&[0.0, 0.0]).unwrap();
+        }
+        for i in 0..4 {
+            let rms = (sum[i] / n).sqrt();
+            assert!(
+                (rms - exact[i]).abs() < 0.1 * exact[i],
+                "{name}: simulated RMS of z{i} {rms:e} against {:e}",
+                exact[i]
+            );
+        }
+    }
+}
