@@ -22,9 +22,11 @@
 //! the tone of `u_2` between the zero at 16 Hz and the mode at 21 Hz of `G_2`. Both
 //! channels are minimum phase with poles and zeros alternating, as for collocated
 //! actuators and sensor; a first design with a non-collocated `G_2` (zeros at 7.5 and
-//! 24 Hz only, relative degree 4) made RCAC's closed loop unstable for every true
-//! `ζ ≤ 0.08` with both DTMs and both updates (the coefficients jump to an unstable
-//! controller within the first seconds), and was dropped. [`scenario_text`] writes the scenario (TOML, read by
+//! 24 Hz only, relative degree 4) made RCAC's closed loop unstable at light damping with
+//! both DTMs and both updates (the coefficients jump to a destabilizing controller within
+//! the first seconds): every true `ζ ≤ 0.08` with the gradient update, `ζ ≤ 0.07` with RLS
+//! and the average DTM, 22 of the 50 values up to `ζ = 0.23` with RLS and the
+//! optimization DTM; it was dropped. [`scenario_text`] writes the scenario (TOML, read by
 //! plant-proxy's parser) for any `ζ`; `scenarios/rcac/miso-4-mode.toml` is its output at
 //! `ζ = 0.1` under a header that derives it, and a test checks that they agree.
 //!

@@ -356,6 +356,7 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), String> {
         .flatten()
         .collect();
     let t_sweep = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
     for method in Method::ALL {
         write_csv(
             &out.join(format!("sweep-{}.csv", method.name())),
@@ -366,13 +367,12 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), String> {
             plane_figure(out, &designs, &rows, method, update)?;
         }
     }
-    let t2 = Instant::now();
     single_run(out, &designs[0], &opts.updates, &mut report)?;
     let t_single = t2.elapsed().as_secs_f64();
     summary(&rows, &opts.updates, &mut report);
     let _ = writeln!(
         report,
-        "\ntime: designs {t_design:.1} s, sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), single runs and figures {t_single:.1} s, total {:.1} s; files in {}",
+        "\ntime: designs {t_design:.1} s, sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), figures and single runs {t_single:.1} s, total {:.1} s; files in {}",
         jobs.len() * (1 + Method::ALL.len() * opts.updates.len()),
         (RUN_SECONDS / TS).round(),
         rayon::current_num_threads(),
