@@ -159,7 +159,8 @@ fn start_line(t: f64, series: &[Series]) -> Option<Series> {
     })
 }
 
-/// PSD series of every `z` channel of `t` from time `from` on; `None` when too short.
+/// PSD series of every `z` channel of `t` from time `from` on (an error when fewer than 8
+/// samples are left).
 fn psd_series(
     t: &Trace,
     from: f64,

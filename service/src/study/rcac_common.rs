@@ -34,7 +34,7 @@
 //! amplitude of each disturbance tone in `z` (joint least squares,
 //! [`analysis::tone_amplitudes`]) and the peak `|z_k|`. The open loop is measured the same
 //! way on the same window; suppression is `20 log10(open / closed)`. The tone amplitude on
-//! the window before the last ([`Point::closed_amp_prev`]) shows whether the run had
+//! the window before the last ([`Window::amp_prev`]) shows whether the run had
 //! settled.
 
 use std::path::Path;
