@@ -482,106 +482,117 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
 
+/// A straightforward row-oriented in-place Cholesky (row-major lower triangle), the
+/// alternative to faer's that the timing test compares against.
+fn row_cholesky(a: &mut [f64], n: usize) -> bool {
+    for i in 0..n {
+        let (before, rest) = a.split_at_mut(i * n);
+        let row_i = &mut rest[..n];
+        for j in 0..i {
+            let row_j = &before[j * n..j * n + j + 1];
+            let s = row_i[j] - super::dot(&row_i[..j], &row_j[..j]);
+            row_i[j] = s / row_j[j];
+        }
+        let d = row_i[i] - super::dot(&row_i[..i], &row_i[..i]);
+        if !(d > 0.0 && d.is_finite()) {
+            return false;
+        }
+        row_i[i] = d.sqrt();
+    }
+    true
+}
+
+fn summary(name: &str, v: &mut [f64]) {
+    v.sort_by(f64::total_cmp);
+    println!(
+        "  {name:34} p50 {:8.1} µs  p99 {:8.1} µs  max {:8.1} µs",
+        percentile(v, 0.5),
+        percentile(v, 0.99),
+        v[v.len() - 1]
+    );
+}
+
 /// Timing: `cargo test --release -p service --lib qp_timing -- --ignored --nocapture`.
+///
+/// For each command amplitude `a`, a sequence of PCAC-shaped problems at `n = 100` (ℓ = 50,
+/// m = 2, boxes, 200 move rows, 3 output rows; one model) whose command amplitude
+/// varies slowly, `a (1 + 0.05 sin(2πk/50))`, so consecutive problems are neighbours as in
+/// the receding horizon; every step is solved cold and warm-started from the previous
+/// step's active set.
 #[test]
 #[ignore]
 fn qp_timing_at_n_100_with_active_constraints() {
     use std::time::Instant;
-    let mut rng = ChaCha8Rng::seed_from_u64(21);
     let reps = 1000;
-    let problems: Vec<Owned> =
-        (0..20).map(|k| pcac_problem(50, 2, true, 3, 2.0 + 0.1 * k as f64, &mut rng)).collect();
-    let p0 = &problems[0];
-    let mut s = DenseQpSolver::new(p0.n, p0.n_ineq(), QpSettings::default());
-    let mut ids = vec![ConstraintId::Row(0); p0.n];
-    let mut k_ids = 0;
-    let mut cold = Vec::with_capacity(reps);
-    let mut warm = Vec::with_capacity(reps);
-    let mut n_active = Vec::new();
-    let mut iters_cold = Vec::new();
-    let mut iters_warm = Vec::new();
-    for r in 0..reps {
-        let p = &problems[r % problems.len()];
-        let t = Instant::now();
-        let st = s.solve(&p.problem(), WarmStart::Cold);
-        cold.push(t.elapsed().as_secs_f64() * 1e6);
-        assert_eq!(st, QpStatus::Solved);
-        n_active.push(s.active_len());
-        iters_cold.push(s.iterations());
-        // Warm start from the previous problem's active set (a neighbouring problem).
-        let t = Instant::now();
-        let st = s.solve(&p.problem(), WarmStart::ActiveSet(&ids[..k_ids]));
-        warm.push(t.elapsed().as_secs_f64() * 1e6);
-        assert_eq!(st, QpStatus::Solved);
-        iters_warm.push(s.iterations());
-        k_ids = s.active_set_into(&mut ids);
+    for amp in [0.5, 1.0, 2.0] {
+        let seq: Vec<Owned> = (0..50)
+            .map(|k| {
+                let mut rng = ChaCha8Rng::seed_from_u64(21);
+                let a = amp * (1.0 + 0.05 * (2.0 * std::f64::consts::PI * k as f64 / 50.0).sin());
+                pcac_problem(50, 2, true, 3, a, &mut rng)
+            })
+            .collect();
+        let mut s = DenseQpSolver::new(seq[0].n, seq[0].n_ineq(), QpSettings::default());
+        let mut ids = vec![ConstraintId::Row(0); seq[0].n];
+        let mut k_ids = 0;
+        let (mut cold, mut warm) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
+        let (mut n_active, mut it_cold, mut it_warm) = (0usize, 0usize, 0usize);
+        let mut max_active = 0;
+        for k in 0..reps {
+            let p = &seq[k % seq.len()];
+            let t = Instant::now();
+            let st = s.solve(&p.problem(), WarmStart::Cold);
+            cold.push(t.elapsed().as_secs_f64() * 1e6);
+            assert_eq!(st, QpStatus::Solved);
+            n_active += s.active_len();
+            max_active = max_active.max(s.active_len());
+            it_cold += s.iterations();
+            let t = Instant::now();
+            let st = s.solve(&p.problem(), WarmStart::ActiveSet(&ids[..k_ids]));
+            warm.push(t.elapsed().as_secs_f64() * 1e6);
+            assert_eq!(st, QpStatus::Solved);
+            it_warm += s.iterations();
+            k_ids = s.active_set_into(&mut ids);
+        }
+        let p = &seq[0];
+        let mut clar = Vec::with_capacity(reps / 5);
+        for _ in 0..reps / 5 {
+            let t = Instant::now();
+            let c = solve_with_clarabel(&p.problem(), 1e-8).unwrap();
+            clar.push(t.elapsed().as_secs_f64() * 1e6);
+            assert!(matches!(c.status, SolverStatus::Solved));
+        }
+        let r = reps as f64;
+        println!(
+            "n = 100 (ℓ = 50, m = 2), {} rows, amplitude {amp}: active mean {:.1}, max {max_active}; \
+             iterations cold {:.1}, warm {:.1}",
+            p.n_ineq(),
+            n_active as f64 / r,
+            it_cold as f64 / r,
+            it_warm as f64 / r
+        );
+        summary("dual active set, cold", &mut cold);
+        summary("dual active set, warm", &mut warm);
+        summary("clarabel set-up + solve (tol 1e-8)", &mut clar);
     }
-    let mut clar = Vec::with_capacity(reps / 4);
-    for r in 0..reps / 4 {
-        let p = &problems[r % problems.len()];
-        let t = Instant::now();
-        let c = solve_with_clarabel(&p.problem(), 1e-8).unwrap();
-        clar.push(t.elapsed().as_secs_f64() * 1e6);
-        assert!(matches!(c.status, SolverStatus::Solved));
-    }
-    // The factorization alone: ours vs faer's in place.
+    // The factorization alone: a row-oriented one vs faer's (the one the solver uses).
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let p0 = pcac_problem(50, 2, true, 3, 1.0, &mut rng);
+    let n = p0.n;
     let mut buf = p0.hess.clone();
-    let mut chol = Vec::with_capacity(reps);
+    let (mut ours, mut faer_t) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
+    let mut mem = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default()));
     for _ in 0..reps {
         buf.copy_from_slice(&p0.hess);
         let t = Instant::now();
-        assert!(cholesky_in_place(&mut buf, p0.n));
-        chol.push(t.elapsed().as_secs_f64() * 1e6);
+        assert!(row_cholesky(&mut buf, n));
+        ours.push(t.elapsed().as_secs_f64() * 1e6);
+        buf.copy_from_slice(&p0.hess);
+        let t = Instant::now();
+        assert!(cholesky_in_place(&mut buf, n, &mut mem));
+        faer_t.push(t.elapsed().as_secs_f64() * 1e6);
     }
-    let mut faer_chol = Vec::with_capacity(reps);
-    {
-        use faer::dyn_stack::{MemBuffer, MemStack};
-        use faer::linalg::cholesky::llt::factor::{self, LltRegularization};
-        let n = p0.n;
-        let mut a = faer::Mat::<f64>::zeros(n, n);
-        let mut mem = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(n, faer::Par::Seq, Default::default()));
-        for _ in 0..reps {
-            for i in 0..n {
-                for j in 0..n {
-                    a[(i, j)] = p0.hess[i * n + j];
-                }
-            }
-            let t = Instant::now();
-            factor::cholesky_in_place(
-                a.as_mut(),
-                LltRegularization::default(),
-                faer::Par::Seq,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-            .unwrap();
-            faer_chol.push(t.elapsed().as_secs_f64() * 1e6);
-        }
-    }
-    for v in [&mut cold, &mut warm, &mut clar, &mut chol, &mut faer_chol] {
-        v.sort_by(f64::total_cmp);
-    }
-    let mean = |v: &[usize]| v.iter().sum::<usize>() as f64 / v.len() as f64;
-    println!(
-        "n = 100 (ℓ = 50, m = 2), {} rows; active constraints: mean {:.1}, max {}; iterations cold {:.1}, warm {:.1}",
-        p0.n_ineq(),
-        mean(&n_active),
-        n_active.iter().max().unwrap(),
-        mean(&iters_cold),
-        mean(&iters_warm)
-    );
-    for (name, v) in [
-        ("dense dual active set, cold", &cold),
-        ("dense dual active set, warm", &warm),
-        ("clarabel set-up + solve", &clar),
-        ("Cholesky n = 100, ours", &chol),
-        ("Cholesky n = 100, faer", &faer_chol),
-    ] {
-        println!(
-            "{name:32} p50 {:8.1} µs  p99 {:8.1} µs  max {:8.1} µs",
-            percentile(v, 0.5),
-            percentile(v, 0.99),
-            v[v.len() - 1]
-        );
-    }
+    println!("Cholesky, n = 100:");
+    summary("row-oriented in place", &mut ours);
+    summary("faer in place (used)", &mut faer_t);
 }
