@@ -12,6 +12,12 @@
 //! - (d) the Welch PSD ([`crate::analysis::psd`]) of `z`, open and closed loop, on a
 //!   logarithmic axis, over the part of each run after a given time (the settled part).
 //!
+//! [`run_folder_figure`] draws the same figure for a run of the service from its run folder
+//! (`signals.csv` and `report.json`): the open loop is the run's open-loop phase
+//! (`service.open-loop`, samples with the `OPEN_LOOP` status), the PSDs compare the windows
+//! of the run report's tone table (the end of the open-loop phase against the end of the
+//! run), and panel (c) shows the logged `‖θ‖`.
+//!
 //! Long traces are reduced to at most [`MAX_LINE_POINTS`] points per series by keeping
 //! the minimum and the maximum of each bucket of samples ([`envelope`]), so a tone keeps
 //! its envelope instead of aliasing.
@@ -54,6 +60,10 @@ pub struct AdaptiveRun<'a> {
     pub coefficients: Coefficients,
     /// The PSDs use the samples from this time on, s.
     pub psd_from: f64,
+    /// The open-loop PSD uses the samples of the open trace from this time on instead
+    /// (s), when the open loop is a phase of the same run (a real-time run that starts
+    /// open loop) rather than a run of its own.
+    pub open_psd_from: Option<f64>,
     /// Welch segment length, samples.
     pub psd_segment: usize,
     /// Time at which the controller starts acting, s (drawn as a dashed line in (a) and
@@ -86,12 +96,10 @@ pub fn envelope(x: &[f64], t0: f64, dt: f64, max_points: usize) -> Vec<(f64, f64
                 kmax = k;
             }
         }
-        for k in if kmin <= kmax {
-            [kmin, kmax]
-        } else {
-            [kmax, kmin]
-        } {
-            out.push((t0 + k as f64 * dt, x[k]));
+        let (a, b) = (kmin.min(kmax), kmin.max(kmax));
+        out.push((t0 + a as f64 * dt, x[a]));
+        if b != a {
+            out.push((t0 + b as f64 * dt, x[b]));
         }
     }
     out
@@ -229,7 +237,7 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
     if let Some(o) = run.open {
         pd.extend(psd_series(
             o,
-            run.psd_from,
+            run.open_psd_from.unwrap_or(run.psd_from),
             run.psd_segment,
             "open loop",
             |_| OPEN_COLOR,
@@ -265,7 +273,13 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
             ..Default::default()
         },
         Panel {
-            title: format!("(d) PSD of z from {:.1} s on", run.psd_from),
+            title: match run.open_psd_from {
+                Some(o) if run.open.is_some() => format!(
+                    "(d) PSD of z: open loop from {o:.2} s, closed loop from {:.2} s",
+                    run.psd_from
+                ),
+                _ => format!("(d) PSD of z from {:.1} s on", run.psd_from),
+            },
             x_label: "frequency, Hz".into(),
             y_label: "PSD, units²/Hz".into(),
             y_log: true,
@@ -274,6 +288,82 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
         },
     ];
     figure(path, &run.title, (2, 2), (1500, 1000), &panels)
+}
+
+/// Writes `run.png` into the run folder `folder` of a service run (see the module docs)
+/// and returns its path. Errors name the file at fault: no `signals.csv` (logging off), a
+/// log without `z`, a run too short for the PSD windows.
+pub fn run_folder_figure(folder: &Path) -> Result<std::path::PathBuf, String> {
+    let report_path = folder.join("report.json");
+    let text = std::fs::read_to_string(&report_path)
+        .map_err(|e| format!("{}: {e}", report_path.display()))?;
+    let report: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| format!("{}: not JSON: {e}", report_path.display()))?;
+    let num = |key: &str| report.get(key).and_then(serde_json::Value::as_f64);
+    let ts = num("sample_period_s")
+        .or_else(|| num("budget_ns").map(|b| b * 1e-9))
+        .filter(|t| *t > 0.0)
+        .ok_or_else(|| format!("{}: no sample period", report_path.display()))?;
+    let log = crate::design::csvlog::read(&folder.join("signals.csv"))?;
+    let (trace, _, status) = Trace::from_signal_log(&log, ts)?;
+    if trace.z.is_empty() || trace.len() < 16 {
+        return Err(format!("{}: no z or too few samples to plot", log.origin));
+    }
+    let n = trace.len();
+    let open_end = status
+        .iter()
+        .position(|s| s & ipc_types::actuation_status::OPEN_LOOP == 0)
+        .unwrap_or(n);
+    let window = report
+        .pointer("/tones/window_s")
+        .and_then(serde_json::Value::as_f64)
+        .unwrap_or(0.5);
+    let end = n as f64 * ts;
+    let open = (open_end >= 16).then(|| trace.slice(0..open_end));
+    let psd_segment = ((window / ts / 4.0) as usize).clamp(64, 8192);
+    let mut title = format!(
+        "{}: {}",
+        report.get("rig").and_then(|v| v.as_str()).unwrap_or("run"),
+        report.get("controller").and_then(|v| v.as_str()).unwrap_or("")
+    );
+    if let Some(tones) = report.pointer("/tones/tones").and_then(|t| t.as_array()) {
+        let db: Vec<f64> = tones
+            .iter()
+            .filter_map(|t| t.get("suppression_db").and_then(serde_json::Value::as_f64))
+            .collect();
+        if !db.is_empty() {
+            let lo = db.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = db.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            title += &format!(", {} tones suppressed by {lo:.1}–{hi:.1} dB", db.len());
+        }
+    }
+    let mut coefficients = Coefficients {
+        title: "controller coefficients ‖θ‖".into(),
+        y_label: "‖θ‖".into(),
+        series: Vec::new(),
+    };
+    if let Some(s) = internal_series(&trace, "theta_norm", "‖θ‖", PALETTE[0]) {
+        coefficients.series.push(s);
+    } else {
+        coefficients.title = "controller coefficients (not logged by this controller)".into();
+    }
+    let path = folder.join("run.png");
+    adaptive_run_figure(
+        &path,
+        &AdaptiveRun {
+            title,
+            open: open.as_ref(),
+            closed: &trace,
+            coefficients,
+            psd_from: (end - window).max(0.0),
+            open_psd_from: open
+                .as_ref()
+                .map(|o| (o.len() as f64 * ts - window).max(o.len() as f64 * ts / 2.0)),
+            psd_segment,
+            start: (open_end > 0 && open_end < n).then(|| open_end as f64 * ts),
+        },
+    )?;
+    Ok(path)
 }
 
 #[cfg(test)]
@@ -337,6 +427,7 @@ mod tests {
                     closed: &closed,
                     coefficients,
                     psd_from: 10.0,
+                    open_psd_from: None,
                     psd_segment: 512,
                     start: Some(1.0),
                 },

@@ -4,6 +4,7 @@
 //! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N]
 //! service launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--wait ...]
 //! service check <scenario.toml>
+//! service plot <run-folder>
 //! ```
 //!
 //! `run` is the service alone, against whatever plant process serves the rig (plant-proxy or
@@ -77,6 +78,11 @@ enum Command {
         /// Seconds of plant time (default: rig.duration).
         #[arg(long)]
         duration: Option<f64>,
+    },
+    /// Draw run.png (z open and closed loop, u, ‖θ‖, PSDs) from a run folder.
+    Plot {
+        /// A run folder (holds signals.csv and report.json).
+        run_folder: PathBuf,
     },
     /// Validate the configuration and exit.
     Check {
@@ -163,6 +169,16 @@ fn main() -> ExitCode {
             mode,
             duration,
         } => launch(common, &mode, duration),
+        Command::Plot { run_folder } => match service::figures::run_folder_figure(&run_folder) {
+            Ok(path) => {
+                println!("wrote {}", path.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("service: plot: {e}");
+                ExitCode::FAILURE
+            }
+        },
     }
 }
 
@@ -262,6 +278,12 @@ fn launch(common: Common, mode: &str, duration: Option<f64>) -> ExitCode {
     match result {
         Ok(report) => {
             println!("{}", report.render());
+            if cfg.log.enabled {
+                match service::figures::run_folder_figure(&folder) {
+                    Ok(path) => println!("figure: {}", path.display()),
+                    Err(e) => eprintln!("service: no figure: {e}"),
+                }
+            }
             if !plant_ok && !stopped_by_signal {
                 eprintln!("service: plant-proxy did not end cleanly");
                 return ExitCode::FAILURE;

@@ -132,6 +132,29 @@ fn data_range(v: impl Iterator<Item = f64>, log: bool, margin: bool) -> (f64, f6
     (lo - m, hi + m)
 }
 
+/// A short tick label: up to 4 significant digits, exponent notation (`1e-7`, `2.5e4`)
+/// outside `[10⁻³, 10⁴)`, no float noise such as `0.09999999999999999`.
+fn tick_label(v: &f64) -> String {
+    let v = *v;
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if !(1e-3..1e4).contains(&a) {
+        let s = format!("{v:.3e}");
+        let (mant, exp) = s.split_once('e').unwrap_or((&s, "0"));
+        let mant = mant.trim_end_matches('0').trim_end_matches('.');
+        return format!("{mant}e{exp}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
 fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result<(), String> {
     let pts = || p.series.iter().flat_map(|s| s.points.iter());
     let (mut x0, mut x1) = p
@@ -161,6 +184,8 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                 .x_desc(p.x_label.as_str())
                 .y_desc(p.y_label.as_str())
                 .label_style((FONT, 12))
+                .x_label_formatter(&tick_label)
+                .y_label_formatter(&tick_label)
                 .draw()
                 .map_err(|e| e.to_string())?;
             if p.unit_circle {
@@ -183,13 +208,22 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                 let ok = |&&(x, y): &&(f64, f64)| {
                     x.is_finite() && y.is_finite() && (!p.x_log || x > 0.0) && (!p.y_log || y > 0.0)
                 };
-                let clipped: Vec<(f64, f64)> = s
+                let mut clipped: Vec<(f64, f64)> = s
                     .points
                     .iter()
                     .filter(ok)
                     .map(|&(x, y)| (x, y.clamp(y0, y1)))
                     .collect();
-                let style = ShapeStyle::from(&s.color).stroke_width(2);
+                clipped.dedup();
+                // plotters joins wide polyline segments with mitres, which become long
+                // stray spikes at the sharp turns of a dense zig-zag (an 8 kHz signal
+                // over seconds): draw dense lines one pixel wide.
+                let width = if s.mark == Mark::Line && clipped.len() > 1500 {
+                    1
+                } else {
+                    2
+                };
+                let style = ShapeStyle::from(&s.color).stroke_width(width);
                 let color = s.color;
                 let anno = match s.mark {
                     Mark::Line => chart.draw_series(LineSeries::new(clipped, style)),
@@ -255,6 +289,17 @@ pub fn figure(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(&0.09999999999999999), "0.1");
+        assert_eq!(tick_label(&9.999999999999999e-5), "1e-4");
+        assert_eq!(tick_label(&1e-7), "1e-7");
+        assert_eq!(tick_label(&25000.0), "2.5e4");
+        assert_eq!(tick_label(&-0.25), "-0.25");
+        assert_eq!(tick_label(&120.0), "120");
+        assert_eq!(tick_label(&0.0), "0");
+    }
 
     #[test]
     fn a_figure_of_every_axis_kind_is_written() {

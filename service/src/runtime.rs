@@ -749,6 +749,10 @@ pub struct RunReport {
     pub log_dropped: u64,
     /// Response-time budget used for "over budget" (the sample period), ns.
     pub budget_ns: u64,
+    /// Sample period, s.
+    pub sample_period_s: f64,
+    /// Open-loop phase at the start of each session, s (`service.open-loop`).
+    pub open_loop_s: f64,
     /// Allocations on the RT thread during the loop: served by its pool (iceoryx2's
     /// per-sample loan state) and from the system allocator (should be 0).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
@@ -1020,6 +1024,8 @@ pub fn run(
         log_written,
         log_dropped,
         budget_ns: cfg.budget_ns,
+        sample_period_s: cfg.sample_period_ns as f64 * 1e-9,
+        open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
         tones: core.tones.report(),
     };

@@ -584,6 +584,7 @@ fn single_run(
                         series: theta_series(closed, every),
                     },
                     psd_from: RUN_SECONDS - 2.0 * WINDOW_SECONDS,
+                    open_psd_from: None,
                     psd_segment: 512,
                     start: Some(KW as f64 * TS),
                 },
