@@ -135,7 +135,8 @@ pub enum QpStatus {
 pub struct QpSettings {
     /// Maximum number of active-set changes (additions and deletions) per solve.
     pub max_iterations: usize,
-    /// A constraint counts as violated when `(a_iᵀ U − b_i) / ‖a_i‖ > feasibility_tol`.
+    /// A constraint counts as violated when
+    /// `(a_iᵀ U − b_i) / ‖a_i‖ > feasibility_tol · (1 + |b_i| / ‖a_i‖)`.
     pub feasibility_tol: f64,
     /// A new constraint counts as linearly dependent on the active ones when
     /// `‖ρ‖ ≤ dependence_tol · ‖L⁻¹ a_p‖`.
@@ -249,20 +250,21 @@ const CANDIDATE: u8 = 0;
 const ACTIVE: u8 = 1;
 const ABSENT: u8 = 2;
 
+/// Dot product with eight independent accumulators (so that the reduction vectorizes and
+/// is not bound by the add latency).
 #[inline]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let k = a.len().min(b.len());
     let (a, b) = (&a[..k], &b[..k]);
-    let mut acc = [0.0f64; 4];
-    let mut ca = a.chunks_exact(4);
-    let mut cb = b.chunks_exact(4);
+    let mut acc = [0.0f64; 8];
+    let mut ca = a.chunks_exact(8);
+    let mut cb = b.chunks_exact(8);
     for (x, y) in (&mut ca).zip(&mut cb) {
-        acc[0] += x[0] * y[0];
-        acc[1] += x[1] * y[1];
-        acc[2] += x[2] * y[2];
-        acc[3] += x[3] * y[3];
+        for l in 0..8 {
+            acc[l] += x[l] * y[l];
+        }
     }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
     for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
         s += x * y;
     }
@@ -520,7 +522,8 @@ impl DenseQpSolver {
         self.priority.fill(false);
 
         // Data checks: NaN anywhere, infinities only where allowed.
-        if !p.hess.iter().chain(p.f).chain(p.g).all(|v| v.is_finite())
+        let all_finite = |v: &[f64]| v.iter().fold(true, |ok, x| ok & x.is_finite());
+        if !(all_finite(p.hess) && all_finite(p.f) && all_finite(p.g))
             || p.lb.iter().any(|v| v.is_nan() || *v == f64::INFINITY)
             || p.ub.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
             || p.h.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
@@ -540,6 +543,9 @@ impl DenseQpSolver {
         }
         forward_solve(&self.l, n, &mut self.x, 0);
         backward_solve(&self.l, n, &mut self.x);
+        if !all_finite(&self.x) {
+            return QpStatus::NumericalError;
+        }
 
         // Compressed rows of G.
         let mut nnz = 0;
@@ -547,9 +553,26 @@ impl DenseQpSolver {
         for j in 0..m {
             let row = &p.g[j * n..(j + 1) * n];
             let mut s2 = 0.0;
-            for (c, &v) in row.iter().enumerate() {
+            // Blocks of eight zeros (most of a move-bound row) are skipped with one
+            // branch-free test.
+            let mut chunks = row.chunks_exact(8);
+            let mut base = 0;
+            for chunk in &mut chunks {
+                if chunk.iter().fold(false, |any, v| any | (*v != 0.0)) {
+                    for (c, &v) in chunk.iter().enumerate() {
+                        if v != 0.0 {
+                            self.cols[nnz] = base + c;
+                            self.vals[nnz] = v;
+                            nnz += 1;
+                            s2 += v * v;
+                        }
+                    }
+                }
+                base += 8;
+            }
+            for (c, &v) in chunks.remainder().iter().enumerate() {
                 if v != 0.0 {
-                    self.cols[nnz] = c;
+                    self.cols[nnz] = base + c;
                     self.vals[nnz] = v;
                     nnz += 1;
                     s2 += v * v;
@@ -627,13 +650,15 @@ impl DenseQpSolver {
         }
     }
 
-    /// The most violated candidate constraint (normalized violation above `tol`), its
-    /// violation, and the most violated prioritized one (`usize::MAX` for none).
+    /// The most violated candidate constraint, its violation and the most violated
+    /// prioritized one (`usize::MAX` for none). A constraint `a_iᵀU ≤ b_i` counts as
+    /// violated when `(a_iᵀU − b_i)/‖a_i‖ > tol (1 + |b_i|/‖a_i‖)`; the violation compared is
+    /// the excess over that threshold.
     fn select_violated(&self, p: &QpProblem, tol: f64) -> (usize, f64, usize) {
         let n = self.n;
         let x = &self.x;
-        let (mut best, mut best_v) = (usize::MAX, tol);
-        let (mut best_pri, mut best_pri_v) = (usize::MAX, tol);
+        let (mut best, mut best_v) = (usize::MAX, 0.0);
+        let (mut best_pri, mut best_pri_v) = (usize::MAX, 0.0);
         let mut consider = |id: usize, v: f64| {
             if v > best_v {
                 best_v = v;
@@ -644,12 +669,12 @@ impl DenseQpSolver {
                 best_pri = id;
             }
         };
-        for i in 0..n {
+        for (i, &xi) in x.iter().enumerate() {
             if self.state[i] == CANDIDATE {
-                consider(i, x[i] - p.ub[i]);
+                consider(i, xi - p.ub[i] - tol * (1.0 + p.ub[i].abs()));
             }
             if self.state[n + i] == CANDIDATE {
-                consider(n + i, p.lb[i] - x[i]);
+                consider(n + i, p.lb[i] - xi - tol * (1.0 + p.lb[i].abs()));
             }
         }
         for j in 0..self.n_ineq {
@@ -659,7 +684,8 @@ impl DenseQpSolver {
                 for k in a..b {
                     s += self.vals[k] * x[self.cols[k]];
                 }
-                consider(2 * n + j, (s - p.h[j]) * self.inv_norm[j]);
+                let inv = self.inv_norm[j];
+                consider(2 * n + j, (s - p.h[j]) * inv - tol * (1.0 + p.h[j].abs() * inv));
             }
         }
         (best, best_v, best_pri)

@@ -596,3 +596,4 @@ fn qp_timing_at_n_100_with_active_constraints() {
     summary("row-oriented in place", &mut ours);
     summary("faer in place (used)", &mut faer_t);
 }
+
