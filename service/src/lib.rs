@@ -36,6 +36,8 @@ pub mod design;
 pub mod figures;
 pub mod forgetting;
 pub mod logging;
+/// PCAC's receding-horizon optimization (2.43)–(2.51): the dense QP solver and its clarabel reference.
+pub mod mpc;
 pub mod plot;
 pub mod rls;
 pub mod rt_alloc;
