@@ -74,9 +74,10 @@
 //!
 //! ## Real-time use
 //!
-//! [`DenseQpSolver::new`] allocates every workspace for given `(n, n_ineq)`;
-//! [`DenseQpSolver::solve`] takes only borrowed slices and allocates nothing, and it never
-//! panics: the outcome is a [`QpStatus`]. [`solve_with_clarabel`] solves the same problem
+//! [`DenseQpSolver::new`] allocates every workspace for given `(n, n_ineq)` (and runs
+//! faer's one-time kernel initialization); [`DenseQpSolver::solve`] takes only borrowed
+//! slices and allocates nothing (checked with a `malloc` uprobe: no allocation inside
+//! `solve` once a solver exists), and it never panics: the outcome is a [`QpStatus`]. [`solve_with_clarabel`] solves the same problem
 //! with clarabel (it allocates; for tests and benchmarks).
 
 use clarabel::algebra::CscMatrix;
@@ -318,9 +319,13 @@ fn cholesky_in_place(a: &mut [f64], n: usize, mem: &mut MemBuffer) -> bool {
 impl DenseQpSolver {
     /// A solver for problems with `n` variables and `n_ineq` rows in `G U ≤ h`; allocates
     /// all workspaces (`O(n² + n_ineq·n)`).
+    ///
+    /// It also factors an `n × n` identity once: faer's matrix-multiply kernels initialize
+    /// their cache-size information (reading `/sys`, allocating) on first use in the
+    /// process, and this keeps that out of the first real-time solve.
     pub fn new(n: usize, n_ineq: usize, settings: QpSettings) -> Self {
         let n_con = 2 * n + n_ineq;
-        Self {
+        let mut solver = Self {
             n,
             n_ineq,
             settings,
@@ -352,7 +357,12 @@ impl DenseQpSolver {
             lam_ineq: vec![0.0; n_ineq],
             objective: f64::NAN,
             iterations: 0,
+        };
+        for j in 0..n {
+            solver.l[j * n + j] = 1.0;
         }
+        let _ = cholesky_in_place(&mut solver.l, n, &mut solver.chol_mem);
+        solver
     }
 
     /// The number of variables `n` this solver was built for.
