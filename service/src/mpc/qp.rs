@@ -76,9 +76,37 @@
 //!
 //! [`DenseQpSolver::new`] allocates every workspace for given `(n, n_ineq)` (and runs
 //! faer's one-time kernel initialization); [`DenseQpSolver::solve`] takes only borrowed
-//! slices and allocates nothing (checked with a `malloc` uprobe: no allocation inside
-//! `solve` once a solver exists), and it never panics: the outcome is a [`QpStatus`]. [`solve_with_clarabel`] solves the same problem
-//! with clarabel (it allocates; for tests and benchmarks).
+//! slices and allocates nothing (checked with a `malloc` uprobe over all the tests of this
+//! module: no allocation inside `solve` once a solver exists), and it never panics: the
+//! outcome is a [`QpStatus`]. The iteration cap ([`QpSettings::max_iterations`]) bounds
+//! its work. [`solve_with_clarabel`] solves the same problem with clarabel (it allocates;
+//! for tests and benchmarks).
+//!
+//! Warm start in the receding horizon: take the previous step's active set
+//! ([`DenseQpSolver::active_set_into`]), shift it by one step (`Upper(i)` → `Upper(i − m)`
+//! and likewise for the move rows, dropping those that fall off the front), and pass it
+//! as [`WarmStart::ActiveSet`]; or pass the shifted previous solution as
+//! [`WarmStart::Primal`]. A wrong guess costs iterations, never correctness.
+//!
+//! ## Cost, measured
+//!
+//! On the 2-core development VM (shared, no `target-cpu=native`), `n = 100` (`ℓ = 50`,
+//! `m = 2`), boxes, 200 move rows and 3 output rows, a sequence of neighbouring problems
+//! (`qp_timing_at_n_100_with_active_constraints`, 1000 solves each):
+//!
+//! | active constraints | cold p50 / p99 | warm p50 / p99 | clarabel set-up + solve p50 |
+//! | --- | --- | --- | --- |
+//! | 8 | 82 / 143 µs | 74 / 125 µs | 3.5 ms |
+//! | 11 | 119 / 227 µs | 90 / 155 µs | 3.8 ms |
+//! | 15 | 182 / 223 µs | 116 / 157 µs | 4.7 ms |
+//! | 66 | 1.2 / 1.7 ms | 520 / 770 µs | 4.2 ms |
+//!
+//! About 45 µs of each solve is fixed (the Cholesky factorization, 16 µs; copying and
+//! checking `H` and compressing `G`), then 4–9 µs per active-set change, growing with
+//! `|A|` (the Gram–Schmidt step is `O(n·|A|)`). With most of the horizon saturated
+//! (`|A| ≈ 2n/3`) the dual method makes `O(|A|)` iterations of `O(n·|A|)` each; a method
+//! that eliminates the fixed variables (primal active set on the free ones) would be
+//! the next step if such horizons are common.
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{

@@ -249,9 +249,9 @@ fn polish_with(p: &Owned, c: &ClarabelSolution, rel: f64) -> (Vec<f64>, bool, bo
     let x = sol.as_slice()[..n].to_vec();
     let dual_ok = sol.as_slice()[n..].iter().all(|&v| v >= -1e-9 * (1.0 + lam_max));
     let mut primal_ok = true;
-    for i in 0..n {
-        primal_ok &= x[i] <= p.ub[i] + 1e-9 * (1.0 + p.ub[i].abs());
-        primal_ok &= x[i] >= p.lb[i] - 1e-9 * (1.0 + p.lb[i].abs());
+    for (i, &xi) in x.iter().enumerate() {
+        primal_ok &= xi <= p.ub[i] + 1e-9 * (1.0 + p.ub[i].abs());
+        primal_ok &= xi >= p.lb[i] - 1e-9 * (1.0 + p.lb[i].abs());
     }
     for j in 0..p.n_ineq() {
         let gx: f64 = (0..n).map(|c| p.g[j * n + c] * x[c]).sum();
@@ -595,7 +595,7 @@ fn summary(name: &str, v: &mut [f64]) {
 fn qp_timing_at_n_100_with_active_constraints() {
     use std::time::Instant;
     let reps = 1000;
-    for amp in [0.5, 1.0, 2.0] {
+    for amp in [0.5, 1.0, 2.0, 4.0] {
         let seq: Vec<Owned> = (0..50)
             .map(|k| {
                 let mut rng = ChaCha8Rng::seed_from_u64(21);
