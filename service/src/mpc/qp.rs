@@ -168,7 +168,9 @@ pub struct QpSettings {
     /// `(a_iᵀ U − b_i) / ‖a_i‖ > feasibility_tol · (1 + |b_i| / ‖a_i‖)`.
     pub feasibility_tol: f64,
     /// A new constraint counts as linearly dependent on the active ones when
-    /// `‖ρ‖ ≤ dependence_tol · ‖L⁻¹ a_p‖`.
+    /// `‖ρ‖ ≤ dependence_tol · ‖L⁻¹ a_p‖`. A dependent violated constraint whose dual step
+    /// cannot drop any active one proves infeasibility; constraints closer to parallel than
+    /// this tolerance are therefore treated as parallel.
     pub dependence_tol: f64,
 }
 
@@ -745,14 +747,15 @@ impl DenseQpSolver {
     fn add_constraint(&mut self, p: &QpProblem, pid: usize, max_iter: usize) -> Result<(), QpStatus> {
         let n = self.n;
         let mut lam_p = 0.0;
+        // w = L⁻¹ a_p does not change while p waits for deletions.
+        self.load_w(pid);
+        let w_norm = dot(&self.w, &self.w).sqrt();
         loop {
             if self.iterations >= max_iter {
                 return Err(QpStatus::MaxIterations);
             }
             self.iterations += 1;
             let q = self.active.len();
-            self.load_w(pid);
-            let w_norm = dot(&self.w, &self.w).sqrt();
             // CGS2: r = Qᵀw, ρ = w − Q r, twice.
             self.rho.copy_from_slice(&self.w);
             for k in 0..q {

@@ -537,6 +537,21 @@ fn bad_data_give_a_status_not_a_panic() {
 }
 
 #[test]
+fn empty_and_tiny_problems_do_not_panic() {
+    let mut s = DenseQpSolver::new(0, 0, QpSettings::default());
+    let p = QpProblem { hess: &[], f: &[], lb: &[], ub: &[], g: &[], h: &[] };
+    assert_eq!(s.solve(&p, WarmStart::Cold), QpStatus::Solved);
+    assert_eq!(s.objective(), 0.0);
+    // One variable, both bounds and a row, all active in turn.
+    let mut s = DenseQpSolver::new(1, 1, QpSettings::default());
+    for (f, expect) in [(5.0, -1.0), (-5.0, 0.5), (0.2, -0.2)] {
+        let p = QpProblem { hess: &[1.0], f: &[f], lb: &[-1.0], ub: &[1.0], g: &[2.0], h: &[1.0] };
+        assert_eq!(s.solve(&p, WarmStart::Cold), QpStatus::Solved);
+        assert!((s.x()[0] - expect).abs() < 1e-14, "f = {f}: {}", s.x()[0]);
+    }
+}
+
+#[test]
 fn parallel_box_and_move_rows_are_handled() {
     // The first move row u_{1|k} − u_k ≤ Δ is parallel to the box on u_{1|k}; with
     // u_k + Δ = ub both are active at the solution (degenerate).
