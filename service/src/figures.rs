@@ -360,7 +360,7 @@ pub fn run_folder_figure(folder: &Path) -> Result<std::path::PathBuf, String> {
                 .as_ref()
                 .map(|o| (o.len() as f64 * ts - window).max(o.len() as f64 * ts / 2.0)),
             psd_segment,
-            start: (open_end > 0 && open_end < n).then(|| open_end as f64 * ts),
+            start: (open_end > 0 && open_end < n).then_some(open_end as f64 * ts),
         },
     )?;
     Ok(path)

@@ -380,14 +380,7 @@ impl LoopCore {
             return;
         }
         let n_u = self.counts.n_u as usize;
-        let input = StepInput {
-            seq: m.seq,
-            y: m.y(),
-            z: m.z(),
-            r: m.r(),
-            u_applied: m.u_applied(),
-            lost,
-        };
+        let input = step_input(m, lost);
         self.controller.observe(&input, &mut self.scratch_u[..n_u]);
         self.accumulate_z(m);
     }
@@ -424,14 +417,7 @@ impl LoopCore {
         if self.cycles_in_session <= self.grace_cycles {
             status |= actuation_status::STARTING;
         }
-        let input = StepInput {
-            seq: m.seq,
-            y: m.y(),
-            z: m.z(),
-            r: m.r(),
-            u_applied: m.u_applied(),
-            lost,
-        };
+        let input = step_input(m, lost);
         if !self.valid(m) {
             status |= actuation_status::MEASUREMENT_REJECTED;
             act.u[..n_u].copy_from_slice(&self.last_u[..n_u]);
@@ -1110,6 +1096,18 @@ fn rt_thread_main(
     );
     core.rt_allocations = crate::rt_alloc::thread_stats().since(&before);
     Ok((core, setup, stop))
+}
+
+/// The controller's view of measurement `m`, `lost` samples after the previous one.
+fn step_input(m: &Measurement, lost: u64) -> StepInput<'_> {
+    StepInput {
+        seq: m.seq,
+        y: m.y(),
+        z: m.z(),
+        r: m.r(),
+        u_applied: m.u_applied(),
+        lost,
+    }
 }
 
 /// Measurements kept per wake-up; the subscriber buffer holds at most 4

@@ -51,6 +51,9 @@ use service::forgetting::ForgettingRule;
 use service::plot::{Mark, Panel, Series};
 use service::simulate::{self, Trace};
 
+/// Sample period `T_s` of both structures (§3.3), s.
+pub const TS: f64 = 0.01;
+
 /// Uniform grid points over `[0, π]` for the windowed average (3.40).
 pub const AVERAGE_POINTS: usize = 8192;
 
@@ -549,4 +552,37 @@ pub fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
         }
     }
     out
+}
+
+/// The single run of Figures 3.7/3.10 (SISO) and 3.14/3.17 (MISO): `z` open and closed,
+/// `u`, every coefficient (recorded every `every` samples), and the PSDs of the last
+/// two windows, RCAC starting at `k_w`.
+pub fn single_run_figure(
+    path: &Path,
+    title: String,
+    open: &Trace,
+    closed: &Trace,
+    every: usize,
+) -> Result<(), String> {
+    use service::figures::{AdaptiveRun, Coefficients, adaptive_run_figure, theta_series};
+    adaptive_run_figure(
+        path,
+        &AdaptiveRun {
+            title,
+            open: Some(open),
+            closed,
+            coefficients: Coefficients {
+                title: format!(
+                    "coefficients θ ({} entries)",
+                    closed.theta.first().map_or(0, Vec::len)
+                ),
+                y_label: "θ".into(),
+                series: theta_series(closed, every),
+            },
+            psd_from: RUN_SECONDS - 2.0 * WINDOW_SECONDS,
+            open_psd_from: None,
+            psd_segment: 512,
+            start: Some(KW as f64 * TS),
+        },
+    )
 }

@@ -50,10 +50,10 @@ use service::analysis::suppression_db;
 use service::design::C64;
 use service::design::model::{DiscreteModel, OutputSet};
 use service::design::plots::{Curve, bode_figure};
-use service::figures::{AdaptiveRun, Coefficients, adaptive_run_figure, theta_series};
 use service::plot::{Mark, figure};
 
 use crate::rcac_common::{
+    TS, single_run_figure,
     self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, Update, WINDOW_SECONDS,
     design_dtm, error_plane_panel, median, model_error, poly_mul, rcac_params, run_closed,
     run_open, toml_f64, toml_list,
@@ -61,8 +61,6 @@ use crate::rcac_common::{
 
 const PI: f64 = std::f64::consts::PI;
 
-/// Sample period `T_s`, s.
-pub const TS: f64 = 0.01;
 
 /// Modal frequencies, Hz.
 pub const MODES_HZ: [f64; 4] = [5.0, 9.0, 14.0, 21.0];
@@ -558,36 +556,23 @@ fn single_run(
                 e[1].1,
                 p.settle.map_or("never".into(), |t| format!("{t:.0} s")),
             );
-            adaptive_run_figure(
+            single_run_figure(
                 &out.join(format!(
                     "figure-{fig_run}-{}-{}.png",
                     method.name(),
                     update.name()
                 )),
-                &AdaptiveRun {
-                    title: format!(
-                        "4-mode MISO at ζ = 0.01, {} from ζ = 0.1, RCAC {} (starts at {} s): tones −{:.0} dB, −{:.0} dB",
-                        method.label(),
-                        update.name(),
-                        KW as f64 * TS,
-                        sup[0],
-                        sup[1]
-                    ),
-                    open: Some(&open),
-                    closed,
-                    coefficients: Coefficients {
-                        title: format!(
-                            "coefficients θ ({} entries)",
-                            closed.theta.first().map_or(0, Vec::len)
-                        ),
-                        y_label: "θ".into(),
-                        series: theta_series(closed, every),
-                    },
-                    psd_from: RUN_SECONDS - 2.0 * WINDOW_SECONDS,
-                    open_psd_from: None,
-                    psd_segment: 512,
-                    start: Some(KW as f64 * TS),
-                },
+                format!(
+                    "4-mode MISO at ζ = 0.01, {} from ζ = 0.1, RCAC {} (starts at {} s): tones −{:.0} dB, −{:.0} dB",
+                    method.label(),
+                    update.name(),
+                    KW as f64 * TS,
+                    sup[0],
+                    sup[1]
+                ),
+                &open,
+                closed,
+                every,
             )?;
         }
     }

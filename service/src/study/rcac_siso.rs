@@ -33,10 +33,10 @@ use service::analysis::suppression_db;
 use service::design::C64;
 use service::design::model::{DiscreteModel, OutputSet};
 use service::design::plots::{Curve, PoleZero, bode_figure};
-use service::figures::{AdaptiveRun, Coefficients, adaptive_run_figure, theta_series};
 use service::plot::{Mark, figure};
 
 use crate::rcac_common::{
+    TS, single_run_figure,
     self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, Update, WINDOW_SECONDS,
     design_dtm, error_plane_panel, median, model_error, rcac_params, run_closed, run_open,
     toml_list,
@@ -44,8 +44,6 @@ use crate::rcac_common::{
 
 const PI: f64 = std::f64::consts::PI;
 
-/// Sample period `T_s`, s.
-pub const TS: f64 = 0.01;
 
 /// `ω_p = 20π` rad/s.
 pub const WP: f64 = 20.0 * PI;
@@ -600,34 +598,21 @@ fn single_run(
                 update.name(),
                 w.amp.first().copied().unwrap_or(f64::NAN),
             );
-            adaptive_run_figure(
+            single_run_figure(
                 &out.join(format!(
                     "figure-{fig_run}-{}-{}.png",
                     method.name(),
                     update.name()
                 )),
-                &AdaptiveRun {
-                    title: format!(
-                        "(3.50) ζ = 0.01, ω_z = 22π, ω_d = 21π rad/s, {}, RCAC {} (starts at {} s): suppression {sup:.1} dB",
-                        method.label(),
-                        update.name(),
-                        KW as f64 * TS
-                    ),
-                    open: Some(&open),
-                    closed,
-                    coefficients: Coefficients {
-                        title: format!(
-                            "coefficients θ ({} entries)",
-                            closed.theta.first().map_or(0, Vec::len)
-                        ),
-                        y_label: "θ".into(),
-                        series: theta_series(closed, every),
-                    },
-                    psd_from: RUN_SECONDS - 2.0 * WINDOW_SECONDS,
-                    open_psd_from: None,
-                    psd_segment: 512,
-                    start: Some(KW as f64 * TS),
-                },
+                format!(
+                    "(3.50) ζ = 0.01, ω_z = 22π, ω_d = 21π rad/s, {}, RCAC {} (starts at {} s): suppression {sup:.1} dB",
+                    method.label(),
+                    update.name(),
+                    KW as f64 * TS
+                ),
+                &open,
+                closed,
+                every,
             )?;
         }
     }
