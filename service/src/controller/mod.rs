@@ -26,6 +26,7 @@ use ipc_types::{ChannelCounts, actuation_status};
 use nalgebra::{DMatrix, DVector};
 
 mod excitation;
+pub mod pcac;
 mod rcac;
 pub use excitation::ExcitationSource;
 pub use rcac::{Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};
