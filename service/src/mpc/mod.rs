@@ -10,5 +10,9 @@
 //! - [`qp`]: the allocation-free dense QP solver for that problem (a dual active-set method
 //!   of Goldfarb–Idnani type, warm-startable) and the clarabel reference it is checked
 //!   against.
+//! - [`condense`]: builds that QP's `H, f`, bounds and rows from the Markov parameters, the
+//!   free response, `u_k` and the command, allocation-free and exploiting the Toeplitz
+//!   structure of `T`; the first move and the safe fallback input.
 
+pub mod condense;
 pub mod qp;
