@@ -1,5 +1,7 @@
 //! Tests of PCAC's model: identification, the Kronecker reduction, the realization.
 
+#![allow(clippy::needless_range_loop)] // index-heavy reference computations
+
 use nalgebra::{DMatrix, DVector};
 
 use super::model::{DimError, IdKernel, IoModel, IoModelParams};
