@@ -33,10 +33,13 @@
 //!
 //! and the Markov parameters `Ĥ_{k,i} = Ĉ Â_k^{i−1} B̂_k` and free response
 //! `Ĉ Â_k^{i−1} x_{1|k}` that build `T̂_{k,ℓ}` (2.46) and `Γ̂_{k,ℓ} x_{1|k}` (2.45) of the
-//! `ℓ`-step prediction (2.43). The call order per sample is documented on
-//! [`model::IoModel`].
+//! `ℓ`-step prediction (2.43), all from the companion structure without forming powers of
+//! `Â_k` ([`model::HorizonPrediction`] computes them together for the condensing in
+//! [`crate::mpc`]). The call order per sample is documented on [`model::IoModel`].
 
 pub mod model;
+
+pub use model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
 
 #[cfg(test)]
 mod tests;

@@ -917,3 +917,85 @@ impl IoModel {
         Ok(())
     }
 }
+
+/// Pre-sized buffers for the quantities MPC needs at step `k` from an [`IoModel`]:
+/// `x̂_k` (2.38)–(2.39), `x_{1|k}` (2.36), `Ĥ_{k,1} … Ĥ_{k,ℓ}` (for `T̂_{k,ℓ}`, (2.46)) and
+/// `Γ̂_{k,ℓ} x_{1|k}` (2.43), (2.45), computed together by [`HorizonPrediction::compute`]
+/// (allocation-free). The predicted outputs for inputs `U_{1|k,ℓ}` are then
+/// `y_{i|k} = (Γ̂ x_{1|k})_i + Σ_{j<i} Ĥ_{i−j} u_{j|k}`.
+#[derive(Debug, Clone)]
+pub struct HorizonPrediction {
+    ell: usize,
+    x_hat: Vec<f64>,
+    x1: Vec<f64>,
+    work: Vec<f64>,
+    markov: Vec<f64>,
+    free: Vec<f64>,
+}
+
+impl HorizonPrediction {
+    /// Buffers for `model`'s dimensions and horizon `ℓ ≥ 1`.
+    ///
+    /// # Errors
+    ///
+    /// `ℓ = 0`.
+    pub fn new(model: &IoModel, ell: usize) -> Result<Self, String> {
+        if ell == 0 {
+            return Err("pcac model: the horizon ell must be at least 1".into());
+        }
+        let (nx, p, m) = (model.state_dim(), model.p(), model.m());
+        Ok(Self {
+            ell,
+            x_hat: vec![0.0; nx],
+            x1: vec![0.0; nx],
+            work: vec![0.0; nx],
+            markov: vec![0.0; ell * p * m],
+            free: vec![0.0; ell * p],
+        })
+    }
+
+    /// Step `k`, after [`IoModel::update`]: fills `x̂_k`, `x_{1|k} = Â x̂_k + B̂ u_k`
+    /// (`u_k`: the input of the current period, length `m`), the Markov parameters and the
+    /// free response from the current coefficients `θ_{k+1}`. Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `u_k` or the model's dimensions do not match the buffers.
+    pub fn compute(&mut self, model: &IoModel, u_k: &[f64]) -> Result<(), DimError> {
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * model.p() * model.m(),
+        )?;
+        model.fill_state(&mut self.x_hat)?;
+        model.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
+        model.markov(&mut self.markov)?;
+        model.free_response(&self.x1, &mut self.work, &mut self.free)
+    }
+
+    /// The horizon `ℓ`.
+    pub fn horizon(&self) -> usize {
+        self.ell
+    }
+
+    /// `x̂_k` (length `n̂p`).
+    pub fn state(&self) -> &[f64] {
+        &self.x_hat
+    }
+
+    /// `x_{1|k}` (length `n̂p`).
+    pub fn one_step_state(&self) -> &[f64] {
+        &self.x1
+    }
+
+    /// `Ĥ_{k,1} … Ĥ_{k,ℓ}` (`ℓ` blocks `p × m`, row-major; [`crate::mpc`]'s condensing
+    /// uses the first `ℓ − 1`).
+    pub fn markov(&self) -> &[f64] {
+        &self.markov
+    }
+
+    /// `Γ̂_{k,ℓ} x_{1|k}` = `y_{1|k} … y_{ℓ|k}` for `U = 0` (`ℓ` blocks of `p`).
+    pub fn free_response(&self) -> &[f64] {
+        &self.free
+    }
+}

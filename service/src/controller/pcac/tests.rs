@@ -4,7 +4,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::model::{DimError, IdKernel, IoModel, IoModelParams};
+use super::model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
 use crate::forgetting::ForgettingRule;
 use crate::test_support::Gauss;
 
@@ -286,6 +286,14 @@ fn the_realization_predicts_like_the_input_output_model() {
             }
             dl = dl.max(max_abs_diff(&y, &y_rec[i]) / (1.0 + max_abs(&y_rec[i])));
         }
+        // The bundled computation gives the same numbers.
+        let mut hp = HorizonPrediction::new(&model, ell).unwrap();
+        hp.compute(&model, &u_k).unwrap();
+        assert_eq!(hp.state(), &xh[..]);
+        assert_eq!(hp.one_step_state(), &x1[..]);
+        assert_eq!(hp.markov(), &h[..ell * p * m]);
+        assert_eq!(hp.free_response(), &free[..]);
+        assert!(hp.compute(&model, &vec![0.0; m + 1]).is_err());
         // Markov parameters and free response against dense powers.
         let mut apow = DMatrix::<f64>::identity(nx, nx);
         let x1v = DVector::from_column_slice(&x1);
@@ -489,6 +497,8 @@ fn bad_parameters_and_lengths_are_refused_with_a_message() {
     );
     assert!(model.theta_vec(&mut [0.0; 17]).is_err());
     assert!(model.fill_a(&mut [0.0; 36]).is_ok());
+    let e = HorizonPrediction::new(&model, 0).unwrap_err();
+    assert!(e.contains("horizon"), "{e}");
 }
 
 #[test]
