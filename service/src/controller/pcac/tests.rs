@@ -517,6 +517,24 @@ fn non_finite_data_reset_the_estimate_without_nan() {
     }
 }
 
+#[test]
+fn both_forms_reset_at_the_same_steps_on_a_covariance_blow_up() {
+    // No excitation and λ = 0.5: tr P doubles per step until the limit resets it.
+    let mut steps = Vec::new();
+    for kernel in [IdKernel::Shared, IdKernel::Full] {
+        let mut pr = params(2, 2, 1, ForgettingRule::Constant { lambda: 0.5 }, kernel);
+        pr.trace_limit = 1e6;
+        let mut model = IoModel::new(&pr).unwrap();
+        let resets: Vec<bool> = (0..60)
+            .map(|_| model.update(&[0.0, 0.0], &[0.0]).unwrap().reset)
+            .collect();
+        assert!(model.trace_p() <= 1e6);
+        assert!(model.resets() >= 5, "{kernel:?}: {} resets", model.resets());
+        steps.push(resets);
+    }
+    assert_eq!(steps[0], steps[1]);
+}
+
 /// Timing of one identification step at the truss size (n̂ = 25, p = 4, m = 2), both
 /// forms: `cargo test --release -p service --lib pcac_id_timing -- --ignored --nocapture`.
 #[test]
