@@ -375,7 +375,8 @@ enum Kernel {
 /// # Call order per sample `k`
 ///
 /// 1. `y_k` is measured. The input `u_{k−1}` applied over the period ending at sample `k`
-///    is known (in PCAC it was decided at step `k − 2` as `u_{1|k−2}` and sent at `k − 1`;
+///    is known (in PCAC it was decided at step `k − 2` as `u_{1|k−2}` and held from sample
+///    `k − 1` to `k`;
 ///    use the input the plant actually applied when it is reported).
 /// 2. [`IoModel::update`]`(y_k, u_{k−1})`: stores `u_{k−1}`, forms
 ///    `ψ_k = [−y_{k−1}ᵀ … −y_{k−n̂}ᵀ u_{k−1}ᵀ … u_{k−n̂}ᵀ]`, runs RLS with `z_k` to get
