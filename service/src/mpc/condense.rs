@@ -88,8 +88,11 @@
 //!   `m × p_t × m` product: `O(ℓ² m² p_t)` in all, against `O(ℓ³ m² p)` for the dense
 //!   triple product. (Walking the recursion backward from the zero last block row and
 //!   column needs no first row to be summed directly, and it adds the terms in the same
-//!   order as the direct sum.) With a per-step `Q` ([`Weight::PerStep`]) there is no such
-//!   recursion and the blocks are summed directly, `O(ℓ³ m² p_t / 6)`.
+//!   order as the direct sum.) With a per-step `Q` ([`Weight::PerStep`]) the recursion
+//!   runs with the `Q` that most steps share, and each step `i` whose `Q_i` differs adds
+//!   `G_{i−a}ᵀ (Q_i − Q) G_{i−b}` to the blocks `a ≤ b < i` (`O(i² m² p_t / 2)`): a terminal
+//!   weight costs one such correction. When more than a third of the steps differ, the
+//!   blocks are summed directly instead, `O(ℓ³ m² p_t / 6)`.
 //! - **`Dᵀ R D`** is block tridiagonal with diagonal blocks (`R` diagonal): diagonal
 //!   `R_i + R_{i+1}` (`R_ℓ` on the last block), off-diagonal `−R_{i+1}`; it is added entry
 //!   by entry.
@@ -120,13 +123,22 @@
 //! ## Cost, measured
 //!
 //! `cargo test --release -p service --lib condense_timing -- --ignored --nocapture` on the
-//! shared 2-core development VM, 5000 builds each, with move bounds:
+//! shared 2-core development VM (no `target-cpu=native`), 5000 builds of 20 alternating
+//! random problems, with move bounds (`2ℓm` rows) and `n_c` output constraints per step;
+//! a whole [`Condenser::build`] (`H`, `f`, `h` and the output rows of `G`):
 //!
-//! | `ℓ, m, p, p_t, n_c` | `n`, rows | build p50 / p99 | dense `TᵀQ̄T` alone (reference) |
+//! | `ℓ, m, p, p_t, n_c`, `Q` | `n`, rows | build p50 / p99 | dense `2 TᵀC̄ᵀQ̄C̄T` alone |
 //! | --- | --- | --- | --- |
-//! | 40, 2, 4, 1, 0 | 80, 160 | see README | |
+//! | 40, 2, 4, 1, 1, constant | 80, 200 | 14 / 29 µs | 39 µs |
+//! | 50, 2, 5, 1, 2, constant | 100, 300 | 23 / 40 µs | 94 µs |
+//! | 50, 2, 5, 5, 2, constant | 100, 300 | 30 / 57 µs | 620 µs |
+//! | 50, 2, 5, 5, 2, terminal weight | 100, 300 | 49 / 77 µs | 1.0 ms |
+//! | 50, 2, 5, 5, 2, different at every step | 100, 300 | 328 / 381 µs | 1.0 ms |
 //!
-//! (filled in below by the latest measurement)
+//! The last column is the product alone by nalgebra's blocked gemm (`C̄ T`, then
+//! `Wᵀ Q̄ W`; allocating), for scale. With a constant `Q` the build costs about as much as
+//! filling and mirroring the `n × n` Hessian and the output rows; the block recursion
+//! itself is 5–15 µs of it.
 
 use super::qp::QpProblem;
 
@@ -269,8 +281,12 @@ pub struct Condenser {
     ct: Vec<f64>,
     /// `2 Q`, expanded per step (`ℓ·p_t`).
     q2: Vec<f64>,
-    /// Whether `Q` is the same at every step (the Toeplitz recursion applies).
-    q_const: bool,
+    /// `2 Q` of the Toeplitz recursion (`p_t`): the one shared by most steps `1..ℓ−1`.
+    q_base: Vec<f64>,
+    /// The steps `i ≥ 1` whose `Q_i` differs from it (each adds a rank-`p_t` correction).
+    q_fix: Vec<usize>,
+    /// Too many such steps: sum the blocks of `T_tᵀ Q T_t` directly instead.
+    q_direct: bool,
     /// `R`, expanded per step (`ℓ·m`).
     r: Vec<f64>,
     /// `C_c` (`n_c × p`) and `𝓓` (`n_c`).
@@ -280,9 +296,14 @@ pub struct Condenser {
     u_max: Vec<f64>,
     du_min: Vec<f64>,
     du_max: Vec<f64>,
-    /// `G_s = C_t H_s`, `s = 1..ℓ−1`, at `(s−1)·p_t·m` (`p_t × m` row-major).
+    /// `G_sᵀ = (C_t H_s)ᵀ`, `s = 1..ℓ−1`, at `(s−1)·m·p_t` (`m × p_t` row-major, so that
+    /// the `p_t`-long sums of the block products run over contiguous memory).
     gt: Vec<f64>,
-    /// `K_s = C_c H_s`, `s = 1..ℓ−1`, at `(s−1)·n_c·m`.
+    /// `(2 Q G_s)ᵀ` likewise, with the `Q` of the recursion (`q_base`).
+    qgt: Vec<f64>,
+    /// `K_s = C_c H_s`, `s = 1..ℓ−1`, by constraint rows in reverse step order: row `r` of
+    /// `K_s` at `r·(ℓ−1)·m + (ℓ−1−s)·m`, so that row `(i, r)` of `C_c T̂` is the contiguous
+    /// `[K_i[r]; …; K_1[r]]`.
     kc: Vec<f64>,
     /// `2 Q_i e_i` (`ℓ·p_t`).
     qe: Vec<f64>,
@@ -411,6 +432,20 @@ impl Condenser {
         };
         let nc = dd.len();
         let n = ell * m;
+        // The Q of the recursion: the one most steps 1..ℓ−1 share (step 0's, y_{1|k}'s, does
+        // not enter H).
+        let q2: Vec<f64> = q.iter().map(|x| 2.0 * x).collect();
+        let step_q = |i: usize| &q2[i * pt..(i + 1) * pt];
+        let (q_base, q_fix, q_direct) = if q_const || ell < 2 {
+            (step_q(0).to_vec(), Vec::new(), false)
+        } else {
+            let best = (1..ell)
+                .max_by_key(|&i| (1..ell).filter(|&j| step_q(j) == step_q(i)).count())
+                .unwrap_or(1);
+            let fix: Vec<usize> = (1..ell).filter(|&j| step_q(j) != step_q(best)).collect();
+            let direct = 3 * fix.len() > ell;
+            (step_q(best).to_vec(), fix, direct)
+        };
         let n_move_rows = if du_min.is_empty() { 0 } else { 2 * n };
         let n_ineq = n_move_rows + ell * nc;
 
@@ -424,8 +459,10 @@ impl Condenser {
             n_move_rows,
             n_ineq,
             ct: spec.tracking.clone(),
-            q2: q.iter().map(|x| 2.0 * x).collect(),
-            q_const,
+            q2,
+            q_base,
+            q_fix,
+            q_direct,
             r,
             cc,
             dd,
@@ -434,6 +471,7 @@ impl Condenser {
             du_min,
             du_max,
             gt: vec![0.0; ell.saturating_sub(1) * pt * m],
+            qgt: vec![0.0; ell.saturating_sub(1) * pt * m],
             kc: vec![0.0; ell.saturating_sub(1) * nc * m],
             qe: vec![0.0; ell * pt],
             cost_const: 0.0,
@@ -544,8 +582,29 @@ impl Condenser {
         let markov = &markov[..n_markov * blk];
 
         // G_s = C_t H_s and K_s = C_c H_s.
-        project(&self.ct, pt, p, m, markov, &mut self.gt);
-        project(&self.cc, nc, p, m, markov, &mut self.kc);
+        for ((hs, gs), qgs) in
+            markov.chunks_exact(blk).zip(self.gt.chunks_exact_mut(m * pt)).zip(self.qgt.chunks_exact_mut(m * pt))
+        {
+            for t in 0..pt {
+                let crow = &self.ct[t * p..(t + 1) * p];
+                for be in 0..m {
+                    let v: f64 = (0..p).map(|k| crow[k] * hs[k * m + be]).sum();
+                    gs[be * pt + t] = v;
+                    qgs[be * pt + t] = self.q_base[t] * v;
+                }
+            }
+        }
+        // K_s row r at r·(ℓ−1)m + (ℓ−1−s)m: each row of C_c T̂ is then one contiguous copy.
+        for (s_idx, hs) in markov.chunks_exact(blk).enumerate() {
+            let pos = (ell - 2 - s_idx) * m;
+            for r in 0..nc {
+                let crow = &self.cc[r * p..(r + 1) * p];
+                let out = &mut self.kc[r * (ell - 1) * m + pos..r * (ell - 1) * m + pos + m];
+                for (be, o) in out.iter_mut().enumerate() {
+                    *o = (0..p).map(|k| crow[k] * hs[k * m + be]).sum();
+                }
+            }
+        }
 
         // Free tracking error e_i = C_t y_i − r_i; qe = 2 Q e; c = eᵀ Q e + u_kᵀ R_1 u_k.
         let mut c = 0.0;
@@ -571,11 +630,9 @@ impl Condenser {
             let fa = &mut self.f[a * m..(a + 1) * m];
             for i in a + 1..ell {
                 let gs = &self.gt[(i - a - 1) * pt * m..(i - a) * pt * m];
-                for t in 0..pt {
-                    let w = self.qe[i * pt + t];
-                    for (fj, gv) in fa.iter_mut().zip(&gs[t * m..(t + 1) * m]) {
-                        *fj += gv * w;
-                    }
+                let w = &self.qe[i * pt..(i + 1) * pt];
+                for (fj, gcol) in fa.iter_mut().zip(gs.chunks_exact(pt)) {
+                    *fj += dot(gcol, w);
                 }
             }
         }
@@ -591,17 +648,16 @@ impl Condenser {
             }
         }
 
-        // Output rows: row (i, r) holds K_{i−j}[r, :] in block j < i; h = −𝓓_r − C_c y_i.
+        // Output rows (i, r): G from the Toeplitz rows of K, h = −𝓓_r − C_c y_i.
         let base = self.n_move_rows;
         for i in 0..ell {
             let y = &free_response[i * p..(i + 1) * p];
             for r in 0..nc {
                 let row_idx = base + i * nc + r;
                 let row = &mut self.g[row_idx * n..(row_idx + 1) * n];
-                for j in 0..i {
-                    let ks = &self.kc[(i - j - 1) * nc * m..(i - j) * nc * m];
-                    row[j * m..(j + 1) * m].copy_from_slice(&ks[r * m..(r + 1) * m]);
-                }
+                // Blocks j < i: K_{i−j}[r, :], i.e. [K_i[r]; …; K_1[r]] (the rest stays zero).
+                let krev = &self.kc[r * (ell - 1) * m..(r + 1) * (ell - 1) * m];
+                row[..i * m].copy_from_slice(&krev[(ell - 1 - i) * m..]);
                 self.h[row_idx] = -self.dd[r] - dot(&self.cc[r * p..(r + 1) * p], y);
             }
         }
@@ -611,30 +667,56 @@ impl Condenser {
     /// `H = 2 (T_tᵀ Q T_t + Dᵀ R D)` into `self.hess` from `self.gt`.
     fn build_hessian(&mut self) {
         let (ell, m, pt, n) = (self.ell, self.m, self.pt, self.n);
-        let gt = &self.gt;
+        let (gt, qgt) = (&self.gt, &self.qgt);
         let q2 = &self.q2;
         let hess = &mut self.hess;
-        // G_s with s = 1..ℓ−1 lives at (s−1)·p_t·m.
+        // G_sᵀ with s = 1..ℓ−1 lives at (s−1)·m·p_t.
         let g_of = |s: usize| &gt[(s - 1) * pt * m..s * pt * m];
-        if self.q_const {
-            // Diagonal d = b − a of the upper triangle, walked backward from the zero block
-            // (ℓ−1−d, ℓ−1): block(a, a+d) = block(a+1, a+1+d) + G_{ℓ−1−a}ᵀ Q G_{ℓ−1−a−d}.
-            let q = &q2[..pt];
-            for d in 0..ell {
-                let a_last = ell - 1 - d;
-                set_block(hess, n, m, a_last, a_last + d, |_, _| 0.0);
-                for a in (0..a_last).rev() {
-                    let b = a + d;
-                    let (ga, gb) = (g_of(ell - 1 - a), g_of(ell - 1 - b));
+        let qg_of = |s: usize| &qgt[(s - 1) * pt * m..s * pt * m];
+        if !self.q_direct {
+            // Block rows from the last (zero) one up: block(a, b) = block(a+1, b+1) +
+            // G_{ℓ−1−a}ᵀ Q G_{ℓ−1−b}, b = a..ℓ−1, with block(a, ℓ−1) = 0. Entry (a m + α,
+            // b m + β) reads entry (a m + α + m, b m + β + m): the row m rows below, m columns
+            // on, so both rows are walked contiguously.
+            for a in (0..ell).rev() {
+                let (top, below) = hess.split_at_mut((a + 1) * m * n);
+                for al in 0..m {
+                    let row = &mut top[(a * m + al) * n..(a * m + al + 1) * n];
+                    row[(ell - 1) * m..].fill(0.0);
+                    if a + 1 == ell {
+                        continue;
+                    }
+                    let src = &below[al * n..(al + 1) * n];
+                    let qga = &qg_of(ell - 1 - a)[al * pt..(al + 1) * pt];
+                    for b in a..ell - 1 {
+                        let gb = g_of(ell - 1 - b);
+                        let dst = &mut row[b * m..(b + 1) * m];
+                        let from = &src[(b + 1) * m..(b + 2) * m];
+                        for ((d, f), gcol) in dst.iter_mut().zip(from).zip(gb.chunks_exact(pt)) {
+                            *d = f + dot(qga, gcol);
+                        }
+                    }
+                }
+            }
+            // Steps whose Q_i differs from the recursion's: block(a, b) += G_{i−a}ᵀ (Q_i − Q)
+            // G_{i−b} for a ≤ b < i.
+            let qb = &self.q_base;
+            for &i in &self.q_fix {
+                let qi = &q2[i * pt..(i + 1) * pt];
+                for a in 0..i {
+                    let ga = g_of(i - a);
                     for al in 0..m {
-                        let src = ((a + 1) * m + al) * n + (b + 1) * m;
-                        let dst = (a * m + al) * n + b * m;
-                        for be in 0..m {
-                            let mut s = hess[src + be];
-                            for t in 0..pt {
-                                s += ga[t * m + al] * q[t] * gb[t * m + be];
+                        let ca = &ga[al * pt..(al + 1) * pt];
+                        let row = &mut hess[(a * m + al) * n..(a * m + al + 1) * n];
+                        for b in a..i {
+                            let gb = g_of(i - b);
+                            for (d, cb) in row[b * m..(b + 1) * m].iter_mut().zip(gb.chunks_exact(pt)) {
+                                let mut s = 0.0;
+                                for t in 0..pt {
+                                    s += ca[t] * (qi[t] - qb[t]) * cb[t];
+                                }
+                                *d += s;
                             }
-                            hess[dst + be] = s;
                         }
                     }
                 }
@@ -648,8 +730,10 @@ impl Condenser {
                             let mut s = 0.0;
                             for i in (b + 1..ell).rev() {
                                 let (ga, gb) = (g_of(i - a), g_of(i - b));
+                                let (ca, cb) = (&ga[al * pt..(al + 1) * pt], &gb[be * pt..(be + 1) * pt]);
+                                let qi = &q2[i * pt..(i + 1) * pt];
                                 for t in 0..pt {
-                                    s += ga[t * m + al] * q2[i * pt + t] * gb[t * m + be];
+                                    s += ca[t] * qi[t] * cb[t];
                                 }
                             }
                             hess[(a * m + al) * n + b * m + be] = s;
@@ -666,10 +750,16 @@ impl Condenser {
                 hess[k * n + k + m] -= 2.0 * next;
             }
         }
-        // Mirror the upper triangle.
-        for i in 0..n {
-            for j in 0..i {
-                hess[i * n + j] = hess[j * n + i];
+        // Mirror the upper triangle, in 8 × 8 tiles (a column walk of the whole matrix
+        // would miss the cache on every read).
+        const TILE: usize = 8;
+        for ib in (0..n).step_by(TILE) {
+            for jb in (0..=ib).step_by(TILE) {
+                for i in ib..(ib + TILE).min(n) {
+                    for j in jb..(jb + TILE).min(i) {
+                        hess[i * n + j] = hess[j * n + i];
+                    }
+                }
             }
         }
     }
@@ -719,35 +809,6 @@ pub fn fallback_input(
             v = clip(v);
         }
         *o = v;
-    }
-}
-
-/// `out[s] = C H_s` for every block `H_s` (`p × m`) in `markov`; `C` is `rows × p`.
-fn project(c: &[f64], rows: usize, p: usize, m: usize, markov: &[f64], out: &mut [f64]) {
-    if rows == 0 {
-        return;
-    }
-    for (hs, os) in markov.chunks_exact(p * m).zip(out.chunks_exact_mut(rows * m)) {
-        for r in 0..rows {
-            let crow = &c[r * p..(r + 1) * p];
-            let orow = &mut os[r * m..(r + 1) * m];
-            orow.fill(0.0);
-            for (k, &ck) in crow.iter().enumerate() {
-                if ck != 0.0 {
-                    for (o, h) in orow.iter_mut().zip(&hs[k * m..(k + 1) * m]) {
-                        *o += ck * h;
-                    }
-                }
-            }
-        }
-    }
-}
-
-fn set_block(hess: &mut [f64], n: usize, m: usize, a: usize, b: usize, v: impl Fn(usize, usize) -> f64) {
-    for al in 0..m {
-        for be in 0..m {
-            hess[(a * m + al) * n + b * m + be] = v(al, be);
-        }
     }
 }
 

@@ -155,12 +155,13 @@ fn max_abs(m: &DMatrix<f64>) -> f64 {
 fn condensed_cost_gradient_and_hessian_match_the_definitions() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     for (ell, m, p, pt, q_kind) in
-        [(7, 2, 3, 2, 0), (7, 2, 3, 2, 1), (1, 2, 3, 1, 0), (2, 1, 1, 1, 2), (12, 3, 4, 1, 1)]
+        [(7, 2, 3, 2, 0), (7, 2, 3, 2, 1), (1, 2, 3, 1, 0), (2, 1, 1, 1, 2), (12, 3, 4, 1, 1), (12, 2, 3, 2, 3)]
     {
         let mut s = spec(ell, m, p, pt, &mut rng);
         s.q = match q_kind {
             0 => Weight::PerChannel((0..pt).map(|t| 0.5 + t as f64).collect()),
             1 => Weight::PerStep((0..ell * pt).map(|_| rng.random_range(0.1..3.0)).collect()),
+            3 => Weight::PerStep((0..ell * pt).map(|k| if k >= (ell - 1) * pt { 7.0 } else { 1.5 }).collect()),
             _ => Weight::Scalar(2.5),
         };
         if q_kind == 1 {
@@ -216,6 +217,9 @@ fn structured_tqt_matches_the_dense_product() {
         (40, 2, 4, 1, Weight::Scalar(3.0)),
         (50, 2, 5, 5, Weight::PerChannel(vec![1.0, 2.0, 0.5, 4.0, 1e-3])),
         (50, 2, 5, 2, Weight::PerStep((0..100).map(|i| 1.0 + (i % 7) as f64).collect())),
+        // A terminal weight (one correction of the recursion) and a few odd steps.
+        (40, 2, 4, 1, Weight::PerStep((0..40).map(|i| if i == 39 { 10.0 } else { 1.0 }).collect())),
+        (30, 2, 3, 2, Weight::PerStep((0..60).map(|k| [1.0, 3.0, 0.2, 5.0][usize::from(k / 2 % 11 == 4) * 2 + k % 2]).collect())),
         (9, 3, 2, 2, Weight::Scalar(1.0)),
     ] {
         let mut s = spec(ell, m, p, pt, &mut rng);
@@ -522,45 +526,26 @@ fn percentile(v: &mut [f64], q: f64) -> f64 {
     v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
-/// The dense triple product `2 Tᵀ C̄ᵀ Q̄ C̄ T` with plain loops (the timing reference).
-#[allow(clippy::too_many_arguments)]
-fn dense_tqt(t: &[f64], ct: &[f64], q: &[f64], ell: usize, m: usize, p: usize, pt: usize, out: &mut [f64]) {
-    let (rows, n) = (ell * pt, ell * m);
-    // W = C̄ T (ℓp_t × n): per step, C_t times the block row of T.
-    let mut w = vec![0.0; rows * n];
-    for i in 0..ell {
-        for a in 0..pt {
-            for col in 0..n {
-                let mut s = 0.0;
-                for b in 0..p {
-                    s += ct[a * p + b] * t[(i * p + b) * n + col];
-                }
-                w[(i * pt + a) * n + col] = s;
-            }
-        }
-    }
-    for r in 0..n {
-        for cidx in 0..n {
-            let mut s = 0.0;
-            for k in 0..rows {
-                s += w[k * n + r] * q[k] * w[k * n + cidx];
-            }
-            out[r * n + cidx] = 2.0 * s;
-        }
-    }
-}
-
 #[test]
 #[ignore = "timing; run with --ignored --nocapture"]
 fn condense_timing() {
     use std::time::Instant;
     let reps = 5000;
-    for (ell, m, p, pt, nc, per_step) in
-        [(40, 2, 4, 1, 1, false), (50, 2, 5, 5, 2, false), (50, 2, 5, 1, 2, false), (50, 2, 5, 5, 2, true)]
-    {
+    // q: 0 constant, 1 terminal weight (per step, one correction), 2 per step, all different.
+    for (ell, m, p, pt, nc, q_kind) in [
+        (40, 2, 4, 1, 1, 0),
+        (50, 2, 5, 5, 2, 0),
+        (50, 2, 5, 1, 2, 0),
+        (50, 2, 5, 5, 2, 1),
+        (50, 2, 5, 5, 2, 2),
+    ] {
         let mut rng = ChaCha8Rng::seed_from_u64(8);
         let mut s = spec(ell, m, p, pt, &mut rng);
-        s.q = if per_step { Weight::PerStep(vec![1.0; ell * pt]) } else { Weight::Scalar(1.0) };
+        s.q = match q_kind {
+            0 => Weight::Scalar(1.0),
+            1 => Weight::PerStep((0..ell * pt).map(|k| if k >= (ell - 1) * pt { 10.0 } else { 1.0 }).collect()),
+            _ => Weight::PerStep((0..ell * pt).map(|k| 1.0 + k as f64 / 10.0).collect()),
+        };
         s.output_constraints = Some(OutputConstraints { c: randn(nc * p, &mut rng), d: vec![-1.0; nc] });
         let cases: Vec<Case> = (0..20).map(|_| random_case(s.clone(), &mut rng)).collect();
         let mut c = Condenser::new(&s).unwrap();
@@ -573,23 +558,23 @@ fn condense_timing() {
             sink += pr.hess[1] + pr.f[0];
             times.push(t.elapsed().as_secs_f64() * 1e6);
         }
-        // The dense triple product alone, for comparison.
-        let n = ell * m;
+        // The dense triple product alone with nalgebra (matrixmultiply's blocked gemm),
+        // W = C̄ T then 2 Wᵀ Q̄ W, for comparison.
         let dn = dense(&s, &cases[0].markov);
-        let t_rm: Vec<f64> = (0..ell * p).flat_map(|i| (0..n).map(move |j| (i, j))).map(|(i, j)| dn.t[(i, j)]).collect();
-        let q = weights(&s.q, pt, ell);
-        let mut out = vec![0.0; n * n];
+        let qdiag = DVector::from_vec(weights(&s.q, pt, ell));
         let mut dense_t = Vec::with_capacity(reps / 10);
         for _ in 0..reps / 10 {
             let t = Instant::now();
-            dense_tqt(&t_rm, &s.tracking, &q, ell, m, p, pt, &mut out);
-            sink += out[1];
+            let w = &dn.ct * &dn.t;
+            let qw = DMatrix::from_diagonal(&qdiag) * &w;
+            let out = 2.0 * w.transpose() * qw;
+            sink += out[(0, 1)];
             dense_t.push(t.elapsed().as_secs_f64() * 1e6);
         }
         println!(
             "ℓ = {ell}, m = {m}, p = {p}, p_t = {pt}, n_c = {nc}, Q {}: n = {}, {} rows; build p50 {:.1} µs, \
-             p99 {:.1} µs; dense 2TᵀC̄ᵀQ̄C̄T alone p50 {:.1} µs ({sink:.1e})",
-            if per_step { "per step" } else { "constant" },
+             p99 {:.1} µs; dense 2TᵀC̄ᵀQ̄C̄T alone (nalgebra) p50 {:.1} µs ({sink:.1e})",
+            ["constant", "terminal", "per step"][q_kind],
             c.n(),
             c.n_ineq(),
             percentile(&mut times, 0.5),
