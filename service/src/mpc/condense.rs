@@ -109,7 +109,8 @@
 //! [`super::qp::DenseQpSolver::solve`] on a solver made with
 //! `DenseQpSolver::new(condenser.n(), condenser.n_ineq(), …)`. The applied input is
 //! [`Condenser::first_move`] of the solution (`u_{1|k}`; the rest of `U` is discarded, or
-//! shifted into the next warm start).
+//! shifted into the next warm start: [`Condenser::shift_active_set`] moves the solver's
+//! active set one step forward for [`WarmStart::ActiveSet`](super::qp::WarmStart)).
 //!
 //! **Fallback policy.** When the solver does not return
 //! [`Solved`](super::qp::QpStatus::Solved) (infeasible, iteration cap, numerical error) or
@@ -137,10 +138,10 @@
 //!
 //! The last column is the product alone by nalgebra's blocked gemm (`C̄ T`, then
 //! `Wᵀ Q̄ W`; allocating), for scale. With a constant `Q` the build costs about as much as
-//! filling and mirroring the `n × n` Hessian and the output rows; the block recursion
-//! itself is 5–15 µs of it.
+//! filling and mirroring the `n × n` Hessian and the output rows (tracking all five
+//! outputs instead of one adds 7 µs at `ℓ = 50`).
 
-use super::qp::QpProblem;
+use super::qp::{ConstraintId, QpProblem};
 
 #[cfg(test)]
 mod tests;
@@ -762,6 +763,36 @@ impl Condenser {
                 }
             }
         }
+    }
+
+    /// The active set of this step's solution (from
+    /// [`DenseQpSolver::active_set_into`](super::qp::DenseQpSolver::active_set_into)) moved
+    /// one step forward, as the guess for the next step's
+    /// [`WarmStart::ActiveSet`](super::qp::WarmStart): a bound or row of step `i ≥ 1`
+    /// becomes the same bound or row of step `i − 1`, those of step 0 are dropped, ids out
+    /// of range too. Writes at most `out.len()` ids and returns how many; allocation-free.
+    pub fn shift_active_set(&self, active: &[ConstraintId], out: &mut [ConstraintId]) -> usize {
+        let (m, n, nc, base) = (self.m, self.n, self.nc, self.n_move_rows);
+        let mut k = 0;
+        for &id in active {
+            if k == out.len() {
+                break;
+            }
+            let shifted = match id {
+                ConstraintId::Upper(i) if i >= m && i < n => Some(ConstraintId::Upper(i - m)),
+                ConstraintId::Lower(i) if i >= m && i < n => Some(ConstraintId::Lower(i - m)),
+                // Move rows: i·m + j within each sign block of n rows.
+                ConstraintId::Row(j) if j < base && j % n >= m => Some(ConstraintId::Row(j - m)),
+                // Output rows: base + i·n_c + r.
+                ConstraintId::Row(j) if j >= base + nc && j < self.n_ineq => Some(ConstraintId::Row(j - nc)),
+                _ => None,
+            };
+            if let Some(s) = shifted {
+                out[k] = s;
+                k += 1;
+            }
+        }
+        k
     }
 
     /// The applied input `u_{1|k}`: the first `m` entries of a solution `U`.

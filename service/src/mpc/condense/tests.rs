@@ -356,22 +356,11 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
         let status = solver.solve(&problem, WarmStart::ActiveSet(&ids[..k_ids]));
         assert_eq!(status, QpStatus::Solved, "step {k}");
         // Shift the active set by one step for the next warm start.
-        k_ids = 0;
         let n = c.n();
         let mut active = [ConstraintId::Row(0); 64];
         let n_act = solver.active_set_into(&mut active);
+        k_ids = c.shift_active_set(&active[..n_act], &mut ids);
         for &id in &active[..n_act] {
-            let shifted = match id {
-                ConstraintId::Upper(i) if i >= 1 => Some(ConstraintId::Upper(i - 1)),
-                ConstraintId::Lower(i) if i >= 1 => Some(ConstraintId::Lower(i - 1)),
-                // Move rows i·m + j within each sign, output rows after 2n (m = n_c = 1).
-                ConstraintId::Row(j) if (j < 2 * n && j % n >= 1) || j > 2 * n => Some(ConstraintId::Row(j - 1)),
-                _ => None,
-            };
-            if let Some(s) = shifted {
-                ids[k_ids] = s;
-                k_ids += 1;
-            }
             match id {
                 ConstraintId::Row(j) if j < 2 * n => saw_move_active = true,
                 ConstraintId::Row(_) => saw_output_active = true,
@@ -441,6 +430,22 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
     let mut fb = [0.0];
     c.fallback_input(&[0.1], &mut fb);
     assert_eq!(fb, [0.1]);
+}
+
+#[test]
+fn active_sets_shift_by_one_step() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    // ℓ = 4, m = 2: n = 8, move rows 0..16, output rows (n_c = 2) 16..24.
+    let c = Condenser::new(&spec(4, 2, 3, 1, &mut rng)).unwrap();
+    use ConstraintId::{Lower, Row, Upper};
+    let active = [
+        Upper(1), Upper(2), Lower(7), Lower(8), Row(1), Row(3), Row(9), Row(10), Row(16), Row(17),
+        Row(18), Row(23), Row(24),
+    ];
+    let mut out = [Row(0); 16];
+    let k = c.shift_active_set(&active, &mut out);
+    assert_eq!(&out[..k], &[Upper(0), Lower(5), Row(1), Row(8), Row(16), Row(21)]);
+    assert_eq!(c.shift_active_set(&active, &mut out[..2]), 2);
 }
 
 #[test]
