@@ -105,7 +105,8 @@
 //!
 //! [`Condenser::new`] checks the [`MpcSpec`] (refusing bad ones with a [`SpecError`]
 //! saying what is wrong) and allocates every buffer; [`Condenser::build`] allocates
-//! nothing, never panics, and returns a [`QpProblem`] borrowing the condenser, ready for
+//! nothing (checked with a `malloc` uprobe over the end-to-end test's 61 builds, warm-start
+//! shifts and solves: no allocation under `build`), never panics, and returns a [`QpProblem`] borrowing the condenser, ready for
 //! [`super::qp::DenseQpSolver::solve`] on a solver made with
 //! `DenseQpSolver::new(condenser.n(), condenser.n_ineq(), …)`. The applied input is
 //! [`Condenser::first_move`] of the solution (`u_{1|k}`; the rest of `U` is discarded, or
