@@ -23,6 +23,10 @@
 //!   reports and studies.
 //! - [`simulate`]: a controller against the simulated plant in one process (lockstep),
 //!   for studies.
+//! - [`figures`]: figures of adaptive runs (z open and closed loop, u, coefficients, PSD) in
+//!   the manner of Figures 3.7/3.10/3.14/3.17, from simulations or run folders.
+//! - [`mpc`]: PCAC's receding-horizon optimization (2.43)–(2.51): condensing and the dense
+//!   QP solver.
 //! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
 //!   counts every allocation made on it.
 
@@ -32,11 +36,9 @@ pub mod analysis;
 pub mod config;
 pub mod controller;
 pub mod design;
-/// Figures of adaptive runs (z open/closed, u, coefficients, PSD), Figures 3.7/3.10/3.14/3.17.
 pub mod figures;
 pub mod forgetting;
 pub mod logging;
-/// PCAC's receding-horizon optimization (2.43)–(2.51): the dense QP solver and its clarabel reference.
 pub mod mpc;
 pub mod plot;
 pub mod rls;
