@@ -687,7 +687,9 @@ mod tests {
         let d = service.differences(&plant);
         assert_eq!(d.len(), 4, "{d:?}");
         assert!(
-            d[0].contains(&format!("contract version: plant has {CONTRACT_VERSION}, service has 7")),
+            d[0].contains(&format!(
+                "contract version: plant has {CONTRACT_VERSION}, service has 7"
+            )),
             "{}",
             d[0]
         );

@@ -55,11 +55,7 @@ pub fn tone_amplitudes_indexed(
     omegas: &[f64],
 ) -> Result<Vec<f64>, String> {
     if index.len() != x.len() {
-        return Err(format!(
-            "{} indexes for {} samples",
-            index.len(),
-            x.len()
-        ));
+        return Err(format!("{} indexes for {} samples", index.len(), x.len()));
     }
     fit_tones(
         index.iter().zip(x).map(|(n, v)| (*n as f64, *v)),
@@ -233,7 +229,11 @@ mod tests {
     fn unresolvable_tones_and_bad_frequencies_are_refused() {
         let x = vec![0.0; 20];
         assert!(tone_amplitudes(&x, 0, &[0.5, 0.5]).is_err());
-        assert!(tone_amplitudes(&x, 0, &[4.0]).unwrap_err().contains("Nyquist"));
+        assert!(
+            tone_amplitudes(&x, 0, &[4.0])
+                .unwrap_err()
+                .contains("Nyquist")
+        );
         assert!(tone_amplitudes(&x[..3], 0, &[0.5, 1.0]).is_err());
     }
 

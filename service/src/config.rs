@@ -648,20 +648,13 @@ impl ServiceConfig {
         if safe_input.iter().any(|v| !v.is_finite()) {
             return Err(err("service.safe-input", "must be finite".into()));
         }
-        let peer_timeout = s.peer_timeout.unwrap_or(30.0);
-        if !(peer_timeout.is_finite() && peer_timeout > 0.0) {
-            return Err(err(
-                "service.peer-timeout",
-                format!("{peer_timeout} s is not positive"),
-            ));
-        }
-        let interval = s.histogram_interval.unwrap_or(1.0);
-        if !(interval.is_finite() && interval > 0.0) {
-            return Err(err(
-                "service.histogram-interval",
-                format!("{interval} s is not positive"),
-            ));
-        }
+        let peer_timeout =
+            positive_seconds(s.peer_timeout.unwrap_or(30.0), "service.peer-timeout", &err)?;
+        let interval = positive_seconds(
+            s.histogram_interval.unwrap_or(1.0),
+            "service.histogram-interval",
+            &err,
+        )?;
         let histogram_interval_cycles = ((interval / period).round() as u64).max(1);
         let l = raw.log.unwrap_or_default();
         let log = LogConfig {
@@ -754,13 +747,7 @@ fn tone_report(
             ));
         }
     }
-    let window = raw.window.unwrap_or(0.5);
-    if !(window.is_finite() && window > 0.0) {
-        return Err(err(
-            "service.report.window",
-            format!("{window} s is not positive"),
-        ));
-    }
+    let window = positive_seconds(raw.window.unwrap_or(0.5), "service.report.window", err)?;
     let mut window_cycles = ((window / period).round() as u64).max(1);
     if open_loop_cycles > 0 {
         // The open-loop window is the second half of the open-loop phase at most, so that
@@ -772,6 +759,19 @@ fn tone_report(
         source,
         window_cycles,
     })
+}
+
+/// A duration in seconds that must be finite and positive.
+fn positive_seconds(
+    v: f64,
+    field: &str,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<f64, ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(err(field, format!("{v} s is not positive")))
+    }
 }
 
 fn positive(

@@ -324,7 +324,10 @@ pub fn run_folder_figure(folder: &Path) -> Result<std::path::PathBuf, String> {
     let mut title = format!(
         "{}: {}",
         report.get("rig").and_then(|v| v.as_str()).unwrap_or("run"),
-        report.get("controller").and_then(|v| v.as_str()).unwrap_or("")
+        report
+            .get("controller")
+            .and_then(|v| v.as_str())
+            .unwrap_or("")
     );
     if let Some(tones) = report.pointer("/tones/tones").and_then(|t| t.as_array()) {
         let db: Vec<f64> = tones

@@ -43,8 +43,8 @@ pub mod mpc;
 pub mod plot;
 pub mod rls;
 pub mod rt_alloc;
-pub mod simulate;
 pub mod runtime;
+pub mod simulate;
 pub mod telemetry;
 #[cfg(test)]
 mod test_support;

@@ -756,8 +756,10 @@ impl ToneReport {
             self.source, self.window_s, self.samples[0], self.samples[1]
         );
         if let Some(e) = &self.error {
-            out += &format!("  could not measure: {e}
-");
+            out += &format!(
+                "  could not measure: {e}
+"
+            );
         }
         out += "  channel   tone Hz    open loop   closed loop   suppression\n";
         for t in &self.tones {

@@ -586,12 +586,26 @@ fn the_pcac_pieces_do_not_allocate() {
         }
     };
     for k in 0..200 {
-        step(k, &mut model, &mut pred, &mut cond, &mut solver, &mut solved);
+        step(
+            k,
+            &mut model,
+            &mut pred,
+            &mut cond,
+            &mut solver,
+            &mut solved,
+        );
     }
     enter_rt_thread(16);
     let before = thread_stats();
     for k in 200..800 {
-        step(k, &mut model, &mut pred, &mut cond, &mut solver, &mut solved);
+        step(
+            k,
+            &mut model,
+            &mut pred,
+            &mut cond,
+            &mut solver,
+            &mut solved,
+        );
     }
     let d = thread_stats().since(&before);
     assert!(d.installed);

@@ -180,8 +180,11 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
     let h_true = model.markov(200);
     // The committed target model of the main job, made by the same path from a longer run
     // (scenarios/rcac/acoustic-target.toml): this shorter run must agree with it as well.
-    let committed = TargetModel::parse(&scenario_text("rcac/acoustic-target.toml"), "acoustic-target.toml")
-        .expect("the committed acoustic target model reads");
+    let committed = TargetModel::parse(
+        &scenario_text("rcac/acoustic-target.toml"),
+        "acoustic-target.toml",
+    )
+    .expect("the committed acoustic target model reads");
     let h_committed = committed.markov(200);
     for (what, h_ref) in [("model", &h_true), ("committed target", &h_committed)] {
         for j in 0..2 {

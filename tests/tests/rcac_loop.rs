@@ -155,7 +155,10 @@ target-model-file = "design/target-model.toml"
         },
     };
     let report = std::fs::read_to_string(run_folder.join("report.json")).expect("report.json");
-    (r, serde_json::from_str(&report).expect("report.json is JSON"))
+    (
+        r,
+        serde_json::from_str(&report).expect("report.json is JSON"),
+    )
 }
 
 fn db(open: f64, closed: f64) -> f64 {

@@ -342,7 +342,16 @@ mod tests {
     }
 
     fn step(c: &mut LtiController, y: &[f64], r: &[f64], u: &mut [f64]) -> u32 {
-        c.step(&StepInput { seq: 0, y, z: y, r, ..Default::default() }, u)
+        c.step(
+            &StepInput {
+                seq: 0,
+                y,
+                z: y,
+                r,
+                ..Default::default()
+            },
+            u,
+        )
     }
 
     #[test]

@@ -240,7 +240,11 @@ pub enum BuildError {
 impl core::fmt::Display for BuildError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            BuildError::Length { what, expected, got } => {
+            BuildError::Length {
+                what,
+                expected,
+                got,
+            } => {
                 write!(f, "{what}: expected length {expected}, got {got}")
             }
             BuildError::NonFinite { what } => write!(f, "{what}: not finite"),
@@ -334,7 +338,10 @@ fn expand_weight(
                     c.len()
                 )));
             }
-            (c.iter().copied().cycle().take(ell * channels).collect(), true)
+            (
+                c.iter().copied().cycle().take(ell * channels).collect(),
+                true,
+            )
         }
         Weight::PerStep(c) => {
             if c.len() != ell * channels {
@@ -349,8 +356,14 @@ fn expand_weight(
     };
     for &x in &v {
         if !x.is_finite() || x < 0.0 || (positive && x == 0.0) {
-            let need = if positive { "finite and > 0" } else { "finite and ≥ 0" };
-            return Err(SpecError(format!("{name}: every weight must be {need}, got {x}")));
+            let need = if positive {
+                "finite and > 0"
+            } else {
+                "finite and ≥ 0"
+            };
+            return Err(SpecError(format!(
+                "{name}: every weight must be {need}, got {x}"
+            )));
         }
     }
     Ok((v, constant))
@@ -358,7 +371,10 @@ fn expand_weight(
 
 fn check_len(v: &[f64], len: usize, name: &str) -> Result<(), SpecError> {
     if v.len() != len {
-        return Err(SpecError(format!("{name}: expected {len} values, got {}", v.len())));
+        return Err(SpecError(format!(
+            "{name}: expected {len} values, got {}",
+            v.len()
+        )));
     }
     Ok(())
 }
@@ -380,7 +396,11 @@ impl Condenser {
                 "n_inputs, n_outputs and n_tracked must be at least 1, got {m}, {p}, {pt}"
             )));
         }
-        check_len(&spec.tracking, pt * p, "tracking (C_t, n_tracked × n_outputs)")?;
+        check_len(
+            &spec.tracking,
+            pt * p,
+            "tracking (C_t, n_tracked × n_outputs)",
+        )?;
         if spec.tracking.iter().any(|x| !x.is_finite()) {
             return Err(SpecError("tracking (C_t): entries must be finite".into()));
         }
@@ -421,13 +441,16 @@ impl Condenser {
             Some(oc) => {
                 if oc.d.is_empty() {
                     return Err(SpecError(
-                        "output_constraints: 𝓓 is empty (give None for no output constraints)".into(),
+                        "output_constraints: 𝓓 is empty (give None for no output constraints)"
+                            .into(),
                     ));
                 }
                 let nc = oc.d.len();
                 check_len(&oc.c, nc * p, "output_constraints.c (C_c, n_c × n_outputs)")?;
                 if oc.c.iter().chain(&oc.d).any(|x| !x.is_finite()) {
-                    return Err(SpecError("output_constraints: C_c and 𝓓 must be finite".into()));
+                    return Err(SpecError(
+                        "output_constraints: C_c and 𝓓 must be finite".into(),
+                    ));
                 }
                 (oc.c.clone(), oc.d.clone())
             }
@@ -537,7 +560,14 @@ impl Condenser {
 
     /// The condensed problem of the last [`build`](Self::build) (all zero before the first).
     pub fn problem(&self) -> QpProblem<'_> {
-        QpProblem { hess: &self.hess, f: &self.f, lb: &self.lb, ub: &self.ub, g: &self.g, h: &self.h }
+        QpProblem {
+            hess: &self.hess,
+            f: &self.f,
+            lb: &self.lb,
+            ub: &self.ub,
+            g: &self.g,
+            h: &self.h,
+        }
     }
 
     /// Builds the QP for the current step; allocation-free.
@@ -561,7 +591,11 @@ impl Condenser {
         let blk = p * m;
         let n_markov = ell - 1;
         if markov.len() != n_markov * blk && markov.len() != ell * blk {
-            return Err(BuildError::Length { what: "markov", expected: n_markov * blk, got: markov.len() });
+            return Err(BuildError::Length {
+                what: "markov",
+                expected: n_markov * blk,
+                got: markov.len(),
+            });
         }
         let lens = [
             ("free_response", free_response.len(), ell * p),
@@ -570,13 +604,20 @@ impl Condenser {
         ];
         for (what, got, expected) in lens {
             if got != expected {
-                return Err(BuildError::Length { what, expected, got });
+                return Err(BuildError::Length {
+                    what,
+                    expected,
+                    got,
+                });
             }
         }
         let finite = |v: &[f64]| v.iter().fold(true, |ok, x| ok & x.is_finite());
-        for (what, v) in
-            [("markov", markov), ("free_response", free_response), ("u_k", u_k), ("reference", reference)]
-        {
+        for (what, v) in [
+            ("markov", markov),
+            ("free_response", free_response),
+            ("u_k", u_k),
+            ("reference", reference),
+        ] {
             if !finite(v) {
                 return Err(BuildError::NonFinite { what });
             }
@@ -584,8 +625,10 @@ impl Condenser {
         let markov = &markov[..n_markov * blk];
 
         // G_s = C_t H_s and K_s = C_c H_s.
-        for ((hs, gs), qgs) in
-            markov.chunks_exact(blk).zip(self.gt.chunks_exact_mut(m * pt)).zip(self.qgt.chunks_exact_mut(m * pt))
+        for ((hs, gs), qgs) in markov
+            .chunks_exact(blk)
+            .zip(self.gt.chunks_exact_mut(m * pt))
+            .zip(self.qgt.chunks_exact_mut(m * pt))
         {
             for t in 0..pt {
                 let crow = &self.ct[t * p..(t + 1) * p];
@@ -712,7 +755,9 @@ impl Condenser {
                         let row = &mut hess[(a * m + al) * n..(a * m + al + 1) * n];
                         for b in a..i {
                             let gb = g_of(i - b);
-                            for (d, cb) in row[b * m..(b + 1) * m].iter_mut().zip(gb.chunks_exact(pt)) {
+                            for (d, cb) in
+                                row[b * m..(b + 1) * m].iter_mut().zip(gb.chunks_exact(pt))
+                            {
                                 let mut s = 0.0;
                                 for t in 0..pt {
                                     s += ca[t] * (qi[t] - qb[t]) * cb[t];
@@ -732,7 +777,8 @@ impl Condenser {
                             let mut s = 0.0;
                             for i in (b + 1..ell).rev() {
                                 let (ga, gb) = (g_of(i - a), g_of(i - b));
-                                let (ca, cb) = (&ga[al * pt..(al + 1) * pt], &gb[be * pt..(be + 1) * pt]);
+                                let (ca, cb) =
+                                    (&ga[al * pt..(al + 1) * pt], &gb[be * pt..(be + 1) * pt]);
                                 let qi = &q2[i * pt..(i + 1) * pt];
                                 for t in 0..pt {
                                     s += ca[t] * qi[t] * cb[t];
@@ -785,7 +831,9 @@ impl Condenser {
                 // Move rows: i·m + j within each sign block of n rows.
                 ConstraintId::Row(j) if j < base && j % n >= m => Some(ConstraintId::Row(j - m)),
                 // Output rows: base + i·n_c + r.
-                ConstraintId::Row(j) if j >= base + nc && j < self.n_ineq => Some(ConstraintId::Row(j - nc)),
+                ConstraintId::Row(j) if j >= base + nc && j < self.n_ineq => {
+                    Some(ConstraintId::Row(j - nc))
+                }
                 _ => None,
             };
             if let Some(s) = shifted {
@@ -804,7 +852,11 @@ impl Condenser {
     /// The safe input when the QP is not solved: [`fallback_input`] with this spec's input
     /// and move bounds. `u_k` and `out` have `m` entries (extra entries are ignored).
     pub fn fallback_input(&self, u_k: &[f64], out: &mut [f64]) {
-        let mv = if self.du_min.is_empty() { None } else { Some((&self.du_min[..], &self.du_max[..])) };
+        let mv = if self.du_min.is_empty() {
+            None
+        } else {
+            Some((&self.du_min[..], &self.du_max[..]))
+        };
         fallback_input(u_k, &self.u_min, &self.u_max, mv, out);
     }
 }

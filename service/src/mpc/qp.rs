@@ -179,7 +179,11 @@ pub struct QpSettings {
 
 impl Default for QpSettings {
     fn default() -> Self {
-        Self { max_iterations: 1000, feasibility_tol: 1e-10, dependence_tol: 1e-10 }
+        Self {
+            max_iterations: 1000,
+            feasibility_tol: 1e-10,
+            dependence_tol: 1e-10,
+        }
     }
 }
 
@@ -639,8 +643,16 @@ impl DenseQpSolver {
 
         // Which constraints exist.
         for i in 0..n {
-            self.state[i] = if p.ub[i].is_finite() { CANDIDATE } else { ABSENT };
-            self.state[n + i] = if p.lb[i].is_finite() { CANDIDATE } else { ABSENT };
+            self.state[i] = if p.ub[i].is_finite() {
+                CANDIDATE
+            } else {
+                ABSENT
+            };
+            self.state[n + i] = if p.lb[i].is_finite() {
+                CANDIDATE
+            } else {
+                ABSENT
+            };
         }
         for j in 0..m {
             let present = p.h[j].is_finite() && self.row_ptr[j + 1] > self.row_ptr[j];
@@ -664,7 +676,11 @@ impl DenseQpSolver {
                         if self.state[id] != ABSENT {
                             let s = self.slack(p, id, xg);
                             let b = self.rhs(p, id).abs();
-                            let nrm = if id < 2 * n { 1.0 } else { 1.0 / self.inv_norm[id - 2 * n] };
+                            let nrm = if id < 2 * n {
+                                1.0
+                            } else {
+                                1.0 / self.inv_norm[id - 2 * n]
+                            };
                             if s >= -1e-7 * (nrm + b) {
                                 self.priority[id] = true;
                             }
@@ -679,7 +695,11 @@ impl DenseQpSolver {
         loop {
             // Choose the violated constraint: prioritized first, then the most violated.
             let (best, best_v, best_pri) = self.select_violated(p, tol);
-            let pid = if best_pri != usize::MAX { best_pri } else { best };
+            let pid = if best_pri != usize::MAX {
+                best_pri
+            } else {
+                best
+            };
             if pid == usize::MAX {
                 return QpStatus::Solved;
             }
@@ -728,7 +748,10 @@ impl DenseQpSolver {
                     s += self.vals[k] * x[self.cols[k]];
                 }
                 let inv = self.inv_norm[j];
-                consider(2 * n + j, (s - p.h[j]) * inv - tol * (1.0 + p.h[j].abs() * inv));
+                consider(
+                    2 * n + j,
+                    (s - p.h[j]) * inv - tol * (1.0 + p.h[j].abs() * inv),
+                );
             }
         }
         (best, best_v, best_pri)
@@ -747,7 +770,12 @@ impl DenseQpSolver {
 
     /// Steps until constraint `pid` is satisfied and added (or the problem is found
     /// infeasible, or the iteration cap is hit).
-    fn add_constraint(&mut self, p: &QpProblem, pid: usize, max_iter: usize) -> Result<(), QpStatus> {
+    fn add_constraint(
+        &mut self,
+        p: &QpProblem,
+        pid: usize,
+        max_iter: usize,
+    ) -> Result<(), QpStatus> {
         let n = self.n;
         let mut lam_p = 0.0;
         // w = L⁻¹ a_p does not change while p waits for deletions.
@@ -913,8 +941,16 @@ impl DenseQpSolver {
             for i in 0..n {
                 let v = self.x[i];
                 let v = if v.is_finite() { v } else { 0.0 };
-                let lo = if p.lb[i].is_finite() { p.lb[i] } else { f64::NEG_INFINITY };
-                let hi = if p.ub[i].is_finite() { p.ub[i] } else { f64::INFINITY };
+                let lo = if p.lb[i].is_finite() {
+                    p.lb[i]
+                } else {
+                    f64::NEG_INFINITY
+                };
+                let hi = if p.ub[i].is_finite() {
+                    p.ub[i]
+                } else {
+                    f64::INFINITY
+                };
                 self.x[i] = if lo <= hi { v.max(lo).min(hi) } else { v };
             }
         }
@@ -1017,8 +1053,11 @@ pub fn solve_with_clarabel(p: &QpProblem, tol: f64) -> Option<ClarabelSolution> 
     }
     let rows = b.len();
     let am = CscMatrix::new_from_triplets(rows, n, ai, aj, av);
-    let cones: Vec<SupportedConeT<f64>> =
-        if rows > 0 { vec![NonnegativeConeT(rows)] } else { Vec::new() };
+    let cones: Vec<SupportedConeT<f64>> = if rows > 0 {
+        vec![NonnegativeConeT(rows)]
+    } else {
+        Vec::new()
+    };
     let settings = DefaultSettings::<f64> {
         verbose: false,
         tol_gap_abs: tol,

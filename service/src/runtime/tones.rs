@@ -135,8 +135,14 @@ impl ToneMeter {
             .map(|f| 2.0 * std::f64::consts::PI * f * self.period)
             .collect();
         // Ring in time order.
-        let start = if self.filled < self.window { 0 } else { self.head };
-        let order: Vec<usize> = (0..self.filled).map(|i| (start + i) % self.window).collect();
+        let start = if self.filled < self.window {
+            0
+        } else {
+            self.head
+        };
+        let order: Vec<usize> = (0..self.filled)
+            .map(|i| (start + i) % self.window)
+            .collect();
         let closed_seq: Vec<u64> = order.iter().map(|&i| self.ring_seq[i]).collect();
         let mut out = ToneReport {
             source: self.source.clone(),
@@ -211,7 +217,11 @@ mod tests {
         };
         for k in 0..3000u64 {
             // 1 and 0.5 open loop, 0.01 and 0.5 closed loop; one sample in 7 lost.
-            let z = if k < 1000 { tone(k, 1.0, 0.5) } else { tone(k, 0.01, 0.5) };
+            let z = if k < 1000 {
+                tone(k, 1.0, 0.5)
+            } else {
+                tone(k, 0.01, 0.5)
+            };
             if k % 7 != 3 {
                 m.record(k + 1, k, &[z]);
             }

@@ -53,14 +53,12 @@ use service::design::plots::{Curve, bode_figure};
 use service::plot::{Mark, figure};
 
 use crate::rcac_common::{
-    TS, single_run_figure,
-    self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, Update, WINDOW_SECONDS,
-    design_dtm, error_plane_panel, median, model_error, poly_mul, rcac_params, run_closed,
-    run_open, toml_f64, toml_list,
+    self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, TS, Update,
+    WINDOW_SECONDS, design_dtm, error_plane_panel, median, model_error, poly_mul, rcac_params,
+    run_closed, run_open, single_run_figure, toml_f64, toml_list,
 };
 
 const PI: f64 = std::f64::consts::PI;
-
 
 /// Modal frequencies, Hz.
 pub const MODES_HZ: [f64; 4] = [5.0, 9.0, 14.0, 21.0];

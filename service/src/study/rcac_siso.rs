@@ -36,14 +36,12 @@ use service::design::plots::{Curve, PoleZero, bode_figure};
 use service::plot::{Mark, figure};
 
 use crate::rcac_common::{
-    TS, single_run_figure,
-    self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, Update, WINDOW_SECONDS,
-    design_dtm, error_plane_panel, median, model_error, rcac_params, run_closed, run_open,
-    toml_list,
+    self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, TS, Update,
+    WINDOW_SECONDS, design_dtm, error_plane_panel, median, model_error, rcac_params, run_closed,
+    run_open, single_run_figure, toml_list,
 };
 
 const PI: f64 = std::f64::consts::PI;
-
 
 /// `ω_p = 20π` rad/s.
 pub const WP: f64 = 20.0 * PI;

@@ -902,10 +902,18 @@ impl Controller for Rcac {
             Law::Rls(_) => "trace_p",
             Law::Gradient { .. } => "mu",
         };
-        ["theta_norm", second, "rcac_z0", "rcac_zhat0", "lambda", "resets", "gaps"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect()
+        [
+            "theta_norm",
+            second,
+            "rcac_z0",
+            "rcac_zhat0",
+            "lambda",
+            "resets",
+            "gaps",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
     }
 
     fn internals(&self, out: &mut [f64]) -> usize {

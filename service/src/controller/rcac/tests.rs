@@ -736,7 +736,10 @@ fn the_history_holds_the_inputs_the_plant_applied() {
         if echo {
             assert!(worst < 1e-12, "with the applied input reported: {worst:e}");
         } else {
-            assert!(worst > 1e-3, "without it the history must differ: {worst:e}");
+            assert!(
+                worst > 1e-3,
+                "without it the history must differ: {worst:e}"
+            );
         }
     }
 }
@@ -789,7 +792,10 @@ fn rcac_rejects_the_tone_through_late_and_lost_samples() {
             plant.apply(&[held]);
         }
         let red = db(1.0, tone_amplitude(&zs, steps - window, W_D));
-        eprintln!("{name}: {red:.1} dB through late and lost samples, {} gaps", c.gaps());
+        eprintln!(
+            "{name}: {red:.1} dB through late and lost samples, {} gaps",
+            c.gaps()
+        );
         assert!(red >= 40.0, "{name}: only {red:.1} dB");
         assert_eq!(c.gaps(), gaps);
         assert!(c.theta().iter().all(|v| v.is_finite()));

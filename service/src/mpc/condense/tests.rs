@@ -29,8 +29,14 @@ fn spec(ell: usize, m: usize, p: usize, pt: usize, rng: &mut ChaCha8Rng) -> MpcS
         r: Weight::PerChannel((0..m).map(|j| 0.1 + 0.05 * j as f64).collect()),
         u_min: vec![-1.0; m],
         u_max: vec![1.0; m],
-        move_bounds: Some(MoveBounds { min: vec![-0.3; m], max: vec![0.2; m] }),
-        output_constraints: Some(OutputConstraints { c: randn(2 * p, rng), d: randn(2, rng) }),
+        move_bounds: Some(MoveBounds {
+            min: vec![-0.3; m],
+            max: vec![0.2; m],
+        }),
+        output_constraints: Some(OutputConstraints {
+            c: randn(2 * p, rng),
+            d: randn(2, rng),
+        }),
     }
 }
 
@@ -86,10 +92,21 @@ fn dense(s: &MpcSpec, markov: &[f64]) -> Dense {
             for i in 0..ell {
                 cl.view_mut((i * nc, i * p), (nc, p)).copy_from(&c1);
             }
-            (cl, DVector::from_iterator(ell * nc, (0..ell).flat_map(|_| oc.d.iter().copied())))
+            (
+                cl,
+                DVector::from_iterator(ell * nc, (0..ell).flat_map(|_| oc.d.iter().copied())),
+            )
         }
     };
-    Dense { t, ct, q, d, r, cl, dl }
+    Dense {
+        t,
+        ct,
+        q,
+        d,
+        r,
+        cl,
+        dl,
+    }
 }
 
 /// ΔU of (2.47).
@@ -154,14 +171,23 @@ fn max_abs(m: &DMatrix<f64>) -> f64 {
 #[test]
 fn condensed_cost_gradient_and_hessian_match_the_definitions() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    for (ell, m, p, pt, q_kind) in
-        [(7, 2, 3, 2, 0), (7, 2, 3, 2, 1), (1, 2, 3, 1, 0), (2, 1, 1, 1, 2), (12, 3, 4, 1, 1), (12, 2, 3, 2, 3)]
-    {
+    for (ell, m, p, pt, q_kind) in [
+        (7, 2, 3, 2, 0),
+        (7, 2, 3, 2, 1),
+        (1, 2, 3, 1, 0),
+        (2, 1, 1, 1, 2),
+        (12, 3, 4, 1, 1),
+        (12, 2, 3, 2, 3),
+    ] {
         let mut s = spec(ell, m, p, pt, &mut rng);
         s.q = match q_kind {
             0 => Weight::PerChannel((0..pt).map(|t| 0.5 + t as f64).collect()),
             1 => Weight::PerStep((0..ell * pt).map(|_| rng.random_range(0.1..3.0)).collect()),
-            3 => Weight::PerStep((0..ell * pt).map(|k| if k >= (ell - 1) * pt { 7.0 } else { 1.5 }).collect()),
+            3 => Weight::PerStep(
+                (0..ell * pt)
+                    .map(|k| if k >= (ell - 1) * pt { 7.0 } else { 1.5 })
+                    .collect(),
+            ),
             _ => Weight::Scalar(2.5),
         };
         if q_kind == 1 {
@@ -169,21 +195,28 @@ fn condensed_cost_gradient_and_hessian_match_the_definitions() {
         }
         let case = random_case(s, &mut rng);
         let mut c = Condenser::new(&case.spec).unwrap();
-        c.build(&case.markov, &case.free, &case.u_k, &case.reference).unwrap();
+        c.build(&case.markov, &case.free, &case.u_k, &case.reference)
+            .unwrap();
         let dn = dense(&case.spec, &case.markov);
         let n = ell * m;
 
         // H and f against the dense formulas.
         let tt = &dn.ct * &dn.t;
         let h_ref = 2.0 * (tt.transpose() * &dn.q * &tt + dn.d.transpose() * &dn.r * &dn.d);
-        let e = &dn.ct * DVector::from_column_slice(&case.free) - DVector::from_column_slice(&case.reference);
+        let e = &dn.ct * DVector::from_column_slice(&case.free)
+            - DVector::from_column_slice(&case.reference);
         let mut eu = DVector::zeros(n);
-        eu.rows_mut(0, m).copy_from(&DVector::from_column_slice(&case.u_k));
+        eu.rows_mut(0, m)
+            .copy_from(&DVector::from_column_slice(&case.u_k));
         let f_ref = 2.0 * (tt.transpose() * &dn.q * &e - dn.d.transpose() * &dn.r * eu);
         let h = DMatrix::from_row_slice(n, n, c.problem().hess);
         let f = DVector::from_column_slice(c.problem().f);
         let scale = max_abs(&h_ref).max(1.0);
-        assert!(max_abs(&(&h - &h_ref)) <= 1e-12 * scale, "H: {}", max_abs(&(&h - &h_ref)));
+        assert!(
+            max_abs(&(&h - &h_ref)) <= 1e-12 * scale,
+            "H: {}",
+            max_abs(&(&h - &h_ref))
+        );
         assert!((&f - &f_ref).amax() <= 1e-12 * f_ref.amax().max(1.0), "f");
         assert!(max_abs(&(&h - h.transpose())) == 0.0, "H symmetric");
 
@@ -194,7 +227,10 @@ fn condensed_cost_gradient_and_hessian_match_the_definitions() {
             let uv = DVector::from_column_slice(&u);
             let jd = direct_cost(&dn, &case.free, &uv, &case.u_k, &case.reference);
             let jc = condensed_cost(&c, &u);
-            assert!((jd - jc).abs() <= 1e-10 * (1.0 + jd.abs()), "cost {jd} vs {jc}");
+            assert!(
+                (jd - jc).abs() <= 1e-10 * (1.0 + jd.abs()),
+                "cost {jd} vs {jc}"
+            );
             let grad = &h * &uv + &f;
             let step = 1e-3;
             for k in 0..n {
@@ -204,7 +240,11 @@ fn condensed_cost_gradient_and_hessian_match_the_definitions() {
                 let fd = (direct_cost(&dn, &case.free, &up, &case.u_k, &case.reference)
                     - direct_cost(&dn, &case.free, &dn_, &case.u_k, &case.reference))
                     / (2.0 * step);
-                assert!((fd - grad[k]).abs() <= 1e-7 * (1.0 + jd.abs()), "gradient {k}: {fd} vs {}", grad[k]);
+                assert!(
+                    (fd - grad[k]).abs() <= 1e-7 * (1.0 + jd.abs()),
+                    "gradient {k}: {fd} vs {}",
+                    grad[k]
+                );
             }
         }
     }
@@ -215,11 +255,39 @@ fn structured_tqt_matches_the_dense_product() {
     let mut rng = ChaCha8Rng::seed_from_u64(2);
     for (ell, m, p, pt, q) in [
         (40, 2, 4, 1, Weight::Scalar(3.0)),
-        (50, 2, 5, 5, Weight::PerChannel(vec![1.0, 2.0, 0.5, 4.0, 1e-3])),
-        (50, 2, 5, 2, Weight::PerStep((0..100).map(|i| 1.0 + (i % 7) as f64).collect())),
+        (
+            50,
+            2,
+            5,
+            5,
+            Weight::PerChannel(vec![1.0, 2.0, 0.5, 4.0, 1e-3]),
+        ),
+        (
+            50,
+            2,
+            5,
+            2,
+            Weight::PerStep((0..100).map(|i| 1.0 + (i % 7) as f64).collect()),
+        ),
         // A terminal weight (one correction of the recursion) and a few odd steps.
-        (40, 2, 4, 1, Weight::PerStep((0..40).map(|i| if i == 39 { 10.0 } else { 1.0 }).collect())),
-        (30, 2, 3, 2, Weight::PerStep((0..60).map(|k| [1.0, 3.0, 0.2, 5.0][usize::from(k / 2 % 11 == 4) * 2 + k % 2]).collect())),
+        (
+            40,
+            2,
+            4,
+            1,
+            Weight::PerStep((0..40).map(|i| if i == 39 { 10.0 } else { 1.0 }).collect()),
+        ),
+        (
+            30,
+            2,
+            3,
+            2,
+            Weight::PerStep(
+                (0..60)
+                    .map(|k| [1.0, 3.0, 0.2, 5.0][usize::from(k / 2 % 11 == 4) * 2 + k % 2])
+                    .collect(),
+            ),
+        ),
         (9, 3, 2, 2, Weight::Scalar(1.0)),
     ] {
         let mut s = spec(ell, m, p, pt, &mut rng);
@@ -227,14 +295,19 @@ fn structured_tqt_matches_the_dense_product() {
         s.r = Weight::Scalar(0.25);
         let case = random_case(s, &mut rng);
         let mut c = Condenser::new(&case.spec).unwrap();
-        c.build(&case.markov, &case.free, &case.u_k, &case.reference).unwrap();
+        c.build(&case.markov, &case.free, &case.u_k, &case.reference)
+            .unwrap();
         let dn = dense(&case.spec, &case.markov);
         let n = ell * m;
         // H − 2 DᵀRD is the structured 2 TᵀC̄ᵀQ̄C̄T.
-        let h = DMatrix::from_row_slice(n, n, c.problem().hess) - 2.0 * dn.d.transpose() * &dn.r * &dn.d;
+        let h = DMatrix::from_row_slice(n, n, c.problem().hess)
+            - 2.0 * dn.d.transpose() * &dn.r * &dn.d;
         let tqt = 2.0 * dn.t.transpose() * dn.ct.transpose() * &dn.q * &dn.ct * &dn.t;
         let err = max_abs(&(&h - &tqt));
-        assert!(err <= 1e-10 * max_abs(&tqt).max(1.0), "ℓ = {ell}, p = {p}: {err}");
+        assert!(
+            err <= 1e-10 * max_abs(&tqt).max(1.0),
+            "ℓ = {ell}, p = {p}: {err}"
+        );
         // The last block row and column are zero (u_{ℓ|k} affects no prediction).
         for k in 0..n {
             for j in n - m..n {
@@ -254,7 +327,8 @@ fn rows_evaluate_to_the_moves_and_the_output_constraints() {
         assert_eq!(c.n(), n);
         assert_eq!(c.n_ineq(), 2 * n + ell * nc);
         assert_eq!(c.output_rows_start(), 2 * n);
-        c.build(&case.markov, &case.free, &case.u_k, &case.reference).unwrap();
+        c.build(&case.markov, &case.free, &case.u_k, &case.reference)
+            .unwrap();
         let dn = dense(&case.spec, &case.markov);
         let mb = case.spec.move_bounds.clone().unwrap();
         let pr = c.problem();
@@ -269,11 +343,20 @@ fn rows_evaluate_to_the_moves_and_the_output_constraints() {
             let out = &dn.cl * y + &dn.dl;
             for k in 0..n {
                 let j = k % m;
-                assert!((s[k] - (du[k] - mb.max[j])).abs() < 1e-12, "upper move row {k}");
-                assert!((s[n + k] - (mb.min[j] - du[k])).abs() < 1e-12, "lower move row {k}");
+                assert!(
+                    (s[k] - (du[k] - mb.max[j])).abs() < 1e-12,
+                    "upper move row {k}"
+                );
+                assert!(
+                    (s[n + k] - (mb.min[j] - du[k])).abs() < 1e-12,
+                    "lower move row {k}"
+                );
             }
             for k in 0..ell * nc {
-                assert!((s[2 * n + k] - out[k]).abs() < 1e-12 * (1.0 + out[k].abs()), "output row {k}");
+                assert!(
+                    (s[2 * n + k] - out[k]).abs() < 1e-12 * (1.0 + out[k].abs()),
+                    "output row {k}"
+                );
             }
         }
     }
@@ -284,10 +367,15 @@ fn rows_evaluate_to_the_moves_and_the_output_constraints() {
     s.output_constraints = None;
     s.move_bounds = None;
     assert_eq!(Condenser::new(&s).unwrap().n_ineq(), 0);
-    s.move_bounds = Some(MoveBounds { min: vec![f64::NEG_INFINITY, -1.0], max: vec![0.5, f64::INFINITY] });
+    s.move_bounds = Some(MoveBounds {
+        min: vec![f64::NEG_INFINITY, -1.0],
+        max: vec![0.5, f64::INFINITY],
+    });
     let case = random_case(s, &mut rng);
     let mut c = Condenser::new(&case.spec).unwrap();
-    let pr = c.build(&case.markov, &case.free, &case.u_k, &case.reference).unwrap();
+    let pr = c
+        .build(&case.markov, &case.free, &case.u_k, &case.reference)
+        .unwrap();
     for k in 0..8 {
         assert_eq!(pr.h[k].is_infinite(), k % 2 == 1, "upper {k}");
         assert_eq!(pr.h[8 + k].is_infinite(), k % 2 == 0, "lower {k}");
@@ -304,7 +392,10 @@ const B: [f64; 2] = [0.0, 1.0];
 const C: [f64; 2] = [0.5, 1.0];
 
 fn step(x: [f64; 2], u: f64) -> [f64; 2] {
-    [A[0][0] * x[0] + A[0][1] * x[1] + B[0] * u, A[1][0] * x[0] + A[1][1] * x[1] + B[1] * u]
+    [
+        A[0][0] * x[0] + A[0][1] * x[1] + B[0] * u,
+        A[1][0] * x[0] + A[1][1] * x[1] + B[1] * u,
+    ]
 }
 
 fn out(x: [f64; 2]) -> f64 {
@@ -326,8 +417,14 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
         r: Weight::Scalar(0.05),
         u_min: vec![-u_max],
         u_max: vec![u_max],
-        move_bounds: Some(MoveBounds { min: vec![-du_max], max: vec![du_max] }),
-        output_constraints: Some(OutputConstraints { c: vec![1.0], d: vec![-y_max] }),
+        move_bounds: Some(MoveBounds {
+            min: vec![-du_max],
+            max: vec![du_max],
+        }),
+        output_constraints: Some(OutputConstraints {
+            c: vec![1.0],
+            d: vec![-y_max],
+        }),
     };
     let mut c = Condenser::new(&spec).unwrap();
     let mut solver = DenseQpSolver::new(c.n(), c.n_ineq(), QpSettings::default());
@@ -370,21 +467,40 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
         let problem = c.problem();
         let cl = solve_with_clarabel(&problem, 1e-10).unwrap();
         let ours = solver.x();
-        let dev = ours.iter().zip(&cl.x).fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+        let dev = ours
+            .iter()
+            .zip(&cl.x)
+            .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
         if dev > 1e-6 {
             let pr = c.problem();
             let obj = |x: &[f64]| {
                 let n = x.len();
-                (0..n).map(|i| pr.f[i] * x[i] + 0.5 * x[i] * (0..n).map(|j| pr.hess[i * n + j] * x[j]).sum::<f64>()).sum::<f64>()
+                (0..n)
+                    .map(|i| {
+                        pr.f[i] * x[i]
+                            + 0.5 * x[i] * (0..n).map(|j| pr.hess[i * n + j] * x[j]).sum::<f64>()
+                    })
+                    .sum::<f64>()
             };
             let viol = |x: &[f64]| {
                 let n = x.len();
-                (0..pr.h.len()).map(|r| (0..n).map(|j| pr.g[r * n + j] * x[j]).sum::<f64>() - pr.h[r]).fold(f64::NEG_INFINITY, f64::max)
+                (0..pr.h.len())
+                    .map(|r| (0..n).map(|j| pr.g[r * n + j] * x[j]).sum::<f64>() - pr.h[r])
+                    .fold(f64::NEG_INFINITY, f64::max)
             };
             let hm = DMatrix::from_row_slice(c.n(), c.n(), pr.hess);
             let ev = hm.symmetric_eigenvalues();
-            println!("step {k}: ours obj {:.15e} viol {:.3e}, clarabel {:?} obj {:.15e} viol {:.3e}; eig {:.3e}..{:.3e}; active {}",
-                obj(ours), viol(ours), cl.status, obj(&cl.x), viol(&cl.x), ev.min(), ev.max(), solver.active_len());
+            println!(
+                "step {k}: ours obj {:.15e} viol {:.3e}, clarabel {:?} obj {:.15e} viol {:.3e}; eig {:.3e}..{:.3e}; active {}",
+                obj(ours),
+                viol(ours),
+                cl.status,
+                obj(&cl.x),
+                viol(&cl.x),
+                ev.min(),
+                ev.max(),
+                solver.active_len()
+            );
             println!("ours {:?}\nclar {:?}", ours, cl.x);
         }
         assert!(dev <= 1e-6, "step {k}: U differs from clarabel's by {dev}");
@@ -393,7 +509,11 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
         let mut xs = x1;
         for (i, &ui) in ours.iter().enumerate() {
             assert!(ui.abs() <= u_max + 1e-9, "step {k}: u_{i} = {ui}");
-            assert!((ui - prev).abs() <= du_max + 1e-9, "step {k}: Δu_{i} = {}", ui - prev);
+            assert!(
+                (ui - prev).abs() <= du_max + 1e-9,
+                "step {k}: Δu_{i} = {}",
+                ui - prev
+            );
             // The predicted output equals the plant simulated with these inputs.
             let y_pred = free[i] + (0..i).map(|j| markov[i - j - 1] * ours[j]).sum::<f64>();
             assert!((y_pred - out(xs)).abs() < 1e-12, "prediction {i}");
@@ -405,15 +525,28 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
         }
         // The cost (2.48) is the solver's objective plus the constant.
         let dn = dense(&spec, &markov[..ell - 1]);
-        let jd = direct_cost(&dn, &free, &DVector::from_column_slice(ours), &[u], &reference);
+        let jd = direct_cost(
+            &dn,
+            &free,
+            &DVector::from_column_slice(ours),
+            &[u],
+            &reference,
+        );
         assert!((jd - (solver.objective() + c.cost_constant())).abs() < 1e-10 * (1.0 + jd));
         // Apply u_{1|k} at k + 1.
         let u_next = c.first_move(ours)[0];
         x = step(x, u);
         u = u_next;
     }
-    assert!(saw_move_active && saw_output_active, "both row kinds active at some step: {saw_move_active}, {saw_output_active}");
-    assert!((out(x) - y_max).abs() < 1e-3, "settles at the output limit: y = {}", out(x));
+    assert!(
+        saw_move_active && saw_output_active,
+        "both row kinds active at some step: {saw_move_active}, {saw_output_active}"
+    );
+    assert!(
+        (out(x) - y_max).abs() < 1e-3,
+        "settles at the output limit: y = {}",
+        out(x)
+    );
 
     // y_{1|k} beyond its constraint: infeasible whatever U; the fallback holds u_k.
     let x_hot = [1.5, 1.5];
@@ -426,7 +559,10 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
     }
     assert!(free[0] > y_max);
     let problem = c.build(&markov, &free, &[0.1], &reference).unwrap();
-    assert_eq!(solver.solve(&problem, WarmStart::Cold), QpStatus::Infeasible);
+    assert_eq!(
+        solver.solve(&problem, WarmStart::Cold),
+        QpStatus::Infeasible
+    );
     let mut fb = [0.0];
     c.fallback_input(&[0.1], &mut fb);
     assert_eq!(fb, [0.1]);
@@ -439,12 +575,26 @@ fn active_sets_shift_by_one_step() {
     let c = Condenser::new(&spec(4, 2, 3, 1, &mut rng)).unwrap();
     use ConstraintId::{Lower, Row, Upper};
     let active = [
-        Upper(1), Upper(2), Lower(7), Lower(8), Row(1), Row(3), Row(9), Row(10), Row(16), Row(17),
-        Row(18), Row(23), Row(24),
+        Upper(1),
+        Upper(2),
+        Lower(7),
+        Lower(8),
+        Row(1),
+        Row(3),
+        Row(9),
+        Row(10),
+        Row(16),
+        Row(17),
+        Row(18),
+        Row(23),
+        Row(24),
     ];
     let mut out = [Row(0); 16];
     let k = c.shift_active_set(&active, &mut out);
-    assert_eq!(&out[..k], &[Upper(0), Lower(5), Row(1), Row(8), Row(16), Row(21)]);
+    assert_eq!(
+        &out[..k],
+        &[Upper(0), Lower(5), Row(1), Row(8), Row(16), Row(21)]
+    );
     assert_eq!(c.shift_active_set(&active, &mut out[..2]), 2);
 }
 
@@ -458,7 +608,13 @@ fn fallback_input_clips_with_bounded_moves() {
     fallback_input(&[0.3, 1.2, -2.0], &lb, &ub, Some((&dmin, &dmax)), &mut out);
     // 1.2 reaches the box in one bounded move; −2.0 cannot (2.0 away), the box wins.
     assert_eq!(out, [0.3, 1.0, 0.0]);
-    fallback_input(&[f64::NAN, f64::INFINITY, 0.5], &lb, &ub, Some((&dmin, &dmax)), &mut out);
+    fallback_input(
+        &[f64::NAN, f64::INFINITY, 0.5],
+        &lb,
+        &ub,
+        Some((&dmin, &dmax)),
+        &mut out,
+    );
     assert_eq!(out, [0.0, 0.0, 0.5]);
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let c = Condenser::new(&spec(3, 3, 2, 1, &mut rng)).unwrap();
@@ -478,17 +634,46 @@ fn bad_specs_are_refused_with_clear_messages() {
         (|s| s.n_inputs = 0, "must be at least 1"),
         (|s| s.tracking.push(1.0), "tracking (C_t"),
         (|s| s.tracking[0] = f64::NAN, "C_t): entries must be finite"),
-        (|s| s.q = Weight::PerChannel(vec![1.0, 2.0]), "PerChannel needs 1 values, got 2"),
-        (|s| s.q = Weight::PerStep(vec![1.0; 4]), "PerStep needs horizon × 1 = 5 values, got 4"),
+        (
+            |s| s.q = Weight::PerChannel(vec![1.0, 2.0]),
+            "PerChannel needs 1 values, got 2",
+        ),
+        (
+            |s| s.q = Weight::PerStep(vec![1.0; 4]),
+            "PerStep needs horizon × 1 = 5 values, got 4",
+        ),
         (|s| s.q = Weight::Scalar(-1.0), "finite and ≥ 0"),
-        (|s| s.r = Weight::Scalar(0.0), "r (move weight R): every weight must be finite and > 0"),
+        (
+            |s| s.r = Weight::Scalar(0.0),
+            "r (move weight R): every weight must be finite and > 0",
+        ),
         (|s| s.u_min = vec![0.0], "u_min: expected 2 values, got 1"),
         (|s| s.u_min[1] = 2.0, "input 1: u_min = 2 > u_max = 1"),
         (|s| s.u_max[0] = f64::NAN, "input 0: bounds must be numbers"),
-        (|s| s.move_bounds.as_mut().unwrap().min[0] = 0.1, "Δu_min ≤ 0 ≤ Δu_max"),
-        (|s| s.move_bounds.as_mut().unwrap().max = vec![1.0], "move_bounds.max: expected 2"),
-        (|s| s.output_constraints.as_mut().unwrap().c.pop().map(|_| ()).unwrap(), "output_constraints.c"),
-        (|s| s.output_constraints.as_mut().unwrap().d.clear(), "𝓓 is empty"),
+        (
+            |s| s.move_bounds.as_mut().unwrap().min[0] = 0.1,
+            "Δu_min ≤ 0 ≤ Δu_max",
+        ),
+        (
+            |s| s.move_bounds.as_mut().unwrap().max = vec![1.0],
+            "move_bounds.max: expected 2",
+        ),
+        (
+            |s| {
+                s.output_constraints
+                    .as_mut()
+                    .unwrap()
+                    .c
+                    .pop()
+                    .map(|_| ())
+                    .unwrap()
+            },
+            "output_constraints.c",
+        ),
+        (
+            |s| s.output_constraints.as_mut().unwrap().d.clear(),
+            "𝓓 is empty",
+        ),
     ];
     for (edit, msg) in cases {
         let mut s = good.clone();
@@ -504,25 +689,56 @@ fn build_refuses_bad_inputs() {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let case = random_case(spec(4, 2, 3, 1, &mut rng), &mut rng);
     let mut c = Condenser::new(&case.spec).unwrap();
-    let err = c.build(&case.markov[1..], &case.free, &case.u_k, &case.reference).unwrap_err();
-    assert_eq!(err, BuildError::Length { what: "markov", expected: 18, got: 17 });
+    let err = c
+        .build(&case.markov[1..], &case.free, &case.u_k, &case.reference)
+        .unwrap_err();
+    assert_eq!(
+        err,
+        BuildError::Length {
+            what: "markov",
+            expected: 18,
+            got: 17
+        }
+    );
     assert_eq!(err.to_string(), "markov: expected length 18, got 17");
-    let err = c.build(&case.markov, &case.free[1..], &case.u_k, &case.reference).unwrap_err();
-    assert!(matches!(err, BuildError::Length { what: "free_response", .. }));
-    let err = c.build(&case.markov, &case.free, &[0.0], &case.reference).unwrap_err();
+    let err = c
+        .build(&case.markov, &case.free[1..], &case.u_k, &case.reference)
+        .unwrap_err();
+    assert!(matches!(
+        err,
+        BuildError::Length {
+            what: "free_response",
+            ..
+        }
+    ));
+    let err = c
+        .build(&case.markov, &case.free, &[0.0], &case.reference)
+        .unwrap_err();
     assert!(matches!(err, BuildError::Length { what: "u_k", .. }));
-    let err = c.build(&case.markov, &case.free, &case.u_k, &[]).unwrap_err();
-    assert!(matches!(err, BuildError::Length { what: "reference", .. }));
+    let err = c
+        .build(&case.markov, &case.free, &case.u_k, &[])
+        .unwrap_err();
+    assert!(matches!(
+        err,
+        BuildError::Length {
+            what: "reference",
+            ..
+        }
+    ));
     let mut bad = case.u_k.clone();
     bad[1] = f64::NAN;
-    let err = c.build(&case.markov, &case.free, &bad, &case.reference).unwrap_err();
+    let err = c
+        .build(&case.markov, &case.free, &bad, &case.reference)
+        .unwrap_err();
     assert_eq!(err.to_string(), "u_k: not finite");
     // H_1..H_ℓ is accepted (H_ℓ unused) and gives the same problem.
-    c.build(&case.markov, &case.free, &case.u_k, &case.reference).unwrap();
+    c.build(&case.markov, &case.free, &case.u_k, &case.reference)
+        .unwrap();
     let h1 = c.problem().hess.to_vec();
     let mut longer = case.markov.clone();
     longer.extend(randn(6, &mut rng));
-    c.build(&longer, &case.free, &case.u_k, &case.reference).unwrap();
+    c.build(&longer, &case.free, &case.u_k, &case.reference)
+        .unwrap();
     assert_eq!(c.problem().hess, &h1[..]);
 }
 
@@ -548,10 +764,17 @@ fn condense_timing() {
         let mut s = spec(ell, m, p, pt, &mut rng);
         s.q = match q_kind {
             0 => Weight::Scalar(1.0),
-            1 => Weight::PerStep((0..ell * pt).map(|k| if k >= (ell - 1) * pt { 10.0 } else { 1.0 }).collect()),
+            1 => Weight::PerStep(
+                (0..ell * pt)
+                    .map(|k| if k >= (ell - 1) * pt { 10.0 } else { 1.0 })
+                    .collect(),
+            ),
             _ => Weight::PerStep((0..ell * pt).map(|k| 1.0 + k as f64 / 10.0).collect()),
         };
-        s.output_constraints = Some(OutputConstraints { c: randn(nc * p, &mut rng), d: vec![-1.0; nc] });
+        s.output_constraints = Some(OutputConstraints {
+            c: randn(nc * p, &mut rng),
+            d: vec![-1.0; nc],
+        });
         let cases: Vec<Case> = (0..20).map(|_| random_case(s.clone(), &mut rng)).collect();
         let mut c = Condenser::new(&s).unwrap();
         let mut times = Vec::with_capacity(reps);
@@ -559,7 +782,9 @@ fn condense_timing() {
         for k in 0..reps {
             let cs = &cases[k % cases.len()];
             let t = Instant::now();
-            let pr = c.build(&cs.markov, &cs.free, &cs.u_k, &cs.reference).unwrap();
+            let pr = c
+                .build(&cs.markov, &cs.free, &cs.u_k, &cs.reference)
+                .unwrap();
             sink += pr.hess[1] + pr.f[0];
             times.push(t.elapsed().as_secs_f64() * 1e6);
         }

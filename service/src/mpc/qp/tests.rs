@@ -19,7 +19,14 @@ struct Owned {
 
 impl Owned {
     fn problem(&self) -> QpProblem<'_> {
-        QpProblem { hess: &self.hess, f: &self.f, lb: &self.lb, ub: &self.ub, g: &self.g, h: &self.h }
+        QpProblem {
+            hess: &self.hess,
+            f: &self.f,
+            lb: &self.lb,
+            ub: &self.ub,
+            g: &self.g,
+            h: &self.h,
+        }
     }
     fn n_ineq(&self) -> usize {
         self.h.len()
@@ -84,18 +91,34 @@ fn random_problem(ell: usize, m: usize, n_out: usize, active: bool, rng: &mut Ch
         g.extend_from_slice(&row);
         h.push(if active { 0.2 } else { 50.0 });
     }
-    Owned { n, hess, f, lb, ub, g, h }
+    Owned {
+        n,
+        hess,
+        f,
+        lb,
+        ub,
+        g,
+        h,
+    }
 }
 
 /// A PCAC-shaped problem (2.43)–(2.51): one output, `m` inputs, Markov parameters of a
 /// lightly damped mode, `T` block Toeplitz (2.46), `Q = I`, `R = r I`, a step command.
-fn pcac_problem(ell: usize, m: usize, with_moves: bool, n_out: usize, amp: f64, rng: &mut ChaCha8Rng) -> Owned {
+fn pcac_problem(
+    ell: usize,
+    m: usize,
+    with_moves: bool,
+    n_out: usize,
+    amp: f64,
+    rng: &mut ChaCha8Rng,
+) -> Owned {
     let n = ell * m;
     let (rho, omega): (f64, f64) = (0.97, 0.3 + 0.2 * rng.random::<f64>());
     let phase: Vec<f64> = (0..m).map(|_| rng.random::<f64>() * 3.0).collect();
     let gain: Vec<f64> = (0..m).map(|_| 0.5 + rng.random::<f64>()).collect();
     // markov[i][j] = H_{i+1}, input j.
-    let markov = |i: usize, j: usize| gain[j] * rho.powi(i as i32) * (omega * i as f64 + phase[j]).sin();
+    let markov =
+        |i: usize, j: usize| gain[j] * rho.powi(i as i32) * (omega * i as f64 + phase[j]).sin();
     // T: row i (y_{i+1|k}) depends on u_{1..i} through H_i, …, H_1; row 0 is zero.
     let mut t = vec![0.0; ell * n];
     for i in 1..ell {
@@ -105,7 +128,9 @@ fn pcac_problem(ell: usize, m: usize, with_moves: bool, n_out: usize, amp: f64, 
             }
         }
     }
-    let free: Vec<f64> = (0..ell).map(|i| 0.3 * rho.powi(i as i32) * (omega * i as f64).cos()).collect();
+    let free: Vec<f64> = (0..ell)
+        .map(|i| 0.3 * rho.powi(i as i32) * (omega * i as f64).cos())
+        .collect();
     let reference: Vec<f64> = (0..ell).map(|i| if i > 2 { amp } else { 0.0 }).collect();
     let r_w = 0.05;
     let u_k: Vec<f64> = (0..m).map(|_| 0.1 * normal(rng)).collect();
@@ -130,20 +155,34 @@ fn pcac_problem(ell: usize, m: usize, with_moves: bool, n_out: usize, amp: f64, 
     }
     let mut f = vec![0.0; n];
     for a in 0..n {
-        let e: f64 = (0..ell).map(|i| t[i * n + a] * (free[i] - reference[i])).sum();
+        let e: f64 = (0..ell)
+            .map(|i| t[i * n + a] * (free[i] - reference[i]))
+            .sum();
         let dc: f64 = (0..n).map(|i| d[i * n + a] * c[i]).sum();
         f[a] = 2.0 * e - 2.0 * r_w * dc;
     }
     let lb = vec![-1.0; n];
     let ub = vec![1.0; n];
-    let (mut g, mut h) = if with_moves { move_rows(ell, m, &u_k, 0.2) } else { (Vec::new(), Vec::new()) };
+    let (mut g, mut h) = if with_moves {
+        move_rows(ell, m, &u_k, 0.2)
+    } else {
+        (Vec::new(), Vec::new())
+    };
     // Output constraints (2.49): y_{i|k} ≤ y_max for the last n_out steps.
     for k in 0..n_out {
         let i = ell - 1 - k;
         g.extend_from_slice(&t[i * n..(i + 1) * n]);
         h.push(0.8 * amp - free[i]);
     }
-    Owned { n, hess, f, lb, ub, g, h }
+    Owned {
+        n,
+        hess,
+        f,
+        lb,
+        ub,
+        g,
+        h,
+    }
 }
 
 fn inf_norm(v: &[f64]) -> f64 {
@@ -160,7 +199,11 @@ fn kkt_residual(p: &Owned, s: &DenseQpSolver) -> f64 {
     let scale = 1.0 + inf_norm(&p.f);
     for i in 0..n {
         let mut r = p.f[i] - s.lambda_lower()[i] + s.lambda_upper()[i];
-        r += p.hess[i * n..(i + 1) * n].iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+        r += p.hess[i * n..(i + 1) * n]
+            .iter()
+            .zip(x)
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
         for j in 0..m {
             r += p.g[j * n + i] * s.lambda_ineq()[j];
         }
@@ -209,7 +252,12 @@ struct Deviation {
 fn polish_with(p: &Owned, c: &ClarabelSolution, rel: f64) -> (Vec<f64>, bool, bool) {
     use nalgebra::{DMatrix, DVector};
     let n = p.n;
-    let lam_max = c.lambda_lower.iter().chain(&c.lambda_upper).chain(&c.lambda_ineq).fold(0.0f64, |a, b| a.max(*b));
+    let lam_max = c
+        .lambda_lower
+        .iter()
+        .chain(&c.lambda_upper)
+        .chain(&c.lambda_ineq)
+        .fold(0.0f64, |a, b| a.max(*b));
     let thr = rel * lam_max + 1e-9;
     let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
     for i in 0..n {
@@ -244,10 +292,16 @@ fn polish_with(p: &Owned, c: &ClarabelSolution, rel: f64) -> (Vec<f64>, bool, bo
         }
         rhs[n + r] = *b;
     }
-    let sol = kkt.clone().svd(true, true).solve(&rhs, 1e-12).expect("SVD solve");
+    let sol = kkt
+        .clone()
+        .svd(true, true)
+        .solve(&rhs, 1e-12)
+        .expect("SVD solve");
     let residual = (&kkt * &sol - &rhs).amax();
     let x = sol.as_slice()[..n].to_vec();
-    let dual_ok = sol.as_slice()[n..].iter().all(|&v| v >= -1e-9 * (1.0 + lam_max));
+    let dual_ok = sol.as_slice()[n..]
+        .iter()
+        .all(|&v| v >= -1e-9 * (1.0 + lam_max));
     let mut primal_ok = true;
     for (i, &xi) in x.iter().enumerate() {
         primal_ok &= xi <= p.ub[i] + 1e-9 * (1.0 + p.ub[i].abs());
@@ -294,7 +348,10 @@ fn deviation_from_clarabel(p: &Owned, s: &DenseQpSolver) -> Deviation {
         c.status
     );
     let rel = |a: &[f64], b: &[f64]| {
-        a.iter().zip(b).fold(0.0f64, |m, (u, v)| m.max((u - v).abs())) / (1.0 + inf_norm(b))
+        a.iter()
+            .zip(b)
+            .fold(0.0f64, |m, (u, v)| m.max((u - v).abs()))
+            / (1.0 + inf_norm(b))
     };
     let polished = polish(p, &c);
     Deviation {
@@ -315,7 +372,10 @@ fn check_against_clarabel(p: &Owned, warm: WarmStart, raw_tol: f64) -> (usize, D
     let kkt = kkt_residual(p, &s);
     assert!(kkt < 1e-8, "KKT residual {kkt:e}");
     let d = deviation_from_clarabel(p, &s);
-    assert!(d.objective < 1e-9 && d.polished < 1e-8 && d.u < raw_tol, "deviation from clarabel: {d:?}");
+    assert!(
+        d.objective < 1e-9 && d.polished < 1e-8 && d.u < raw_tol,
+        "deviation from clarabel: {d:?}"
+    );
     (s.active_len(), d)
 }
 
@@ -362,7 +422,9 @@ fn solutions_match_clarabel_on_pcac_shaped_problems() {
         eprintln!("PCAC ℓ = {ell}, m = {m}: {n_active} active, {d:?}");
         worst = worst.max(d.polished).max(d.objective);
     }
-    eprintln!("PCAC problems: worst relative deviation from polished clarabel / objective {worst:e}");
+    eprintln!(
+        "PCAC problems: worst relative deviation from polished clarabel / objective {worst:e}"
+    );
 }
 
 #[test]
@@ -403,7 +465,15 @@ fn an_unconstrained_problem_returns_the_newton_point() {
     let n = 30;
     let hess = random_spd(n, 0.5, &mut rng);
     let f: Vec<f64> = (0..n).map(|_| normal(&mut rng)).collect();
-    let p = Owned { n, hess, f, lb: vec![f64::NEG_INFINITY; n], ub: vec![f64::INFINITY; n], g: vec![], h: vec![] };
+    let p = Owned {
+        n,
+        hess,
+        f,
+        lb: vec![f64::NEG_INFINITY; n],
+        ub: vec![f64::INFINITY; n],
+        g: vec![],
+        h: vec![],
+    };
     let mut s = DenseQpSolver::new(n, 0, QpSettings::default());
     assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Solved);
     assert_eq!(s.iterations(), 0);
@@ -423,12 +493,29 @@ fn warm_starts_reach_the_same_solution_in_fewer_iterations() {
     let x_cold = s.x().to_vec();
     let mut ids = vec![ConstraintId::Row(0); p.n];
     let k = s.active_set_into(&mut ids);
-    assert_eq!(s.solve(&p.problem(), WarmStart::ActiveSet(&ids[..k])), QpStatus::Solved);
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::ActiveSet(&ids[..k])),
+        QpStatus::Solved
+    );
     assert!(s.iterations() <= cold_iters);
-    eprintln!("cold: {cold_iters} iterations, warm from the exact active set ({k}): {}", s.iterations());
-    assert!(inf_norm(&x_cold.iter().zip(s.x()).map(|(a, b)| a - b).collect::<Vec<_>>()) < 1e-10);
+    eprintln!(
+        "cold: {cold_iters} iterations, warm from the exact active set ({k}): {}",
+        s.iterations()
+    );
+    assert!(
+        inf_norm(
+            &x_cold
+                .iter()
+                .zip(s.x())
+                .map(|(a, b)| a - b)
+                .collect::<Vec<_>>()
+        ) < 1e-10
+    );
     // From a primal guess (the previous solution itself).
-    assert_eq!(s.solve(&p.problem(), WarmStart::Primal(&x_cold)), QpStatus::Solved);
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::Primal(&x_cold)),
+        QpStatus::Solved
+    );
     assert!(s.iterations() <= cold_iters);
     assert!(kkt_residual(&p, &s) < 1e-8);
     // A perturbed problem warm-started from the old active set still solves exactly.
@@ -436,7 +523,10 @@ fn warm_starts_reach_the_same_solution_in_fewer_iterations() {
     for v in p2.f.iter_mut() {
         *v += 0.05 * normal(&mut rng);
     }
-    assert_eq!(s.solve(&p2.problem(), WarmStart::ActiveSet(&ids[..k])), QpStatus::Solved);
+    assert_eq!(
+        s.solve(&p2.problem(), WarmStart::ActiveSet(&ids[..k])),
+        QpStatus::Solved
+    );
     assert!(kkt_residual(&p2, &s) < 1e-8);
     let d = deviation_from_clarabel(&p2, &s);
     assert!(d.objective < 1e-9 && d.polished < 1e-8, "{d:?}");
@@ -447,7 +537,9 @@ fn contradictory_constraints_are_reported_infeasible() {
     let n = 4;
     let base = Owned {
         n,
-        hess: (0..n * n).map(|k| if k % (n + 1) == 0 { 2.0 } else { 0.0 }).collect(),
+        hess: (0..n * n)
+            .map(|k| if k % (n + 1) == 0 { 2.0 } else { 0.0 })
+            .collect(),
         f: vec![1.0, -1.0, 0.5, 0.0],
         lb: vec![-1.0; n],
         ub: vec![1.0; n],
@@ -465,7 +557,10 @@ fn contradictory_constraints_are_reported_infeasible() {
     p.g = vec![-1.0; n];
     p.h = vec![-5.0];
     let mut s1 = DenseQpSolver::new(n, 1, QpSettings::default());
-    assert_eq!(s1.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    assert_eq!(
+        s1.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::Infeasible
+    );
     assert!(s1.x().iter().all(|v| v.is_finite()));
     // Two contradictory rows: u₀ − u₁ ≤ −1 and u₁ − u₀ ≤ −1, no boxes.
     let mut p = base.clone();
@@ -474,12 +569,18 @@ fn contradictory_constraints_are_reported_infeasible() {
     p.g = vec![1.0, -1.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0];
     p.h = vec![-1.0, -1.0];
     let mut s2 = DenseQpSolver::new(n, 2, QpSettings::default());
-    assert_eq!(s2.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    assert_eq!(
+        s2.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::Infeasible
+    );
     // A zero row with a negative right-hand side.
     let mut p = base.clone();
     p.g = vec![0.0; n];
     p.h = vec![-1.0];
-    assert_eq!(s1.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    assert_eq!(
+        s1.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::Infeasible
+    );
     // Random PCAC problem whose move bounds cannot reach the box: u_k far outside.
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let mut p = pcac_problem(10, 2, true, 0, 1.0, &mut rng);
@@ -487,18 +588,30 @@ fn contradictory_constraints_are_reported_infeasible() {
     p.g = g;
     p.h = h;
     let mut s3 = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
-    assert_eq!(s3.solve(&p.problem(), WarmStart::Cold), QpStatus::Infeasible);
+    assert_eq!(
+        s3.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::Infeasible
+    );
     let c = solve_with_clarabel(&p.problem(), 1e-8).unwrap();
-    assert!(matches!(c.status, SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible));
+    assert!(matches!(
+        c.status,
+        SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible
+    ));
 }
 
 #[test]
 fn the_iteration_cap_returns_a_finite_iterate_within_the_box() {
     let mut rng = ChaCha8Rng::seed_from_u64(13);
     let p = pcac_problem(50, 2, true, 3, 3.0, &mut rng);
-    let settings = QpSettings { max_iterations: 3, ..QpSettings::default() };
+    let settings = QpSettings {
+        max_iterations: 3,
+        ..QpSettings::default()
+    };
     let mut s = DenseQpSolver::new(p.n, p.n_ineq(), settings);
-    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::MaxIterations);
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::MaxIterations
+    );
     assert_eq!(s.iterations(), 3);
     assert!(s.objective().is_finite());
     for i in 0..p.n {
@@ -522,30 +635,59 @@ fn bad_data_give_a_status_not_a_panic() {
     assert_eq!(s.solve(&good.problem(), WarmStart::Cold), QpStatus::Solved);
     let mut p = good.clone();
     p.f[1] = f64::NAN;
-    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::NumericalError);
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::NumericalError
+    );
     let mut p = good.clone();
     p.hess[4] = -1.0;
-    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::NumericalError);
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::NumericalError
+    );
     let mut p = good.clone();
     p.h.clear();
-    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::InvalidDimensions);
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::Cold),
+        QpStatus::InvalidDimensions
+    );
     let mut s4 = DenseQpSolver::new(4, 1, QpSettings::default());
-    assert_eq!(s4.solve(&good.problem(), WarmStart::Cold), QpStatus::InvalidDimensions);
+    assert_eq!(
+        s4.solve(&good.problem(), WarmStart::Cold),
+        QpStatus::InvalidDimensions
+    );
     // Invalid warm-start ids are ignored.
     let ids = [ConstraintId::Row(7), ConstraintId::Upper(99)];
-    assert_eq!(s.solve(&good.problem(), WarmStart::ActiveSet(&ids)), QpStatus::Solved);
+    assert_eq!(
+        s.solve(&good.problem(), WarmStart::ActiveSet(&ids)),
+        QpStatus::Solved
+    );
 }
 
 #[test]
 fn empty_and_tiny_problems_do_not_panic() {
     let mut s = DenseQpSolver::new(0, 0, QpSettings::default());
-    let p = QpProblem { hess: &[], f: &[], lb: &[], ub: &[], g: &[], h: &[] };
+    let p = QpProblem {
+        hess: &[],
+        f: &[],
+        lb: &[],
+        ub: &[],
+        g: &[],
+        h: &[],
+    };
     assert_eq!(s.solve(&p, WarmStart::Cold), QpStatus::Solved);
     assert_eq!(s.objective(), 0.0);
     // One variable, both bounds and a row, all active in turn.
     let mut s = DenseQpSolver::new(1, 1, QpSettings::default());
     for (f, expect) in [(5.0, -1.0), (-5.0, 0.5), (0.2, -0.2)] {
-        let p = QpProblem { hess: &[1.0], f: &[f], lb: &[-1.0], ub: &[1.0], g: &[2.0], h: &[1.0] };
+        let p = QpProblem {
+            hess: &[1.0],
+            f: &[f],
+            lb: &[-1.0],
+            ub: &[1.0],
+            g: &[2.0],
+            h: &[1.0],
+        };
         assert_eq!(s.solve(&p, WarmStart::Cold), QpStatus::Solved);
         assert!((s.x()[0] - expect).abs() < 1e-14, "f = {f}: {}", s.x()[0]);
     }
@@ -667,7 +809,11 @@ fn qp_timing_at_n_100_with_active_constraints() {
     let n = p0.n;
     let mut buf = p0.hess.clone();
     let (mut ours, mut faer_t) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
-    let mut mem = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default()));
+    let mut mem = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(
+        n,
+        Par::Seq,
+        Default::default(),
+    ));
     for _ in 0..reps {
         buf.copy_from_slice(&p0.hess);
         let t = Instant::now();
@@ -682,5 +828,3 @@ fn qp_timing_at_n_100_with_active_constraints() {
     summary("row-oriented in place", &mut ours);
     summary("faer in place (used)", &mut faer_t);
 }
-
-
