@@ -418,15 +418,7 @@ fn marks(model: &DiscreteModel, dtm: &Dtm, c: Case) -> Result<Marks, String> {
     let damped = (1.0 - c.zeta * c.zeta).sqrt();
     let at = [SWEEP.0, SWEEP.1, WP * damped, c.wz() * damped];
     let theta: Vec<f64> = at.iter().map(|w| w * TS).collect();
-    let (g, gf) = responses(model, dtm, &theta)?;
-    let e: Vec<(f64, f64)> = g
-        .iter()
-        .zip(&gf)
-        .map(|(a, b)| {
-            let (m, p) = model_error(*a, *b);
-            (p, m)
-        })
-        .collect();
+    let e = error_plane(model, dtm, &theta)?;
     let mk = |label: &str, i: usize, mark, color| PlaneMark {
         label: label.into(),
         at: e[i],
@@ -442,16 +434,19 @@ fn marks(model: &DiscreteModel, dtm: &Dtm, c: Case) -> Result<Marks, String> {
     let fine: Vec<f64> = (0..=460)
         .map(|i| (SWEEP.0 + (SWEEP.1 - SWEEP.0) * i as f64 / 460.0) * TS)
         .collect();
-    let (g, gf) = responses(model, dtm, &fine)?;
-    let locus = g
-        .iter()
+    Ok((marks, error_plane(model, dtm, &fine)?))
+}
+
+/// `(phase error °, magnitude error dB)` of `G_f` against `G_zu,d` at `theta` (rad/sample).
+fn error_plane(model: &DiscreteModel, dtm: &Dtm, theta: &[f64]) -> Result<Vec<(f64, f64)>, String> {
+    let (g, gf) = responses(model, dtm, theta)?;
+    Ok(g.iter()
         .zip(&gf)
         .map(|(a, b)| {
             let (m, p) = model_error(*a, *b);
             (p, m)
         })
-        .collect();
-    Ok((marks, locus))
+        .collect())
 }
 
 /// Figure 3.5 (average) or 3.8 (optimization) for one update law.
