@@ -50,6 +50,8 @@
 #define AR_ACT_STARTING 0x8u
 #define AR_ACT_CONTROLLER_FAULT 0x10u
 #define AR_ACT_OPEN_LOOP 0x20u
+/* the controller could not compute its law (e.g. an infeasible MPC problem); u is its fallback */
+#define AR_ACT_FALLBACK 0x40u
 
 typedef struct ar_channel_counts {
     uint16_t n_y;

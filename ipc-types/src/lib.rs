@@ -79,6 +79,10 @@ pub mod actuation_status {
     /// The service is in its open-loop phase (`service.open-loop`): `u` is the safe input
     /// and the controller only observes.
     pub const OPEN_LOOP: u32 = 1 << 5;
+    /// The controller could not compute its law for this sample (for example PCAC's
+    /// receding-horizon problem was infeasible or not solved within its iteration cap)
+    /// and `u` is its fallback input (hold the last input within its bounds).
+    pub const FALLBACK: u32 = 1 << 6;
 }
 
 /// Channel counts used by one side of the contract.
@@ -318,6 +322,7 @@ mod layout_tests {
             ("AR_ACT_STARTING", a::STARTING),
             ("AR_ACT_CONTROLLER_FAULT", a::CONTROLLER_FAULT),
             ("AR_ACT_OPEN_LOOP", a::OPEN_LOOP),
+            ("AR_ACT_FALLBACK", a::FALLBACK),
         ];
         for (name, value) in pairs {
             let text = C_HEADER

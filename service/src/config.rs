@@ -79,6 +79,19 @@
 //! # # alpha = 0.5                 # in (0, 1], required
 //! # # r = 0.0                     # R = r I ≥ 0 (default 0)
 //! #
+//! # or predictive cost adaptive control (controller::pcac::Pcac, (2.24)–(2.51)); the
+//! # fields are listed in the `pcac` submodule's docs:
+//! # [controller]
+//! # kind = "pcac"
+//! # n-hat = 25
+//! # p0 = 1.0
+//! # horizon = 40
+//! # tracking = [[0.0, 0.0, 0.0, 1.0]]
+//! # q = 1e6
+//! # r = 1.0
+//! # u-min = -10.0
+//! # u-max = 10.0
+//! #
 //! # or, for an identification run, independent white Gaussian inputs:
 //! # [controller]
 //! # kind = "excitation"
@@ -91,6 +104,9 @@
 //! queue-capacity = 65536
 //! ```
 
+mod pcac;
+
+use crate::controller::pcac::{Pcac, PcacParams};
 use crate::controller::{
     Controller, ControllerInput, ExcitationSource, LtiController, OutputLimits, Rcac, RcacParams,
     RcacUpdate, StepSize,
@@ -228,6 +244,11 @@ pub enum ControllerConfig {
         /// The validated parameters.
         params: Box<RcacParams>,
     },
+    /// Predictive cost adaptive control ([`Pcac`]).
+    Pcac {
+        /// The validated parameters.
+        params: Box<PcacParams>,
+    },
 }
 
 impl ControllerConfig {
@@ -261,6 +282,7 @@ impl ControllerConfig {
                 ExcitationSource::new(counts, std.clone(), *seed, limits.clone())?,
             )),
             ControllerConfig::Rcac { params } => Ok(Box::new(Rcac::new(params, counts)?)),
+            ControllerConfig::Pcac { params } => Ok(Box::new(Pcac::new(params, counts)?)),
         }
     }
 }
@@ -821,7 +843,7 @@ fn matrix(rows: &[Vec<f64>], cols_if_empty: usize, field: &str) -> Result<DMatri
     Ok(DMatrix::from_fn(rows.len(), n, |i, j| rows[i][j]))
 }
 
-const CONTROLLER_KINDS: &str = "lti, excitation, rcac";
+const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac";
 
 fn parse_controller(
     value: toml::Value,
@@ -835,6 +857,11 @@ fn parse_controller(
         "lti" => {}
         "excitation" => return parse_excitation(value, counts, err),
         "rcac" => return parse_rcac(value, counts, period, base_dir, err),
+        "pcac" => {
+            return pcac::parse_pcac(value, counts, err).map(|params| ControllerConfig::Pcac {
+                params: Box::new(params),
+            });
+        }
         "" => {
             return Err(err(
                 "controller.kind",
@@ -1155,37 +1182,8 @@ fn parse_rcac(
                     ));
                 }
             }
-            let p0 = raw.p0.ok_or_else(|| {
-                err(
-                    "controller.p0",
-                    "missing (P_0 = p0 I, R_θ = I / p0) for update = \"rls\"".into(),
-                )
-            })?;
-            if !(p0 > 0.0 && p0.is_finite()) {
-                return Err(err(
-                    "controller.p0",
-                    format!("{p0} must be positive and finite"),
-                ));
-            }
-            let rule = match (raw.lambda, raw.forgetting) {
-                (Some(_), Some(_)) => {
-                    return Err(err(
-                        "controller.lambda",
-                        "give lambda or [controller.forgetting], not both".into(),
-                    ));
-                }
-                (l, None) => {
-                    let lambda = l.unwrap_or(1.0);
-                    if !(lambda > 0.0 && lambda <= 1.0) {
-                        return Err(err(
-                            "controller.lambda",
-                            format!("{lambda} is outside (0, 1]"),
-                        ));
-                    }
-                    ForgettingRule::Constant { lambda }
-                }
-                (None, Some(f)) => parse_forgetting(&f, err)?,
-            };
+            let p0 = positive_p0(raw.p0, "for update = \"rls\"", err)?;
+            let rule = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
             let trace_limit = raw.trace_limit.unwrap_or(1e6 * ltheta as f64 * p0);
             if trace_limit.is_nan() || trace_limit <= ltheta as f64 * p0 {
                 return Err(err(
@@ -1294,7 +1292,49 @@ fn parse_rcac(
     })
 }
 
-/// The `[controller.forgetting]` table of RCAC's RLS update.
+/// `p0` of `P_0 = p0 I`: required, positive and finite (`when` says for which setting).
+fn positive_p0(
+    p0: Option<f64>,
+    when: &str,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<f64, ConfigError> {
+    let p0 = p0.ok_or_else(|| err("controller.p0", format!("missing (P_0 = p0 I) {when}")))?;
+    if !(p0 > 0.0 && p0.is_finite()) {
+        return Err(err(
+            "controller.p0",
+            format!("{p0} must be positive and finite"),
+        ));
+    }
+    Ok(p0)
+}
+
+/// The forgetting of an RLS: `lambda` (constant, default 1) or a `[controller.forgetting]`
+/// table, not both.
+fn forgetting_rule(
+    lambda: Option<f64>,
+    table: Option<&RawForgetting>,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<ForgettingRule, ConfigError> {
+    match (lambda, table) {
+        (Some(_), Some(_)) => Err(err(
+            "controller.lambda",
+            "give lambda or [controller.forgetting], not both".into(),
+        )),
+        (l, None) => {
+            let lambda = l.unwrap_or(1.0);
+            if !(lambda > 0.0 && lambda <= 1.0) {
+                return Err(err(
+                    "controller.lambda",
+                    format!("{lambda} is outside (0, 1]"),
+                ));
+            }
+            Ok(ForgettingRule::Constant { lambda })
+        }
+        (None, Some(f)) => parse_forgetting(f, err),
+    }
+}
+
+/// The `[controller.forgetting]` table of an RLS update.
 fn parse_forgetting(
     f: &RawForgetting,
     err: &dyn Fn(&str, String) -> ConfigError,

@@ -164,6 +164,9 @@ pub struct LoopStats {
     pub saturated_cycles: u64,
     /// Cycles the controller reported a fault.
     pub controller_faults: u64,
+    /// Cycles the controller could not compute its law and applied its fallback input
+    /// (`actuation_status::FALLBACK`, e.g. an infeasible or unsolved MPC problem).
+    pub fallback_cycles: u64,
     /// Actuations that could not be published.
     pub publish_failures: u64,
     /// Events dropped because the event queue was full.
@@ -447,6 +450,9 @@ impl LoopCore {
             }
             if s & actuation_status::CONTROLLER_FAULT != 0 {
                 self.stats.controller_faults += 1;
+            }
+            if s & actuation_status::FALLBACK != 0 {
+                self.stats.fallback_cycles += 1;
             }
             // The controller promises finite output; the runtime still never sends a NaN.
             for (v, safe) in act.u[..n_u].iter_mut().zip(&self.safe_input) {
@@ -745,6 +751,9 @@ pub struct RunReport {
     /// Per-tone amplitudes of `z` at the end of the open-loop phase and at the end of the
     /// run (`[service.report]`), when tones are known.
     pub tones: Option<ToneReport>,
+    /// What the controller counted over the run ([`Controller::counters`]), e.g. PCAC's
+    /// solved, infeasible and unsolved QPs.
+    pub controller_counters: Vec<(String, u64)>,
 }
 
 impl ToneReport {
@@ -817,9 +826,22 @@ impl RunReport {
             s.rejected_non_finite, s.rejected_out_of_range, s.rejected_contract
         );
         out += &format!(
-            "plant silent {}×, resumed {}×; controller faults {}, saturated cycles {}\n",
-            s.plant_silent_events, s.plant_resumes, s.controller_faults, s.saturated_cycles
+            "plant silent {}×, resumed {}×; controller faults {}, saturated cycles {}, fallback cycles {}\n",
+            s.plant_silent_events,
+            s.plant_resumes,
+            s.controller_faults,
+            s.saturated_cycles,
+            s.fallback_cycles
         );
+        if !self.controller_counters.is_empty() {
+            let list = self
+                .controller_counters
+                .iter()
+                .map(|(name, v)| format!("{name} {v}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            out += &format!("{}: {list}\n", self.controller);
+        }
         let fmt_v = |v: &[f64]| {
             v.iter()
                 .map(|x| format!("{x:.4e}"))
@@ -1016,6 +1038,12 @@ pub fn run(
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
         tones: core.tones.report(),
+        controller_counters: core
+            .controller
+            .counters()
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
     };
     write_json(&folder.join("report.json"), &report)?;
     Ok(report)

@@ -86,6 +86,12 @@ pub trait Controller: Send {
     fn internal_names(&self) -> Vec<String> {
         Vec::new()
     }
+    /// What the controller counted so far, for the run report (e.g. PCAC's solved,
+    /// infeasible and unsolved QPs, identification resets). Called outside the real-time
+    /// loop; may allocate.
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
     /// Writes up to [`MAX_INTERNALS`] internal signals (for the signal log) and returns how
     /// many. Must not allocate.
     fn internals(&self, _out: &mut [f64]) -> usize {

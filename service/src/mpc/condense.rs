@@ -546,6 +546,34 @@ impl Condenser {
         self.ell
     }
 
+    /// The number of tracked outputs `p_t`.
+    pub fn n_tracked(&self) -> usize {
+        self.pt
+    }
+
+    /// Row `i` of `C_t` (`p` entries; empty for `i ≥ p_t`).
+    pub fn tracking_row(&self, i: usize) -> &[f64] {
+        self.ct.get(i * self.p..(i + 1) * self.p).unwrap_or(&[])
+    }
+
+    /// Clips `u` (`m` entries) into the input bounds (2.50); a non-finite entry becomes
+    /// `0` clipped.
+    pub fn clip_to_input_bounds(&self, u: &mut [f64]) {
+        for ((v, lo), hi) in u.iter_mut().zip(&self.u_min).zip(&self.u_max) {
+            let x = if v.is_finite() { *v } else { 0.0 };
+            *v = x.max(*lo).min(*hi);
+        }
+    }
+
+    /// True when an entry of `u` lies on its input bound (2.50), to `1e-9` relative.
+    pub fn at_input_bound(&self, u: &[f64]) -> bool {
+        let near = |a: f64, b: f64| b.is_finite() && (a - b).abs() <= 1e-9 * (1.0 + b.abs());
+        u.iter()
+            .zip(&self.u_min)
+            .zip(&self.u_max)
+            .any(|((v, lo), hi)| near(*v, *lo) || near(*v, *hi))
+    }
+
     /// The index in `G` of the first output-constraint row (`2ℓm` with move bounds, else
     /// 0); row `i·n_c + r` after it is constraint `r` at step `i` (`y_{i+1|k}`).
     pub fn output_rows_start(&self) -> usize {

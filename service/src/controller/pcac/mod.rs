@@ -1,9 +1,9 @@
-//! Predictive cost adaptive control (PCAC), dissertation §2.3.2 and chapter 6: the parts
-//! built so far.
+//! Predictive cost adaptive control (PCAC), dissertation §2.3.2 and chapter 6.
 //!
 //! PCAC identifies an input–output model online and uses its state-space realization in a
 //! receding-horizon problem. This module holds the identification and the realization
-//! ([`model`]); the QP of (2.48)–(2.51) lives in [`crate::mpc`].
+//! ([`model`]) and the controller that joins them with the QP of (2.48)–(2.51) in
+//! [`crate::mpc`] ([`Pcac`]: one step, timing, fallback and commands are documented there).
 //!
 //! # The model and its identification (2.24)–(2.35)
 //!
@@ -37,8 +37,10 @@
 //! `Â_k` ([`model::HorizonPrediction`] computes them together for the condensing in
 //! [`crate::mpc`]). The call order per sample is documented on [`model::IoModel`].
 
+mod controller;
 pub mod model;
 
+pub use controller::{Pcac, PcacCounters, PcacParams, PcacTiming};
 pub use model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
 
 #[cfg(test)]

@@ -613,6 +613,42 @@ impl IoModel {
         Ok(())
     }
 
+    /// Returns to `θ_0`, `P_0`, zero histories and the forgetting rule's initial state,
+    /// without allocating (the reset counter is kept).
+    pub fn reset(&mut self) {
+        let (p, nr) = (self.p, self.nr);
+        match &mut self.kernel {
+            Kernel::Shared(k) => {
+                k.reset();
+                self.coef.copy_from_slice(&k.theta);
+            }
+            Kernel::Full { rls, .. } => {
+                rls.reset();
+                let th = rls.theta();
+                for c in 0..nr {
+                    for r in 0..p {
+                        self.coef[r * nr + c] = th[c * p + r];
+                    }
+                }
+            }
+        }
+        self.ys.data.fill(0.0);
+        self.us.data.fill(0.0);
+        self.psi.fill(0.0);
+        self.err.fill(0.0);
+        self.last = RlsStep {
+            lambda: 1.0,
+            error_norm: 0.0,
+            reset: false,
+        };
+        self.samples = 0;
+    }
+
+    /// The newest stored output `y_k` (zeros before the first sample).
+    pub fn last_y(&self) -> &[f64] {
+        self.ys.back(0)
+    }
+
     /// `Θ̃ = [F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂]` (p × n̂(p+m), row-major): the current estimate
     /// `θ_{k+1}` after step `k`.
     pub fn coefficients(&self) -> &[f64] {
@@ -972,6 +1008,27 @@ impl HorizonPrediction {
         model.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
         model.markov(&mut self.markov)?;
         model.free_response(&self.x1, &mut self.work, &mut self.free)
+    }
+
+    /// Step `k`, after [`IoModel::update`], for an input `u_k` still to be chosen (PCAC's
+    /// same-step timing): fills `x̂_k`, the Markov parameters and the free response
+    /// `Ĉ Â_k^{i−1} x̂_k`, `i = 1 … ℓ` (the outputs `y_k, ŷ_{k+1}, …, ŷ_{k+ℓ−1}` for zero
+    /// inputs from `u_k` on; the first block is `y_k`). [`Self::one_step_state`] is then
+    /// `x̂_k` as well. Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when the model's dimensions do not match the buffers.
+    pub fn compute_from_state(&mut self, model: &IoModel) -> Result<(), DimError> {
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * model.p() * model.m(),
+        )?;
+        model.fill_state(&mut self.x_hat)?;
+        self.x1.copy_from_slice(&self.x_hat);
+        model.markov(&mut self.markov)?;
+        model.free_response(&self.x_hat, &mut self.work, &mut self.free)
     }
 
     /// The horizon `ℓ`.

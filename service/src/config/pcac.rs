@@ -1,0 +1,287 @@
+//! `kind = "pcac"`: the `[controller]` table of predictive cost adaptive control
+//! ([`Pcac`](crate::controller::pcac::Pcac)).
+//!
+//! ```toml
+//! [controller]
+//! kind = "pcac"
+//! n-hat = 25                      # model order n̂ (2.24)
+//! p0 = 1.0                        # P_0 = p0 I (2.30), required
+//! theta0 = 1e-10                  # θ_0: one value for every entry, or n̂ p (p+m) values
+//! trace-limit = 1e12              # tr P beyond this resets θ, P (default 10⁶ tr P_0)
+//! horizon = 40                    # ℓ (2.43)
+//! tracking = [[0.0, 0.0, 0.0, 1.0]]   # C_t (p_t × p); default I_p
+//! q = 1e6                         # Q: scalar or one per tracked output (≥ 0)
+//! r = 1.0                         # R on the moves: scalar or one per input (> 0)
+//! u-min = -10.0                   # input bounds (2.50): scalar or per input (default none)
+//! u-max = 10.0
+//! du-min = -2.0                   # move bounds (2.51), optional, ≤ 0 / ≥ 0
+//! du-max = 2.0
+//! timing = "same-step"            # or "next-step" (the dissertation's u_{1|k} at k+1)
+//! warm-start = true
+//! qp-max-iterations = 500         # the solver's cap on active-set changes per step
+//! lambda = 1.0                    # constant forgetting, or:
+//! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
+//! rule = "f-test"
+//! tau-n = 40
+//! tau-d = 200
+//! eta = 0.1
+//! alpha = 0.001
+//! [controller.output-constraints] # (2.49) C_c y_{i|k} + 𝓓 ≤ 0 at every step, optional
+//! c = [[0.0, 0.0, 0.0, 1.0]]      # C_c (n_c × p)
+//! d = [-0.5]                      # 𝓓 (n_c)
+//! ```
+
+use ipc_types::ChannelCounts;
+use serde::Deserialize;
+
+use super::{ConfigError, RawForgetting, ScalarOrVec, forgetting_rule, matrix, positive_p0};
+use crate::controller::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
+use crate::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
+use crate::mpc::qp::QpSettings;
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawPcac {
+    #[allow(dead_code)]
+    kind: String,
+    n_hat: Option<usize>,
+    p0: Option<f64>,
+    theta0: Option<ScalarOrVec>,
+    trace_limit: Option<f64>,
+    lambda: Option<f64>,
+    forgetting: Option<RawForgetting>,
+    horizon: Option<usize>,
+    tracking: Option<Vec<Vec<f64>>>,
+    q: Option<ScalarOrVec>,
+    r: Option<ScalarOrVec>,
+    u_min: Option<ScalarOrVec>,
+    u_max: Option<ScalarOrVec>,
+    du_min: Option<ScalarOrVec>,
+    du_max: Option<ScalarOrVec>,
+    timing: Option<String>,
+    warm_start: Option<bool>,
+    qp_max_iterations: Option<usize>,
+    output_constraints: Option<RawOutputConstraints>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawOutputConstraints {
+    c: Vec<Vec<f64>>,
+    d: Vec<f64>,
+}
+
+/// A scalar or `n` values, with `default` when absent.
+fn per_channel(
+    v: &Option<ScalarOrVec>,
+    n: usize,
+    default: f64,
+    field: &str,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<Vec<f64>, ConfigError> {
+    match v {
+        None => Ok(vec![default; n]),
+        Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n]),
+        Some(ScalarOrVec::Vec(x)) if x.len() == n => Ok(x.clone()),
+        Some(ScalarOrVec::Vec(x)) => Err(err(
+            field,
+            format!("has {} values, expected 1 or {n}", x.len()),
+        )),
+    }
+}
+
+/// Reads and validates the table (building the controller once, so that every check
+/// reports at load time).
+pub(super) fn parse_pcac(
+    value: toml::Value,
+    counts: ChannelCounts,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<PcacParams, ConfigError> {
+    let raw: RawPcac = value
+        .try_into()
+        .map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
+    let (p, m) = (counts.n_y as usize, counts.n_u as usize);
+    let n_hat = raw
+        .n_hat
+        .ok_or_else(|| err("controller.n-hat", "missing (the model order n̂)".into()))?;
+    if n_hat == 0 {
+        return Err(err("controller.n-hat", "must be at least 1".into()));
+    }
+    let ntheta = n_hat * p * (p + m);
+    let p0 = positive_p0(raw.p0, "for kind = \"pcac\"", err)?;
+    let theta0 = match &raw.theta0 {
+        None => Vec::new(),
+        Some(ScalarOrVec::Scalar(x)) => vec![*x; ntheta],
+        Some(ScalarOrVec::Vec(v)) if v.len() == ntheta => v.clone(),
+        Some(ScalarOrVec::Vec(v)) => {
+            return Err(err(
+                "controller.theta0",
+                format!(
+                    "has {} values, expected one or n̂·p·(p+m) = {n_hat}·{p}·{} = {ntheta}",
+                    v.len(),
+                    p + m
+                ),
+            ));
+        }
+    };
+    if theta0.iter().any(|x| !x.is_finite()) {
+        return Err(err("controller.theta0", "must be finite".into()));
+    }
+    let trace0 = ntheta as f64 * p0;
+    let trace_limit = raw.trace_limit.unwrap_or(1e6 * trace0);
+    if trace_limit.is_nan() || trace_limit <= trace0 {
+        return Err(err(
+            "controller.trace-limit",
+            format!("{trace_limit} must exceed tr(P_0) = n̂ p (p+m) p0 = {trace0}"),
+        ));
+    }
+    let rule = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
+    let horizon = raw
+        .horizon
+        .ok_or_else(|| err("controller.horizon", "missing (the horizon ℓ)".into()))?;
+    if horizon < 2 {
+        return Err(err(
+            "controller.horizon",
+            format!("{horizon}: the horizon ℓ must be at least 2 (y_{{1|k}} is already decided)"),
+        ));
+    }
+    let tracking = match &raw.tracking {
+        None => nalgebra::DMatrix::identity(p, p),
+        Some(rows) => {
+            matrix(rows, p, "controller.tracking").map_err(|m| err("controller.tracking", m))?
+        }
+    };
+    if tracking.ncols() != p || tracking.nrows() == 0 {
+        return Err(err(
+            "controller.tracking",
+            format!(
+                "is {}×{}, expected p_t × {p} (one column per measurement y)",
+                tracking.nrows(),
+                tracking.ncols()
+            ),
+        ));
+    }
+    let pt = tracking.nrows();
+    let n_r = counts.n_r as usize;
+    if n_r != 0 && n_r != pt {
+        return Err(err(
+            "controller.tracking",
+            format!("has {pt} tracked outputs but the rig has {n_r} commands r (need 0 or {pt})"),
+        ));
+    }
+    let q = per_channel(&raw.q, pt, 1.0, "controller.q", err)?;
+    let r = per_channel(&raw.r, m, 1.0, "controller.r", err)?;
+    if q.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        return Err(err("controller.q", "weights must be finite and ≥ 0".into()));
+    }
+    if r.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(err(
+            "controller.r",
+            "weights must be finite and > 0 (they make the QP strictly convex)".into(),
+        ));
+    }
+    let u_min = per_channel(&raw.u_min, m, f64::NEG_INFINITY, "controller.u-min", err)?;
+    let u_max = per_channel(&raw.u_max, m, f64::INFINITY, "controller.u-max", err)?;
+    let move_bounds = if raw.du_min.is_none() && raw.du_max.is_none() {
+        None
+    } else {
+        Some(MoveBounds {
+            min: per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?,
+            max: per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?,
+        })
+    };
+    let output_constraints = match &raw.output_constraints {
+        None => None,
+        Some(oc) => {
+            let c = matrix(&oc.c, p, "controller.output-constraints.c")
+                .map_err(|m| err("controller.output-constraints.c", m))?;
+            if c.ncols() != p || c.nrows() == 0 {
+                return Err(err(
+                    "controller.output-constraints.c",
+                    format!("is {}×{}, expected n_c × {p}", c.nrows(), c.ncols()),
+                ));
+            }
+            if oc.d.len() != c.nrows() {
+                return Err(err(
+                    "controller.output-constraints.d",
+                    format!("has {} values, C_c has {} rows", oc.d.len(), c.nrows()),
+                ));
+            }
+            Some(OutputConstraints {
+                c: row_major(&c),
+                d: oc.d.clone(),
+            })
+        }
+    };
+    let timing = match raw.timing.as_deref().unwrap_or("same-step") {
+        "same-step" => PcacTiming::SameStep,
+        "next-step" => PcacTiming::NextStep,
+        other => {
+            return Err(err(
+                "controller.timing",
+                format!("'{other}' is not \"same-step\" or \"next-step\""),
+            ));
+        }
+    };
+    let mut qp = QpSettings::default();
+    if let Some(n) = raw.qp_max_iterations {
+        if n == 0 {
+            return Err(err(
+                "controller.qp-max-iterations",
+                "must be at least 1".into(),
+            ));
+        }
+        qp.max_iterations = n;
+    }
+    let params = PcacParams {
+        model: IoModelParams {
+            n_hat,
+            p,
+            m,
+            theta0,
+            p0,
+            rule,
+            trace_limit,
+            kernel: IdKernel::Shared,
+        },
+        mpc: MpcSpec {
+            horizon,
+            n_inputs: m,
+            n_outputs: p,
+            n_tracked: pt,
+            tracking: row_major(&tracking),
+            q: Weight::PerChannel(q),
+            r: Weight::PerChannel(r),
+            u_min,
+            u_max,
+            move_bounds,
+            output_constraints,
+        },
+        timing,
+        qp,
+        warm_start: raw.warm_start.unwrap_or(true),
+    };
+    Pcac::new(&params, counts).map_err(|m| {
+        let field = if m.contains("forgetting") || m.contains("tau") {
+            "controller.forgetting"
+        } else if m.contains("u_min") || m.contains("u_max") || m.contains("input ") {
+            "controller.u-min"
+        } else if m.contains("move") || m.contains("Δu") {
+            "controller.du-min"
+        } else {
+            "controller"
+        };
+        err(field, m)
+    })?;
+    Ok(params)
+}
+
+fn row_major(a: &nalgebra::DMatrix<f64>) -> Vec<f64> {
+    let mut v = Vec::with_capacity(a.len());
+    for i in 0..a.nrows() {
+        for j in 0..a.ncols() {
+            v.push(a[(i, j)]);
+        }
+    }
+    v
+}
