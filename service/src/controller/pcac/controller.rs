@@ -246,6 +246,12 @@ impl Pcac {
         self.last_status
     }
 
+    /// The condensed QP of the last MPC step (e.g. to solve it with
+    /// [`solve_with_clarabel`](crate::mpc::qp::solve_with_clarabel) for comparison).
+    pub fn last_problem(&self) -> crate::mpc::qp::QpProblem<'_> {
+        self.cond.problem()
+    }
+
     /// The last QP's solution `U` (all `ℓ m` planned inputs).
     pub fn planned_inputs(&self) -> &[f64] {
         self.solver.x()
