@@ -485,131 +485,130 @@ fn an_rcac_step_with_the_gradient_update_does_not_allocate() {
     }
 }
 
-/// The pieces of a PCAC step at the truss size (n̂ = 25, p = 4, m = 2, ℓ = 40): the
-/// identification update (shared-covariance RLS with F-test forgetting), the realization
-/// (state, Markov parameters, free response), the condensing with input and move bounds,
-/// the warm-started QP solve and the first move — or the fallback input when the solve
-/// fails. Everything is built outside the counted region; 600 receding-horizon steps
+/// A PCAC controller at the truss size of chapter 6 (`n̂ = 25`, `p = 4`, `m = 2`, 600
+/// coefficients, `ℓ = 40`) read from a scenario text, with move bounds and, when
+/// `infeasible`, an output constraint `y_4 ≤ −100` no prediction can meet.
+fn truss_size_pcac(infeasible: bool) -> Box<dyn service::controller::Controller> {
+    let constraints = if infeasible {
+        "[controller.output-constraints]\nc = [[0.0, 0.0, 0.0, 1.0]]\nd = [100.0]\n"
+    } else {
+        ""
+    };
+    let text = format!(
+        r#"
+[rig]
+name = "pcac-no-alloc"
+sample-period = 0.02
+[service]
+channels = {{ y = 4, z = 4, u = 2 }}
+fifo-priority = 0
+mlockall = false
+[controller]
+kind = "pcac"
+n-hat = 25
+p0 = 1.0
+theta0 = 1e-10
+horizon = 40
+tracking = [[0.0, 0.0, 0.0, 1.0]]
+q = 1e6
+r = 1.0
+u-min = -10.0
+u-max = 10.0
+du-min = -2.0
+du-max = 2.0
+[controller.forgetting]
+rule = "f-test"
+tau-n = 40
+tau-d = 200
+eta = 0.1
+alpha = 0.001
+{constraints}"#
+    );
+    let cfg = ServiceConfig::parse(&text, "no_alloc_pcac").unwrap();
+    cfg.controller.build(cfg.counts).unwrap()
+}
+
+/// The whole PCAC step at the truss size: identification (shared-covariance RLS with
+/// F-test forgetting), realization, condensing with input and move bounds, the
+/// warm-started QP and the first move; with caught-up samples (`observe`), lost samples
+/// (bridging), held inputs (`u_applied`), internals for the log, a reset, and a controller
+/// whose every QP is infeasible (fallback). Built outside the counted region; 800 steps
 /// inside it make no allocation.
 #[test]
-fn the_pcac_pieces_do_not_allocate() {
-    use service::controller::pcac::model::{HorizonPrediction, IdKernel, IoModel, IoModelParams};
-    use service::forgetting::ForgettingRule;
-    use service::mpc::condense::{Condenser, MoveBounds, MpcSpec, Weight};
-    use service::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
-    let (n_hat, p, m, ell) = (25, 4, 2, 40);
-    let (mut model, mut pred, mut cond, mut solver) = service::rt_alloc::outside_rt(|| {
-        let model = IoModel::new(&IoModelParams {
-            n_hat,
-            p,
-            m,
-            theta0: Vec::new(),
-            p0: 1.0,
-            rule: ForgettingRule::FTest {
-                tau_n: 40,
-                tau_d: 200,
-                eta: 0.1,
-                alpha: 0.001,
-            },
-            trace_limit: f64::INFINITY,
-            kernel: IdKernel::Shared,
-        })
-        .unwrap();
-        let pred = HorizonPrediction::new(&model, ell).unwrap();
-        let mut tracking = vec![0.0; p];
-        tracking[p - 1] = 1.0;
-        let cond = Condenser::new(&MpcSpec {
-            horizon: ell,
-            n_inputs: m,
-            n_outputs: p,
-            n_tracked: 1,
-            tracking,
-            q: Weight::Scalar(1.0),
-            r: Weight::Scalar(1e-3),
-            u_min: vec![-10.0; m],
-            u_max: vec![10.0; m],
-            move_bounds: Some(MoveBounds {
-                min: vec![-2.0; m],
-                max: vec![2.0; m],
-            }),
-            output_constraints: None,
-        })
-        .unwrap();
-        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), QpSettings::default());
-        (model, pred, cond, solver)
-    });
-    let n = cond.n();
-    let mut active = vec![ConstraintId::Row(0); n + cond.n_ineq()];
-    let mut shifted = active.clone();
-    let mut n_shifted = 0;
-    let reference = vec![0.0; ell];
-    let (mut u, mut u_prev, mut y) = (vec![0.0; m], vec![0.0; m], vec![0.0; p]);
-    let mut solved = 0;
+fn the_pcac_step_does_not_allocate() {
+    use ipc_types::actuation_status;
+    let (mut ctl, mut stuck) =
+        service::rt_alloc::outside_rt(|| (truss_size_pcac(false), truss_size_pcac(true)));
     // A lightly damped 2-input, 4-output plant (one mode per output) with a disturbance,
-    // so that the model has something to identify and the inputs hit their bounds.
+    // so that the model has something to identify and the inputs reach their bounds.
     let mut x = [[0.0f64; 2]; 4];
-    let mut step = |k: usize,
-                    model: &mut IoModel,
-                    pred: &mut HorizonPrediction,
-                    cond: &mut Condenser,
-                    solver: &mut DenseQpSolver,
-                    solved: &mut usize| {
-        let w = (0.3 * k as f64).sin();
+    let (mut y, mut u, mut applied) = ([0.0; 4], [0.0; 2], [0.0; 2]);
+    let mut internals = [0.0; service::controller::MAX_INTERNALS];
+    let (mut solved, mut fallbacks) = (0, 0);
+    let mut run = |ctl: &mut Box<dyn service::controller::Controller>,
+                   k: usize,
+                   solved: &mut usize,
+                   fallbacks: &mut usize| {
+        let w = (0.3 * k as f64).sin() + 0.5 * (1.1 * k as f64).sin();
         for (o, (xo, yo)) in x.iter_mut().zip(y.iter_mut()).enumerate() {
             let a = 1.9 - 0.05 * o as f64;
-            let next = a * xo[0] - 0.95 * xo[1] + 0.1 * u[o % m] + 0.05 * w;
+            let next = a * xo[0] - 0.95 * xo[1] + 0.1 * applied[o % 2] + 0.05 * w;
             *xo = [next, xo[0]];
             *yo = next;
         }
-        model.update(&y, &u_prev).unwrap();
-        pred.compute(model, &u).unwrap();
-        let warm = if n_shifted > 0 {
-            WarmStart::ActiveSet(&shifted[..n_shifted])
-        } else {
-            WarmStart::Cold
+        let input = StepInput {
+            seq: k as u64,
+            y: &y,
+            z: &y,
+            r: &[],
+            u_applied: Some(&applied),
+            // Two samples lost now and then: bridged, identification paused.
+            lost: if k % 97 == 0 { 2 } else { 0 },
         };
-        let problem = cond
-            .build(pred.markov(), pred.free_response(), &u, &reference)
-            .unwrap();
-        let status = solver.solve(&problem, warm);
-        u_prev.copy_from_slice(&u);
-        if status == QpStatus::Solved {
-            *solved += 1;
-            let first = cond.first_move(solver.x());
-            u.copy_from_slice(first);
-            let na = solver.active_set_into(&mut active);
-            n_shifted = cond.shift_active_set(&active[..na], &mut shifted);
+        if k % 50 == 7 {
+            // Caught up: taken in, not answered; the plant holds its input.
+            ctl.observe(&input, &mut u);
         } else {
-            let hold = [u[0], u[1]];
-            cond.fallback_input(&hold, &mut u);
-            n_shifted = 0;
+            let s = ctl.step(&input, &mut u);
+            if s & actuation_status::FALLBACK != 0 {
+                *fallbacks += 1;
+            } else {
+                *solved += 1;
+            }
+            // Every 9th answer is late: the plant holds the previous input.
+            if k % 9 != 0 {
+                applied = u;
+            }
         }
+        ctl.internals(&mut internals);
     };
     for k in 0..200 {
-        step(
-            k,
-            &mut model,
-            &mut pred,
-            &mut cond,
-            &mut solver,
-            &mut solved,
-        );
+        run(&mut ctl, k, &mut solved, &mut fallbacks);
     }
     enter_rt_thread(16);
     let before = thread_stats();
     for k in 200..800 {
-        step(
-            k,
-            &mut model,
-            &mut pred,
-            &mut cond,
-            &mut solver,
-            &mut solved,
-        );
+        run(&mut ctl, k, &mut solved, &mut fallbacks);
+    }
+    ctl.reset();
+    for k in 800..900 {
+        run(&mut ctl, k, &mut solved, &mut fallbacks);
+    }
+    let (solved_before, fallbacks_before) = (solved, fallbacks);
+    for k in 0..100 {
+        run(&mut stuck, k, &mut solved, &mut fallbacks);
     }
     let d = thread_stats().since(&before);
     assert!(d.installed);
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
-    assert!(solved > 700, "only {solved} of 800 QPs solved");
-    assert!(u.iter().all(|v| v.is_finite() && v.abs() <= 10.0));
+    assert!(solved_before > 700, "only {solved_before} QPs solved");
+    assert!(fallbacks_before < 20, "{fallbacks_before} fallbacks");
+    // The infeasible controller fell back at every answered step.
+    assert_eq!(solved, solved_before);
+    assert_eq!(fallbacks - fallbacks_before, 98);
+    assert!(
+        u.iter()
+            .chain(&applied)
+            .all(|v| v.is_finite() && v.abs() <= 10.0)
+    );
 }

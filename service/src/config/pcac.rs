@@ -182,13 +182,41 @@ pub(super) fn parse_pcac(
     }
     let u_min = per_channel(&raw.u_min, m, f64::NEG_INFINITY, "controller.u-min", err)?;
     let u_max = per_channel(&raw.u_max, m, f64::INFINITY, "controller.u-max", err)?;
+    for j in 0..m {
+        let (lo, hi) = (u_min[j], u_max[j]);
+        if lo.is_nan() || hi.is_nan() || lo > hi || lo == f64::INFINITY || hi == f64::NEG_INFINITY {
+            return Err(err(
+                "controller.u-min",
+                format!("input {j}: need u-min ≤ u-max, got [{lo}, {hi}]"),
+            ));
+        }
+    }
     let move_bounds = if raw.du_min.is_none() && raw.du_max.is_none() {
         None
     } else {
-        Some(MoveBounds {
-            min: per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?,
-            max: per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?,
-        })
+        let min = per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?;
+        let max = per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?;
+        for j in 0..m {
+            if !(min[j] <= 0.0) {
+                return Err(err(
+                    "controller.du-min",
+                    format!(
+                        "input {j}: {} must be ≤ 0 (holding the input must be allowed)",
+                        min[j]
+                    ),
+                ));
+            }
+            if !(max[j] >= 0.0) {
+                return Err(err(
+                    "controller.du-max",
+                    format!(
+                        "input {j}: {} must be ≥ 0 (holding the input must be allowed)",
+                        max[j]
+                    ),
+                ));
+            }
+        }
+        Some(MoveBounds { min, max })
     };
     let output_constraints = match &raw.output_constraints {
         None => None,
@@ -261,13 +289,11 @@ pub(super) fn parse_pcac(
         qp,
         warm_start: raw.warm_start.unwrap_or(true),
     };
+    // The remaining checks (the forgetting rule's windows, the output constraints' values)
+    // happen in the constructors.
     Pcac::new(&params, counts).map_err(|m| {
         let field = if m.contains("forgetting") || m.contains("tau") {
             "controller.forgetting"
-        } else if m.contains("u_min") || m.contains("u_max") || m.contains("input ") {
-            "controller.u-min"
-        } else if m.contains("move") || m.contains("Δu") {
-            "controller.du-min"
         } else {
             "controller"
         };
@@ -284,4 +310,113 @@ fn row_major(a: &nalgebra::DMatrix<f64>) -> Vec<f64> {
         }
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::config::ServiceConfig;
+    use crate::controller::pcac::PcacTiming;
+    use crate::mpc::condense::Weight;
+
+    const GOOD: &str = r#"
+[rig]
+name = "pcac"
+sample-period = 0.02
+[service]
+channels = { y = 4, z = 4, r = 0, u = 2 }
+[controller]
+kind = "pcac"
+n-hat = 25
+p0 = 1.0
+theta0 = 1e-10
+horizon = 40
+tracking = [[0.0, 0.0, 0.0, 1.0]]
+q = 1e6
+r = 1.0
+u-min = -10.0
+u-max = 10.0
+du-max = 3.0
+timing = "next-step"
+[controller.forgetting]
+rule = "f-test"
+tau-n = 40
+tau-d = 200
+eta = 0.1
+alpha = 0.001
+[controller.output-constraints]
+c = [[0.0, 0.0, 1.0, 0.0]]
+d = [-5.0]
+"#;
+
+    fn params(text: &str) -> Result<Box<super::PcacParams>, String> {
+        let c = ServiceConfig::parse(text, "pcac.toml").map_err(|e| e.to_string())?;
+        match c.controller {
+            super::super::ControllerConfig::Pcac { params } => Ok(params),
+            other => panic!("not pcac: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn the_chapter_6_settings_are_read_into_the_controller() {
+        let p = params(GOOD).unwrap();
+        assert_eq!((p.model.n_hat, p.model.p, p.model.m), (25, 4, 2));
+        assert_eq!(p.model.theta0, vec![1e-10; 600]);
+        assert_eq!(p.mpc.horizon, 40);
+        assert_eq!(p.mpc.tracking, vec![0.0, 0.0, 0.0, 1.0]);
+        assert_eq!(p.mpc.q, Weight::PerChannel(vec![1e6]));
+        assert_eq!(p.mpc.r, Weight::PerChannel(vec![1.0, 1.0]));
+        let mb = p.mpc.move_bounds.as_ref().unwrap();
+        assert_eq!(
+            (mb.min.clone(), mb.max.clone()),
+            (vec![f64::NEG_INFINITY; 2], vec![3.0; 2])
+        );
+        assert_eq!(p.mpc.output_constraints.as_ref().unwrap().d, vec![-5.0]);
+        assert_eq!(p.timing, PcacTiming::NextStep);
+        assert!(p.warm_start);
+        let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
+        let ctl = c.controller.build(c.counts).unwrap();
+        assert_eq!(ctl.kind(), "pcac");
+    }
+
+    #[test]
+    fn bad_pcac_settings_are_refused_naming_the_field() {
+        let cases = [
+            ("n-hat = 25", "n-hat = 0", "controller.n-hat"),
+            ("theta0 = 1e-10", "theta0 = [1.0, 2.0]", "controller.theta0"),
+            ("p0 = 1.0", "p0 = -1.0", "controller.p0"),
+            ("horizon = 40", "horizon = 1", "controller.horizon"),
+            (
+                "tracking = [[0.0, 0.0, 0.0, 1.0]]",
+                "tracking = [[0.0, 1.0]]",
+                "controller.tracking",
+            ),
+            ("r = 1.0", "r = 0.0", "controller.r"),
+            ("q = 1e6", "q = [1.0, 2.0]", "controller.q"),
+            ("u-min = -10.0", "u-min = 20.0", "controller.u-min"),
+            ("du-max = 3.0", "du-max = -3.0", "controller.du-max"),
+            (
+                "timing = \"next-step\"",
+                "timing = \"later\"",
+                "controller.timing",
+            ),
+            ("tau-d = 200", "tau-d = 5", "controller.forgetting"),
+            (
+                "d = [-5.0]",
+                "d = [-5.0, 1.0]",
+                "controller.output-constraints.d",
+            ),
+            ("horizon = 40", "horizon = 40\nhorizn = 3", "controller"),
+        ];
+        for (from, to, field) in cases {
+            assert!(GOOD.contains(from), "{from}");
+            let m = params(&GOOD.replace(from, to)).expect_err(to);
+            assert!(
+                m.starts_with(&format!("pcac.toml: field '{field}'")),
+                "{to}: {m}"
+            );
+        }
+        // Commands must match the tracked outputs.
+        let m = params(&GOOD.replace("r = 0, u = 2", "r = 2, u = 2")).unwrap_err();
+        assert!(m.contains("2 commands r"), "{m}");
+    }
 }

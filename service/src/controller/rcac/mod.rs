@@ -897,6 +897,13 @@ impl Controller for Rcac {
         self.lambda = 1.0;
     }
 
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("coefficient resets", self.resets()),
+            ("gaps bridged", self.gaps()),
+        ]
+    }
+
     fn internal_names(&self) -> Vec<String> {
         let second = match self.law {
             Law::Rls(_) => "trace_p",
