@@ -313,3 +313,15 @@ pub fn run_lockstep_pair(
     );
     run_folder
 }
+
+/// Amplitude of the tone at `w` rad/sample in `x[start..start + n]` (sample index `start`
+/// first), by projection on sin/cos; exact for a whole number of periods.
+pub fn tone_amplitude(x: &[f64], start: usize, n: usize, w: f64) -> f64 {
+    let (mut s, mut c) = (0.0, 0.0);
+    for (i, v) in x[start..start + n].iter().enumerate() {
+        let t = w * (start + i) as f64;
+        s += v * t.sin();
+        c += v * t.cos();
+    }
+    2.0 / n as f64 * (s * s + c * c).sqrt()
+}

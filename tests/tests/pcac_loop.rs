@@ -29,17 +29,6 @@ const R: f64 = 0.5;
 const U_MAX: f64 = 3.0;
 const DU_MAX: f64 = 0.5;
 
-/// Amplitude of the tone at `w` rad/sample in `x[start..start + n]`: projection on sin/cos.
-fn tone_amplitude(x: &[f64], start: usize, n: usize, w: f64) -> f64 {
-    let (mut s, mut c) = (0.0, 0.0);
-    for (i, v) in x[start..start + n].iter().enumerate() {
-        let t = w * (start + i) as f64;
-        s += v * t.sin();
-        c += v * t.cos();
-    }
-    2.0 / n as f64 * (s * s + c * c).sqrt()
-}
-
 fn plant_text(rig: &str) -> String {
     let text = with_rig_name(&scenario_text("rcac-tone.toml"), rig);
     assert!(text.contains("outputs-z = 1\n"));

@@ -39,18 +39,6 @@ const W_TONE: f64 = 2.0 * std::f64::consts::PI * 3.0 * 0.01;
 /// Required reduction of the tone's amplitude in z.
 const REQUIRED_DB: f64 = 40.0;
 
-/// Amplitude of the tone at `w` rad/sample in `x[start..start + n]`, sample index `start`
-/// first: projection on sin/cos.
-fn tone_amplitude(x: &[f64], start: usize, n: usize, w: f64) -> f64 {
-    let (mut s, mut c) = (0.0, 0.0);
-    for (i, v) in x[start..start + n].iter().enumerate() {
-        let t = w * (start + i) as f64;
-        s += v * t.sin();
-        c += v * t.cos();
-    }
-    2.0 / n as f64 * (s * s + c * c).sqrt()
-}
-
 /// What one closed-loop run measured.
 struct LoopResult {
     /// Tone amplitude in z over `[KW − WINDOW, KW)` (open loop).
