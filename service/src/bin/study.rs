@@ -4,12 +4,17 @@
 //! cargo run --release -p service --bin study -- forgetting [--runs 1000] [--out DIR] [--seed S]
 //! cargo run --release -p service --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
 //! cargo run --release -p service --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
+//! cargo run --release -p service --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both]
 //! ```
 //!
 //! `rcac-siso` and `rcac-miso` are the chapter 3 studies of RCAC with dereverberated
 //! target models (§3.3.1 on the structure (3.50), Figures 3.5–3.10; §3.3.2 on a 4-mode
 //! MISO structure, Figures 3.11–3.17); see the `rcac_siso`, `rcac_miso` and `rcac_common`
 //! modules for the equations, the settings and what they write.
+//!
+//! `pcac-truss` is the chapter 6 study of PCAC on the 4-bay truss under harmonic and
+//! broadband disturbances, with and without aliasing (§6.2, Figures 6.2–6.10), from the
+//! scenarios `scenarios/truss/*.toml`; see the `pcac_truss` module.
 //!
 //! `forgetting` is the chapter 5 study of RLS with F-test variable-rate forgetting
 //! (RLS/FTVRF, Algorithm 1) against constant-rate forgetting (RLS/CRF, `λ = 0.99`) and
@@ -33,6 +38,8 @@ mod experiment;
 mod montecarlo;
 #[path = "../study/output.rs"]
 mod output;
+#[path = "../study/pcac_truss.rs"]
+mod pcac_truss;
 #[path = "../study/plant.rs"]
 mod plant;
 #[path = "../study/rcac_common.rs"]
@@ -104,6 +111,23 @@ enum Study {
         #[arg(long, default_value = "both")]
         update: String,
     },
+    /// Chapter 6, §6.2: PCAC on the 4-bay truss under harmonic and broadband disturbances,
+    /// with and without aliasing (Figures 6.2–6.10), open and closed loop.
+    PcacTruss {
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-pcac-truss")]
+        out: PathBuf,
+        /// Simulated duration of each run, s.
+        #[arg(long, default_value_t = pcac_truss::DURATION_S)]
+        duration: f64,
+        /// Experiments: all, or a comma-separated list of harmonic, broadband-25hz,
+        /// broadband-50hz-aliasing.
+        #[arg(long, default_value = "all")]
+        experiments: String,
+        /// PCAC settings: both, printed (P_0 = I, as in §6.2) or rescaled (P_0 = 1e6 I).
+        #[arg(long, default_value = "both")]
+        settings: String,
+    },
 }
 
 fn main() -> ExitCode {
@@ -122,6 +146,23 @@ fn main() -> ExitCode {
             update,
         } => rcac_common::Update::parse_set(&update)
             .and_then(|updates| rcac_miso::run(&out, &rcac_miso::Options { points, updates })),
+        Study::PcacTruss {
+            out,
+            duration,
+            experiments,
+            settings,
+        } => pcac_truss::Experiment::parse_set(&experiments).and_then(|experiments| {
+            pcac_truss::Setting::parse_set(&settings).and_then(|settings| {
+                pcac_truss::run(
+                    &out,
+                    &pcac_truss::Options {
+                        duration,
+                        experiments,
+                        settings,
+                    },
+                )
+            })
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
