@@ -29,6 +29,10 @@
 //!    configuration ([`configs::step_cases`]) is built through the service's configuration
 //!    path and stepped many times on the pinned RT core under `SCHED_FIFO`, timing each
 //!    step; the cost is also given as a share of the 125 µs period.
+//! 4. **What does a PCAC step cost, and how does it compare with clarabel?**
+//!    ([`pcac_cost`]) `Pcac::step` at the truss size and at the sampling-arm size, each in a
+//!    closed loop, with clarabel timed on the same QPs and the step taken apart into its
+//!    kernels. `latency-bench pcac` runs this phase alone.
 //!
 //! Every distribution is an HdrHistogram ([`hist`]), written as a percentile distribution
 //! (`.hgrm`, µs) and as an interval log (`.hlog`, V2 + deflate, ns) into the output folder,
@@ -44,6 +48,7 @@ pub mod cyclictest;
 pub mod hist;
 pub mod machine;
 pub mod paced;
+pub mod pcac_cost;
 pub mod rls_cost;
 pub mod roundtrip;
 pub mod step_cost;

@@ -2,12 +2,14 @@
 //!
 //! ```text
 //! cargo run --release -p latency-bench [-- --samples N --seconds S --out DIR --quick --skip-cyclictest]
+//! cargo run --release -p latency-bench -- pcac [--steps N --workload truss|arm|all --out DIR]
 //! ```
 //!
 //! Runs, in order: the contract round trip against the real service, the raw iceoryx2
 //! ping-pong, the service's wake-up latency at 8 kHz in busy-poll and blocking mode,
-//! cyclictest on the RT core (when installed), and the step cost of each known controller
-//! configuration. Prints the machine facts and one table, and writes every distribution
+//! cyclictest on the RT core (when installed), the step cost of each known controller
+//! configuration, the RLS update cost and the PCAC step cost beside clarabel (the `pcac`
+//! subcommand runs the last alone). Prints the machine facts and one table, and writes every distribution
 //! (`.hgrm`, `.hlog`), the service's run reports and a `summary.json` to the output folder
 //! (default `bench-results/<unix-time>/`). See the library docs for the method of each
 //! measurement.
@@ -22,6 +24,7 @@ use latency_bench::cyclictest::{self, CyclictestRun};
 use latency_bench::hist::{self, Summary, ratio};
 use latency_bench::machine;
 use latency_bench::paced::{self, PacedResult};
+use latency_bench::pcac_cost::{self, PcacCost, Workload};
 use latency_bench::roundtrip::{self, RoundTripPlan};
 use latency_bench::step_cost;
 use latency_bench::table::{self, Row, fmt_ratio};
@@ -87,10 +90,45 @@ struct Options {
     /// Core of the real-time side (service RT thread, echo, cyclictest, step cost).
     #[arg(long, default_value_t = 1)]
     rt_core: usize,
+    /// Timed PCAC steps per workload (truss, arm), each also solved by clarabel
+    /// (default 2000; 300 with --quick). `latency-bench pcac` runs this phase alone.
+    #[arg(long)]
+    pcac_steps: Option<u64>,
+    /// Do not run the PCAC phase.
+    #[arg(long)]
+    skip_pcac: bool,
+}
+
+/// The options of `latency-bench pcac`.
+#[derive(clap::Args, Debug, Clone)]
+struct PcacArgs {
+    /// Timed steps per workload (default 5000; 300 with --quick).
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Untimed steps before timing (default: the workload's, 500).
+    #[arg(long)]
+    warmup: Option<u64>,
+    /// Which workload: truss, arm or all.
+    #[arg(long, default_value = "all")]
+    workload: String,
+    /// Time the PCAC step only, without solving its QPs with clarabel.
+    #[arg(long)]
+    no_clarabel: bool,
+    /// Output folder (default bench-results/pcac-<unix-time>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Core of the timing thread (pinned, SCHED_FIFO).
+    #[arg(long, default_value_t = 1)]
+    rt_core: usize,
+    /// A short run for smoke tests.
+    #[arg(long)]
+    quick: bool,
 }
 
 #[derive(Subcommand)]
 enum Role {
+    /// Only the PCAC step cost (truss and sampling-arm sizes) beside clarabel.
+    Pcac(PcacArgs),
     /// Child role: the real service.
     #[command(hide = true)]
     ChildService {
@@ -133,6 +171,7 @@ fn main() -> ExitCode {
             child::run_service_child(&config, wait, core, &run_folder)
         }
         Some(Role::ChildEcho { rig, core }) => roundtrip::run_echo_child(&rig, core),
+        Some(Role::Pcac(a)) => pcac_only(&a),
         None => bench(&cli.opts),
     };
     ExitCode::from(code.clamp(0, 255) as u8)
@@ -151,6 +190,8 @@ struct Settings {
     rt_core: usize,
     service_log: bool,
     cyclictest: bool,
+    /// Timed PCAC steps per workload; `None`: the phase is skipped.
+    pcac_steps: Option<u64>,
 }
 
 impl Settings {
@@ -187,6 +228,11 @@ impl Settings {
             rt_core: o.rt_core,
             service_log: o.service_log,
             cyclictest: !o.skip_cyclictest,
+            pcac_steps: (!o.skip_pcac).then(|| {
+                o.pcac_steps
+                    .unwrap_or(if o.quick { 300 } else { 2_000 })
+                    .max(1)
+            }),
         }
     }
 
@@ -226,6 +272,7 @@ impl Settings {
             "rt_core": self.rt_core,
             "fifo_priority": RT_PRIORITY,
             "service_log": self.service_log,
+            "pcac_steps": self.pcac_steps,
         })
     }
 }
@@ -535,6 +582,22 @@ fn bench(o: &Options) -> i32 {
     measured.extend(step_rows);
     progress("RLS update cost (fast kernel against the textbook one)");
     measured.extend(rls_phase(&s, &out.join("rls")));
+    if let Some(steps) = s.pcac_steps {
+        progress(&format!(
+            "PCAC step cost beside clarabel, {steps} steps per workload"
+        ));
+        let (rows, lines, v) = pcac_phase(
+            s.rt_core,
+            &out.join("pcac"),
+            &Workload::ALL,
+            None,
+            steps,
+            true,
+        );
+        measured.extend(rows);
+        details.extend(lines);
+        extra.insert("pcac".into(), v);
+    }
 
     // Output.
     let rows: Vec<Row> = measured.iter().map(Measured::row).collect();
@@ -902,12 +965,12 @@ fn cyclictest_phase(
 /// Runs `work` on a thread pinned to the RT core at `SCHED_FIFO` (helper threads of the
 /// bench phases that time kernels); returns the RT set-up outcome and `work`'s result.
 fn on_rt_core<T: Send + 'static>(
-    s: &Settings,
+    rt_core: usize,
     name: &str,
     work: impl FnOnce() -> T + Send + 'static,
 ) -> Result<(ipc_types::rt::RtSetup, T), String> {
     let rt = RtRequest {
-        core: Some(s.rt_core),
+        core: Some(rt_core),
         fifo_priority: Some(RT_PRIORITY),
         mlockall: true,
         prefault_stack_bytes: 256 * 1024,
@@ -936,7 +999,7 @@ fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     let base = (s.steps / 10).max(1000);
     let start = SystemTime::now();
     let t = Instant::now();
-    let results = match on_rt_core(s, "bench-rls", move || {
+    let results = match on_rt_core(s.rt_core, "bench-rls", move || {
         latency_bench::rls_cost::RLS_SIZES
             .iter()
             .map(|&(n, p)| {
@@ -1002,7 +1065,7 @@ fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     let (warmup, steps) = (s.step_warmup, s.steps);
     let start = SystemTime::now();
     let t = Instant::now();
-    let (setup, (results, overhead)) = match on_rt_core(s, "bench-step", move || {
+    let (setup, (results, overhead)) = match on_rt_core(s.rt_core, "bench-step", move || {
         let results: Vec<_> = cases
             .iter()
             .map(|c| (c.clone(), step_cost::measure(c, warmup, steps)))
@@ -1045,4 +1108,345 @@ fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
     m.note = format!("inside every step value; step thread: {}", setup.describe());
     out.push(m);
     out
+}
+
+/// The PCAC step at each of `workloads` on the pinned RT core, beside clarabel on the same
+/// QPs when `clarabel` (see `latency_bench::pcac_cost`): the table rows, the detail lines
+/// and the JSON block of `summary.json`.
+fn pcac_phase(
+    rt_core: usize,
+    dir: &Path,
+    workloads: &[Workload],
+    warmup: Option<u64>,
+    steps: u64,
+    clarabel: bool,
+) -> (Vec<Measured>, Vec<String>, Value) {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return (
+            vec![Measured::failed(
+                "pcac",
+                "pcac step",
+                format!("creating {}: {e}", dir.display()),
+            )],
+            Vec::new(),
+            Value::Null,
+        );
+    }
+    let list = workloads.to_vec();
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let (setup, results) = match on_rt_core(rt_core, "bench-pcac", move || {
+        list.iter()
+            .map(|&w| {
+                let warm = warmup.unwrap_or(w.default_warmup());
+                (w, pcac_cost::measure(w, warm, steps, clarabel))
+            })
+            .collect::<Vec<_>>()
+    }) {
+        Ok(v) => v,
+        Err(e) => {
+            return (
+                vec![Measured::failed("pcac", "pcac step", e)],
+                Vec::new(),
+                Value::Null,
+            );
+        }
+    };
+    let elapsed = t.elapsed();
+    let mut rows = Vec::new();
+    let mut lines = Vec::new();
+    let mut json_out = serde_json::Map::new();
+    for (w, r) in results {
+        match r {
+            Ok(c) => {
+                let (mut m, l, v) = pcac_rows(&c, dir, start, elapsed, clarabel);
+                rows.append(&mut m);
+                lines.extend(l);
+                json_out.insert(w.slug().into(), v);
+            }
+            Err(e) => rows.push(Measured::failed(w.slug(), w.label(), e)),
+        }
+    }
+    lines.push(format!(
+        "pcac: timing thread: {}; each workload's copies run in blocks of {} samples, the first {} timed steps of a block recorded apart (cold cache)",
+        setup.describe(),
+        pcac_cost::BLOCK,
+        pcac_cost::REWARM
+    ));
+    (rows, lines, Value::Object(json_out))
+}
+
+/// `p`-quantile of a histogram, 0 when it is empty.
+fn quantile(h: &Histogram<u64>, p: f64) -> u64 {
+    if h.is_empty() {
+        0
+    } else {
+        h.value_at_quantile(p)
+    }
+}
+
+/// The rows, detail lines and JSON of one PCAC workload.
+fn pcac_rows(
+    c: &PcacCost,
+    dir: &Path,
+    start: SystemTime,
+    elapsed: Duration,
+    clarabel: bool,
+) -> (Vec<Measured>, Vec<String>, Value) {
+    let w = c.workload;
+    let slug = w.slug();
+    let mut rows = Vec::new();
+    let files = |name: &str, h: &Histogram<u64>| {
+        hist::write_files(dir, name, h, start, elapsed).unwrap_or_default()
+    };
+    let step = Summary::of(&c.step);
+    let timed = c.step.len() + c.cold.len();
+    let pct = |n: u64| 100.0 * n as f64 / timed.max(1) as f64;
+    let mut m = Measured::from_summary(
+        slug,
+        &format!("{} step", w.label()),
+        step,
+        files(slug, &c.step),
+    );
+    let target = w.target_ns();
+    let verdict = |ns: u64, t: u64| if ns < t { "PASS" } else { "FAIL" };
+    let mut note = format!(
+        "p99 {} target {} µs",
+        verdict(step.p99_ns, target),
+        target / 1_000
+    );
+    if let Some(st) = w.stretch_ns() {
+        note.push_str(&format!(
+            ", {} stretch {} µs",
+            if step.p99_ns < st { "meets" } else { "misses" },
+            st / 1_000
+        ));
+    }
+    note.push_str(&format!(
+        "; fallbacks {}; u at bound {:.0} %",
+        c.fallback_steps,
+        pct(c.saturated)
+    ));
+    if w.params().mpc.move_bounds.is_some() {
+        note.push_str(&format!(", Δu at bound {:.0} %", pct(c.at_move_bound)));
+    }
+    m.note = note;
+    rows.push(m);
+    let cl = Summary::of(&c.clarabel);
+    if clarabel {
+        let mut m = Measured::from_summary(
+            &format!("{slug}-clarabel"),
+            "  clarabel, same QPs (set-up + solve)",
+            cl,
+            files(&format!("{slug}-clarabel"), &c.clarabel),
+        );
+        m.note = format!(
+            "÷ pcac step: p50 {}×, p99 {}×; first move agrees to {:.1e} ({} of {} compared{})",
+            fmt_ratio(ratio(cl.p50_ns, step.p50_ns)),
+            fmt_ratio(ratio(cl.p99_ns, step.p99_ns)),
+            c.max_first_move_diff,
+            c.compared,
+            timed,
+            if c.clarabel_unsolved > 0 {
+                format!(", clarabel not solved {}", c.clarabel_unsolved)
+            } else {
+                String::new()
+            }
+        );
+        rows.push(m);
+    }
+    for (i, what) in ["no active constraint", "≥ 1 active constraint"]
+        .iter()
+        .enumerate()
+    {
+        let id = format!("{slug}-step-active-{i}");
+        let h = &c.step_by_active[i];
+        let mut m = Measured::from_summary(
+            &id,
+            &format!("  steps with {what}"),
+            Summary::of(h),
+            files(&id, h),
+        );
+        m.note = format!(
+            "{:.0} % of the warm steps",
+            100.0 * h.len() as f64 / c.step.len().max(1) as f64
+        );
+        rows.push(m);
+    }
+    for (i, name) in pcac_cost::PIECES.iter().enumerate() {
+        let id = format!("{slug}-piece-{i}");
+        let mut m = Measured::from_summary(
+            &id,
+            &format!("  {name}"),
+            Summary::of(&c.pieces[i]),
+            files(&id, &c.pieces[i]),
+        );
+        let share = ratio(Summary::of(&c.pieces[i]).p50_ns, step.p50_ns).unwrap_or(0.0);
+        m.note = format!("{:.0} % of the step's p50", 100.0 * share);
+        rows.push(m);
+    }
+    let mut m = Measured::from_summary(
+        &format!("{slug}-cold"),
+        "  step at a block start (cold cache)",
+        Summary::of(&c.cold),
+        files(&format!("{slug}-cold"), &c.cold),
+    );
+    m.note = "not in the step row".into();
+    rows.push(m);
+    let ct = &c.counters;
+    let active_any = timed.saturating_sub(c.active.count_between(0, 0));
+    let lines = vec![
+        format!(
+            "{slug}: active constraints per step p50 {} / p90 {} / p99 {} / max {}, {:.0} % of steps with ≥ 1; QP iterations p50 {} / p99 {} / max {}",
+            quantile(&c.active, 0.5),
+            quantile(&c.active, 0.9),
+            quantile(&c.active, 0.99),
+            c.active.max(),
+            pct(active_any),
+            quantile(&c.iterations, 0.5),
+            quantile(&c.iterations, 0.99),
+            c.iterations.max(),
+        ),
+        format!(
+            "{slug}: first moves beyond {:.0e} of clarabel's (tol {:.0e}) at {} of {} compared steps; there: clarabel re-solved at tol {:.0e} agrees to {:.1e}; optimality ratio ρ = (J(U_cl) − J(U))/(½eᵀHe) ≥ {:.2} (≥ 1: ours is the minimizer, ≤ −1: clarabel's is); clarabel's constraint violation ≤ {:.1e}",
+            pcac_cost::AGREE_TOL,
+            pcac_cost::CLARABEL_TOL,
+            c.over_tol,
+            c.compared,
+            pcac_cost::CLARABEL_TIGHT_TOL,
+            c.tight_diff,
+            c.optimality_ratio,
+            c.clarabel_violation,
+        ),
+        format!(
+            "{slug}: {} timed steps; max |u| {:.3}; counters over the whole run: {} MPC steps, {} solved, {} fallbacks ({} infeasible, {} iteration cap, {} numerical, {} refused), {} identification resets; reference copy mismatches {}; pieces' first move vs the step's {:.1e}",
+            timed,
+            c.max_abs_u,
+            ct.steps,
+            ct.solved,
+            ct.fallbacks,
+            ct.infeasible,
+            ct.max_iterations,
+            ct.numerical_error,
+            ct.refused,
+            ct.id_resets,
+            c.replica_mismatches,
+            c.pieces_diff,
+        ),
+    ];
+    let active_hist: Vec<(u64, u64)> = c
+        .active
+        .iter_recorded()
+        .map(|v| (v.value_iterated_to(), v.count_at_value()))
+        .collect();
+    let v = json!({
+        "step": step,
+        "cold": Summary::of(&c.cold),
+        "clarabel": if clarabel { Some(cl) } else { None },
+        "pieces": pcac_cost::PIECES.iter().zip(&c.pieces).map(|(n, h)| json!({"name": n, "summary": Summary::of(h)})).collect::<Vec<_>>(),
+        "max_first_move_diff": c.max_first_move_diff,
+        "compared": c.compared,
+        "clarabel_unsolved": c.clarabel_unsolved,
+        "pieces_diff": c.pieces_diff,
+        "over_agree_tol": c.over_tol,
+        "tight_tol_diff": c.tight_diff,
+        "optimality_ratio": if c.optimality_ratio.is_finite() { Some(c.optimality_ratio) } else { None },
+        "clarabel_violation": c.clarabel_violation,
+        "replica_mismatches": c.replica_mismatches,
+        "saturated_steps": c.saturated,
+        "move_bound_steps": c.at_move_bound,
+        "fallback_steps": c.fallback_steps,
+        "max_abs_u": c.max_abs_u,
+        "active_constraints": active_hist,
+        "iterations": Summary::of(&c.iterations),
+        "counters": {
+            "steps": ct.steps, "solved": ct.solved, "fallbacks": ct.fallbacks,
+            "infeasible": ct.infeasible, "max_iterations": ct.max_iterations,
+            "numerical_error": ct.numerical_error, "refused": ct.refused,
+            "id_resets": ct.id_resets,
+        },
+        "target_p99_ns": w.target_ns(),
+        "stretch_p99_ns": w.stretch_ns(),
+    });
+    (rows, lines, v)
+}
+
+/// `latency-bench pcac`: the PCAC phase alone, with the machine facts, the table and a
+/// `summary.json`.
+fn pcac_only(a: &PcacArgs) -> i32 {
+    let workloads: Vec<Workload> = match a.workload.as_str() {
+        "all" => Workload::ALL.to_vec(),
+        "truss" => vec![Workload::Truss],
+        "arm" => vec![Workload::Arm],
+        other => {
+            eprintln!("unknown workload {other} (truss, arm or all)");
+            return 2;
+        }
+    };
+    let steps = a.steps.unwrap_or(if a.quick { 300 } else { 5_000 }).max(1);
+    let started = unix_now();
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("bench-results").join(format!("pcac-{started}")));
+    if let Err(e) = std::fs::create_dir_all(&out) {
+        eprintln!("cannot create {}: {e}", out.display());
+        return 2;
+    }
+    let probe = match on_rt_core(a.rt_core, "bench-probe", || ()) {
+        Ok((setup, ())) => setup,
+        Err(e) => {
+            eprintln!("{e}");
+            return 2;
+        }
+    };
+    let facts = machine::collect(&probe);
+    println!("{}", facts.render());
+    if probe.any_refused() {
+        println!(
+            "WARNING: the OS refused part of the real-time set-up; latency figures are not those of an RT setup\n"
+        );
+    }
+    let load_start = machine::load_average();
+    progress(&format!(
+        "PCAC step cost, {steps} steps per workload, writing to {}",
+        out.display()
+    ));
+    let (measured, mut details, v) =
+        pcac_phase(a.rt_core, &out, &workloads, a.warmup, steps, !a.no_clarabel);
+    let rows: Vec<Row> = measured.iter().map(Measured::row).collect();
+    let table = table::render(&rows);
+    println!("{table}");
+    let load_end = machine::load_average();
+    details.push(format!(
+        "load average at the start: {load_start}; at the end: {load_end}"
+    ));
+    for d in &details {
+        println!("{d}");
+    }
+    println!("results: {}", out.display());
+    let _ = std::fs::write(
+        out.join("table.txt"),
+        format!("{}\n{table}\n{}\n", facts.render(), details.join("\n")),
+    );
+    let summary = json!({
+        "bench": "latency-bench pcac",
+        "started_unix": started,
+        "command": std::env::args().collect::<Vec<_>>(),
+        "machine": facts,
+        "steps": steps,
+        "measurements": measured.iter().map(Measured::json).collect::<Vec<_>>(),
+        "details": details,
+        "pcac": v,
+    });
+    let text = serde_json::to_string_pretty(&summary).expect("the summary serializes");
+    if let Err(e) = std::fs::write(out.join("summary.json"), text) {
+        eprintln!("writing summary.json: {e}");
+        return 1;
+    }
+    if measured.iter().any(|m| m.error.is_some()) {
+        1
+    } else {
+        0
+    }
 }
