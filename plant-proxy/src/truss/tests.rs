@@ -195,7 +195,7 @@ fn the_modal_and_the_physical_models_have_the_same_frequency_response() {
 }
 
 #[test]
-fn the_sensors_have_gain_10_on_the_static_displacements() {
+fn the_sensors_have_gain_10_per_mm_on_the_static_displacements() {
     let tp = section_6_2_truss();
     let t = &tp.truss;
     let (_, k) = t.assemble();
@@ -209,13 +209,14 @@ fn the_sensors_have_gain_10_on_the_static_displacements() {
     let inputs: Vec<&Port> = t.actuators.iter().chain(&t.disturbances).collect();
     let outputs: Vec<&Port> = t.sensors_y.iter().chain(&t.sensors_z).collect();
     for (i, s) in outputs.iter().enumerate() {
-        assert_eq!(s.gain, 10.0);
+        // 10 per millimetre of δx (K⁻¹ is in metres per newton).
+        assert_eq!(s.gain, 1e4);
         assert_eq!(s.direction, Direction::X);
         for (j, f) in inputs.iter().enumerate() {
             let static_disp = kinv[(t.port_dof(s), t.port_dof(f))];
             assert!(
-                close(g0[(i, j)].re, 10.0 * static_disp, 1e-8),
-                "y{i} ← input {j}: {} against 10 × {static_disp}",
+                close(g0[(i, j)].re, 1e4 * static_disp, 1e-8),
+                "y{i} ← input {j}: {} against 1e4 × {static_disp}",
                 g0[(i, j)].re
             );
             assert!(g0[(i, j)].im.abs() < 1e-12 * static_disp.abs().max(1e-30));
@@ -239,8 +240,8 @@ fn the_noise_sigma_gives_40_db_on_node_8_for_a_0_1_hz_unit_tone() {
     let g = tp_response(&sc.plant.model, 3, 2.0 * PI * 0.1);
     let rms = g / 2f64.sqrt();
     assert!(close(rms / sigma, 100.0, 1e-9), "RMS/σ = {}", rms / sigma);
-    // The documented value (plant-proxy/MODELS.md).
-    assert!((sigma - 1.7681e-6).abs() < 1e-10, "σ = {sigma:e}");
+    // The documented value (plant-proxy/MODELS.md): y = 10·δx in mm.
+    assert!((sigma - 1.7681e-3).abs() < 1e-7, "σ = {sigma:e}");
 }
 
 /// `|G_{y_i, w_0}(jω)|` of a plant with inputs `[u (2); w (1)]`.
@@ -357,8 +358,8 @@ fn stationary_y_rms(tp: &TrussPlant, rms: f64, cutoff_hz: f64, order: usize) -> 
 fn the_open_loop_levels_are_as_documented() {
     let tp = section_6_2_truss();
     let modes = tp.truss.plant_modes(&tp.modes);
-    // Tone amplitudes at y_3 (node 8) per newton on w (plant-proxy/MODELS.md).
-    for (hz, want) in [(0.354, 3.072e-4), (1.0, 8.033e-4), (1.55, 1.842e-4)] {
+    // Tone amplitudes at y_3 (node 8, 10·δx in mm) per newton on w (plant-proxy/MODELS.md).
+    for (hz, want) in [(0.354, 3.072e-1), (1.0, 8.033e-1), (1.55, 1.842e-1)] {
         let amp = modal_response(&modes, 3, 0, 2.0 * PI * hz).norm();
         assert!((amp - want).abs() < 1e-3 * want, "{hz} Hz: {amp:e}");
     }
@@ -367,12 +368,12 @@ fn the_open_loop_levels_are_as_documented() {
         (
             "broadband-25hz.toml",
             25.0,
-            [4.729e-4, 4.723e-4, 7.346e-4, 7.336e-4],
+            [4.729e-1, 4.723e-1, 7.346e-1, 7.336e-1],
         ),
         (
             "broadband-50hz-aliasing.toml",
             50.0,
-            [3.344e-4, 3.340e-4, 5.194e-4, 5.187e-4],
+            [3.344e-1, 3.340e-1, 5.194e-1, 5.187e-1],
         ),
     ] {
         let exact = stationary_y_rms(&tp, 1.0, cutoff, 4);

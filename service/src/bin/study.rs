@@ -124,7 +124,7 @@ enum Study {
         /// broadband-50hz-aliasing.
         #[arg(long, default_value = "all")]
         experiments: String,
-        /// PCAC settings: both, printed (P_0 = I, as in §6.2) or rescaled (P_0 = 1e6 I).
+        /// PCAC settings: both, printed (§6.2 as printed, y in 10·mm) or metres (the same, y in 10·m).
         #[arg(long, default_value = "both")]
         settings: String,
     },

@@ -5,7 +5,7 @@
 //!
 //! The plant is plant-proxy's `kind = "truss"` model of §6.2 ((6.1)–(6.3); see
 //! `plant-proxy/MODELS.md`): `u` = the x-forces at nodes 3 and 4 (N, limited to 10 N),
-//! `w` = the x-force at node 1, `y` = `10·δx` of nodes 5–8 with sensor noise (40 dB SNR
+//! `w` = the x-force at node 1, `y` = `10·δx` of nodes 5–8 (`δx` in mm) with sensor noise (40 dB SNR
 //! at node 8 for a 0.1 Hz, 1 N tone), `z` = the same without noise. The three scenarios
 //! `scenarios/truss/*.toml` ([`Experiment`]) hold the plant and the controller:
 //!
@@ -37,14 +37,16 @@
 //!
 //! ## Two controller settings ([`Setting`])
 //!
-//! - [`Setting::Printed`]: the scenario's own `[controller]` table, the values above.
-//! - [`Setting::Rescaled`]: `scenarios/pcac/truss-rescaled.toml`, the same with
-//!   `P_0 = 10⁶ I_600`. RLS minimizes `Σ |y_i − θᵀψ_i|² + (θ − θ_0)ᵀ P_0⁻¹ (θ − θ_0)`, so
-//!   scaling the data by `c` is the same as `P_0 → c² P_0`: `P_0 = I` is only meaningful
-//!   relative to the size of the signals, which the dissertation does not give. Here
-//!   (SI units, 1 N disturbances) `y` has an RMS near `6·10⁻⁴`, and with `P_0 = I` the
-//!   identification hardly moves from `θ_0` in 100 s; `P_0 ≈ I/σ_y²` restores the
-//!   proportion `P_0 = I` has for signals of unit size.
+//! - [`Setting::Printed`]: the scenario as it is, the values above, with `y = 10·δx` in
+//!   millimetres. The text gives the sensor gain 10 but no unit; in millimetres the
+//!   measurements are of order 1, the scale at which the printed `P_0 = I` and
+//!   `Q/R = 10⁶` are meaningful.
+//! - [`Setting::Metres`]: the same controller on the same plant with `y = 10·δx` in
+//!   metres. RLS minimizes `Σ |y_i − θᵀψ_i|² + (θ − θ_0)ᵀ P_0⁻¹ (θ − θ_0)`, so the prior
+//!   `P_0 = I` only means something relative to the size of the signals: with
+//!   `y ≈ 6·10⁻⁴` the data of a 100 s run carry less information than the prior,
+//!   `tr P_k` stays near `tr P_0 = 600`, and PCAC barely acts (or, in the broadband case,
+//!   acts on a wrong model). A user must scale `P_0` (about `I/σ_y²`) or the signals.
 //!
 //! Each experiment runs the open loop (`u ≡ 0`) and the closed loop of each setting from
 //! the same scenario, hence the same seed and the same disturbance and noise realizations,
@@ -76,7 +78,7 @@
 //! ## What it writes
 //!
 //! Into the output folder, per experiment `<name>` (`harmonic`, `broadband-25hz`,
-//! `broadband-50hz-aliasing`) and setting `<setting>` (`printed`, `rescaled`):
+//! `broadband-50hz-aliasing`) and setting `<setting>` (`printed`, `metres`):
 //!
 //! - `figure-6.2-harmonic-<setting>-response.png` (6.5, 6.8): `z` of nodes 5–8, OL and CL,
 //!   2×2 panels in the dissertation's order (top left node 5, then clockwise: 6, 7, 8);
@@ -204,29 +206,39 @@ impl Experiment {
 /// Which PCAC settings run (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Setting {
-    /// The §6.2 values as printed (`P_0 = I_600`): the scenario's `[controller]` table.
+    /// The §6.2 values as printed (`P_0 = I_600`), the scenario as it is (`y` in 10·mm).
     Printed,
-    /// The same with `P_0 = 10⁶ I_600`: `scenarios/pcac/truss-rescaled.toml`.
-    Rescaled,
+    /// The same controller on the same plant with the sensors in metres (`y = 10·δx` in
+    /// m, 1000 times smaller): what the printed `P_0 = I` does when the data are small.
+    Metres,
 }
 
 impl Setting {
     /// Both, printed first.
-    pub const ALL: [Setting; 2] = [Setting::Printed, Setting::Rescaled];
+    pub const ALL: [Setting; 2] = [Setting::Printed, Setting::Metres];
 
     /// Name used in file names and tables.
     pub fn name(self) -> &'static str {
         match self {
             Setting::Printed => "printed",
-            Setting::Rescaled => "rescaled",
+            Setting::Metres => "metres",
         }
     }
 
     /// Short description.
     pub fn label(self) -> &'static str {
         match self {
-            Setting::Printed => "PCAC as printed (P_0 = I)",
-            Setting::Rescaled => "PCAC with P_0 = 1e6 I",
+            Setting::Printed => "PCAC as printed (P_0 = I), y in 10·mm",
+            Setting::Metres => "PCAC as printed (P_0 = I), y in 10·m",
+        }
+    }
+
+    /// The factor from this setting's output unit to the scenario's (10·mm): the closed
+    /// loop's `y` and `z` are converted so that they compare with the open loop.
+    pub fn to_millimetres(self) -> f64 {
+        match self {
+            Setting::Printed => 1.0,
+            Setting::Metres => 1e3,
         }
     }
 
@@ -235,9 +247,9 @@ impl Setting {
         match s {
             "both" | "all" => Ok(Self::ALL.to_vec()),
             "printed" => Ok(vec![Setting::Printed]),
-            "rescaled" => Ok(vec![Setting::Rescaled]),
+            "metres" => Ok(vec![Setting::Metres]),
             other => Err(format!(
-                "unknown setting '{other}'; use both, printed or rescaled"
+                "unknown setting '{other}'; use both, printed or metres"
             )),
         }
     }
@@ -248,23 +260,30 @@ fn scenarios_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
 }
 
-/// The controller file of [`Setting::Rescaled`].
-pub fn rescaled_controller_path() -> PathBuf {
-    scenarios_dir().join("pcac/truss-rescaled.toml")
-}
+/// The sensor gain of the scenario files (10 per mm of `δx`, per metre) and the one of
+/// [`Setting::Metres`] (10 per m).
+const GAIN_MM: &str = "gain = 10000.0";
+const GAIN_M: &str = "gain = 10.0";
 
 /// The plant and the PCAC parameters of an experiment with a setting, read as the
-/// service reads them (`service launch <scenario> [--controller <file>]`).
+/// service reads them (`service launch <scenario>`); [`Setting::Metres`] reads the same
+/// text with the eight sensor gains divided by 1000.
 pub fn load(exp: Experiment, setting: Setting) -> Result<(Scenario, PcacParams), String> {
     let path = exp.path();
-    let sc = scenario::load(&path).map_err(|e| e.to_string())?;
-    let cfg = match setting {
-        Setting::Printed => ServiceConfig::load(&path),
-        Setting::Rescaled => {
-            ServiceConfig::load_with_controller(&path, &rescaled_controller_path())
+    let mut text =
+        std::fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    if setting == Setting::Metres {
+        if text.matches(GAIN_MM).count() != 8 {
+            return Err(format!(
+                "{}: expected the eight sensor gains '{GAIN_MM}'",
+                path.display()
+            ));
         }
+        text = text.replace(GAIN_MM, GAIN_M);
     }
-    .map_err(|e| e.to_string())?;
+    let origin = path.display().to_string();
+    let sc = scenario::parse(&text, &origin).map_err(|e| e.to_string())?;
+    let cfg = ServiceConfig::parse(&text, &origin).map_err(|e| e.to_string())?;
     match cfg.controller {
         ControllerConfig::Pcac { params } => Ok((sc, *params)),
         _ => Err(format!(
@@ -468,7 +487,12 @@ pub fn run_experiment(
             n_u: p.n_u() as u16,
         };
         let mut pcac = Pcac::new(&params, counts)?;
-        let trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
+        let mut trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
+        // Compare in the open loop's unit (10·mm): the controller saw its own.
+        let to_mm = setting.to_millimetres();
+        for v in trace.y.iter_mut().chain(trace.z.iter_mut()).flatten() {
+            *v *= to_mm;
+        }
         let rms_closed = per_node(&trace);
         let window = (RMS_WINDOW_S / ts).round() as usize;
         let max_input = trace.u.iter().flatten().fold(0.0_f64, |a, v| {
@@ -520,7 +544,7 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), String> {
         "study pcac-truss: PCAC on the truss of chapter 6, open and closed loop from the same seed, {} s per run\n\
          PCAC (§6.2): n_hat = 25, theta_0 = 1e-10 (600 entries), eta = 0.1, tau_n = 40, tau_d = 200, alpha = 0.001, \
          l = 40, C_t = [0 0 0 1], Q = 1e6 I_40, R = I_80, |u| <= 10 N, u_(1|k) applied at k+1\n\
-         settings: printed = P_0 = I_600 (scenarios/truss/*.toml); rescaled = P_0 = 1e6 I_600 (scenarios/pcac/truss-rescaled.toml)\n\
+         settings: printed = the §6.2 values on scenarios/truss/*.toml (y = 10·δx in mm); metres = the same with y = 10·δx in m\n\
          reduction = 20 log10(RMS z_OL / RMS z_CL) of the noise-free z over the late window (the last {:.0} % of the run);\n\
          converges = end of the first trailing {RMS_WINDOW_S} s window of z_CL at node 8 from which on its RMS stays within 2x of the late-window RMS",
         opts.duration,
@@ -792,7 +816,7 @@ fn response_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), String> {
                 o.reduction(c, i)
             ),
             x_label: "time, s".into(),
-            y_label: format!("y_{} = 10 δx_{}, m", i + 1, NODES[i]),
+            y_label: format!("y_{} = 10 δx_{} (δx in mm)", i + 1, NODES[i]),
             series: vec![
                 time_line("OL", &o.open.z[i], o.ts, OPEN_COLOR),
                 time_line("CL", &c.trace.z[i], o.ts, CLOSED_COLOR),
@@ -826,7 +850,7 @@ fn psd_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), String> {
         panels.push(Panel {
             title: format!("node {}", NODES[i]),
             x_label: "frequency, Hz".into(),
-            y_label: "PSD of z, m²/Hz".into(),
+            y_label: "PSD of z (10·mm)²/Hz".into(),
             x_log: true,
             y_log: true,
             series: vec![
@@ -920,13 +944,13 @@ mod tests {
     /// all 1e-10), P_0 = I_600 (tr P_0 = 600: the full covariance), the F-test with
     /// τ_n = 40, τ_d = 200, η = 0.1, α = 0.001, ℓ = 40, C_t = [0 0 0 1], Q = 1e6 per tracked
     /// output (Q = 1e6 I_40), R = 1 per input (R = I_80), |u| ≤ 10 N, no move bounds, no
-    /// output constraints, next-step timing; the rescaled file differs only in P_0 = 1e6 I.
+    /// output constraints, next-step timing; the metres setting has the same controller.
     /// The QP has ℓ·m = 80 unknowns and no inequality rows.
     #[test]
     fn the_truss_scenarios_parse_into_the_pcac_of_section_6_2() {
         for exp in Experiment::ALL {
             let (sc, printed) = load(exp, Setting::Printed).unwrap();
-            let (_, rescaled) = load(exp, Setting::Rescaled).unwrap();
+            let (metres_plant, metres) = load(exp, Setting::Metres).unwrap();
             let m = &printed.model;
             assert_eq!((m.n_hat, m.p, m.m), (25, 4, 2), "{exp:?}");
             assert_eq!(m.n_hat * m.p * (m.p + m.m), 600);
@@ -951,12 +975,9 @@ mod tests {
             assert_eq!(q.u_max, vec![FORCE_LIMIT; 2]);
             assert!(q.move_bounds.is_none() && q.output_constraints.is_none());
             assert_eq!(printed.timing, PcacTiming::NextStep);
-            // The rescaled controller: the same but P_0 (and the reset limit that follows it).
-            let mut same = rescaled.clone();
-            assert_eq!(same.model.p0, 1e6);
-            same.model.p0 = 1.0;
-            same.model.trace_limit = printed.model.trace_limit;
-            assert_eq!(same, printed);
+            // The metres setting: the same controller, the plant's outputs 1000 times smaller.
+            assert_eq!(metres, printed);
+            assert_ne!(metres_plant.plant, sc.plant);
             // The built controller: tr P_0 of the full 600 × 600 covariance, an 80-unknown QP.
             let counts = ipc_types::ChannelCounts {
                 n_y: 4,
@@ -998,66 +1019,67 @@ mod tests {
             assert_eq!(c.counters.steps as usize, o.open.len());
         }
         let printed = o.of(Setting::Printed).unwrap();
-        let rescaled = o.of(Setting::Rescaled).unwrap();
-        // As printed, the data hardly inform the estimate: tr P stays near tr P_0 = 600.
+        let metres = o.of(Setting::Metres).unwrap();
+        // In metres the data hardly inform the estimate: tr P stays near tr P_0 = 600.
         assert!(
-            printed.final_trace_p > 0.9 * 600.0,
+            metres.final_trace_p > 0.9 * 600.0,
             "{exp:?}: tr P fell to {}",
-            printed.final_trace_p
+            metres.final_trace_p
         );
         assert!(
-            o.reduction(printed, 3) < 1.0,
-            "{exp:?}: the printed P_0 reduced node 8 by {} dB",
-            o.reduction(printed, 3)
+            o.reduction(metres, 3) < 1.0,
+            "{exp:?}: in metres node 8 was reduced by {} dB",
+            o.reduction(metres, 3)
         );
-        // Rescaled: node 8 and every node reduced, and the level settles within 30 s.
-        let r8 = o.reduction(rescaled, 3);
+        // As printed: node 8 and every node reduced, and the level settles.
+        let r8 = o.reduction(printed, 3);
         eprintln!(
             "{exp:?}: node 8 reduction {r8:.1} dB, converges {:?}",
-            rescaled.converge
+            printed.converge
         );
         assert!(r8 >= node8_db, "{exp:?}: node 8 reduced by {r8} dB");
         for (i, node) in NODES.iter().enumerate() {
             assert!(
-                o.reduction(rescaled, i) >= every_node_db,
+                o.reduction(printed, i) >= every_node_db,
                 "{exp:?}: node {} reduced by {} dB",
                 node,
-                o.reduction(rescaled, i)
+                o.reduction(printed, i)
             );
         }
-        let t = rescaled.converge.expect("node 8 settles");
-        assert!(t < 30.0, "{exp:?}: converges at {t} s");
+        let t = printed.converge.expect("node 8 settles");
+        assert!(t < 40.0, "{exp:?}: converges at {t} s");
         o
     }
 
-    /// §6.2.1: measured 19.5 dB at node 8 (17.2 at nodes 5, 6), tones 15.2, 21.6, 13.3 dB,
-    /// converged at 10.9 s, no fallback, |u| ≤ 10 N. Thresholds: 4 dB below, each tone
-    /// 10 dB. As printed (P_0 = I), no reduction.
+    /// §6.2.1: measured 37.4 dB at node 8 (37.0 at node 7, 24.4 and 24.5 at nodes 5, 6),
+    /// tones 36.0, 43.6, 32.0 dB, converged at 27.6 s, no fallback, |u| ≤ 10 N.
+    /// Thresholds about 4 dB below. In metres: no reduction (u stays below 0.6 N).
     #[test]
-    fn pcac_suppresses_the_three_tones_at_node_8_once_p0_fits_the_data_scale() {
-        let o = check(Experiment::Harmonic, 15.5, 13.0);
-        let c = o.of(Setting::Rescaled).unwrap();
+    fn pcac_as_printed_suppresses_the_three_tones_at_node_8() {
+        let o = check(Experiment::Harmonic, 33.0, 20.0);
+        let c = o.of(Setting::Printed).unwrap();
         assert_eq!(o.tones.len(), 3);
         for ((f, a), b) in o.tones.iter().zip(&c.tone_amps) {
             let db = suppression_db(*a, *b);
-            assert!(db >= 10.0, "tone {f} Hz reduced by {db} dB");
+            assert!(db >= 28.0, "tone {f} Hz reduced by {db} dB");
         }
     }
 
-    /// §6.2.2: measured 14.3 dB at node 8 (13.9 at nodes 5, 6), converged at 7.9 s. As
-    /// printed (P_0 = I) the closed loop amplifies node 8 by about 11 dB and saturates.
+    /// §6.2.2: measured 19.4 dB at nodes 7, 8 (18.1 and 18.7 at nodes 5, 6), converged at
+    /// 4.8 s. In metres the little the model learns is wrong: node 8 is amplified by
+    /// 10.6 dB and the inputs saturate.
     #[test]
-    fn pcac_suppresses_the_25_hz_broadband_disturbance_once_p0_fits_the_data_scale() {
-        let o = check(Experiment::Broadband, 10.5, 10.0);
-        let printed = o.of(Setting::Printed).unwrap();
-        assert!(o.reduction(printed, 3) < -5.0);
+    fn pcac_as_printed_suppresses_the_25_hz_broadband_disturbance() {
+        let o = check(Experiment::Broadband, 16.0, 14.0);
+        let metres = o.of(Setting::Metres).unwrap();
+        assert!(o.reduction(metres, 3) < -5.0);
     }
 
-    /// §6.2.3: measured 9.2 dB at node 8 (10.2 at nodes 5, 6), converged at 19.1 s, despite
-    /// 14 of the 16 modes aliasing at 10 Hz. As printed (P_0 = I), u stays at 0.
+    /// §6.2.3: measured 13.2 dB at nodes 7, 8 (9.8 at nodes 5, 6), converged at 12.6 s,
+    /// despite 14 of the 16 modes aliasing at 10 Hz. In metres u stays at 0.
     #[test]
-    fn pcac_suppresses_the_aliased_broadband_disturbance_once_p0_fits_the_data_scale() {
-        check(Experiment::Aliasing, 6.0, 6.0);
+    fn pcac_as_printed_suppresses_the_aliased_broadband_disturbance() {
+        check(Experiment::Aliasing, 10.0, 6.5);
         let al = aliases(Experiment::Aliasing).unwrap();
         assert_eq!(al.len(), 14);
         assert!(al.iter().all(|(f, a)| *f > 5.0 && (0.0..=5.0).contains(a)));
@@ -1093,7 +1115,7 @@ mod tests {
             },
         )
         .unwrap();
-        for setting in ["printed", "rescaled"] {
+        for setting in ["printed", "metres"] {
             for (fig, what) in [
                 ("6.8", "response"),
                 ("6.9", "psd"),
