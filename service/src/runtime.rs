@@ -1113,6 +1113,7 @@ fn rt_thread_main(
             Err(e) => return Err(ServiceError::Connect(e)),
         };
     eprintln!("[service] connected to the plant; running ({:?})", cfg.wait);
+    core.controller.prepare_thread();
     crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let before = crate::rt_alloc::thread_stats();
     let stop = rt_loop(

@@ -612,3 +612,40 @@ fn the_pcac_step_does_not_allocate() {
             .all(|v| v.is_finite() && v.abs() <= 10.0)
     );
 }
+
+/// As in the service: the controller is built on one thread and stepped on another (the RT
+/// thread) from its very first step, after `prepare_thread` there. (Without it the QP's
+/// first Cholesky factorization on the new thread allocates the matrix-multiply kernels'
+/// per-thread packing buffer once: the service's report showed that single allocation.)
+#[test]
+fn the_first_pcac_steps_on_a_new_thread_do_not_allocate() {
+    let mut ctl = service::rt_alloc::outside_rt(|| truss_size_pcac(false));
+    let d = std::thread::spawn(move || {
+        ctl.prepare_thread();
+        enter_rt_thread(16);
+        let before = thread_stats();
+        let mut u = [0.0; 2];
+        for k in 0..50 {
+            let y = [
+                1e-3 * (k as f64).sin(),
+                0.0,
+                2e-3,
+                -1e-3 * (0.3 * k as f64).cos(),
+            ];
+            ctl.step(
+                &StepInput {
+                    seq: k,
+                    y: &y,
+                    z: &y,
+                    ..Default::default()
+                },
+                &mut u,
+            );
+        }
+        thread_stats().since(&before)
+    })
+    .join()
+    .unwrap();
+    assert!(d.installed);
+    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+}

@@ -82,6 +82,11 @@ pub trait Controller: Send {
     }
     /// Returns to the initial state (used when a plant comes back after silence).
     fn reset(&mut self);
+    /// Called once on the real-time thread before its loop starts (before allocations are
+    /// counted there): a controller whose libraries keep lazily created per-thread state
+    /// (e.g. the matrix-multiply scratch of PCAC's QP solver) creates it here, so that the
+    /// first real-time step does not allocate. The default does nothing.
+    fn prepare_thread(&mut self) {}
     /// Names of the internal signals written by [`Controller::internals`].
     fn internal_names(&self) -> Vec<String> {
         Vec::new()

@@ -359,7 +359,9 @@ impl DenseQpSolver {
     ///
     /// It also factors an `n × n` identity once: faer's matrix-multiply kernels initialize
     /// their cache-size information (reading `/sys`, allocating) on first use in the
-    /// process, and this keeps that out of the first real-time solve.
+    /// process, and this keeps that out of the first real-time solve. Their packing
+    /// scratch is per thread, though: call [`Self::prepare_thread`] on the thread that
+    /// will solve, before its real-time loop.
     pub fn new(n: usize, n_ineq: usize, settings: QpSettings) -> Self {
         let n_con = 2 * n + n_ineq;
         let mut solver = Self {
@@ -395,11 +397,23 @@ impl DenseQpSolver {
             objective: f64::NAN,
             iterations: 0,
         };
-        for j in 0..n {
-            solver.l[j * n + j] = 1.0;
-        }
-        let _ = cholesky_in_place(&mut solver.l, n, &mut solver.chol_mem);
+        solver.prepare_thread();
         solver
+    }
+
+    /// Factors an `n × n` identity in the solver's buffers on the calling thread, so that
+    /// the matrix-multiply kernels' per-thread packing buffer (allocated on a thread's
+    /// first blocked product, for `n` above about 64) exists before the first real-time
+    /// solve. Call it on the real-time thread before its loop (the service does, through
+    /// [`Controller::prepare_thread`](crate::controller::Controller::prepare_thread)); it
+    /// allocates on a thread that has not multiplied yet, and never again.
+    pub fn prepare_thread(&mut self) {
+        let n = self.n;
+        self.l.fill(0.0);
+        for j in 0..n {
+            self.l[j * n + j] = 1.0;
+        }
+        let _ = cholesky_in_place(&mut self.l, n, &mut self.chol_mem);
     }
 
     /// The number of variables `n` this solver was built for.

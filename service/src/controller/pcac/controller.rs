@@ -472,6 +472,10 @@ impl Controller for Pcac {
         self.tracked_prediction = 0.0;
     }
 
+    fn prepare_thread(&mut self) {
+        self.solver.prepare_thread();
+    }
+
     fn counters(&self) -> Vec<(&'static str, u64)> {
         let c = &self.counters;
         vec![
