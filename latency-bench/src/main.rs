@@ -1223,12 +1223,12 @@ fn pcac_rows(
         ));
     }
     note.push_str(&format!(
-        "; fallbacks {}; u at bound {:.0} %",
+        "; fallbacks {}; u at bound {:.1} %",
         c.fallback_steps,
         pct(c.saturated)
     ));
     if w.params().mpc.move_bounds.is_some() {
-        note.push_str(&format!(", Δu at bound {:.0} %", pct(c.at_move_bound)));
+        note.push_str(&format!(", Δu at bound {:.1} %", pct(c.at_move_bound)));
     }
     m.note = note;
     rows.push(m);
@@ -1294,6 +1294,15 @@ fn pcac_rows(
     m.note = "not in the step row".into();
     rows.push(m);
     let ct = &c.counters;
+    let mut diffs = c.first_move_diffs.clone();
+    diffs.sort_by(f64::total_cmp);
+    let diff_q = |q: f64| -> f64 {
+        if diffs.is_empty() {
+            f64::NAN
+        } else {
+            diffs[((q * diffs.len() as f64) as usize).min(diffs.len() - 1)]
+        }
+    };
     let active_any = timed.saturating_sub(c.active.count_between(0, 0));
     let lines = vec![
         format!(
@@ -1308,13 +1317,18 @@ fn pcac_rows(
             c.iterations.max(),
         ),
         format!(
-            "{slug}: first moves beyond {:.0e} of clarabel's (tol {:.0e}) at {} of {} compared steps; there: clarabel re-solved at tol {:.0e} agrees to {:.1e}; optimality ratio ρ = (J(U_cl) − J(U))/(½eᵀHe) ≥ {:.2} (≥ 1: ours is the minimizer, ≤ −1: clarabel's is); clarabel's constraint violation ≤ {:.1e}",
-            pcac_cost::AGREE_TOL,
+            "{slug}: first move |u − u_clarabel| (tol {:.0e}) p50 {:.1e} / p90 {:.1e} / p99 {:.1e} / max {:.1e}; beyond {:.0e} at {} of {} compared steps; there: clarabel re-solved at tol {:.0e} agrees to {:.1e} ({} re-solves not solved); ρ = (J(U_cl) − J(U))/(½eᵀHe) ≥ {:.3} (≥ 1: clarabel's point is higher than ours by at least ½eᵀHe); clarabel's constraint violation ≤ {:.1e}",
             pcac_cost::CLARABEL_TOL,
+            diff_q(0.5),
+            diff_q(0.9),
+            diff_q(0.99),
+            c.max_first_move_diff,
+            pcac_cost::AGREE_TOL,
             c.over_tol,
             c.compared,
             pcac_cost::CLARABEL_TIGHT_TOL,
             c.tight_diff,
+            c.tight_unsolved,
             c.optimality_ratio,
             c.clarabel_violation,
         ),
@@ -1348,6 +1362,10 @@ fn pcac_rows(
         "compared": c.compared,
         "clarabel_unsolved": c.clarabel_unsolved,
         "pieces_diff": c.pieces_diff,
+        "first_move_diff_p50": diff_q(0.5),
+        "first_move_diff_p90": diff_q(0.9),
+        "first_move_diff_p99": diff_q(0.99),
+        "tight_unsolved": c.tight_unsolved,
         "over_agree_tol": c.over_tol,
         "tight_tol_diff": c.tight_diff,
         "optimality_ratio": if c.optimality_ratio.is_finite() { Some(c.optimality_ratio) } else { None },

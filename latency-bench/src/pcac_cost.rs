@@ -14,9 +14,9 @@
 //!
 //! The truss is driven by `plant_proxy::sim::PlantSim` on the scenario's plant (its 25 Hz
 //! band-limited disturbance of 1 N RMS at node 1, 40 dB sensor noise), so that the active
-//! sets are those of a real closed loop: from the cold start `θ_0` the inputs are tiny,
-//! reach ±10 N in the adaptation transient and stay within about 7 N after it (hence
-//! [`Workload::min_steps`]). The
+//! sets are those of a real closed loop: with the truss's outputs in millimetres and the
+//! §6.2 weights, the planned input sits on its ±10 N bound in more than half of the steps
+//! once the model is identified (5 to 9 active constraints at the median). The
 //! sampling-arm plant of chapter 7 does not exist yet; [`ArmPlant`] stands in for it at
 //! the controller's size (its design is on the type).
 //!
@@ -132,27 +132,11 @@ impl Workload {
         }
     }
 
-    /// Untimed samples before timing starts by default: past `n̂` for the truss, so that
-    /// the timed window starts early enough to hold the adaptation transient (see
-    /// [`Self::min_steps`]); 500 samples (0.25 s) for the arm, whose 35 coefficients
-    /// converge within them.
+    /// Untimed samples before timing starts by default: 500 (10 s of the truss, 0.25 s of
+    /// the arm). The truss loop rides its bound from about sample 200 on; the arm's 35
+    /// coefficients converge within the first few hundred samples.
     pub fn default_warmup(self) -> u64 {
-        match self {
-            Workload::Truss => 200,
-            Workload::Arm => 500,
-        }
-    }
-
-    /// Least number of timed steps [`measure`] runs. At the scenario's disturbance level
-    /// (1 N RMS) the truss loop reaches ±10 N only in its adaptation transient, about
-    /// 45–60 s (samples 2 250–3 000) after the cold start, and hardly ever after it; the
-    /// truss is therefore timed on at least 3 000 samples, so that the steps with active
-    /// constraints are in the figures.
-    pub fn min_steps(self) -> u64 {
-        match self {
-            Workload::Truss => 3_000,
-            Workload::Arm => 1,
-        }
+        500
     }
 
     /// The rig's channel counts: `n_y = n_z = p`, no command, `m` inputs.
@@ -538,8 +522,13 @@ pub struct PcacCost {
     /// Compared steps whose first moves differ by more than [`AGREE_TOL`].
     pub over_tol: u64,
     /// At those steps, the largest first-move difference against clarabel re-solved
-    /// (untimed) with the tighter tolerance [`CLARABEL_TIGHT_TOL`].
+    /// (untimed) with the tighter tolerance [`CLARABEL_TIGHT_TOL`], where that re-solve
+    /// reports `Solved`.
     pub tight_diff: f64,
+    /// Re-solves at [`CLARABEL_TIGHT_TOL`] that did not report `Solved`.
+    pub tight_unsolved: u64,
+    /// `max_j |u_{1|k,j} − u^clarabel_{1|k,j}|` of every compared step.
+    pub first_move_diffs: Vec<f64>,
     /// At those steps, the smallest `ρ = (J(U_cl) − J(U)) / (½ eᵀHe)`, `e = U_cl − U`, of
     /// the objective `J = ½ UᵀHU + fᵀU` at the dense solver's `U` and clarabel's `U_cl`
     /// (`+∞` when no step disagreed). For feasible points of this strictly convex QP,
@@ -615,8 +604,8 @@ fn internal_of(c: &Pcac, names: &[String], name: &str, buf: &mut [f64; MAX_INTER
         .unwrap_or(f64::NAN)
 }
 
-/// The measurement of the module docs: `warmup` untimed samples, then
-/// `max(steps, w.min_steps())` timed ones; clarabel solves the reference copy's QP at every timed step when
+/// The measurement of the module docs: `warmup` untimed samples, then `steps` timed
+/// ones; clarabel solves the reference copy's QP at every timed step when
 /// `with_clarabel`.
 pub fn measure(
     w: Workload,
@@ -626,7 +615,6 @@ pub fn measure(
 ) -> Result<PcacCost, String> {
     let params = w.params();
     let counts = w.counts();
-    let steps = steps.max(w.min_steps());
     let (p, m) = (params.model.p, params.model.m);
     let mut timed = Pcac::new(&params, counts)?;
     let mut reference = Pcac::new(&params, counts)?;
@@ -661,6 +649,8 @@ pub fn measure(
         pieces_diff: 0.0,
         over_tol: 0,
         tight_diff: 0.0,
+        tight_unsolved: 0,
+        first_move_diffs: Vec::with_capacity(steps as usize),
         optimality_ratio: f64::INFINITY,
         clarabel_violation: 0.0,
         replica_mismatches: 0,
@@ -766,6 +756,7 @@ pub fn measure(
                             .map(|(a, b)| (a - b).abs())
                             .fold(0.0, f64::max);
                         r.max_first_move_diff = r.max_first_move_diff.max(d);
+                        r.first_move_diffs.push(d);
                         r.compared += 1;
                         if d > AGREE_TOL {
                             r.over_tol += 1;
@@ -774,13 +765,16 @@ pub fn measure(
                             r.optimality_ratio =
                                 r.optimality_ratio.min(optimality_ratio(&qp, x, &s.x));
                             r.clarabel_violation = r.clarabel_violation.max(violation(&qp, &s.x));
-                            if let Some(t) = solve_with_clarabel(&qp, CLARABEL_TIGHT_TOL) {
-                                let d = x[..m]
-                                    .iter()
-                                    .zip(&t.x)
-                                    .map(|(a, b)| (a - b).abs())
-                                    .fold(0.0, f64::max);
-                                r.tight_diff = r.tight_diff.max(d);
+                            match solve_with_clarabel(&qp, CLARABEL_TIGHT_TOL) {
+                                Some(t) if t.status == clarabel::solver::SolverStatus::Solved => {
+                                    let d = x[..m]
+                                        .iter()
+                                        .zip(&t.x)
+                                        .map(|(a, b)| (a - b).abs())
+                                        .fold(0.0, f64::max);
+                                    r.tight_diff = r.tight_diff.max(d);
+                                }
+                                _ => r.tight_unsolved += 1,
                             }
                         }
                     }
@@ -826,27 +820,23 @@ mod tests {
     use super::*;
 
     /// The truss workload runs a real closed loop: its QPs are solved (few fallbacks), the
-    /// inputs reach ±10 N, clarabel agrees with the dense solver's first move to 10⁻⁶, the
-    /// reference copy replays the timed one exactly and the pieces are the step.
+    /// inputs reach ±10 N, clarabel's point is never better than the dense solver's where
+    /// their first moves differ by more than 10⁻⁶, the reference copy replays the timed
+    /// one exactly and the pieces are the step.
     #[test]
-    fn the_truss_workload_solves_its_qps_and_clarabel_agrees() {
+    fn the_truss_workload_solves_its_qps_and_clarabel_is_never_better() {
         let w = Workload::Truss;
-        let r = measure(w, w.default_warmup(), 0, true).unwrap();
-        check_common(&r, w.min_steps());
+        let r = measure(w, w.default_warmup(), 400, true).unwrap();
+        check_common(&r, 400);
         assert!(r.active.max() > 0);
         assert!(r.saturated > 0, "the inputs never reach ±10 N");
-        // At the truss's size clarabel at a tight tolerance agrees to 1e-6.
-        assert!(
-            r.tight_diff <= AGREE_TOL,
-            "tight clarabel differs by {}",
-            r.tight_diff
-        );
     }
 
     /// The arm workload hits its input bound and its move bound, and the same checks as
-    /// the truss's hold.
+    /// the truss's hold (clarabel at tolerance 1e-8 differs from the dense solver's first
+    /// move by up to 3e-2 at this size; its points are feasible and never lower).
     #[test]
-    fn the_arm_workload_hits_its_bounds_and_clarabel_agrees() {
+    fn the_arm_workload_hits_its_bounds_and_clarabel_is_never_better() {
         let r = measure(Workload::Arm, 500, 1000, true).unwrap();
         check_common(&r, 1000);
         assert!(r.saturated > 0, "the inputs never reach ±{ARM_U_MAX}");
