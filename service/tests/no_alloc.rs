@@ -563,7 +563,7 @@ fn the_pcac_step_does_not_allocate() {
             r: &[],
             u_applied: Some(&applied),
             // Two samples lost now and then: bridged, identification paused.
-            lost: if k % 97 == 0 { 2 } else { 0 },
+            lost: if k.is_multiple_of(97) { 2 } else { 0 },
         };
         if k % 50 == 7 {
             // Caught up: taken in, not answered; the plant holds its input.
@@ -576,7 +576,7 @@ fn the_pcac_step_does_not_allocate() {
                 *solved += 1;
             }
             // Every 9th answer is late: the plant holds the previous input.
-            if k % 9 != 0 {
+            if !k.is_multiple_of(9) {
                 applied = u;
             }
         }

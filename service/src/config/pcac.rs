@@ -197,7 +197,7 @@ pub(super) fn parse_pcac(
         let min = per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?;
         let max = per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?;
         for j in 0..m {
-            if !(min[j] <= 0.0) {
+            if min[j].is_nan() || min[j] > 0.0 {
                 return Err(err(
                     "controller.du-min",
                     format!(
@@ -206,7 +206,7 @@ pub(super) fn parse_pcac(
                     ),
                 ));
             }
-            if !(max[j] >= 0.0) {
+            if max[j].is_nan() || max[j] < 0.0 {
                 return Err(err(
                     "controller.du-max",
                     format!(
