@@ -609,10 +609,7 @@ fn bench(o: &Options) -> i32 {
     let load_end = machine::load_average();
     println!("load average at the end: {load_end}");
     println!("results: {}", out.display());
-    let _ = std::fs::write(
-        out.join("table.txt"),
-        format!("{}\n{table}\n{}\n", facts.render(), details.join("\n")),
-    );
+    let table_text = format!("{}\n{table}\n{}\n", facts.render(), details.join("\n"));
     let summary = json!({
         "bench": "latency-bench",
         "started_unix": started,
@@ -629,16 +626,7 @@ fn bench(o: &Options) -> i32 {
         "extra": Value::Object(extra),
         "service_reports": Value::Object(reports),
     });
-    let text = serde_json::to_string_pretty(&summary).expect("the summary serializes");
-    if let Err(e) = std::fs::write(out.join("summary.json"), text) {
-        eprintln!("writing summary.json: {e}");
-        return 1;
-    }
-    if measured.iter().any(|m| m.error.is_some()) {
-        1
-    } else {
-        0
-    }
+    write_results(&out, &table_text, &summary, &measured)
 }
 
 /// Writes a service configuration for `rig` into `dir` and starts the service child on it.
@@ -1443,10 +1431,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         println!("{d}");
     }
     println!("results: {}", out.display());
-    let _ = std::fs::write(
-        out.join("table.txt"),
-        format!("{}\n{table}\n{}\n", facts.render(), details.join("\n")),
-    );
+    let table_text = format!("{}\n{table}\n{}\n", facts.render(), details.join("\n"));
     let summary = json!({
         "bench": "latency-bench pcac",
         "started_unix": started,
@@ -1457,7 +1442,14 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         "details": details,
         "pcac": v,
     });
-    let text = serde_json::to_string_pretty(&summary).expect("the summary serializes");
+    write_results(&out, &table_text, &summary, &measured)
+}
+
+/// Writes `table.txt` and `summary.json` into `out`; the exit code: 1 when the summary
+/// cannot be written or a measurement failed, else 0.
+fn write_results(out: &Path, table_text: &str, summary: &Value, measured: &[Measured]) -> i32 {
+    let _ = std::fs::write(out.join("table.txt"), table_text);
+    let text = serde_json::to_string_pretty(summary).expect("the summary serializes");
     if let Err(e) = std::fs::write(out.join("summary.json"), text) {
         eprintln!("writing summary.json: {e}");
         return 1;
