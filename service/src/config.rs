@@ -626,29 +626,11 @@ impl ServiceConfig {
             reset_on_resume: s.reset_on_resume.unwrap_or(true),
             miss_source: s.miss_source.unwrap_or(MissSource::Plant),
         };
-        let per_channel = |v: &Option<ScalarOrVec>,
-                           n: usize,
-                           default: f64,
-                           field: &str|
-         -> Result<Vec<f64>, ConfigError> {
-            match v {
-                None => Ok(vec![default; n]),
-                Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n]),
-                Some(ScalarOrVec::Vec(xs)) if xs.len() == n => Ok(xs.clone()),
-                Some(ScalarOrVec::Vec(xs)) => Err(err(
-                    field,
-                    format!(
-                        "has {} values, expected {n} (one per channel) or a scalar",
-                        xs.len()
-                    ),
-                )),
-            }
-        };
         let limits = MeasurementLimits {
-            y_min: per_channel(&s.y_min, n_y, f64::NEG_INFINITY, "service.y-min")?,
-            y_max: per_channel(&s.y_max, n_y, f64::INFINITY, "service.y-max")?,
-            z_min: per_channel(&s.z_min, n_z, f64::NEG_INFINITY, "service.z-min")?,
-            z_max: per_channel(&s.z_max, n_z, f64::INFINITY, "service.z-max")?,
+            y_min: per_channel(&s.y_min, n_y, f64::NEG_INFINITY, "service.y-min", &err)?,
+            y_max: per_channel(&s.y_max, n_y, f64::INFINITY, "service.y-max", &err)?,
+            z_min: per_channel(&s.z_min, n_z, f64::NEG_INFINITY, "service.z-min", &err)?,
+            z_max: per_channel(&s.z_max, n_z, f64::INFINITY, "service.z-max", &err)?,
         };
         for (i, (lo, hi)) in limits.y_min.iter().zip(&limits.y_max).enumerate() {
             if lo.is_nan() || hi.is_nan() || lo >= hi {
@@ -666,7 +648,7 @@ impl ServiceConfig {
                 ));
             }
         }
-        let safe_input = per_channel(&s.safe_input, n_u, 0.0, "service.safe-input")?;
+        let safe_input = per_channel(&s.safe_input, n_u, 0.0, "service.safe-input", &err)?;
         if safe_input.iter().any(|v| !v.is_finite()) {
             return Err(err("service.safe-input", "must be finite".into()));
         }
@@ -941,6 +923,29 @@ fn parse_controller(
     Ok(cfg)
 }
 
+/// A scalar (for every channel) or `n` values, `default` when absent; refused naming
+/// `field` otherwise.
+fn per_channel(
+    v: &Option<ScalarOrVec>,
+    n: usize,
+    default: f64,
+    field: &str,
+    err: &dyn Fn(&str, String) -> ConfigError,
+) -> Result<Vec<f64>, ConfigError> {
+    match v {
+        None => Ok(vec![default; n]),
+        Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n]),
+        Some(ScalarOrVec::Vec(xs)) if xs.len() == n => Ok(xs.clone()),
+        Some(ScalarOrVec::Vec(xs)) => Err(err(
+            field,
+            format!(
+                "has {} values, expected {n} (one per channel) or a scalar",
+                xs.len()
+            ),
+        )),
+    }
+}
+
 /// The optional `u-min`/`u-max` pair of a controller table (scalar or one per input).
 fn output_limits(
     lo: &Option<ScalarOrVec>,
@@ -951,15 +956,9 @@ fn output_limits(
     if lo.is_none() && hi.is_none() {
         return Ok(None);
     }
-    let expand = |v: &Option<ScalarOrVec>, d: f64, f: &str| match v {
-        None => Ok(vec![d; n_u]),
-        Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n_u]),
-        Some(ScalarOrVec::Vec(x)) if x.len() == n_u => Ok(x.clone()),
-        Some(ScalarOrVec::Vec(x)) => Err(err(f, format!("has {} values, expected {n_u}", x.len()))),
-    };
     Ok(Some(OutputLimits {
-        min: expand(lo, f64::NEG_INFINITY, "controller.u-min")?,
-        max: expand(hi, f64::INFINITY, "controller.u-max")?,
+        min: per_channel(lo, n_u, f64::NEG_INFINITY, "controller.u-min", err)?,
+        max: per_channel(hi, n_u, f64::INFINITY, "controller.u-max", err)?,
     }))
 }
 

@@ -34,7 +34,9 @@
 use ipc_types::ChannelCounts;
 use serde::Deserialize;
 
-use super::{ConfigError, RawForgetting, ScalarOrVec, forgetting_rule, matrix, positive_p0};
+use super::{
+    ConfigError, RawForgetting, ScalarOrVec, forgetting_rule, matrix, per_channel, positive_p0,
+};
 use crate::controller::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
 use crate::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
 use crate::mpc::qp::QpSettings;
@@ -69,25 +71,6 @@ struct RawPcac {
 struct RawOutputConstraints {
     c: Vec<Vec<f64>>,
     d: Vec<f64>,
-}
-
-/// A scalar or `n` values, with `default` when absent.
-fn per_channel(
-    v: &Option<ScalarOrVec>,
-    n: usize,
-    default: f64,
-    field: &str,
-    err: &dyn Fn(&str, String) -> ConfigError,
-) -> Result<Vec<f64>, ConfigError> {
-    match v {
-        None => Ok(vec![default; n]),
-        Some(ScalarOrVec::Scalar(x)) => Ok(vec![*x; n]),
-        Some(ScalarOrVec::Vec(x)) if x.len() == n => Ok(x.clone()),
-        Some(ScalarOrVec::Vec(x)) => Err(err(
-            field,
-            format!("has {} values, expected 1 or {n}", x.len()),
-        )),
-    }
 }
 
 /// Reads and validates the table (building the controller once, so that every check

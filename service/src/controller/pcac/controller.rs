@@ -315,9 +315,6 @@ impl Pcac {
                 .filter(|v| v.is_finite())
                 .unwrap_or(0.0);
         }
-        if self.counts.n_r == 0 {
-            self.reference.fill(0.0);
-        }
         let predicted = match self.timing {
             PcacTiming::SameStep => self.pred.compute_from_state(&self.model),
             PcacTiming::NextStep => self.pred.compute(&self.model, &self.u_ref),
