@@ -116,7 +116,7 @@ use clarabel::solver::{
     DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
 };
 use faer::Par;
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{self, LltRegularization};
 
 #[cfg(test)]
@@ -216,6 +216,9 @@ pub enum WarmStart<'a> {
 
 /// The dense dual active-set QP solver, with every workspace allocated at construction.
 ///
+/// The bounds of the warm start are fixed at the start and eliminated (the method runs
+/// on the free variables); see "Bounds fixed from the warm start" in the module docs.
+///
 /// Not `Clone` (faer's scratch buffer is not); build one per controller.
 ///
 /// ```
@@ -238,24 +241,42 @@ pub struct DenseQpSolver {
     n: usize,
     n_ineq: usize,
     settings: QpSettings,
-    /// Cholesky factor `L` (column-major, lower triangle).
+    /// Cholesky factor `L_F` of `H_FF`: the lower triangle of the leading `|F| × |F|`
+    /// block of a column-major `n × n` buffer, rows and columns in the order of `free`.
     l: Vec<f64>,
-    /// faer's scratch for the factorization.
+    /// faer's scratch for the factorization (for every size up to `n`).
     chol_mem: MemBuffer,
+    /// The iterate `U` (all `n` entries; the fixed variables at their bounds).
     x: Vec<f64>,
+    /// Per variable: `FREE`, `AT_UPPER` or `AT_LOWER`.
+    fix: Vec<u8>,
+    /// The free variables in the order of `L_F`, and each variable's position there
+    /// (`NONE` when fixed).
+    free: Vec<usize>,
+    pos: Vec<usize>,
+    /// The fixed variables.
+    fixed: Vec<usize>,
+    /// Per variable: the fixed bound's multiplier, and its decrease per unit dual step.
+    lam_fixed: Vec<f64>,
+    u_fixed: Vec<f64>,
     /// Compressed rows of `G`: `row_ptr[j]..row_ptr[j+1]` index `cols`/`vals`.
     row_ptr: Vec<usize>,
     cols: Vec<usize>,
     vals: Vec<f64>,
     /// `1 / ‖g_j‖` (zero for a zero row).
     inv_norm: Vec<f64>,
-    /// Active constraints (internal ids: `0..n` upper, `n..2n` lower, `2n..` rows).
+    /// Active constraints (internal ids: `0..n` upper, `n..2n` lower, `2n..` rows),
+    /// excluding the fixed bounds until the solve ends.
     active: Vec<usize>,
     lambda_active: Vec<f64>,
-    /// Per constraint: `CANDIDATE`, `ACTIVE` or `ABSENT` (infinite bound or zero row).
+    /// Per constraint: `CANDIDATE`, `ACTIVE`, `ABSENT` (infinite bound or zero row) or
+    /// `FIXED` (a bound of a fixed variable, either side).
     state: Vec<u8>,
-    priority: Vec<bool>,
-    /// `Q` (one orthonormal `n`-vector per active constraint, row-major `n × n`).
+    /// Per constraint: try it first (the warm start).
+    want: Vec<bool>,
+    /// The warm start's rows held with equality at the starting point.
+    start_rows: Vec<usize>,
+    /// `Q` (one orthonormal `|F|`-vector per active constraint, rows of stride `n`).
     q: Vec<f64>,
     /// `R` (upper triangular, row-major with stride `n`).
     r: Vec<f64>,
@@ -265,11 +286,18 @@ pub struct DenseQpSolver {
     rv: Vec<f64>,
     rv2: Vec<f64>,
     uv: Vec<f64>,
+    /// Scratch of length `n`: `z` scattered to all variables, a column of `H`, the extra
+    /// column of a `Q` update.
+    full: Vec<f64>,
+    col: Vec<f64>,
+    extra: Vec<f64>,
     lam_lower: Vec<f64>,
     lam_upper: Vec<f64>,
     lam_ineq: Vec<f64>,
     objective: f64,
     iterations: usize,
+    fixed_at_start: usize,
+    freed: usize,
 }
 
 impl core::fmt::Debug for DenseQpSolver {
@@ -287,6 +315,36 @@ impl core::fmt::Debug for DenseQpSolver {
 const CANDIDATE: u8 = 0;
 const ACTIVE: u8 = 1;
 const ABSENT: u8 = 2;
+const FIXED: u8 = 3;
+
+const FREE: u8 = 0;
+const AT_UPPER: u8 = 1;
+const AT_LOWER: u8 = 2;
+
+const NONE: usize = usize::MAX;
+
+/// Bounds violated at the starting point that are fixed in bulk (see `run`).
+const BULK_FIX: usize = 3;
+
+fn all_finite(v: &[f64]) -> bool {
+    v.iter().fold(true, |ok, x| ok & x.is_finite())
+}
+
+/// `NumericalError` for NaN anywhere or an infinity where none is allowed, `Infeasible`
+/// for crossed bounds, `None` for good data.
+fn check_data(p: &QpProblem) -> Option<QpStatus> {
+    if !(all_finite(p.hess) && all_finite(p.f) && all_finite(p.g))
+        || p.lb.iter().any(|v| v.is_nan() || *v == f64::INFINITY)
+        || p.ub.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
+        || p.h.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
+    {
+        return Some(QpStatus::NumericalError);
+    }
+    if p.lb.iter().zip(p.ub).any(|(l, u)| l > u) {
+        return Some(QpStatus::Infeasible);
+    }
+    None
+}
 
 /// Dot product with eight independent accumulators (so that the reduction vectorizes and
 /// is not bound by the add latency).
@@ -316,33 +374,37 @@ fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
     }
 }
 
-/// Solves `L y = b` in place, `L` lower triangular and column-major (`b` is zero before
-/// `start`).
-fn forward_solve(l: &[f64], n: usize, b: &mut [f64], start: usize) {
-    for j in start..n {
-        let col = &l[j * n..(j + 1) * n];
+/// Solves `L y = b` in place for the leading `k × k` block of `L` (lower triangular,
+/// column-major with stride `ld`; `b` is zero before `start`).
+fn forward_solve(l: &[f64], ld: usize, k: usize, b: &mut [f64], start: usize) {
+    for j in start..k {
+        let col = &l[j * ld..j * ld + k];
         let yj = b[j] / col[j];
         b[j] = yj;
         if yj != 0.0 {
-            axpy(-yj, &col[j + 1..], &mut b[j + 1..]);
+            axpy(-yj, &col[j + 1..], &mut b[j + 1..k]);
         }
     }
 }
 
-/// Solves `Lᵀ z = y` in place, `L` lower triangular and column-major.
-fn backward_solve(l: &[f64], n: usize, y: &mut [f64]) {
-    for i in (0..n).rev() {
-        let col = &l[i * n..(i + 1) * n];
-        let s = y[i] - dot(&col[i + 1..], &y[i + 1..n]);
+/// Solves `Lᵀ z = y` in place for the leading `k × k` block of `L` (lower triangular,
+/// column-major with stride `ld`).
+fn backward_solve(l: &[f64], ld: usize, k: usize, y: &mut [f64]) {
+    for i in (0..k).rev() {
+        let col = &l[i * ld..i * ld + k];
+        let s = y[i] - dot(&col[i + 1..], &y[i + 1..k]);
         y[i] = s / col[i];
     }
 }
 
-/// Factors the column-major `n × n` matrix `a` in place as `L Lᵀ` (lower triangle read and
-/// written) with faer's blocked Cholesky on the pre-sized scratch `mem`. Returns `false`
-/// if `a` is not numerically positive definite.
-fn cholesky_in_place(a: &mut [f64], n: usize, mem: &mut MemBuffer) -> bool {
-    let mat = faer::MatMut::from_column_major_slice_mut(a, n, n);
+/// Factors the leading `k × k` block of the column-major matrix `a` (stride `ld`) in
+/// place as `L Lᵀ` (lower triangle read and written) with faer's blocked Cholesky on the
+/// pre-sized scratch `mem`. Returns `false` if it is not numerically positive definite.
+fn cholesky_in_place(a: &mut [f64], ld: usize, k: usize, mem: &mut MemBuffer) -> bool {
+    if k == 0 {
+        return true;
+    }
+    let mat = faer::MatMut::from_column_major_slice_with_stride_mut(a, k, k, ld);
     factor::cholesky_in_place(
         mat,
         LltRegularization::default(),
@@ -351,6 +413,17 @@ fn cholesky_in_place(a: &mut [f64], n: usize, mem: &mut MemBuffer) -> bool {
         Default::default(),
     )
     .is_ok()
+}
+
+/// The right-hand side `b_id` of constraint `id` (internal ids for `n` variables).
+fn rhs(p: &QpProblem, n: usize, id: usize) -> f64 {
+    if id < n {
+        p.ub[id]
+    } else if id < 2 * n {
+        -p.lb[id - n]
+    } else {
+        p.h[id - 2 * n]
+    }
 }
 
 impl DenseQpSolver {
@@ -364,17 +437,27 @@ impl DenseQpSolver {
     /// will solve, before its real-time loop.
     pub fn new(n: usize, n_ineq: usize, settings: QpSettings) -> Self {
         let n_con = 2 * n + n_ineq;
+        // The scratch serves every size of H_FF, not only the largest.
+        let req = (0..=n).fold(StackReq::EMPTY, |acc, k| {
+            acc.or(factor::cholesky_in_place_scratch::<f64>(
+                k,
+                Par::Seq,
+                Default::default(),
+            ))
+        });
         let mut solver = Self {
             n,
             n_ineq,
             settings,
             l: vec![0.0; n * n],
-            chol_mem: MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(
-                n,
-                Par::Seq,
-                Default::default(),
-            )),
+            chol_mem: MemBuffer::new(req),
             x: vec![0.0; n],
+            fix: vec![FREE; n],
+            free: Vec::with_capacity(n),
+            pos: vec![NONE; n],
+            fixed: Vec::with_capacity(n),
+            lam_fixed: vec![0.0; n],
+            u_fixed: vec![0.0; n],
             row_ptr: vec![0; n_ineq + 1],
             cols: vec![0; n_ineq * n],
             vals: vec![0.0; n_ineq * n],
@@ -382,7 +465,8 @@ impl DenseQpSolver {
             active: Vec::with_capacity(n),
             lambda_active: Vec::with_capacity(n),
             state: vec![ABSENT; n_con],
-            priority: vec![false; n_con],
+            want: vec![false; n_con],
+            start_rows: Vec::with_capacity(n_ineq),
             q: vec![0.0; n * n],
             r: vec![0.0; n * n],
             w: vec![0.0; n],
@@ -391,11 +475,16 @@ impl DenseQpSolver {
             rv: vec![0.0; n],
             rv2: vec![0.0; n],
             uv: vec![0.0; n],
+            full: vec![0.0; n],
+            col: vec![0.0; n],
+            extra: vec![0.0; n],
             lam_lower: vec![0.0; n],
             lam_upper: vec![0.0; n],
             lam_ineq: vec![0.0; n_ineq],
             objective: f64::NAN,
             iterations: 0,
+            fixed_at_start: 0,
+            freed: 0,
         };
         solver.prepare_thread();
         solver
@@ -413,7 +502,7 @@ impl DenseQpSolver {
         for j in 0..n {
             self.l[j * n + j] = 1.0;
         }
-        let _ = cholesky_in_place(&mut self.l, n, &mut self.chol_mem);
+        let _ = cholesky_in_place(&mut self.l, n, n, &mut self.chol_mem);
     }
 
     /// The number of variables `n` this solver was built for.
@@ -462,9 +551,21 @@ impl DenseQpSolver {
         self.objective
     }
 
-    /// Active-set changes made by the last solve.
+    /// Active-set changes made by the last solve: constraints added and dropped, fixed
+    /// bounds freed (the bounds fixed at the start are not counted).
     pub fn iterations(&self) -> usize {
         self.iterations
+    }
+
+    /// The number of bounds of the warm start that the last solve fixed at its start.
+    pub fn fixed_at_start(&self) -> usize {
+        self.fixed_at_start
+    }
+
+    /// The number of fixed bounds the last solve freed (their multipliers were negative
+    /// at the start, or reached zero in a dual step).
+    pub fn freed_bounds(&self) -> usize {
+        self.freed
     }
 
     /// The number of constraints in the final active set.
@@ -525,34 +626,46 @@ impl DenseQpSolver {
         }
     }
 
-    /// Writes `L⁻¹ a_id` into `self.w`.
+    /// Writes `L_F⁻¹ a_id` (the normal restricted to the free variables) into `self.w`.
     fn load_w(&mut self, id: usize) {
-        let n = self.n;
-        self.w.fill(0.0);
+        let (n, nf) = (self.n, self.free.len());
+        self.w[..nf].fill(0.0);
         let start;
         if id < n {
-            self.w[id] = 1.0;
-            start = id;
+            start = self.pos[id];
+            self.w[start] = 1.0;
         } else if id < 2 * n {
-            self.w[id - n] = -1.0;
-            start = id - n;
+            start = self.pos[id - n];
+            self.w[start] = -1.0;
         } else {
             let j = id - 2 * n;
-            let (a, b) = (self.row_ptr[j], self.row_ptr[j + 1]);
-            for k in a..b {
-                self.w[self.cols[k]] = self.vals[k];
+            let mut first = nf;
+            for k in self.row_ptr[j]..self.row_ptr[j + 1] {
+                let a = self.pos[self.cols[k]];
+                if a != NONE {
+                    self.w[a] = self.vals[k];
+                    first = first.min(a);
+                }
             }
-            start = if b > a { self.cols[a] } else { n };
+            start = first;
         }
-        forward_solve(&self.l, n, &mut self.w, start);
+        forward_solve(&self.l, n, nf, &mut self.w, start);
     }
 
     /// Solves the problem; allocation-free. See [`QpStatus`] for what the iterate means.
     pub fn solve(&mut self, p: &QpProblem, warm: WarmStart) -> QpStatus {
         self.iterations = 0;
+        self.fixed_at_start = 0;
+        self.freed = 0;
         self.objective = f64::NAN;
         self.active.clear();
         self.lambda_active.clear();
+        self.lam_lower.fill(0.0);
+        self.lam_upper.fill(0.0);
+        self.lam_ineq.fill(0.0);
+        self.x.fill(0.0);
+        self.fixed.clear();
+        self.free.clear();
         let n = self.n;
         let m = self.n_ineq;
         if p.hess.len() != n * n
@@ -562,50 +675,17 @@ impl DenseQpSolver {
             || p.g.len() != m * n
             || p.h.len() != m
         {
-            self.x.fill(0.0);
-            self.clear_multipliers();
             return QpStatus::InvalidDimensions;
         }
         let status = self.run(p, warm);
         self.finish(p, status)
     }
 
-    fn clear_multipliers(&mut self) {
-        self.lam_lower.fill(0.0);
-        self.lam_upper.fill(0.0);
-        self.lam_ineq.fill(0.0);
-    }
-
     fn run(&mut self, p: &QpProblem, warm: WarmStart) -> QpStatus {
         let n = self.n;
         let m = self.n_ineq;
-        self.x.fill(0.0);
-        self.priority.fill(false);
-
-        // Data checks: NaN anywhere, infinities only where allowed.
-        let all_finite = |v: &[f64]| v.iter().fold(true, |ok, x| ok & x.is_finite());
-        if !(all_finite(p.hess) && all_finite(p.f) && all_finite(p.g))
-            || p.lb.iter().any(|v| v.is_nan() || *v == f64::INFINITY)
-            || p.ub.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
-            || p.h.iter().any(|v| v.is_nan() || *v == f64::NEG_INFINITY)
-        {
-            return QpStatus::NumericalError;
-        }
-
-        // Factor H = L Lᵀ: H's row-major upper triangle is, read column-major, the lower
-        // triangle that faer factors in place.
-        self.l.copy_from_slice(p.hess);
-        if !cholesky_in_place(&mut self.l, n, &mut self.chol_mem) {
-            return QpStatus::NumericalError;
-        }
-        // Unconstrained minimizer x = −H⁻¹ f.
-        for (xi, fi) in self.x.iter_mut().zip(p.f) {
-            *xi = -fi;
-        }
-        forward_solve(&self.l, n, &mut self.x, 0);
-        backward_solve(&self.l, n, &mut self.x);
-        if !all_finite(&self.x) {
-            return QpStatus::NumericalError;
+        if let Some(status) = check_data(p) {
+            return status;
         }
 
         // Compressed rows of G.
@@ -641,21 +721,15 @@ impl DenseQpSolver {
             }
             self.row_ptr[j + 1] = nnz;
             self.inv_norm[j] = if s2 > 0.0 { 1.0 / s2.sqrt() } else { 0.0 };
-        }
-
-        // Trivially infeasible data: crossed bounds, zero rows with negative h.
-        for i in 0..n {
-            if p.lb[i] > p.ub[i] {
-                return QpStatus::Infeasible;
-            }
-        }
-        for j in 0..m {
-            if self.row_ptr[j + 1] == self.row_ptr[j] && p.h[j] < 0.0 {
+            // A zero row with negative h (beyond round-off: the condensed rows of outputs
+            // that no input reaches) is trivially infeasible.
+            let tol = self.settings.feasibility_tol;
+            if nnz == self.row_ptr[j] && p.h[j] < -tol * (1.0 + p.h[j].abs()) {
                 return QpStatus::Infeasible;
             }
         }
 
-        // Which constraints exist.
+        // Which constraints exist, and which the warm start wants first.
         for i in 0..n {
             self.state[i] = if p.ub[i].is_finite() {
                 CANDIDATE
@@ -672,40 +746,63 @@ impl DenseQpSolver {
             let present = p.h[j].is_finite() && self.row_ptr[j + 1] > self.row_ptr[j];
             self.state[2 * n + j] = if present { CANDIDATE } else { ABSENT };
         }
+        self.mark_warm(p, warm);
 
-        // Warm start: priorities.
-        let n_con = 2 * n + m;
-        match warm {
-            WarmStart::Cold => {}
-            WarmStart::ActiveSet(ids) => {
-                for &c in ids {
-                    if let Some(id) = self.to_internal(c) {
-                        self.priority[id] = true;
-                    }
-                }
+        // Fix the warm start's bounds (a variable with both bounds wanted only if they
+        // coincide).
+        for i in 0..n {
+            let up = self.want[i] && p.ub[i].is_finite();
+            let lo = self.want[n + i] && p.lb[i].is_finite();
+            self.fix[i] = match (up, lo) {
+                (true, false) => AT_UPPER,
+                (false, true) => AT_LOWER,
+                (true, true) if p.lb[i] == p.ub[i] => AT_UPPER,
+                _ => FREE,
+            };
+        }
+        let max_iter = self.settings.max_iterations;
+        if let Err(status) = self.factor_free(p) {
+            return status;
+        }
+        self.fixed_at_start = self.fixed.len();
+        // The starting point (dual feasible, see `start_point`).
+        if let Err(status) = self.start_point(p, false, max_iter) {
+            return status;
+        }
+        // Bounds violated at that point are fixed in bulk when there are at least
+        // `BULK_FIX` of them: one more factorization instead of one dual step each (the
+        // first steps of a saturated horizon, which the warm start does not foresee).
+        let tol = self.settings.feasibility_tol;
+        let mut violated = 0;
+        for &i in &self.free {
+            let xi = self.x[i];
+            if xi - p.ub[i] > tol * (1.0 + p.ub[i].abs()) {
+                self.fix[i] = AT_UPPER;
+                violated += 1;
+            } else if p.lb[i] - xi > tol * (1.0 + p.lb[i].abs()) {
+                self.fix[i] = AT_LOWER;
+                violated += 1;
             }
-            WarmStart::Primal(xg) => {
-                if xg.len() == n && xg.iter().all(|v| v.is_finite()) {
-                    for id in 0..n_con {
-                        if self.state[id] != ABSENT {
-                            let s = self.slack(p, id, xg);
-                            let b = self.rhs(p, id).abs();
-                            let nrm = if id < 2 * n {
-                                1.0
-                            } else {
-                                1.0 / self.inv_norm[id - 2 * n]
-                            };
-                            if s >= -1e-7 * (nrm + b) {
-                                self.priority[id] = true;
-                            }
-                        }
-                    }
-                }
+        }
+        if violated >= BULK_FIX {
+            self.fixed_at_start += violated;
+            for &id in &self.active {
+                self.state[id] = CANDIDATE;
+            }
+            self.active.clear();
+            self.lambda_active.clear();
+            if let Err(status) = self.factor_free(p) {
+                return status;
+            }
+            if let Err(status) = self.start_point(p, false, max_iter) {
+                return status;
+            }
+        } else {
+            for &i in &self.free {
+                self.fix[i] = FREE;
             }
         }
 
-        let max_iter = self.settings.max_iterations;
-        let tol = self.settings.feasibility_tol;
         loop {
             // Choose the violated constraint: prioritized first, then the most violated.
             let (best, best_v, best_pri) = self.select_violated(p, tol);
@@ -720,11 +817,392 @@ impl DenseQpSolver {
             if !best_v.is_finite() {
                 return QpStatus::NumericalError;
             }
-            match self.add_constraint(p, pid, max_iter) {
-                Ok(()) => {}
-                Err(status) => return status,
+            if let Err(status) = self.add_constraint(p, pid, max_iter) {
+                return status;
             }
         }
+    }
+
+    /// Marks the warm start's constraints in `want`.
+    fn mark_warm(&mut self, p: &QpProblem, warm: WarmStart) {
+        let (n, m) = (self.n, self.n_ineq);
+        self.want.fill(false);
+        match warm {
+            WarmStart::Cold => {}
+            WarmStart::ActiveSet(ids) => {
+                for &c in ids {
+                    if let Some(id) = self.to_internal(c) {
+                        self.want[id] = true;
+                    }
+                }
+            }
+            WarmStart::Primal(xg) => {
+                if xg.len() != n || !all_finite(xg) {
+                    return;
+                }
+                // Active or violated within 1e-7 relative.
+                let near = |s: f64, scale: f64| s >= -1e-7 * scale;
+                for i in 0..n {
+                    if p.ub[i].is_finite() {
+                        self.want[i] = near(xg[i] - p.ub[i], 1.0 + p.ub[i].abs());
+                    }
+                    if p.lb[i].is_finite() {
+                        self.want[n + i] = near(p.lb[i] - xg[i], 1.0 + p.lb[i].abs());
+                    }
+                }
+                for j in 0..m {
+                    if self.state[2 * n + j] != ABSENT {
+                        let nrm = 1.0 / self.inv_norm[j];
+                        let s = self.slack(p, 2 * n + j, xg);
+                        self.want[2 * n + j] = near(s, nrm + p.h[j].abs());
+                    }
+                }
+            }
+        }
+    }
+
+    /// The dual method's starting point: the minimizer over the free variables with the
+    /// fixed ones at their bounds and the warm start's rows `R` held with equality,
+    ///
+    /// ```text
+    /// U_F = U⁰_F − L_F⁻ᵀ Q R⁻ᵀ s,   λ_R = R⁻¹ R⁻ᵀ s,   s = N_Rᵀ U⁰ − b_R,
+    /// ```
+    ///
+    /// (`U⁰` the minimizer without the rows, `L_F⁻¹ N_R = Q R`), and the fixed bounds'
+    /// multipliers from stationarity on their rows. It is dual feasible when every
+    /// multiplier is nonnegative; rows and fixed bounds with negative ones leave (the
+    /// variables are freed) until it is. `minimized`: `U_F` already holds `U⁰_F`.
+    fn start_point(
+        &mut self,
+        p: &QpProblem,
+        mut minimized: bool,
+        max_iter: usize,
+    ) -> Result<(), QpStatus> {
+        let n = self.n;
+        self.start_rows.clear();
+        for j in 0..self.n_ineq {
+            let id = 2 * n + j;
+            if self.want[id] && self.state[id] == CANDIDATE {
+                self.start_rows.push(id);
+            }
+        }
+        loop {
+            if !minimized {
+                self.minimize_free(p)?;
+            }
+            minimized = false;
+            let nf = self.free.len();
+            // Q R of the rows (a dependent one leaves).
+            for &id in &self.active {
+                self.state[id] = CANDIDATE;
+            }
+            self.active.clear();
+            self.lambda_active.clear();
+            let mut k = 0;
+            while k < self.start_rows.len() {
+                let id = self.start_rows[k];
+                self.load_w(id);
+                let w_norm = dot(&self.w[..nf], &self.w[..nf]).sqrt();
+                let rho2 = self.orthogonalize(nf, w_norm);
+                let q = self.active.len();
+                if q >= nf || rho2.sqrt() <= self.settings.dependence_tol * w_norm {
+                    self.start_rows.swap_remove(k);
+                } else {
+                    self.append_active(id, 0.0, rho2);
+                    k += 1;
+                }
+            }
+            let q = self.active.len();
+            if q > 0 {
+                // t = R⁻ᵀ s (in rv2), λ_R = R⁻¹ t (in uv), U_F −= L_F⁻ᵀ Q t.
+                for k in 0..q {
+                    let mut s = self.slack(p, self.active[k], &self.x);
+                    for i in 0..k {
+                        s -= self.r[i * n + k] * self.rv2[i];
+                    }
+                    self.rv2[k] = s / self.r[k * n + k];
+                }
+                for i in (0..q).rev() {
+                    let row = &self.r[i * n..i * n + q];
+                    let s = self.rv2[i] - dot(&row[i + 1..q], &self.uv[i + 1..q]);
+                    self.uv[i] = s / row[i];
+                }
+                self.z[..nf].fill(0.0);
+                for k in 0..q {
+                    axpy(self.rv2[k], &self.q[k * n..k * n + nf], &mut self.z[..nf]);
+                }
+                backward_solve(&self.l, n, nf, &mut self.z);
+                for (a, &i) in self.free.iter().enumerate() {
+                    self.x[i] -= self.z[a];
+                }
+                self.lambda_active.copy_from_slice(&self.uv[..q]);
+            }
+            // The fixed bounds' multipliers: stationarity g_i ± λ_i = 0 with
+            // g = H U + f + N_R λ_R, so λ_upper = −g_i, λ_lower = g_i.
+            for &i in &self.fixed {
+                let row = &p.hess[i * n..(i + 1) * n];
+                self.lam_fixed[i] = p.f[i] + dot(row, &self.x);
+            }
+            for (&id, &lam) in self.active.iter().zip(&self.lambda_active) {
+                let j = id - 2 * n;
+                for e in self.row_ptr[j]..self.row_ptr[j + 1] {
+                    let c = self.cols[e];
+                    if self.fix[c] != FREE {
+                        self.lam_fixed[c] += lam * self.vals[e];
+                    }
+                }
+            }
+            // Any negative multiplier, however small, leaves: accepting one would end at
+            // a point that is not the minimizer (PCAC's Hessians are ill-conditioned, and
+            // a small multiplier can stand for a large move in a flat direction). Round-off
+            // on a zero multiplier costs at most a dual step that adds it back.
+            let mut negative = 0;
+            for &i in &self.fixed {
+                let g = self.lam_fixed[i];
+                let lam = if self.fix[i] == AT_UPPER { -g } else { g };
+                if !lam.is_finite() {
+                    return Err(QpStatus::NumericalError);
+                }
+                self.lam_fixed[i] = lam;
+                if lam < 0.0 {
+                    negative += 1;
+                }
+            }
+            for k in 0..self.active.len() {
+                let lam = self.lambda_active[k];
+                if !lam.is_finite() {
+                    return Err(QpStatus::NumericalError);
+                }
+                if lam < 0.0 {
+                    negative += 1;
+                    let id = self.active[k];
+                    if let Some(r) = self.start_rows.iter().position(|&x| x == id) {
+                        self.start_rows.swap_remove(r);
+                    }
+                }
+            }
+            if negative == 0 {
+                return Ok(());
+            }
+            // Rebuilt in the next round; free the variables without updating Q R.
+            for &id in &self.active {
+                self.state[id] = CANDIDATE;
+            }
+            self.active.clear();
+            self.lambda_active.clear();
+            let mut k = 0;
+            while k < self.fixed.len() {
+                let i = self.fixed[k];
+                if self.lam_fixed[i] < 0.0 {
+                    self.free_variable(p, i)?;
+                } else {
+                    k += 1;
+                }
+            }
+            self.iterations += negative;
+            if self.iterations >= max_iter {
+                return Err(QpStatus::MaxIterations);
+            }
+        }
+    }
+
+    /// CGS2 of `w` (norm `w_norm`) against the active `Q` on the first `nf` coordinates:
+    /// `r = Qᵀw` into `rv`, `ρ = w − Q r` into `rho`, re-orthogonalized once when the
+    /// first pass cancelled more than half of `‖w‖²` ("twice is enough"). Returns `‖ρ‖²`.
+    fn orthogonalize(&mut self, nf: usize, w_norm: f64) -> f64 {
+        let n = self.n;
+        let q = self.active.len();
+        self.rho[..nf].copy_from_slice(&self.w[..nf]);
+        for k in 0..q {
+            self.rv[k] = dot(&self.q[k * n..k * n + nf], &self.w[..nf]);
+        }
+        for k in 0..q {
+            axpy(-self.rv[k], &self.q[k * n..k * n + nf], &mut self.rho[..nf]);
+        }
+        if q > 0 && dot(&self.rho[..nf], &self.rho[..nf]) < 0.5 * w_norm * w_norm {
+            for k in 0..q {
+                self.rv2[k] = dot(&self.q[k * n..k * n + nf], &self.rho[..nf]);
+            }
+            for k in 0..q {
+                axpy(
+                    -self.rv2[k],
+                    &self.q[k * n..k * n + nf],
+                    &mut self.rho[..nf],
+                );
+                self.rv[k] += self.rv2[k];
+            }
+        }
+        dot(&self.rho[..nf], &self.rho[..nf])
+    }
+
+    /// Constraint `id` joins the active set with multiplier `lam`: `Q` gains `ρ/δ`, `R`
+    /// the column `[r; δ]` (`δ² = rho2`, from [`Self::orthogonalize`]).
+    fn append_active(&mut self, id: usize, lam: f64, rho2: f64) {
+        let n = self.n;
+        let nf = self.free.len();
+        let q = self.active.len();
+        let delta = rho2.sqrt();
+        for (dst, src) in self.q[q * n..q * n + nf].iter_mut().zip(&self.rho[..nf]) {
+            *dst = src / delta;
+        }
+        for i in 0..q {
+            self.r[i * n + q] = self.rv[i];
+        }
+        self.r[q * n + q] = delta;
+        self.active.push(id);
+        self.lambda_active.push(lam);
+        self.state[id] = ACTIVE;
+    }
+
+    /// Builds `free`, `pos` and `fixed` from `fix` (fixed variables at their bounds, their
+    /// bounds `FIXED`) and factors `H_FF = L_F L_Fᵀ`.
+    fn factor_free(&mut self, p: &QpProblem) -> Result<(), QpStatus> {
+        let n = self.n;
+        self.free.clear();
+        self.fixed.clear();
+        for i in 0..n {
+            if self.fix[i] == FREE {
+                self.pos[i] = self.free.len();
+                self.free.push(i);
+            } else {
+                self.pos[i] = NONE;
+                self.fixed.push(i);
+                self.state[i] = FIXED;
+                self.state[n + i] = FIXED;
+                self.x[i] = if self.fix[i] == AT_UPPER {
+                    p.ub[i]
+                } else {
+                    p.lb[i]
+                };
+            }
+        }
+        let nf = self.free.len();
+        if nf == n {
+            // H's row-major upper triangle is, read column-major, the lower triangle
+            // that faer factors in place.
+            self.l.copy_from_slice(p.hess);
+        } else {
+            for (b, &jb) in self.free.iter().enumerate() {
+                let row = &p.hess[jb * n..(jb + 1) * n];
+                let dst = &mut self.l[b * n..b * n + nf];
+                for a in b..nf {
+                    dst[a] = row[self.free[a]];
+                }
+            }
+        }
+        if cholesky_in_place(&mut self.l, n, nf, &mut self.chol_mem) {
+            Ok(())
+        } else {
+            Err(QpStatus::NumericalError)
+        }
+    }
+
+    /// With no constraint active: the free variables ← the minimizer of the objective
+    /// with the fixed ones at their bounds, `U_F = −H_FF⁻¹ (f_F + H_FB U_B)`.
+    fn minimize_free(&mut self, p: &QpProblem) -> Result<(), QpStatus> {
+        let (n, nf) = (self.n, self.free.len());
+        for (a, &i) in self.free.iter().enumerate() {
+            let row = &p.hess[i * n..(i + 1) * n];
+            let mut c = p.f[i];
+            for &j in &self.fixed {
+                c += row[j] * self.x[j];
+            }
+            self.z[a] = -c;
+        }
+        forward_solve(&self.l, n, nf, &mut self.z, 0);
+        backward_solve(&self.l, n, nf, &mut self.z);
+        for (a, &i) in self.free.iter().enumerate() {
+            self.x[i] = self.z[a];
+        }
+        if all_finite(&self.z[..nf]) {
+            Ok(())
+        } else {
+            Err(QpStatus::NumericalError)
+        }
+    }
+
+    /// Frees fixed variable `b` (its bound's multiplier is zero): `b` joins `F` at the
+    /// end, `L_F` gains the row `[lᵀ δ]` with `L_F l = H_Fb`, `δ² = H_bb − lᵀl`, and the
+    /// active normals `W = L_F⁻¹ N_A = Q R` gain the row `(N_bᵀ − lᵀW)/δ`, which Givens
+    /// rotations fold back into `R` (`O(|F|·|A|)`).
+    fn free_variable(&mut self, p: &QpProblem, b: usize) -> Result<(), QpStatus> {
+        let (n, nf, q) = (self.n, self.free.len(), self.active.len());
+        for (a, &i) in self.free.iter().enumerate() {
+            self.col[a] = p.hess[i * n + b];
+        }
+        forward_solve(&self.l, n, nf, &mut self.col, 0);
+        let d2 = p.hess[b * n + b] - dot(&self.col[..nf], &self.col[..nf]);
+        if !(d2 > 0.0 && d2.is_finite()) {
+            return Err(QpStatus::NumericalError);
+        }
+        let delta = d2.sqrt();
+        for a in 0..nf {
+            self.l[a * n + nf] = self.col[a];
+        }
+        self.l[nf * n + nf] = delta;
+        if q > 0 {
+            // v = Qᵀ l, new row of W: (N_b − Rᵀ v)/δ, kept in `rv2`.
+            for k in 0..q {
+                self.uv[k] = dot(&self.q[k * n..k * n + nf], &self.col[..nf]);
+            }
+            for k in 0..q {
+                let id = self.active[k];
+                let nb = if id >= 2 * n {
+                    p.g[(id - 2 * n) * n + b]
+                } else {
+                    0.0
+                };
+                let mut s = nb;
+                for i in 0..=k {
+                    s -= self.r[i * n + k] * self.uv[i];
+                }
+                self.rv2[k] = s / delta;
+            }
+            // Q's vectors gain a zero coordinate; the extra column starts as e_nf.
+            for k in 0..q {
+                self.q[k * n + nf] = 0.0;
+            }
+            self.extra[..=nf].fill(0.0);
+            self.extra[nf] = 1.0;
+            for k in 0..q {
+                let (a, bb) = (self.r[k * n + k], self.rv2[k]);
+                if bb == 0.0 {
+                    continue;
+                }
+                let h = a.hypot(bb);
+                let (c, s) = (a / h, bb / h);
+                for col in k..q {
+                    let (x0, x1) = (self.r[k * n + col], self.rv2[col]);
+                    self.r[k * n + col] = c * x0 + s * x1;
+                    self.rv2[col] = -s * x0 + c * x1;
+                }
+                let qk = &mut self.q[k * n..k * n + nf + 1];
+                for (a0, a1) in qk.iter_mut().zip(self.extra[..=nf].iter_mut()) {
+                    let (x0, x1) = (*a0, *a1);
+                    *a0 = c * x0 + s * x1;
+                    *a1 = -s * x0 + c * x1;
+                }
+            }
+        }
+        self.freed += 1;
+        self.pos[b] = nf;
+        self.free.push(b);
+        if let Some(k) = self.fixed.iter().position(|&i| i == b) {
+            self.fixed.swap_remove(k);
+        }
+        self.fix[b] = FREE;
+        self.lam_fixed[b] = 0.0;
+        self.state[b] = if p.ub[b].is_finite() {
+            CANDIDATE
+        } else {
+            ABSENT
+        };
+        self.state[n + b] = if p.lb[b].is_finite() {
+            CANDIDATE
+        } else {
+            ABSENT
+        };
+        Ok(())
     }
 
     /// The most violated candidate constraint, its violation and the most violated
@@ -741,7 +1219,7 @@ impl DenseQpSolver {
                 best_v = v;
                 best = id;
             }
-            if self.priority[id] && v > best_pri_v {
+            if self.want[id] && v > best_pri_v {
                 best_pri_v = v;
                 best_pri = id;
             }
@@ -771,19 +1249,9 @@ impl DenseQpSolver {
         (best, best_v, best_pri)
     }
 
-    fn rhs(&self, p: &QpProblem, id: usize) -> f64 {
-        let n = self.n;
-        if id < n {
-            p.ub[id]
-        } else if id < 2 * n {
-            -p.lb[id - n]
-        } else {
-            p.h[id - 2 * n]
-        }
-    }
-
     /// Steps until constraint `pid` is satisfied and added (or the problem is found
-    /// infeasible, or the iteration cap is hit).
+    /// infeasible, or the iteration cap is hit). Partial steps drop an active constraint
+    /// or free a fixed variable, whichever multiplier reaches zero first.
     fn add_constraint(
         &mut self,
         p: &QpProblem,
@@ -792,43 +1260,29 @@ impl DenseQpSolver {
     ) -> Result<(), QpStatus> {
         let n = self.n;
         let mut lam_p = 0.0;
-        // w = L⁻¹ a_p does not change while p waits for deletions.
-        self.load_w(pid);
-        let w_norm = dot(&self.w, &self.w).sqrt();
+        // w = L_F⁻¹ a_p changes only when a variable is freed.
+        let mut w_stale = true;
+        let mut w_norm = 0.0;
         loop {
             if self.iterations >= max_iter {
                 return Err(QpStatus::MaxIterations);
             }
             self.iterations += 1;
+            let nf = self.free.len();
             let q = self.active.len();
-            // CGS2: r = Qᵀw, ρ = w − Q r, twice.
-            self.rho.copy_from_slice(&self.w);
-            for k in 0..q {
-                let c = dot(&self.q[k * n..(k + 1) * n], &self.w);
-                self.rv[k] = c;
+            if w_stale {
+                self.load_w(pid);
+                w_norm = dot(&self.w[..nf], &self.w[..nf]).sqrt();
+                w_stale = false;
             }
-            for k in 0..q {
-                axpy(-self.rv[k], &self.q[k * n..(k + 1) * n], &mut self.rho);
-            }
-            // Re-orthogonalize only if the first pass cancelled much of w ("twice is
-            // enough": ‖ρ‖² < ½‖w‖²).
-            if q > 0 && dot(&self.rho, &self.rho) < 0.5 * w_norm * w_norm {
-                for k in 0..q {
-                    self.rv2[k] = dot(&self.q[k * n..(k + 1) * n], &self.rho);
-                }
-                for k in 0..q {
-                    axpy(-self.rv2[k], &self.q[k * n..(k + 1) * n], &mut self.rho);
-                    self.rv[k] += self.rv2[k];
-                }
-            }
+            let rho2 = self.orthogonalize(nf, w_norm);
             // u = R⁻¹ r.
             for i in (0..q).rev() {
                 let row = &self.r[i * n..i * n + q];
                 let s = self.rv[i] - dot(&row[i + 1..q], &self.uv[i + 1..q]);
                 self.uv[i] = s / row[i];
             }
-            let rho2 = dot(&self.rho, &self.rho);
-            let dependent = q >= n || rho2.sqrt() <= self.settings.dependence_tol * w_norm;
+            let dependent = q >= nf || rho2.sqrt() <= self.settings.dependence_tol * w_norm;
             let s_p = self.slack(p, pid, &self.x);
             let t1 = if dependent { f64::INFINITY } else { s_p / rho2 };
             let mut t2 = f64::INFINITY;
@@ -843,53 +1297,105 @@ impl DenseQpSolver {
                     }
                 }
             }
-            if !(t1.is_finite() || t2.is_finite()) {
-                if t1.is_nan() || t2.is_nan() {
+            // The primal direction z = L_F⁻ᵀ ρ (zero on the fixed variables).
+            if !dependent {
+                self.z[..nf].copy_from_slice(&self.rho[..nf]);
+                backward_solve(&self.l, n, nf, &mut self.z);
+            }
+            // The fixed bounds' multipliers move as λ_i − t u_i, where stationarity on
+            // row i gives u_i = s_i (−(H z)_i − Σ_A u_k (a_k)_i + (a_p)_i), s_i = ±1 for
+            // an upper or lower bound.
+            let mut t3 = f64::INFINITY;
+            let mut b_drop = usize::MAX;
+            if !self.fixed.is_empty() {
+                if !dependent {
+                    self.full.fill(0.0);
+                    for (a, &i) in self.free.iter().enumerate() {
+                        self.full[i] = self.z[a];
+                    }
+                }
+                for &i in &self.fixed {
+                    self.u_fixed[i] = if dependent {
+                        0.0
+                    } else {
+                        -dot(&p.hess[i * n..(i + 1) * n], &self.full)
+                    };
+                }
+                if pid >= 2 * n {
+                    let j = pid - 2 * n;
+                    for e in self.row_ptr[j]..self.row_ptr[j + 1] {
+                        let c = self.cols[e];
+                        if self.fix[c] != FREE {
+                            self.u_fixed[c] += self.vals[e];
+                        }
+                    }
+                }
+                for k in 0..q {
+                    let id = self.active[k];
+                    if id >= 2 * n {
+                        let j = id - 2 * n;
+                        for e in self.row_ptr[j]..self.row_ptr[j + 1] {
+                            let c = self.cols[e];
+                            if self.fix[c] != FREE {
+                                self.u_fixed[c] -= self.uv[k] * self.vals[e];
+                            }
+                        }
+                    }
+                }
+                for &i in &self.fixed {
+                    let u = if self.fix[i] == AT_UPPER {
+                        self.u_fixed[i]
+                    } else {
+                        -self.u_fixed[i]
+                    };
+                    self.u_fixed[i] = u;
+                    if u > 0.0 {
+                        let t = self.lam_fixed[i] / u;
+                        if t < t3 {
+                            t3 = t;
+                            b_drop = i;
+                        }
+                    }
+                }
+            }
+            if !(t1.is_finite() || t2.is_finite() || t3.is_finite()) {
+                if t1.is_nan() || t2.is_nan() || t3.is_nan() {
                     return Err(QpStatus::NumericalError);
                 }
                 return Err(QpStatus::Infeasible);
             }
-            if !t1.is_nan() && t1 <= t2 {
-                // Full step: p becomes satisfied and joins the active set.
-                let t = t1.max(0.0);
-                self.z.copy_from_slice(&self.rho);
-                backward_solve(&self.l, n, &mut self.z);
-                axpy(-t, &self.z, &mut self.x);
-                for k in 0..q {
-                    self.lambda_active[k] -= t * self.uv[k];
-                }
-                lam_p += t;
-                let delta = rho2.sqrt();
-                // Q gains ρ/δ, R gains the column [r; δ].
-                let (qs, qn) = (q * n, (q + 1) * n);
-                for (dst, src) in self.q[qs..qn].iter_mut().zip(&self.rho) {
-                    *dst = src / delta;
-                }
-                for i in 0..q {
-                    self.r[i * n + q] = self.rv[i];
-                }
-                self.r[q * n + q] = delta;
-                self.active.push(pid);
-                self.lambda_active.push(lam_p);
-                self.state[pid] = ACTIVE;
-                if !self.x.iter().all(|v| v.is_finite()) {
-                    return Err(QpStatus::NumericalError);
-                }
-                return Ok(());
-            }
-            // Partial step: the active constraint k_drop leaves.
-            let t = t2.max(0.0);
+            let t_part = t2.min(t3);
+            let full_step = !t1.is_nan() && t1 <= t_part;
+            let t = if full_step { t1 } else { t_part }.max(0.0);
             if !dependent {
-                self.z.copy_from_slice(&self.rho);
-                backward_solve(&self.l, n, &mut self.z);
-                axpy(-t, &self.z, &mut self.x);
+                for (a, &i) in self.free.iter().enumerate() {
+                    self.x[i] -= t * self.z[a];
+                }
             }
             for k in 0..q {
                 self.lambda_active[k] -= t * self.uv[k];
             }
+            for &i in &self.fixed {
+                self.lam_fixed[i] -= t * self.u_fixed[i];
+            }
             lam_p += t;
-            self.drop_active(k_drop);
-            if !self.x.iter().all(|v| v.is_finite()) || !lam_p.is_finite() {
+            if full_step {
+                // p is satisfied and joins the active set.
+                self.append_active(pid, lam_p, rho2);
+                if !all_finite(&self.x) {
+                    return Err(QpStatus::NumericalError);
+                }
+                return Ok(());
+            }
+            // Partial step: an active constraint leaves, or a fixed variable is freed.
+            if t2 <= t3 {
+                self.drop_active(k_drop);
+            } else {
+                self.lam_fixed[b_drop] = 0.0;
+                self.free_variable(p, b_drop)?;
+                w_stale = true;
+            }
+            if !all_finite(&self.x) || !lam_p.is_finite() {
                 return Err(QpStatus::NumericalError);
             }
         }
@@ -899,6 +1405,7 @@ impl DenseQpSolver {
     /// restore the triangle and rotate `Q` alike.
     fn drop_active(&mut self, k: usize) {
         let n = self.n;
+        let nf = self.free.len();
         let q = self.active.len();
         let id = self.active[k];
         self.state[id] = CANDIDATE;
@@ -924,8 +1431,8 @@ impl DenseQpSolver {
             }
             self.r[(j + 1) * n + j] = 0.0;
             let (lo, hi) = self.q.split_at_mut((j + 1) * n);
-            let qj = &mut lo[j * n..];
-            let qj1 = &mut hi[..n];
+            let qj = &mut lo[j * n..j * n + nf];
+            let qj1 = &mut hi[..nf];
             for (a0, a1) in qj.iter_mut().zip(qj1.iter_mut()) {
                 let (x0, x1) = (*a0, *a1);
                 *a0 = c * x0 + s * x1;
@@ -939,10 +1446,19 @@ impl DenseQpSolver {
     /// Multipliers, objective and (unless solved) the clipped iterate.
     fn finish(&mut self, p: &QpProblem, status: QpStatus) -> QpStatus {
         let n = self.n;
-        self.clear_multipliers();
         if status == QpStatus::Solved {
+            // The fixed bounds join the reported active set.
+            for &i in &self.fixed {
+                self.active
+                    .push(if self.fix[i] == AT_UPPER { i } else { n + i });
+                self.lambda_active.push(self.lam_fixed[i]);
+            }
+            // At a KKT point, H U + f = −N_A λ_A and a_iᵀU = b_i on A, so
+            // ½UᵀHU + fᵀU = ½ fᵀU − ½ Σ_A λ_i b_i (O(n) instead of O(n²)).
+            let mut obj = 0.5 * dot(p.f, &self.x);
             for (&id, &lam) in self.active.iter().zip(&self.lambda_active) {
                 let lam = lam.max(0.0);
+                obj -= 0.5 * lam * rhs(p, n, id);
                 if id < n {
                     self.lam_upper[id] = lam;
                 } else if id < 2 * n {
@@ -951,38 +1467,25 @@ impl DenseQpSolver {
                     self.lam_ineq[id - 2 * n] = lam;
                 }
             }
-        } else {
-            for i in 0..n {
-                let v = self.x[i];
-                let v = if v.is_finite() { v } else { 0.0 };
-                let lo = if p.lb[i].is_finite() {
-                    p.lb[i]
-                } else {
-                    f64::NEG_INFINITY
-                };
-                let hi = if p.ub[i].is_finite() {
-                    p.ub[i]
-                } else {
-                    f64::INFINITY
-                };
-                self.x[i] = if lo <= hi { v.max(lo).min(hi) } else { v };
-            }
-        }
-        if status == QpStatus::Solved {
-            // At a KKT point, H U + f = −N_A λ_A and a_iᵀU = b_i on A, so
-            // ½UᵀHU + fᵀU = ½ fᵀU − ½ Σ_A λ_i b_i (O(n) instead of O(n²)).
-            let mut obj = 0.5 * dot(p.f, &self.x);
-            for (&id, &lam) in self.active.iter().zip(&self.lambda_active) {
-                obj -= 0.5 * lam * self.rhs(p, id);
-            }
             self.objective = obj;
-        } else if p.hess.len() == n * n && p.f.len() == n {
-            let mut obj = 0.0;
-            for i in 0..n {
-                obj += self.x[i] * (0.5 * dot(&p.hess[i * n..(i + 1) * n], &self.x) + p.f[i]);
-            }
-            self.objective = obj;
+            return status;
         }
+        self.active.clear();
+        self.lambda_active.clear();
+        if status == QpStatus::InvalidDimensions {
+            return status;
+        }
+        for i in 0..n {
+            let v = self.x[i];
+            let v = if v.is_finite() { v } else { 0.0 };
+            let (lo, hi) = (p.lb[i], p.ub[i]);
+            self.x[i] = if lo <= hi { v.max(lo).min(hi) } else { v };
+        }
+        let mut obj = 0.0;
+        for i in 0..n {
+            obj += self.x[i] * (0.5 * dot(&p.hess[i * n..(i + 1) * n], &self.x) + p.f[i]);
+        }
+        self.objective = obj;
         status
     }
 }

@@ -532,6 +532,121 @@ fn warm_starts_reach_the_same_solution_in_fewer_iterations() {
     assert!(d.objective < 1e-9 && d.polished < 1e-8, "{d:?}");
 }
 
+/// Bounds fixed from the warm start, right or wrong, end at clarabel's solution: the exact
+/// active set, that set with wrong bounds added (every other variable at its upper bound,
+/// and both sides of some), every variable at its upper bound, and the old active set on
+/// a perturbed problem. Wrong fixed bounds are freed, at the start or in a dual step.
+#[test]
+fn fixed_bounds_from_any_warm_start_reach_clarabels_solution() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let (mut fixed, mut freed) = (0, 0);
+    for k in 0..12 {
+        let ell = [10, 25, 50][k % 3];
+        let p = if k % 2 == 0 {
+            pcac_problem(ell, 2, true, k % 3, 2.0 + 0.3 * k as f64, &mut rng)
+        } else {
+            random_problem(ell, 2, k % 4, true, &mut rng)
+        };
+        let raw_tol = if k % 2 == 0 { 1e-4 } else { 1e-6 };
+        let n = p.n;
+        let mut s = DenseQpSolver::new(n, p.n_ineq(), QpSettings::default());
+        assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Solved);
+        let cold_iterations = s.iterations();
+        let mut exact = vec![ConstraintId::Row(0); n];
+        let na = s.active_set_into(&mut exact);
+        exact.truncate(na);
+        let bounds_in_exact = exact
+            .iter()
+            .filter(|c| !matches!(c, ConstraintId::Row(_)))
+            .count();
+        let mut wrong = exact.clone();
+        for i in (0..n).step_by(2) {
+            wrong.push(ConstraintId::Upper(i));
+        }
+        for i in (1..n).step_by(7) {
+            wrong.push(ConstraintId::Upper(i));
+            wrong.push(ConstraintId::Lower(i));
+        }
+        let all_upper: Vec<ConstraintId> = (0..n).map(ConstraintId::Upper).collect();
+        for warm in [&exact, &wrong, &all_upper] {
+            let (_, d) = check_against_clarabel(&p, WarmStart::ActiveSet(warm), raw_tol);
+            assert!(d.objective < 1e-9, "{d:?}");
+            s.solve(&p.problem(), WarmStart::ActiveSet(warm));
+            fixed += s.fixed_at_start();
+            freed += s.freed_bounds();
+        }
+        s.solve(&p.problem(), WarmStart::ActiveSet(&exact));
+        // Its bounds are fixed (and bounds violated at the start in bulk, when rows of
+        // the set are not yet active); the rows are then added in fewer steps than cold.
+        assert!(s.fixed_at_start() >= bounds_in_exact);
+        assert!(s.iterations() <= cold_iterations);
+        eprintln!(
+            "{k}: cold {cold_iterations} iterations; exact warm start: {} fixed, {} freed, \
+             {} iterations",
+            s.fixed_at_start(),
+            s.freed_bounds(),
+            s.iterations()
+        );
+        let mut p2 = p.clone();
+        for v in p2.f.iter_mut() {
+            *v += 0.1 * (1.0 + v.abs()) * normal(&mut rng);
+        }
+        check_against_clarabel(&p2, WarmStart::ActiveSet(&exact), raw_tol);
+    }
+    eprintln!("{fixed} bounds fixed at the start, {freed} freed");
+    assert!(fixed > 500 && freed > 100, "{fixed} fixed, {freed} freed");
+}
+
+/// A fixed bound whose multiplier reaches zero while a row is added is freed in that
+/// dual step: `min ½(2u₀² − 2u₀u₁ + 2u₁²) − u₀` with `u₀ ≤ 0` fixed and `u₁ ≤ −3`. At
+/// the start (`u₁ = 0`) the bound's multiplier is 1; moving `u₁` down lowers it to zero
+/// at `u₁ = −1`, and the solution is `(−1, −3)` with the bound inactive.
+#[test]
+fn a_fixed_bound_is_freed_inside_a_dual_step() {
+    let p = Owned {
+        n: 2,
+        hess: vec![2.0, -1.0, -1.0, 2.0],
+        f: vec![-1.0, 0.0],
+        lb: vec![f64::NEG_INFINITY; 2],
+        ub: vec![0.0, f64::INFINITY],
+        g: vec![0.0, 1.0],
+        h: vec![-3.0],
+    };
+    let mut s = DenseQpSolver::new(2, 1, QpSettings::default());
+    let warm = [ConstraintId::Upper(0)];
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::ActiveSet(&warm)),
+        QpStatus::Solved
+    );
+    assert_eq!((s.fixed_at_start(), s.freed_bounds()), (1, 1));
+    assert!((s.x()[0] + 1.0).abs() < 1e-12 && (s.x()[1] + 3.0).abs() < 1e-12);
+    assert_eq!(s.lambda_upper()[0], 0.0);
+    assert!((s.lambda_ineq()[0] - 5.0).abs() < 1e-12);
+    assert_eq!(s.active_len(), 1);
+    assert!(kkt_residual(&p, &s) < 1e-12);
+    // Every variable fixed, and a row on them violated: only dual steps are possible
+    // until one is freed. min ½|u|² − 2(u₀ + u₁), u ≤ 1 fixed, u₀ + u₁ ≤ 1.
+    let p = Owned {
+        n: 2,
+        hess: vec![1.0, 0.0, 0.0, 1.0],
+        f: vec![-2.0, -2.0],
+        lb: vec![-1.0; 2],
+        ub: vec![1.0; 2],
+        g: vec![1.0, 1.0],
+        h: vec![1.0],
+    };
+    let warm = [ConstraintId::Upper(0), ConstraintId::Upper(1)];
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::ActiveSet(&warm)),
+        QpStatus::Solved
+    );
+    assert_eq!(s.fixed_at_start(), 2);
+    assert!(s.freed_bounds() >= 1);
+    assert!((s.x()[0] - 0.5).abs() < 1e-12 && (s.x()[1] - 0.5).abs() < 1e-12);
+    assert!((s.lambda_ineq()[0] - 1.5).abs() < 1e-12);
+    assert!(kkt_residual(&p, &s) < 1e-12);
+}
+
 #[test]
 fn contradictory_constraints_are_reported_infeasible() {
     let n = 4;
@@ -592,6 +707,13 @@ fn contradictory_constraints_are_reported_infeasible() {
         s3.solve(&p.problem(), WarmStart::Cold),
         QpStatus::Infeasible
     );
+    // The same with every variable fixed at a bound from the warm start.
+    let all_lower: Vec<ConstraintId> = (0..p.n).map(ConstraintId::Lower).collect();
+    assert_eq!(
+        s3.solve(&p.problem(), WarmStart::ActiveSet(&all_lower)),
+        QpStatus::Infeasible
+    );
+    assert!(s3.x().iter().all(|v| v.is_finite()));
     let c = solve_with_clarabel(&p.problem(), 1e-8).unwrap();
     assert!(matches!(
         c.status,
@@ -821,7 +943,7 @@ fn qp_timing_at_n_100_with_active_constraints() {
         ours.push(t.elapsed().as_secs_f64() * 1e6);
         buf.copy_from_slice(&p0.hess);
         let t = Instant::now();
-        assert!(cholesky_in_place(&mut buf, n, &mut mem));
+        assert!(cholesky_in_place(&mut buf, n, n, &mut mem));
         faer_t.push(t.elapsed().as_secs_f64() * 1e6);
     }
     println!("Cholesky, n = 100:");
