@@ -649,3 +649,83 @@ fn the_first_pcac_steps_on_a_new_thread_do_not_allocate() {
     assert!(d.installed);
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
 }
+
+/// The dense QP's warm starts with fixed bounds, right and wrong (bounds freed at the start
+/// and inside dual steps, rows held from the start, bounds fixed in bulk from a cold start,
+/// an infeasible problem) make no allocation. A 40-variable problem with input and move
+/// bounds whose unconstrained minimizer leaves the box.
+#[test]
+fn qp_solves_with_fixed_and_freed_bounds_do_not_allocate() {
+    use service::mpc::qp::{
+        ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart,
+    };
+    let n = 40;
+    // H: tridiagonal (a discrete second difference plus a diagonal), G: moves u_i − u_{i−1}
+    // of both signs within 0.3.
+    let mut hess = vec![0.0; n * n];
+    for i in 0..n {
+        hess[i * n + i] = 2.5;
+        if i > 0 {
+            hess[i * n + i - 1] = -1.0;
+            hess[(i - 1) * n + i] = -1.0;
+        }
+    }
+    let mut g = vec![0.0; 2 * (n - 1) * n];
+    for i in 1..n {
+        let (r0, r1) = ((i - 1) * n, (n - 1 + i - 1) * n);
+        g[r0 + i] = 1.0;
+        g[r0 + i - 1] = -1.0;
+        g[r1 + i] = -1.0;
+        g[r1 + i - 1] = 1.0;
+    }
+    let h = vec![0.3; 2 * (n - 1)];
+    let (lb, ub) = (vec![-1.0; n], vec![1.0; n]);
+    let fs: Vec<Vec<f64>> = (0..6)
+        .map(|k| {
+            (0..n)
+                .map(|i| -4.0 * ((0.2 + 0.05 * k as f64) * i as f64).sin())
+                .collect()
+        })
+        .collect();
+    let all_upper: Vec<ConstraintId> = (0..n).map(ConstraintId::Upper).collect();
+    let mut ids = vec![ConstraintId::Row(0); 3 * n];
+    let mut solver =
+        service::rt_alloc::outside_rt(|| DenseQpSolver::new(n, 2 * (n - 1), QpSettings::default()));
+    let h_bad = vec![-1.0; 2 * (n - 1)];
+    enter_rt_thread(16);
+    let before = thread_stats();
+    let (mut solved, mut fixed, mut freed, mut infeasible) = (0, 0, 0, 0);
+    let mut k_ids = 0;
+    for round in 0..30 {
+        let f = &fs[round % fs.len()];
+        let p = QpProblem {
+            hess: &hess,
+            f,
+            lb: &lb,
+            ub: &ub,
+            g: &g,
+            h: &h,
+        };
+        for warm in [
+            WarmStart::Cold,
+            WarmStart::ActiveSet(&ids[..k_ids]),
+            WarmStart::ActiveSet(&all_upper),
+        ] {
+            if solver.solve(&p, warm) == QpStatus::Solved {
+                solved += 1;
+            }
+            fixed += solver.fixed_at_start();
+            freed += solver.freed_bounds();
+        }
+        k_ids = solver.active_set_into(&mut ids);
+        let bad = QpProblem { h: &h_bad, ..p };
+        if solver.solve(&bad, WarmStart::ActiveSet(&all_upper)) == QpStatus::Infeasible {
+            infeasible += 1;
+        }
+    }
+    let d = thread_stats().since(&before);
+    assert!(d.installed);
+    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+    assert_eq!((solved, infeasible), (90, 30));
+    assert!(fixed > 1000 && freed > 100, "{fixed} fixed, {freed} freed");
+}
