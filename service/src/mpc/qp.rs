@@ -771,16 +771,7 @@ impl DenseQpSolver {
 
         // Which constraints exist, and which the warm start wants first.
         for i in 0..n {
-            self.state[i] = if p.ub[i].is_finite() {
-                CANDIDATE
-            } else {
-                ABSENT
-            };
-            self.state[n + i] = if p.lb[i].is_finite() {
-                CANDIDATE
-            } else {
-                ABSENT
-            };
+            self.set_bound_states(p, i);
         }
         for j in 0..m {
             let present = p.h[j].is_finite() && self.row_ptr[j + 1] > self.row_ptr[j];
@@ -826,11 +817,7 @@ impl DenseQpSolver {
         }
         if violated >= BULK_FIX {
             self.fixed_at_start += violated;
-            for &id in &self.active {
-                self.state[id] = CANDIDATE;
-            }
-            self.active.clear();
-            self.lambda_active.clear();
+            self.clear_active();
             if let Err(status) = self.factor_free(p) {
                 return status;
             }
@@ -933,11 +920,7 @@ impl DenseQpSolver {
             minimized = false;
             let nf = self.free.len();
             // Q R of the rows (a dependent one leaves).
-            for &id in &self.active {
-                self.state[id] = CANDIDATE;
-            }
-            self.active.clear();
-            self.lambda_active.clear();
+            self.clear_active();
             let mut k = 0;
             while k < self.start_rows.len() {
                 let id = self.start_rows[k];
@@ -1025,11 +1008,7 @@ impl DenseQpSolver {
                 return Ok(());
             }
             // Rebuilt in the next round; free the variables without updating Q R.
-            for &id in &self.active {
-                self.state[id] = CANDIDATE;
-            }
-            self.active.clear();
-            self.lambda_active.clear();
+            self.clear_active();
             let mut k = 0;
             while k < self.fixed.len() {
                 let i = self.fixed[k];
@@ -1232,17 +1211,24 @@ impl DenseQpSolver {
         }
         self.fix[b] = FREE;
         self.lam_fixed[b] = 0.0;
-        self.state[b] = if p.ub[b].is_finite() {
-            CANDIDATE
-        } else {
-            ABSENT
-        };
-        self.state[n + b] = if p.lb[b].is_finite() {
-            CANDIDATE
-        } else {
-            ABSENT
-        };
+        self.set_bound_states(p, b);
         Ok(())
+    }
+
+    /// Empties the active set (its constraints become candidates again).
+    fn clear_active(&mut self) {
+        for &id in &self.active {
+            self.state[id] = CANDIDATE;
+        }
+        self.active.clear();
+        self.lambda_active.clear();
+    }
+
+    /// Variable `i`'s bounds become candidates (`ABSENT` where infinite).
+    fn set_bound_states(&mut self, p: &QpProblem, i: usize) {
+        let state = |finite: bool| if finite { CANDIDATE } else { ABSENT };
+        self.state[i] = state(p.ub[i].is_finite());
+        self.state[self.n + i] = state(p.lb[i].is_finite());
     }
 
     /// The most violated candidate constraint, its violation and the most violated
