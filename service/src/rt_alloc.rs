@@ -46,8 +46,10 @@ thread_local! {
     static POOL: Cell<*mut Pool> = const { Cell::new(core::ptr::null_mut()) };
 }
 
-/// Most threads that can have a pool at once.
-const MAX_POOLS: usize = 8;
+/// Most threads that can have a pool in the process's life (the service has one RT thread;
+/// test binaries run one thread per test). A thread beyond it is not counted, which
+/// [`RtAllocStats::counted`] reports.
+const MAX_POOLS: usize = 32;
 /// Address ranges of every pool, so that a block freed by a thread that does not own it
 /// is recognized (and leaked) instead of being handed to the system allocator.
 static POOL_RANGES: [(AtomicUsize, AtomicUsize); MAX_POOLS] =
@@ -153,6 +155,9 @@ unsafe impl GlobalAlloc for RtAwareAllocator {
 pub struct RtAllocStats {
     /// True when [`RtAwareAllocator`] is the global allocator of this process.
     pub installed: bool,
+    /// True when the calling thread has its pool ([`enter_rt_thread`] succeeded), so that
+    /// its allocations are counted. Without it every count below reads zero.
+    pub counted: bool,
     /// Allocations served from the RT pool (bounded time, no lock, no system call).
     pub pool_served: u64,
     /// Allocations on the RT thread that went to the system allocator (must be 0).
@@ -173,6 +178,7 @@ pub fn thread_stats() -> RtAllocStats {
     };
     RtAllocStats {
         installed: INSTALLED.load(Ordering::Relaxed) != 0,
+        counted: !pool.is_null(),
         pool_served,
         system_on_rt_thread,
         foreign_frees: FOREIGN_FREES.load(Ordering::Relaxed),
@@ -184,6 +190,7 @@ impl RtAllocStats {
     pub fn since(&self, earlier: &RtAllocStats) -> RtAllocStats {
         RtAllocStats {
             installed: self.installed,
+            counted: self.counted,
             pool_served: self.pool_served - earlier.pool_served,
             system_on_rt_thread: self.system_on_rt_thread - earlier.system_on_rt_thread,
             foreign_frees: self.foreign_frees - earlier.foreign_frees,

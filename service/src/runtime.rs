@@ -858,7 +858,9 @@ impl RunReport {
             self.log_written, self.log_dropped
         );
         let a = &self.rt_allocations;
-        if a.installed {
+        if a.installed && !a.counted {
+            out += "RT-thread allocations: not counted (the RT thread has no pool)\n";
+        } else if a.installed {
             out += &format!(
                 "RT-thread allocations: {} from the system allocator, {} served by the RT pool (iceoryx2 sample loans)\n",
                 a.system_on_rt_thread, a.pool_served

@@ -89,7 +89,7 @@ fn a_controller_step_does_not_allocate() {
         );
     }
     let d = thread_stats().since(&before);
-    assert!(d.installed);
+    assert!(d.installed && d.counted, "{d:?}");
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
 }
 
@@ -461,7 +461,7 @@ fn rcac_steps_do_not_allocate(update: &str) {
         assert!(u.iter().all(|v| v.is_finite()));
     }
     let d = thread_stats().since(&before);
-    assert!(d.installed);
+    assert!(d.installed && d.counted, "{d:?}");
     assert_eq!(
         (d.pool_served, d.system_on_rt_thread),
         (0, 0),
@@ -599,7 +599,7 @@ fn the_pcac_step_does_not_allocate() {
         run(&mut stuck, k, &mut solved, &mut fallbacks);
     }
     let d = thread_stats().since(&before);
-    assert!(d.installed);
+    assert!(d.installed && d.counted, "{d:?}");
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
     assert!(solved_before > 700, "only {solved_before} QPs solved");
     assert!(fallbacks_before < 20, "{fallbacks_before} fallbacks");
@@ -646,7 +646,7 @@ fn the_first_pcac_steps_on_a_new_thread_do_not_allocate() {
     })
     .join()
     .unwrap();
-    assert!(d.installed);
+    assert!(d.installed && d.counted, "{d:?}");
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
 }
 
@@ -724,7 +724,7 @@ fn qp_solves_with_fixed_and_freed_bounds_do_not_allocate() {
         }
     }
     let d = thread_stats().since(&before);
-    assert!(d.installed);
+    assert!(d.installed && d.counted, "{d:?}");
     assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
     assert_eq!((solved, infeasible), (90, 30));
     assert!(fixed > 1000 && freed > 100, "{fixed} fixed, {freed} freed");
