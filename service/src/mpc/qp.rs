@@ -240,15 +240,17 @@ pub enum ConstraintId {
 /// How [`DenseQpSolver::solve`] starts.
 #[derive(Clone, Copy, Debug)]
 pub enum WarmStart<'a> {
-    /// From the unconstrained minimizer, choosing the most violated constraint each time.
+    /// From the unconstrained minimizer (bounds it violates fixed in bulk when there are
+    /// at least [`BULK_FIX`]), choosing the most violated constraint each time.
     Cold,
-    /// Constraints in this list (e.g. the previous step's active set shifted by one
-    /// horizon step, `m` variables) are added first while they are violated. Invalid ids
-    /// are ignored.
+    /// A guess of the active set (e.g. the previous step's, shifted by one horizon step,
+    /// `m` variables): its bounds are fixed at the start, its rows held with equality,
+    /// those with negative multipliers leave, and its remaining constraints are added
+    /// first while they are violated. Invalid ids are ignored.
     ActiveSet(&'a [ConstraintId]),
     /// The constraints active or violated at this point (e.g. the previous solution
-    /// shifted by one horizon step), within `1e-7` relative, are added first. A slice of
-    /// the wrong length is ignored.
+    /// shifted by one horizon step), within `1e-7` relative, used as in
+    /// [`WarmStart::ActiveSet`]. A slice of the wrong length is ignored.
     Primal(&'a [f64]),
 }
 
