@@ -275,7 +275,7 @@ pub fn acoustic_rcac_toml(update: &str, tables: &str) -> String {
 /// parameters, 50 ms), the disturbance a 400 Hz tone of amplitude 0.5 plus white noise of
 /// σ = 0.1.
 pub fn acoustic_plant() -> LoopPlant {
-    let target = service::design::target::TargetModel::parse(
+    let target = <control::target::TargetModel as service::config::TargetModelFile>::parse(
         &ACOUSTIC_TARGET.replace("controller.target-model", "target-model"),
         "acoustic target",
     )

@@ -2,7 +2,7 @@
 //!
 //! ## Workloads
 //!
-//! Two sizes of [`service::controller::pcac::Pcac`] ([`Workload`]), both with the
+//! Two sizes of [`control::pcac::Pcac`] ([`Workload`]), both with the
 //! dissertation's next-step timing ([`PcacTiming::NextStep`]), F-test forgetting
 //! (τ_n = 40, τ_d = 200, η = 0.1, α = 0.001), `θ_0 = 10⁻¹⁰ 1` and the shared-covariance
 //! identification kernel:
@@ -50,21 +50,21 @@
 //! `θ_0` first; the truss needs a few hundred samples before its model means anything).
 
 use crate::hist::new_histogram;
+use control::forgetting::ForgettingRule;
+use control::mpc::condense::{Condenser, MoveBounds, MpcSpec, Weight};
+use control::mpc::qp::{
+    ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
+};
+use control::pcac::{
+    HorizonPrediction, IdKernel, IoModel, IoModelParams, Pcac, PcacCounters, PcacParams, PcacTiming,
+};
+use control::{Controller, MAX_INTERNALS, StepInput};
 use hdrhistogram::Histogram;
 use ipc_types::clock::monotonic_ns;
 use ipc_types::{ChannelCounts, actuation_status};
 use plant_proxy::sim::PlantSim;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use service::controller::pcac::{
-    HorizonPrediction, IdKernel, IoModel, IoModelParams, Pcac, PcacCounters, PcacParams, PcacTiming,
-};
-use service::controller::{Controller, MAX_INTERNALS, StepInput};
-use service::forgetting::ForgettingRule;
-use service::mpc::condense::{Condenser, MoveBounds, MpcSpec, Weight};
-use service::mpc::qp::{
-    ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
-};
 
 /// Samples per block of each copy of the loop (see the module docs).
 pub const BLOCK: u64 = 256;
@@ -616,8 +616,8 @@ pub fn measure(
     let params = w.params();
     let counts = w.counts();
     let (p, m) = (params.model.p, params.model.m);
-    let mut timed = Pcac::new(&params, counts)?;
-    let mut reference = Pcac::new(&params, counts)?;
+    let mut timed = Pcac::new(&params, service::wire::dimensions(counts))?;
+    let mut reference = Pcac::new(&params, service::wire::dimensions(counts))?;
     let mut pieces = Pieces::new(&params)?;
     let mut plant_t = Driver::new(w)?;
     let mut plant_r = Driver::new(w)?;

@@ -2,8 +2,8 @@
 //!
 //! ## Method
 //!
-//! For each size `(n, p)` — parameters and outputs — both `service::rls::Rls` (the
-//! allocation-free kernel) and `service::rls::TextbookRls` (the same equations (2.12)–(2.14)
+//! For each size `(n, p)` — parameters and outputs — both `control::rls::Rls` (the
+//! allocation-free kernel) and `control::rls::TextbookRls` (the same equations (2.12)–(2.14)
 //! written plainly, the test oracle) are fed the same data: regressors `φ_k` (p × n) with
 //! entries uniform in [−1, 1) from a seeded generator, precomputed into a table, and
 //! `y_k = φ_k θ + 0.01 v_k` for a fixed random `θ`, with F-test forgetting (τ_n = 10,
@@ -27,12 +27,12 @@
 //! a handful of samples per size (4 of 5 000 at `(300, 3)` in the standalone bench).
 
 use crate::hist::new_histogram;
+use control::forgetting::ForgettingRule;
+use control::rls::{Rls, RlsConfig, TextbookRls};
 use hdrhistogram::Histogram;
 use ipc_types::clock::monotonic_ns;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use service::forgetting::ForgettingRule;
-use service::rls::{Rls, RlsConfig, TextbookRls};
 
 /// The sizes `(n, p)` the issue asks for: a chapter 5 identification, a small MIMO one,
 /// full-RLS RCAC with 300 coefficients (1 and 3 outputs) and a PCAC-size model.

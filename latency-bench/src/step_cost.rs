@@ -25,6 +25,7 @@
 
 use crate::configs::{LoopPlant, StepCase};
 use crate::hist::new_histogram;
+use control::{Controller, MAX_INTERNALS, StepInput};
 use hdrhistogram::Histogram;
 use ipc_types::clock::monotonic_ns;
 use ipc_types::{MAX_R, MAX_U, MAX_Y, MAX_Z};
@@ -32,7 +33,6 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use service::config::ServiceConfig;
-use service::controller::{Controller, MAX_INTERNALS, StepInput};
 
 /// Length of the precomputed input table.
 const TABLE: usize = 1024;

@@ -105,14 +105,17 @@
 //! ```
 
 mod pcac;
+mod target_model_file;
 
-use crate::controller::pcac::{Pcac, PcacParams};
-use crate::controller::{
+pub use target_model_file::TargetModelFile;
+
+use control::forgetting::ForgettingRule;
+use control::pcac::{Pcac, PcacParams};
+use control::target::TargetModel;
+use control::{
     Controller, ControllerInput, ExcitationSource, LtiController, OutputLimits, Rcac, RcacParams,
     RcacUpdate, StepSize,
 };
-use crate::design::target::TargetModel;
-use crate::forgetting::ForgettingRule;
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
 use nalgebra::{DMatrix, DVector};
@@ -270,7 +273,7 @@ impl ControllerConfig {
                     c.clone(),
                     d.clone(),
                     *input,
-                    counts,
+                    crate::wire::dimensions(counts),
                     limits.clone(),
                 )?;
                 if let Some(x0) = x0 {
@@ -278,11 +281,22 @@ impl ControllerConfig {
                 }
                 Ok(Box::new(ctl))
             }
-            ControllerConfig::Excitation { std, seed, limits } => Ok(Box::new(
-                ExcitationSource::new(counts, std.clone(), *seed, limits.clone())?,
-            )),
-            ControllerConfig::Rcac { params } => Ok(Box::new(Rcac::new(params, counts)?)),
-            ControllerConfig::Pcac { params } => Ok(Box::new(Pcac::new(params, counts)?)),
+            ControllerConfig::Excitation { std, seed, limits } => {
+                Ok(Box::new(ExcitationSource::new(
+                    crate::wire::dimensions(counts),
+                    std.clone(),
+                    *seed,
+                    limits.clone(),
+                )?))
+            }
+            ControllerConfig::Rcac { params } => Ok(Box::new(Rcac::new(
+                params,
+                crate::wire::dimensions(counts),
+            )?)),
+            ControllerConfig::Pcac { params } => Ok(Box::new(Pcac::new(
+                params,
+                crate::wire::dimensions(counts),
+            )?)),
         }
     }
 }
@@ -1268,7 +1282,7 @@ fn parse_rcac(
     };
     // Build once now so that every remaining check (R_z definite, R_u semidefinite, the
     // target model's poles and feedthrough, θ_0, forgetting windows) reports at load time.
-    Rcac::new(&params, counts).map_err(|m| {
+    Rcac::new(&params, crate::wire::dimensions(counts)).map_err(|m| {
         let field = if m.starts_with("rz") {
             "controller.rz"
         } else if m.starts_with("ru") {
@@ -1628,7 +1642,7 @@ den = [1.0]
             inputs: 2,
             beta: 0.9,
             source: "rig-design markov".into(),
-            form: crate::design::target::TargetForm::Markov(vec![
+            form: control::target::TargetForm::Markov(vec![
                 DMatrix::zeros(1, 2),
                 DMatrix::from_row_slice(1, 2, &[0.05, 0.0]),
                 DMatrix::from_row_slice(1, 2, &[0.0, -0.02]),

@@ -29,9 +29,9 @@ mod tones;
 pub use tones::{ToneLine, ToneMeter, ToneReport};
 
 use crate::config::{MissSource, ServiceConfig, WaitMode};
-use crate::controller::{Controller, MAX_INTERNALS, StepInput};
 use crate::logging::{self, LogLayout, LogProducer, LogRecord};
 use crate::telemetry::{self, CycleTiming, TelemetryRt, TelemetrySummary};
+use control::controller::{Controller, MAX_INTERNALS, StepInput};
 use ipc_types::clock::monotonic_ns;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
 use ipc_types::rt::RtSetup;
@@ -442,7 +442,7 @@ impl LoopCore {
             self.accumulate_z(m);
         } else {
             let t0 = monotonic_ns();
-            let s = self.controller.step(&input, &mut act.u[..n_u]);
+            let s = crate::wire::actuation_status(self.controller.step(&input, &mut act.u[..n_u]));
             compute_ns = monotonic_ns().saturating_sub(t0);
             self.stats.controller_steps += 1;
             if s & actuation_status::SATURATED != 0 {

@@ -7,10 +7,10 @@
 //!   is iceoryx2 0.10's per-loan `Rc` (see `service::rt_alloc`), served from the RT pool,
 //!   and none from the system allocator.
 
+use control::StepInput;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, ServicePorts, Side};
 use ipc_types::{Actuation, Measurement, measurement_flags};
 use service::config::{ServiceConfig, WaitMode};
-use service::controller::StepInput;
 use service::rt_alloc::{RtAwareAllocator, enter_rt_thread, thread_stats};
 use service::runtime::{LoopCore, StopReason, rt_loop};
 use std::sync::Arc;
@@ -316,8 +316,8 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
 
 #[test]
 fn an_rls_update_with_each_forgetting_rule_does_not_allocate() {
-    use service::forgetting::ForgettingRule;
-    use service::rls::{Rls, RlsConfig};
+    use control::forgetting::ForgettingRule;
+    use control::rls::{Rls, RlsConfig};
     enter_rt_thread(16);
     for (n, p) in [(5, 1), (35, 5), (60, 3)] {
         for rule in [
@@ -418,7 +418,7 @@ fn rcac_steps_do_not_allocate(update: &str) {
     });
     assert_eq!(ctl.kind(), "rcac");
     let mut u = [0.0; 2];
-    let mut internals = [0.0; service::controller::MAX_INTERNALS];
+    let mut internals = [0.0; control::MAX_INTERNALS];
     let signal = |k: u64, u: &[f64; 2]| {
         let t = k as f64 / 8000.0;
         (2.0 * std::f64::consts::PI * 800.0 * t).sin() + 0.1 * u[0] - 0.05 * u[1]
@@ -488,7 +488,7 @@ fn an_rcac_step_with_the_gradient_update_does_not_allocate() {
 /// A PCAC controller at the truss size of chapter 6 (`n̂ = 25`, `p = 4`, `m = 2`, 600
 /// coefficients, `ℓ = 40`) read from a scenario text, with move bounds and, when
 /// `infeasible`, an output constraint `y_4 ≤ −100` no prediction can meet.
-fn truss_size_pcac(infeasible: bool) -> Box<dyn service::controller::Controller> {
+fn truss_size_pcac(infeasible: bool) -> Box<dyn control::Controller> {
     let constraints = if infeasible {
         "[controller.output-constraints]\nc = [[0.0, 0.0, 0.0, 1.0]]\nd = [100.0]\n"
     } else {
@@ -543,9 +543,9 @@ fn the_pcac_step_does_not_allocate() {
     // so that the model has something to identify and the inputs reach their bounds.
     let mut x = [[0.0f64; 2]; 4];
     let (mut y, mut u, mut applied) = ([0.0; 4], [0.0; 2], [0.0; 2]);
-    let mut internals = [0.0; service::controller::MAX_INTERNALS];
+    let mut internals = [0.0; control::MAX_INTERNALS];
     let (mut solved, mut fallbacks) = (0, 0);
-    let mut run = |ctl: &mut Box<dyn service::controller::Controller>,
+    let mut run = |ctl: &mut Box<dyn control::Controller>,
                    k: usize,
                    solved: &mut usize,
                    fallbacks: &mut usize| {
@@ -656,7 +656,7 @@ fn the_first_pcac_steps_on_a_new_thread_do_not_allocate() {
 /// bounds whose unconstrained minimizer leaves the box.
 #[test]
 fn qp_solves_with_fixed_and_freed_bounds_do_not_allocate() {
-    use service::mpc::qp::{
+    use control::mpc::qp::{
         ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart,
     };
     let n = 40;

@@ -3,8 +3,9 @@
 //! → `rig-design identify` (H1 frequency response, coherence, pure delays, dereverberated
 //! transfer function per channel) → a target-model file that RCAC's configuration reads.
 
+use control::target::{TargetForm, TargetModel};
 use rig_tests::*;
-use service::design::target::{TargetForm, TargetModel};
+use service::config::TargetModelFile;
 use std::process::Command;
 
 /// The `[rig]` and `[plant…]` tables of a scenario text (its service, controller, log and
@@ -172,9 +173,9 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
         panic!("a Markov target model")
     };
     let sc = plant_proxy::scenario::load(&scenario).unwrap();
-    let model = service::design::model::DiscreteModel::from_scenario(
+    let model = rig_tools::design::model::DiscreteModel::from_scenario(
         &sc,
-        service::design::model::OutputSet::Y,
+        rig_tools::design::model::OutputSet::Y,
     )
     .unwrap();
     let h_true = model.markov(200);

@@ -92,7 +92,7 @@ alpha = 0.001
     }
     // The open loop: plant-proxy's simulation of the same scenario with u = 0.
     let sc = plant_proxy::scenario::parse(&text, "pcac_loop").expect("scenario parses");
-    let open = service::simulate::open_loop(&sc.plant, sc.rig.sample_period, STEPS)
+    let open = rig_tools::simulate::open_loop(&sc.plant, sc.rig.sample_period, STEPS)
         .expect("open loop runs");
     let tone_open = tone_amplitude(&open.y[0], STEPS - WINDOW, WINDOW, W_TONE);
     let err: Vec<f64> = y.iter().map(|v| v - R).collect();

@@ -81,8 +81,10 @@ fn run_rcac_with(test: &str, update: &str, service_extra: &str) -> (LoopResult, 
     assert!(out.status.success(), "rig-design markov failed:\n{said}");
     // The FIR target keeps H_0 … H_2 with only H_2 nonzero: the ZOH mode has relative
     // degree 1, the input delay adds one sample.
-    let target = service::design::target::TargetModel::load(&design.join("target-model.toml"))
-        .unwrap_or_else(|e| panic!("{e}\n{said}"));
+    let target = <control::target::TargetModel as service::config::TargetModelFile>::load(
+        &design.join("target-model.toml"),
+    )
+    .unwrap_or_else(|e| panic!("{e}\n{said}"));
     let h = target.markov(4);
     assert!(
         h[0][(0, 0)] == 0.0 && h[1][(0, 0)] == 0.0 && h[2][(0, 0)] > 0.0 && h[3][(0, 0)] == 0.0,

@@ -1,5 +1,5 @@
 //! `kind = "pcac"`: the `[controller]` table of predictive cost adaptive control
-//! ([`Pcac`](crate::controller::pcac::Pcac)).
+//! ([`Pcac`](control::pcac::Pcac)).
 //!
 //! ```toml
 //! [controller]
@@ -37,9 +37,9 @@ use serde::Deserialize;
 use super::{
     ConfigError, RawForgetting, ScalarOrVec, forgetting_rule, matrix, per_channel, positive_p0,
 };
-use crate::controller::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
-use crate::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
-use crate::mpc::qp::QpSettings;
+use control::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
+use control::mpc::qp::QpSettings;
+use control::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
@@ -274,7 +274,7 @@ pub(super) fn parse_pcac(
     };
     // The remaining checks (the forgetting rule's windows, the output constraints' values)
     // happen in the constructors.
-    Pcac::new(&params, counts).map_err(|m| {
+    Pcac::new(&params, crate::wire::dimensions(counts)).map_err(|m| {
         let field = if m.contains("forgetting") || m.contains("tau") {
             "controller.forgetting"
         } else {
@@ -298,8 +298,8 @@ fn row_major(a: &nalgebra::DMatrix<f64>) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use crate::config::ServiceConfig;
-    use crate::controller::pcac::PcacTiming;
-    use crate::mpc::condense::Weight;
+    use control::mpc::condense::Weight;
+    use control::pcac::PcacTiming;
 
     const GOOD: &str = r#"
 [rig]

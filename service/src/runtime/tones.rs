@@ -6,14 +6,14 @@
 //! (`service.open-loop`: `u` is the safe input while the controller only observes) and the
 //! last samples of the run. The real-time thread only stores into them. After the loop,
 //! [`ToneMeter::report`] fits the amplitudes of all tones jointly in each window by least
-//! squares ([`crate::analysis::tone_amplitudes_indexed`], which takes the sequence numbers,
+//! squares ([`control::tones::tone_amplitudes_indexed`], which takes the sequence numbers,
 //! so lost samples leave gaps rather than shifting the phase) and gives, per tone and
 //! channel, `20 log10(A_open / A_closed)`.
 
 use serde::Serialize;
 
-use crate::analysis::{suppression_db, tone_amplitudes_indexed};
 use crate::config::ToneReportConfig;
+use control::tones::{suppression_db, tone_amplitudes_indexed};
 
 /// The two windows of `z` (see the module docs).
 #[derive(Debug)]

@@ -1,0 +1,148 @@
+//! The controller interface: what a controller gets at sample `k` and what it returns.
+//!
+//! A controller is a pure kernel: it gets the signals of sample `k` (measurement `y_k`,
+//! performance `z_k`, command `r_k`, as in Figure 3.1 of the dissertation) and writes the
+//! control input `u_k`. It is built (allocating) from its parameters before the real-time
+//! thread starts; its [`Controller::step`] must not allocate, lock, do I/O or panic. The
+//! loop around it (waiting, publishing, deadline policy, logging) knows nothing of what is
+//! inside. The interface speaks in its own types: [`Dimensions`] for the channel counts and
+//! [`status`] bits for what a step did; the service maps them to the wire contract.
+
+/// The channels a controller reads (`n_y`, `n_z`, `n_r`) and writes (`n_u`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Dimensions {
+    /// Number of measurements `y`.
+    pub n_y: usize,
+    /// Number of performance variables `z`.
+    pub n_z: usize,
+    /// Number of commands `r`.
+    pub n_r: usize,
+    /// Number of control inputs `u`.
+    pub n_u: usize,
+}
+
+impl Dimensions {
+    /// The four counts.
+    pub fn new(n_y: usize, n_z: usize, n_r: usize, n_u: usize) -> Self {
+        Self { n_y, n_z, n_r, n_u }
+    }
+}
+
+/// The bits a [`Controller::step`] returns (0 is a normal step).
+pub mod status {
+    /// The controller ran normally and `u` is its output.
+    pub const OK: u32 = 0;
+    /// The output was clipped to the configured limits.
+    pub const SATURATED: u32 = 1 << 0;
+    /// The controller reported an internal fault (a non-finite input held, adaptive state
+    /// reset by its guard, a diverging state reset).
+    pub const CONTROLLER_FAULT: u32 = 1 << 1;
+    /// The controller could not compute its law for this sample (for example PCAC's
+    /// receding-horizon problem was infeasible or not solved within its iteration cap) and
+    /// `u` is its fallback input.
+    pub const FALLBACK: u32 = 1 << 2;
+}
+
+/// Maximum number of internal signals a controller exposes to the signal log.
+pub const MAX_INTERNALS: usize = 16;
+
+/// The signals of sample `k` handed to a controller; slices have the configured lengths.
+///
+/// `u_applied` and `lost` tell a controller what happened between its calls when the loop
+/// is not perfect: the plant may have held an older input because an actuation arrived
+/// after its deadline, and samples may never have reached the service. A controller whose
+/// state depends on the past inputs (RCAC's regressor and filtered input) uses them to
+/// keep that state equal to what the plant saw.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepInput<'a> {
+    /// Sample index `k`.
+    pub seq: u64,
+    /// Measurement `y_k`.
+    pub y: &'a [f64],
+    /// Performance variable `z_k`.
+    pub z: &'a [f64],
+    /// Command `r_k`.
+    pub r: &'a [f64],
+    /// The input the plant actually applied after sample `k − 1` (held over the period
+    /// ending at sample `k`), when the plant reports it (contract flag
+    /// `measurement_flags::U_APPLIED`); `None` when unknown.
+    pub u_applied: Option<&'a [f64]>,
+    /// Samples lost between the previous call and this one (`k − k_prev − 1`); 0 normally.
+    pub lost: u64,
+}
+
+/// A controller the service can run.
+pub trait Controller: Send {
+    /// A short name for reports ("lti", "rcac", …).
+    fn kind(&self) -> &'static str;
+    /// The channels it reads (`n_y`, `n_z`, `n_r`) and writes (`n_u`).
+    fn counts(&self) -> Dimensions;
+    /// Computes `u_k` from the signals of sample `k`; `u` has length `n_u`. Returns
+    /// [`status`] bits (`OK`, `SATURATED`, `CONTROLLER_FAULT`).
+    ///
+    /// Must not allocate, lock, do I/O or panic, and must leave `u` finite.
+    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32;
+    /// Takes in sample `k` without being asked for an input to apply: the loop received it
+    /// too late (a newer sample was already waiting), so no actuation of it will be
+    /// applied. A controller with memory must still record it so that its state stays
+    /// aligned with the plant's samples; `u` is scratch of length `n_u`.
+    ///
+    /// The default runs [`Controller::step`] and discards the output. Same real-time rules
+    /// as `step`.
+    fn observe(&mut self, input: &StepInput<'_>, u: &mut [f64]) {
+        let _ = self.step(input, u);
+    }
+    /// Returns to the initial state (used when a plant comes back after silence).
+    fn reset(&mut self);
+    /// Called once on the real-time thread before its loop starts (before allocations are
+    /// counted there): a controller whose libraries keep lazily created per-thread state
+    /// (e.g. the matrix-multiply scratch of PCAC's QP solver) creates it here, so that the
+    /// first real-time step does not allocate. The default does nothing.
+    fn prepare_thread(&mut self) {}
+    /// Names of the internal signals written by [`Controller::internals`].
+    fn internal_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// What the controller counted so far, for the run report (e.g. PCAC's solved,
+    /// infeasible and unsolved QPs, identification resets). Called outside the real-time
+    /// loop; may allocate.
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
+    /// Writes up to [`MAX_INTERNALS`] internal signals (for the signal log) and returns how
+    /// many. Must not allocate.
+    fn internals(&self, _out: &mut [f64]) -> usize {
+        0
+    }
+}
+
+/// Per-channel limits on `u`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputLimits {
+    /// Lower limits, one per input.
+    pub min: Vec<f64>,
+    /// Upper limits, one per input.
+    pub max: Vec<f64>,
+}
+
+impl OutputLimits {
+    /// Clips `u` in place; returns true when any entry was clipped. Non-finite entries are
+    /// replaced by 0 clipped into the limits, so the result is always finite.
+    #[inline]
+    pub fn apply(&self, u: &mut [f64]) -> bool {
+        let mut clipped = false;
+        for ((v, lo), hi) in u.iter_mut().zip(&self.min).zip(&self.max) {
+            if !v.is_finite() {
+                *v = 0.0_f64.clamp(*lo, *hi);
+                clipped = true;
+            } else if *v < *lo {
+                *v = *lo;
+                clipped = true;
+            } else if *v > *hi {
+                *v = *hi;
+                clipped = true;
+            }
+        }
+        clipped
+    }
+}

@@ -1,0 +1,47 @@
+//! # control: the algorithms of the adaptive rig
+//!
+//! Pure kernels, with no IPC, no files and no plotting: each controller is built
+//! (allocating) from its parameter struct, and then steps without allocating, locking,
+//! doing I/O or panicking. The real-time service (`service`) runs them behind the
+//! [`Controller`] trait; the offline tools (`rig-tools`) run the same kernels in studies.
+//!
+//! - [`controller`]: the [`Controller`] trait, [`StepInput`], [`Dimensions`], the
+//!   [`status`](controller::status) bits and [`OutputLimits`].
+//! - [`rls`]: recursive least squares with variable-rate forgetting (2.12)–(2.14), an
+//!   allocation-free kernel and a textbook oracle.
+//! - [`forgetting`]: forgetting factors for RLS: constant, F-test (Algorithm 1,
+//!   (5.1)–(5.7)) and RMS ratio (Proposition 5.2.1).
+//! - [`target`]: the RCAC target model `G_f` (3.39), (3.49).
+//! - [`rcac`]: retrospective cost adaptive control (2.15)–(2.23), (3.51)–(3.63).
+//! - [`pcac`]: predictive cost adaptive control (2.24)–(2.51): identification,
+//!   realization, receding-horizon control.
+//! - [`mpc`]: the receding-horizon optimization of PCAC (2.43)–(2.51): condensing and the
+//!   dense QP solver (with clarabel as the reference under the `clarabel` feature).
+//! - [`lti`]: a discrete-time LTI controller; [`excitation`]: white-noise inputs for
+//!   identification runs.
+//! - [`tones`]: amplitudes of known tones by least squares (run reports, studies).
+//! - [`linalg`]: the small vector helpers the kernels share.
+//! - [`ParamError`]: what a kernel says when it refuses a parameter.
+
+#![warn(missing_docs)]
+
+pub mod controller;
+pub mod excitation;
+pub mod forgetting;
+pub mod linalg;
+pub mod lti;
+pub mod mpc;
+mod param_error;
+pub mod pcac;
+pub mod rcac;
+pub mod rls;
+pub mod target;
+#[cfg(test)]
+mod test_support;
+pub mod tones;
+
+pub use controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+pub use excitation::ExcitationSource;
+pub use lti::{ControllerInput, LtiController};
+pub use param_error::ParamError;
+pub use rcac::{Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};

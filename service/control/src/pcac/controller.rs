@@ -1,0 +1,527 @@
+//! [`Pcac`]: the PCAC controller of the service, joining the identification and
+//! realization of [`super::model`] with the condensed receding-horizon QP of
+//! [`crate::mpc`].
+//!
+//! # One step (sample `k`)
+//!
+//! 1. **Data.** `u_{k−1}`, the input held over the period that ends at sample `k`, is the
+//!    plant's report ([`StepInput::u_applied`]) when there is one, else the input this
+//!    controller last gave. Samples lost before `k` ([`StepInput::lost`]) are bridged with
+//!    the held `y` and `u` (at most `n̂` entries: older ones leave the regressor anyway) and
+//!    identification is suspended until the bridged entries have left `ψ` (`n̂` samples),
+//!    so that invented data never enter `θ`.
+//! 2. **Identification** (2.24)–(2.35): [`IoModel::update`]`(y_k, u_{k−1})` gives `θ_{k+1}`
+//!    with the configured forgetting rule (the F-test (2.33)–(2.35) in chapter 6).
+//! 3. **Realization and prediction** (2.36)–(2.46): `x̂_k` (2.38)–(2.39), the Markov
+//!    parameters `Ĥ_i` and the free response, from the companion structure.
+//! 4. **MPC** (2.47)–(2.51): [`Condenser::build`] and [`DenseQpSolver::solve`], warm-started
+//!    from the previous step's active set shifted by one step
+//!    ([`Condenser::shift_active_set`]). The first move is the input.
+//! 5. **Fallback.** When the QP is infeasible (e.g. output constraints the predicted
+//!    `y_{1|k}` already violates), hits its iteration cap, meets a numerical error, or the
+//!    build refuses non-finite predictions, the input is [`Condenser::fallback_input`]: the
+//!    current input held within the input and move bounds. The step returns
+//!    [`status::FALLBACK`], the reason is counted ([`Controller::counters`]), and
+//!    the next step starts cold. Nothing in the step panics, blocks or allocates.
+//!
+//! # Timing ([`PcacTiming`])
+//!
+//! The dissertation (§2.3.2.2) computes at step `k` the input of the *next* step:
+//! `x_{1|k} = Â_k x̂_k + B̂_k u_k` (2.36) with `u_k` already decided, and `u_{1|k}` applied at
+//! `k + 1`, a full sample of computation delay ([`PcacTiming::NextStep`]). In this service
+//! the answer to sample `k` is applied over `[kT, (k+1)T)` within the same period, so the
+//! default [`PcacTiming::SameStep`] chooses `u_k` itself: the same problem (2.43)–(2.51)
+//! with `x_{1|k}` replaced by `x̂_k` and the move reference `u_k` of (2.47) by `u_{k−1}`,
+//! i.e. `U = [u_k; …; u_{k+ℓ−1}]` and `Y = [y_k; ŷ_{k+1}; …; ŷ_{k+ℓ−1}]` (`y_k` is measured,
+//! so its term is a constant). Both use `ℓ` inputs and `ℓ − 1` outputs they influence,
+//! and the same QP size.
+//!
+//! # Commands
+//!
+//! The tracked outputs `C_t y` (2.48) follow `r_k` held over the horizon
+//! (`𝓡 = 1_ℓ ⊗ r_k`; no preview) when the rig has `n_r = p_t` commands, and `0` when it
+//! has none (disturbance rejection, as in chapter 6).
+
+use crate::controller::{Dimensions, status};
+
+use super::model::{HorizonPrediction, IoModel, IoModelParams};
+use crate::controller::{Controller, MAX_INTERNALS, StepInput};
+use crate::mpc::condense::{Condenser, MpcSpec};
+use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
+
+#[cfg(test)]
+mod tests;
+
+/// When the input computed at sample `k` is applied (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PcacTiming {
+    /// `u_k` is chosen from `y_k` and applied over `[kT, (k+1)T)`.
+    #[default]
+    SameStep,
+    /// The dissertation's timing: `u_{1|k}` is computed at `k` and applied at `k + 1`.
+    NextStep,
+}
+
+/// Everything a [`Pcac`] controller needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PcacParams {
+    /// The identified model: `n̂`, `θ_0`, `P_0`, forgetting; `p` and `m` must equal the
+    /// rig's `n_y` and `n_u`.
+    pub model: IoModelParams,
+    /// The receding-horizon problem: `ℓ`, `C_t`, `Q`, `R`, bounds, output constraints.
+    pub mpc: MpcSpec,
+    /// When the computed input is applied.
+    pub timing: PcacTiming,
+    /// The QP solver's limits (the iteration cap bounds the step's work).
+    pub qp: QpSettings,
+    /// Start each QP from the previous active set shifted by one step (default true).
+    pub warm_start: bool,
+}
+
+/// Why a step fell back, and how often (see [`Pcac::counts_of`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PcacCounters {
+    /// Steps that ran the MPC (controller steps, not observations).
+    pub steps: u64,
+    /// QPs solved.
+    pub solved: u64,
+    /// QPs proven infeasible.
+    pub infeasible: u64,
+    /// QPs stopped by the iteration cap.
+    pub max_iterations: u64,
+    /// QPs that met a numerical error (non-finite data, `H` not positive definite).
+    pub numerical_error: u64,
+    /// Problems not built (non-finite predictions) or of the wrong size.
+    pub refused: u64,
+    /// Steps whose input is the fallback (the sum of the four above).
+    pub fallbacks: u64,
+    /// Identification resets by the RLS guard (non-finite data, trace limit).
+    pub id_resets: u64,
+    /// Samples bridged after losses.
+    pub bridged: u64,
+    /// Samples taken in without an answer ([`Controller::observe`]).
+    pub observed: u64,
+}
+
+/// The last QP's outcome as a number for the signal log (`qp_status`).
+fn status_code(s: Option<QpStatus>) -> f64 {
+    match s {
+        None => -1.0,
+        Some(QpStatus::Solved) => 0.0,
+        Some(QpStatus::MaxIterations) => 1.0,
+        Some(QpStatus::Infeasible) => 2.0,
+        Some(QpStatus::NumericalError) => 3.0,
+        Some(QpStatus::InvalidDimensions) => 4.0,
+    }
+}
+
+/// Predictive cost adaptive control (dissertation §2.3.2, chapters 6–7) as a [`Controller`].
+///
+/// Reads `y` (`p = n_y` outputs, all identified) and, when present, `r` (`n_r = p_t`
+/// commands for the tracked outputs); writes `u` (`m = n_u`). `z` is not used.
+pub struct Pcac {
+    counts: Dimensions,
+    timing: PcacTiming,
+    warm_start: bool,
+    model: IoModel,
+    pred: HorizonPrediction,
+    cond: Condenser,
+    solver: DenseQpSolver,
+    /// `u_{k−1}` as this controller believes it (the input over the last period).
+    u_last: Vec<f64>,
+    /// Next-step timing: the input decided for the coming period (`u_{1|k−1}`).
+    u_next: Vec<f64>,
+    /// Scratch: the move reference and the fallback.
+    u_ref: Vec<f64>,
+    u_tmp: Vec<f64>,
+    /// The held measurement for bridging and non-finite samples.
+    y_work: Vec<f64>,
+    reference: Vec<f64>,
+    active: Vec<ConstraintId>,
+    shifted: Vec<ConstraintId>,
+    n_shifted: usize,
+    /// Identification suspended for this many more samples (bridged data in `ψ`).
+    suspend: usize,
+    last_status: Option<QpStatus>,
+    last_iterations: usize,
+    last_active: usize,
+    counters: PcacCounters,
+    /// `C_t y_{1|k}`'s first tracked entry for the log (the prediction of the next output).
+    tracked_prediction: f64,
+}
+
+impl Pcac {
+    /// Builds the controller (allocating every workspace) for a rig with `counts`.
+    ///
+    /// # Errors
+    ///
+    /// A message naming what does not fit: the model's `p`/`m` against `n_y`/`n_u`, the
+    /// MPC spec's dimensions against the model's, `n_r` neither 0 nor `p_t`, or the
+    /// errors of [`IoModel::new`] and [`Condenser::new`].
+    pub fn new(params: &PcacParams, counts: Dimensions) -> Result<Self, String> {
+        let (n_y, n_r, n_u) = (counts.n_y, counts.n_r, counts.n_u);
+        let mp = &params.model;
+        if mp.p != n_y || mp.m != n_u {
+            return Err(format!(
+                "pcac: the model has p = {} outputs and m = {} inputs, the rig has {n_y} \
+                 measurements y and {n_u} inputs u",
+                mp.p, mp.m
+            ));
+        }
+        let spec = &params.mpc;
+        if spec.n_outputs != mp.p || spec.n_inputs != mp.m {
+            return Err(format!(
+                "pcac: the MPC problem has {} outputs and {} inputs, the model {} and {}",
+                spec.n_outputs, spec.n_inputs, mp.p, mp.m
+            ));
+        }
+        if n_r != 0 && n_r != spec.n_tracked {
+            return Err(format!(
+                "pcac: the rig has {n_r} commands r; PCAC needs none (regulate C_t y to 0) or \
+                 one per tracked output ({})",
+                spec.n_tracked
+            ));
+        }
+        let model = IoModel::new(mp)?;
+        let pred = HorizonPrediction::new(&model, spec.horizon)?;
+        let cond = Condenser::new(spec).map_err(|e| format!("pcac: {e}"))?;
+        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
+        let n_ids = cond.n() + cond.n_ineq();
+        let mut c = Self {
+            counts,
+            timing: params.timing,
+            warm_start: params.warm_start,
+            model,
+            pred,
+            solver,
+            u_last: vec![0.0; n_u],
+            u_next: vec![0.0; n_u],
+            u_ref: vec![0.0; n_u],
+            u_tmp: vec![0.0; n_u],
+            y_work: vec![0.0; n_y],
+            reference: vec![0.0; spec.horizon * spec.n_tracked],
+            active: vec![ConstraintId::Row(0); n_ids],
+            shifted: vec![ConstraintId::Row(0); n_ids],
+            n_shifted: 0,
+            suspend: 0,
+            last_status: None,
+            last_iterations: 0,
+            last_active: 0,
+            counters: PcacCounters::default(),
+            tracked_prediction: 0.0,
+            cond,
+        };
+        c.initial_inputs();
+        Ok(c)
+    }
+
+    /// The starting input: 0 clipped into the input bounds.
+    fn initial_inputs(&mut self) {
+        self.u_tmp.fill(0.0);
+        self.cond.fallback_input(&self.u_tmp, &mut self.u_last);
+        self.u_next.copy_from_slice(&self.u_last);
+    }
+
+    /// The identified model (coefficients `θ_{k+1}`, covariance, prior error).
+    pub fn model(&self) -> &IoModel {
+        &self.model
+    }
+
+    /// The last horizon prediction (state, Markov parameters, free response).
+    pub fn prediction(&self) -> &HorizonPrediction {
+        &self.pred
+    }
+
+    /// The counters so far.
+    pub fn counts_of(&self) -> PcacCounters {
+        self.counters
+    }
+
+    /// The last QP's status (`None` before the first MPC step or after a refused build).
+    pub fn last_qp_status(&self) -> Option<QpStatus> {
+        self.last_status
+    }
+
+    /// The condensed QP of the last MPC step (e.g. to solve it with
+    /// [`solve_with_clarabel`](crate::mpc::qp::solve_with_clarabel) for comparison).
+    pub fn last_problem(&self) -> crate::mpc::qp::QpProblem<'_> {
+        self.cond.problem()
+    }
+
+    /// The last QP's solution `U` (all `ℓ m` planned inputs).
+    pub fn planned_inputs(&self) -> &[f64] {
+        self.solver.x()
+    }
+
+    /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`.
+    fn take_in(&mut self, input: &StepInput<'_>) {
+        let m = self.u_last.len();
+        if let Some(ua) = input.u_applied
+            && ua.len() >= m
+            && ua[..m].iter().all(|v| v.is_finite())
+        {
+            self.u_last.copy_from_slice(&ua[..m]);
+        }
+        let n_hat = self.model.n_hat();
+        if input.lost > 0 {
+            // Bridge with the held output and input; at most n̂ entries matter.
+            self.y_work.copy_from_slice(self.model.last_y());
+            let bridge = (input.lost as usize).min(n_hat);
+            for _ in 0..bridge {
+                let _ = self.model.observe(&self.y_work, &self.u_last);
+            }
+            self.counters.bridged += input.lost;
+            self.suspend = n_hat + 1;
+        }
+        let p = self.y_work.len();
+        let good = input.y.len() >= p && input.y[..p].iter().all(|v| v.is_finite());
+        if good {
+            self.y_work.copy_from_slice(&input.y[..p]);
+        } else {
+            // The runtime rejects such samples before the controller; hold the last y and
+            // keep it out of θ.
+            self.y_work.copy_from_slice(self.model.last_y());
+            self.suspend = self.suspend.max(n_hat + 1);
+        }
+        if self.suspend > 0 {
+            self.suspend -= 1;
+            let _ = self.model.observe(&self.y_work, &self.u_last);
+        } else if let Ok(st) = self.model.update(&self.y_work, &self.u_last)
+            && st.reset
+        {
+            self.counters.id_resets += 1;
+        }
+    }
+
+    /// Steps 3–5: the input for the period the MPC plans from, into `self.u_tmp`; returns
+    /// the status bits.
+    fn plan(&mut self, input: &StepInput<'_>) -> u32 {
+        self.counters.steps += 1;
+        // The move reference (2.47): u_{k−1} (same step) or u_k (next step).
+        match self.timing {
+            PcacTiming::SameStep => self.u_ref.copy_from_slice(&self.u_last),
+            PcacTiming::NextStep => self.u_ref.copy_from_slice(&self.u_next),
+        }
+        let pt = self.cond.n_tracked();
+        for (i, r) in self.reference.iter_mut().enumerate() {
+            *r = input
+                .r
+                .get(i % pt)
+                .copied()
+                .filter(|v| v.is_finite())
+                .unwrap_or(0.0);
+        }
+        let predicted = match self.timing {
+            PcacTiming::SameStep => self.pred.compute_from_state(&self.model),
+            PcacTiming::NextStep => self.pred.compute(&self.model, &self.u_ref),
+        };
+        self.last_iterations = 0;
+        self.last_active = 0;
+        let status = if predicted.is_err() {
+            None
+        } else {
+            match self.cond.build(
+                self.pred.markov(),
+                self.pred.free_response(),
+                &self.u_ref,
+                &self.reference,
+            ) {
+                Err(_) => None,
+                Ok(problem) => {
+                    let warm = if self.warm_start && self.n_shifted > 0 {
+                        WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
+                    } else {
+                        WarmStart::Cold
+                    };
+                    Some(self.solver.solve(&problem, warm))
+                }
+            }
+        };
+        self.last_status = status;
+        self.last_iterations = self.solver.iterations();
+        self.tracked_prediction = self.tracked_one_step();
+        match status {
+            Some(QpStatus::Solved) => {
+                self.counters.solved += 1;
+                let first = self.cond.first_move(self.solver.x());
+                if first.iter().all(|v| v.is_finite()) {
+                    self.u_tmp.copy_from_slice(first);
+                    let na = self.solver.active_set_into(&mut self.active);
+                    self.last_active = na;
+                    self.n_shifted = self
+                        .cond
+                        .shift_active_set(&self.active[..na], &mut self.shifted);
+                    // Within the input bounds up to round-off; clip it exactly.
+                    self.cond.clip_to_input_bounds(&mut self.u_tmp);
+                    if self.cond.at_input_bound(&self.u_tmp) {
+                        status::SATURATED
+                    } else {
+                        status::OK
+                    }
+                } else {
+                    self.counters.numerical_error += 1;
+                    self.fall_back()
+                }
+            }
+            Some(QpStatus::Infeasible) => {
+                self.counters.infeasible += 1;
+                self.fall_back()
+            }
+            Some(QpStatus::MaxIterations) => {
+                self.counters.max_iterations += 1;
+                self.fall_back()
+            }
+            Some(QpStatus::NumericalError) => {
+                self.counters.numerical_error += 1;
+                self.fall_back()
+            }
+            Some(QpStatus::InvalidDimensions) | None => {
+                self.counters.refused += 1;
+                self.fall_back()
+            }
+        }
+    }
+
+    /// The first tracked output of the next sample's prediction with the planned inputs.
+    fn tracked_one_step(&self) -> f64 {
+        let free = self.pred.free_response();
+        let p = self.y_work.len();
+        // Same step: block 0 is y_k, block 1 the prediction of y_{k+1}.
+        let (off, with_u) = match self.timing {
+            PcacTiming::SameStep if free.len() >= 2 * p => (p, true),
+            _ => (0, false),
+        };
+        let mut v = 0.0;
+        let ct = self.cond.tracking_row(0);
+        for (s, c) in ct.iter().enumerate() {
+            let mut y = free.get(off + s).copied().unwrap_or(0.0);
+            if with_u {
+                let h = self.pred.markov();
+                let m = self.u_tmp.len();
+                let x = self.solver.x();
+                for j in 0..m {
+                    y +=
+                        h.get(s * m + j).copied().unwrap_or(0.0) * x.get(j).copied().unwrap_or(0.0);
+                }
+            }
+            v += c * y;
+        }
+        if v.is_finite() { v } else { 0.0 }
+    }
+
+    fn fall_back(&mut self) -> u32 {
+        self.counters.fallbacks += 1;
+        self.n_shifted = 0;
+        self.cond.fallback_input(&self.u_ref, &mut self.u_tmp);
+        status::FALLBACK
+    }
+}
+
+impl Controller for Pcac {
+    fn kind(&self) -> &'static str {
+        "pcac"
+    }
+
+    fn counts(&self) -> Dimensions {
+        self.counts
+    }
+
+    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        self.take_in(input);
+        let status = self.plan(input);
+        let out = match self.timing {
+            PcacTiming::SameStep => {
+                self.u_last.copy_from_slice(&self.u_tmp);
+                &self.u_last
+            }
+            PcacTiming::NextStep => {
+                // Apply u_k (decided at k − 1); u_{1|k} waits for the next sample.
+                self.u_last.copy_from_slice(&self.u_next);
+                self.u_next.copy_from_slice(&self.u_tmp);
+                &self.u_last
+            }
+        };
+        for (d, s) in u.iter_mut().zip(out.iter()) {
+            *d = *s;
+        }
+        status
+    }
+
+    /// Identifies from the sample without planning: the plant holds its input, which the
+    /// next sample's `u_applied` confirms.
+    fn observe(&mut self, input: &StepInput<'_>, _u: &mut [f64]) {
+        self.take_in(input);
+        self.counters.observed += 1;
+        self.n_shifted = 0;
+        self.u_next.copy_from_slice(&self.u_last);
+    }
+
+    fn reset(&mut self) {
+        self.model.reset();
+        self.initial_inputs();
+        self.n_shifted = 0;
+        self.suspend = 0;
+        self.last_status = None;
+        self.tracked_prediction = 0.0;
+    }
+
+    fn prepare_thread(&mut self) {
+        self.solver.prepare_thread();
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let c = &self.counters;
+        vec![
+            ("mpc steps", c.steps),
+            ("qp solved", c.solved),
+            ("infeasible", c.infeasible),
+            ("iteration cap", c.max_iterations),
+            ("numerical error", c.numerical_error),
+            ("refused", c.refused),
+            ("fallbacks", c.fallbacks),
+            ("identification resets", c.id_resets),
+            ("bridged samples", c.bridged),
+            ("observed", c.observed),
+        ]
+    }
+
+    fn internal_names(&self) -> Vec<String> {
+        [
+            "theta_norm",
+            "trace_p",
+            "lambda",
+            "id_error",
+            "qp_status",
+            "qp_iterations",
+            "qp_active",
+            "y_pred",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    }
+
+    fn internals(&self, out: &mut [f64]) -> usize {
+        let theta_norm = self
+            .model
+            .coefficients()
+            .iter()
+            .map(|v| v * v)
+            .sum::<f64>()
+            .sqrt();
+        let step = self.model.last_step();
+        let vals = [
+            theta_norm,
+            self.model.trace_p(),
+            step.lambda,
+            step.error_norm,
+            status_code(self.last_status),
+            self.last_iterations as f64,
+            self.last_active as f64,
+            self.tracked_prediction,
+        ];
+        let n = vals.len().min(out.len()).min(MAX_INTERNALS);
+        out[..n].copy_from_slice(&vals[..n]);
+        n
+    }
+}

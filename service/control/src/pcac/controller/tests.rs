@@ -1,0 +1,394 @@
+//! Tests of the PCAC controller: closed loop on a small plant (both timings), bounds,
+//! fallbacks, lost samples, reset.
+
+use super::*;
+use crate::forgetting::ForgettingRule;
+use crate::mpc::condense::{MoveBounds, OutputConstraints, Weight};
+use crate::test_support::Gauss;
+
+const U_MAX: f64 = 1.5;
+const DU_MAX: f64 = 0.3;
+
+/// A lightly damped second-order plant (poles `0.98 e^{±0.3j}`, DC gain 2.05) with a
+/// harmonic disturbance at the input and measurement noise:
+/// `y_{k+1} = 1.8725 y_k − 0.9604 y_{k−1} + 0.1 (u_k + d_k) + 0.08 (u_{k−1} + d_{k−1})`.
+struct Plant {
+    y: [f64; 2],
+    v: [f64; 2],
+    noise: Gauss,
+    k: usize,
+    d_amp: f64,
+}
+
+impl Plant {
+    fn new(d_amp: f64) -> Self {
+        Self {
+            y: [0.0; 2],
+            v: [0.0; 2],
+            noise: Gauss::new(7),
+            k: 0,
+            d_amp,
+        }
+    }
+    /// The measurement of the current sample.
+    fn measure(&mut self) -> f64 {
+        self.y[0] + 1e-3 * self.noise.normal()
+    }
+    /// Applies `u` over the period and moves to the next sample.
+    fn advance(&mut self, u: f64) {
+        let v = u + self.d_amp * (0.1 * self.k as f64).sin();
+        let next = 1.8725 * self.y[0] - 0.9604 * self.y[1] + 0.1 * v + 0.08 * self.v[0];
+        self.y = [next, self.y[0]];
+        self.v = [v, self.v[0]];
+        self.k += 1;
+    }
+}
+
+fn counts(n_r: usize) -> Dimensions {
+    Dimensions::new(1, 1, n_r, 1)
+}
+
+fn params(timing: PcacTiming) -> PcacParams {
+    PcacParams {
+        model: IoModelParams {
+            n_hat: 6,
+            p: 1,
+            m: 1,
+            // A cold start as in §6.2: θ_0 = 10⁻¹⁰ 1 (θ_0 = 0 would plan u = 0 forever, and
+            // the input coefficients could never be identified).
+            theta0: vec![1e-10; 12],
+            p0: 100.0,
+            rule: ForgettingRule::FTest {
+                tau_n: 20,
+                tau_d: 200,
+                eta: 0.1,
+                alpha: 0.001,
+            },
+            trace_limit: f64::INFINITY,
+            kernel: crate::pcac::IdKernel::Shared,
+        },
+        mpc: MpcSpec {
+            horizon: 20,
+            n_inputs: 1,
+            n_outputs: 1,
+            n_tracked: 1,
+            tracking: vec![1.0],
+            q: Weight::Scalar(1e4),
+            r: Weight::Scalar(1.0),
+            u_min: vec![-U_MAX],
+            u_max: vec![U_MAX],
+            move_bounds: Some(MoveBounds {
+                min: vec![-DU_MAX],
+                max: vec![DU_MAX],
+            }),
+            output_constraints: None,
+        },
+        timing,
+        qp: QpSettings::default(),
+        warm_start: true,
+    }
+}
+
+fn step_once(c: &mut Pcac, y: f64, r: Option<f64>, u_applied: f64, lost: u64) -> (f64, u32) {
+    let (ys, rs, ua) = ([y], [r.unwrap_or(0.0)], [u_applied]);
+    let mut u = [f64::NAN];
+    let s = c.step(
+        &StepInput {
+            seq: 0,
+            y: &ys,
+            z: &ys,
+            r: if r.is_some() { &rs } else { &[] },
+            u_applied: Some(&ua),
+            lost,
+        },
+        &mut u,
+    );
+    (u[0], s)
+}
+
+/// RMS of `x − mean(x)` and the mean.
+fn rms_and_mean(x: &[f64]) -> (f64, f64) {
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    let var = x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / x.len() as f64;
+    (var.sqrt(), mean)
+}
+
+struct Run {
+    y: Vec<f64>,
+    u: Vec<f64>,
+    fallbacks: u64,
+}
+
+/// `steps` samples; the command steps from 0 to 1 at `step_at`.
+fn closed_loop(timing: PcacTiming, steps: usize, step_at: usize) -> Run {
+    let mut c = Pcac::new(&params(timing), counts(1)).unwrap();
+    let mut plant = Plant::new(0.5);
+    let (mut y, mut u) = (Vec::new(), Vec::new());
+    let mut u_prev = 0.0;
+    for k in 0..steps {
+        let r = if k >= step_at { 1.0 } else { 0.0 };
+        let yk = plant.measure();
+        let (uk, _) = step_once(&mut c, yk, Some(r), u_prev, 0);
+        plant.advance(uk);
+        y.push(yk);
+        u.push(uk);
+        u_prev = uk;
+    }
+    Run {
+        y,
+        u,
+        fallbacks: c.counts_of().fallbacks,
+    }
+}
+
+fn open_loop_rms(steps: usize) -> f64 {
+    let mut plant = Plant::new(0.5);
+    let y: Vec<f64> = (0..steps)
+        .map(|_| {
+            let y = plant.measure();
+            plant.advance(0.0);
+            y
+        })
+        .collect();
+    rms_and_mean(&y[steps - 500..]).0
+}
+
+fn check_bounds(run: &Run) {
+    let mut prev = 0.0;
+    for (k, &u) in run.u.iter().enumerate() {
+        assert!(u.is_finite() && u.abs() <= U_MAX + 1e-12, "u_{k} = {u}");
+        assert!(
+            (u - prev).abs() <= DU_MAX + 1e-9,
+            "move at {k}: {}",
+            u - prev
+        );
+        prev = u;
+    }
+}
+
+#[test]
+fn from_a_cold_start_pcac_rejects_a_harmonic_and_tracks_a_step_within_its_bounds() {
+    let open = open_loop_rms(3000);
+    for timing in [PcacTiming::SameStep, PcacTiming::NextStep] {
+        let run = closed_loop(timing, 3000, 1500);
+        check_bounds(&run);
+        // Regulation (r = 0) after adaptation, then tracking of r = 1.
+        let (reg_rms, reg_mean) = rms_and_mean(&run.y[1000..1500]);
+        let (trk_rms, trk_mean) = rms_and_mean(&run.y[2500..]);
+        let db = |x: f64| 20.0 * (open / x).log10();
+        eprintln!(
+            "{timing:?}: open-loop RMS {open:.4}; regulation RMS {reg_rms:.2e} ({:.1} dB) mean \
+             {reg_mean:.2e}; tracking mean {trk_mean:.4} RMS {trk_rms:.2e} ({:.1} dB); fallbacks {}",
+            db(reg_rms),
+            db(trk_rms),
+            run.fallbacks
+        );
+        assert!(
+            db(reg_rms) > 20.0,
+            "{timing:?}: harmonic reduced by {:.1} dB",
+            db(reg_rms)
+        );
+        assert!(
+            db(trk_rms) > 20.0,
+            "{timing:?}: harmonic reduced by {:.1} dB",
+            db(trk_rms)
+        );
+        assert!(
+            reg_mean.abs() < 0.02,
+            "{timing:?}: regulation mean {reg_mean}"
+        );
+        assert!(
+            (trk_mean - 1.0).abs() < 0.02,
+            "{timing:?}: tracking mean {trk_mean}"
+        );
+        assert_eq!(run.fallbacks, 0, "{timing:?}");
+    }
+}
+
+#[test]
+fn the_input_bound_is_respected_when_the_command_asks_for_more() {
+    // r = 5 needs u ≈ 2.4 > U_MAX: the input sits on its bound, reported as saturated.
+    let mut c = Pcac::new(&params(PcacTiming::SameStep), counts(1)).unwrap();
+    let mut plant = Plant::new(0.0);
+    let mut u_prev = 0.0;
+    let mut saturated = 0;
+    for k in 0..1500 {
+        let r = if k >= 500 { 5.0 } else { 0.0 };
+        let y = plant.measure();
+        let (u, s) = step_once(&mut c, y, Some(r), u_prev, 0);
+        assert!(u.abs() <= U_MAX && (u - u_prev).abs() <= DU_MAX + 1e-9);
+        if k > 1000 && s & status::SATURATED != 0 {
+            saturated += 1;
+        }
+        plant.advance(u);
+        u_prev = u;
+    }
+    assert!((u_prev - U_MAX).abs() < 1e-9, "u = {u_prev}");
+    assert!(
+        saturated > 400,
+        "saturated in {saturated} of the last 499 steps"
+    );
+}
+
+#[test]
+fn infeasible_output_constraints_give_the_held_input_and_a_status() {
+    // y ≤ −1 at every predicted step (C_c = 1, 𝓓 = 1): the first predicted output cannot
+    // be moved by U, so with y ≈ 0 every QP is infeasible.
+    for timing in [PcacTiming::SameStep, PcacTiming::NextStep] {
+        let mut p = params(timing);
+        p.mpc.output_constraints = Some(OutputConstraints {
+            c: vec![1.0],
+            d: vec![1.0],
+        });
+        let mut c = Pcac::new(&p, counts(0)).unwrap();
+        let mut plant = Plant::new(0.5);
+        let mut u_prev = 0.0;
+        for _ in 0..200 {
+            let y = plant.measure();
+            let (u, s) = step_once(&mut c, y, None, u_prev, 0);
+            assert_ne!(s & status::FALLBACK, 0, "{timing:?}");
+            assert_eq!(u, u_prev, "{timing:?}: the fallback holds the input");
+            plant.advance(u);
+            u_prev = u;
+        }
+        let n = c.counts_of();
+        assert_eq!(c.last_qp_status(), Some(QpStatus::Infeasible));
+        assert_eq!((n.infeasible, n.fallbacks, n.steps), (200, 200, 200));
+        let counters = c.counters();
+        assert!(counters.contains(&("infeasible", 200)), "{counters:?}");
+        // The model still identifies while the MPC falls back.
+        assert!(c.model().samples() == 200);
+    }
+}
+
+#[test]
+fn an_iteration_cap_that_is_too_small_gives_a_fallback_within_the_bounds() {
+    let mut p = params(PcacTiming::SameStep);
+    p.qp.max_iterations = 1;
+    // Tight move bounds so that many constraints are active once the command steps.
+    p.mpc.move_bounds = Some(MoveBounds {
+        min: vec![-0.01],
+        max: vec![0.01],
+    });
+    let mut c = Pcac::new(&p, counts(1)).unwrap();
+    let mut plant = Plant::new(0.0);
+    let mut u_prev = 0.3;
+    let mut capped = 0;
+    for k in 0..600 {
+        let r = if k >= 300 { 1.0 } else { 0.0 };
+        let y = plant.measure();
+        let (u, s) = step_once(&mut c, y, Some(r), u_prev, 0);
+        assert!(
+            u.abs() <= U_MAX && (u - u_prev).abs() <= 0.01 + 1e-9,
+            "k {k}: {u_prev} → {u}"
+        );
+        if s & status::FALLBACK != 0 {
+            capped += 1;
+            assert_eq!(u, u_prev);
+        }
+        plant.advance(u);
+        u_prev = u;
+    }
+    let n = c.counts_of();
+    assert!(n.max_iterations > 0 && n.max_iterations == capped, "{n:?}");
+    assert_eq!(
+        n.fallbacks,
+        n.max_iterations + n.infeasible + n.numerical_error + n.refused
+    );
+}
+
+#[test]
+fn a_held_input_reported_by_the_plant_is_what_the_model_identifies_with() {
+    // The plant holds the previous input every 5th step (a late answer); PCAC is told so
+    // through u_applied and the closed loop still converges.
+    let mut c = Pcac::new(&params(PcacTiming::SameStep), counts(1)).unwrap();
+    let mut plant = Plant::new(0.5);
+    let open = open_loop_rms(2000);
+    let (mut applied, mut ys) = (0.0, Vec::new());
+    for k in 0..2000 {
+        let y = plant.measure();
+        let (u, _) = step_once(&mut c, y, Some(0.0), applied, 0);
+        if k % 5 != 4 {
+            applied = u;
+        }
+        plant.advance(applied);
+        ys.push(y);
+    }
+    let (rms, _) = rms_and_mean(&ys[1500..]);
+    assert!(20.0 * (open / rms).log10() > 15.0, "{rms} against {open}");
+}
+
+#[test]
+fn lost_samples_are_bridged_and_identification_pauses() {
+    let mut c = Pcac::new(&params(PcacTiming::SameStep), counts(1)).unwrap();
+    let mut plant = Plant::new(0.5);
+    let mut u_prev = 0.0;
+    let mut ys = Vec::new();
+    let open = open_loop_rms(3000);
+    for k in 0..3000 {
+        let y = plant.measure();
+        // Every 400 samples, 3 samples never reach the controller (the plant holds u).
+        if k % 400 >= 397 {
+            plant.advance(u_prev);
+            continue;
+        }
+        let lost = if k % 400 == 0 && k > 0 { 3 } else { 0 };
+        let samples_before = c.model().samples();
+        let (u, s) = step_once(&mut c, y, Some(0.0), u_prev, lost);
+        assert_eq!(s & status::FALLBACK, 0);
+        if lost > 0 {
+            // Three bridged entries and this sample.
+            assert_eq!(c.model().samples(), samples_before + 4);
+        }
+        plant.advance(u);
+        u_prev = u;
+        ys.push(y);
+    }
+    assert_eq!(c.counts_of().bridged, 3 * 7);
+    let (rms, _) = rms_and_mean(&ys[ys.len() - 500..]);
+    assert!(20.0 * (open / rms).log10() > 20.0, "{rms} against {open}");
+}
+
+#[test]
+fn observe_identifies_without_answering_and_reset_returns_to_the_start() {
+    let mut c = Pcac::new(&params(PcacTiming::NextStep), counts(1)).unwrap();
+    let mut plant = Plant::new(0.5);
+    let mut scratch = [0.0];
+    for _ in 0..300 {
+        let y = [plant.measure()];
+        c.observe(
+            &StepInput {
+                y: &y,
+                z: &y,
+                r: &[0.0],
+                u_applied: Some(&[0.0]),
+                ..Default::default()
+            },
+            &mut scratch,
+        );
+        plant.advance(0.0);
+    }
+    let n = c.counts_of();
+    assert_eq!((n.observed, n.steps), (300, 0));
+    // The output coefficients were identified (u = 0 leaves the input ones at θ_0).
+    assert!(
+        c.model()
+            .coefficients()
+            .iter()
+            .any(|v| (v - 1e-10).abs() > 1e-3)
+    );
+    c.reset();
+    assert!(c.model().coefficients().iter().all(|v| *v == 1e-10));
+    assert_eq!(c.model().samples(), 0);
+    let (u, s) = step_once(&mut c, 0.0, Some(0.0), 0.0, 0);
+    assert_eq!((u, s), (0.0, status::OK));
+}
+
+#[test]
+fn mismatched_dimensions_are_refused_with_a_message() {
+    let p = params(PcacTiming::SameStep);
+    let e = Pcac::new(&p, Dimensions::new(2, 1, 0, 1)).err().unwrap();
+    assert!(e.contains("p = 1") && e.contains("2 measurements"), "{e}");
+    let e = Pcac::new(&p, Dimensions::new(1, 1, 2, 1)).err().unwrap();
+    assert!(e.contains("2 commands"), "{e}");
+}

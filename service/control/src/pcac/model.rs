@@ -1,0 +1,1060 @@
+//! PCAC's input–output model (2.24), its online identification by RLS with variable-rate
+//! forgetting (2.25)–(2.35), and its block observable canonical realization (2.36)–(2.42).
+//!
+//! # Coefficients and regressor
+//!
+//! `p` outputs, `m` inputs, order `n̂ ≥ 1`, `N = n̂(p+m)` regressors per output. The
+//! coefficient matrix `Θ̃ = [F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂] ∈ ℝ^{p×N}` has `θ = vec Θ̃` (2.27),
+//! column-stacked, so `θ[c p + r] = Θ̃[r, c]`; `F̂_i` occupies columns `(i−1)p .. ip`,
+//! `Ĝ_i` columns `n̂p + (i−1)m .. n̂p + im`. With the row
+//! `ψ_k = [−y_{k−1}ᵀ … −y_{k−n̂}ᵀ u_{k−1}ᵀ … u_{k−n̂}ᵀ] ∈ ℝ^{1×N}` the regressor (2.28) is
+//! `φ_k = ψ_k ⊗ I_p` and `φ_k θ = (ψ_k ⊗ I_p) vec Θ̃ = Θ̃ ψ_kᵀ`, so
+//! `z_k = y_k − Θ̃ ψ_kᵀ` (2.26)/(2.29).
+//!
+//! # The Kronecker reduction of RLS (2.30)–(2.32)
+//!
+//! Suppose `P_k = P̃_k ⊗ I_p` (true for `P_0 = p0 I_{Np} = (p0 I_N) ⊗ I_p`). With
+//! `g_k = P̃_k ψ_kᵀ ∈ ℝ^N` and `s_k = ψ_k g_k`, by `(A ⊗ B)(C ⊗ D) = AC ⊗ BD`:
+//!
+//! ```text
+//! L_k φ_kᵀ          = β_k (P̃_k ψ_kᵀ ⊗ I_p)      = β_k g_k ⊗ I_p
+//! φ_k L_k φ_kᵀ      = β_k (ψ_k P̃_k ψ_kᵀ) ⊗ I_p  = β_k s_k I_p
+//! P_{k+1} (2.31)    = [β_k P̃_k − β_k² g_k g_kᵀ / (1 + β_k s_k)] ⊗ I_p  =: P̃_{k+1} ⊗ I_p
+//! P_{k+1} φ_kᵀ z_k  = (P̃_{k+1} ψ_kᵀ) ⊗ z_k = vec(z_k ψ_k P̃_{k+1}),
+//! P̃_{k+1} ψ_kᵀ     = β_k g_k / (1 + β_k s_k)
+//! ```
+//!
+//! (`β_k = 1/λ_k`), hence by induction `P_k = P̃_k ⊗ I_p` for all `k`, and (2.32) is
+//!
+//! ```text
+//! Θ̃_{k+1} = Θ̃_k + z_k (β_k / (1 + β_k s_k)) g_kᵀ :
+//! ```
+//!
+//! the `p` rows of `Θ̃` are `p` right-hand sides of one scalar-row RLS on `ψ_k` that share
+//! `P̃_k` (`N×N`) and `β_k`. `β_k` itself depends on all outputs: the forgetting rule (the
+//! F-test (2.33)–(2.35) with the Lawley–Hotelling form for `p > 1`) receives the whole
+//! `p`-dimensional `z_k`, exactly as in the full RLS. The guard compares
+//! `tr P_{k+1} = p · tr P̃_{k+1}` with the trace limit, so both forms reset at the same
+//! steps. For the truss (`n̂ = 25, p = 4, m = 2`) this is `N = 150` instead of
+//! `Np = 600`: a `150×150` covariance (11 325 packed entries, 89 KB) instead of a
+//! `600×600` one (1.4 MB), `O(N²)` per step instead of the kernel's `O((Np)² p)`.
+//! Measured on the 2-core development VM (`cargo test --release -p service --lib
+//! pcac_id_timing -- --ignored --nocapture`, F-test forgetting, not pinned): p50 11 µs,
+//! p99 20 µs per update for the shared form against p50 144–152 µs, p99 180–220 µs for
+//! [`Rls`] on the full rows.
+//!
+//! [`IdKernel::Shared`] is this reduced form (its own small kernel below, since
+//! [`Rls`] estimates a vector `θ` only and cannot share one covariance between right-hand
+//! sides); [`IdKernel::Full`] runs [`Rls`] on the full rows `ψ_k ⊗ I_p` (`n = Np`
+//! parameters, `p` rows) and is the reference: the tests check both give the same
+//! estimates, forgetting factors and covariances (`P = P̃ ⊗ I_p`).
+//!
+//! # The realization (2.36)–(2.42) and the data it uses
+//!
+//! At step `k`, after [`IoModel::update`] with `y_k` and `u_{k−1}`, the coefficients are
+//! `θ_{k+1}` (computed from `z_k`, i.e. from `y_k`, `y_{k−1} … y_{k−n̂}` and
+//! `u_{k−1} … u_{k−n̂}`). The state estimate (2.38)–(2.39) uses these coefficients and
+//!
+//! ```text
+//! x̂_k:  y_k, y_{k−1}, …, y_{k−n̂+1}   and   u_{k−1}, …, u_{k−n̂+1}
+//! ```
+//!
+//! (`y_{k−n̂}` and `u_{k−n̂}` enter `θ_{k+1}` but not `x̂_k`). Then
+//! `Ĉ x_{1|k} = Ĉ (Â_k x̂_k + B̂_k u_k) = −F̂_1 y_k + x̂_{2,k} + Ĝ_1 u_k` is exactly the
+//! one-step prediction of (2.24) for `y_{k+1}` with the coefficients `θ_{k+1}`: the block
+//! rows of `Â_k x̂_k + B̂_k u_k` are `x_{i|k} = −F̂_i y_k + x̂_{i+1,k} + Ĝ_i u_k`, the state
+//! recursion of the companion form, by which `x̂_{i,k}` (2.39) is the part of the future
+//! output `y_{k+i−1}` that past data already determine.
+//!
+//! The Markov parameters `Ĥ_i = Ĉ Â^{i−1} B̂` are computed from the companion structure by
+//! `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`), the
+//! coefficient of `z^{−i}` in `(I + Σ F̂_j z^{−j}) H(z) = Σ Ĝ_j z^{−j}`: `O(ℓ n̂ p² m)`
+//! for `ℓ` of them, no `n̂p × n̂p` matrix involved. The free response
+//! `Ĉ Â^{i−1} x_{1|k}`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}` of (2.43), (2.45)), propagates the
+//! state with the structure `x_i ← −F̂_i x_1 + x_{i+1}`: `O(ℓ n̂ p²)`.
+//!
+//! # Real time
+//!
+//! Every buffer is sized in [`IoModel::new`]; [`IoModel::update`], [`IoModel::observe`] and
+//! the realization routines never allocate and never panic: slices of the wrong length are
+//! refused with a [`DimError`] (a `Copy` value, no allocation).
+
+#![allow(clippy::needless_range_loop)] // index-heavy block algebra, as in `design`
+
+use std::fmt;
+
+use crate::forgetting::{Forgetting, ForgettingRule};
+use crate::linalg::{axpy, dot};
+use crate::rls::{Rls, RlsConfig, RlsStep};
+
+/// Which RLS form identifies the coefficients.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum IdKernel {
+    /// The Kronecker-reduced form: one `N×N` covariance `P̃` shared by the `p` outputs
+    /// (`N = n̂(p+m)`), see the module docs. The default.
+    #[default]
+    Shared,
+    /// The crate's [`Rls`] on the full rows `φ_k = ψ_k ⊗ I_p` (`n̂p(p+m)` parameters, `p`
+    /// rows): the reference.
+    Full,
+}
+
+/// Parameters of an [`IoModel`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct IoModelParams {
+    /// Model order `n̂ ≥ 1` (the data window of (2.24)).
+    pub n_hat: usize,
+    /// Number of outputs `p ≥ 1`.
+    pub p: usize,
+    /// Number of inputs `m ≥ 1`.
+    pub m: usize,
+    /// `θ_0` in the order of (2.27) (`θ = vec[F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂]`, length
+    /// `n̂p(p+m)`), also the reset value; empty means `θ_0 = 0`.
+    pub theta0: Vec<f64>,
+    /// `P_0 = p0 · I` (`p0 > 0`, finite), also the reset value.
+    pub p0: f64,
+    /// The forgetting rule, e.g. the F-test (2.33)–(2.35).
+    pub rule: ForgettingRule,
+    /// `tr P_k` (of the full `n̂p(p+m)`-square covariance) beyond this resets `θ, P` to
+    /// `θ_0, P_0`; must exceed `tr P_0 = n̂p(p+m) p0` (may be `+∞`).
+    pub trace_limit: f64,
+    /// Which RLS form to run.
+    pub kernel: IdKernel,
+}
+
+/// A slice of the wrong length handed to an [`IoModel`] routine; nothing was changed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DimError {
+    /// Which argument.
+    pub what: &'static str,
+    /// The length it must have.
+    pub expected: usize,
+    /// The length it had.
+    pub got: usize,
+}
+
+impl fmt::Display for DimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "pcac model: {} has length {}, expected {}",
+            self.what, self.got, self.expected
+        )
+    }
+}
+
+impl std::error::Error for DimError {}
+
+fn check(what: &'static str, got: usize, expected: usize) -> Result<(), DimError> {
+    if got == expected {
+        Ok(())
+    } else {
+        Err(DimError {
+            what,
+            expected,
+            got,
+        })
+    }
+}
+
+/// A pre-sized history of vectors of length `dim`; `back(0)` is the newest.
+#[derive(Debug, Clone)]
+struct Ring {
+    dim: usize,
+    cap: usize,
+    data: Vec<f64>,
+    /// Slot of the newest entry.
+    head: usize,
+}
+
+impl Ring {
+    fn new(dim: usize, cap: usize) -> Self {
+        Self {
+            dim,
+            cap,
+            data: vec![0.0; dim * cap],
+            head: 0,
+        }
+    }
+
+    fn push(&mut self, v: &[f64]) {
+        self.head = if self.head + 1 == self.cap {
+            0
+        } else {
+            self.head + 1
+        };
+        let d = self.dim;
+        self.data[self.head * d..(self.head + 1) * d].copy_from_slice(v);
+    }
+
+    /// The entry `j` pushes ago (`j < cap`).
+    fn back(&self, j: usize) -> &[f64] {
+        let idx = (self.head + self.cap - j) % self.cap;
+        &self.data[idx * self.dim..(idx + 1) * self.dim]
+    }
+}
+
+/// Scalar-row RLS with `p` right-hand sides sharing one covariance `P̃` (the Kronecker
+/// reduction in the module docs), with the same guard semantics as [`Rls`].
+#[derive(Debug, Clone)]
+struct SharedRls {
+    n: usize,
+    p: usize,
+    p0: f64,
+    trace_limit: f64,
+    forgetting: Forgetting,
+    /// `Θ̃_0`, p×n row-major.
+    theta0: Vec<f64>,
+    /// `Θ̃_k`, p×n row-major.
+    theta: Vec<f64>,
+    /// `P̃_k`, upper triangle row-packed (row `i` has `n − i` entries, diagonal first).
+    cov: Vec<f64>,
+    /// `tr P̃_k`.
+    trace: f64,
+    /// `g = P̃_k ψᵀ`.
+    g: Vec<f64>,
+    /// Prior error `z_k`.
+    err: Vec<f64>,
+    resets: u64,
+}
+
+impl SharedRls {
+    fn new(
+        n: usize,
+        p: usize,
+        theta0_rows: Vec<f64>,
+        p0: f64,
+        rule: &ForgettingRule,
+        trace_limit: f64,
+    ) -> Result<Self, String> {
+        let mut s = Self {
+            n,
+            p,
+            p0,
+            trace_limit,
+            forgetting: Forgetting::new(rule, p)?,
+            theta: theta0_rows.clone(),
+            theta0: theta0_rows,
+            cov: vec![0.0; n * (n + 1) / 2],
+            trace: 0.0,
+            g: vec![0.0; n],
+            err: vec![0.0; p],
+            resets: 0,
+        };
+        s.reset();
+        Ok(s)
+    }
+
+    fn reset(&mut self) {
+        self.theta.copy_from_slice(&self.theta0);
+        self.cov.fill(0.0);
+        let mut off = 0;
+        for i in 0..self.n {
+            self.cov[off] = self.p0;
+            off += self.n - i;
+        }
+        self.trace = self.n as f64 * self.p0;
+        self.forgetting.reset();
+    }
+
+    fn fail(&mut self, lambda: f64, error_norm: f64) -> RlsStep {
+        self.resets += 1;
+        self.reset();
+        RlsStep {
+            lambda,
+            error_norm,
+            reset: true,
+        }
+    }
+
+    /// One step of (2.30)–(2.32) in the reduced form; `psi` has length `n`, `y` length `p`.
+    fn update(&mut self, psi: &[f64], y: &[f64]) -> RlsStep {
+        let (n, p) = (self.n, self.p);
+        if psi.iter().chain(y).any(|x| !x.is_finite()) {
+            self.err.fill(0.0);
+            return self.fail(1.0, f64::INFINITY);
+        }
+        // z_k = y_k − Θ̃_k ψ_kᵀ (2.26).
+        let (mut e2, mut y2) = (0.0, 0.0);
+        for l in 0..p {
+            let e = y[l] - dot(&self.theta[l * n..(l + 1) * n], psi);
+            self.err[l] = e;
+            e2 += e * e;
+            y2 += y[l] * y[l];
+        }
+        let error_norm = e2.sqrt();
+        let beta = self.forgetting.beta_scaled(&self.err, y2);
+        let lambda = 1.0 / beta;
+
+        // g = P̃ ψᵀ from the packed upper triangle, row by row: the row's entries right of
+        // the diagonal serve both g_i (a dot product) and g_j, j > i (an axpy).
+        self.g.fill(0.0);
+        let mut off = 0;
+        for i in 0..n {
+            let row = &self.cov[off..off + n - i];
+            let acc = row[0] * psi[i] + dot(&row[1..], &psi[i + 1..]);
+            axpy(psi[i], &row[1..], &mut self.g[i + 1..]);
+            self.g[i] += acc;
+            off += n - i;
+        }
+        let s = dot(psi, &self.g);
+        let d = 1.0 + beta * s;
+        if !(d > 0.0 && d.is_finite()) {
+            return self.fail(lambda, error_norm);
+        }
+
+        // P̃_{k+1} = β P̃ − (β²/d) g gᵀ, in place (one pass), with its trace; `sum` of all
+        // entries is non-finite if any entry is (or on overflow, which resets as well).
+        let c = beta * beta / d;
+        let (mut trace, mut min_diag, mut sum) = (0.0, f64::INFINITY, 0.0);
+        let mut off = 0;
+        for i in 0..n {
+            let row = &mut self.cov[off..off + n - i];
+            sum += rank1_row(row, &self.g[i..], beta, c * self.g[i]);
+            trace += row[0];
+            min_diag = f64::min(min_diag, row[0]);
+            off += n - i;
+        }
+        // Θ̃_{k+1} = Θ̃_k + z_k (β/d) gᵀ (2.32).
+        let kf = beta / d;
+        for l in 0..p {
+            axpy(
+                kf * self.err[l],
+                &self.g,
+                &mut self.theta[l * n..(l + 1) * n],
+            );
+        }
+        let theta_ok = self.theta.iter().all(|x| x.is_finite());
+        if !(theta_ok && sum.is_finite() && min_diag > 0.0 && p as f64 * trace <= self.trace_limit)
+        {
+            return self.fail(lambda, error_norm);
+        }
+        self.trace = trace;
+        RlsStep {
+            lambda,
+            error_norm,
+            reset: false,
+        }
+    }
+}
+
+/// `row_j ← β row_j − cg g_j` over the common length; returns the sum of the new entries
+/// (four lanes, so the loop vectorizes).
+#[inline(always)]
+fn rank1_row(row: &mut [f64], g: &[f64], beta: f64, cg: f64) -> f64 {
+    let n = row.len().min(g.len());
+    let (row, g) = (&mut row[..n], &g[..n]);
+    let mut acc = [0.0; 4];
+    let mut rc = row.chunks_exact_mut(4);
+    let mut gc = g.chunks_exact(4);
+    for (r, gg) in (&mut rc).zip(&mut gc) {
+        for t in 0..4 {
+            r[t] = beta * r[t] - cg * gg[t];
+            acc[t] += r[t];
+        }
+    }
+    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for (r, &gg) in rc.into_remainder().iter_mut().zip(gc.remainder()) {
+        *r = beta * *r - cg * gg;
+        s += *r;
+    }
+    s
+}
+
+#[derive(Debug, Clone)]
+enum Kernel {
+    Shared(Box<SharedRls>),
+    Full {
+        rls: Box<Rls>,
+        /// The full regressor `ψ_k ⊗ I_p` (p × Np row-major).
+        phi: Vec<f64>,
+    },
+}
+
+/// The input–output model (2.24) with its online identification and its realization.
+///
+/// # Call order per sample `k`
+///
+/// 1. `y_k` is measured. The input `u_{k−1}` applied over the period ending at sample `k`
+///    is known (in PCAC it was decided at step `k − 2` as `u_{1|k−2}` and held from sample
+///    `k − 1` to `k`;
+///    use the input the plant actually applied when it is reported).
+/// 2. [`IoModel::update`]`(y_k, u_{k−1})`: stores `u_{k−1}`, forms
+///    `ψ_k = [−y_{k−1}ᵀ … −y_{k−n̂}ᵀ u_{k−1}ᵀ … u_{k−n̂}ᵀ]`, runs RLS with `z_k` to get
+///    `θ_{k+1}`, then stores `y_k`. ([`IoModel::observe`] stores both without identifying.)
+/// 3. The realization at step `k` with `θ_{k+1}`: [`IoModel::fill_state`] (`x̂_k` from
+///    `y_k … y_{k−n̂+1}`, `u_{k−1} … u_{k−n̂+1}`), [`IoModel::fill_a`], [`IoModel::fill_b`];
+///    [`IoModel::one_step_state`] gives `x_{1|k} = Â x̂_k + B̂ u_k` with `u_k`, the input
+///    already decided for this period (`u_{1|k−1}`); [`IoModel::markov`] and
+///    [`IoModel::free_response`] give `T̂_{k,ℓ}` and `Γ̂_{k,ℓ} x_{1|k}` for (2.43).
+/// 4. MPC computes `U_{1|k,ℓ}`; `u_{1|k}` is the next input, `u_{k+1}`, and becomes the
+///    `u` argument of step `k + 2`'s update.
+///
+/// Before the first samples the histories are zero (`y_{−i} = 0`, `u_{−i} = 0`).
+#[derive(Debug, Clone)]
+pub struct IoModel {
+    n_hat: usize,
+    p: usize,
+    m: usize,
+    /// `N = n̂(p+m)`.
+    nr: usize,
+    kernel: Kernel,
+    /// `Θ̃ = [F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂]`, p×N row-major (the current `θ_{k+1}`).
+    coef: Vec<f64>,
+    /// `y_k, y_{k−1}, …` (capacity n̂).
+    ys: Ring,
+    /// `u_{k−1}, u_{k−2}, …` (capacity n̂).
+    us: Ring,
+    /// `ψ_k` of the last update.
+    psi: Vec<f64>,
+    /// `z_k` of the last update.
+    err: Vec<f64>,
+    last: RlsStep,
+    samples: u64,
+}
+
+impl IoModel {
+    /// Builds the model with `θ = θ_0`, `P = p0 I`, zero histories, allocating every buffer.
+    ///
+    /// # Errors
+    ///
+    /// A message naming the parameter: `n̂`, `p` or `m` zero, `θ_0` of the wrong length or
+    /// non-finite, `p0` not positive and finite, `trace_limit ≤ tr P_0`, or an invalid
+    /// forgetting rule (e.g. F-test with `τ_d ≤ p + 3`).
+    pub fn new(params: &IoModelParams) -> Result<Self, String> {
+        let IoModelParams { n_hat, p, m, .. } = *params;
+        if n_hat == 0 {
+            return Err("pcac model: the order n_hat must be at least 1".into());
+        }
+        if p == 0 || m == 0 {
+            return Err(format!(
+                "pcac model: p = {p} outputs and m = {m} inputs must both be at least 1"
+            ));
+        }
+        let nr = n_hat * (p + m);
+        let ntheta = nr * p;
+        let theta0 = if params.theta0.is_empty() {
+            vec![0.0; ntheta]
+        } else if params.theta0.len() != ntheta {
+            return Err(format!(
+                "pcac model: theta0 has length {}, expected n_hat·p·(p+m) = {ntheta}",
+                params.theta0.len()
+            ));
+        } else {
+            params.theta0.clone()
+        };
+        if theta0.iter().any(|x| !x.is_finite()) {
+            return Err("pcac model: theta0 must be finite".into());
+        }
+        if !(params.p0 > 0.0 && params.p0.is_finite()) {
+            return Err(format!(
+                "pcac model: p0 = {} must be positive and finite",
+                params.p0
+            ));
+        }
+        let trace0 = ntheta as f64 * params.p0;
+        if params.trace_limit.is_nan() || params.trace_limit <= trace0 {
+            return Err(format!(
+                "pcac model: trace_limit = {} must exceed tr(P0) = {trace0}",
+                params.trace_limit
+            ));
+        }
+        // Θ̃ row-major from vec Θ̃.
+        let mut coef = vec![0.0; ntheta];
+        for c in 0..nr {
+            for r in 0..p {
+                coef[r * nr + c] = theta0[c * p + r];
+            }
+        }
+        let kernel = match params.kernel {
+            IdKernel::Shared => Kernel::Shared(Box::new(
+                SharedRls::new(
+                    nr,
+                    p,
+                    coef.clone(),
+                    params.p0,
+                    &params.rule,
+                    params.trace_limit,
+                )
+                .map_err(|e| format!("pcac model: {e}"))?,
+            )),
+            IdKernel::Full => Kernel::Full {
+                rls: Box::new(
+                    Rls::new(&RlsConfig {
+                        n: ntheta,
+                        p,
+                        theta0,
+                        p0: params.p0,
+                        rule: params.rule.clone(),
+                        trace_limit: params.trace_limit,
+                    })
+                    .map_err(|e| format!("pcac model: {e}"))?,
+                ),
+                phi: vec![0.0; p * ntheta],
+            },
+        };
+        Ok(Self {
+            n_hat,
+            p,
+            m,
+            nr,
+            kernel,
+            coef,
+            ys: Ring::new(p, n_hat),
+            us: Ring::new(m, n_hat),
+            psi: vec![0.0; nr],
+            err: vec![0.0; p],
+            last: RlsStep {
+                lambda: 1.0,
+                error_norm: 0.0,
+                reset: false,
+            },
+            samples: 0,
+        })
+    }
+
+    /// Model order `n̂`.
+    pub fn n_hat(&self) -> usize {
+        self.n_hat
+    }
+
+    /// Number of outputs `p`.
+    pub fn p(&self) -> usize {
+        self.p
+    }
+
+    /// Number of inputs `m`.
+    pub fn m(&self) -> usize {
+        self.m
+    }
+
+    /// State dimension `n̂p` of the realization.
+    pub fn state_dim(&self) -> usize {
+        self.n_hat * self.p
+    }
+
+    /// Which RLS form runs.
+    pub fn kernel(&self) -> IdKernel {
+        match self.kernel {
+            Kernel::Shared(_) => IdKernel::Shared,
+            Kernel::Full { .. } => IdKernel::Full,
+        }
+    }
+
+    /// Identification step `k` (see the call order on [`IoModel`]): stores `u_{k−1}`
+    /// (`u_prev`, length `m`), forms `ψ_k`, updates `θ_k → θ_{k+1}` by (2.30)–(2.32) with
+    /// the forgetting factor of the configured rule fed with `z_k` (2.26), then stores
+    /// `y_k` (`y`, length `p`). Never allocates.
+    ///
+    /// Non-finite data make the RLS guard reset `θ, P` to `θ_0, P_0` (reported in
+    /// [`RlsStep::reset`]); the values are stored in the histories as given, so the caller
+    /// should substitute finite ones (e.g. hold the last) if it wants identification to
+    /// resume at once.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length; nothing is changed then.
+    pub fn update(&mut self, y: &[f64], u_prev: &[f64]) -> Result<RlsStep, DimError> {
+        check("y", y.len(), self.p)?;
+        check("u_prev", u_prev.len(), self.m)?;
+        self.us.push(u_prev);
+        let (n_hat, p, m, nr) = (self.n_hat, self.p, self.m, self.nr);
+        for i in 0..n_hat {
+            for (d, s) in self.psi[i * p..(i + 1) * p].iter_mut().zip(self.ys.back(i)) {
+                *d = -s;
+            }
+            let off = n_hat * p + i * m;
+            self.psi[off..off + m].copy_from_slice(self.us.back(i));
+        }
+        let step = match &mut self.kernel {
+            Kernel::Shared(k) => {
+                let st = k.update(&self.psi, y);
+                self.coef.copy_from_slice(&k.theta);
+                self.err.copy_from_slice(&k.err);
+                st
+            }
+            Kernel::Full { rls, phi } => {
+                // φ_k = ψ_k ⊗ I_p: row r has ψ_c at column c p + r.
+                phi.fill(0.0);
+                let ntheta = nr * p;
+                for r in 0..p {
+                    for c in 0..nr {
+                        phi[r * ntheta + c * p + r] = self.psi[c];
+                    }
+                }
+                let st = rls.update(phi, y);
+                let th = rls.theta();
+                for c in 0..nr {
+                    for r in 0..p {
+                        self.coef[r * nr + c] = th[c * p + r];
+                    }
+                }
+                self.err.copy_from_slice(rls.prior_error());
+                st
+            }
+        };
+        self.ys.push(y);
+        self.samples += 1;
+        self.last = step;
+        Ok(step)
+    }
+
+    /// Stores `u_{k−1}` and `y_k` like [`IoModel::update`] without identifying (for a
+    /// sample that must not update the estimate). Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length; nothing is changed then.
+    pub fn observe(&mut self, y: &[f64], u_prev: &[f64]) -> Result<(), DimError> {
+        check("y", y.len(), self.p)?;
+        check("u_prev", u_prev.len(), self.m)?;
+        self.us.push(u_prev);
+        self.ys.push(y);
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// Returns to `θ_0`, `P_0`, zero histories and the forgetting rule's initial state,
+    /// without allocating (the reset counter is kept).
+    pub fn reset(&mut self) {
+        let (p, nr) = (self.p, self.nr);
+        match &mut self.kernel {
+            Kernel::Shared(k) => {
+                k.reset();
+                self.coef.copy_from_slice(&k.theta);
+            }
+            Kernel::Full { rls, .. } => {
+                rls.reset();
+                let th = rls.theta();
+                for c in 0..nr {
+                    for r in 0..p {
+                        self.coef[r * nr + c] = th[c * p + r];
+                    }
+                }
+            }
+        }
+        self.ys.data.fill(0.0);
+        self.us.data.fill(0.0);
+        self.psi.fill(0.0);
+        self.err.fill(0.0);
+        self.last = RlsStep {
+            lambda: 1.0,
+            error_norm: 0.0,
+            reset: false,
+        };
+        self.samples = 0;
+    }
+
+    /// The newest stored output `y_k` (zeros before the first sample).
+    pub fn last_y(&self) -> &[f64] {
+        self.ys.back(0)
+    }
+
+    /// `Θ̃ = [F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂]` (p × n̂(p+m), row-major): the current estimate
+    /// `θ_{k+1}` after step `k`.
+    pub fn coefficients(&self) -> &[f64] {
+        &self.coef
+    }
+
+    /// Writes `θ = vec Θ̃` in the order of (2.27) into `out` (length `n̂p(p+m)`).
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn theta_vec(&self, out: &mut [f64]) -> Result<(), DimError> {
+        check("theta", out.len(), self.nr * self.p)?;
+        for c in 0..self.nr {
+            for r in 0..self.p {
+                out[c * self.p + r] = self.coef[r * self.nr + c];
+            }
+        }
+        Ok(())
+    }
+
+    /// Entry `(r, s)` of `F̂_i` (`1 ≤ i ≤ n̂`, `r, s < p`).
+    #[inline]
+    pub fn f(&self, i: usize, r: usize, s: usize) -> f64 {
+        self.coef[r * self.nr + (i - 1) * self.p + s]
+    }
+
+    /// Entry `(r, s)` of `Ĝ_i` (`1 ≤ i ≤ n̂`, `r < p`, `s < m`).
+    #[inline]
+    pub fn g(&self, i: usize, r: usize, s: usize) -> f64 {
+        self.coef[r * self.nr + self.n_hat * self.p + (i - 1) * self.m + s]
+    }
+
+    /// `z_k = y_k − φ_k θ_k` (2.26) of the last update (zeros after a non-finite input).
+    pub fn prior_error(&self) -> &[f64] {
+        &self.err
+    }
+
+    /// What the last update did (`λ_k`, `‖z_k‖`, guard reset).
+    pub fn last_step(&self) -> RlsStep {
+        self.last
+    }
+
+    /// `tr P_k` of the full covariance (`p · tr P̃_k` for the shared form).
+    pub fn trace_p(&self) -> f64 {
+        match &self.kernel {
+            Kernel::Shared(k) => k.p as f64 * k.trace,
+            Kernel::Full { rls, .. } => rls.trace_p(),
+        }
+    }
+
+    /// Number of guard resets of the estimator since construction.
+    pub fn resets(&self) -> u64 {
+        match &self.kernel {
+            Kernel::Shared(k) => k.resets,
+            Kernel::Full { rls, .. } => rls.resets(),
+        }
+    }
+
+    /// Samples stored since construction (updates and observations).
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The covariance `P_k` (full, `n̂p(p+m)` square; `P̃_k ⊗ I_p` for the shared form).
+    /// Allocates: for tests and inspection.
+    pub fn covariance(&self) -> nalgebra::DMatrix<f64> {
+        match &self.kernel {
+            Kernel::Shared(k) => {
+                let (n, p) = (k.n, k.p);
+                let mut m = nalgebra::DMatrix::zeros(n * p, n * p);
+                let mut off = 0;
+                for i in 0..n {
+                    for (t, &v) in k.cov[off..off + n - i].iter().enumerate() {
+                        let j = i + t;
+                        for r in 0..p {
+                            m[(i * p + r, j * p + r)] = v;
+                            m[(j * p + r, i * p + r)] = v;
+                        }
+                    }
+                    off += n - i;
+                }
+                m
+            }
+            Kernel::Full { rls, .. } => rls.covariance(),
+        }
+    }
+
+    /// The one-step prediction of (2.24) for `y_{k+1}` with the current coefficients:
+    /// `−Σ F̂_i y_{k+1−i} + Σ Ĝ_i u_{k+1−i}`, from the stored `y_k … y_{k−n̂+1}`,
+    /// `u_{k−1} … u_{k−n̂+1}` and the given `u_k` (length `m`), into `out` (length `p`).
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length.
+    pub fn predict_one_step(&self, u_k: &[f64], out: &mut [f64]) -> Result<(), DimError> {
+        check("u_k", u_k.len(), self.m)?;
+        check("prediction", out.len(), self.p)?;
+        let (p, m) = (self.p, self.m);
+        for (r, o) in out.iter_mut().enumerate() {
+            let mut v = 0.0;
+            for i in 1..=self.n_hat {
+                let y = self.ys.back(i - 1);
+                for s in 0..p {
+                    v -= self.f(i, r, s) * y[s];
+                }
+                let u = if i == 1 { u_k } else { self.us.back(i - 2) };
+                for s in 0..m {
+                    v += self.g(i, r, s) * u[s];
+                }
+            }
+            *o = v;
+        }
+        Ok(())
+    }
+
+    /// Fills `Â_k` (2.40) into `a` (`n̂p × n̂p`, row-major): `−F̂_i` in block `(i, 1)`,
+    /// `I_p` in blocks `(i, i+1)`, zeros elsewhere.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn fill_a(&self, a: &mut [f64]) -> Result<(), DimError> {
+        let nx = self.state_dim();
+        check("A", a.len(), nx * nx)?;
+        a.fill(0.0);
+        let p = self.p;
+        for i in 1..=self.n_hat {
+            for r in 0..p {
+                let row = (i - 1) * p + r;
+                for s in 0..p {
+                    a[row * nx + s] = -self.f(i, r, s);
+                }
+                if i < self.n_hat {
+                    a[row * nx + i * p + r] = 1.0;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Fills `B̂_k = [Ĝ_1; …; Ĝ_n̂]` (2.41) into `b` (`n̂p × m`, row-major).
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn fill_b(&self, b: &mut [f64]) -> Result<(), DimError> {
+        let (p, m) = (self.p, self.m);
+        check("B", b.len(), self.state_dim() * m)?;
+        for i in 1..=self.n_hat {
+            for r in 0..p {
+                for s in 0..m {
+                    b[((i - 1) * p + r) * m + s] = self.g(i, r, s);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Fills the state estimate `x̂_k` (2.38)–(2.39) into `x` (length `n̂p`):
+    /// `x̂_{1,k} = y_k` and `x̂_{i,k} = Σ_{j=1}^{n̂−i+1} (−F̂_{i+j−1} y_{k−j} + Ĝ_{i+j−1} u_{k−j})`
+    /// with the current coefficients `θ_{k+1}` (call after [`IoModel::update`] of step
+    /// `k`). `O(n̂² p (p+m))`.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn fill_state(&self, x: &mut [f64]) -> Result<(), DimError> {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        check("x_hat", x.len(), n_hat * p)?;
+        x[..p].copy_from_slice(self.ys.back(0));
+        for i in 2..=n_hat {
+            for r in 0..p {
+                let mut v = 0.0;
+                for j in 1..=n_hat - i + 1 {
+                    let (y, u) = (self.ys.back(j), self.us.back(j - 1));
+                    for s in 0..p {
+                        v -= self.f(i + j - 1, r, s) * y[s];
+                    }
+                    for s in 0..m {
+                        v += self.g(i + j - 1, r, s) * u[s];
+                    }
+                }
+                x[(i - 1) * p + r] = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// `x_{1|k} = Â_k x̂ + B̂_k u` (2.36) from the structure, `O(n̂ p (p+m))`:
+    /// block `i` is `−F̂_i x̂_1 + x̂_{i+1} + Ĝ_i u` (no `x̂_{n̂+1}` term for `i = n̂`).
+    /// Also the general state step `x_{i+1|k} = Â x_{i|k} + B̂ u_{i|k}`. `x` and `out` have
+    /// length `n̂p`, `u` length `m`.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length.
+    pub fn one_step_state(&self, x: &[f64], u: &[f64], out: &mut [f64]) -> Result<(), DimError> {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        check("x", x.len(), n_hat * p)?;
+        check("u", u.len(), m)?;
+        check("x_next", out.len(), n_hat * p)?;
+        for i in 1..=n_hat {
+            for r in 0..p {
+                let mut v = if i < n_hat { x[i * p + r] } else { 0.0 };
+                for s in 0..p {
+                    v -= self.f(i, r, s) * x[s];
+                }
+                for s in 0..m {
+                    v += self.g(i, r, s) * u[s];
+                }
+                out[(i - 1) * p + r] = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// The Markov parameters `Ĥ_{k,i} = Ĉ Â_k^{i−1} B̂_k`, `i = 1 … ℓ`, into `h`
+    /// (`ℓ` blocks of `p × m` row-major, `ℓ = h.len() / (p m)`), by the recursion
+    /// `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`):
+    /// `O(ℓ n̂ p² m)`, no dense power.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `h.len()` is not a multiple of `p m`.
+    pub fn markov(&self, h: &mut [f64]) -> Result<(), DimError> {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        let blk = p * m;
+        if !h.len().is_multiple_of(blk) {
+            return Err(DimError {
+                what: "Markov parameters (a multiple of p·m)",
+                expected: (h.len() / blk) * blk,
+                got: h.len(),
+            });
+        }
+        let ell = h.len() / blk;
+        for i in 1..=ell {
+            let (done, rest) = h.split_at_mut((i - 1) * blk);
+            let hi = &mut rest[..blk];
+            for r in 0..p {
+                for s in 0..m {
+                    hi[r * m + s] = if i <= n_hat { self.g(i, r, s) } else { 0.0 };
+                }
+            }
+            for j in 1..=(i - 1).min(n_hat) {
+                let prev = &done[(i - 1 - j) * blk..(i - j) * blk];
+                for r in 0..p {
+                    for t in 0..p {
+                        let f = self.f(j, r, t);
+                        if f != 0.0 {
+                            axpy(-f, &prev[t * m..(t + 1) * m], &mut hi[r * m..(r + 1) * m]);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The free response `Ĉ Â_k^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}` of (2.43) for
+    /// `x_1 = x_{1|k}`), into `out` (`ℓ` blocks of `p`, `ℓ = out.len() / p`), propagating
+    /// the state in `work` (length `n̂p`, overwritten) by `x_i ← −F̂_i x_1 + x_{i+1}`:
+    /// `O(ℓ n̂ p²)`.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length.
+    pub fn free_response(
+        &self,
+        x1: &[f64],
+        work: &mut [f64],
+        out: &mut [f64],
+    ) -> Result<(), DimError> {
+        let (n_hat, p) = (self.n_hat, self.p);
+        check("x_1", x1.len(), n_hat * p)?;
+        check("work", work.len(), n_hat * p)?;
+        if !out.len().is_multiple_of(p) {
+            return Err(DimError {
+                what: "free response (a multiple of p)",
+                expected: (out.len() / p) * p,
+                got: out.len(),
+            });
+        }
+        let ell = out.len() / p;
+        work.copy_from_slice(x1);
+        for i in 0..ell {
+            let y = &mut out[i * p..(i + 1) * p];
+            y.copy_from_slice(&work[..p]);
+            if i + 1 == ell {
+                break;
+            }
+            // x ← Â x: block b = −F̂_b y + x_{b+1}, upward, so x_{b+1} is still old.
+            for b in 1..=n_hat {
+                for r in 0..p {
+                    let mut v = if b < n_hat { work[b * p + r] } else { 0.0 };
+                    for s in 0..p {
+                        v -= self.f(b, r, s) * y[s];
+                    }
+                    work[(b - 1) * p + r] = v;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Pre-sized buffers for the quantities MPC needs at step `k` from an [`IoModel`]:
+/// `x̂_k` (2.38)–(2.39), `x_{1|k}` (2.36), `Ĥ_{k,1} … Ĥ_{k,ℓ}` (for `T̂_{k,ℓ}`, (2.46)) and
+/// `Γ̂_{k,ℓ} x_{1|k}` (2.43), (2.45), computed together by [`HorizonPrediction::compute`]
+/// (allocation-free). The predicted outputs for inputs `U_{1|k,ℓ}` are then
+/// `y_{i|k} = (Γ̂ x_{1|k})_i + Σ_{j<i} Ĥ_{i−j} u_{j|k}`.
+#[derive(Debug, Clone)]
+pub struct HorizonPrediction {
+    ell: usize,
+    x_hat: Vec<f64>,
+    x1: Vec<f64>,
+    work: Vec<f64>,
+    markov: Vec<f64>,
+    free: Vec<f64>,
+}
+
+impl HorizonPrediction {
+    /// Buffers for `model`'s dimensions and horizon `ℓ ≥ 1`.
+    ///
+    /// # Errors
+    ///
+    /// `ℓ = 0`.
+    pub fn new(model: &IoModel, ell: usize) -> Result<Self, String> {
+        if ell == 0 {
+            return Err("pcac model: the horizon ell must be at least 1".into());
+        }
+        let (nx, p, m) = (model.state_dim(), model.p(), model.m());
+        Ok(Self {
+            ell,
+            x_hat: vec![0.0; nx],
+            x1: vec![0.0; nx],
+            work: vec![0.0; nx],
+            markov: vec![0.0; ell * p * m],
+            free: vec![0.0; ell * p],
+        })
+    }
+
+    /// Step `k`, after [`IoModel::update`]: fills `x̂_k`, `x_{1|k} = Â x̂_k + B̂ u_k`
+    /// (`u_k`: the input of the current period, length `m`), the Markov parameters and the
+    /// free response from the current coefficients `θ_{k+1}`. Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `u_k` or the model's dimensions do not match the buffers.
+    pub fn compute(&mut self, model: &IoModel, u_k: &[f64]) -> Result<(), DimError> {
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * model.p() * model.m(),
+        )?;
+        model.fill_state(&mut self.x_hat)?;
+        model.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
+        model.markov(&mut self.markov)?;
+        model.free_response(&self.x1, &mut self.work, &mut self.free)
+    }
+
+    /// Step `k`, after [`IoModel::update`], for an input `u_k` still to be chosen (PCAC's
+    /// same-step timing): fills `x̂_k`, the Markov parameters and the free response
+    /// `Ĉ Â_k^{i−1} x̂_k`, `i = 1 … ℓ` (the outputs `y_k, ŷ_{k+1}, …, ŷ_{k+ℓ−1}` for zero
+    /// inputs from `u_k` on; the first block is `y_k`). [`Self::one_step_state`] is then
+    /// `x̂_k` as well. Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when the model's dimensions do not match the buffers.
+    pub fn compute_from_state(&mut self, model: &IoModel) -> Result<(), DimError> {
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * model.p() * model.m(),
+        )?;
+        model.fill_state(&mut self.x_hat)?;
+        self.x1.copy_from_slice(&self.x_hat);
+        model.markov(&mut self.markov)?;
+        model.free_response(&self.x_hat, &mut self.work, &mut self.free)
+    }
+
+    /// The horizon `ℓ`.
+    pub fn horizon(&self) -> usize {
+        self.ell
+    }
+
+    /// `x̂_k` (length `n̂p`).
+    pub fn state(&self) -> &[f64] {
+        &self.x_hat
+    }
+
+    /// `x_{1|k}` (length `n̂p`).
+    pub fn one_step_state(&self) -> &[f64] {
+        &self.x1
+    }
+
+    /// `Ĥ_{k,1} … Ĥ_{k,ℓ}` (`ℓ` blocks `p × m`, row-major; [`crate::mpc`]'s condensing
+    /// uses the first `ℓ − 1`).
+    pub fn markov(&self) -> &[f64] {
+        &self.markov
+    }
+
+    /// `Γ̂_{k,ℓ} x_{1|k}` = `y_{1|k} … y_{ℓ|k}` for `U = 0` (`ℓ` blocks of `p`).
+    pub fn free_response(&self) -> &[f64] {
+        &self.free
+    }
+}

@@ -1,0 +1,939 @@
+//! Retrospective cost adaptive control (RCAC), dissertation §2.2, with the target model of
+//! §3.1 and the instantaneous-cost gradient variant of §3.4.
+//!
+//! # Controller, (2.15)–(2.18)
+//!
+//! ```text
+//! u_k = Σ_{i=1}^{n_c} P_i u_{k−i} + Σ_{i=1}^{n_c} Q_i y_{k−i} = Φ_k θ          (2.15)
+//! φ_k = [u_{k−1}; …; u_{k−n_c}; y_{k−1}; …; y_{k−n_c}] ∈ ℝ^N,  N = n_c (l_u + l_y)
+//! Φ_k = I_{l_u} ⊗ φ_kᵀ ∈ ℝ^{l_u × l_θ}                                           (2.17)
+//! θ   = row-major stacking of Θ = [P_1 … P_{n_c} Q_1 … Q_{n_c}] ∈ ℝ^{l_u × N},
+//!       l_θ = l_u n_c (l_u + l_y)                                                  (2.18)
+//! u_k = 0 for k < k_w                                                             (2.16)
+//! ```
+//!
+//! so `u_{j,k} = θ_jᵀ φ_k` with `θ_j` the `j`-th block of `N` entries (the row-major order
+//! makes `Φ_k` block diagonal; (2.17) writes the same product for the column-major `vec`).
+//! `k` counts the steps since construction or [`Controller::reset`]. The applied input is
+//! saturated to `u-min`/`u-max`, and the **applied** (saturated, or held) `u` is what
+//! enters `φ` and the filters.
+//!
+//! # Target model and filtered quantities, (2.19)–(2.20), (3.39), (3.49)
+//!
+//! `G_f(q)` (`l_z × l_u`) is a [`TargetModel`]: FIR from Markov parameters (3.39) or
+//! per-channel transfer functions `β z^{−d} Ĝ_d(z)` (3.49). [`TargetFilter`] keeps
+//! `u_{f,k} = G_f(q) u_k` and `Φ_{f,k} = G_f(q) Φ_k` incrementally; row `o` of `Φ_{f,k}` is
+//! `[ψ_{o,1,k}ᵀ … ψ_{o,l_u,k}ᵀ]`, `ψ_{o,j,k} = G_{f,oj}(q) φ_k`. The retrospective
+//! performance variable is
+//!
+//! ```text
+//! ẑ_k(θ̂) = z_k − (u_{f,k} − Φ_{f,k} θ̂)                                         (2.20)
+//! ```
+//!
+//! `G_f` must be strictly proper (`H_0 = 0`): in this system `z_k` is sampled before `u_k`
+//! is applied, so the plant's `G_{zu,d}` is strictly proper, and then `u_{f,k}` and
+//! `Φ_{f,k}` only involve `u_{k−1}, y_{k−2}` and older.
+//!
+//! # Timing of the update
+//!
+//! At step `k` the controller has `y_k`, `z_k` and the past. It
+//!
+//! 1. forms `u_{f,k}`, `Φ_{f,k}` (past data only, `G_f` strictly proper) and `Φ_k`
+//!    (`u_{k−1}, y_{k−1}` and older);
+//! 2. updates `θ_k → θ_{k+1}` with the cost term of index `k` (which contains `z_k`);
+//! 3. applies `u_k = sat(Φ_k θ_{k+1})` (0 for `k < k_w`);
+//! 4. stores `u_k` and `y_k` (they enter `φ_{k+1}`).
+//!
+//! `u_k` thus uses the coefficients `θ_{k+1}` that already account for `z_k`, which is the
+//! `ũ_k(θ_{k+1}) = u_k − Φ_k θ_{k+1}` of §3.1 (3.27)–(3.29): with this timing
+//! `ũ_k(θ_{k+1}) = 0` at the newest sample (before saturation) and `G_f` acts on the
+//! older `ũ_{k−i}(θ_{k+1})`, `i ≥ 1`. `y_k` itself enters `u_{k+1}` (the controller (2.15)
+//! is strictly proper). For `k < k_w` steps 2 and 3 are skipped (`θ = θ_0`, `u_k = 0`)
+//! while the history fills: (2.16) with "`k_w ≥ n_c` the number of steps to wait until
+//! `Φ_k` is populated with data". This matters for the normalized gradient step sizes,
+//! which would take huge steps on the nearly empty regressor of the first samples. The
+//! default `k_w` is `n_c` plus the largest lag of `G_f` (then every entry of `Φ_{f,k}`
+//! holds measured data).
+//!
+//! # RLS update, (2.21)–(2.23)
+//!
+//! ```text
+//! J_k(θ̂) = Σ_{i=1}^{k} λ^{k−i} [ẑ_iᵀ R_z ẑ_i + (Φ_i θ̂)ᵀ R_u (Φ_i θ̂)] + λ^k (θ̂ − θ_0)ᵀ R_θ (θ̂ − θ_0)   (2.21)
+//! ```
+//!
+//! is a weighted least-squares problem for [`Rls`] (`y = φ θ`, unit weights): with
+//! `R_z = W_zᵀ W_z` and `R_u = W_uᵀ W_u` (symmetric square roots from an eigen
+//! decomposition; `W_u` keeps only the rows of positive eigenvalues), the rows of step `k`
+//! are
+//!
+//! ```text
+//! φ = [W_z Φ_{f,k}; W_u Φ_k],   y = [W_z (u_{f,k} − z_k); 0],   R_θ = I / p0 (P_0 = p0 I)
+//! ```
+//!
+//! because `W_z ẑ_k(θ̂) = W_z Φ_{f,k} θ̂ − y_z` (2.20), so
+//! `|φ θ̂ − y|² = ẑ_kᵀ R_z ẑ_k + (Φ_k θ̂)ᵀ R_u (Φ_k θ̂)`, the bracket of (2.21).
+//!
+//! Sign check against (2.22): the RLS prior error is `e = y − φ θ_k = −[W_z(Φ_{f,k} θ_k + z_k − u_{f,k}); W_u Φ_k θ_k]`, and
+//! `θ_{k+1} = θ_k + β P_k φᵀ (I + β φ P_k φᵀ)⁻¹ e
+//!          = θ_k − P_k Φ̄ᵀ (λ R̄⁻¹ + Φ̄ P_k Φ̄ᵀ)⁻¹ (Φ̄ θ_k + [z_k − u_{f,k}; 0])` with
+//! `Φ̄ = [Φ_{f,k}; Φ_k]`, `R̄ = diag(R_z, R_u)`, `λ = 1/β` — (2.22), and the covariance
+//! recursion of [`Rls`] is (2.23) in the same way. The forgetting factor `λ_k` comes from
+//! any [`ForgettingRule`] (constant `λ`, or the F-test / RMS rules of chapter 5 applied
+//! to the `l_z + rank R_u` prior errors). [`Rls`]'s guard resets `θ, P` to `θ_0, P_0` on
+//! blow-up (`tr P > trace-limit`, non-finite values); each reset is counted.
+//!
+//! # Gradient update, (3.51)–(3.63)
+//!
+//! With the same rows `A = [W_z Φ_{f,k}; W_u Φ_k]`, `b = [W_z(u_{f,k} − z_k); 0]` and
+//! `R = r I` (`r ≥ 0`), the instantaneous cost and its gradient are
+//!
+//! ```text
+//! J_k(θ) = ½ (|A θ − b|² + r |θ|²)          (3.51)  (= ½(ẑ_kᵀẑ_k + θᵀRθ) for R_z = I, R_u = 0)
+//! g_k    = Aᵀ(A θ_k − b) + r θ_k             (3.52)  (= Φ_{f,k}ᵀ ẑ_k(θ_k) + R θ_k)
+//! θ_{k+1} = θ_k − μ_k g_k                     (3.53)–(3.54)
+//! ```
+//!
+//! with one of the step sizes, each multiplied by `α ∈ (0, 1]`:
+//!
+//! ```text
+//! μ_opt = gᵀg / (gᵀ(AᵀA + rI)g) = |g|² / (|A g|² + r|g|²)                         (3.57)
+//! μ_σ   = 1 / σ_max(AᵀA + rI)   = 1 / (λ_max(A Aᵀ) + r)                            (3.60)
+//! μ_F   = 1 / ‖AᵀA + rI‖_F      = 1 / sqrt(‖A Aᵀ‖_F² + 2 r ‖A‖_F² + r² l_θ)        (3.61)
+//! μ_Exp = 1 / ‖A‖_F²   (r = 0; for r > 0: 1 / (‖A‖_F² + r √l_θ) ≤ μ_F)             (3.63)
+//! ```
+//!
+//! None of them forms an `l_θ × l_θ` matrix: `A Aᵀ` is `p × p` (`p = l_z + rank R_u`,
+//! its largest eigenvalue by cyclic Jacobi with a bounded number of sweeps) and
+//! `‖AᵀA‖_F = ‖AAᵀ‖_F`. The work per step is `O(p² l_θ)`. When the denominator is zero
+//! (no data yet) the step is skipped (`μ_k = 0`). A non-finite `θ` is reset to `θ_0`
+//! (counted).
+//!
+//! # Imperfect loops: late actuations and lost samples
+//!
+//! `φ`, `u_f` and `Φ_f` must hold what the plant saw. In real time two things break that:
+//!
+//! - **A late actuation.** The plant then held an older (or its safe) input instead of
+//!   `u_{k−1}`. When the measurement reports the input really applied
+//!   ([`StepInput::u_applied`]), it replaces the stored `u_{k−1}` at the start of step `k`,
+//!   before anything reads it (the filter's lags are ≥ 1), so the history stays exact.
+//! - **Samples the loop received late or never.** A sample that arrived while a newer
+//!   one was waiting is recorded without an update or an input
+//!   ([`Controller::observe`]: filter and history advance). `m` samples that never
+//!   arrived ([`StepInput::lost`]) are bridged by `m` history entries with the held `y`
+//!   and the held `u` (at most `L`, the history length; a longer gap clears the history);
+//!   the update is then suspended for `L` steps, until the bridged entries have left every
+//!   window, while the input is still computed. Each gap is counted (internal `gaps`).
+//!
+//! # Real time
+//!
+//! [`Controller::step`] does not allocate (every buffer is sized in [`Rcac::new`]), does
+//! not index out of bounds (slices are taken with `get`), and its loops are bounded by
+//! the dimensions. A non-finite `y_k` or `z_k` skips the update, holds the last applied
+//! input and reports [`status::CONTROLLER_FAULT`] (the non-finite entries of
+//! `y_k` are replaced by the last finite ones in the history). A guard reset of `θ` also
+//! reports `CONTROLLER_FAULT`.
+//!
+//! Cost per step at the acoustic rig's size (`l_u = 2`, `l_y = l_z = 1`, `n_c = 50`,
+//! `l_θ = 300`, DTF target with delays 9 and 16), release build, unpinned on the 2-core
+//! development VM: RLS p50 12.5 µs, p99 19 µs (the `O(l_θ² p)` covariance sweep of
+//! [`Rls`]); gradient p50 2.1–2.3 µs for every step size.
+//!
+//! # Internals (signal log)
+//!
+//! `theta_norm` (`‖θ_{k+1}‖`), `trace_p` (RLS: `tr P_{k+1}`) or `mu` (gradient: `μ_k`,
+//! α included), `z0` (`z_{k,0}`), `zhat0` (`ẑ_{k,0}(θ_{k+1})`, the retrospective
+//! performance with the updated coefficients), `lambda` (`λ_k`; 1 for the gradient) and
+//! `resets` (guard resets of `θ` since construction).
+
+mod filter;
+#[cfg(test)]
+mod tests;
+
+pub use filter::TargetFilter;
+
+use crate::controller::{Controller, OutputLimits, StepInput};
+use crate::controller::{Dimensions, status};
+use crate::forgetting::ForgettingRule;
+use crate::linalg::{axpy, dot};
+use crate::rls::{Rls, RlsConfig};
+use crate::target::TargetModel;
+use nalgebra::DMatrix;
+
+/// Step size of the gradient variant (§3.4), each multiplied by `α`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepSize {
+    /// `μ_opt` (3.57), the exact line minimizer of the instantaneous cost.
+    Opt,
+    /// `μ_σ` (3.60).
+    Sigma,
+    /// `μ_F` (3.61).
+    Frobenius,
+    /// `μ_Exp` (3.63).
+    Exp,
+}
+
+/// How `θ` is updated.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RcacUpdate {
+    /// RLS (2.22)–(2.23) through [`Rls`].
+    Rls {
+        /// `P_0 = p0 I`, i.e. `R_θ = I / p0`.
+        p0: f64,
+        /// Forgetting rule for `λ_k`.
+        rule: ForgettingRule,
+        /// `tr P` above this resets `θ, P` (must exceed `l_θ p0`; may be `+∞`).
+        trace_limit: f64,
+    },
+    /// Gradient descent on the instantaneous cost (3.51)–(3.63).
+    Gradient {
+        /// Which step size.
+        step_size: StepSize,
+        /// `α ∈ (0, 1]`.
+        alpha: f64,
+        /// `R = r I`, `r ≥ 0`.
+        r: f64,
+    },
+}
+
+/// Validated parameters of an [`Rcac`] controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RcacParams {
+    /// Controller order `n_c ≥ 1`.
+    pub nc: usize,
+    /// Steps with `u_k = 0` and no update (2.16); `None`: `n_c` plus the largest lag of
+    /// `G_f`, the first step at which `Φ_{f,k}` holds measured data in every entry.
+    pub kw: Option<usize>,
+    /// The target model `G_f` (`l_z × l_u`, at the rig's sample period).
+    pub target: TargetModel,
+    /// `R_z` (`l_z × l_z`, symmetric positive definite).
+    pub rz: DMatrix<f64>,
+    /// `R_u` (`l_u × l_u`, symmetric positive semidefinite).
+    pub ru: DMatrix<f64>,
+    /// `θ_0` (length `l_θ`); `None`: zero.
+    pub theta0: Option<Vec<f64>>,
+    /// The update law.
+    pub update: RcacUpdate,
+    /// Output saturation.
+    pub limits: Option<OutputLimits>,
+    /// The rig's sample period in s; the target model's must equal it.
+    pub sample_period: f64,
+}
+
+enum Law {
+    Rls(Box<Rls>),
+    Gradient {
+        step_size: StepSize,
+        alpha: f64,
+        r: f64,
+        theta: Vec<f64>,
+        /// `A θ − b`, then `A g` (p).
+        res: Vec<f64>,
+        /// `g` (l_θ).
+        grad: Vec<f64>,
+        /// `A Aᵀ` scratch (p × p).
+        gram: Vec<f64>,
+        resets: u64,
+    },
+}
+
+/// The RCAC controller (see the module docs).
+pub struct Rcac {
+    counts: Dimensions,
+    lu: usize,
+    ly: usize,
+    lz: usize,
+    nphi: usize,
+    ltheta: usize,
+    kw: u64,
+    filter: TargetFilter,
+    /// `W_z` (l_z × l_z row-major).
+    wz: Vec<f64>,
+    /// `W_u` (ru_rows × l_u row-major).
+    wu: Vec<f64>,
+    ru_rows: usize,
+    /// `Φ_{f,k}` (l_z × l_θ row-major).
+    phi_f: Vec<f64>,
+    /// `u_{f,k}`.
+    u_f: Vec<f64>,
+    /// Stacked rows `A` ((l_z + ru_rows) × l_θ) and targets `b`.
+    a: Vec<f64>,
+    b: Vec<f64>,
+    law: Law,
+    theta0: Vec<f64>,
+    /// Last applied `u`.
+    u_last: Vec<f64>,
+    /// Last finite `y`.
+    y_hold: Vec<f64>,
+    k: u64,
+    /// No update before this step: the windows still hold samples bridged over a gap.
+    update_from: u64,
+    /// Gaps bridged (lost samples, counted once per gap).
+    gaps: u64,
+    limits: Option<OutputLimits>,
+    // Internals.
+    theta_norm: f64,
+    trace_or_mu: f64,
+    z0: f64,
+    zhat0: f64,
+    lambda: f64,
+}
+
+impl std::fmt::Debug for Rcac {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Rcac")
+            .field("counts", &self.counts)
+            .field("l_theta", &self.ltheta)
+            .field("k", &self.k)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Symmetric square root rows `W` with `Wᵀ W = M` (eigen decomposition; rows of zero
+/// eigenvalues dropped when `drop_zero`). Errors when `M` is not symmetric, has a
+/// negative eigenvalue, or (without `drop_zero`) is not positive definite.
+fn sqrt_rows(m: &DMatrix<f64>, name: &str, definite: bool) -> Result<(Vec<f64>, usize), String> {
+    let n = m.nrows();
+    if m.ncols() != n {
+        return Err(format!("{name} is {}×{}, must be square", n, m.ncols()));
+    }
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(format!("{name} has a non-finite entry"));
+    }
+    let scale = m.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    if (m - m.transpose())
+        .iter()
+        .any(|v| v.abs() > 1e-12 * scale.max(1e-300))
+    {
+        return Err(format!("{name} is not symmetric"));
+    }
+    let eig = m.clone().symmetric_eigen();
+    let tol = 1e-12 * scale.max(1e-300) * n as f64;
+    let mut rows = Vec::new();
+    let mut count = 0;
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if definite && (l.is_nan() || l <= tol) {
+            return Err(format!(
+                "{name} is not positive definite (eigenvalue {l:e})"
+            ));
+        }
+        if l < -tol {
+            return Err(format!(
+                "{name} is not positive semidefinite (eigenvalue {l:e})"
+            ));
+        }
+        if l <= tol {
+            continue;
+        }
+        let s = l.sqrt();
+        for j in 0..n {
+            rows.push(s * eig.eigenvectors[(j, i)]);
+        }
+        count += 1;
+    }
+    Ok((rows, count))
+}
+
+impl Rcac {
+    /// Builds the controller for the rig's channels (`l_y = n_y`, `l_z = n_z`,
+    /// `l_u = n_u`), allocating every buffer.
+    ///
+    /// # Errors
+    ///
+    /// `n_c = 0`; a target model with `outputs ≠ l_z` or `inputs ≠ l_u`, another sample
+    /// period, a feedthrough or an unstable pole; `R_z` not positive definite; `R_u` not
+    /// positive semidefinite or of the wrong size; `θ_0` of the wrong length or
+    /// non-finite; `p0`, `trace_limit`, forgetting, `α ∉ (0, 1]` or `r < 0`; bad limits.
+    pub fn new(params: &RcacParams, counts: Dimensions) -> Result<Self, String> {
+        let (ly, lz, lu) = (counts.n_y, counts.n_z, counts.n_u);
+        if params.nc == 0 {
+            return Err("nc = 0: the controller order n_c must be at least 1".into());
+        }
+        if lz == 0 || lu == 0 {
+            return Err(format!(
+                "RCAC needs at least one performance variable z and one input u (z: {lz}, u: {lu})"
+            ));
+        }
+        let t = &params.target;
+        if t.outputs != lz || t.inputs != lu {
+            return Err(format!(
+                "the target model is {}×{} (outputs × inputs), the rig has l_z = {lz} \
+                 performance variables and l_u = {lu} inputs",
+                t.outputs, t.inputs
+            ));
+        }
+        let ts = params.sample_period;
+        if ts.is_nan() || ts <= 0.0 || (t.sample_period - ts).abs() > 1e-9 * ts {
+            return Err(format!(
+                "the target model's sample period {} s differs from the rig's {ts} s",
+                t.sample_period
+            ));
+        }
+        let filter = TargetFilter::new(t, ly, params.nc)?;
+        let nphi = filter.regressor_len();
+        let ltheta = lu * nphi;
+        let (wz, _) = sqrt_rows(&params.rz, "rz", true)?;
+        if params.rz.nrows() != lz {
+            return Err(format!(
+                "rz is {}×{}, expected {lz}×{lz}",
+                params.rz.nrows(),
+                params.rz.ncols()
+            ));
+        }
+        if params.ru.nrows() != lu {
+            return Err(format!(
+                "ru is {}×{}, expected {lu}×{lu}",
+                params.ru.nrows(),
+                params.ru.ncols()
+            ));
+        }
+        let (wu, ru_rows) = sqrt_rows(&params.ru, "ru", false)?;
+        let theta0 = match &params.theta0 {
+            None => vec![0.0; ltheta],
+            Some(v) if v.len() == ltheta && v.iter().all(|x| x.is_finite()) => v.clone(),
+            Some(v) if v.len() == ltheta => return Err("theta0 has a non-finite entry".into()),
+            Some(v) => {
+                return Err(format!(
+                    "theta0 has {} entries, expected l_θ = l_u n_c (l_u + l_y) = {ltheta}",
+                    v.len()
+                ));
+            }
+        };
+        if let Some(l) = &params.limits {
+            if l.min.len() != lu || l.max.len() != lu {
+                return Err(format!("output limits need {lu} entries for min and max"));
+            }
+            if l.min
+                .iter()
+                .zip(&l.max)
+                .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
+            {
+                return Err("output limits need u-min ≤ u-max for every input".into());
+            }
+        }
+        let p = lz + ru_rows;
+        let law = match &params.update {
+            RcacUpdate::Rls {
+                p0,
+                rule,
+                trace_limit,
+            } => Law::Rls(Box::new(Rls::new(&RlsConfig {
+                n: ltheta,
+                p,
+                theta0: theta0.clone(),
+                p0: *p0,
+                rule: rule.clone(),
+                trace_limit: *trace_limit,
+            })?)),
+            RcacUpdate::Gradient {
+                step_size,
+                alpha,
+                r,
+            } => {
+                if !(*alpha > 0.0 && *alpha <= 1.0) {
+                    return Err(format!("alpha = {alpha} is outside (0, 1]"));
+                }
+                if !(*r >= 0.0 && r.is_finite()) {
+                    return Err(format!("r = {r} must be finite and ≥ 0"));
+                }
+                Law::Gradient {
+                    step_size: *step_size,
+                    alpha: *alpha,
+                    r: *r,
+                    theta: theta0.clone(),
+                    res: vec![0.0; p],
+                    grad: vec![0.0; ltheta],
+                    gram: vec![0.0; p * p],
+                    resets: 0,
+                }
+            }
+        };
+        let mut s = Self {
+            counts,
+            lu,
+            ly,
+            lz,
+            nphi,
+            ltheta,
+            kw: params.kw.unwrap_or(filter.history_len()) as u64,
+            filter,
+            wz,
+            wu,
+            ru_rows,
+            phi_f: vec![0.0; lz * ltheta],
+            u_f: vec![0.0; lz],
+            a: vec![0.0; p * ltheta],
+            b: vec![0.0; p],
+            law,
+            theta0,
+            u_last: vec![0.0; lu],
+            y_hold: vec![0.0; ly],
+            k: 0,
+            update_from: 0,
+            gaps: 0,
+            limits: params.limits.clone(),
+            theta_norm: 0.0,
+            trace_or_mu: 0.0,
+            z0: 0.0,
+            zhat0: 0.0,
+            lambda: 1.0,
+        };
+        s.reset();
+        Ok(s)
+    }
+
+    /// The current coefficients `θ` (length `l_θ`, row-major `Θ`).
+    pub fn theta(&self) -> &[f64] {
+        match &self.law {
+            Law::Rls(r) => r.theta(),
+            Law::Gradient { theta, .. } => theta,
+        }
+    }
+
+    /// `l_θ = l_u n_c (l_u + l_y)`.
+    pub fn theta_len(&self) -> usize {
+        self.ltheta
+    }
+
+    /// Guard resets of `θ` since construction.
+    pub fn resets(&self) -> u64 {
+        match &self.law {
+            Law::Rls(r) => r.resets(),
+            Law::Gradient { resets, .. } => *resets,
+        }
+    }
+
+    /// The target-model filter (for inspection and tests).
+    pub fn filter(&self) -> &TargetFilter {
+        &self.filter
+    }
+
+    /// `Φ_{f,k}` of the last step (`l_z × l_θ` row-major).
+    pub fn phi_f(&self) -> &[f64] {
+        &self.phi_f
+    }
+
+    /// `u_{f,k}` of the last step.
+    pub fn u_f(&self) -> &[f64] {
+        &self.u_f
+    }
+
+    /// Builds the stacked rows `A`, `b` of step `k` from `Φ_{f,k}`, `u_{f,k}`, `z_k`, `φ_k`.
+    /// Gaps bridged so far (each run of lost samples counts once).
+    pub fn gaps(&self) -> u64 {
+        self.gaps
+    }
+
+    /// Brings the history in line with the plant before sample `k` is used: the input the
+    /// plant really applied after sample `k − 1` replaces the one stored, and samples lost
+    /// before `k` are bridged (module docs, "Imperfect loops").
+    fn absorb(&mut self, input: &StepInput<'_>) {
+        if let Some(ua) = input.u_applied
+            && ua.len() >= self.lu
+            && ua.iter().take(self.lu).all(|v| v.is_finite())
+        {
+            self.u_last.copy_from_slice(&ua[..self.lu]);
+            self.filter.correct_last_u(&self.u_last);
+        }
+        if input.lost > 0 {
+            let len = self.filter.history_len() as u64;
+            if input.lost >= len {
+                self.filter.reset();
+            } else {
+                for _ in 0..input.lost {
+                    self.filter.filter(&mut self.phi_f, &mut self.u_f);
+                    self.filter.push(&self.u_last, &self.y_hold);
+                }
+            }
+            self.k = self.k.saturating_add(input.lost);
+            self.update_from = self.k.saturating_add(len);
+            self.gaps += 1;
+        }
+    }
+
+    /// Stores `y_k` (non-finite entries held) with the applied `u_k` at the end of step
+    /// `k`.
+    fn store(&mut self, y: &[f64]) {
+        for (h, v) in self.y_hold.iter_mut().zip(y) {
+            if v.is_finite() {
+                *h = *v;
+            }
+        }
+        self.filter.push(&self.u_last, &self.y_hold);
+        self.k = self.k.saturating_add(1);
+    }
+
+    fn build_rows(&mut self, z: &[f64]) {
+        let (lz, lt, nphi) = (self.lz, self.ltheta, self.nphi);
+        self.a.fill(0.0);
+        for o in 0..lz {
+            let mut bo = 0.0;
+            for q in 0..lz {
+                let w = self.wz.get(o * lz + q).copied().unwrap_or(0.0);
+                if w == 0.0 {
+                    continue;
+                }
+                if let (Some(dst), Some(src)) = (
+                    self.a.get_mut(o * lt..(o + 1) * lt),
+                    self.phi_f.get(q * lt..(q + 1) * lt),
+                ) {
+                    axpy(w, src, dst);
+                }
+                let uf = self.u_f.get(q).copied().unwrap_or(0.0);
+                let zq = z.get(q).copied().unwrap_or(0.0);
+                bo += w * (uf - zq);
+            }
+            if let Some(d) = self.b.get_mut(o) {
+                *d = bo;
+            }
+        }
+        if self.ru_rows > 0 {
+            let (pu, py) = self.filter.regressor(0);
+            let nu = pu.len();
+            for q in 0..self.ru_rows {
+                let row = lz + q;
+                if let Some(d) = self.b.get_mut(row) {
+                    *d = 0.0;
+                }
+                for j in 0..self.lu {
+                    let w = self.wu.get(q * self.lu + j).copied().unwrap_or(0.0);
+                    let start = row * lt + j * nphi;
+                    if let Some(dst) = self.a.get_mut(start..start + nphi) {
+                        let (du, dy) = dst.split_at_mut(nu.min(nphi));
+                        axpy(w, pu, du);
+                        axpy(w, py, dy);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Largest eigenvalue of the symmetric `n × n` matrix `m` (row-major, overwritten) by
+/// cyclic Jacobi rotations, at most 64 sweeps. Does not allocate.
+fn sym_max_eig(m: &mut [f64], n: usize) -> f64 {
+    if n == 0 || m.len() < n * n {
+        return 0.0;
+    }
+    if n == 1 {
+        return m[0];
+    }
+    for _ in 0..64 {
+        let mut off = 0.0;
+        let mut diag = 0.0;
+        for i in 0..n {
+            diag += m[i * n + i] * m[i * n + i];
+            for j in i + 1..n {
+                off += m[i * n + j] * m[i * n + j];
+            }
+        }
+        if off.is_nan() || off <= 1e-30 * diag {
+            break;
+        }
+        for pi in 0..n {
+            for qi in pi + 1..n {
+                let apq = m[pi * n + qi];
+                if apq == 0.0 {
+                    continue;
+                }
+                let (app, aqq) = (m[pi * n + pi], m[qi * n + qi]);
+                let tau = (aqq - app) / (2.0 * apq);
+                let t = tau.signum() / (tau.abs() + (1.0 + tau * tau).sqrt());
+                let t = if tau == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (1.0 + t * t).sqrt();
+                let s = t * c;
+                for kk in 0..n {
+                    let (akp, akq) = (m[kk * n + pi], m[kk * n + qi]);
+                    m[kk * n + pi] = c * akp - s * akq;
+                    m[kk * n + qi] = s * akp + c * akq;
+                }
+                for kk in 0..n {
+                    let (apk, aqk) = (m[pi * n + kk], m[qi * n + kk]);
+                    m[pi * n + kk] = c * apk - s * aqk;
+                    m[qi * n + kk] = s * apk + c * aqk;
+                }
+            }
+        }
+    }
+    (0..n)
+        .map(|i| m[i * n + i])
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// The gradient `g = Aᵀ(Aθ − b) + rθ` (3.52) into `grad` and the step size `μ` (3.57),
+/// (3.60), (3.61) or (3.63) **without** the factor `α`; 0 when it is undefined (no data,
+/// `g = 0`). `a` is `p × l_θ` row-major with `p = res.len()`, `gram` is `p × p` scratch.
+/// Does not allocate; `O(p l_θ)` (`O(p² l_θ)` for `Sigma` and `Frobenius`).
+#[allow(clippy::too_many_arguments)]
+fn gradient_step(
+    step_size: StepSize,
+    a: &[f64],
+    b: &[f64],
+    theta: &[f64],
+    r: f64,
+    res: &mut [f64],
+    grad: &mut [f64],
+    gram: &mut [f64],
+) -> f64 {
+    let p = res.len();
+    let lt = theta.len();
+    let row = |i: usize| a.get(i * lt..(i + 1) * lt).unwrap_or(&[]);
+    // res = A θ − b, g = Aᵀ res + r θ.
+    let mut a_sq = 0.0;
+    for (i, e) in res.iter_mut().enumerate() {
+        let ri = row(i);
+        a_sq += dot(ri, ri);
+        *e = dot(ri, theta) - b.get(i).copied().unwrap_or(0.0);
+    }
+    for (g, t) in grad.iter_mut().zip(theta) {
+        *g = r * t;
+    }
+    for (i, e) in res.iter().enumerate() {
+        axpy(*e, row(i), grad);
+    }
+    let g2 = dot(grad, grad);
+    if matches!(step_size, StepSize::Sigma | StepSize::Frobenius) {
+        for i in 0..p {
+            for j in 0..=i {
+                let v = dot(row(i), row(j));
+                if let Some(d) = gram.get_mut(i * p + j) {
+                    *d = v;
+                }
+                if let Some(d) = gram.get_mut(j * p + i) {
+                    *d = v;
+                }
+            }
+        }
+    }
+    let denom = match step_size {
+        // μ_opt = |g|² / (|A g|² + r |g|²)  (3.57)
+        StepSize::Opt => {
+            let mut ag2 = 0.0;
+            for i in 0..p {
+                let v = dot(row(i), grad);
+                ag2 += v * v;
+            }
+            (ag2 + r * g2) / g2
+        }
+        // μ_σ = 1 / (λ_max(A Aᵀ) + r)  (3.60)
+        StepSize::Sigma => sym_max_eig(gram, p) + r,
+        // μ_F = 1 / ‖AᵀA + rI‖_F, ‖AᵀA‖_F = ‖AAᵀ‖_F, tr(AᵀA) = ‖A‖_F²  (3.61)
+        StepSize::Frobenius => {
+            let f2: f64 = gram.iter().map(|v| v * v).sum();
+            (f2 + 2.0 * r * a_sq + r * r * lt as f64).sqrt()
+        }
+        // μ_Exp = 1 / ‖A‖_F²  (3.63), plus r √l_θ when r > 0
+        StepSize::Exp => a_sq + r * (lt as f64).sqrt(),
+    };
+    let mu = if denom > 0.0 && g2 > 0.0 {
+        1.0 / denom
+    } else {
+        0.0
+    };
+    if mu.is_finite() { mu } else { 0.0 }
+}
+
+impl Controller for Rcac {
+    fn kind(&self) -> &'static str {
+        "rcac"
+    }
+
+    fn counts(&self) -> Dimensions {
+        self.counts
+    }
+
+    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        let mut status = status::OK;
+        self.absorb(input);
+        let (lz, lt) = (self.lz, self.ltheta);
+        let y_ok = input.y.len() >= self.ly && input.y.iter().all(|v| v.is_finite());
+        let z_ok = input.z.len() >= lz && input.z.iter().take(lz).all(|v| v.is_finite());
+        // (1) Filtered quantities of index k (past data only).
+        self.filter.filter(&mut self.phi_f, &mut self.u_f);
+        let filt_sq: f64 = self.phi_f.iter().chain(&self.u_f).map(|v| v * v).sum();
+        let filt_ok = filt_sq.is_finite();
+        if !filt_ok {
+            self.filter.reset();
+            self.phi_f.fill(0.0);
+            self.u_f.fill(0.0);
+        }
+        let ok = y_ok && z_ok && filt_ok;
+        let active = self.k >= self.kw;
+        let learn = active && self.k >= self.update_from;
+        self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
+        // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows).
+        if ok && learn {
+            self.build_rows(input.z);
+            let reset = match &mut self.law {
+                Law::Rls(rls) => {
+                    let st = rls.update(&self.a, &self.b);
+                    self.lambda = st.lambda;
+                    self.trace_or_mu = rls.trace_p();
+                    st.reset
+                }
+                Law::Gradient {
+                    step_size,
+                    alpha,
+                    r,
+                    theta,
+                    res,
+                    grad,
+                    gram,
+                    resets,
+                } => {
+                    let mu = *alpha
+                        * gradient_step(*step_size, &self.a, &self.b, theta, *r, res, grad, gram);
+                    axpy(-mu, grad, theta);
+                    self.trace_or_mu = mu;
+                    self.lambda = 1.0;
+                    if theta.iter().all(|v| v.is_finite()) {
+                        false
+                    } else {
+                        theta.copy_from_slice(&self.theta0);
+                        *resets += 1;
+                        true
+                    }
+                }
+            };
+            if reset {
+                status |= status::CONTROLLER_FAULT;
+            }
+        } else if !ok {
+            status |= status::CONTROLLER_FAULT;
+        }
+        // (3) u_k = sat(Φ_k θ_{k+1}), 0 before k_w; the last applied u on a bad input.
+        let theta: &[f64] = match &self.law {
+            Law::Rls(r) => r.theta(),
+            Law::Gradient { theta, .. } => theta,
+        };
+        let (pu, py) = self.filter.regressor(0);
+        let nu = pu.len();
+        let mut sq = 0.0;
+        for t in theta {
+            sq += t * t;
+        }
+        self.theta_norm = sq.sqrt();
+        self.zhat0 = if ok {
+            let row = self.phi_f.get(..lt).unwrap_or(&[]);
+            self.z0 - self.u_f.first().copied().unwrap_or(0.0) + dot(row, theta)
+        } else {
+            f64::NAN
+        };
+        if !ok {
+            for (d, s) in u.iter_mut().zip(&self.u_last) {
+                *d = *s;
+            }
+        } else if !active {
+            u.fill(0.0);
+        } else {
+            for (j, d) in u.iter_mut().enumerate().take(self.lu) {
+                let blk = theta.get(j * self.nphi..(j + 1) * self.nphi).unwrap_or(&[]);
+                let (tu, ty) = blk.split_at(nu.min(blk.len()));
+                *d = dot(tu, pu) + dot(ty, py);
+            }
+        }
+        let mut bad = false;
+        let clipped = match &self.limits {
+            Some(l) => {
+                bad = u.iter().any(|v| !v.is_finite());
+                l.apply(u)
+            }
+            None => {
+                for v in u.iter_mut() {
+                    if !v.is_finite() {
+                        *v = 0.0;
+                        bad = true;
+                    }
+                }
+                false
+            }
+        };
+        if bad {
+            status |= status::CONTROLLER_FAULT;
+        } else if clipped {
+            status |= status::SATURATED;
+        }
+        // (4) Store the applied u_k and y_k (non-finite entries held).
+        for (d, s) in self.u_last.iter_mut().zip(u.iter()) {
+            *d = *s;
+        }
+        self.store(input.y);
+        status
+    }
+
+    /// Records sample `k` without an update or a new input: the history advances with
+    /// `y_k` and the input the plant holds (the last applied one, corrected by the next
+    /// sample's `u_applied` when the plant reports it).
+    fn observe(&mut self, input: &StepInput<'_>, _u: &mut [f64]) {
+        self.absorb(input);
+        self.filter.filter(&mut self.phi_f, &mut self.u_f);
+        self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
+        self.store(input.y);
+    }
+
+    fn reset(&mut self) {
+        self.filter.reset();
+        match &mut self.law {
+            Law::Rls(r) => {
+                r.reset();
+                self.trace_or_mu = r.trace_p();
+            }
+            Law::Gradient { theta, .. } => {
+                theta.copy_from_slice(&self.theta0);
+                self.trace_or_mu = 0.0;
+            }
+        }
+        self.phi_f.fill(0.0);
+        self.u_f.fill(0.0);
+        self.u_last.fill(0.0);
+        self.y_hold.fill(0.0);
+        self.k = 0;
+        self.update_from = 0;
+        self.theta_norm = self.theta0.iter().map(|v| v * v).sum::<f64>().sqrt();
+        self.z0 = 0.0;
+        self.zhat0 = 0.0;
+        self.lambda = 1.0;
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("coefficient resets", self.resets()),
+            ("gaps bridged", self.gaps()),
+        ]
+    }
+
+    fn internal_names(&self) -> Vec<String> {
+        let second = match self.law {
+            Law::Rls(_) => "trace_p",
+            Law::Gradient { .. } => "mu",
+        };
+        [
+            "theta_norm",
+            second,
+            "rcac_z0",
+            "rcac_zhat0",
+            "lambda",
+            "resets",
+            "gaps",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    }
+
+    fn internals(&self, out: &mut [f64]) -> usize {
+        let vals = [
+            self.theta_norm,
+            self.trace_or_mu,
+            self.z0,
+            self.zhat0,
+            self.lambda,
+            self.resets() as f64,
+            self.gaps as f64,
+        ];
+        let n = vals.len().min(out.len());
+        for (d, v) in out.iter_mut().zip(vals) {
+            *d = v;
+        }
+        n
+    }
+}

@@ -1,0 +1,793 @@
+//! `rig-design`: the offline design tools, from a model or a measured log to the RCAC
+//! target model (section 3.2 of the dissertation).
+//!
+//! ```text
+//! rig-design model-frf SCENARIO [--output y|z] [--points N] [--out DIR]
+//! rig-design markov    SCENARIO [--output y|z] (--count N | --first-nonzero) [--beta B] [--out DIR]
+//! rig-design frf       LOG --inputs u0,u1 --outputs y0 (--sample-period T | --scenario S)
+//!                      [--segment L] [--overlap F] [--compare] [--out DIR]
+//! rig-design dtf       FRF.csv --method average|optimize [--delta-hz D] [--order N] [--zeros M]
+//!                      [--n-max N] [--beta B] [--out DIR]
+//! rig-design identify  LOG --inputs … --outputs … [frf options] --method … [dtf options]
+//! rig-design compare     TARGET.toml SCENARIO --hz F1,F2,… [--output y|z]
+//! rig-design example-3-41 [--out DIR]
+//! ```
+//!
+//! Each writes its results into `--out` (CSV, TOML, PNG) and prints a summary; the
+//! `target-model.toml` files are what RCAC's configuration reads. `identify` is the whole
+//! path of a measured rig: log → H1 frequency response and coherence → pure delays →
+//! dereverberated transfer function per channel → target model (3.49).
+
+#![warn(missing_docs)]
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use control::target::{TargetChannel, TargetForm, TargetModel};
+use rig_tools::design::csvlog;
+use rig_tools::design::dtf;
+use rig_tools::design::frf_file::FrfFile;
+use rig_tools::design::markov::FirTarget;
+use rig_tools::design::model::{DiscreteModel, OutputSet};
+use rig_tools::design::plots::{Curve, PoleZero, bode_figure, coherence_figure};
+use rig_tools::design::target_response::TargetResponse;
+use rig_tools::design::welch::{self, WelchOptions};
+use rig_tools::design::{C64, Frf, grid};
+use service::config::TargetModelFile;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "rig-design",
+    version,
+    about = "Offline design tools: frequency responses, Markov parameters, dereverberated target models"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Output {
+    /// The measurements y.
+    Y,
+    /// The performance outputs z.
+    Z,
+}
+
+impl From<Output> for OutputSet {
+    fn from(o: Output) -> Self {
+        match o {
+            Output::Y => OutputSet::Y,
+            Output::Z => OutputSet::Z,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+enum Method {
+    /// Complex windowed average (3.40), then a fixed-order stable fit.
+    Average,
+    /// Log-frequency optimization over real poles and zeros (3.44)–(3.47).
+    Optimize,
+    /// No dereverberation: the FIR target (3.39) from the first `--count` samples of the
+    /// measured impulse response (exact phase, `count` coefficients per channel).
+    Fir,
+}
+
+#[derive(Args, Clone)]
+struct FrfArgs {
+    /// Columns of the log holding the inputs, comma separated (e.g. u0,u1).
+    #[arg(long, value_delimiter = ',', required = true)]
+    inputs: Vec<String>,
+    /// Columns of the log holding the outputs, comma separated (e.g. y0).
+    #[arg(long, value_delimiter = ',', required = true)]
+    outputs: Vec<String>,
+    /// Sample period, s (or give --scenario).
+    #[arg(long)]
+    sample_period: Option<f64>,
+    /// The rig's scenario: its sample period, and with --compare its model.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Welch segment length, samples.
+    #[arg(long, default_value_t = 2048)]
+    segment: usize,
+    /// Segment overlap, fraction.
+    #[arg(long, default_value_t = 0.5)]
+    overlap: f64,
+    /// Draw and compare the model response of --scenario's plant with the estimate.
+    #[arg(long, requires = "scenario")]
+    compare: bool,
+}
+
+#[derive(Args, Clone)]
+struct DtfArgs {
+    /// Dereverberation method.
+    #[arg(long, value_enum)]
+    method: Method,
+    /// Half-width Δ of the averaging window (3.40), Hz.
+    #[arg(long)]
+    delta_hz: Option<f64>,
+    /// Order n̂ of the fitted DTF (average).
+    #[arg(long, default_value_t = 2)]
+    order: usize,
+    /// Number of zeros m̂ (default: order − 1 for average; chosen ≤ n̂ for optimize).
+    #[arg(long)]
+    zeros: Option<usize>,
+    /// Largest order n̂_max (optimize).
+    #[arg(long, default_value_t = 2)]
+    n_max: usize,
+    /// β of (3.49), in (0, 1].
+    #[arg(long, default_value_t = 1.0)]
+    beta: f64,
+    /// Number of Markov parameters of the FIR target (fir).
+    #[arg(long, default_value_t = 200)]
+    count: usize,
+    /// Lowest frequency of the fit, Hz (default: the first nonzero bin).
+    #[arg(long)]
+    from_hz: Option<f64>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// The frequency response of a scenario's plant, discretized as plant-proxy runs it.
+    ModelFrf {
+        /// Scenario TOML file.
+        scenario: PathBuf,
+        /// Outputs.
+        #[arg(long, value_enum, default_value = "y")]
+        output: Output,
+        /// Grid points (linear in θ over [0, π]).
+        #[arg(long, default_value_t = 4097)]
+        points: usize,
+        /// Output folder.
+        #[arg(long, default_value = "runs/design/model-frf")]
+        out: PathBuf,
+    },
+    /// Markov parameters of a scenario's plant and the FIR target model (3.39).
+    Markov {
+        /// Scenario TOML file.
+        scenario: PathBuf,
+        /// Outputs.
+        #[arg(long, value_enum, default_value = "z")]
+        output: Output,
+        /// Number of Markov parameters H_0 … H_{N−1} kept.
+        #[arg(long, conflicts_with = "first_nonzero")]
+        count: Option<usize>,
+        /// Keep only each channel's first nonzero Markov parameter (minimum-phase plants).
+        #[arg(long)]
+        first_nonzero: bool,
+        /// β of the target model, in (0, 1].
+        #[arg(long, default_value_t = 1.0)]
+        beta: f64,
+        /// Output folder.
+        #[arg(long, default_value = "runs/design/markov")]
+        out: PathBuf,
+    },
+    /// H1 frequency response, coherence and pure delays from a CSV log (Welch).
+    Frf {
+        /// CSV log (the service's signals.csv or any DAQ's).
+        log: PathBuf,
+        #[command(flatten)]
+        frf: FrfArgs,
+        /// Output folder.
+        #[arg(long, default_value = "runs/design/frf")]
+        out: PathBuf,
+    },
+    /// Dereverberated transfer function per channel and the target model (3.49).
+    Dtf {
+        /// Frequency-response file from `frf` or `model-frf`.
+        frf_file: PathBuf,
+        #[command(flatten)]
+        dtf: DtfArgs,
+        /// Output folder.
+        #[arg(long, default_value = "runs/design/dtf")]
+        out: PathBuf,
+    },
+    /// The whole path: log → FRF → delays → DTF → target model.
+    Identify {
+        /// CSV log.
+        log: PathBuf,
+        #[command(flatten)]
+        frf: FrfArgs,
+        #[command(flatten)]
+        dtf: DtfArgs,
+        /// Output folder.
+        #[arg(long, default_value = "runs/design/identify")]
+        out: PathBuf,
+    },
+    /// Magnitude and phase error of a target model against a scenario's plant at given
+    /// frequencies (what decides RCAC's performance at a tone, Figures 3.5 and 3.8).
+    Compare {
+        /// Target-model file.
+        target: PathBuf,
+        /// Scenario TOML file.
+        scenario: PathBuf,
+        /// Frequencies, Hz, comma separated.
+        #[arg(long, value_delimiter = ',', required = true)]
+        hz: Vec<f64>,
+        /// Outputs of the plant the target model stands for.
+        #[arg(long, value_enum, default_value = "z")]
+        output: Output,
+    },
+    /// The checks of sections 3.2.1.1 and 3.2.2.1: DTFs of (3.41) beside (3.43), (3.48).
+    #[command(name = "example-3-41")]
+    Example341 {
+        /// Output folder.
+        #[arg(long, default_value = "runs/design/example-3-41")]
+        out: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::ModelFrf {
+            scenario,
+            output,
+            points,
+            out,
+        } => model_frf(&scenario, output, points, &out),
+        Command::Markov {
+            scenario,
+            output,
+            count,
+            first_nonzero,
+            beta,
+            out,
+        } => markov(&scenario, output, count, first_nonzero, beta, &out),
+        Command::Frf { log, frf, out } => measured_frf(&log, &frf, &out).map(|_| ()),
+        Command::Dtf { frf_file, dtf, out } => FrfFile::load(&frf_file)
+            .and_then(|f| design_dtf(&f, &dtf, &out, &frf_file.display().to_string())),
+        Command::Identify { log, frf, dtf, out } => measured_frf(&log, &frf, &out)
+            .and_then(|f| design_dtf(&f, &dtf, &out, &log.display().to_string())),
+        Command::Compare {
+            target,
+            scenario,
+            hz,
+            output,
+        } => compare(&target, &scenario, &hz, output),
+        Command::Example341 { out } => example_3_41(&out),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("rig-design: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn out_dir(out: &Path) -> Result<(), String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("creating {}: {e}", out.display()))
+}
+
+fn load_model(scenario: &Path, output: Output) -> Result<DiscreteModel, String> {
+    let sc = plant_proxy::scenario::load(scenario).map_err(|e| e.to_string())?;
+    DiscreteModel::from_scenario(&sc, output.into())
+}
+
+fn channel_name(f: &Frf, c: usize) -> String {
+    format!("output {} ← input {}", c / f.n_inputs, c % f.n_inputs)
+}
+
+fn model_frf(scenario: &Path, output: Output, points: usize, out: &Path) -> Result<(), String> {
+    out_dir(out)?;
+    let model = load_model(scenario, output)?;
+    let theta = grid(0.0, std::f64::consts::PI, points, false)?;
+    let frf = model.frf(&theta)?;
+    let file = FrfFile {
+        frf,
+        delays: model.delays.clone(),
+        coherence: None,
+        source: format!("model of {}", scenario.display()),
+    };
+    file.save(&out.join("model-frf.csv"))?;
+    let hz = file.frf.hz();
+    for c in 0..file.frf.response.len() {
+        let name = channel_name(&file.frf, c);
+        let curves = [Curve::new("G_d", &file.frf.response[c])];
+        bode_figure(
+            &out.join(format!("model-frf-{c}.png")),
+            &format!("model response, {name}"),
+            &hz,
+            &curves,
+            &[],
+        )?;
+    }
+    println!(
+        "model of {}: {} states, {} outputs × {} inputs, delays {:?} samples at T_s = {} s; wrote {}",
+        scenario.display(),
+        model.ss.n_states(),
+        model.n_outputs(),
+        model.n_inputs(),
+        model.delays,
+        model.ts,
+        out.join("model-frf.csv").display()
+    );
+    Ok(())
+}
+
+fn markov(
+    scenario: &Path,
+    output: Output,
+    count: Option<usize>,
+    first_nonzero: bool,
+    beta: f64,
+    out: &Path,
+) -> Result<(), String> {
+    out_dir(out)?;
+    let model = load_model(scenario, output)?;
+    let fir = match (count, first_nonzero) {
+        (_, true) => FirTarget::first_nonzero_per_channel(&model, 1e-9)?,
+        (Some(n), false) if n >= 1 => FirTarget::from_model(&model, n - 1),
+        _ => return Err("give --count N (N ≥ 1) or --first-nonzero".into()),
+    };
+    let (p, m) = (model.n_outputs(), model.n_inputs());
+    let mut csv = String::from("i");
+    for o in 0..p {
+        for j in 0..m {
+            csv += &format!(",h_{o}_{j}");
+        }
+    }
+    csv.push('\n');
+    for (i, h) in fir.markov.iter().enumerate() {
+        csv += &i.to_string();
+        for o in 0..p {
+            for j in 0..m {
+                csv += &format!(",{}", h[(o, j)]);
+            }
+        }
+        csv.push('\n');
+    }
+    let csv_path = out.join("markov.csv");
+    std::fs::write(&csv_path, csv).map_err(|e| format!("writing {}: {e}", csv_path.display()))?;
+    let target = TargetModel {
+        sample_period: model.ts,
+        outputs: p,
+        inputs: m,
+        beta,
+        source: format!(
+            "rig-design markov {} ({} Markov parameters)",
+            scenario.display(),
+            fir.markov.len()
+        ),
+        form: TargetForm::Markov(fir.markov.clone()),
+    };
+    let tm_path = out.join("target-model.toml");
+    // Validate what is written by reading it back.
+    TargetModel::parse(&target.to_toml(), &tm_path.display().to_string())?;
+    target.save(&tm_path)?;
+    let first = fir
+        .markov
+        .iter()
+        .position(|h| h.iter().any(|v| *v != 0.0))
+        .unwrap_or(0);
+    println!(
+        "{} Markov parameters of {}; first nonzero: H_{first} = {}; wrote {} and {}",
+        fir.markov.len(),
+        scenario.display(),
+        format_matrix(&fir.markov[first]),
+        csv_path.display(),
+        tm_path.display()
+    );
+    Ok(())
+}
+
+fn format_matrix(h: &nalgebra::DMatrix<f64>) -> String {
+    let rows: Vec<String> = (0..h.nrows())
+        .map(|r| {
+            let v: Vec<String> = h.row(r).iter().map(|x| format!("{x:.6e}")).collect();
+            format!("[{}]", v.join(", "))
+        })
+        .collect();
+    format!("[{}]", rows.join(", "))
+}
+
+/// The sample period: `--sample-period`, or `rig.sample-period` of `--scenario`. (The
+/// log's `t_sample_ns` column is wall-clock time, which a lockstep run compresses.)
+fn sample_period(a: &FrfArgs) -> Result<f64, String> {
+    match (a.sample_period, &a.scenario) {
+        (Some(t), _) if t > 0.0 && t.is_finite() => Ok(t),
+        (Some(t), _) => Err(format!("--sample-period {t} is not a period")),
+        (None, Some(s)) => Ok(plant_proxy::scenario::load(s)
+            .map_err(|e| e.to_string())?
+            .rig
+            .sample_period),
+        (None, None) => {
+            Err("give --sample-period T or --scenario FILE (for rig.sample-period)".into())
+        }
+    }
+}
+
+fn names(v: &[String]) -> Vec<&str> {
+    v.iter().map(|s| s.as_str()).collect()
+}
+
+fn measured_frf(log_path: &Path, a: &FrfArgs, out: &Path) -> Result<FrfFile, String> {
+    out_dir(out)?;
+    let log = csvlog::read(log_path)?;
+    let ts = sample_period(a)?;
+    let u = log.select(&names(&a.inputs))?;
+    let y = log.select(&names(&a.outputs))?;
+    let opts = WelchOptions {
+        segment: a.segment,
+        overlap: a.overlap,
+        ..WelchOptions::default()
+    };
+    let est =
+        welch::estimate(&u, &y, ts, &opts).map_err(|e| format!("{}: {e}", log_path.display()))?;
+    for w in &est.warnings {
+        eprintln!("rig-design: warning: {w}");
+    }
+    let file = FrfFile {
+        frf: est.frf.clone(),
+        delays: est.delays.clone(),
+        coherence: Some(est.coherence.clone()),
+        source: format!("H1 of {}", log_path.display()),
+    };
+    let path = out.join("frf.csv");
+    file.save(&path)?;
+    let hz = file.frf.hz();
+    coherence_figure(
+        &out.join("coherence.png"),
+        "multiple coherence of the estimate",
+        &hz,
+        &est.coherence,
+    )?;
+    let model = match (&a.scenario, a.compare) {
+        (Some(s), true) => {
+            let sc = plant_proxy::scenario::load(s).map_err(|e| e.to_string())?;
+            Some((
+                DiscreteModel::from_scenario(&sc, OutputSet::Y)?.frf(&file.frf.theta)?,
+                sc.plant.input_delays.clone(),
+            ))
+        }
+        _ => None,
+    };
+    println!(
+        "{}: {} samples at T_s = {ts} s, {} segments of {}; delays found {:?} samples",
+        log_path.display(),
+        log.len(),
+        est.segments,
+        a.segment,
+        est.delays
+    );
+    for (o, c) in est.coherence.iter().enumerate() {
+        let mut s = c[1..].to_vec();
+        s.sort_by(f64::total_cmp);
+        println!(
+            "  output {} ({}): coherence median {:.3}, 10th percentile {:.3}",
+            o,
+            a.outputs[o],
+            s[s.len() / 2],
+            s[s.len() / 10]
+        );
+    }
+    for c in 0..file.frf.response.len() {
+        let name = format!(
+            "{} ← {}",
+            a.outputs[c / file.frf.n_inputs],
+            a.inputs[c % file.frf.n_inputs]
+        );
+        let mut curves = vec![Curve::new("H1 estimate", &file.frf.response[c])];
+        if let Some((m, delays)) = &model {
+            curves.push(Curve::new("model", &m.response[c]).dashed());
+            let o = c / file.frf.n_inputs;
+            let coh = &est.coherence[o];
+            let mut rel: Vec<f64> = (1..coh.len())
+                .filter(|&k| coh[k] > 0.9)
+                .map(|k| {
+                    (file.frf.response[c][k] - m.response[c][k]).norm() / m.response[c][k].norm()
+                })
+                .collect();
+            rel.sort_by(f64::total_cmp);
+            if !rel.is_empty() {
+                println!(
+                    "  {name}: relative error against the model on the {} bins with coherence > 0.9: median {:.2} %, 90th percentile {:.2} %; model delay {}",
+                    rel.len(),
+                    100.0 * rel[rel.len() / 2],
+                    100.0 * rel[rel.len() * 9 / 10],
+                    delays[c % file.frf.n_inputs]
+                );
+            }
+        }
+        bode_figure(
+            &out.join(format!("frf-{c}.png")),
+            &format!("H1 estimate, {name}"),
+            &hz,
+            &curves,
+            &[],
+        )?;
+    }
+    println!("wrote {}", path.display());
+    Ok(file)
+}
+
+/// Builds the DTF of every channel of `f` (delays removed) and writes the target model.
+fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), String> {
+    out_dir(out)?;
+    let frf = welch::remove_delays(&f.frf, &f.delays);
+    let ts = frf.ts;
+    let lo = match a.from_hz {
+        Some(h) => h * 2.0 * std::f64::consts::PI * ts,
+        None => frf.theta.iter().copied().find(|t| *t > 0.0).unwrap_or(0.0),
+    };
+    let keep: Vec<usize> = (0..frf.theta.len())
+        .filter(|&k| frf.theta[k] >= lo)
+        .collect();
+    let theta: Vec<f64> = keep.iter().map(|&k| frf.theta[k]).collect();
+    let hz: Vec<f64> = theta
+        .iter()
+        .map(|t| t / (2.0 * std::f64::consts::PI * ts))
+        .collect();
+    let mut channels = Vec::new();
+    for c in 0..frf.response.len() {
+        let (o, i) = (c / frf.n_inputs, c % frf.n_inputs);
+        let g: Vec<C64> = keep.iter().map(|&k| frf.response[c][k]).collect();
+        let (fit, averaged) = match a.method {
+            Method::Average => {
+                let delta_hz = a
+                    .delta_hz
+                    .ok_or("--method average needs --delta-hz (half-width Δ of the window, Hz)")?;
+                let delta = delta_hz * 2.0 * std::f64::consts::PI * ts;
+                // The window needs the whole response from 0 to π; the fit uses the band.
+                let full = dtf::windowed_average(&frf.theta, &frf.response[c], delta)?;
+                let avg: Vec<C64> = keep.iter().map(|&k| full[k]).collect();
+                let m = a.zeros.unwrap_or(a.order.saturating_sub(1));
+                (dtf::fit(&theta, &avg, None, a.order, m)?, Some(avg))
+            }
+            Method::Optimize => {
+                let zeros = match a.zeros {
+                    Some(m) => dtf::ZeroCount::Fixed(m),
+                    None => dtf::ZeroCount::Choose,
+                };
+                let opt = dtf::optimize_all(&theta, &g, a.n_max, zeros)?;
+                let tried: Vec<String> = opt
+                    .candidates
+                    .iter()
+                    .map(|c| format!("({},{}) {:.4}", c.poles, c.zeros, c.relative_cost))
+                    .collect();
+                println!(
+                    "output {o} ← input {i}: optimization (3.44), relative cost per structure (n̂,m̂): {}; chosen {:.4}",
+                    tried.join(", "),
+                    opt.relative_cost,
+                );
+                (opt.best, None)
+            }
+            Method::Fir => return measured_fir(f, a, out, origin),
+        };
+        let resp = fit.response(&theta);
+        let err: Vec<C64> = g.iter().zip(&resp).map(|(x, y)| x - y).collect();
+        let mut curves = vec![Curve::new("G_d (delay removed)", &g)];
+        if let Some(avg) = &averaged {
+            curves.push(Curve::new("windowed average", avg).dashed());
+        }
+        curves.push(Curve::new("DTF Ĝ_d", &resp));
+        curves.push(
+            Curve::new("error G_d − Ĝ_d", &err)
+                .dashed()
+                .magnitude_only(),
+        );
+        let poles = fit.poles()?;
+        let zeros = fit.zeros()?;
+        bode_figure(
+            &out.join(format!("dtf-{c}.png")),
+            &format!("dereverberated transfer function, output {o} ← input {i}"),
+            &hz,
+            &curves,
+            &[PoleZero {
+                label: "DTF",
+                poles: &poles,
+                zeros: &zeros,
+            }],
+        )?;
+        println!(
+            "output {o} ← input {i}: delay {} samples; Ĝ_d(z) = ({}) / ({}); poles {}",
+            f.delays[i],
+            dtf::format_poly(&fit.num),
+            dtf::format_poly(&fit.den),
+            dtf::format_roots(&poles)
+        );
+        channels.push(TargetChannel {
+            output: o,
+            input: i,
+            delay: f.delays[i],
+            num: fit.num.clone(),
+            den: fit.den.clone(),
+        });
+    }
+    let target = TargetModel {
+        sample_period: ts,
+        outputs: frf.n_outputs,
+        inputs: frf.n_inputs,
+        beta: a.beta,
+        source: format!(
+            "rig-design dtf --method {} of {origin}",
+            if a.method == Method::Average {
+                "average"
+            } else {
+                "optimize"
+            }
+        ),
+        form: TargetForm::TransferFunction(channels),
+    };
+    let path = out.join("target-model.toml");
+    TargetModel::parse(&target.to_toml(), &path.display().to_string())?;
+    target.save(&path)?;
+    println!("wrote {} (β = {})", path.display(), a.beta);
+    Ok(())
+}
+
+/// The FIR target model (3.39) from the measured impulse response.
+fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), String> {
+    let fir = FirTarget::from_measured(&f.frf, &f.delays, a.count)?;
+    let target = TargetModel {
+        sample_period: f.frf.ts,
+        outputs: f.frf.n_outputs,
+        inputs: f.frf.n_inputs,
+        beta: a.beta,
+        source: format!(
+            "rig-design dtf --method fir --count {} of {origin}",
+            a.count
+        ),
+        form: TargetForm::Markov(fir.markov),
+    };
+    let path = out.join("target-model.toml");
+    TargetModel::parse(&target.to_toml(), &path.display().to_string())?;
+    target.save(&path)?;
+    let theta: Vec<f64> = f.frf.theta.iter().copied().filter(|t| *t > 0.0).collect();
+    let skip = f.frf.theta.len() - theta.len();
+    let hz: Vec<f64> = theta
+        .iter()
+        .map(|t| t / (2.0 * std::f64::consts::PI * f.frf.ts))
+        .collect();
+    let gf = target.frf(&theta);
+    for c in 0..f.frf.response.len() {
+        let g = &f.frf.response[c][skip..];
+        let gf_c: Vec<C64> = gf.response[c].iter().map(|v| v / a.beta).collect();
+        let err: Vec<C64> = g.iter().zip(&gf_c).map(|(x, y)| x - y).collect();
+        bode_figure(
+            &out.join(format!("fir-{c}.png")),
+            &format!(
+                "FIR target ({} Markov parameters), {}",
+                a.count,
+                channel_name(&f.frf, c)
+            ),
+            &hz,
+            &[
+                Curve::new("G_d (measured)", g),
+                Curve::new("FIR Σ H_i z^-i", &gf_c).dashed(),
+                Curve::new("error", &err).dashed().magnitude_only(),
+            ],
+            &[],
+        )?;
+    }
+    println!(
+        "FIR target from the measured impulse response: {} Markov parameters per channel, delays {:?} kept as zeros; wrote {} (β = {})",
+        a.count,
+        f.delays,
+        path.display(),
+        a.beta
+    );
+    Ok(())
+}
+
+/// Pole–zero sets of a figure from `(label, poles, zeros)`.
+fn pole_zero_sets<'a>(r: &'a [(&'a str, Vec<C64>, Vec<C64>)]) -> Vec<PoleZero<'a>> {
+    r.iter()
+        .map(|(label, poles, zeros)| PoleZero {
+            label,
+            poles,
+            zeros,
+        })
+        .collect()
+}
+
+fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result<(), String> {
+    let tm = TargetModel::load(target)?;
+    let model = load_model(scenario, output)?;
+    if (tm.outputs, tm.inputs) != (model.n_outputs(), model.n_inputs()) {
+        return Err(format!(
+            "{} is {}×{} but the plant of {} is {}×{}",
+            target.display(),
+            tm.outputs,
+            tm.inputs,
+            scenario.display(),
+            model.n_outputs(),
+            model.n_inputs()
+        ));
+    }
+    let nyquist = 0.5 / model.ts;
+    if let Some(f) = hz.iter().find(|f| !(**f > 0.0 && **f < nyquist)) {
+        return Err(format!("--hz {f} is outside (0, {nyquist}) Hz"));
+    }
+    let theta: Vec<f64> = hz
+        .iter()
+        .map(|f| 2.0 * std::f64::consts::PI * f * model.ts)
+        .collect();
+    let (g, gf) = (model.frf(&theta)?, tm.frf(&theta));
+    println!(
+        "{:>10} {:>8} {:>12} {:>12} {:>12}",
+        "Hz", "channel", "|G_f/G| dB", "phase err °", "|G| dB"
+    );
+    for (k, f) in hz.iter().enumerate() {
+        for c in 0..g.response.len() {
+            let r = gf.response[c][k] / g.response[c][k];
+            println!(
+                "{f:>10.2} {:>8} {:>12.2} {:>12.1} {:>12.2}",
+                format!("{}←{}", c / g.n_inputs, c % g.n_inputs),
+                20.0 * r.norm().log10(),
+                r.arg().to_degrees(),
+                20.0 * g.response[c][k].norm().log10()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn example_3_41(out: &Path) -> Result<(), String> {
+    out_dir(out)?;
+    let ex = dtf::example_3_41()?;
+    let report = ex.report();
+    print!("{report}");
+    let path = out.join("summary.txt");
+    std::fs::write(&path, &report).map_err(|e| format!("writing {}: {e}", path.display()))?;
+    let hz = |th: &[f64]| {
+        th.iter()
+            .map(|t| t / (2.0 * std::f64::consts::PI * ex.ts))
+            .collect::<Vec<_>>()
+    };
+    // Figure 3.3: G_d, the windowed average and the DTF, with poles and zeros.
+    let th = &ex.linear_grid;
+    let (gd, avg, fit, printed) = (
+        ex.gd.response(th),
+        &ex.averaged_response,
+        ex.averaged.response(th),
+        ex.printed_3_43.response(th),
+    );
+    let roots = |sets: &[(&'static str, &dtf::Dtf)]| -> Result<Vec<(&'static str, Vec<C64>, Vec<C64>)>, String> {
+        sets.iter().map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?))).collect()
+    };
+    let r = roots(&[
+        ("G_d", &ex.gd),
+        ("DTF", &ex.averaged),
+        ("(3.43)", &ex.printed_3_43),
+    ])?;
+    bode_figure(
+        &out.join("figure-3.3-windowed-average.png"),
+        "(3.41): complex windowed average DTF, Δ = 10π rad/s, n̂ = 2",
+        &hz(th),
+        &[
+            Curve::new("G_d", &gd),
+            Curve::new("windowed average Ḡ_d", avg).dashed(),
+            Curve::new("DTF Ĝ_d (this code)", &fit),
+            Curve::new("printed (3.43)", &printed).dashed(),
+        ],
+        &pole_zero_sets(&r),
+    )?;
+    // Figure 3.4: G_d and the optimization DTF.
+    let th = &ex.log_grid;
+    let (gd, opt, printed) = (
+        ex.gd.response(th),
+        ex.optimized.response(th),
+        ex.printed_3_48.response(th),
+    );
+    let r = roots(&[
+        ("G_d", &ex.gd),
+        ("DTF", &ex.optimized),
+        ("(3.48)", &ex.printed_3_48),
+    ])?;
+    bode_figure(
+        &out.join("figure-3.4-optimization.png"),
+        "(3.41): optimization DTF, n̂_max = 1",
+        &hz(th),
+        &[
+            Curve::new("G_d", &gd),
+            Curve::new("DTF Ĝ_d (this code)", &opt),
+            Curve::new("printed (3.48)", &printed).dashed(),
+        ],
+        &pole_zero_sets(&r),
+    )?;
+    println!("wrote {} and the figures", path.display());
+    Ok(())
+}

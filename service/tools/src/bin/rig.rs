@@ -1,0 +1,116 @@
+//! `rig`: the main job and its figure.
+//!
+//! ```text
+//! rig launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--run-folder DIR]
+//!            [--wait busy-poll|block] [--core N] [--controller FILE]
+//! rig plot <run-folder>
+//! ```
+//!
+//! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
+//! the same scenario, as two processes over shared memory; the service prints its run
+//! report; then `run.png` is drawn in the run folder (see `rig_tools::launch`). `plot`
+//! draws `run.png` from a run folder (signals.csv and report.json) of any earlier run.
+
+use clap::{Parser, Subcommand};
+use rig_tools::launch::{LaunchError, LaunchOptions, launch};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+#[derive(Parser)]
+#[command(
+    name = "rig",
+    version,
+    about = "The adaptive rig's main job and its figure"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// The main job: plant-proxy and the service on one scenario, then run.png.
+    Launch {
+        /// Scenario / configuration TOML file.
+        config: PathBuf,
+        /// Plant pacing: real-time (default) or lockstep.
+        #[arg(long, default_value = "real-time")]
+        mode: String,
+        /// Seconds of plant time (default: rig.duration).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Folder for this run's artifacts (default: <service.run-dir>/<rig>-<time>).
+        #[arg(long)]
+        run_folder: Option<PathBuf>,
+        /// Override service.wait (busy-poll or block).
+        #[arg(long)]
+        wait: Option<String>,
+        /// Override service.core (the RT core).
+        #[arg(long)]
+        core: Option<usize>,
+        /// Replace the scenario's [controller] (and [log]) table by this file's.
+        #[arg(long)]
+        controller: Option<PathBuf>,
+    },
+    /// Draw run.png (z open and closed loop, u, ‖θ‖, PSDs) from a run folder.
+    Plot {
+        /// A run folder (holds signals.csv and report.json).
+        run_folder: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    match Cli::parse().command {
+        Command::Launch {
+            config,
+            mode,
+            duration,
+            run_folder,
+            wait,
+            core,
+            controller,
+        } => {
+            let stop = Arc::new(AtomicBool::new(false));
+            for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+                let _ = signal_hook::flag::register(sig, stop.clone());
+            }
+            let opts = LaunchOptions {
+                config,
+                run_folder,
+                mode,
+                duration,
+                wait,
+                core,
+                controller,
+            };
+            match launch(&opts, stop) {
+                Ok(done) => {
+                    if let Some(f) = done.figure {
+                        println!("figure: {}", f.display());
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(e @ LaunchError::Config(_)) => {
+                    eprintln!("rig: {e}");
+                    ExitCode::from(2)
+                }
+                Err(e) => {
+                    eprintln!("rig: {e}");
+                    ExitCode::FAILURE
+                }
+            }
+        }
+        Command::Plot { run_folder } => match rig_tools::figures::run_folder_figure(&run_folder) {
+            Ok(path) => {
+                println!("wrote {}", path.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("rig: plot: {e}");
+                ExitCode::FAILURE
+            }
+        },
+    }
+}

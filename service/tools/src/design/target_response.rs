@@ -1,0 +1,100 @@
+//! The frequency response of an RCAC target model `G_f` (3.39), (3.49), for the design
+//! tools' figures and checks.
+
+use super::{C64, Frf, horner};
+use control::target::{TargetForm, TargetModel};
+
+/// `G_f(e^{jθ})` of a target model.
+pub trait TargetResponse {
+    /// `G_f(e^{jθ})` of every channel on the grid `theta` (β and delays included).
+    fn frf(&self, theta: &[f64]) -> Frf;
+}
+
+impl TargetResponse for TargetModel {
+    fn frf(&self, theta: &[f64]) -> Frf {
+        let (p, m) = (self.outputs, self.inputs);
+        let mut response = vec![vec![C64::new(0.0, 0.0); theta.len()]; p * m];
+        for (k, &th) in theta.iter().enumerate() {
+            let zinv = C64::from_polar(1.0, -th);
+            match &self.form {
+                TargetForm::TransferFunction(ch) => {
+                    let z = zinv.inv();
+                    for c in ch {
+                        let g = horner(&c.num, z) / horner(&c.den, z);
+                        response[c.output * m + c.input][k] =
+                            g * zinv.powu(c.delay as u32) * self.beta;
+                    }
+                }
+                TargetForm::Markov(hs) => {
+                    for o in 0..p {
+                        for i in 0..m {
+                            let mut acc = C64::new(0.0, 0.0);
+                            for h in hs.iter().rev() {
+                                acc = acc * zinv + h[(o, i)];
+                            }
+                            response[o * m + i][k] = acc * self.beta;
+                        }
+                    }
+                }
+            }
+        }
+        Frf {
+            ts: self.sample_period,
+            theta: theta.to_vec(),
+            n_outputs: p,
+            n_inputs: m,
+            response,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use control::target::TargetChannel;
+
+    fn tf_model() -> TargetModel {
+        TargetModel {
+            sample_period: 1.25e-4,
+            outputs: 1,
+            inputs: 2,
+            beta: 0.8,
+            source: "test".into(),
+            form: TargetForm::TransferFunction(vec![
+                TargetChannel {
+                    output: 0,
+                    input: 0,
+                    delay: 9,
+                    num: vec![0.5],
+                    den: vec![1.0, -0.5],
+                },
+                TargetChannel {
+                    output: 0,
+                    input: 1,
+                    delay: 16,
+                    num: vec![0.2, 0.1],
+                    den: vec![1.0, -1.2, 0.5],
+                },
+            ]),
+        }
+    }
+
+    #[test]
+    fn the_response_of_the_markov_form_equals_the_transfer_functions() {
+        let m = tf_model();
+        // The FIR form built from 400 Markov parameters has the same response (the poles
+        // are well inside the unit circle, so the tail is negligible).
+        let fir = TargetModel {
+            form: TargetForm::Markov(m.markov(400)),
+            beta: 1.0,
+            ..m.clone()
+        };
+        let th = [0.01, 0.3, 1.0, 2.5];
+        let (a, b) = (m.frf(&th), fir.frf(&th));
+        for c in 0..2 {
+            for k in 0..th.len() {
+                assert!((a.response[c][k] - b.response[c][k]).norm() < 1e-9);
+            }
+        }
+    }
+}

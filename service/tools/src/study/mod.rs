@@ -1,0 +1,16 @@
+//! The dissertation's numerical studies, run by the `study` binary.
+//!
+//! - [`experiment`], [`plant`], [`montecarlo`], [`output`]: chapter 5, RLS with F-test
+//!   variable-rate forgetting on the time-varying mass-spring-damper (5.8).
+//! - [`rcac_common`], [`rcac_siso`], [`rcac_miso`]: chapter 3, RCAC with dereverberated
+//!   target models (§3.3.1 on (3.50), §3.3.2 on a 4-mode MISO structure).
+//! - [`pcac_truss`]: chapter 6, PCAC on the 4-bay truss (§6.2).
+
+pub mod experiment;
+pub mod montecarlo;
+pub mod output;
+pub mod pcac_truss;
+pub mod plant;
+pub mod rcac_common;
+pub mod rcac_miso;
+pub mod rcac_siso;
