@@ -59,19 +59,14 @@
 //! # Performance
 //!
 //! Only the upper triangle of `P` is stored, row-packed (`n(n+1)/2` doubles: 361 KB at
-//! `n = 300`, which fits the 1 MB L2 of the development VM with room for the controller).
+//! `n = 300`, which fits a 1 MB L2 with room for the controller).
 //! The sweep (submodule `simd`, `O(n² p)`: `1 + 3p` multiply-adds per stored entry)
 //! is the only part that is not `O(n p)`. With AVX2 and FMA (detected at run time) it runs
 //! as explicit intrinsics for `p ≤ 4`, two packed rows per pass (each vector of `W`, `φ`
 //! and `G` loaded serves both rows) and with the `β` multiplication skipped when `β = 1`
 //! (exact); otherwise as plain loops that the compiler vectorizes.
-//! `cargo bench -p latency-bench --bench rls` measures it against [`TextbookRls`] (on the
-//! 2-core development VM, pinned at `SCHED_FIFO`, medians of 11 runs: p50 24 µs and p99
-//! 45 µs per update at `(n, p) = (300, 3)` (p99 35–83 µs, above 60 µs in 3 runs taken
-//! while other builds loaded the machine), p50 11 µs at `(300, 1)`, 151 µs at `(600, 4)`
-//! where `P` (1.4 MB) no longer fits L2; 65–140× faster than the textbook one at
-//! `n = 300`). An update that
-//! finds `P` evicted from L2 (first one after the textbook kernel ran) costs 70–220 µs.
+//! `cargo bench -p latency-bench --bench rls` measures it against [`TextbookRls`]
+//! (results: `docs/results/latency-bench.md` and the benchmark's own output).
 //!
 //! [`TextbookRls`] writes the same equations literally (allocating, with an explicit
 //! inverse) and serves as the test oracle and benchmark baseline.

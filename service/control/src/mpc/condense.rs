@@ -122,25 +122,14 @@
 //! (always when `u_k` was itself inside). A non-finite `u_k` is replaced by `0` clipped
 //! into the box.
 //!
-//! ## Cost, measured
+//! ## Cost
 //!
-//! `cargo test --release -p service --lib condense_timing -- --ignored --nocapture` on the
-//! shared 2-core development VM (no `target-cpu=native`), 5000 builds of 20 alternating
-//! random problems, with move bounds (`2ℓm` rows) and `n_c` output constraints per step;
-//! a whole [`Condenser::build`] (`H`, `f`, `h` and the output rows of `G`):
-//!
-//! | `ℓ, m, p, p_t, n_c`, `Q` | `n`, rows | build p50 / p99 | dense `2 TᵀC̄ᵀQ̄C̄T` alone |
-//! | --- | --- | --- | --- |
-//! | 40, 2, 4, 1, 1, constant | 80, 200 | 14 / 29 µs | 39 µs |
-//! | 50, 2, 5, 1, 2, constant | 100, 300 | 23 / 40 µs | 94 µs |
-//! | 50, 2, 5, 5, 2, constant | 100, 300 | 30 / 57 µs | 620 µs |
-//! | 50, 2, 5, 5, 2, terminal weight | 100, 300 | 49 / 77 µs | 1.0 ms |
-//! | 50, 2, 5, 5, 2, different at every step | 100, 300 | 328 / 381 µs | 1.0 ms |
-//!
-//! The last column is the product alone by nalgebra's blocked gemm (`C̄ T`, then
-//! `Wᵀ Q̄ W`; allocating), for scale. With a constant `Q` the build costs about as much as
-//! filling and mirroring the `n × n` Hessian and the output rows (tracking all five
-//! outputs instead of one adds 7 µs at `ℓ = 50`).
+//! With a constant `Q` a whole [`Condenser::build`] (`H`, `f`, `h` and the output rows of
+//! `G`) costs about as much as filling and mirroring the `n × n` Hessian and the output
+//! rows, because the Toeplitz structure of `T` is used instead of the dense product
+//! `2 TᵀC̄ᵀQ̄C̄T`; a weight that differs at every step of the horizon loses that. The
+//! ignored test `condense_timing` (`cargo test --release -p control --lib condense_timing
+//! -- --ignored --nocapture`) times it against the dense product.
 
 use super::qp::{ConstraintId, QpProblem};
 use crate::linalg::dot_in_order as dot;

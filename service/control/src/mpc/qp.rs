@@ -106,8 +106,8 @@
 //!   buffer sized at construction, so the two-nonzero move-bound rows cost two flops each
 //!   when violations are checked.
 //! - The Cholesky factorization is faer's in-place blocked one on a buffer and scratch
-//!   sized at construction (`nalgebra`'s `cholesky()` allocates); at `n = 100` it measured
-//!   about 3.5× faster than a straightforward row-oriented in-place Cholesky.
+//!   sized at construction (`nalgebra`'s `cholesky()` allocates); the ignored timing test
+//!   compares it with a straightforward row-oriented in-place Cholesky.
 //!
 //! ## Real-time use
 //!
@@ -127,27 +127,16 @@
 //! [`WarmStart::Primal`]. The guess's bounds are fixed and its rows start active; a wrong
 //! guess costs iterations, never correctness.
 //!
-//! ## Cost, measured
+//! ## Cost
 //!
-//! On the 2-core development VM (shared, no `target-cpu=native`), `n = 100` (`ℓ = 50`,
-//! `m = 2`), boxes, 200 move rows and 3 output rows, a sequence of neighbouring problems
-//! (`qp_timing_at_n_100_with_active_constraints`, 1000 solves each):
-//!
-//! | active (iterations cold / warm) | cold p50 / p99 | warm p50 / p99 | clarabel p50 / p99 |
-//! | --- | --- | --- | --- |
-//! | 8 (8 / 0) | 80 / 144 µs | 45 / 89 µs | 4.0 / 4.5 ms |
-//! | 11 (15 / 0.1) | 126 / 220 µs | 63 / 115 µs | 5.8 / 6.9 ms |
-//! | 15 (28 / 0.3) | 183 / 312 µs | 60 / 146 µs | 5.5 / 7.2 ms |
-//! | 67 (43 / 0.2) | 251 / 356 µs | 33 / 69 µs | 4.9 / 6.3 ms |
-//!
-//! About 30–45 µs of each solve is fixed (the Cholesky factorization, 15 µs; checking `H`
-//! and compressing `G`), then 4–9 µs per active-set change, growing with `|A|` (the
-//! Gram–Schmidt step is `O(|F|·|A|)`). Warm-started from the previous active set, the
-//! bounds are fixed and the rows held from the start, so neighbouring problems need almost
-//! no dual step; on the saturated horizon (67 active, 61 of them bounds) the warm solve
-//! fell from 518 / 784 µs (bounds re-added one dual step at a time, before the bounds were
-//! fixed) to 33 / 69 µs, and the cold one from 1.19 / 1.72 ms to 251 / 356 µs (bounds
-//! violated at the unconstrained minimizer fixed in bulk).
+//! Each solve has a fixed part (the Cholesky factorization of `H_FF`, checking `H` and
+//! compressing `G`), then one dual step per active-set change, `O(|F|·|A|)` for the
+//! Gram–Schmidt update. Warm-started from the previous active set, the bounds are fixed
+//! and the rows held from the start, so neighbouring problems need almost no dual step;
+//! bounds violated at the unconstrained minimizer of a cold start are fixed in bulk.
+//! `latency-bench pcac` measures the solve at the truss and sampling-arm sizes beside
+//! clarabel on the same problems (results: `docs/results/latency-bench.md`), and the
+//! ignored test `qp_timing_at_n_100_with_active_constraints` times it by active-set size.
 
 use crate::linalg::{axpy, dot_wide as dot};
 use faer::Par;

@@ -258,7 +258,7 @@ impl Setting {
 
 /// `scenarios/` of the workspace.
 fn scenarios_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios")
 }
 
 /// The sensor gain of the scenario files (10 per mm of `δx`, per metre) and the one of
