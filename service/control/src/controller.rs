@@ -87,8 +87,11 @@ pub trait Controller: Send {
     /// applied. A controller with memory must still record it so that its state stays
     /// aligned with the plant's samples; `u` is scratch of length `n_u`.
     ///
-    /// The default runs [`Controller::step`] and discards the output. Same real-time rules
-    /// as `step`.
+    /// The sample must enter the controller's data (regressors, histories), so that the
+    /// inputs that follow are computed from what the plant really did. A controller may
+    /// skip its adaptation for an observed sample, so that a loop that is behind catches
+    /// up sooner (RCAC does; PCAC identifies from it). The default runs
+    /// [`Controller::step`] and discards the output. Same real-time rules as `step`.
     fn observe(&mut self, input: &StepInput<'_>, u: &mut [f64]) {
         let _ = self.step(input, u);
     }

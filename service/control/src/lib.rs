@@ -13,6 +13,8 @@
 //!   (5.1)–(5.7)) and RMS ratio (Proposition 5.2.1).
 //! - [`target`]: the RCAC target model `G_f` (3.39), (3.49).
 //! - [`rcac`]: retrospective cost adaptive control (2.15)–(2.23), (3.51)–(3.63).
+//! - [`bocf`]: the block observable canonical realization of an identified input–output
+//!   model (2.36)–(2.42), its Markov parameters and free response (2.43)–(2.46).
 //! - [`pcac`]: predictive cost adaptive control (2.24)–(2.51): identification,
 //!   realization, receding-horizon control.
 //! - [`mpc`]: the receding-horizon optimization of PCAC (2.43)–(2.51): condensing and the
@@ -25,6 +27,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bocf;
 pub mod controller;
 pub mod excitation;
 pub mod forgetting;

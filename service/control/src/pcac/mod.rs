@@ -1,9 +1,10 @@
 //! Predictive cost adaptive control (PCAC), dissertation §2.3.2 and chapter 6.
 //!
 //! PCAC identifies an input–output model online and uses its state-space realization in a
-//! receding-horizon problem. This module holds the identification and the realization
-//! ([`model`]) and the controller that joins them with the QP of (2.48)–(2.51) in
-//! [`crate::mpc`] ([`Pcac`]: one step, timing, fallback and commands are documented there).
+//! receding-horizon problem. This module holds the identification ([`model`]) and the
+//! controller that joins it and the realization ([`crate::bocf`]) with the QP of
+//! (2.48)–(2.51) in [`crate::mpc`] ([`Pcac`]: one step, timing, fallback and commands are
+//! documented there).
 //!
 //! # The model and its identification (2.24)–(2.35)
 //!
@@ -21,21 +22,14 @@
 //! (derivation in [`model`]); [`model::IdKernel::Shared`] uses this, [`model::IdKernel::Full`]
 //! runs the crate's [`Rls`](crate::rls::Rls) on the full Kronecker rows as a reference.
 //!
-//! # The block observable canonical realization (2.36)–(2.42)
+//! # The realization and the prediction (2.36)–(2.46)
 //!
-//! ```text
-//! x_{1|k} = Â_k x̂_k + B̂_k u_k,   y_k = Ĉ x̂_k                                  (2.36)–(2.37)
-//! x̂_{1,k} = y_k                                                                 (2.38)
-//! x̂_{i,k} = Σ_{j=1}^{n̂−i+1} (−F̂_{i+j−1,k+1} y_{k−j} + Ĝ_{i+j−1,k+1} u_{k−j}),  i ≥ 2  (2.39)
-//! Â_k: −F̂_{i,k+1} in block column 1, I_p on the block superdiagonal               (2.40)
-//! B̂_k = [Ĝ_{1,k+1}; …; Ĝ_{n̂,k+1}],   Ĉ = [I_p 0 … 0]                        (2.41)–(2.42)
-//! ```
-//!
-//! and the Markov parameters `Ĥ_{k,i} = Ĉ Â_k^{i−1} B̂_k` and free response
-//! `Ĉ Â_k^{i−1} x_{1|k}` that build `T̂_{k,ℓ}` (2.46) and `Γ̂_{k,ℓ} x_{1|k}` (2.45) of the
-//! `ℓ`-step prediction (2.43), all from the companion structure without forming powers of
-//! `Â_k` ([`model::HorizonPrediction`] computes them together for the condensing in
-//! [`crate::mpc`]). The call order per sample is documented on [`model::IoModel`].
+//! The block observable canonical realization `(Â_k, B̂_k, Ĉ)` of `θ_{k+1}` (2.36)–(2.42),
+//! the state estimate `x̂_k` (2.38)–(2.39), the Markov parameters `Ĥ_{k,i} = Ĉ Â_k^{i−1} B̂_k`
+//! that build `T̂_{k,ℓ}` (2.46) and the free response `Γ̂_{k,ℓ} x_{1|k}` (2.45) of the
+//! `ℓ`-step prediction (2.43) are their own concept, [`crate::bocf`]
+//! ([`IoModel::realization`], [`HorizonPrediction`], re-exported here). The call order
+//! per sample is documented on [`model::IoModel`].
 
 mod controller;
 pub mod model;

@@ -1,5 +1,6 @@
-//! PCAC's input–output model (2.24), its online identification by RLS with variable-rate
-//! forgetting (2.25)–(2.35), and its block observable canonical realization (2.36)–(2.42).
+//! PCAC's input–output model (2.24) and its online identification by RLS with
+//! variable-rate forgetting (2.25)–(2.35); its realization (2.36)–(2.46) is in
+//! [`crate::bocf`].
 //!
 //! # Coefficients and regressor
 //!
@@ -49,40 +50,34 @@
 //! parameters, `p` rows) and is the reference: the tests check both give the same
 //! estimates, forgetting factors and covariances (`P = P̃ ⊗ I_p`).
 //!
-//! # The realization (2.36)–(2.42) and the data it uses
+//! # The data the realization uses
 //!
-//! At step `k`, after [`IoModel::update`] with `y_k` and `u_{k−1}`, the coefficients are
-//! `θ_{k+1}` (computed from `z_k`, i.e. from `y_k`, `y_{k−1} … y_{k−n̂}` and
-//! `u_{k−1} … u_{k−n̂}`). The state estimate (2.38)–(2.39) uses these coefficients and
+//! The block observable canonical realization (2.36)–(2.42), its Markov parameters and
+//! free response (2.43)–(2.46) are [`crate::bocf`]'s; [`IoModel::realization`] hands it the
+//! current coefficients and the model is its [`DataWindow`]. At step `k`, after
+//! [`IoModel::update`] with `y_k` and `u_{k−1}`, the coefficients are `θ_{k+1}` (computed
+//! from `z_k`, i.e. from `y_k`, `y_{k−1} … y_{k−n̂}` and `u_{k−1} … u_{k−n̂}`), and the
+//! state estimate (2.38)–(2.39) uses these coefficients and the stored
 //!
 //! ```text
 //! x̂_k:  y_k, y_{k−1}, …, y_{k−n̂+1}   and   u_{k−1}, …, u_{k−n̂+1}
 //! ```
 //!
-//! (`y_{k−n̂}` and `u_{k−n̂}` enter `θ_{k+1}` but not `x̂_k`). Then
-//! `Ĉ x_{1|k} = Ĉ (Â_k x̂_k + B̂_k u_k) = −F̂_1 y_k + x̂_{2,k} + Ĝ_1 u_k` is exactly the
-//! one-step prediction of (2.24) for `y_{k+1}` with the coefficients `θ_{k+1}`: the block
-//! rows of `Â_k x̂_k + B̂_k u_k` are `x_{i|k} = −F̂_i y_k + x̂_{i+1,k} + Ĝ_i u_k`, the state
-//! recursion of the companion form, by which `x̂_{i,k}` (2.39) is the part of the future
-//! output `y_{k+i−1}` that past data already determine.
-//!
-//! The Markov parameters `Ĥ_i = Ĉ Â^{i−1} B̂` are computed from the companion structure by
-//! `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`), the
-//! coefficient of `z^{−i}` in `(I + Σ F̂_j z^{−j}) H(z) = Σ Ĝ_j z^{−j}`: `O(ℓ n̂ p² m)`
-//! for `ℓ` of them, no `n̂p × n̂p` matrix involved. The free response
-//! `Ĉ Â^{i−1} x_{1|k}`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}` of (2.43), (2.45)), propagates the
-//! state with the structure `x_i ← −F̂_i x_1 + x_{i+1}`: `O(ℓ n̂ p²)`.
+//! (`y_{k−n̂}` and `u_{k−n̂}` enter `θ_{k+1}` but not `x̂_k`), so that
+//! `Ĉ x_{1|k} = Ĉ (Â_k x̂_k + B̂_k u_k)` is the one-step prediction of (2.24) for `y_{k+1}`
+//! with the coefficients `θ_{k+1}` ([`IoModel::predict_one_step`]).
 //!
 //! # Real time
 //!
 //! Every buffer is sized in [`IoModel::new`]; [`IoModel::update`], [`IoModel::observe`] and
-//! the realization routines never allocate and never panic: slices of the wrong length are
+//! [`IoModel::realization`] never allocate and never panic: slices of the wrong length are
 //! refused with a [`DimError`] (a `Copy` value, no allocation).
 
 #![allow(clippy::needless_range_loop)] // index-heavy block algebra, as in `design`
 
-use std::fmt;
-
+use crate::bocf::{DataWindow, IdentifiedModel, Realization, check};
+/// The realization's types, here so that `pcac::model` paths keep naming them.
+pub use crate::bocf::{DimError, HorizonPrediction};
 use crate::forgetting::{Forgetting, ForgettingRule};
 use crate::linalg::{axpy, dot};
 use crate::rls::{Rls, RlsConfig, RlsStep};
@@ -120,41 +115,6 @@ pub struct IoModelParams {
     pub trace_limit: f64,
     /// Which RLS form to run.
     pub kernel: IdKernel,
-}
-
-/// A slice of the wrong length handed to an [`IoModel`] routine; nothing was changed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct DimError {
-    /// Which argument.
-    pub what: &'static str,
-    /// The length it must have.
-    pub expected: usize,
-    /// The length it had.
-    pub got: usize,
-}
-
-impl fmt::Display for DimError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "pcac model: {} has length {}, expected {}",
-            self.what, self.got, self.expected
-        )
-    }
-}
-
-impl std::error::Error for DimError {}
-
-fn check(what: &'static str, got: usize, expected: usize) -> Result<(), DimError> {
-    if got == expected {
-        Ok(())
-    } else {
-        Err(DimError {
-            what,
-            expected,
-            got,
-        })
-    }
 }
 
 /// A pre-sized history of vectors of length `dim`; `back(0)` is the newest.
@@ -232,7 +192,7 @@ impl SharedRls {
             p,
             p0,
             trace_limit,
-            forgetting: Forgetting::new(rule, p)?,
+            forgetting: Forgetting::new(rule, p).map_err(|e| e.to_string())?,
             theta: theta0_rows.clone(),
             theta0: theta0_rows,
             cov: vec![0.0; n * (n + 1) / 2],
@@ -371,7 +331,8 @@ enum Kernel {
     },
 }
 
-/// The input–output model (2.24) with its online identification and its realization.
+/// The input–output model (2.24) with its online identification; its realization is
+/// [`IoModel::realization`].
 ///
 /// # Call order per sample `k`
 ///
@@ -382,11 +343,14 @@ enum Kernel {
 /// 2. [`IoModel::update`]`(y_k, u_{k−1})`: stores `u_{k−1}`, forms
 ///    `ψ_k = [−y_{k−1}ᵀ … −y_{k−n̂}ᵀ u_{k−1}ᵀ … u_{k−n̂}ᵀ]`, runs RLS with `z_k` to get
 ///    `θ_{k+1}`, then stores `y_k`. ([`IoModel::observe`] stores both without identifying.)
-/// 3. The realization at step `k` with `θ_{k+1}`: [`IoModel::fill_state`] (`x̂_k` from
-///    `y_k … y_{k−n̂+1}`, `u_{k−1} … u_{k−n̂+1}`), [`IoModel::fill_a`], [`IoModel::fill_b`];
-///    [`IoModel::one_step_state`] gives `x_{1|k} = Â x̂_k + B̂ u_k` with `u_k`, the input
-///    already decided for this period (`u_{1|k−1}`); [`IoModel::markov`] and
-///    [`IoModel::free_response`] give `T̂_{k,ℓ}` and `Γ̂_{k,ℓ} x_{1|k}` for (2.43).
+/// 3. The realization at step `k` with `θ_{k+1}` ([`IoModel::realization`], see
+///    [`crate::bocf`]): [`Realization::fill_state`] with this model as the data window
+///    (`x̂_k` from `y_k … y_{k−n̂+1}`, `u_{k−1} … u_{k−n̂+1}`), [`Realization::fill_a`],
+///    [`Realization::fill_b`]; [`Realization::one_step_state`] gives
+///    `x_{1|k} = Â x̂_k + B̂ u_k` with `u_k`, the input already decided for this period
+///    (`u_{1|k−1}`); [`Realization::markov`] and [`Realization::free_response`] give
+///    `T̂_{k,ℓ}` and `Γ̂_{k,ℓ} x_{1|k}` for (2.43) ([`HorizonPrediction`] computes them
+///    together).
 /// 4. MPC computes `U_{1|k,ℓ}`; `u_{1|k}` is the next input, `u_{k+1}`, and becomes the
 ///    `u` argument of step `k + 2`'s update.
 ///
@@ -671,16 +635,16 @@ impl IoModel {
         Ok(())
     }
 
-    /// Entry `(r, s)` of `F̂_i` (`1 ≤ i ≤ n̂`, `r, s < p`).
+    /// Entry `(r, s)` of `F̂_i` (`1 ≤ i ≤ n̂`, `r, s < p`), as [`Realization::f`].
     #[inline]
     pub fn f(&self, i: usize, r: usize, s: usize) -> f64 {
-        self.coef[r * self.nr + (i - 1) * self.p + s]
+        self.realization().f(i, r, s)
     }
 
-    /// Entry `(r, s)` of `Ĝ_i` (`1 ≤ i ≤ n̂`, `r < p`, `s < m`).
+    /// Entry `(r, s)` of `Ĝ_i` (`1 ≤ i ≤ n̂`, `r < p`, `s < m`), as [`Realization::g`].
     #[inline]
     pub fn g(&self, i: usize, r: usize, s: usize) -> f64 {
-        self.coef[r * self.nr + self.n_hat * self.p + (i - 1) * self.m + s]
+        self.realization().g(i, r, s)
     }
 
     /// `z_k = y_k − φ_k θ_k` (2.26) of the last update (zeros after a non-finite input).
@@ -766,295 +730,32 @@ impl IoModel {
         Ok(())
     }
 
-    /// Fills `Â_k` (2.40) into `a` (`n̂p × n̂p`, row-major): `−F̂_i` in block `(i, 1)`,
-    /// `I_p` in blocks `(i, i+1)`, zeros elsewhere.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] for the wrong length.
-    pub fn fill_a(&self, a: &mut [f64]) -> Result<(), DimError> {
-        let nx = self.state_dim();
-        check("A", a.len(), nx * nx)?;
-        a.fill(0.0);
-        let p = self.p;
-        for i in 1..=self.n_hat {
-            for r in 0..p {
-                let row = (i - 1) * p + r;
-                for s in 0..p {
-                    a[row * nx + s] = -self.f(i, r, s);
-                }
-                if i < self.n_hat {
-                    a[row * nx + i * p + r] = 1.0;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Fills `B̂_k = [Ĝ_1; …; Ĝ_n̂]` (2.41) into `b` (`n̂p × m`, row-major).
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] for the wrong length.
-    pub fn fill_b(&self, b: &mut [f64]) -> Result<(), DimError> {
-        let (p, m) = (self.p, self.m);
-        check("B", b.len(), self.state_dim() * m)?;
-        for i in 1..=self.n_hat {
-            for r in 0..p {
-                for s in 0..m {
-                    b[((i - 1) * p + r) * m + s] = self.g(i, r, s);
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Fills the state estimate `x̂_k` (2.38)–(2.39) into `x` (length `n̂p`):
-    /// `x̂_{1,k} = y_k` and `x̂_{i,k} = Σ_{j=1}^{n̂−i+1} (−F̂_{i+j−1} y_{k−j} + Ĝ_{i+j−1} u_{k−j})`
-    /// with the current coefficients `θ_{k+1}` (call after [`IoModel::update`] of step
-    /// `k`). `O(n̂² p (p+m))`.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] for the wrong length.
-    pub fn fill_state(&self, x: &mut [f64]) -> Result<(), DimError> {
-        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
-        check("x_hat", x.len(), n_hat * p)?;
-        x[..p].copy_from_slice(self.ys.back(0));
-        for i in 2..=n_hat {
-            for r in 0..p {
-                let mut v = 0.0;
-                for j in 1..=n_hat - i + 1 {
-                    let (y, u) = (self.ys.back(j), self.us.back(j - 1));
-                    for s in 0..p {
-                        v -= self.f(i + j - 1, r, s) * y[s];
-                    }
-                    for s in 0..m {
-                        v += self.g(i + j - 1, r, s) * u[s];
-                    }
-                }
-                x[(i - 1) * p + r] = v;
-            }
-        }
-        Ok(())
-    }
-
-    /// `x_{1|k} = Â_k x̂ + B̂_k u` (2.36) from the structure, `O(n̂ p (p+m))`:
-    /// block `i` is `−F̂_i x̂_1 + x̂_{i+1} + Ĝ_i u` (no `x̂_{n̂+1}` term for `i = n̂`).
-    /// Also the general state step `x_{i+1|k} = Â x_{i|k} + B̂ u_{i|k}`. `x` and `out` have
-    /// length `n̂p`, `u` length `m`.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] for a slice of the wrong length.
-    pub fn one_step_state(&self, x: &[f64], u: &[f64], out: &mut [f64]) -> Result<(), DimError> {
-        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
-        check("x", x.len(), n_hat * p)?;
-        check("u", u.len(), m)?;
-        check("x_next", out.len(), n_hat * p)?;
-        for i in 1..=n_hat {
-            for r in 0..p {
-                let mut v = if i < n_hat { x[i * p + r] } else { 0.0 };
-                for s in 0..p {
-                    v -= self.f(i, r, s) * x[s];
-                }
-                for s in 0..m {
-                    v += self.g(i, r, s) * u[s];
-                }
-                out[(i - 1) * p + r] = v;
-            }
-        }
-        Ok(())
-    }
-
-    /// The Markov parameters `Ĥ_{k,i} = Ĉ Â_k^{i−1} B̂_k`, `i = 1 … ℓ`, into `h`
-    /// (`ℓ` blocks of `p × m` row-major, `ℓ = h.len() / (p m)`), by the recursion
-    /// `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`):
-    /// `O(ℓ n̂ p² m)`, no dense power.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] when `h.len()` is not a multiple of `p m`.
-    pub fn markov(&self, h: &mut [f64]) -> Result<(), DimError> {
-        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
-        let blk = p * m;
-        if !h.len().is_multiple_of(blk) {
-            return Err(DimError {
-                what: "Markov parameters (a multiple of p·m)",
-                expected: (h.len() / blk) * blk,
-                got: h.len(),
-            });
-        }
-        let ell = h.len() / blk;
-        for i in 1..=ell {
-            let (done, rest) = h.split_at_mut((i - 1) * blk);
-            let hi = &mut rest[..blk];
-            for r in 0..p {
-                for s in 0..m {
-                    hi[r * m + s] = if i <= n_hat { self.g(i, r, s) } else { 0.0 };
-                }
-            }
-            for j in 1..=(i - 1).min(n_hat) {
-                let prev = &done[(i - 1 - j) * blk..(i - j) * blk];
-                for r in 0..p {
-                    for t in 0..p {
-                        let f = self.f(j, r, t);
-                        if f != 0.0 {
-                            axpy(-f, &prev[t * m..(t + 1) * m], &mut hi[r * m..(r + 1) * m]);
-                        }
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// The free response `Ĉ Â_k^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}` of (2.43) for
-    /// `x_1 = x_{1|k}`), into `out` (`ℓ` blocks of `p`, `ℓ = out.len() / p`), propagating
-    /// the state in `work` (length `n̂p`, overwritten) by `x_i ← −F̂_i x_1 + x_{i+1}`:
-    /// `O(ℓ n̂ p²)`.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] for a slice of the wrong length.
-    pub fn free_response(
-        &self,
-        x1: &[f64],
-        work: &mut [f64],
-        out: &mut [f64],
-    ) -> Result<(), DimError> {
-        let (n_hat, p) = (self.n_hat, self.p);
-        check("x_1", x1.len(), n_hat * p)?;
-        check("work", work.len(), n_hat * p)?;
-        if !out.len().is_multiple_of(p) {
-            return Err(DimError {
-                what: "free response (a multiple of p)",
-                expected: (out.len() / p) * p,
-                got: out.len(),
-            });
-        }
-        let ell = out.len() / p;
-        work.copy_from_slice(x1);
-        for i in 0..ell {
-            let y = &mut out[i * p..(i + 1) * p];
-            y.copy_from_slice(&work[..p]);
-            if i + 1 == ell {
-                break;
-            }
-            // x ← Â x: block b = −F̂_b y + x_{b+1}, upward, so x_{b+1} is still old.
-            for b in 1..=n_hat {
-                for r in 0..p {
-                    let mut v = if b < n_hat { work[b * p + r] } else { 0.0 };
-                    for s in 0..p {
-                        v -= self.f(b, r, s) * y[s];
-                    }
-                    work[(b - 1) * p + r] = v;
-                }
-            }
-        }
-        Ok(())
+    /// The block observable canonical realization (2.36)–(2.42) of the current
+    /// coefficients `θ_{k+1}` ([`crate::bocf`]): `Â_k`, `B̂_k`, the state step, the Markov
+    /// parameters and the free response; with this model as its [`DataWindow`] it also
+    /// builds the state estimate `x̂_k` (2.38)–(2.39). Never allocates.
+    #[inline]
+    pub fn realization(&self) -> Realization<'_> {
+        Realization::new_unchecked(self.n_hat, self.p, self.m, &self.coef)
     }
 }
 
-/// Pre-sized buffers for the quantities MPC needs at step `k` from an [`IoModel`]:
-/// `x̂_k` (2.38)–(2.39), `x_{1|k}` (2.36), `Ĥ_{k,1} … Ĥ_{k,ℓ}` (for `T̂_{k,ℓ}`, (2.46)) and
-/// `Γ̂_{k,ℓ} x_{1|k}` (2.43), (2.45), computed together by [`HorizonPrediction::compute`]
-/// (allocation-free). The predicted outputs for inputs `U_{1|k,ℓ}` are then
-/// `y_{i|k} = (Γ̂ x_{1|k})_i + Σ_{j<i} Ĥ_{i−j} u_{j|k}`.
-#[derive(Debug, Clone)]
-pub struct HorizonPrediction {
-    ell: usize,
-    x_hat: Vec<f64>,
-    x1: Vec<f64>,
-    work: Vec<f64>,
-    markov: Vec<f64>,
-    free: Vec<f64>,
+/// `y_{k−j}` and `u_{k−j}` from the stored histories (see the call order on [`IoModel`]).
+impl DataWindow for IoModel {
+    #[inline]
+    fn past_output(&self, j: usize) -> &[f64] {
+        self.ys.back(j)
+    }
+
+    #[inline]
+    fn past_input(&self, j: usize) -> &[f64] {
+        self.us.back(j.saturating_sub(1))
+    }
 }
 
-impl HorizonPrediction {
-    /// Buffers for `model`'s dimensions and horizon `ℓ ≥ 1`.
-    ///
-    /// # Errors
-    ///
-    /// `ℓ = 0`.
-    pub fn new(model: &IoModel, ell: usize) -> Result<Self, String> {
-        if ell == 0 {
-            return Err("pcac model: the horizon ell must be at least 1".into());
-        }
-        let (nx, p, m) = (model.state_dim(), model.p(), model.m());
-        Ok(Self {
-            ell,
-            x_hat: vec![0.0; nx],
-            x1: vec![0.0; nx],
-            work: vec![0.0; nx],
-            markov: vec![0.0; ell * p * m],
-            free: vec![0.0; ell * p],
-        })
-    }
-
-    /// Step `k`, after [`IoModel::update`]: fills `x̂_k`, `x_{1|k} = Â x̂_k + B̂ u_k`
-    /// (`u_k`: the input of the current period, length `m`), the Markov parameters and the
-    /// free response from the current coefficients `θ_{k+1}`. Never allocates.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] when `u_k` or the model's dimensions do not match the buffers.
-    pub fn compute(&mut self, model: &IoModel, u_k: &[f64]) -> Result<(), DimError> {
-        check(
-            "markov buffer",
-            self.markov.len(),
-            self.ell * model.p() * model.m(),
-        )?;
-        model.fill_state(&mut self.x_hat)?;
-        model.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
-        model.markov(&mut self.markov)?;
-        model.free_response(&self.x1, &mut self.work, &mut self.free)
-    }
-
-    /// Step `k`, after [`IoModel::update`], for an input `u_k` still to be chosen (PCAC's
-    /// same-step timing): fills `x̂_k`, the Markov parameters and the free response
-    /// `Ĉ Â_k^{i−1} x̂_k`, `i = 1 … ℓ` (the outputs `y_k, ŷ_{k+1}, …, ŷ_{k+ℓ−1}` for zero
-    /// inputs from `u_k` on; the first block is `y_k`). [`Self::one_step_state`] is then
-    /// `x̂_k` as well. Never allocates.
-    ///
-    /// # Errors
-    ///
-    /// [`DimError`] when the model's dimensions do not match the buffers.
-    pub fn compute_from_state(&mut self, model: &IoModel) -> Result<(), DimError> {
-        check(
-            "markov buffer",
-            self.markov.len(),
-            self.ell * model.p() * model.m(),
-        )?;
-        model.fill_state(&mut self.x_hat)?;
-        self.x1.copy_from_slice(&self.x_hat);
-        model.markov(&mut self.markov)?;
-        model.free_response(&self.x_hat, &mut self.work, &mut self.free)
-    }
-
-    /// The horizon `ℓ`.
-    pub fn horizon(&self) -> usize {
-        self.ell
-    }
-
-    /// `x̂_k` (length `n̂p`).
-    pub fn state(&self) -> &[f64] {
-        &self.x_hat
-    }
-
-    /// `x_{1|k}` (length `n̂p`).
-    pub fn one_step_state(&self) -> &[f64] {
-        &self.x1
-    }
-
-    /// `Ĥ_{k,1} … Ĥ_{k,ℓ}` (`ℓ` blocks `p × m`, row-major; [`crate::mpc`]'s condensing
-    /// uses the first `ℓ − 1`).
-    pub fn markov(&self) -> &[f64] {
-        &self.markov
-    }
-
-    /// `Γ̂_{k,ℓ} x_{1|k}` = `y_{1|k} … y_{ℓ|k}` for `U = 0` (`ℓ` blocks of `p`).
-    pub fn free_response(&self) -> &[f64] {
-        &self.free
+impl IdentifiedModel for IoModel {
+    #[inline]
+    fn realization(&self) -> Realization<'_> {
+        IoModel::realization(self)
     }
 }

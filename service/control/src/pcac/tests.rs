@@ -1,10 +1,9 @@
-//! Tests of PCAC's model: identification, the Kronecker reduction, the realization.
+//! Tests of PCAC's model: identification and the Kronecker reduction (the realization's
+//! tests are in [`crate::bocf`]).
 
 #![allow(clippy::needless_range_loop)] // index-heavy reference computations
 
-use nalgebra::{DMatrix, DVector};
-
-use super::model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
+use super::model::{DimError, IdKernel, IoModel, IoModelParams};
 use crate::forgetting::ForgettingRule;
 use crate::test_support::Gauss;
 
@@ -186,202 +185,6 @@ fn shared_covariance_rls_equals_the_full_kronecker_rls() {
     );
 }
 
-/// A model with random coefficients `θ_0` (no identification) and random histories.
-fn random_model(g: &mut Gauss, n: usize, p: usize, m: usize) -> IoModel {
-    let mut pr = params(
-        n,
-        p,
-        m,
-        ForgettingRule::Constant { lambda: 1.0 },
-        IdKernel::Shared,
-    );
-    pr.theta0 = g.vec(n * p * (p + m)).iter().map(|x| 0.4 * x).collect();
-    let mut model = IoModel::new(&pr).unwrap();
-    for _ in 0..(n + 3) {
-        model.observe(&g.vec(p), &g.vec(m)).unwrap();
-    }
-    model
-}
-
-#[test]
-fn the_realization_predicts_like_the_input_output_model() {
-    let mut g = Gauss::new(31);
-    let (mut d1, mut dl, mut dh, mut df): (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
-    for (n, p, m) in [(4, 3, 2), (1, 2, 1), (3, 1, 3), (5, 4, 2)] {
-        let model = random_model(&mut g, n, p, m);
-        let nx = n * p;
-        let (mut a, mut b, mut xh) = (vec![0.0; nx * nx], vec![0.0; nx * m], vec![0.0; nx]);
-        model.fill_a(&mut a).unwrap();
-        model.fill_b(&mut b).unwrap();
-        model.fill_state(&mut xh).unwrap();
-        let a_m = DMatrix::from_row_slice(nx, nx, &a);
-        let b_m = DMatrix::from_row_slice(nx, m, &b);
-        let c_m = DMatrix::from_fn(p, nx, |i, j| f64::from(u8::from(i == j)));
-
-        // One step: Ĉ (Â x̂ + B̂ u_k) = (2.24)'s prediction of y_{k+1}; structured = dense.
-        let u_k = g.vec(m);
-        let x1_dense =
-            &a_m * DVector::from_column_slice(&xh) + &b_m * DVector::from_column_slice(&u_k);
-        let mut x1 = vec![0.0; nx];
-        model.one_step_state(&xh, &u_k, &mut x1).unwrap();
-        d1 = d1.max(max_abs_diff(&x1, x1_dense.as_slice()));
-        let mut yhat = vec![0.0; p];
-        model.predict_one_step(&u_k, &mut yhat).unwrap();
-        d1 = d1.max(max_abs_diff(&x1[..p], &yhat));
-        // Ĉ x̂_k = y_k (2.37).
-        assert!(
-            (&c_m * DVector::from_column_slice(&xh))
-                .iter()
-                .zip(&xh[..p])
-                .all(|(a, b)| a == b)
-        );
-
-        // ℓ steps: iterate the state with future inputs vs recursing (2.24) on predictions.
-        let ell = 9;
-        let fut: Vec<Vec<f64>> = (0..ell).map(|_| g.vec(m)).collect();
-        let nr = n * (p + m);
-        let coef = model.coefficients();
-        // (2.24) recursed on its own predictions: a copy of the model predicts ŷ_{k+1+i}
-        // and then stores it as if measured, with u_k, u_{1|k}, u_{2|k}, ….
-        let mut rec = model.clone();
-        let mut y_rec = Vec::new();
-        let mut u_now = u_k.clone();
-        for i in 0..ell {
-            let mut y = vec![0.0; p];
-            rec.predict_one_step(&u_now, &mut y).unwrap();
-            rec.observe(&y, &u_now).unwrap();
-            y_rec.push(y);
-            if i + 1 < ell {
-                u_now = fut[i].clone();
-            }
-        }
-        // State iteration: y_{i|k} = Ĉ x_{i|k}, x_{i+1|k} = Â x_{i|k} + B̂ u_{i|k}.
-        let mut x = x1.clone();
-        let mut y_state = Vec::new();
-        for u in &fut {
-            y_state.push(x[..p].to_vec());
-            let mut nxt = vec![0.0; nx];
-            model.one_step_state(&x, u, &mut nxt).unwrap();
-            x = nxt;
-        }
-        for i in 0..ell {
-            dl = dl.max(max_abs_diff(&y_rec[i], &y_state[i]) / (1.0 + max_abs(&y_rec[i])));
-        }
-        // (2.43): Y = Γ̂ x_{1|k} + T̂ U with the fast Markov parameters and free response.
-        let mut h = vec![0.0; (ell + 3) * p * m];
-        model.markov(&mut h).unwrap();
-        let mut free = vec![0.0; ell * p];
-        let mut work = vec![0.0; nx];
-        model.free_response(&x1, &mut work, &mut free).unwrap();
-        for i in 0..ell {
-            let mut y = free[i * p..(i + 1) * p].to_vec();
-            for j in 0..i {
-                // T̂ block (i, j) = Ĥ_{i−j}, u_{j+1|k} = fut[j].
-                let hb = &h[(i - j - 1) * p * m..(i - j) * p * m];
-                for r in 0..p {
-                    for s in 0..m {
-                        y[r] += hb[r * m + s] * fut[j][s];
-                    }
-                }
-            }
-            dl = dl.max(max_abs_diff(&y, &y_rec[i]) / (1.0 + max_abs(&y_rec[i])));
-        }
-        // The bundled computation gives the same numbers.
-        let mut hp = HorizonPrediction::new(&model, ell).unwrap();
-        hp.compute(&model, &u_k).unwrap();
-        assert_eq!(hp.state(), &xh[..]);
-        assert_eq!(hp.one_step_state(), &x1[..]);
-        assert_eq!(hp.markov(), &h[..ell * p * m]);
-        assert_eq!(hp.free_response(), &free[..]);
-        assert!(hp.compute(&model, &vec![0.0; m + 1]).is_err());
-        // Markov parameters and free response against dense powers.
-        let mut apow = DMatrix::<f64>::identity(nx, nx);
-        let x1v = DVector::from_column_slice(&x1);
-        for i in 1..=ell + 3 {
-            let hd = &c_m * &apow * &b_m;
-            let hb = &h[(i - 1) * p * m..i * p * m];
-            let hd_rows: Vec<f64> = (0..p)
-                .flat_map(|r| (0..m).map(move |s| (r, s)))
-                .map(|rs| hd[rs])
-                .collect();
-            dh = dh.max(max_abs_diff(hb, &hd_rows) / (1.0 + max_abs(&hd_rows)));
-            if i <= ell {
-                let fd = &c_m * &apow * &x1v;
-                df = df.max(
-                    max_abs_diff(&free[(i - 1) * p..i * p], fd.as_slice()) / (1.0 + fd.amax()),
-                );
-            }
-            apow = &apow * &a_m;
-        }
-        // Â, B̂ hold the coefficients where (2.40)–(2.41) put them.
-        for i in 1..=n {
-            for r in 0..p {
-                for s in 0..p {
-                    assert_eq!(a_m[((i - 1) * p + r, s)], -coef[r * nr + (i - 1) * p + s]);
-                }
-                for s in 0..m {
-                    assert_eq!(
-                        b_m[((i - 1) * p + r, s)],
-                        coef[r * nr + n * p + (i - 1) * m + s]
-                    );
-                }
-            }
-        }
-    }
-    assert!(d1 < 1e-12, "one-step prediction differs by {d1}");
-    assert!(dl < 1e-10, "ℓ-step prediction differs by {dl}");
-    assert!(dh < 1e-10, "Markov parameters differ by {dh}");
-    assert!(df < 1e-10, "free response differs by {df}");
-    eprintln!("realization: one-step {d1:.1e}, ℓ-step {dl:.1e}, Markov {dh:.1e}, free {df:.1e}");
-}
-
-#[test]
-fn the_state_uses_the_data_of_2_39() {
-    // x̂_k from (2.39) written out with explicit data, n̂ = 3, p = 2, m = 1.
-    let (n, p, m) = (3, 2, 1);
-    let mut g = Gauss::new(41);
-    let mut pr = params(
-        n,
-        p,
-        m,
-        ForgettingRule::Constant { lambda: 1.0 },
-        IdKernel::Shared,
-    );
-    pr.theta0 = g.vec(n * p * (p + m));
-    let mut model = IoModel::new(&pr).unwrap();
-    // Steps k = 0 … 5: update(y_k, u_{k−1}) with stored histories.
-    let ys: Vec<Vec<f64>> = (0..6).map(|_| g.vec(p)).collect();
-    let us: Vec<Vec<f64>> = (0..6).map(|_| g.vec(m)).collect();
-    for k in 0..6 {
-        let u_prev = if k == 0 {
-            vec![0.0; m]
-        } else {
-            us[k - 1].clone()
-        };
-        model.observe(&ys[k], &u_prev).unwrap();
-    }
-    let k = 5;
-    let mut x = vec![0.0; n * p];
-    model.fill_state(&mut x).unwrap();
-    let mut want = vec![0.0; n * p];
-    want[..p].copy_from_slice(&ys[k]);
-    for i in 2..=n {
-        for r in 0..p {
-            let mut v = 0.0;
-            for j in 1..=n - i + 1 {
-                for s in 0..p {
-                    v -= model.f(i + j - 1, r, s) * ys[k - j][s];
-                }
-                for s in 0..m {
-                    v += model.g(i + j - 1, r, s) * us[k - j][s];
-                }
-            }
-            want[(i - 1) * p + r] = v;
-        }
-    }
-    assert!(max_abs_diff(&x, &want) < 1e-14);
-}
-
 /// F-test forgetting on the identification of a MIMO system: quiet on stationary noise,
 /// active after a jump of the coefficients.
 #[test]
@@ -478,27 +281,11 @@ fn bad_parameters_and_lengths_are_refused_with_a_message() {
             got: 1
         }
     );
-    assert_eq!(e.to_string(), "pcac model: y has length 1, expected 2");
+    assert_eq!(e.to_string(), "y has length 1, expected 2");
     assert!(model.update(&[1.0, 2.0], &[0.0, 0.0]).is_err());
     assert_eq!(model.samples(), 0, "a refused update must change nothing");
-    assert!(model.fill_a(&mut [0.0; 35]).is_err());
-    assert!(model.fill_b(&mut [0.0; 5]).is_err());
-    assert!(model.fill_state(&mut [0.0; 5]).is_err());
-    assert!(model.markov(&mut [0.0; 5]).is_err());
-    assert!(
-        model
-            .free_response(&[0.0; 6], &mut [0.0; 6], &mut [0.0; 5])
-            .is_err()
-    );
-    assert!(
-        model
-            .one_step_state(&[0.0; 6], &[0.0; 2], &mut [0.0; 6])
-            .is_err()
-    );
     assert!(model.theta_vec(&mut [0.0; 17]).is_err());
-    assert!(model.fill_a(&mut [0.0; 36]).is_ok());
-    let e = HorizonPrediction::new(&model, 0).unwrap_err();
-    assert!(e.contains("horizon"), "{e}");
+    assert!(model.theta_vec(&mut [0.0; 18]).is_ok());
 }
 
 #[test]

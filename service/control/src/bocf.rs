@@ -1,0 +1,814 @@
+//! The block observable canonical realization of an identified input–output model, its
+//! Markov parameters and its free response: dissertation (2.36)–(2.46).
+//!
+//! # The model it realizes
+//!
+//! `p` outputs, `m` inputs, order `n̂ ≥ 1`: the input–output model (2.24)
+//!
+//! ```text
+//! ŷ_k = − Σ_{i=1}^{n̂} F̂_i y_{k−i} + Σ_{i=1}^{n̂} Ĝ_i u_{k−i}                        (2.24)
+//! ```
+//!
+//! with the coefficients given as `Θ̃ = [F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂] ∈ ℝ^{p×N}`, `N = n̂(p+m)`,
+//! row-major (`θ = vec Θ̃` of (2.27)): `F̂_i` occupies columns `(i−1)p .. ip`, `Ĝ_i`
+//! columns `n̂p + (i−1)m .. n̂p + im`. [`Realization`] is a borrowed view of such a `Θ̃`;
+//! PCAC's identification ([`crate::pcac::IoModel`], (2.24)–(2.35)) produces it at every
+//! step as `θ_{k+1}`, written `F̂_{i,k+1}`, `Ĝ_{i,k+1}` below.
+//!
+//! # The realization (2.36)–(2.42)
+//!
+//! ```text
+//! x_{1|k} = Â_k x̂_k + B̂_k u_k,   y_k = Ĉ x̂_k                                  (2.36)–(2.37)
+//! x̂_{1,k} = y_k                                                                 (2.38)
+//! x̂_{i,k} = Σ_{j=1}^{n̂−i+1} (−F̂_{i+j−1,k+1} y_{k−j} + Ĝ_{i+j−1,k+1} u_{k−j}),  i ≥ 2  (2.39)
+//! Â_k: −F̂_{i,k+1} in block (i, 1), I_p in blocks (i, i+1), zeros elsewhere       (2.40)
+//! B̂_k = [Ĝ_{1,k+1}; …; Ĝ_{n̂,k+1}],   Ĉ = [I_p 0 … 0]                        (2.41)–(2.42)
+//! ```
+//!
+//! The state estimate `x̂_k` uses the data window
+//!
+//! ```text
+//! x̂_k:  y_k, y_{k−1}, …, y_{k−n̂+1}   and   u_{k−1}, …, u_{k−n̂+1}
+//! ```
+//!
+//! which a model provides through [`DataWindow`] (`y_{k−n̂}` and `u_{k−n̂}` enter `θ_{k+1}`
+//! but not `x̂_k`). Then `Ĉ x_{1|k} = Ĉ (Â_k x̂_k + B̂_k u_k) = −F̂_1 y_k + x̂_{2,k} + Ĝ_1 u_k`
+//! is exactly the one-step prediction of (2.24) for `y_{k+1}` with the coefficients
+//! `θ_{k+1}`: the block rows of `Â_k x̂_k + B̂_k u_k` are
+//! `x_{i|k} = −F̂_i y_k + x̂_{i+1,k} + Ĝ_i u_k`, the state recursion of the companion form,
+//! by which `x̂_{i,k}` (2.39) is the part of the future output `y_{k+i−1}` that past data
+//! already determine.
+//!
+//! # Markov parameters and free response (2.43)–(2.46)
+//!
+//! The `ℓ`-step prediction (2.43) is `Y_{1|k,ℓ} = Γ̂_{k,ℓ} x_{1|k} + T̂_{k,ℓ} U_{1|k,ℓ}`,
+//! `Y_{1|k,ℓ} = [y_{1|k}; …; y_{ℓ|k}]`, `U_{1|k,ℓ} = [u_{1|k}; …; u_{ℓ|k}]` (2.44),
+//! with the observability matrix `Γ̂_{k,ℓ} = [Ĉ; Ĉ Â_k; …; Ĉ Â_k^{ℓ−1}]` (2.45) and the
+//! block Toeplitz `T̂_{k,ℓ}` (2.46) of the Markov parameters `Ĥ_{k,i} = Ĉ Â_k^{i−1} B̂_k`
+//! (defined with (2.46)). Both are computed from the companion structure without forming
+//! powers of `Â_k`:
+//!
+//! ```text
+//! Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}       (Ĝ_i = 0 for i > n̂)
+//! ```
+//!
+//! the coefficient of `z^{−i}` in `(I + Σ F̂_j z^{−j}) H(z) = Σ Ĝ_j z^{−j}`: `O(ℓ n̂ p² m)`
+//! for `ℓ` of them, no `n̂p × n̂p` matrix involved ([`Realization::markov`]). The free
+//! response `Ĉ Â^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}`), propagates the state with the
+//! structure `x_i ← −F̂_i x_1 + x_{i+1}`: `O(ℓ n̂ p²)` ([`Realization::free_response`]).
+//! [`HorizonPrediction`] holds the buffers of all of them for one horizon and computes
+//! them together for the condensing in [`crate::mpc`].
+//!
+//! # Real time
+//!
+//! [`Realization`] borrows the coefficients and owns nothing; [`HorizonPrediction`] is
+//! sized in [`HorizonPrediction::new`]. Every routine after construction never allocates
+//! and never panics: slices of the wrong length are refused with a [`DimError`] (a `Copy`
+//! value, no allocation).
+
+#![allow(clippy::needless_range_loop)] // index-heavy block algebra
+
+use std::fmt;
+
+use crate::linalg::axpy;
+
+/// A slice of the wrong length handed to a model or realization routine; nothing was
+/// changed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DimError {
+    /// Which argument.
+    pub what: &'static str,
+    /// The length it must have.
+    pub expected: usize,
+    /// The length it had.
+    pub got: usize,
+}
+
+impl fmt::Display for DimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} has length {}, expected {}",
+            self.what, self.got, self.expected
+        )
+    }
+}
+
+impl std::error::Error for DimError {}
+
+/// `Ok` when `got == expected`, else the [`DimError`] naming `what`.
+pub(crate) fn check(what: &'static str, got: usize, expected: usize) -> Result<(), DimError> {
+    if got == expected {
+        Ok(())
+    } else {
+        Err(DimError {
+            what,
+            expected,
+            got,
+        })
+    }
+}
+
+/// The past data the state estimate `x̂_k` (2.38)–(2.39) is built from, at step `k`.
+pub trait DataWindow {
+    /// `y_{k−j}` (length `p`), for `0 ≤ j < n̂`; zeros before the first sample.
+    fn past_output(&self, j: usize) -> &[f64];
+    /// `u_{k−j}` (length `m`), for `1 ≤ j < n̂`; zeros before the first sample.
+    fn past_input(&self, j: usize) -> &[f64];
+}
+
+/// An identified input–output model (2.24) that can be realized at its current step: its
+/// coefficients `θ_{k+1}` and its data window. [`HorizonPrediction`] works on any of them.
+pub trait IdentifiedModel: DataWindow {
+    /// The realization (2.36)–(2.42) of the current coefficients.
+    fn realization(&self) -> Realization<'_>;
+}
+
+/// The block observable canonical realization (2.36)–(2.42) of the coefficients
+/// `Θ̃ = [F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂]` (borrowed, `p × n̂(p+m)` row-major): `Â`, `B̂`, the state
+/// estimate, the state step, the Markov parameters and the free response, all computed
+/// from the companion structure (see the module docs).
+#[derive(Debug, Clone, Copy)]
+pub struct Realization<'a> {
+    n_hat: usize,
+    p: usize,
+    m: usize,
+    /// `N = n̂(p+m)`.
+    nr: usize,
+    /// `Θ̃`, p×N row-major.
+    coef: &'a [f64],
+}
+
+impl<'a> Realization<'a> {
+    /// The realization of the order-`n̂` model with `p` outputs, `m` inputs and the
+    /// coefficients `coef` = `Θ̃` (`p × n̂(p+m)`, row-major).
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `n̂`, `p` or `m` is zero (`expected` 1, `got` 0) or `coef` does
+    /// not have length `n̂p(p+m)`.
+    pub fn new(n_hat: usize, p: usize, m: usize, coef: &'a [f64]) -> Result<Self, DimError> {
+        check("n_hat (at least 1)", n_hat.min(1), 1)?;
+        check("p (at least 1)", p.min(1), 1)?;
+        check("m (at least 1)", m.min(1), 1)?;
+        check("coefficients", coef.len(), n_hat * (p + m) * p)?;
+        Ok(Self::new_unchecked(n_hat, p, m, coef))
+    }
+
+    /// [`Realization::new`] for dimensions and a slice the caller has validated
+    /// (`n̂, p, m ≥ 1`, `coef.len() = n̂p(p+m)`).
+    #[inline]
+    pub(crate) fn new_unchecked(n_hat: usize, p: usize, m: usize, coef: &'a [f64]) -> Self {
+        debug_assert!(n_hat >= 1 && p >= 1 && m >= 1);
+        debug_assert_eq!(coef.len(), n_hat * (p + m) * p);
+        Self {
+            n_hat,
+            p,
+            m,
+            nr: n_hat * (p + m),
+            coef,
+        }
+    }
+
+    /// Model order `n̂`.
+    pub fn n_hat(&self) -> usize {
+        self.n_hat
+    }
+
+    /// Number of outputs `p`.
+    pub fn p(&self) -> usize {
+        self.p
+    }
+
+    /// Number of inputs `m`.
+    pub fn m(&self) -> usize {
+        self.m
+    }
+
+    /// State dimension `n̂p`.
+    pub fn state_dim(&self) -> usize {
+        self.n_hat * self.p
+    }
+
+    /// `Θ̃` (`p × n̂(p+m)`, row-major).
+    pub fn coefficients(&self) -> &'a [f64] {
+        self.coef
+    }
+
+    /// Entry `(r, s)` of `F̂_i` (`1 ≤ i ≤ n̂`, `r, s < p`).
+    #[inline]
+    pub fn f(&self, i: usize, r: usize, s: usize) -> f64 {
+        self.coef[r * self.nr + (i - 1) * self.p + s]
+    }
+
+    /// Entry `(r, s)` of `Ĝ_i` (`1 ≤ i ≤ n̂`, `r < p`, `s < m`).
+    #[inline]
+    pub fn g(&self, i: usize, r: usize, s: usize) -> f64 {
+        self.coef[r * self.nr + self.n_hat * self.p + (i - 1) * self.m + s]
+    }
+
+    /// Fills `Â` (2.40) into `a` (`n̂p × n̂p`, row-major): `−F̂_i` in block `(i, 1)`,
+    /// `I_p` in blocks `(i, i+1)`, zeros elsewhere.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn fill_a(&self, a: &mut [f64]) -> Result<(), DimError> {
+        let nx = self.state_dim();
+        check("A", a.len(), nx * nx)?;
+        a.fill(0.0);
+        let p = self.p;
+        for i in 1..=self.n_hat {
+            for r in 0..p {
+                let row = (i - 1) * p + r;
+                for s in 0..p {
+                    a[row * nx + s] = -self.f(i, r, s);
+                }
+                if i < self.n_hat {
+                    a[row * nx + i * p + r] = 1.0;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Fills `B̂ = [Ĝ_1; …; Ĝ_n̂]` (2.41) into `b` (`n̂p × m`, row-major).
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn fill_b(&self, b: &mut [f64]) -> Result<(), DimError> {
+        let (p, m) = (self.p, self.m);
+        check("B", b.len(), self.state_dim() * m)?;
+        for i in 1..=self.n_hat {
+            for r in 0..p {
+                for s in 0..m {
+                    b[((i - 1) * p + r) * m + s] = self.g(i, r, s);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Fills the state estimate `x̂_k` (2.38)–(2.39) into `x` (length `n̂p`):
+    /// `x̂_{1,k} = y_k` and `x̂_{i,k} = Σ_{j=1}^{n̂−i+1} (−F̂_{i+j−1} y_{k−j} + Ĝ_{i+j−1} u_{k−j})`
+    /// with these coefficients and the data of `data`. `O(n̂² p (p+m))`.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for the wrong length.
+    pub fn fill_state<W: DataWindow + ?Sized>(
+        &self,
+        data: &W,
+        x: &mut [f64],
+    ) -> Result<(), DimError> {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        check("x_hat", x.len(), n_hat * p)?;
+        x[..p].copy_from_slice(data.past_output(0));
+        for i in 2..=n_hat {
+            for r in 0..p {
+                let mut v = 0.0;
+                for j in 1..=n_hat - i + 1 {
+                    let (y, u) = (data.past_output(j), data.past_input(j));
+                    for s in 0..p {
+                        v -= self.f(i + j - 1, r, s) * y[s];
+                    }
+                    for s in 0..m {
+                        v += self.g(i + j - 1, r, s) * u[s];
+                    }
+                }
+                x[(i - 1) * p + r] = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// `x_{1|k} = Â x̂ + B̂ u` (2.36) from the structure, `O(n̂ p (p+m))`:
+    /// block `i` is `−F̂_i x̂_1 + x̂_{i+1} + Ĝ_i u` (no `x̂_{n̂+1}` term for `i = n̂`).
+    /// Also the general state step `x_{i+1|k} = Â x_{i|k} + B̂ u_{i|k}`. `x` and `out` have
+    /// length `n̂p`, `u` length `m`.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length.
+    pub fn one_step_state(&self, x: &[f64], u: &[f64], out: &mut [f64]) -> Result<(), DimError> {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        check("x", x.len(), n_hat * p)?;
+        check("u", u.len(), m)?;
+        check("x_next", out.len(), n_hat * p)?;
+        for i in 1..=n_hat {
+            for r in 0..p {
+                let mut v = if i < n_hat { x[i * p + r] } else { 0.0 };
+                for s in 0..p {
+                    v -= self.f(i, r, s) * x[s];
+                }
+                for s in 0..m {
+                    v += self.g(i, r, s) * u[s];
+                }
+                out[(i - 1) * p + r] = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// The Markov parameters `Ĥ_i = Ĉ Â^{i−1} B̂` of `T̂_{k,ℓ}` (2.46), `i = 1 … ℓ`, into `h`
+    /// (`ℓ` blocks of `p × m` row-major, `ℓ = h.len() / (p m)`), by the recursion
+    /// `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`):
+    /// `O(ℓ n̂ p² m)`, no dense power.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `h.len()` is not a multiple of `p m`.
+    pub fn markov(&self, h: &mut [f64]) -> Result<(), DimError> {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        let blk = p * m;
+        if !h.len().is_multiple_of(blk) {
+            return Err(DimError {
+                what: "Markov parameters (a multiple of p·m)",
+                expected: (h.len() / blk) * blk,
+                got: h.len(),
+            });
+        }
+        let ell = h.len() / blk;
+        for i in 1..=ell {
+            let (done, rest) = h.split_at_mut((i - 1) * blk);
+            let hi = &mut rest[..blk];
+            for r in 0..p {
+                for s in 0..m {
+                    hi[r * m + s] = if i <= n_hat { self.g(i, r, s) } else { 0.0 };
+                }
+            }
+            for j in 1..=(i - 1).min(n_hat) {
+                let prev = &done[(i - 1 - j) * blk..(i - j) * blk];
+                for r in 0..p {
+                    for t in 0..p {
+                        let f = self.f(j, r, t);
+                        if f != 0.0 {
+                            axpy(-f, &prev[t * m..(t + 1) * m], &mut hi[r * m..(r + 1) * m]);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The free response `Ĉ Â^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}` of (2.43), (2.45)
+    /// for `x_1 = x_{1|k}`), into `out` (`ℓ` blocks of `p`, `ℓ = out.len() / p`),
+    /// propagating the state in `work` (length `n̂p`, overwritten) by
+    /// `x_i ← −F̂_i x_1 + x_{i+1}`: `O(ℓ n̂ p²)`.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] for a slice of the wrong length.
+    pub fn free_response(
+        &self,
+        x1: &[f64],
+        work: &mut [f64],
+        out: &mut [f64],
+    ) -> Result<(), DimError> {
+        let (n_hat, p) = (self.n_hat, self.p);
+        check("x_1", x1.len(), n_hat * p)?;
+        check("work", work.len(), n_hat * p)?;
+        if !out.len().is_multiple_of(p) {
+            return Err(DimError {
+                what: "free response (a multiple of p)",
+                expected: (out.len() / p) * p,
+                got: out.len(),
+            });
+        }
+        let ell = out.len() / p;
+        work.copy_from_slice(x1);
+        for i in 0..ell {
+            let y = &mut out[i * p..(i + 1) * p];
+            y.copy_from_slice(&work[..p]);
+            if i + 1 == ell {
+                break;
+            }
+            // x ← Â x: block b = −F̂_b y + x_{b+1}, upward, so x_{b+1} is still old.
+            for b in 1..=n_hat {
+                for r in 0..p {
+                    let mut v = if b < n_hat { work[b * p + r] } else { 0.0 };
+                    for s in 0..p {
+                        v -= self.f(b, r, s) * y[s];
+                    }
+                    work[(b - 1) * p + r] = v;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Pre-sized buffers for the quantities MPC needs at step `k` from an identified model:
+/// `x̂_k` (2.38)–(2.39), `x_{1|k}` (2.36), `Ĥ_{k,1} … Ĥ_{k,ℓ}` (for `T̂_{k,ℓ}`,
+/// (2.46)) and `Γ̂_{k,ℓ} x_{1|k}` (2.43), (2.45), computed together by
+/// [`HorizonPrediction::compute`] (allocation-free). The predicted outputs for inputs
+/// `U_{1|k,ℓ}` are then `y_{i|k} = (Γ̂ x_{1|k})_i + Σ_{j<i} Ĥ_{i−j} u_{j|k}`.
+#[derive(Debug, Clone)]
+pub struct HorizonPrediction {
+    ell: usize,
+    x_hat: Vec<f64>,
+    x1: Vec<f64>,
+    work: Vec<f64>,
+    markov: Vec<f64>,
+    free: Vec<f64>,
+}
+
+impl HorizonPrediction {
+    /// Buffers for `model`'s dimensions and horizon `ℓ ≥ 1`.
+    ///
+    /// # Errors
+    ///
+    /// `ℓ = 0`.
+    pub fn new<M: IdentifiedModel + ?Sized>(model: &M, ell: usize) -> Result<Self, String> {
+        if ell == 0 {
+            return Err("the horizon ell must be at least 1".into());
+        }
+        let real = model.realization();
+        let (nx, p, m) = (real.state_dim(), real.p(), real.m());
+        Ok(Self {
+            ell,
+            x_hat: vec![0.0; nx],
+            x1: vec![0.0; nx],
+            work: vec![0.0; nx],
+            markov: vec![0.0; ell * p * m],
+            free: vec![0.0; ell * p],
+        })
+    }
+
+    /// Step `k`, after the model's identification step: fills `x̂_k`,
+    /// `x_{1|k} = Â x̂_k + B̂ u_k` (`u_k`: the input of the current period, length `m`), the
+    /// Markov parameters and the free response from the current coefficients `θ_{k+1}`.
+    /// Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `u_k` or the model's dimensions do not match the buffers.
+    pub fn compute<M: IdentifiedModel + ?Sized>(
+        &mut self,
+        model: &M,
+        u_k: &[f64],
+    ) -> Result<(), DimError> {
+        let real = model.realization();
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * real.p() * real.m(),
+        )?;
+        real.fill_state(model, &mut self.x_hat)?;
+        real.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
+        real.markov(&mut self.markov)?;
+        real.free_response(&self.x1, &mut self.work, &mut self.free)
+    }
+
+    /// Step `k`, after the model's identification step, for an input `u_k` still to be
+    /// chosen (PCAC's same-step timing): fills `x̂_k`, the Markov parameters and the free
+    /// response `Ĉ Â_k^{i−1} x̂_k`, `i = 1 … ℓ` (the outputs `y_k, ŷ_{k+1}, …, ŷ_{k+ℓ−1}`
+    /// for zero inputs from `u_k` on; the first block is `y_k`). [`Self::one_step_state`]
+    /// is then `x̂_k` as well. Never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when the model's dimensions do not match the buffers.
+    pub fn compute_from_state<M: IdentifiedModel + ?Sized>(
+        &mut self,
+        model: &M,
+    ) -> Result<(), DimError> {
+        let real = model.realization();
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * real.p() * real.m(),
+        )?;
+        real.fill_state(model, &mut self.x_hat)?;
+        self.x1.copy_from_slice(&self.x_hat);
+        real.markov(&mut self.markov)?;
+        real.free_response(&self.x_hat, &mut self.work, &mut self.free)
+    }
+
+    /// The horizon `ℓ`.
+    pub fn horizon(&self) -> usize {
+        self.ell
+    }
+
+    /// `x̂_k` (length `n̂p`).
+    pub fn state(&self) -> &[f64] {
+        &self.x_hat
+    }
+
+    /// `x_{1|k}` (length `n̂p`).
+    pub fn one_step_state(&self) -> &[f64] {
+        &self.x1
+    }
+
+    /// `Ĥ_{k,1} … Ĥ_{k,ℓ}` (`ℓ` blocks `p × m`, row-major; [`crate::mpc`]'s condensing
+    /// uses the first `ℓ − 1`).
+    pub fn markov(&self) -> &[f64] {
+        &self.markov
+    }
+
+    /// `Γ̂_{k,ℓ} x_{1|k}` = `y_{1|k} … y_{ℓ|k}` for `U = 0` (`ℓ` blocks of `p`).
+    pub fn free_response(&self) -> &[f64] {
+        &self.free
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The realization against dense matrix powers and against the input–output model
+    //! (2.24) it realizes (PCAC's [`IoModel`], used here as the source of coefficients and
+    //! data).
+
+    #![allow(clippy::needless_range_loop)] // index-heavy reference computations
+
+    use nalgebra::{DMatrix, DVector};
+
+    use super::{DimError, HorizonPrediction, Realization};
+    use crate::forgetting::ForgettingRule;
+    use crate::pcac::{IdKernel, IoModel, IoModelParams};
+    use crate::test_support::Gauss;
+
+    fn params(n_hat: usize, p: usize, m: usize) -> IoModelParams {
+        IoModelParams {
+            n_hat,
+            p,
+            m,
+            theta0: Vec::new(),
+            p0: 100.0,
+            rule: ForgettingRule::Constant { lambda: 1.0 },
+            trace_limit: f64::INFINITY,
+            kernel: IdKernel::Shared,
+        }
+    }
+
+    fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+        assert_eq!(a.len(), b.len());
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    }
+
+    fn max_abs(a: &[f64]) -> f64 {
+        a.iter().map(|x| x.abs()).fold(0.0, f64::max)
+    }
+
+    /// A model with random coefficients `θ_0` (no identification) and random histories.
+    fn random_model(g: &mut Gauss, n: usize, p: usize, m: usize) -> IoModel {
+        let mut pr = params(n, p, m);
+        pr.theta0 = g.vec(n * p * (p + m)).iter().map(|x| 0.4 * x).collect();
+        let mut model = IoModel::new(&pr).unwrap();
+        for _ in 0..(n + 3) {
+            model.observe(&g.vec(p), &g.vec(m)).unwrap();
+        }
+        model
+    }
+
+    #[test]
+    fn the_realization_predicts_like_the_input_output_model() {
+        let mut g = Gauss::new(31);
+        let (mut d1, mut dl, mut dh, mut df): (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
+        for (n, p, m) in [(4, 3, 2), (1, 2, 1), (3, 1, 3), (5, 4, 2)] {
+            let model = random_model(&mut g, n, p, m);
+            let nx = n * p;
+            let (mut a, mut b, mut xh) = (vec![0.0; nx * nx], vec![0.0; nx * m], vec![0.0; nx]);
+            let real = model.realization();
+            real.fill_a(&mut a).unwrap();
+            real.fill_b(&mut b).unwrap();
+            real.fill_state(&model, &mut xh).unwrap();
+            let a_m = DMatrix::from_row_slice(nx, nx, &a);
+            let b_m = DMatrix::from_row_slice(nx, m, &b);
+            let c_m = DMatrix::from_fn(p, nx, |i, j| f64::from(u8::from(i == j)));
+
+            // One step: Ĉ (Â x̂ + B̂ u_k) = (2.24)'s prediction of y_{k+1}; structured = dense.
+            let u_k = g.vec(m);
+            let x1_dense =
+                &a_m * DVector::from_column_slice(&xh) + &b_m * DVector::from_column_slice(&u_k);
+            let mut x1 = vec![0.0; nx];
+            real.one_step_state(&xh, &u_k, &mut x1).unwrap();
+            d1 = d1.max(max_abs_diff(&x1, x1_dense.as_slice()));
+            let mut yhat = vec![0.0; p];
+            model.predict_one_step(&u_k, &mut yhat).unwrap();
+            d1 = d1.max(max_abs_diff(&x1[..p], &yhat));
+            // Ĉ x̂_k = y_k (2.37).
+            assert!(
+                (&c_m * DVector::from_column_slice(&xh))
+                    .iter()
+                    .zip(&xh[..p])
+                    .all(|(a, b)| a == b)
+            );
+
+            // ℓ steps: iterate the state with future inputs vs recursing (2.24) on predictions.
+            let ell = 9;
+            let fut: Vec<Vec<f64>> = (0..ell).map(|_| g.vec(m)).collect();
+            let nr = n * (p + m);
+            let coef = model.coefficients();
+            // (2.24) recursed on its own predictions: a copy of the model predicts ŷ_{k+1+i}
+            // and then stores it as if measured, with u_k, u_{1|k}, u_{2|k}, ….
+            let mut rec = model.clone();
+            let mut y_rec = Vec::new();
+            let mut u_now = u_k.clone();
+            for i in 0..ell {
+                let mut y = vec![0.0; p];
+                rec.predict_one_step(&u_now, &mut y).unwrap();
+                rec.observe(&y, &u_now).unwrap();
+                y_rec.push(y);
+                if i + 1 < ell {
+                    u_now = fut[i].clone();
+                }
+            }
+            // State iteration: y_{i|k} = Ĉ x_{i|k}, x_{i+1|k} = Â x_{i|k} + B̂ u_{i|k}.
+            let mut x = x1.clone();
+            let mut y_state = Vec::new();
+            for u in &fut {
+                y_state.push(x[..p].to_vec());
+                let mut nxt = vec![0.0; nx];
+                real.one_step_state(&x, u, &mut nxt).unwrap();
+                x = nxt;
+            }
+            for i in 0..ell {
+                dl = dl.max(max_abs_diff(&y_rec[i], &y_state[i]) / (1.0 + max_abs(&y_rec[i])));
+            }
+            // (2.43): Y = Γ̂ x_{1|k} + T̂ U with the fast Markov parameters and free response.
+            let mut h = vec![0.0; (ell + 3) * p * m];
+            real.markov(&mut h).unwrap();
+            let mut free = vec![0.0; ell * p];
+            let mut work = vec![0.0; nx];
+            real.free_response(&x1, &mut work, &mut free).unwrap();
+            for i in 0..ell {
+                let mut y = free[i * p..(i + 1) * p].to_vec();
+                for j in 0..i {
+                    // T̂ block (i, j) = Ĥ_{i−j}, u_{j+1|k} = fut[j].
+                    let hb = &h[(i - j - 1) * p * m..(i - j) * p * m];
+                    for r in 0..p {
+                        for s in 0..m {
+                            y[r] += hb[r * m + s] * fut[j][s];
+                        }
+                    }
+                }
+                dl = dl.max(max_abs_diff(&y, &y_rec[i]) / (1.0 + max_abs(&y_rec[i])));
+            }
+            // The bundled computation gives the same numbers.
+            let mut hp = HorizonPrediction::new(&model, ell).unwrap();
+            hp.compute(&model, &u_k).unwrap();
+            assert_eq!(hp.state(), &xh[..]);
+            assert_eq!(hp.one_step_state(), &x1[..]);
+            assert_eq!(hp.markov(), &h[..ell * p * m]);
+            assert_eq!(hp.free_response(), &free[..]);
+            assert!(hp.compute(&model, &vec![0.0; m + 1]).is_err());
+            // Markov parameters and free response against dense powers.
+            let mut apow = DMatrix::<f64>::identity(nx, nx);
+            let x1v = DVector::from_column_slice(&x1);
+            for i in 1..=ell + 3 {
+                let hd = &c_m * &apow * &b_m;
+                let hb = &h[(i - 1) * p * m..i * p * m];
+                let hd_rows: Vec<f64> = (0..p)
+                    .flat_map(|r| (0..m).map(move |s| (r, s)))
+                    .map(|rs| hd[rs])
+                    .collect();
+                dh = dh.max(max_abs_diff(hb, &hd_rows) / (1.0 + max_abs(&hd_rows)));
+                if i <= ell {
+                    let fd = &c_m * &apow * &x1v;
+                    df = df.max(
+                        max_abs_diff(&free[(i - 1) * p..i * p], fd.as_slice()) / (1.0 + fd.amax()),
+                    );
+                }
+                apow = &apow * &a_m;
+            }
+            // Â, B̂ hold the coefficients where (2.40)–(2.41) put them.
+            for i in 1..=n {
+                for r in 0..p {
+                    for s in 0..p {
+                        assert_eq!(a_m[((i - 1) * p + r, s)], -coef[r * nr + (i - 1) * p + s]);
+                    }
+                    for s in 0..m {
+                        assert_eq!(
+                            b_m[((i - 1) * p + r, s)],
+                            coef[r * nr + n * p + (i - 1) * m + s]
+                        );
+                    }
+                }
+            }
+        }
+        assert!(d1 < 1e-12, "one-step prediction differs by {d1}");
+        assert!(dl < 1e-10, "ℓ-step prediction differs by {dl}");
+        assert!(dh < 1e-10, "Markov parameters differ by {dh}");
+        assert!(df < 1e-10, "free response differs by {df}");
+        eprintln!(
+            "realization: one-step {d1:.1e}, ℓ-step {dl:.1e}, Markov {dh:.1e}, free {df:.1e}"
+        );
+    }
+
+    #[test]
+    fn the_state_uses_the_data_of_2_39() {
+        // x̂_k from (2.39) written out with explicit data, n̂ = 3, p = 2, m = 1.
+        let (n, p, m) = (3, 2, 1);
+        let mut g = Gauss::new(41);
+        let mut pr = params(n, p, m);
+        pr.theta0 = g.vec(n * p * (p + m));
+        let mut model = IoModel::new(&pr).unwrap();
+        // Steps k = 0 … 5: update(y_k, u_{k−1}) with stored histories.
+        let ys: Vec<Vec<f64>> = (0..6).map(|_| g.vec(p)).collect();
+        let us: Vec<Vec<f64>> = (0..6).map(|_| g.vec(m)).collect();
+        for k in 0..6 {
+            let u_prev = if k == 0 {
+                vec![0.0; m]
+            } else {
+                us[k - 1].clone()
+            };
+            model.observe(&ys[k], &u_prev).unwrap();
+        }
+        let k = 5;
+        let mut x = vec![0.0; n * p];
+        model.realization().fill_state(&model, &mut x).unwrap();
+        let mut want = vec![0.0; n * p];
+        want[..p].copy_from_slice(&ys[k]);
+        for i in 2..=n {
+            for r in 0..p {
+                let mut v = 0.0;
+                for j in 1..=n - i + 1 {
+                    for s in 0..p {
+                        v -= model.f(i + j - 1, r, s) * ys[k - j][s];
+                    }
+                    for s in 0..m {
+                        v += model.g(i + j - 1, r, s) * us[k - j][s];
+                    }
+                }
+                want[(i - 1) * p + r] = v;
+            }
+        }
+        assert!(max_abs_diff(&x, &want) < 1e-14);
+    }
+
+    #[test]
+    fn a_realization_built_from_coefficients_equals_the_models_own() {
+        let mut g = Gauss::new(37);
+        let (n, p, m) = (3, 2, 2);
+        let model = random_model(&mut g, n, p, m);
+        let own = model.realization();
+        let built = Realization::new(n, p, m, model.coefficients()).unwrap();
+        assert_eq!((built.n_hat(), built.p(), built.m()), (n, p, m));
+        assert_eq!(built.state_dim(), n * p);
+        let (mut h1, mut h2) = (vec![0.0; 7 * p * m], vec![0.0; 7 * p * m]);
+        own.markov(&mut h1).unwrap();
+        built.markov(&mut h2).unwrap();
+        assert_eq!(h1, h2);
+        let (mut x1, mut x2) = (vec![0.0; n * p], vec![0.0; n * p]);
+        own.fill_state(&model, &mut x1).unwrap();
+        built.fill_state(&model, &mut x2).unwrap();
+        assert_eq!(x1, x2);
+        for i in 1..=n {
+            assert_eq!(built.f(i, 1, 0), model.f(i, 1, 0));
+            assert_eq!(built.g(i, 0, 1), model.g(i, 0, 1));
+        }
+    }
+
+    #[test]
+    fn wrong_dimensions_and_lengths_are_refused_without_change() {
+        let coef = vec![0.5; 3 * 2 * 3];
+        assert_eq!(
+            Realization::new(3, 2, 1, &coef[..17]).unwrap_err(),
+            DimError {
+                what: "coefficients",
+                expected: 18,
+                got: 17
+            }
+        );
+        assert!(Realization::new(0, 2, 1, &[]).is_err());
+        assert!(Realization::new(3, 0, 1, &[]).is_err());
+        assert!(Realization::new(3, 2, 0, &coef[..12]).is_err());
+        let real = Realization::new(3, 2, 1, &coef).unwrap();
+        let mut a = [7.0; 35];
+        assert_eq!(
+            real.fill_a(&mut a).unwrap_err().to_string(),
+            "A has length 35, expected 36"
+        );
+        assert!(
+            a.iter().all(|&v| v == 7.0),
+            "a refused call must change nothing"
+        );
+        assert!(real.fill_a(&mut [0.0; 36]).is_ok());
+        assert!(real.fill_b(&mut [0.0; 5]).is_err());
+        assert!(real.fill_b(&mut [0.0; 6]).is_ok());
+        assert!(real.markov(&mut [0.0; 5]).is_err());
+        assert!(real.markov(&mut [0.0; 6]).is_ok());
+        assert!(
+            real.free_response(&[0.0; 6], &mut [0.0; 6], &mut [0.0; 5])
+                .is_err()
+        );
+        assert!(
+            real.one_step_state(&[0.0; 6], &[0.0; 2], &mut [0.0; 6])
+                .is_err()
+        );
+        let model = IoModel::new(&params(3, 2, 1)).unwrap();
+        assert!(
+            model
+                .realization()
+                .fill_state(&model, &mut [0.0; 5])
+                .is_err()
+        );
+        let e = HorizonPrediction::new(&model, 0).unwrap_err();
+        assert!(e.contains("horizon"), "{e}");
+    }
+}

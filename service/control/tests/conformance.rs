@@ -1,0 +1,710 @@
+//! Controller conformance: the properties every [`Controller`] kind must have, checked on
+//! every kind by the same generic code (as iceoryx2's conformance tests are generic over
+//! the service type).
+//!
+//! Each kind is a [`Kind`]: a constructor `fn() -> Box<dyn Controller>` with small,
+//! realistic parameters and the output limits it was given (if any). The
+//! [`conformance!`] macro instantiates every property as one test per kind, in a module
+//! named after the kind, so the test names read
+//! `rcac_rls::reset_returns_to_the_initial_state`. **Adding a future kind (RC-MRAC, APPC,
+//! the sampling-arm controller) is one line** in the `conformance!` invocation at the end
+//! of this file, next to its constructor:
+//!
+//! ```text
+//! rc_mrac: Kind { build: rc_mrac, limits: Some((&[-1.0], &[1.0])), observe: Observe::AsStep },
+//! ```
+//!
+//! The properties, on a closed loop with a small stable plant ([`Plant`]):
+//!
+//! - **Bad measurements**: non-finite (NaN, ±∞) and huge (±10³⁰⁰, 10¹⁵⁰) values in `y`,
+//!   `z` and `r` leave `u` finite (and within the limits when limits are set), and the
+//!   controller keeps giving such inputs on good data afterwards.
+//! - **Reset**: after steps on other data and [`Controller::reset`], a replayed input
+//!   sequence gives the outputs (and status bits) of a freshly built controller, bit for
+//!   bit.
+//! - **Observe**: [`Controller::observe`] takes in a sample whose actuation will never
+//!   be applied (the plant holds its previous input); both runs are told at `k + 1`
+//!   (through [`StepInput::u_applied`]) that the plant held the input of `k − 1`. A kind
+//!   declares what its `observe` promises ([`Observe`]): either it equals stepping the
+//!   sample and discarding the output, bit for bit (the trait's default), or it records
+//!   the sample's data but may skip adaptation for it (RCAC, so that a loop that is behind
+//!   catches up sooner), and then a different observed measurement must change the
+//!   inputs that follow.
+//! - **No allocation**: after [`Controller::prepare_thread`] and a warm-up, 1,000 steps
+//!   (with an observed sample every 100 and the internals read every step) make no heap
+//!   allocation on the stepping thread, counted by this file's global allocator.
+
+#![allow(clippy::needless_range_loop)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use control::forgetting::ForgettingRule;
+use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
+use control::mpc::qp::QpSettings;
+use control::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
+use control::rcac::{Rcac, RcacParams, RcacUpdate, StepSize};
+use control::target::{TargetForm, TargetModel};
+use control::{
+    Controller, ControllerInput, Dimensions, ExcitationSource, LtiController, MAX_INTERNALS,
+    OutputLimits, StepInput,
+};
+use nalgebra::DMatrix;
+
+// ---------------------------------------------------------------------------------------
+// The counting allocator.
+
+thread_local! {
+    /// Whether allocations on this thread are being counted.
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    /// Allocations (alloc, alloc_zeroed, realloc) counted on this thread.
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+/// [`System`], counting the allocations of the threads that asked for it.
+struct CountingAllocator;
+
+impl CountingAllocator {
+    fn note(&self) {
+        // `try_with`: the thread-locals may be gone while a thread is torn down.
+        let _ = COUNTING.try_with(|on| {
+            if on.get() {
+                let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+            }
+        });
+    }
+}
+
+// SAFETY: every method forwards to `System` with the caller's arguments unchanged; the
+// bookkeeping touches only `const`-initialized thread-locals without destructors, which
+// never allocate.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        self.note();
+        // SAFETY: the caller's contract for `alloc` is passed on.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        self.note();
+        // SAFETY: the caller's contract for `alloc_zeroed` is passed on.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        self.note();
+        // SAFETY: the caller's contract for `realloc` is passed on.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: the caller's contract for `dealloc` is passed on.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// Runs `f` and returns how many allocations it made on this thread.
+fn allocations_in(f: impl FnOnce()) -> u64 {
+    let before = ALLOCATIONS.with(Cell::get);
+    COUNTING.with(|on| on.set(true));
+    f();
+    COUNTING.with(|on| on.set(false));
+    ALLOCATIONS.with(Cell::get) - before
+}
+
+#[test]
+fn the_counting_allocator_counts_an_allocation_on_this_thread() {
+    let n = allocations_in(|| {
+        let v = std::hint::black_box(vec![1.0_f64; 8]);
+        drop(v);
+    });
+    assert_eq!(n, 1);
+}
+
+// ---------------------------------------------------------------------------------------
+// The kinds.
+
+/// One controller kind under test.
+struct Kind {
+    /// A freshly built controller (same parameters every call).
+    build: fn() -> Box<dyn Controller>,
+    /// The output limits it was built with (`min`, `max` per input), if any.
+    limits: Option<(&'static [f64], &'static [f64])>,
+    /// What its `observe` promises.
+    observe: Observe,
+}
+
+/// What a kind's [`Controller::observe`] promises beyond the trait's minimum.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Observe {
+    /// Observing sample `k` equals stepping it and discarding the output (the trait's
+    /// default; also PCAC, whose identification learns from the observed sample).
+    AsStep,
+    /// The sample enters the controller's data (regressor, history) but adaptation may
+    /// be skipped for it, so that a loop that is behind catches up sooner (RCAC).
+    RecordsData,
+}
+
+const TS: f64 = 0.01;
+const U_MAX: f64 = 1.5;
+
+fn limits() -> Option<OutputLimits> {
+    Some(OutputLimits {
+        min: vec![-U_MAX],
+        max: vec![U_MAX],
+    })
+}
+
+const LIMITS: Option<(&[f64], &[f64])> = Some((&[-U_MAX], &[U_MAX]));
+
+/// A second-order LTI compensator on `e = r − y`, saturated.
+fn lti() -> Box<dyn Controller> {
+    let c = LtiController::new(
+        DMatrix::from_row_slice(2, 2, &[0.5, 0.1, 0.0, 0.3]),
+        DMatrix::from_row_slice(2, 1, &[1.0, 0.5]),
+        DMatrix::from_row_slice(1, 2, &[0.2, -0.1]),
+        DMatrix::from_element(1, 1, 0.3),
+        ControllerInput::Error,
+        Dimensions::new(1, 1, 1, 1),
+        limits(),
+    )
+    .expect("valid LTI parameters");
+    Box::new(c)
+}
+
+/// White-noise excitation of σ = 1 against ±1.5 limits.
+fn excitation() -> Box<dyn Controller> {
+    let c = ExcitationSource::new(Dimensions::new(1, 1, 0, 1), vec![1.0], 42, limits())
+        .expect("valid excitation parameters");
+    Box::new(c)
+}
+
+/// SISO RCAC parameters: `n_c = 4`, target `G_f = 0.1 z^{−1}` (the plant's first Markov
+/// parameter), `R_z = 1`, `R_u = 0`.
+fn rcac_params(update: RcacUpdate, limits: Option<OutputLimits>) -> RcacParams {
+    RcacParams {
+        nc: 4,
+        kw: None,
+        target: TargetModel {
+            sample_period: TS,
+            outputs: 1,
+            inputs: 1,
+            beta: 1.0,
+            source: "conformance".into(),
+            form: TargetForm::Markov(vec![DMatrix::zeros(1, 1), DMatrix::from_element(1, 1, 0.1)]),
+        },
+        rz: DMatrix::identity(1, 1),
+        ru: DMatrix::zeros(1, 1),
+        theta0: None,
+        update,
+        limits,
+        sample_period: TS,
+    }
+}
+
+/// RCAC with RLS (F-test forgetting), saturated.
+fn rcac_rls() -> Box<dyn Controller> {
+    let update = RcacUpdate::Rls {
+        p0: 10.0,
+        rule: ForgettingRule::FTest {
+            tau_n: 10,
+            tau_d: 100,
+            eta: 0.1,
+            alpha: 0.001,
+        },
+        trace_limit: 1e6,
+    };
+    let c = Rcac::new(&rcac_params(update, limits()), Dimensions::new(1, 1, 0, 1))
+        .expect("valid RCAC parameters");
+    Box::new(c)
+}
+
+/// RCAC with the gradient update (`μ_Exp`, α = 0.5), without limits.
+fn rcac_gradient() -> Box<dyn Controller> {
+    let update = RcacUpdate::Gradient {
+        step_size: StepSize::Exp,
+        alpha: 0.5,
+        r: 0.0,
+    };
+    let c = Rcac::new(&rcac_params(update, None), Dimensions::new(1, 1, 0, 1))
+        .expect("valid RCAC parameters");
+    Box::new(c)
+}
+
+/// SISO PCAC: `n̂ = 4`, F-test forgetting, horizon 10, input and move bounds, tracking
+/// the command.
+fn pcac() -> Box<dyn Controller> {
+    let params = PcacParams {
+        model: IoModelParams {
+            n_hat: 4,
+            p: 1,
+            m: 1,
+            theta0: vec![1e-10; 8],
+            p0: 100.0,
+            rule: ForgettingRule::FTest {
+                tau_n: 20,
+                tau_d: 200,
+                eta: 0.1,
+                alpha: 0.001,
+            },
+            trace_limit: f64::INFINITY,
+            kernel: IdKernel::Shared,
+        },
+        mpc: MpcSpec {
+            horizon: 10,
+            n_inputs: 1,
+            n_outputs: 1,
+            n_tracked: 1,
+            tracking: vec![1.0],
+            q: Weight::Scalar(1e2),
+            r: Weight::Scalar(1.0),
+            u_min: vec![-U_MAX],
+            u_max: vec![U_MAX],
+            move_bounds: Some(MoveBounds {
+                min: vec![-0.3],
+                max: vec![0.3],
+            }),
+            output_constraints: None,
+        },
+        timing: PcacTiming::SameStep,
+        qp: QpSettings::default(),
+        warm_start: true,
+    };
+    let c = Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters");
+    Box::new(c)
+}
+
+// ---------------------------------------------------------------------------------------
+// The loop.
+
+/// A stable plant per output, `y_{k+1} = 1.6 y_k − 0.7 y_{k−1} + 0.1 Σ_j u_{j,k} + d_k`,
+/// with a harmonic disturbance and a little deterministic noise; `z = y`, and a command
+/// that steps between 0 and 0.5 every 100 samples. Never allocates after [`Plant::new`].
+struct Plant {
+    counts: Dimensions,
+    y: Vec<f64>,
+    y_prev: Vec<f64>,
+    z: Vec<f64>,
+    r: Vec<f64>,
+    k: u64,
+    noise: u64,
+    phase: f64,
+}
+
+impl Plant {
+    fn new(counts: Dimensions, seed: u64) -> Self {
+        Self {
+            counts,
+            y: vec![0.0; counts.n_y],
+            y_prev: vec![0.0; counts.n_y],
+            z: vec![0.0; counts.n_z],
+            r: vec![0.0; counts.n_r],
+            k: 0,
+            noise: seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1,
+            phase: seed as f64,
+        }
+    }
+
+    /// Uniform in [−1, 1) (xorshift64).
+    fn noise(&mut self) -> f64 {
+        self.noise ^= self.noise << 13;
+        self.noise ^= self.noise >> 7;
+        self.noise ^= self.noise << 17;
+        (self.noise >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    /// The signals of the current sample.
+    fn input(&mut self) -> StepInput<'_> {
+        for (i, z) in self.z.iter_mut().enumerate() {
+            *z = self.y[i % self.counts.n_y];
+        }
+        let command = if (self.k / 100) % 2 == 1 { 0.5 } else { 0.0 };
+        self.r.fill(command);
+        StepInput {
+            seq: self.k,
+            y: &self.y,
+            z: &self.z,
+            r: &self.r,
+            u_applied: None,
+            lost: 0,
+        }
+    }
+
+    /// Applies `u` over the period and moves to the next sample.
+    fn advance(&mut self, u: &[f64]) {
+        let push: f64 = u.iter().sum::<f64>() * 0.1;
+        let d = 0.05 * (0.3 * self.k as f64 + self.phase).sin();
+        for i in 0..self.y.len() {
+            let e = 1e-3 * self.noise();
+            let next = 1.6 * self.y[i] - 0.7 * self.y_prev[i] + push + d + e;
+            self.y_prev[i] = self.y[i];
+            self.y[i] = next;
+        }
+        self.k += 1;
+    }
+}
+
+/// The signals of one recorded sample, for replaying it.
+#[derive(Clone, Debug)]
+struct Sample {
+    seq: u64,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    r: Vec<f64>,
+}
+
+impl Sample {
+    fn input(&self) -> StepInput<'_> {
+        StepInput {
+            seq: self.seq,
+            y: &self.y,
+            z: &self.z,
+            r: &self.r,
+            u_applied: None,
+            lost: 0,
+        }
+    }
+}
+
+/// Runs `steps` closed-loop samples and returns their signals.
+fn closed_loop(c: &mut dyn Controller, plant: &mut Plant, steps: usize) -> Vec<Sample> {
+    let n_u = c.counts().n_u;
+    let mut samples = Vec::new();
+    let mut u = vec![0.0; n_u];
+    for _ in 0..steps {
+        let input = plant.input();
+        samples.push(Sample {
+            seq: input.seq,
+            y: input.y.to_vec(),
+            z: input.z.to_vec(),
+            r: input.r.to_vec(),
+        });
+        c.step(&input, &mut u);
+        plant.advance(&u);
+    }
+    samples
+}
+
+/// `u` is finite and, when the kind has limits, within them.
+fn assert_admissible(kind: &Kind, u: &[f64], what: &str) {
+    assert!(
+        u.iter().all(|v| v.is_finite()),
+        "{what}: u = {u:?} is not finite"
+    );
+    if let Some((lo, hi)) = kind.limits {
+        for (j, v) in u.iter().enumerate() {
+            assert!(
+                lo[j] <= *v && *v <= hi[j],
+                "{what}: u[{j}] = {v} is outside [{}, {}]",
+                lo[j],
+                hi[j]
+            );
+        }
+    }
+}
+
+/// Bit patterns, so that comparisons are exact and NaN-safe.
+fn bits(u: &[f64]) -> Vec<u64> {
+    u.iter().map(|v| v.to_bits()).collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// The properties.
+
+/// Non-finite and huge measurements leave `u` finite (and within the limits), and the
+/// controller keeps giving admissible inputs on good data afterwards.
+fn bad_measurements_leave_u_finite(kind: &Kind) {
+    let mut c = (kind.build)();
+    let counts = c.counts();
+    let mut plant = Plant::new(counts, 1);
+    closed_loop(c.as_mut(), &mut plant, 150);
+    let mut u = vec![0.0; counts.n_u];
+    let bad = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e300,
+        -1e300,
+        1e150,
+    ];
+    let mut seq = plant.k;
+    // Each bad value alone, in every signal at once, then in `y` only with good `z` and `r`.
+    for (round, &v) in bad.iter().chain(&bad).enumerate() {
+        let (y, z, r) = (
+            vec![v; counts.n_y],
+            vec![v; counts.n_z],
+            vec![v; counts.n_r],
+        );
+        let (zz, rr) = (vec![0.1; counts.n_z], vec![0.0; counts.n_r]);
+        let input = if round < bad.len() {
+            StepInput {
+                seq,
+                y: &y,
+                z: &z,
+                r: &r,
+                u_applied: None,
+                lost: 0,
+            }
+        } else {
+            StepInput {
+                seq,
+                y: &y,
+                z: &zz,
+                r: &rr,
+                u_applied: None,
+                lost: 0,
+            }
+        };
+        c.step(&input, &mut u);
+        assert_admissible(kind, &u, &format!("after y = {v}"));
+        seq += 1;
+    }
+    // A burst of NaN samples, then alternating huge values.
+    for i in 0..40 {
+        let v = if i < 20 {
+            f64::NAN
+        } else if i % 2 == 0 {
+            1e300
+        } else {
+            -1e300
+        };
+        let y = vec![v; counts.n_y];
+        let z = vec![v; counts.n_z];
+        let r = vec![0.0; counts.n_r];
+        c.step(
+            &StepInput {
+                seq,
+                y: &y,
+                z: &z,
+                r: &r,
+                u_applied: None,
+                lost: 0,
+            },
+            &mut u,
+        );
+        assert_admissible(kind, &u, &format!("burst sample {i} (y = {v})"));
+        seq += 1;
+    }
+    // Good data again: the loop goes on with admissible inputs.
+    plant.k = seq;
+    for i in 0..300 {
+        let input = plant.input();
+        c.step(&input, &mut u);
+        assert_admissible(kind, &u, &format!("good sample {i} after the bad ones"));
+        plant.advance(&u);
+    }
+}
+
+/// After steps on other data and `reset`, a replayed sequence gives the outputs of a
+/// freshly built controller, bit for bit.
+fn reset_returns_to_the_initial_state(kind: &Kind) {
+    let mut fresh = (kind.build)();
+    let counts = fresh.counts();
+    let samples = closed_loop(fresh.as_mut(), &mut Plant::new(counts, 3), 300);
+    let replay = |c: &mut dyn Controller| -> Vec<(Vec<u64>, u32)> {
+        let mut u = vec![0.0; counts.n_u];
+        samples
+            .iter()
+            .map(|s| {
+                let st = c.step(&s.input(), &mut u);
+                (bits(&u), st)
+            })
+            .collect()
+    };
+    let want = replay((kind.build)().as_mut());
+
+    let mut used = (kind.build)();
+    used.prepare_thread();
+    // Other data, with a bad sample, a lost sample, an observed one and a reported input.
+    let mut plant = Plant::new(counts, 5);
+    closed_loop(used.as_mut(), &mut plant, 200);
+    let mut u = vec![0.0; counts.n_u];
+    let (y, z, r) = (
+        vec![f64::NAN; counts.n_y],
+        vec![0.2; counts.n_z],
+        vec![0.5; counts.n_r],
+    );
+    used.step(
+        &StepInput {
+            seq: 200,
+            y: &y,
+            z: &z,
+            r: &r,
+            u_applied: None,
+            lost: 0,
+        },
+        &mut u,
+    );
+    let ua = vec![0.7; counts.n_u];
+    let y = vec![0.3; counts.n_y];
+    used.observe(
+        &StepInput {
+            seq: 202,
+            y: &y,
+            z: &z,
+            r: &r,
+            u_applied: Some(&ua),
+            lost: 1,
+        },
+        &mut u,
+    );
+    closed_loop(used.as_mut(), &mut plant, 100);
+    used.reset();
+    let got = replay(used.as_mut());
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(
+            g, w,
+            "sample {k}: (u bits, status) after reset differ from a fresh controller"
+        );
+    }
+}
+
+/// Observing late samples keeps the controller aligned with the plant. Both runs hear at
+/// `k + 1` that the plant held the input of `k − 1`. For [`Observe::AsStep`] observing
+/// sample `k` and stepping on equals stepping every sample and discarding the output of
+/// `k`, bit for bit. For [`Observe::RecordsData`] the observed sample's data must be
+/// taken in: observing a different `y_k` changes the inputs that follow, and they stay
+/// finite.
+fn observe_keeps_state_aligned(kind: &Kind) {
+    let mut reference = (kind.build)();
+    let counts = reference.counts();
+    let samples = closed_loop(reference.as_mut(), &mut Plant::new(counts, 7), 400);
+    let late = [150_usize, 151, 260];
+    // `how`: 0 observe, 1 step and discard, 2 observe a perturbed measurement.
+    let run = |how: u8| -> Vec<(usize, Vec<u64>)> {
+        let mut c = (kind.build)();
+        let mut u = vec![0.0; counts.n_u];
+        let mut held = vec![0.0; counts.n_u];
+        let mut out = Vec::new();
+        for (k, s) in samples.iter().enumerate() {
+            let mut input = s.input();
+            if k > 0 && late.contains(&(k - 1)) {
+                // The plant held the input of the last answered sample.
+                input.u_applied = Some(&held);
+            }
+            if late.contains(&k) {
+                let perturbed: Vec<f64> = input.y.iter().map(|v| v + 0.25).collect();
+                match how {
+                    0 => c.observe(&input, &mut u),
+                    1 => {
+                        let mut discarded = vec![0.0; counts.n_u];
+                        c.step(&input, &mut discarded);
+                    }
+                    _ => {
+                        input.y = &perturbed;
+                        c.observe(&input, &mut u);
+                    }
+                }
+                continue;
+            }
+            c.step(&input, &mut u);
+            held.copy_from_slice(&u);
+            out.push((k, bits(&u)));
+        }
+        out
+    };
+    let observed = run(0);
+    for (_, b) in &observed {
+        assert!(b.iter().all(|v| f64::from_bits(*v).is_finite()));
+    }
+    match kind.observe {
+        Observe::AsStep => {
+            let stepped = run(1);
+            for ((k, a), (_, b)) in observed.iter().zip(&stepped) {
+                assert_eq!(
+                    a, b,
+                    "sample {k}: observing the late samples {late:?} differs from stepping them"
+                );
+            }
+        }
+        Observe::RecordsData => {
+            let perturbed = run(2);
+            let first_late = late[0];
+            let changed = observed
+                .iter()
+                .zip(&perturbed)
+                .any(|((k, a), (_, b))| *k > first_late && a != b);
+            assert!(
+                changed,
+                "observing a different measurement at {late:?} changed nothing that followed: \
+                 the observed samples did not enter the controller's data"
+            );
+        }
+    }
+}
+
+/// 1,000 steady-state steps (with observed samples and internals read) allocate nothing.
+fn steady_state_steps_do_not_allocate(kind: &Kind) {
+    let mut c = (kind.build)();
+    let counts = c.counts();
+    c.prepare_thread();
+    let mut plant = Plant::new(counts, 11);
+    closed_loop(c.as_mut(), &mut plant, 300);
+    let mut u = vec![0.0; counts.n_u];
+    let mut internals = [0.0; MAX_INTERNALS];
+    let mut finite = true;
+    let n = allocations_in(|| {
+        for i in 0..1000 {
+            let input = plant.input();
+            if i % 100 == 99 {
+                c.observe(&input, &mut u);
+            } else {
+                c.step(&input, &mut u);
+            }
+            let _ = c.internals(&mut internals);
+            finite &= u.iter().all(|v| v.is_finite());
+            plant.advance(&u);
+        }
+    });
+    assert_eq!(
+        n,
+        0,
+        "{} allocated {n} times in 1,000 steady-state steps",
+        c.kind()
+    );
+    assert!(finite);
+}
+
+/// One module per kind with one test per property; `name: kind,` per line.
+macro_rules! conformance {
+    ($($name:ident: $kind:expr,)*) => {
+        $(
+            mod $name {
+                use super::*;
+
+                const KIND: Kind = $kind;
+
+                #[test]
+                fn non_finite_and_huge_measurements_leave_u_finite_and_within_the_limits() {
+                    bad_measurements_leave_u_finite(&KIND);
+                }
+
+                #[test]
+                fn reset_returns_to_the_initial_state() {
+                    super::reset_returns_to_the_initial_state(&KIND);
+                }
+
+                #[test]
+                fn observing_a_late_sample_keeps_the_controller_aligned_with_the_plant() {
+                    observe_keeps_state_aligned(&KIND);
+                }
+
+                #[test]
+                fn steady_state_steps_do_not_allocate() {
+                    super::steady_state_steps_do_not_allocate(&KIND);
+                }
+            }
+        )*
+    };
+}
+
+conformance! {
+    lti: Kind { build: lti, limits: LIMITS, observe: Observe::AsStep },
+    excitation: Kind { build: excitation, limits: LIMITS, observe: Observe::AsStep },
+    rcac_rls: Kind { build: rcac_rls, limits: LIMITS, observe: Observe::RecordsData },
+    rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData },
+    pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep },
+}
