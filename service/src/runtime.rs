@@ -1,4 +1,4 @@
-//! The real-time loop of the service, its deadline and silence policy, and the run report.
+//! The real-time loop of the service, its policies, and the run report.
 //!
 //! Two phases, kept apart by types. [`run`] builds everything that allocates — the
 //! controller, the histogram boxes, the log and event queues, the iceoryx2 ports — and
@@ -8,15 +8,26 @@
 //!
 //! ```text
 //!  wait for measurement k (busy-poll or blocking on the plant's event)
-//!  validate it (contract version and counts, finite, in range) — else hold u, count
-//!  u_k = controller.step(y_k, z_k, r_k)            (or the safe input in the safe state)
+//!  session: first sample, next (gaps counted as lost), stall resumed, or new plant session
+//!  gate: contract version and counts, finite, in range — else hold u, count
+//!  u_k = controller.step(y_k, z_k, r_k)   (or the safe input in the safe state and the
+//!                                          open-loop phase, while the controller observes)
 //!  publish actuation k; record wake-up, compute, response time and period jitter
 //!  push the signals to the log queue (drop and count when full)
-//!  deadline policy: every late response is counted; N consecutive misses after the grace
-//!  period ⇒ safe state (latched, or left after M good cycles), where a miss is what the
-//!  plant reports (its actuation k−1 was absent or late at its deadline; the default) or
-//!  what the service measures (response time past the deadline)
+//!  deadline policy: count misses; N consecutive after the grace period ⇒ safe state
+//!  (latched, or left after M good answers)
 //! ```
+//!
+//! The policies are plain-data types with no I/O and no clock of their own, each with its
+//! rules stated in its module:
+//!
+//! - [`gate`]: which measurements may reach the controller;
+//! - [`session`]: sequence numbers, silence, a stall versus a genuinely new plant session;
+//! - [`deadline`]: what counts as a miss, when the safe state is entered and left;
+//! - [`reset`]: what a fault does to what the controller learned. By default
+//!   ([`TimingFaultReset::KeepLearned`]) a timing fault — leaving the safe state, a stalled
+//!   plant that resumes its sequence — keeps it; a new plant session (the sequence number
+//!   did not advance) resets it when `service.reset-on-resume` is true.
 //!
 //! Nothing in that path allocates, locks, does I/O or panics (a counting-allocator test in
 //! `service/tests/no_alloc.rs` runs it). Events (plant silent, resumed, safe state) leave the
@@ -25,21 +36,30 @@
 //! and only then, the loop cleans up stale iceoryx2 resources of dead processes every 100 ms
 //! so that a restarted plant can connect, and it resumes on the next sample.
 
+pub mod deadline;
+pub mod gate;
+pub mod reset;
+pub mod session;
 mod tones;
+pub use reset::TimingFaultReset;
 pub use tones::{ToneLine, ToneMeter, ToneReport};
 
-use crate::config::{MissSource, ServiceConfig, WaitMode};
+use crate::config::{ServiceConfig, WaitMode};
 use crate::logging::{self, LogLayout, LogProducer, LogRecord};
 use crate::telemetry::{self, CycleTiming, TelemetryRt, TelemetrySummary};
 use control::controller::{Controller, MAX_INTERNALS, StepInput};
+use deadline::{Answer, DeadlineMonitor, SafeStateChange};
+use gate::MeasurementGate;
 use ipc_types::clock::monotonic_ns;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
 use ipc_types::rt::RtSetup;
 use ipc_types::{
-    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, MAX_Y, MAX_Z, Measurement, actuation_status,
+    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, MAX_Z, Measurement, actuation_status,
     measurement_flags,
 };
+use reset::{ControllerResetPolicy, ResetCause};
 use serde::Serialize;
+use session::{Arrival, Idle, SessionTracker};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -62,12 +82,14 @@ pub enum LoopEvent {
         /// Periods waited.
         periods: u64,
     },
-    /// Samples came back after silence.
+    /// Samples came back after silence (a stall resumed, or a new plant session, which is
+    /// then also reported as [`LoopEvent::SequenceRestarted`]).
     PlantResumed {
         /// The first sequence number received again.
         seq: u64,
     },
-    /// The sequence went backwards without silence (a plant restarted quickly).
+    /// The sequence number did not advance (a restarted plant, after silence or not): a
+    /// new plant session begins.
     SequenceRestarted {
         /// The last sequence number before.
         from: u64,
@@ -81,7 +103,7 @@ pub enum LoopEvent {
         /// Consecutive misses counted.
         misses: u64,
     },
-    /// The safe state was left after enough good cycles.
+    /// The safe state was left after enough good answers.
     SafeStateLeft {
         /// Sequence number at which it happened.
         seq: u64,
@@ -188,16 +210,22 @@ pub enum StopReason {
 /// The pure per-sample logic of the RT loop, all buffers pre-allocated. The IPC glue
 /// around it only receives, calls [`LoopCore::process`] and [`LoopCore::finish_cycle`],
 /// and publishes.
+///
+/// It composes the policies, each a plain-data type with no I/O and no clock of its own:
+/// the [`MeasurementGate`] (which samples may reach the controller), the
+/// [`SessionTracker`] (sequence numbers, silence, stall or new plant), the
+/// [`DeadlineMonitor`] (misses, safe state) and the [`ControllerResetPolicy`] (what a
+/// fault does to what the controller learned).
 pub struct LoopCore {
     controller: Box<dyn Controller>,
     telemetry: TelemetryRt,
     log: Option<LogProducer>,
     events: rtrb::Producer<LoopEvent>,
     counts: ChannelCounts,
-    y_min: [f64; MAX_Y],
-    y_max: [f64; MAX_Y],
-    z_min: [f64; MAX_Z],
-    z_max: [f64; MAX_Z],
+    gate: MeasurementGate,
+    session: SessionTracker,
+    deadline: DeadlineMonitor,
+    resets: ControllerResetPolicy,
     safe_input: [f64; MAX_U],
     last_u: [f64; MAX_U],
     scratch_u: [f64; MAX_U],
@@ -205,22 +233,10 @@ pub struct LoopCore {
     /// Windows of `z` for the per-tone report.
     pub tones: ToneMeter,
     period_ns: u64,
-    grace_cycles: u64,
-    max_consecutive_misses: u64,
-    recover_after: Option<u64>,
-    silent_ns: u64,
     silent_periods: u64,
-    reset_on_resume: bool,
     rms_settle_cycles: u64,
     /// Counters, readable at any time.
     pub stats: LoopStats,
-    in_safe_state: bool,
-    consecutive_misses: u64,
-    good_in_safe_state: u64,
-    cycles_in_session: u64,
-    last_seq: Option<u64>,
-    last_recv_ns: Option<u64>,
-    silent: bool,
     z_sum_sq: [f64; MAX_Z],
     z_sum_sq_settled: [f64; MAX_Z],
     z_count: u64,
@@ -228,8 +244,6 @@ pub struct LoopCore {
     record: LogRecord,
     internals: [f64; MAX_INTERNALS],
     pending_jitter: Option<u64>,
-    plant_reported_miss: bool,
-    miss_source: MissSource,
     /// Allocations made on the RT thread during the loop (filled in when it ends).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
 }
@@ -245,6 +259,9 @@ pub struct CycleDecision {
 
 impl LoopCore {
     /// Builds the loop state from the configuration (allocating; before the RT phase).
+    /// What a timing fault does to the controller is [`TimingFaultReset::default`]
+    /// (keep what it learned) until the configuration carries it; see
+    /// [`LoopCore::with_timing_fault_reset`].
     pub fn new(
         cfg: &ServiceConfig,
         controller: Box<dyn Controller>,
@@ -252,11 +269,8 @@ impl LoopCore {
         log: Option<LogProducer>,
         events: rtrb::Producer<LoopEvent>,
     ) -> Self {
-        let fill = |src: &[f64], default: f64| {
-            let mut a = [default; 16];
-            a[..src.len()].copy_from_slice(src);
-            a
-        };
+        // Configuration hook: `service.on-timing-fault` goes here.
+        let on_timing_fault = TimingFaultReset::default();
         let mut safe_input = [0.0; MAX_U];
         safe_input[..cfg.safe_input.len()].copy_from_slice(&cfg.safe_input);
         Self {
@@ -265,10 +279,13 @@ impl LoopCore {
             log,
             events,
             counts: cfg.counts,
-            y_min: fill(&cfg.limits.y_min, f64::NEG_INFINITY),
-            y_max: fill(&cfg.limits.y_max, f64::INFINITY),
-            z_min: fill(&cfg.limits.z_min, f64::NEG_INFINITY),
-            z_max: fill(&cfg.limits.z_max, f64::INFINITY),
+            gate: MeasurementGate::new(cfg.counts, &cfg.limits),
+            session: SessionTracker::new(cfg.policy.silent_periods, cfg.sample_period_ns),
+            deadline: DeadlineMonitor::new(&cfg.policy),
+            resets: ControllerResetPolicy {
+                on_timing_fault,
+                reset_on_resume: cfg.policy.reset_on_resume,
+            },
             safe_input,
             last_u: safe_input,
             scratch_u: [0.0; MAX_U],
@@ -280,24 +297,9 @@ impl LoopCore {
                 cfg.sample_period_ns as f64 * 1e-9,
             ),
             period_ns: cfg.sample_period_ns,
-            grace_cycles: cfg.policy.grace_cycles,
-            max_consecutive_misses: cfg.policy.max_consecutive_misses,
-            recover_after: cfg.policy.recover_after,
-            silent_ns: cfg
-                .policy
-                .silent_periods
-                .saturating_mul(cfg.sample_period_ns),
             silent_periods: cfg.policy.silent_periods,
-            reset_on_resume: cfg.policy.reset_on_resume,
             rms_settle_cycles: cfg.rms_settle_cycles,
             stats: LoopStats::default(),
-            in_safe_state: false,
-            consecutive_misses: 0,
-            good_in_safe_state: 0,
-            cycles_in_session: 0,
-            last_seq: None,
-            last_recv_ns: None,
-            silent: false,
             z_sum_sq: [0.0; MAX_Z],
             z_sum_sq_settled: [0.0; MAX_Z],
             z_count: 0,
@@ -305,10 +307,20 @@ impl LoopCore {
             record: LogRecord::zeroed(),
             internals: [0.0; MAX_INTERNALS],
             pending_jitter: None,
-            plant_reported_miss: false,
-            miss_source: cfg.policy.miss_source,
             rt_allocations: Default::default(),
         }
+    }
+
+    /// Sets what a timing fault (leaving the safe state, a stalled plant resuming) does to
+    /// the controller's learned state ([`reset`] has the whole table).
+    pub fn with_timing_fault_reset(mut self, on_timing_fault: TimingFaultReset) -> Self {
+        self.resets.on_timing_fault = on_timing_fault;
+        self
+    }
+
+    /// The controller reset policy in force.
+    pub fn reset_policy(&self) -> ControllerResetPolicy {
+        self.resets
     }
 
     fn event(&mut self, e: LoopEvent) {
@@ -317,59 +329,65 @@ impl LoopCore {
         }
     }
 
-    fn valid(&mut self, m: &Measurement) -> bool {
-        if m.contract_version != CONTRACT_VERSION || m.counts != self.counts {
-            self.stats.rejected_contract += 1;
-            return false;
-        }
-        let (y, z, r) = (m.y(), m.z(), m.r());
-        let finite = y.iter().chain(z).chain(r).all(|v| v.is_finite());
-        if !finite {
-            self.stats.rejected_non_finite += 1;
-            return false;
-        }
-        let y_ok = y
-            .iter()
-            .enumerate()
-            .all(|(i, v)| *v >= self.y_min[i] && *v <= self.y_max[i]);
-        let z_ok = z
-            .iter()
-            .enumerate()
-            .all(|(i, v)| *v >= self.z_min[i] && *v <= self.z_max[i]);
-        if !(y_ok && z_ok) {
-            self.stats.rejected_out_of_range += 1;
-            return false;
-        }
-        true
+    /// Copies the policies' counters into [`LoopStats`].
+    fn sync_stats(&mut self) {
+        let s = &mut self.stats;
+        let session = self.session.counts();
+        s.received = session.received;
+        s.skipped = session.lost;
+        s.plant_silent_events = session.silences;
+        s.plant_resumes = session.resumes;
+        let rejected = self.gate.rejected();
+        s.rejected_contract = rejected.contract;
+        s.rejected_non_finite = rejected.non_finite;
+        s.rejected_out_of_range = rejected.out_of_range;
+        let deadline = self.deadline.counts();
+        s.deadline_misses = deadline.late;
+        s.plant_reported_misses = deadline.plant_reported;
+        s.max_consecutive_misses = deadline.max_consecutive;
+        s.safe_state_entries = deadline.safe_state_entries;
     }
 
-    /// Session bookkeeping of a received sample (first sample, resume after silence,
-    /// sequence restart, gaps); returns the number of samples lost just before it.
+    fn reset_controller_if(&mut self, cause: ResetCause) {
+        if self.resets.resets(cause) {
+            self.controller.reset();
+        }
+    }
+
+    /// Passes `m` through the measurement gate.
+    fn admissible(&mut self, m: &Measurement) -> bool {
+        let ok = self.gate.check(m).is_ok();
+        self.sync_stats();
+        ok
+    }
+
+    /// Session bookkeeping of a received sample (first sample, resume after silence, new
+    /// plant session, gaps); returns the number of samples lost just before it.
     fn admit(&mut self, m: &Measurement) -> u64 {
-        self.stats.received += 1;
-        let mut lost = 0;
-        match self.last_seq {
-            None => self.event(LoopEvent::FirstSample { seq: m.seq }),
-            Some(last) => {
-                if self.silent {
-                    self.silent = false;
-                    self.stats.plant_resumes += 1;
+        let arrival = self.session.arrive(m.seq);
+        match arrival {
+            Arrival::First => self.event(LoopEvent::FirstSample { seq: m.seq }),
+            Arrival::Next { .. } => {}
+            Arrival::Resumed { .. } => {
+                self.event(LoopEvent::PlantResumed { seq: m.seq });
+                self.deadline.new_connection();
+                self.reset_controller_if(ResetCause::StallResumed);
+            }
+            Arrival::NewSession {
+                from,
+                after_silence,
+            } => {
+                if after_silence {
                     self.event(LoopEvent::PlantResumed { seq: m.seq });
-                    self.new_session();
-                } else if m.seq <= last {
-                    self.event(LoopEvent::SequenceRestarted {
-                        from: last,
-                        to: m.seq,
-                    });
-                    self.new_session();
-                } else if m.seq > last + 1 {
-                    lost = m.seq - last - 1;
-                    self.stats.skipped += lost;
                 }
+                self.event(LoopEvent::SequenceRestarted { from, to: m.seq });
+                self.deadline.new_connection();
+                self.reset_controller_if(ResetCause::NewPlantSession);
+                self.tones.new_session();
             }
         }
-        self.last_seq = Some(m.seq);
-        lost
+        self.sync_stats();
+        arrival.lost()
     }
 
     /// Takes in a measurement that was received too late to be answered, because a newer
@@ -378,8 +396,7 @@ impl LoopCore {
     pub fn observe(&mut self, m: &Measurement) {
         let lost = self.admit(m);
         self.stats.caught_up += 1;
-        self.cycles_in_session += 1;
-        if !self.valid(m) {
+        if !self.admissible(m) {
             return;
         }
         let n_u = self.counts.n_u as usize;
@@ -397,17 +414,14 @@ impl LoopCore {
         act: &mut Actuation,
     ) -> CycleDecision {
         let lost = self.admit(m);
-        self.plant_reported_miss = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
-            && self.cycles_in_session > 0;
-        if self.plant_reported_miss {
-            self.stats.plant_reported_misses += 1;
-        }
-        let jitter = self.last_recv_ns.map(|prev| {
-            let dt = t_recv_ns.saturating_sub(prev);
-            dt.abs_diff(self.period_ns)
-        });
-        self.last_recv_ns = Some(t_recv_ns);
-        self.cycles_in_session += 1;
+        let cycle = self.session.connection_cycle();
+        let flagged = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0;
+        self.deadline.on_sample(flagged, cycle);
+        self.sync_stats();
+        let jitter = self
+            .session
+            .answered(t_recv_ns)
+            .map(|dt| dt.abs_diff(self.period_ns));
 
         let n_u = self.counts.n_u as usize;
         act.contract_version = CONTRACT_VERSION;
@@ -417,18 +431,19 @@ impl LoopCore {
         act.u = [0.0; MAX_U];
         let mut status = actuation_status::OK;
         let mut compute_ns = 0;
-        if self.cycles_in_session <= self.grace_cycles {
+        if self.deadline.in_grace(cycle) {
             status |= actuation_status::STARTING;
         }
         let input = step_input(m, lost);
-        if !self.valid(m) {
+        let in_safe_state = self.deadline.in_safe_state();
+        if !self.admissible(m) {
             status |= actuation_status::MEASUREMENT_REJECTED;
             act.u[..n_u].copy_from_slice(&self.last_u[..n_u]);
-        } else if self.in_safe_state || self.cycles_in_session <= self.open_loop_cycles {
+        } else if in_safe_state || self.session.session_cycle() <= self.open_loop_cycles {
             // Safe state, or the open-loop phase: the safe input goes out and the
             // controller only observes, so that its memory follows the plant (the plant
             // reports the safe input it applied) and it resumes from the present.
-            if self.in_safe_state {
+            if in_safe_state {
                 status |= actuation_status::SAFE_STATE;
                 self.stats.safe_state_cycles += 1;
             } else {
@@ -474,7 +489,8 @@ impl LoopCore {
     }
 
     fn accumulate_z(&mut self, m: &Measurement) {
-        self.tones.record(self.cycles_in_session, m.seq, m.z());
+        self.tones
+            .record(self.session.session_cycle(), m.seq, m.z());
         self.z_count += 1;
         let settled = self.z_count > self.rms_settle_cycles;
         if settled {
@@ -486,16 +502,6 @@ impl LoopCore {
                 self.z_sum_sq_settled[i] += z * z;
             }
         }
-    }
-
-    fn new_session(&mut self) {
-        if self.reset_on_resume {
-            self.controller.reset();
-        }
-        self.cycles_in_session = 0;
-        self.consecutive_misses = 0;
-        self.last_recv_ns = None;
-        self.tones.new_session();
     }
 
     /// Completes the cycle after publishing at `t_pub_ns`: deadline policy, histograms, log.
@@ -513,51 +519,28 @@ impl LoopCore {
             self.stats.publish_failures += 1;
         }
         let response_ns = t_pub_ns.saturating_sub(m.t_sample_ns);
-        let late = m.deadline_ns > 0 && response_ns > m.deadline_ns;
-        if late {
-            self.stats.deadline_misses += 1;
-        }
-        let missed = !published
-            || match self.miss_source {
-                MissSource::Plant => self.plant_reported_miss,
-                MissSource::ResponseTime => late,
-            };
-        if missed {
-            self.consecutive_misses += 1;
-            self.stats.max_consecutive_misses = self
-                .stats
-                .max_consecutive_misses
-                .max(self.consecutive_misses);
-            self.good_in_safe_state = 0;
-            let counts_toward_limit = self.cycles_in_session > self.grace_cycles;
-            if counts_toward_limit
-                && !self.in_safe_state
-                && self.consecutive_misses >= self.max_consecutive_misses
-            {
-                self.in_safe_state = true;
-                self.stats.safe_state_entries += 1;
-                let misses = self.consecutive_misses;
+        let cycle = self.session.connection_cycle();
+        let verdict = self.deadline.on_answer(Answer {
+            cycle,
+            published,
+            response_ns,
+            deadline_ns: m.deadline_ns,
+        });
+        self.sync_stats();
+        match verdict.change {
+            SafeStateChange::Unchanged => {}
+            SafeStateChange::Entered { misses } => {
                 self.event(LoopEvent::SafeStateEntered { seq: m.seq, misses });
             }
-        } else {
-            self.consecutive_misses = 0;
-            if self.in_safe_state {
-                self.good_in_safe_state += 1;
-                if self
-                    .recover_after
-                    .is_some_and(|n| self.good_in_safe_state >= n)
-                {
-                    self.in_safe_state = false;
-                    self.good_in_safe_state = 0;
-                    self.controller.reset();
-                    self.event(LoopEvent::SafeStateLeft { seq: m.seq });
-                }
+            SafeStateChange::Left => {
+                self.reset_controller_if(ResetCause::LeftSafeState);
+                self.event(LoopEvent::SafeStateLeft { seq: m.seq });
             }
         }
         let jitter = self.pending_jitter.take();
-        // The first sample of a session waited for the connection, not for the loop: it
+        // The first sample of a connection waited for the connection, not for the loop: it
         // would only pollute the latency figures.
-        if self.cycles_in_session > 1 {
+        if cycle > 1 {
             self.record_timing(m, act, t_recv_ns, response_ns, jitter);
         }
         if let Some(log) = self.log.as_mut() {
@@ -598,22 +581,16 @@ impl LoopCore {
     /// Called while no sample is pending; returns true when the plant has just been declared
     /// silent or is silent.
     pub fn on_idle(&mut self, now_ns: u64) -> bool {
-        if self.silent {
-            return true;
+        match self.session.idle(now_ns) {
+            Idle::Active => false,
+            Idle::Silent => true,
+            Idle::WentSilent { last_seq } => {
+                self.sync_stats();
+                let periods = self.silent_periods;
+                self.event(LoopEvent::PlantSilent { last_seq, periods });
+                true
+            }
         }
-        if let (Some(last), Some(seq)) = (self.last_recv_ns, self.last_seq)
-            && now_ns.saturating_sub(last) > self.silent_ns
-        {
-            self.silent = true;
-            self.stats.plant_silent_events += 1;
-            let periods = self.silent_periods;
-            self.event(LoopEvent::PlantSilent {
-                last_seq: seq,
-                periods,
-            });
-            return true;
-        }
-        false
     }
 
     /// Reports the result of a stale-resource clean-up done while the plant is silent.
@@ -1066,6 +1043,9 @@ fn timestamp() -> String {
         .unwrap_or(0);
     format!("{secs}-{}", std::process::id())
 }
+
+#[cfg(test)]
+mod tests;
 
 /// Blocks in the RT thread's allocation pool (iceoryx2 holds at most a few at once).
 pub const RT_POOL_BLOCKS: usize = 256;

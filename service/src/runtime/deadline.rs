@@ -1,0 +1,374 @@
+//! The deadline policy: what counts as a miss, when the safe state is entered and left.
+//!
+//! Per answered sample `k` (cycle `c ≥ 1` of its connection, see [`super::session`]):
+//!
+//! - **Late** (service-measured): the plant gave a deadline `D_k > 0` and the response time
+//!   `t_publish − t_sample,k > D_k`. Every late answer is counted.
+//! - **Plant-reported**: sample `k` carries `PREVIOUS_ACTUATION_MISSED` (the plant's verdict
+//!   on actuation `k − 1`) and `c > 1`; on the first sample of a connection the flag speaks
+//!   of an actuation of before the connection and is ignored. Every report is counted.
+//! - **Miss** (what the safe state listens to): the actuation could not be published, or,
+//!   by `service.miss-source`, the plant reported a miss (`plant`, the default) or the
+//!   answer was late (`response-time`).
+//!
+//! With `m` the number of consecutive misses (reset to 0 by a non-miss and by a new
+//! connection), `N = service.max-consecutive-misses`, `G = service.grace-periods`:
+//!
+//! - **entered**: at a miss with `c > G` and `m ≥ N`. Misses during the grace period
+//!   (`c ≤ G`) still extend `m`, they only cannot trigger the entry; so with `m ≥ N` at the
+//!   end of the grace period the first miss after it enters the safe state.
+//! - **left**: after `M = service.recover-after` non-miss answers in a row in the safe state
+//!   (a miss starts the count again); with no `M` the safe state is latched for the rest of
+//!   the run. `M = 0` behaves as `M = 1`: one good answer is needed (the configuration
+//!   maps `recover-after = 0` to a latched safe state).
+//!
+//! A new connection (a stall resumed, a new plant session) resets `m` but neither the safe
+//! state nor the good answers counted in it. In the safe state the loop sends the safe
+//! input and the controller only observes; what happens to its learned state on leaving
+//! is the business of [`super::reset`]. The monitor reads no clock: times come in as
+//! arguments.
+
+use crate::config::{DeadlinePolicy, MissSource};
+
+/// A change of the safe state decided by [`DeadlineMonitor::on_answer`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SafeStateChange {
+    /// No change.
+    Unchanged,
+    /// The safe state was entered after `misses` consecutive misses.
+    Entered {
+        /// Consecutive misses counted.
+        misses: u64,
+    },
+    /// The safe state was left.
+    Left,
+}
+
+/// The facts about one answer, known after publishing it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Answer {
+    /// The sample's cycle in its connection, from 1.
+    pub cycle: u64,
+    /// The actuation was published.
+    pub published: bool,
+    /// Publish time minus sample time, ns.
+    pub response_ns: u64,
+    /// The plant's deadline for it, ns after the sample time; 0 when it gave none.
+    pub deadline_ns: u64,
+}
+
+/// What the deadline policy made of one answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Verdict {
+    /// The answer was late by the service's measurement.
+    pub late: bool,
+    /// The answer counts as a miss (module docs).
+    pub missed: bool,
+    /// What happened to the safe state.
+    pub change: SafeStateChange,
+}
+
+/// Miss counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DeadlineCounts {
+    /// Late answers by the service's measurement.
+    pub late: u64,
+    /// Misses the plant reported.
+    pub plant_reported: u64,
+    /// The longest run of consecutive misses.
+    pub max_consecutive: u64,
+    /// Entries into the safe state.
+    pub safe_state_entries: u64,
+}
+
+/// The policy of the module docs; plain data, O(1) per call.
+#[derive(Debug, Clone)]
+pub struct DeadlineMonitor {
+    grace_cycles: u64,
+    max_consecutive_misses: u64,
+    recover_after: Option<u64>,
+    source: MissSource,
+    in_safe_state: bool,
+    consecutive: u64,
+    good_in_safe_state: u64,
+    plant_reported: bool,
+    counts: DeadlineCounts,
+}
+
+impl DeadlineMonitor {
+    /// A monitor applying `policy`, out of the safe state.
+    pub fn new(policy: &DeadlinePolicy) -> Self {
+        Self {
+            grace_cycles: policy.grace_cycles,
+            max_consecutive_misses: policy.max_consecutive_misses,
+            recover_after: policy.recover_after,
+            source: policy.miss_source,
+            in_safe_state: false,
+            consecutive: 0,
+            good_in_safe_state: 0,
+            plant_reported: false,
+            counts: DeadlineCounts::default(),
+        }
+    }
+
+    /// True while cycle `cycle` of a connection is in the grace period (`cycle ≤ G`).
+    pub fn in_grace(&self, cycle: u64) -> bool {
+        cycle <= self.grace_cycles
+    }
+
+    /// True in the safe state.
+    pub fn in_safe_state(&self) -> bool {
+        self.in_safe_state
+    }
+
+    /// Takes in the plant's report carried by the sample about to be answered, cycle
+    /// `cycle` of its connection; `previous_missed` is its `PREVIOUS_ACTUATION_MISSED` flag.
+    /// Returns whether it counts as a plant-reported miss (it is then used by the next
+    /// [`DeadlineMonitor::on_answer`]).
+    pub fn on_sample(&mut self, previous_missed: bool, cycle: u64) -> bool {
+        self.plant_reported = previous_missed && cycle > 1;
+        if self.plant_reported {
+            self.counts.plant_reported += 1;
+        }
+        self.plant_reported
+    }
+
+    /// Judges the answer to the sample last given to [`DeadlineMonitor::on_sample`].
+    pub fn on_answer(&mut self, a: Answer) -> Verdict {
+        let late = a.deadline_ns > 0 && a.response_ns > a.deadline_ns;
+        if late {
+            self.counts.late += 1;
+        }
+        let missed = !a.published
+            || match self.source {
+                MissSource::Plant => self.plant_reported,
+                MissSource::ResponseTime => late,
+            };
+        let mut change = SafeStateChange::Unchanged;
+        if missed {
+            self.consecutive += 1;
+            self.counts.max_consecutive = self.counts.max_consecutive.max(self.consecutive);
+            self.good_in_safe_state = 0;
+            if !self.in_grace(a.cycle)
+                && !self.in_safe_state
+                && self.consecutive >= self.max_consecutive_misses
+            {
+                self.in_safe_state = true;
+                self.counts.safe_state_entries += 1;
+                change = SafeStateChange::Entered {
+                    misses: self.consecutive,
+                };
+            }
+        } else {
+            self.consecutive = 0;
+            if self.in_safe_state {
+                self.good_in_safe_state += 1;
+                if self
+                    .recover_after
+                    .is_some_and(|n| self.good_in_safe_state >= n)
+                {
+                    self.in_safe_state = false;
+                    self.good_in_safe_state = 0;
+                    change = SafeStateChange::Left;
+                }
+            }
+        }
+        Verdict {
+            late,
+            missed,
+            change,
+        }
+    }
+
+    /// A new connection began: the run of consecutive misses starts again.
+    pub fn new_connection(&mut self) {
+        self.consecutive = 0;
+    }
+
+    /// The current run of consecutive misses.
+    pub fn consecutive_misses(&self) -> u64 {
+        self.consecutive
+    }
+
+    /// The counters.
+    pub fn counts(&self) -> DeadlineCounts {
+        self.counts
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const D: u64 = 500_000;
+
+    /// The fixture's policy (`tests/loop-core.toml`) with the fields under test replaced.
+    fn policy(
+        grace: u64,
+        n: u64,
+        recover_after: Option<u64>,
+        source: MissSource,
+    ) -> DeadlinePolicy {
+        let cfg = crate::config::ServiceConfig::parse(
+            include_str!("tests/loop-core.toml"),
+            "loop-core.toml",
+        )
+        .expect("the fixture is valid");
+        DeadlinePolicy {
+            grace_cycles: grace,
+            max_consecutive_misses: n,
+            recover_after,
+            miss_source: source,
+            ..cfg.policy
+        }
+    }
+
+    /// One answered cycle: `P` the plant reported a miss, `L` the answer was late, `U` it
+    /// could not be published, `.` on time; `|` a new connection (not a cycle).
+    fn run(p: &DeadlinePolicy, script: &str) -> (Vec<SafeStateChange>, DeadlineMonitor) {
+        let mut m = DeadlineMonitor::new(p);
+        let mut cycle = 0;
+        let mut changes = Vec::new();
+        for c in script.chars() {
+            if c == '|' {
+                m.new_connection();
+                cycle = 0;
+                continue;
+            }
+            cycle += 1;
+            m.on_sample(c == 'P', cycle);
+            let v = m.on_answer(Answer {
+                cycle,
+                published: c != 'U',
+                response_ns: if c == 'L' { D + 1 } else { D },
+                deadline_ns: D,
+            });
+            changes.push(v.change);
+        }
+        (changes, m)
+    }
+
+    /// The cycles (from 1 over the whole script) where the safe state was entered (`+`)
+    /// and left (`-`).
+    fn transitions(changes: &[SafeStateChange]) -> Vec<(usize, char)> {
+        changes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, c)| match c {
+                SafeStateChange::Unchanged => None,
+                SafeStateChange::Entered { .. } => Some((i + 1, '+')),
+                SafeStateChange::Left => Some((i + 1, '-')),
+            })
+            .collect()
+    }
+
+    /// A row of the policy table: what it shows, the policy, the script of [`run`], and the
+    /// expected [`transitions`].
+    type Case = (
+        &'static str,
+        DeadlinePolicy,
+        &'static str,
+        &'static [(usize, char)],
+    );
+
+    #[test]
+    fn safe_state_transitions_follow_the_policy_table() {
+        use MissSource::{Plant, ResponseTime};
+        #[rustfmt::skip]
+        let table: &[Case] = &[
+            ("exactly N consecutive misses enter",
+                policy(0, 3, None, Plant), "..PPP..", &[(5, '+')]),
+            ("N − 1 misses do not",
+                policy(0, 3, None, Plant), "..PP.PP.", &[]),
+            ("the plant's flag on the first cycle of the run is ignored",
+                policy(0, 2, None, Plant), "PPP", &[(3, '+')]),
+            ("a streak broken by one on-time answer starts again",
+                policy(0, 3, None, Plant), "PP.PP.PPP", &[(9, '+')]),
+            ("misses in the grace period cannot enter",
+                policy(4, 2, None, Plant), "PPPP....", &[]),
+            ("but extend the streak that the first miss after grace completes",
+                policy(4, 2, None, Plant), "PPPPP", &[(5, '+')]),
+            ("the flag on the first sample of a connection is ignored",
+                policy(0, 2, None, Plant), "P.|PPP", &[(5, '+')]),
+            ("a new connection resets the streak",
+                policy(0, 3, None, ResponseTime), ".LL|LL", &[]),
+            ("latched without recover-after",
+                policy(0, 2, None, Plant), ".PP..........", &[(3, '+')]),
+            ("recover-after = 3 leaves after three good answers",
+                policy(0, 2, Some(3), Plant), ".PP...", &[(3, '+'), (6, '-')]),
+            ("a miss in the safe state restarts the good count",
+                policy(0, 2, Some(3), Plant), ".PP..P...", &[(3, '+'), (9, '-')]),
+            ("recover-after = 0 leaves at the first good answer",
+                policy(0, 2, Some(0), Plant), ".PPP.", &[(3, '+'), (5, '-')]),
+            ("the safe state can be entered again",
+                policy(0, 2, Some(1), Plant), ".PP.PP", &[(3, '+'), (4, '-'), (6, '+')]),
+            ("the safe state survives a new connection",
+                policy(0, 2, Some(2), Plant), ".PP|..", &[(3, '+'), (5, '-')]),
+            ("plant source ignores late answers",
+                policy(0, 2, None, Plant), ".LLLL", &[]),
+            ("response-time source counts late answers",
+                policy(0, 2, None, ResponseTime), ".LL", &[(3, '+')]),
+            ("response-time source ignores the plant's reports",
+                policy(0, 2, None, ResponseTime), ".PPPP", &[]),
+            ("an unpublished answer is a miss (plant source)",
+                policy(0, 2, None, Plant), ".UU", &[(3, '+')]),
+            ("an unpublished answer is a miss (response-time source)",
+                policy(0, 2, None, ResponseTime), ".UU", &[(3, '+')]),
+        ];
+        for (what, p, script, expected) in table {
+            let (changes, _) = run(p, script);
+            assert_eq!(transitions(&changes), *expected, "{what}: {script}");
+        }
+    }
+
+    #[test]
+    fn every_miss_is_counted_whatever_the_source() {
+        let (changes, m) = run(&policy(0, 3, None, MissSource::Plant), ".PLP.LLP|P");
+        assert!(changes.iter().all(|c| *c == SafeStateChange::Unchanged));
+        assert_eq!(
+            m.counts(),
+            DeadlineCounts {
+                late: 3,
+                plant_reported: 3,
+                max_consecutive: 1,
+                safe_state_entries: 0,
+            }
+        );
+    }
+
+    #[test]
+    fn the_entry_reports_the_streak_length_and_the_longest_streak_is_kept() {
+        let (changes, m) = run(&policy(3, 2, None, MissSource::Plant), ".PPPPP...");
+        assert_eq!(changes[3], SafeStateChange::Entered { misses: 3 });
+        assert!(m.in_safe_state());
+        assert_eq!(m.consecutive_misses(), 0);
+        assert_eq!(m.counts().max_consecutive, 5);
+        assert_eq!(m.counts().safe_state_entries, 1);
+    }
+
+    #[test]
+    fn a_missing_deadline_is_never_late() {
+        let mut m = DeadlineMonitor::new(&policy(0, 1, None, MissSource::ResponseTime));
+        m.on_sample(false, 1);
+        let v = m.on_answer(Answer {
+            cycle: 1,
+            published: true,
+            response_ns: u64::MAX,
+            deadline_ns: 0,
+        });
+        assert_eq!(
+            v,
+            Verdict {
+                late: false,
+                missed: false,
+                change: SafeStateChange::Unchanged
+            }
+        );
+    }
+
+    #[test]
+    fn the_grace_period_covers_cycles_one_to_g() {
+        let m = DeadlineMonitor::new(&policy(2, 1, None, MissSource::Plant));
+        assert_eq!([1, 2, 3].map(|c| m.in_grace(c)), [true, true, false]);
+    }
+}

@@ -1,0 +1,125 @@
+//! What a fault does to what the controller learned.
+//!
+//! The loop can call `Controller::reset` (back to the initial state: for RCAC θ = 0,
+//! P = P₀, ‖θ‖ drops to 0) at three moments, each a [`ResetCause`]:
+//!
+//! | cause                                    | kind of fault | reset when                       |
+//! | ---------------------------------------- | ------------- | -------------------------------- |
+//! | [`ResetCause::LeftSafeState`]            | timing        | `on_timing_fault = ResetController` |
+//! | [`ResetCause::StallResumed`]             | timing        | `on_timing_fault = ResetController` and `reset_on_resume` |
+//! | [`ResetCause::NewPlantSession`]          | new plant     | `reset_on_resume`                |
+//!
+//! The safe state is entered only by deadline misses (see [`super::deadline`]) and a stall
+//! is a silence after which the plant's sequence continues (see [`super::session`]):
+//! neither is the controller's fault, so with the default
+//! [`TimingFaultReset::KeepLearned`] the controller keeps its parameters, covariance and
+//! regressor across them (it observed the plant during the safe state, and after a stall
+//! it is told how many samples were lost). [`TimingFaultReset::ResetController`] gives the
+//! behaviour of earlier versions: a reset on leaving the safe state and, with
+//! `service.reset-on-resume`, on a resumed stall. A genuinely new plant session (the
+//! sequence number did not advance: a restarted plant) is not a timing fault: it resets
+//! the controller exactly when `service.reset-on-resume` is true (the default), whatever
+//! `on_timing_fault` says. Controller faults (the `CONTROLLER_FAULT` status bit) are
+//! counted and reset nothing here.
+
+use serde::{Deserialize, Serialize};
+
+/// What a timing fault (deadline misses that led to the safe state, a stalled plant that
+/// resumed) does to the controller's learned state; configuration value kebab-case
+/// (`"keep-learned"`, `"reset-controller"`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TimingFaultReset {
+    /// The controller keeps what it learned (the default): a timing fault is not its fault.
+    #[default]
+    KeepLearned,
+    /// The controller returns to its initial state, as in earlier versions.
+    ResetController,
+}
+
+/// A moment at which the loop may reset the controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResetCause {
+    /// The safe state was left after enough on-time answers.
+    LeftSafeState,
+    /// Samples came back after silence and the sequence continued: a stall.
+    StallResumed,
+    /// The sequence number did not advance: a new plant session.
+    NewPlantSession,
+}
+
+/// The table of the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ControllerResetPolicy {
+    /// What a timing fault does.
+    pub on_timing_fault: TimingFaultReset,
+    /// `service.reset-on-resume`: reset when a plant comes back (a new session always, a
+    /// stall only with [`TimingFaultReset::ResetController`]).
+    pub reset_on_resume: bool,
+}
+
+impl ControllerResetPolicy {
+    /// True when `cause` resets the controller.
+    pub fn resets(&self, cause: ResetCause) -> bool {
+        let timing = self.on_timing_fault == TimingFaultReset::ResetController;
+        match cause {
+            ResetCause::LeftSafeState => timing,
+            ResetCause::StallResumed => timing && self.reset_on_resume,
+            ResetCause::NewPlantSession => self.reset_on_resume,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ResetCause::*;
+    use TimingFaultReset::*;
+
+    #[test]
+    fn only_a_new_plant_session_resets_the_controller_by_default() {
+        let p = ControllerResetPolicy {
+            on_timing_fault: TimingFaultReset::default(),
+            reset_on_resume: true,
+        };
+        assert_eq!(
+            [LeftSafeState, StallResumed, NewPlantSession].map(|c| p.resets(c)),
+            [false, false, true]
+        );
+    }
+
+    #[test]
+    fn the_reset_decisions_follow_the_table() {
+        #[rustfmt::skip]
+        let table = [
+            // on timing fault, reset-on-resume: left safe state, stall resumed, new session
+            (KeepLearned,     true,  [false, false, true]),
+            (KeepLearned,     false, [false, false, false]),
+            (ResetController, true,  [true,  true,  true]),
+            (ResetController, false, [true,  false, false]),
+        ];
+        for (on_timing_fault, reset_on_resume, expected) in table {
+            let p = ControllerResetPolicy {
+                on_timing_fault,
+                reset_on_resume,
+            };
+            assert_eq!(
+                [LeftSafeState, StallResumed, NewPlantSession].map(|c| p.resets(c)),
+                expected,
+                "{p:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_configuration_values_are_kebab_case() {
+        #[derive(Deserialize)]
+        struct Doc {
+            v: TimingFaultReset,
+        }
+        let parse = |s: &str| toml::from_str::<Doc>(&format!("v = \"{s}\"")).map(|d| d.v);
+        assert_eq!(parse("keep-learned").unwrap(), KeepLearned);
+        assert_eq!(parse("reset-controller").unwrap(), ResetController);
+        assert!(parse("reset").is_err());
+    }
+}

@@ -1,0 +1,263 @@
+//! [`LoopCore`] with a probe controller: the policies composed, and what faults do to the
+//! controller. The configuration is the fixture `tests/loop-core.toml` (grace 2, two
+//! misses to the safe state, two good answers out of it, silence after 5 periods).
+
+use super::*;
+use control::Dimensions;
+use std::sync::atomic::AtomicU64;
+
+const T: u64 = 1_000_000;
+
+/// What the probe lets the test see.
+#[derive(Default)]
+struct Seen {
+    resets: AtomicU64,
+    last_lost: AtomicU64,
+}
+
+/// A controller whose "learned state" is the number of samples it has taken in since its
+/// last reset, and whose output is that number.
+struct Probe {
+    learned: f64,
+    seen: Arc<Seen>,
+}
+
+impl Controller for Probe {
+    fn kind(&self) -> &'static str {
+        "probe"
+    }
+    fn counts(&self) -> Dimensions {
+        Dimensions::new(1, 1, 0, 1)
+    }
+    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        self.learned += 1.0;
+        self.seen.last_lost.store(input.lost, Ordering::Relaxed);
+        u[0] = self.learned;
+        0
+    }
+    fn reset(&mut self) {
+        self.learned = 0.0;
+        self.seen.resets.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+fn fixture() -> ServiceConfig {
+    ServiceConfig::parse(include_str!("tests/loop-core.toml"), "loop-core.toml")
+        .expect("the fixture is valid")
+}
+
+struct Harness {
+    core: LoopCore,
+    events: rtrb::Consumer<LoopEvent>,
+    seen: Arc<Seen>,
+    counts: ChannelCounts,
+    _reporter: telemetry::TelemetryReporter,
+}
+
+impl Harness {
+    fn new(on_timing_fault: TimingFaultReset) -> Self {
+        let cfg = fixture();
+        let seen = Arc::new(Seen::default());
+        let probe = Probe {
+            learned: 0.0,
+            seen: seen.clone(),
+        };
+        let (tele, reporter) = telemetry::channel_in_memory(cfg.budget_ns, 1000, 1);
+        let (tx, events) = rtrb::RingBuffer::new(64);
+        let core = LoopCore::new(&cfg, Box::new(probe), tele, None, tx)
+            .with_timing_fault_reset(on_timing_fault);
+        Self {
+            core,
+            events,
+            seen,
+            counts: cfg.counts,
+            _reporter: reporter,
+        }
+    }
+
+    /// Sample `seq` arrives at `seq · T` with `y = y0` and `flags`; returns the actuation.
+    fn answer_with(&mut self, seq: u64, y0: f64, flags: u32) -> Actuation {
+        let mut m = Measurement::zeroed(self.counts);
+        m.seq = seq;
+        m.t_sample_ns = seq * T;
+        m.y[0] = y0;
+        m.flags = flags;
+        let mut act = Actuation::zeroed(self.counts);
+        self.core.process(&m, m.t_sample_ns, &mut act);
+        self.core
+            .finish_cycle(&m, &act, m.t_sample_ns, m.t_sample_ns + 1000, true);
+        act
+    }
+
+    /// Sample `seq`, on time (`'.'`) or reporting that the previous actuation missed
+    /// (`'P'`); returns its status bits and input.
+    fn answer(&mut self, seq: u64, kind: char) -> (u32, f64) {
+        let flags = match kind {
+            'P' => measurement_flags::PREVIOUS_ACTUATION_MISSED,
+            _ => 0,
+        };
+        let act = self.answer_with(seq, 0.0, flags);
+        (act.status, act.u[0])
+    }
+
+    fn events(&mut self) -> Vec<LoopEvent> {
+        std::iter::from_fn(|| self.events.pop().ok()).collect()
+    }
+
+    fn resets(&self) -> u64 {
+        self.seen.resets.load(Ordering::Relaxed)
+    }
+}
+
+use TimingFaultReset::{KeepLearned, ResetController};
+use actuation_status::{MEASUREMENT_REJECTED, SAFE_STATE, STARTING};
+
+#[test]
+fn a_core_built_from_the_configuration_keeps_what_the_controller_learned_through_a_timing_fault() {
+    let cfg = fixture();
+    let (tele, _reporter) = telemetry::channel_in_memory(cfg.budget_ns, 1000, 1);
+    let controller = cfg
+        .controller
+        .build(cfg.counts)
+        .expect("the fixture's controller");
+    let core = LoopCore::new(&cfg, controller, tele, None, rtrb::RingBuffer::new(1).0);
+    assert_eq!(
+        core.reset_policy(),
+        ControllerResetPolicy {
+            on_timing_fault: KeepLearned,
+            reset_on_resume: true,
+        }
+    );
+}
+
+#[test]
+fn leaving_the_safe_state_resets_the_controller_only_when_configured() {
+    // (policy, resets, input of the first closed-loop answer after the safe state)
+    let table = [(KeepLearned, 0, 8.0), (ResetController, 1, 1.0)];
+    for (policy, resets, u_after) in table {
+        let mut h = Harness::new(policy);
+        let script = "...PP..";
+        let said: Vec<(u32, f64)> = script
+            .chars()
+            .enumerate()
+            .map(|(k, c)| h.answer(k as u64, c))
+            .collect();
+        let statuses: Vec<u32> = said.iter().map(|s| s.0).collect();
+        assert_eq!(
+            statuses,
+            [STARTING, STARTING, 0, 0, 0, SAFE_STATE, SAFE_STATE],
+            "{policy:?}"
+        );
+        // In the safe state the safe input goes out and the controller only observes.
+        assert_eq!((said[5].1, said[6].1), (0.5, 0.5), "{policy:?}");
+        assert_eq!(
+            h.events(),
+            [
+                LoopEvent::FirstSample { seq: 0 },
+                LoopEvent::SafeStateEntered { seq: 4, misses: 2 },
+                LoopEvent::SafeStateLeft { seq: 6 },
+            ],
+            "{policy:?}"
+        );
+        assert_eq!(h.answer(7, '.'), (0, u_after), "{policy:?}");
+        assert_eq!(h.resets(), resets, "{policy:?}");
+        assert_eq!(
+            (
+                h.core.stats.safe_state_entries,
+                h.core.stats.safe_state_cycles
+            ),
+            (1, 2)
+        );
+    }
+}
+
+#[test]
+fn a_stalled_plant_resumes_its_session_and_the_controller_hears_of_the_gap() {
+    // (policy, resets, input of the first answer after the stall)
+    let table = [(KeepLearned, 0, 6.0), (ResetController, 1, 1.0)];
+    for (policy, resets, u_after) in table {
+        let mut h = Harness::new(policy);
+        for k in 0..5 {
+            h.answer(k, '.');
+        }
+        assert!(!h.core.on_idle(4 * T + 5 * T), "{policy:?}");
+        assert!(h.core.on_idle(4 * T + 5 * T + 1), "{policy:?}");
+        // The plant's watchdog flagged the missing actuation: no miss on a new connection.
+        let (status, u) = h.answer(20, 'P');
+        assert_eq!((status, u), (STARTING, u_after), "{policy:?}");
+        assert_eq!(h.seen.last_lost.load(Ordering::Relaxed), 15, "{policy:?}");
+        assert_eq!(h.resets(), resets, "{policy:?}");
+        assert_eq!(
+            h.events()[1..],
+            [
+                LoopEvent::PlantSilent {
+                    last_seq: 4,
+                    periods: 5
+                },
+                LoopEvent::PlantResumed { seq: 20 },
+            ],
+            "{policy:?}"
+        );
+        let s = h.core.stats;
+        assert_eq!(
+            (s.plant_silent_events, s.plant_resumes, s.skipped),
+            (1, 1, 15),
+            "{policy:?}"
+        );
+        assert_eq!((s.plant_reported_misses, s.deadline_misses), (0, 0));
+    }
+}
+
+#[test]
+fn a_plant_restarted_from_zero_after_silence_is_a_new_session_that_resets_the_controller() {
+    for policy in [KeepLearned, ResetController] {
+        let mut h = Harness::new(policy);
+        for k in 0..5 {
+            h.answer(k, '.');
+        }
+        assert!(h.core.on_idle(100 * T), "{policy:?}");
+        assert_eq!(h.answer(0, '.'), (STARTING, 1.0), "{policy:?}");
+        assert_eq!(h.seen.last_lost.load(Ordering::Relaxed), 0, "{policy:?}");
+        assert_eq!(h.resets(), 1, "{policy:?}");
+        assert_eq!(
+            h.events()[2..],
+            [
+                LoopEvent::PlantResumed { seq: 0 },
+                LoopEvent::SequenceRestarted { from: 4, to: 0 },
+            ],
+            "{policy:?}"
+        );
+        assert_eq!((h.core.stats.plant_resumes, h.core.stats.skipped), (1, 0));
+    }
+}
+
+#[test]
+fn a_rejected_measurement_holds_the_last_input_and_never_reaches_the_controller() {
+    let mut h = Harness::new(KeepLearned);
+    let inputs: Vec<(u32, f64)> = [0.0, f64::NAN, 11.0, 0.0]
+        .iter()
+        .enumerate()
+        .map(|(k, y)| {
+            let a = h.answer_with(k as u64, *y, 0);
+            (a.status & !STARTING, a.u[0])
+        })
+        .collect();
+    assert_eq!(
+        inputs,
+        [
+            (0, 1.0),
+            (MEASUREMENT_REJECTED, 1.0),
+            (MEASUREMENT_REJECTED, 1.0),
+            (0, 2.0)
+        ]
+    );
+    let s = h.core.stats;
+    assert_eq!(
+        (
+            s.rejected_non_finite,
+            s.rejected_out_of_range,
+            s.controller_steps
+        ),
+        (1, 1, 2)
+    );
+}
