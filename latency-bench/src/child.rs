@@ -9,8 +9,13 @@
 //! results. [`ChildProc`] terminates the child (SIGTERM, then SIGKILL) if it is still
 //! running when the parent gives up on it, and [`drive`] runs the parent's measuring
 //! thread while watching the child. [`repin_rt_thread`] checks, inside the service child,
-//! that the service's RT thread really runs on its core.
+//! that the service's RT thread really runs on its core. On the parent side,
+//! [`spawn_service`] writes a service configuration and starts the service child on it,
+//! and [`read_report`] reads the run report it leaves.
 
+use crate::cli::Settings;
+use crate::configs::{self, Channels};
+use serde_json::Value;
 use service::config::{ServiceConfig, WaitMode};
 use service::runtime::{RunOptions, run};
 use std::fs::File;
@@ -341,4 +346,67 @@ fn ensure_affinity(tid: libc::pid_t, core: usize) -> Result<bool, String> {
         }
     }
     Ok(true)
+}
+
+/// Writes a service configuration for `rig` into `dir` (the 2-state LTI loop controller of
+/// [`configs::loop_controller`], one channel each) and starts the service child on it,
+/// waiting in mode `wait` (`busy-poll` or `block`) on the RT core.
+pub fn spawn_service(s: &Settings, dir: &Path, rig: &str, wait: &str) -> Result<ChildProc, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let text = configs::service_toml(
+        rig,
+        Channels { y: 1, z: 1, u: 1 },
+        &configs::loop_controller(),
+        s.service_log,
+    );
+    let config = dir.join("config.toml");
+    std::fs::write(&config, text).map_err(|e| format!("writing {}: {e}", config.display()))?;
+    let args = vec![
+        "child-service".to_string(),
+        "--config".into(),
+        config.display().to_string(),
+        "--wait".into(),
+        wait.into(),
+        "--core".into(),
+        s.rt_core.to_string(),
+        "--run-folder".into(),
+        dir.display().to_string(),
+    ];
+    ChildProc::spawn(&args, &dir.join("child.log"), &format!("service ({wait})"))
+}
+
+/// The service's run report (`dir/report.json`), with the note of [`REPIN_NOTE`] added as
+/// `latency_bench_repin` when the child had to re-pin the RT thread.
+pub fn read_report(dir: &Path) -> Result<Value, String> {
+    let path = dir.join("report.json");
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    let mut report: Value =
+        serde_json::from_str(&text).map_err(|e| format!("parsing {}: {e}", path.display()))?;
+    if let (Ok(note), Some(obj)) = (
+        std::fs::read_to_string(dir.join(REPIN_NOTE)),
+        report.as_object_mut(),
+    ) {
+        obj.insert(
+            "latency_bench_repin".into(),
+            Value::String(note.trim().to_string()),
+        );
+    }
+    Ok(report)
+}
+
+/// The service's RT set-up as its report states it, and whether the bench had to re-pin
+/// its RT thread.
+pub fn service_rt_line(report: &Value) -> String {
+    let setup = report
+        .get("rt_setup")
+        .and_then(Value::as_str)
+        .unwrap_or("?");
+    if report.get("latency_bench_repin").is_some() {
+        format!(
+            "{setup} → RT thread re-pinned to its core by the bench (service pinning bug, see child.log)"
+        )
+    } else {
+        setup.to_string()
+    }
 }

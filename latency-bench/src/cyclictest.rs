@@ -28,8 +28,15 @@
 //! in `[i, i + 1)` µs; a percentile that falls among the overflows is reported as the
 //! maximum. `-N` (nanoseconds) is not used: it changes the histogram's bucket unit to ns.
 
-use std::path::PathBuf;
+use crate::cli::Settings;
+use crate::hist;
+use crate::report::{Collected, Measured};
+use crate::table::fmt_ratio;
+use crate::{PERIOD_NS, progress};
+use serde_json::{Map, Value, json};
+use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::{Instant, SystemTime};
 
 /// cyclictest's histogram of one thread.
 #[derive(Debug, Clone, PartialEq)]
@@ -106,24 +113,24 @@ impl CyclictestHistogram {
 
     /// The `q`-quantile (`0 < q ≤ 1`) in µs, at the middle of its 1 µs bucket; the maximum
     /// when it falls among the overflows; `None` when nothing was counted.
+    ///
+    /// The rank is found by the bench's one quantile helper, [`hist::quantile`], on
+    /// [`Self::to_hdr`] (which records bucket `i` at its middle `i + 0.5` µs): the median
+    /// equivalent of the value found is less than half a µs from that middle, so it names
+    /// the bucket exactly.
     pub fn percentile_us(&self, q: f64) -> Option<f64> {
-        let total = self.total();
-        if total == 0 {
+        if self.total() == 0 {
             return None;
         }
-        let target = ((q.clamp(0.0, 1.0) * total as f64).ceil() as u64).max(1);
-        let mut cum = 0;
-        for (i, n) in self.buckets.iter().enumerate() {
-            cum += n;
-            if cum >= target {
-                return Some(i as f64 + 0.5);
-            }
-        }
-        Some(
+        let h = self.to_hdr();
+        let bucket = (h.median_equivalent(hist::quantile(&h, q.clamp(0.0, 1.0))) / 1_000) as usize;
+        Some(if bucket < self.buckets.len() {
+            bucket as f64 + 0.5
+        } else {
             self.max_us
                 .map(|m| m as f64)
-                .unwrap_or(self.buckets.len() as f64),
-        )
+                .unwrap_or(self.buckets.len() as f64)
+        })
     }
 
     /// The maximum in µs: cyclictest's exact `Max Latencies`, else the last non-empty
@@ -140,7 +147,7 @@ impl CyclictestHistogram {
     /// The histogram as an HdrHistogram in ns (each bucket at its middle, overflows at the
     /// maximum), for the `.hgrm`/`.hlog` files.
     pub fn to_hdr(&self) -> hdrhistogram::Histogram<u64> {
-        let mut h = crate::hist::new_histogram();
+        let mut h = hist::new_histogram();
         for (i, n) in self.buckets.iter().enumerate() {
             if *n > 0 {
                 h.saturating_record_n(i as u64 * 1_000 + 500, *n);
@@ -229,6 +236,120 @@ fn tail(s: &str, n: usize) -> &str {
     &s[i..]
 }
 
+/// The cyclictest phase of the full run: cyclictest on the RT core for `s.seconds`
+/// (rounded up) into `dir`, unless it is skipped or not installed. Adds its block to
+/// `col.extra` and, to each service wake-up row already in `col.measured`, its ratios to
+/// cyclictest at p50, p99 and max. Returns the cyclictest row and those ratios (the
+/// `wakeup_over_cyclictest` block of `summary.json`).
+pub fn cyclictest_phase(
+    s: &Settings,
+    dir: &Path,
+    col: &mut Collected,
+) -> (Measured, Map<String, Value>) {
+    progress("5/6 cyclictest");
+    let ct_label = format!("cyclictest (core {}, {} µs)", s.rt_core, PERIOD_NS / 1_000);
+    let ct = run_into(s, dir);
+    let ct_measured = match &ct {
+        Ok(Some((run, files))) => {
+            let h = &run.histogram;
+            let us = [
+                h.percentile_us(0.5),
+                h.percentile_us(0.99),
+                h.percentile_us(0.999),
+                h.max(),
+            ];
+            col.extra.insert(
+                "cyclictest".into(),
+                json!({
+                    "command": run.command, "total": h.total(), "overflows": h.overflows,
+                    "min_us": h.min_us, "avg_us": h.avg_us, "max_us": h.max_us,
+                    "p50_us": us[0], "p99_us": us[1], "p99_9_us": us[2],
+                    "percentiles": "from its 1 µs histogram, at bucket middles",
+                }),
+            );
+            Measured {
+                id: "cyclictest".into(),
+                label: ct_label,
+                count: Some(h.total()),
+                us,
+                summary: None,
+                note: "machine floor; percentiles ±0.5 µs (1 µs buckets)".into(),
+                files: files.clone(),
+                error: None,
+            }
+        }
+        Ok(None) => {
+            let why = if s.cyclictest {
+                "cyclictest not installed"
+            } else {
+                "skipped (--skip-cyclictest)"
+            };
+            col.extra.insert("cyclictest".into(), json!(why));
+            Measured::empty("cyclictest", &ct_label, why)
+        }
+        Err(e) => Measured::failed("cyclictest", &ct_label, e.clone()),
+    };
+    // Ratios of the service wake-up to the machine floor.
+    let mut wake_ratios = serde_json::Map::new();
+    if ct_measured.error.is_none() && ct_measured.count.is_some() {
+        for m in col
+            .measured
+            .iter_mut()
+            .filter(|m| m.id.starts_with("wakeup-"))
+        {
+            if let Some(sum) = m.summary {
+                let r = |v: u64, c: Option<f64>| c.filter(|c| *c > 0.0).map(|c| v as f64 / 1e3 / c);
+                let (p50, p99, max) = (
+                    r(sum.p50_ns, ct_measured.us[0]),
+                    r(sum.p99_ns, ct_measured.us[1]),
+                    r(sum.max_ns, ct_measured.us[3]),
+                );
+                let skipped = std::mem::take(&mut m.note);
+                m.note = format!(
+                    "÷ cyclictest: p50 {}, p99 {}, max {}",
+                    fmt_ratio(p50),
+                    fmt_ratio(p99),
+                    fmt_ratio(max)
+                );
+                if !skipped.is_empty() {
+                    m.note = format!("{}; {skipped}", m.note);
+                }
+                wake_ratios.insert(
+                    m.id.trim_start_matches("wakeup-").to_string(),
+                    json!({ "p50": p50, "p99": p99, "max": max }),
+                );
+            }
+        }
+    }
+    (ct_measured, wake_ratios)
+}
+
+/// Runs cyclictest into `dir` (its output as `cyclictest.txt`, its histogram as
+/// `.hgrm`/`.hlog`); `None` when it is skipped or not installed.
+fn run_into(s: &Settings, dir: &Path) -> Result<Option<(CyclictestRun, Vec<PathBuf>)>, String> {
+    if !s.cyclictest {
+        return Ok(None);
+    }
+    let Some(exe) = find() else {
+        return Ok(None);
+    };
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let seconds = s.seconds.ceil().max(1.0) as u64;
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let run = run(&exe, s.rt_core, PERIOD_NS / 1_000, seconds)?;
+    let elapsed = t.elapsed();
+    let _ = std::fs::write(
+        dir.join("cyclictest.txt"),
+        format!("$ {}\n{}", run.command, run.output),
+    );
+    let mut files = vec![dir.join("cyclictest.txt")];
+    if let Ok(f) = hist::write_files(dir, "cyclictest", &run.histogram.to_hdr(), start, elapsed) {
+        files.extend(f);
+    }
+    Ok(Some((run, files)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -275,6 +396,20 @@ mod tests {
         assert_eq!(h.total(), 110);
         assert_eq!(h.percentile_us(0.5), Some(3.5));
         assert_eq!(h.percentile_us(0.95), Some(1234.0));
+    }
+
+    #[test]
+    fn every_bucket_up_to_the_last_is_found_at_its_middle() {
+        let mut text = String::new();
+        for i in 0..1000 {
+            text.push_str(&format!("{i:06} 000001\n"));
+        }
+        text.push_str("# Max Latencies: 00999\n");
+        let h = CyclictestHistogram::parse(&text).unwrap();
+        for i in 0..1000u64 {
+            let q = (i + 1) as f64 / 1000.0;
+            assert_eq!(h.percentile_us(q), Some(i as f64 + 0.5), "bucket {i}");
+        }
     }
 
     #[test]

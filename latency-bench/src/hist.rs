@@ -3,9 +3,9 @@
 //!
 //! Values are recorded in nanoseconds into histograms of range 1 ns … 60 s with three
 //! significant figures (relative error ≤ 0.1 %), recorded with saturation so that an
-//! absurd value is clamped instead of lost. Percentiles are HdrHistogram's
-//! `value_at_quantile`, i.e. the highest value equivalent to the bucket that holds the
-//! quantile.
+//! absurd value is clamped instead of lost. Every percentile of the bench is [`quantile`]:
+//! HdrHistogram's `value_at_quantile`, i.e. the highest value equivalent to the bucket that
+//! holds the sample of rank `⌈q·n⌉` (at least 1).
 //!
 //! Files, for a distribution named `name`:
 //! - `name.hgrm`: the classic percentile distribution text, values in µs, written with the
@@ -33,6 +33,15 @@ pub const SIGFIG: u8 = 3;
 pub fn new_histogram() -> Histogram<u64> {
     // The constant bounds satisfy every precondition of new_with_bounds.
     Histogram::new_with_bounds(1, HIGHEST_NS, SIGFIG).expect("constant bounds are valid")
+}
+
+/// The `q`-quantile of `h` (see the module docs); 0 when `h` is empty.
+pub fn quantile(h: &Histogram<u64>, q: f64) -> u64 {
+    if h.is_empty() {
+        0
+    } else {
+        h.value_at_quantile(q)
+    }
 }
 
 /// Percentiles of one distribution, in nanoseconds.
@@ -71,9 +80,9 @@ impl Summary {
         Self {
             count: h.len(),
             min_ns: h.min(),
-            p50_ns: h.value_at_quantile(0.5),
-            p99_ns: h.value_at_quantile(0.99),
-            p99_9_ns: h.value_at_quantile(0.999),
+            p50_ns: quantile(h, 0.5),
+            p99_ns: quantile(h, 0.99),
+            p99_9_ns: quantile(h, 0.999),
             max_ns: h.max(),
             mean_ns: h.mean(),
         }
@@ -172,6 +181,8 @@ mod tests {
         assert!((s.p99_ns as f64 - 990_000.0).abs() < 1_000.0, "{s:?}");
         assert!((s.max_ns as f64 - 1_000_000.0).abs() < 1_000.0, "{s:?}");
         assert_eq!(Summary::of(&new_histogram()).count, 0);
+        assert_eq!(quantile(&new_histogram(), 0.5), 0);
+        assert_eq!(quantile(&h, 0.5), s.p50_ns);
     }
 
     #[test]

@@ -38,21 +38,29 @@
 //! (`.hgrm`, µs) and as an interval log (`.hlog`, V2 + deflate, ns) into the output folder,
 //! next to a `summary.json` and the printed [`table`]. [`machine`] records what the OS
 //! granted (pinning, `SCHED_FIFO`, `mlockall`) and the kernel, since the figures mean
-//! little without them.
+//! little without them. [`report`] also writes the printed table, with the machine, the
+//! date and the command line, into the results file the docs link to
+//! (`docs/results/latency-bench.md` by default). [`cli`] holds the command line and the
+//! settings it resolves to.
 
 #![warn(missing_docs)]
 
 pub mod child;
+pub mod cli;
 pub mod configs;
 pub mod cyclictest;
 pub mod hist;
 pub mod machine;
 pub mod paced;
 pub mod pcac_cost;
+pub mod pcac_phase;
+pub mod report;
 pub mod rls_cost;
 pub mod roundtrip;
 pub mod step_cost;
 pub mod table;
+
+use ipc_types::rt::{RtRequest, RtSetup};
 
 /// Sampling period of the budget the bench checks: 8 kHz.
 pub const PERIOD_NS: u64 = 125_000;
@@ -60,3 +68,39 @@ pub const PERIOD_NS: u64 = 125_000;
 /// `SCHED_FIFO` priority of every real-time thread of the bench (both processes), the
 /// service's default and the one given to cyclictest.
 pub const RT_PRIORITY: i32 = 80;
+
+/// The real-time set-up every measuring thread of the bench asks for: pinned on `core`,
+/// `SCHED_FIFO` at [`RT_PRIORITY`], `mlockall` and a prefaulted stack of 256 KiB.
+pub fn rt_request(core: usize) -> RtRequest {
+    RtRequest {
+        core: Some(core),
+        fifo_priority: Some(RT_PRIORITY),
+        mlockall: true,
+        prefault_stack_bytes: 256 * 1024,
+    }
+}
+
+/// Runs `work` on a thread pinned to `rt_core` at `SCHED_FIFO` ([`rt_request`]): the
+/// helper thread of the phases that time kernels. Returns the RT set-up outcome and
+/// `work`'s result.
+pub fn on_rt_core<T: Send + 'static>(
+    rt_core: usize,
+    name: &str,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> Result<(RtSetup, T), String> {
+    let rt = rt_request(rt_core);
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn(move || {
+            let setup = ipc_types::rt::setup_current_thread(&rt);
+            (setup, work())
+        })
+        .map_err(|e| format!("starting the {name} thread: {e}"))?
+        .join()
+        .map_err(|_| format!("the {name} thread failed"))
+}
+
+/// A progress line on standard error (the table goes to standard output).
+pub fn progress(msg: &str) {
+    eprintln!("[latency-bench] {msg}");
+}

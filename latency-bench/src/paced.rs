@@ -25,14 +25,25 @@
 //! Every sample is recorded, including the first ones after the service connects: the
 //! service records from its first sample on, and the parent does the same so that both
 //! cover the same cycles.
+//!
+//! [`wakeup_phase`] is the phase of the full run: one such run per wait mode (busy-poll,
+//! then block), each with a fresh service child.
 
 use crate::PERIOD_NS;
+use crate::child;
+use crate::cli::Settings;
 use crate::hist::new_histogram;
+use crate::hist::{self, Summary};
+use crate::progress;
+use crate::report::{Collected, Measured};
 use crate::roundtrip::test_signal;
 use hdrhistogram::Histogram;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
+use ipc_types::rt::RtSetup;
 use ipc_types::{ChannelCounts, Measurement, measurement_flags};
+use serde_json::{Value, json};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, SystemTime};
 
@@ -72,12 +83,7 @@ pub fn paced_plant(
     abort: &AtomicBool,
 ) -> Result<PacedResult, String> {
     let own = ContractInfo::new(Side::Plant, counts, PERIOD_NS);
-    let opts = ConnectOptions {
-        peer_timeout: connect_timeout,
-        shutdown: Some(abort),
-        listen: false,
-        waiting_message: None,
-    };
+    let opts = ConnectOptions::new(connect_timeout).with_shutdown(abort);
     let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
         .map_err(|e| format!("connecting as the plant: {e}"))?;
     let n = ((seconds * 1e9 / PERIOD_NS as f64).round() as u64).max(1);
@@ -162,4 +168,135 @@ pub fn paced_plant(
         start,
         duration,
     })
+}
+
+/// The wake-up phase: the service child in busy-poll, then in blocking mode, each paced
+/// by [`paced_plant`] at 8 kHz for `s.seconds`. The service's wake-up rows, the detail
+/// lines, the `extra` blocks and the run reports go into `col`; the plant-side rows
+/// (pacing lateness, publish → answer) are returned, to be placed after the cyclictest
+/// ratios are added to the wake-up rows.
+pub fn wakeup_phase(
+    s: &Settings,
+    out: &Path,
+    pid: u32,
+    counts: ChannelCounts,
+    col: &mut Collected,
+) -> Vec<Measured> {
+    let mut plant_rows: Vec<Measured> = Vec::new();
+    for (i, (mode, wait)) in [("busy-poll", "busy-poll"), ("block", "block")]
+        .into_iter()
+        .enumerate()
+    {
+        progress(&format!(
+            "{}/6 service wake-up at 8 kHz, {mode}, {:.1} s",
+            3 + i,
+            s.seconds
+        ));
+        let dir = out.join(format!("wakeup-{mode}"));
+        let rig = format!("bench-{pid}-{mode}");
+        let label = format!("service wake-up 8 kHz {mode}");
+        match paced_phase(s, &dir, &rig, wait, counts) {
+            Ok((p, setup, report)) => {
+                let wk = report
+                    .pointer("/latency/wakeup")
+                    .ok_or("report.json has no latency.wakeup".to_string())
+                    .and_then(Summary::from_service_json);
+                match wk {
+                    Ok(sum) => {
+                        let mut m = Measured::from_summary(
+                            &format!("wakeup-{mode}"),
+                            &label,
+                            sum,
+                            vec![dir.join("wakeup.hgrm"), dir.join("wakeup.hlog")],
+                        );
+                        m.files.retain(|f| f.exists());
+                        // Samples the service never saw are in no histogram of its own.
+                        if let Some(n) = report.pointer("/stats/skipped").and_then(Value::as_u64) {
+                            m.note = format!("{n} samples skipped by the service");
+                        }
+                        col.measured.push(m);
+                    }
+                    Err(e) => {
+                        col.measured
+                            .push(Measured::failed(&format!("wakeup-{mode}"), &label, e));
+                    }
+                }
+                let files = hist::write_files(&dir, "plant-pacing", &p.pacing, p.start, p.duration)
+                    .unwrap_or_default();
+                plant_rows.push(Measured::from_summary(
+                    &format!("pacing-{mode}"),
+                    &format!("  plant pacing lateness ({mode} run)"),
+                    Summary::of(&p.pacing),
+                    files,
+                ));
+                let files = hist::write_files(
+                    &dir,
+                    "plant-publish-to-answer",
+                    &p.publish_to_answer,
+                    p.start,
+                    p.duration,
+                )
+                .unwrap_or_default();
+                let mut m = Measured::from_summary(
+                    &format!("publish-to-answer-{mode}"),
+                    &format!("  plant publish → u_k published ({mode})"),
+                    Summary::of(&p.publish_to_answer),
+                    files,
+                );
+                m.note = format!("{} of {} answers in time", p.in_time, p.samples);
+                plant_rows.push(m);
+                let misses = report
+                    .pointer("/stats/deadline_misses")
+                    .and_then(Value::as_u64);
+                col.details.push(format!(
+                    "8 kHz {mode}: {} samples, deadline {:.1} µs: {} answered in time, {} late, {} missing (plant view); service counted {} misses; service RT set-up: {}; plant thread: {}",
+                    p.samples,
+                    PERIOD_NS as f64 / 2_000.0,
+                    p.in_time,
+                    p.late,
+                    p.missing(),
+                    misses.map(|m| m.to_string()).unwrap_or_else(|| "?".into()),
+                    child::service_rt_line(&report),
+                    setup.describe()
+                ));
+                col.extra.insert(
+                    format!("paced-{mode}"),
+                    json!({
+                        "samples": p.samples, "in_time": p.in_time, "late": p.late, "missing": p.missing(),
+                        "pacing_lateness": Summary::of(&p.pacing),
+                        "publish_to_answer": Summary::of(&p.publish_to_answer),
+                        "plant_rt_setup": setup.describe(),
+                    }),
+                );
+                col.reports.insert(format!("wakeup-{mode}"), report);
+            }
+            Err(e) => {
+                col.measured
+                    .push(Measured::failed(&format!("wakeup-{mode}"), &label, e));
+            }
+        }
+    }
+    plant_rows
+}
+
+/// One wake-up run in mode `wait`: the paced plant's figures, its RT set-up and the
+/// service's run report.
+pub fn paced_phase(
+    s: &Settings,
+    dir: &Path,
+    rig: &str,
+    wait: &str,
+    counts: ChannelCounts,
+) -> Result<(PacedResult, RtSetup, Value), String> {
+    let mut child = child::spawn_service(s, dir, rig, wait)?;
+    let seconds = s.seconds;
+    let (p, setup) = child::drive(
+        &mut child,
+        s.plant_rt(),
+        Duration::from_secs_f64(40.0 + 3.0 * seconds),
+        |abort| paced_plant(rig, counts, seconds, Duration::from_secs(20), abort),
+    )?;
+    child.wait(Duration::from_secs(30))?;
+    let report = child::read_report(dir)?;
+    Ok((p, setup, report))
 }

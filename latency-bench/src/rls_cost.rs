@@ -14,7 +14,7 @@
 //! The two kernels run interleaved in blocks of [`BLOCK`] updates (the fast kernel's block,
 //! then the textbook kernel's block on the same data), so that a slow spell of the machine
 //! hits both. The fast kernel is timed on at least [`FAST_MIN_STEPS`] updates (it is cheap);
-//! the textbook kernel, which costs 10–70× more, only on the `steps` requested, after which
+//! the textbook kernel, which costs many times more, only on the `steps` requested, after which
 //! the fast kernel runs on alone. The agreement of the two is checked on `θ` at the update
 //! where the textbook kernel stopped.
 //!
@@ -24,15 +24,23 @@
 //! first [`REWARM`] fast updates after each textbook block therefore run but are *not*
 //! recorded in the fast histogram; they are counted and kept apart ([`RlsCost::cold`]) so
 //! that the cost of a cold start stays visible. With blocks this long the rule drops at most
-//! a handful of samples per size (4 of 5 000 at `(300, 3)` in the standalone bench).
+//! [`REWARM`] of every [`BLOCK`] fast updates.
+//!
+//! [`rls_phase`] runs every size of [`RLS_SIZES`] on the pinned RT core.
 
+use crate::cli::Settings;
 use crate::hist::new_histogram;
+use crate::hist::{self, Summary};
+use crate::report::Measured;
+use crate::{PERIOD_NS, on_rt_core};
 use control::forgetting::ForgettingRule;
 use control::rls::{Rls, RlsConfig, TextbookRls};
 use hdrhistogram::Histogram;
 use ipc_types::clock::monotonic_ns;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+use std::time::{Instant, SystemTime};
 
 /// The sizes `(n, p)` the issue asks for: a chapter 5 identification, a small MIMO one,
 /// full-RLS RCAC with 300 coefficients (1 and 3 outputs) and a PCAC-size model.
@@ -179,4 +187,67 @@ pub fn measure_detailed(n: usize, p: usize, warmup: u64, steps: u64) -> Result<R
         cold: h_cold,
         diff,
     })
+}
+
+/// The RLS update at the sizes of `rls_cost::RLS_SIZES`, fast and textbook kernels
+/// interleaved on the pinned RT core (see the module docs): a row per size and kernel, distributions written into `dir`.
+pub fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return vec![Measured::failed(
+            "rls",
+            "rls update",
+            format!("creating {}: {e}", dir.display()),
+        )];
+    }
+    let base = (s.steps / 10).max(1000);
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let results = match on_rt_core(s.rt_core, "bench-rls", move || {
+        RLS_SIZES
+            .iter()
+            .map(|&(n, p)| {
+                let steps = updates_for(n, p, base);
+                (n, p, measure(n, p, steps / 10, steps))
+            })
+            .collect::<Vec<_>>()
+    }) {
+        Ok((_, v)) => v,
+        Err(e) => return vec![Measured::failed("rls", "rls update", e)],
+    };
+    let elapsed = t.elapsed();
+    let mut out = Vec::new();
+    for (n, p, r) in results {
+        let slug = format!("rls-{n}x{p}");
+        match r {
+            Ok((fast, text, diff)) => {
+                let ff = hist::write_files(dir, &format!("{slug}-fast"), &fast, start, elapsed)
+                    .unwrap_or_default();
+                let tf = hist::write_files(dir, &format!("{slug}-textbook"), &text, start, elapsed)
+                    .unwrap_or_default();
+                let (sf, st) = (Summary::of(&fast), Summary::of(&text));
+                let mut m = Measured::from_summary(
+                    &format!("{slug}-fast"),
+                    &format!("rls ({n}, {p}) fast"),
+                    sf,
+                    ff,
+                );
+                let ratio = |a: u64, b: u64| if b > 0 { a as f64 / b as f64 } else { f64::NAN };
+                m.note = format!(
+                    "textbook ÷ fast: p50 {:.1}×, p99 {:.1}×; p99 {:.1} % of 125 µs; θ agree to {diff:.0e}",
+                    ratio(st.p50_ns, sf.p50_ns),
+                    ratio(st.p99_ns, sf.p99_ns),
+                    100.0 * sf.p99_ns as f64 / PERIOD_NS as f64
+                );
+                out.push(m);
+                out.push(Measured::from_summary(
+                    &format!("{slug}-textbook"),
+                    &format!("  rls ({n}, {p}) textbook"),
+                    st,
+                    tf,
+                ));
+            }
+            Err(e) => out.push(Measured::failed(&slug, &format!("rls ({n}, {p})"), e)),
+        }
+    }
+    out
 }

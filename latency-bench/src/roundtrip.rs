@@ -31,8 +31,18 @@
 //!
 //! The ratio contract/raw is therefore what the contract and the service add to iceoryx2
 //! itself.
+//!
+//! [`round_trip_phase`] is the phase of the full run: both variants in rounds of fresh
+//! child processes in ABBA order, merged per variant, with their ratio against
+//! [`TARGET_RATIO`].
 
+use crate::child::{self, ChildProc};
+use crate::cli::Settings;
 use crate::hist::new_histogram;
+use crate::hist::{self, Summary, ratio};
+use crate::progress;
+use crate::report::{Collected, Measured};
+use crate::table::fmt_ratio;
 use crate::{PERIOD_NS, RT_PRIORITY};
 use core::hint::spin_loop;
 use core::mem::size_of;
@@ -44,9 +54,13 @@ use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFac
 use ipc_types::clock::monotonic_ns;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
 use ipc_types::rt::RtRequest;
+use ipc_types::rt::RtSetup;
 use ipc_types::{Actuation, ChannelCounts, Measurement, measurement_flags};
+use serde_json::{Value, json};
 use std::fmt::Debug;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::SystemTime;
 use std::time::{Duration, Instant};
 
 /// How many round trips, how far apart, and how long to wait for one answer.
@@ -136,12 +150,7 @@ pub fn contract_round_trips(
     abort: &AtomicBool,
 ) -> Result<Histogram<u64>, String> {
     let own = ContractInfo::new(Side::Plant, counts, PERIOD_NS);
-    let opts = ConnectOptions {
-        peer_timeout: plan.connect_timeout,
-        shutdown: Some(abort),
-        listen: false,
-        waiting_message: None,
-    };
+    let opts = ConnectOptions::new(plan.connect_timeout).with_shutdown(abort);
     let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
         .map_err(|e| format!("connecting as the plant: {e}"))?;
     let mut m = Measurement::zeroed(counts);
@@ -432,4 +441,231 @@ pub fn run_echo_child(rig: &str, core: usize) -> i32 {
     }
     eprintln!("[echo] answered {answered} pings");
     0
+}
+
+// The phase: ABBA rounds of fresh child processes, merged per variant.
+
+/// The issue's target for contract / raw at p50 and p99.
+pub const TARGET_RATIO: f64 = 1.5;
+
+/// One round of one round-trip variant: its histogram, the plant thread's RT set-up and
+/// the service's run report (`Null` for the raw variant).
+pub type RoundOutcome = Result<(Histogram<u64>, RtSetup, Value), String>;
+
+/// One contract round: the real service (busy-poll) as the child, the parent as the
+/// contract's plant.
+pub fn contract_round(s: &Settings, dir: &Path, rig: &str, counts: ChannelCounts) -> RoundOutcome {
+    let mut child = child::spawn_service(s, dir, rig, "busy-poll")?;
+    let plan = s.plan;
+    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| {
+        contract_round_trips(rig, counts, &plan, abort)
+    })?;
+    child.wait(Duration::from_secs(30))?;
+    let report = child::read_report(dir)?;
+    Ok((h, setup, report))
+}
+
+/// One raw round: the iceoryx2 echo as the child.
+pub fn raw_round(s: &Settings, dir: &Path, rig: &str) -> RoundOutcome {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    let args = vec![
+        "child-echo".to_string(),
+        "--rig".into(),
+        rig.into(),
+        "--core".into(),
+        s.rt_core.to_string(),
+    ];
+    let mut child = ChildProc::spawn(&args, &dir.join("child.log"), "raw echo")?;
+    let plan = s.plan;
+    let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| {
+        raw_round_trips(rig, &plan, abort)
+    })?;
+    child.wait(Duration::from_secs(30))?;
+    Ok((h, setup, Value::Null))
+}
+
+/// Min and max of some values, as "a–b" with two decimals (or one value when equal).
+fn range(values: &[f64], unit: &str) -> String {
+    let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return "-".into();
+    }
+    let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = finite.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if (hi - lo).abs() < 0.005 {
+        format!("{lo:.2}{unit}")
+    } else {
+        format!("{lo:.2}–{hi:.2}{unit}")
+    }
+}
+
+/// The contract and raw round trips, in `s.rounds` rounds of fresh child processes in ABBA
+/// order (contract, raw, raw, contract, …), so that slow changes of the machine's load
+/// weigh on both variants alike. Each round records `s.plan.samples` round trips after
+/// `s.plan.warmup`; the rows are the merged histograms. Returns the ratio block of
+/// `summary.json`; the rows, details and service reports go into `col`.
+pub fn round_trip_phase(
+    s: &Settings,
+    out: &Path,
+    pid: u32,
+    counts: ChannelCounts,
+    col: &mut Collected,
+) -> Value {
+    let Collected {
+        measured,
+        details,
+        reports,
+        ..
+    } = col;
+    const IDS: [&str; 2] = ["contract-rtt", "raw-rtt"];
+    const LABELS: [&str; 2] = ["contract round trip (service)", "raw iceoryx2 ping-pong"];
+    let mut merged = [hist::new_histogram(), hist::new_histogram()];
+    let mut per_round: [Vec<Summary>; 2] = [Vec::new(), Vec::new()];
+    let mut errors: [Option<String>; 2] = [None, None];
+    let mut setups: Vec<String> = Vec::new();
+    let mut service_side: Vec<[f64; 3]> = Vec::new();
+    let start = SystemTime::now();
+    let t = Instant::now();
+    for r in 0..s.rounds {
+        let order = if r % 2 == 0 { [0, 1] } else { [1, 0] };
+        for v in order {
+            if errors[v].is_some() {
+                continue;
+            }
+            progress(&format!(
+                "{}/6 {}, round {}/{}: {} round trips after {} warm-up",
+                v + 1,
+                LABELS[v],
+                r + 1,
+                s.rounds,
+                s.plan.samples,
+                s.plan.warmup
+            ));
+            let dir = out.join(IDS[v]).join(format!("round-{r}"));
+            let outcome = if v == 0 {
+                contract_round(s, &dir, &format!("bench-{pid}-rtt{r}"), counts)
+            } else {
+                raw_round(s, &dir, &format!("bench-{pid}-raw{r}"))
+            };
+            match outcome {
+                Ok((h, setup, report)) => {
+                    let _ = merged[v].add(&h);
+                    per_round[v].push(Summary::of(&h));
+                    setups.push(setup.describe());
+                    if !report.is_null() {
+                        let p50 = |k: &str| {
+                            report
+                                .pointer(&format!("/latency/{k}/p50"))
+                                .and_then(Value::as_u64)
+                                .map(|ns| ns as f64 / 1e3)
+                        };
+                        if let (Some(w), Some(rsp), Some(c)) =
+                            (p50("wakeup"), p50("response"), p50("compute"))
+                        {
+                            service_side.push([w, rsp, c]);
+                        }
+                        if r == 0 {
+                            details.push(format!(
+                                "contract rounds: service RT set-up: {}",
+                                child::service_rt_line(&report)
+                            ));
+                        }
+                        reports.insert(format!("{}-round-{r}", IDS[v]), report);
+                    }
+                }
+                Err(e) => errors[v] = Some(format!("round {}: {e}", r + 1)),
+            }
+        }
+    }
+    let elapsed = t.elapsed();
+    let mut rows = Vec::new();
+    for v in 0..2 {
+        let dir = out.join(IDS[v]);
+        match &errors[v] {
+            Some(e) => rows.push(Measured::failed(IDS[v], LABELS[v], e.clone())),
+            None => {
+                let files =
+                    hist::write_files(&dir, "rtt", &merged[v], start, elapsed).unwrap_or_default();
+                rows.push(Measured::from_summary(
+                    IDS[v],
+                    LABELS[v],
+                    Summary::of(&merged[v]),
+                    files,
+                ));
+            }
+        }
+    }
+    let [mut contract, mut raw] = <[Measured; 2]>::try_from(rows).expect("two rows");
+    let ratios = match (&contract.summary, &raw.summary) {
+        (Some(c), Some(r)) => {
+            let p50 = ratio(c.p50_ns, r.p50_ns);
+            let p99 = ratio(c.p99_ns, r.p99_ns);
+            let pass = p50
+                .zip(p99)
+                .map(|(a, b)| a <= TARGET_RATIO && b <= TARGET_RATIO);
+            contract.note = format!(
+                "÷ raw: p50 {}, p99 {} → {} (target ≤ {TARGET_RATIO})",
+                fmt_ratio(p50),
+                fmt_ratio(p99),
+                match pass {
+                    Some(true) => "PASS",
+                    Some(false) => "FAIL",
+                    None => "n/a",
+                }
+            );
+            raw.note = "reference for the contract row".into();
+            let round_ratio = |f: fn(&Summary) -> u64| -> Vec<f64> {
+                per_round[0]
+                    .iter()
+                    .zip(&per_round[1])
+                    .filter_map(|(c, r)| ratio(f(c), f(r)))
+                    .collect()
+            };
+            let (r50, r99) = (round_ratio(|s| s.p50_ns), round_ratio(|s| s.p99_ns));
+            details.push(format!(
+                "contract ÷ raw per round: p50 {}, p99 {} ({} rounds, ABBA order)",
+                range(&r50, ""),
+                range(&r99, ""),
+                r50.len()
+            ));
+            json!({
+                "p50": p50, "p99": p99, "target": TARGET_RATIO, "pass": pass,
+                "per_round_p50": r50, "per_round_p99": r99,
+                "per_round_contract": per_round[0], "per_round_raw": per_round[1],
+            })
+        }
+        _ => Value::Null,
+    };
+    if !service_side.is_empty() {
+        let col = |i: usize| service_side.iter().map(|v| v[i]).collect::<Vec<_>>();
+        let in_service: Vec<f64> = service_side.iter().map(|v| v[1] - v[0]).collect();
+        details.push(format!(
+            "contract rounds, service side (p50 per round): plant send → receipt {}, plant send → u_k published {} \
+             (so ≈ {} from receipt to publication), of which controller step {}",
+            range(&col(0), " µs"),
+            range(&col(1), " µs"),
+            range(&in_service, " µs"),
+            range(&col(2), " µs")
+        ));
+    }
+    let spacing = if s.plan.gap_ns == 0 {
+        "back-to-back".to_string()
+    } else {
+        format!(
+            "{:.0} µs busy-wait after each answer",
+            s.plan.gap_ns as f64 / 1e3
+        )
+    };
+    details.push(format!(
+        "round trips: parent on core {} and child on core {}, both busy-polling, SCHED_FIFO {RT_PRIORITY}; {} rounds × {} samples after {} warm-up each, {spacing}, same for both variants; plant thread: {}",
+        s.plant_core,
+        s.rt_core,
+        s.rounds,
+        s.plan.samples,
+        s.plan.warmup,
+        setups.first().map(String::as_str).unwrap_or("?")
+    ));
+    measured.push(contract);
+    measured.push(raw);
+    ratios
 }

@@ -21,10 +21,15 @@
 //!
 //! Each value contains one `clock_gettime` (vDSO) call's worth of overhead;
 //! [`timer_overhead`] measures it (two back-to-back readings) so that the smallest step
-//! costs can be read against it.
+//! costs can be read against it. [`step_phase`] runs every case and the overhead on the
+//! pinned RT core.
 
+use crate::cli::Settings;
 use crate::configs::{LoopPlant, StepCase};
 use crate::hist::new_histogram;
+use crate::hist::{self, Summary};
+use crate::report::Measured;
+use crate::{PERIOD_NS, on_rt_core};
 use control::{Controller, MAX_INTERNALS, StepInput};
 use hdrhistogram::Histogram;
 use ipc_types::clock::monotonic_ns;
@@ -33,6 +38,8 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use service::config::ServiceConfig;
+use std::path::Path;
+use std::time::{Instant, SystemTime};
 
 /// Length of the precomputed input table.
 const TABLE: usize = 1024;
@@ -195,6 +202,66 @@ pub fn timer_overhead(n: u64) -> Histogram<u64> {
         h.saturating_record(t1.saturating_sub(t0));
     }
     h
+}
+
+/// The step-cost phase: every case of [`crate::configs::step_cases`] measured by
+/// [`measure`] on the pinned RT core, then [`timer_overhead`]; the rows (one per case, with
+/// its share of the period, and the timer overhead's), distributions written into `dir`.
+pub fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return vec![Measured::failed(
+            "step-cost",
+            "step cost",
+            format!("creating {}: {e}", dir.display()),
+        )];
+    }
+    let cases = crate::configs::step_cases();
+    let (warmup, steps) = (s.step_warmup, s.steps);
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let (setup, (results, overhead)) = match on_rt_core(s.rt_core, "bench-step", move || {
+        let results: Vec<_> = cases
+            .iter()
+            .map(|c| (c.clone(), measure(c, warmup, steps)))
+            .collect();
+        (results, timer_overhead(steps))
+    }) {
+        Ok(v) => v,
+        Err(e) => return vec![Measured::failed("step-cost", "step cost", e)],
+    };
+    let elapsed = t.elapsed();
+    let mut out = Vec::new();
+    for (case, r) in results {
+        let id = format!("step-{}", case.slug);
+        let label = format!("step: {}", case.name);
+        match r {
+            Ok((h, _kind)) => {
+                let files =
+                    hist::write_files(dir, &case.slug, &h, start, elapsed).unwrap_or_default();
+                let sum = Summary::of(&h);
+                let mut m = Measured::from_summary(&id, &label, sum, files);
+                let pct = |ns: u64| 100.0 * ns as f64 / PERIOD_NS as f64;
+                m.note = format!(
+                    "of 125 µs: p99 {:.2} %, max {:.1} %",
+                    pct(sum.p99_ns),
+                    pct(sum.max_ns)
+                );
+                out.push(m);
+            }
+            Err(e) => out.push(Measured::failed(&id, &label, e)),
+        }
+    }
+    let files =
+        hist::write_files(dir, "timer-overhead", &overhead, start, elapsed).unwrap_or_default();
+    let mut m = Measured::from_summary(
+        "timer-overhead",
+        "  timer overhead (2× clock_gettime)",
+        Summary::of(&overhead),
+        files,
+    );
+    m.note = format!("inside every step value; step thread: {}", setup.describe());
+    out.push(m);
+    out
 }
 
 #[cfg(test)]

@@ -1,0 +1,283 @@
+//! The PCAC phase: [`crate::pcac_cost::measure`] for each workload on the pinned RT core,
+//! turned into table rows, detail lines and the `pcac` block of `summary.json`. It ends
+//! the full run and is all of `latency-bench pcac`.
+
+use crate::hist::{self, Summary, ratio};
+use crate::on_rt_core;
+use crate::pcac_cost::{self, PcacCost, Workload};
+use crate::report::Measured;
+use crate::table::fmt_ratio;
+use hdrhistogram::Histogram;
+use serde_json::{Value, json};
+use std::path::Path;
+use std::time::{Duration, Instant, SystemTime};
+
+/// The PCAC step at each of `workloads` on the pinned RT core, beside clarabel on the same
+/// QPs when `clarabel` (see [`crate::pcac_cost`]): the table rows, the detail lines
+/// and the JSON block of `summary.json`.
+pub fn pcac_phase(
+    rt_core: usize,
+    dir: &Path,
+    workloads: &[Workload],
+    warmup: Option<u64>,
+    steps: u64,
+    clarabel: bool,
+) -> (Vec<Measured>, Vec<String>, Value) {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return (
+            vec![Measured::failed(
+                "pcac",
+                "pcac step",
+                format!("creating {}: {e}", dir.display()),
+            )],
+            Vec::new(),
+            Value::Null,
+        );
+    }
+    let list = workloads.to_vec();
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let (setup, results) = match on_rt_core(rt_core, "bench-pcac", move || {
+        list.iter()
+            .map(|&w| {
+                let warm = warmup.unwrap_or(w.default_warmup());
+                (w, pcac_cost::measure(w, warm, steps, clarabel))
+            })
+            .collect::<Vec<_>>()
+    }) {
+        Ok(v) => v,
+        Err(e) => {
+            return (
+                vec![Measured::failed("pcac", "pcac step", e)],
+                Vec::new(),
+                Value::Null,
+            );
+        }
+    };
+    let elapsed = t.elapsed();
+    let mut rows = Vec::new();
+    let mut lines = Vec::new();
+    let mut json_out = serde_json::Map::new();
+    for (w, r) in results {
+        match r {
+            Ok(c) => {
+                let (mut m, l, v) = pcac_rows(&c, dir, start, elapsed, clarabel);
+                rows.append(&mut m);
+                lines.extend(l);
+                json_out.insert(w.slug().into(), v);
+            }
+            Err(e) => rows.push(Measured::failed(w.slug(), w.label(), e)),
+        }
+    }
+    lines.push(format!(
+        "pcac: timing thread: {}; each workload's copies run in blocks of {} samples, the first {} timed steps of a block recorded apart (cold cache)",
+        setup.describe(),
+        pcac_cost::BLOCK,
+        pcac_cost::REWARM
+    ));
+    (rows, lines, Value::Object(json_out))
+}
+
+/// The rows, detail lines and JSON of one PCAC workload.
+pub fn pcac_rows(
+    c: &PcacCost,
+    dir: &Path,
+    start: SystemTime,
+    elapsed: Duration,
+    clarabel: bool,
+) -> (Vec<Measured>, Vec<String>, Value) {
+    let w = c.workload;
+    let slug = w.slug();
+    let mut rows = Vec::new();
+    let files = |name: &str, h: &Histogram<u64>| {
+        hist::write_files(dir, name, h, start, elapsed).unwrap_or_default()
+    };
+    let step = Summary::of(&c.step);
+    let timed = c.step.len() + c.cold.len();
+    let pct = |n: u64| 100.0 * n as f64 / timed.max(1) as f64;
+    let mut m = Measured::from_summary(
+        slug,
+        &format!("{} step", w.label()),
+        step,
+        files(slug, &c.step),
+    );
+    let target = w.target_ns();
+    let verdict = |ns: u64, t: u64| if ns < t { "PASS" } else { "FAIL" };
+    let mut note = format!(
+        "p99 {} target {} µs",
+        verdict(step.p99_ns, target),
+        target / 1_000
+    );
+    if let Some(st) = w.stretch_ns() {
+        note.push_str(&format!(
+            ", {} stretch {} µs",
+            if step.p99_ns < st { "meets" } else { "misses" },
+            st / 1_000
+        ));
+    }
+    note.push_str(&format!(
+        "; fallbacks {}; u at bound {:.1} %",
+        c.fallback_steps,
+        pct(c.saturated)
+    ));
+    if w.params().mpc.move_bounds.is_some() {
+        note.push_str(&format!(", Δu at bound {:.1} %", pct(c.at_move_bound)));
+    }
+    m.note = note;
+    rows.push(m);
+    let cl = Summary::of(&c.clarabel);
+    if clarabel {
+        let mut m = Measured::from_summary(
+            &format!("{slug}-clarabel"),
+            "  clarabel, same QPs (set-up + solve)",
+            cl,
+            files(&format!("{slug}-clarabel"), &c.clarabel),
+        );
+        m.note = format!(
+            "÷ pcac step: p50 {}×, p99 {}×; first move agrees to {:.1e} ({} of {} compared{})",
+            fmt_ratio(ratio(cl.p50_ns, step.p50_ns)),
+            fmt_ratio(ratio(cl.p99_ns, step.p99_ns)),
+            c.max_first_move_diff,
+            c.compared,
+            timed,
+            if c.clarabel_unsolved > 0 {
+                format!(", clarabel not solved {}", c.clarabel_unsolved)
+            } else {
+                String::new()
+            }
+        );
+        rows.push(m);
+    }
+    for (i, what) in ["no active constraint", "≥ 1 active constraint"]
+        .iter()
+        .enumerate()
+    {
+        let id = format!("{slug}-step-active-{i}");
+        let h = &c.step_by_active[i];
+        let mut m = Measured::from_summary(
+            &id,
+            &format!("  steps with {what}"),
+            Summary::of(h),
+            files(&id, h),
+        );
+        m.note = format!(
+            "{:.0} % of the warm steps",
+            100.0 * h.len() as f64 / c.step.len().max(1) as f64
+        );
+        rows.push(m);
+    }
+    for (i, name) in pcac_cost::PIECES.iter().enumerate() {
+        let id = format!("{slug}-piece-{i}");
+        let mut m = Measured::from_summary(
+            &id,
+            &format!("  {name}"),
+            Summary::of(&c.pieces[i]),
+            files(&id, &c.pieces[i]),
+        );
+        let share = ratio(Summary::of(&c.pieces[i]).p50_ns, step.p50_ns).unwrap_or(0.0);
+        m.note = format!("{:.0} % of the step's p50", 100.0 * share);
+        rows.push(m);
+    }
+    let mut m = Measured::from_summary(
+        &format!("{slug}-cold"),
+        "  step at a block start (cold cache)",
+        Summary::of(&c.cold),
+        files(&format!("{slug}-cold"), &c.cold),
+    );
+    m.note = "not in the step row".into();
+    rows.push(m);
+    let ct = &c.counters;
+    let mut diffs = c.first_move_diffs.clone();
+    diffs.sort_by(f64::total_cmp);
+    let diff_q = |q: f64| -> f64 {
+        if diffs.is_empty() {
+            f64::NAN
+        } else {
+            diffs[((q * diffs.len() as f64) as usize).min(diffs.len() - 1)]
+        }
+    };
+    let active_any = timed.saturating_sub(c.active.count_between(0, 0));
+    let lines = vec![
+        format!(
+            "{slug}: active constraints per step p50 {} / p90 {} / p99 {} / max {}, {:.0} % of steps with ≥ 1; QP iterations p50 {} / p99 {} / max {}",
+            hist::quantile(&c.active, 0.5),
+            hist::quantile(&c.active, 0.9),
+            hist::quantile(&c.active, 0.99),
+            c.active.max(),
+            pct(active_any),
+            hist::quantile(&c.iterations, 0.5),
+            hist::quantile(&c.iterations, 0.99),
+            c.iterations.max(),
+        ),
+        format!(
+            "{slug}: first move |u − u_clarabel| (tol {:.0e}) p50 {:.1e} / p90 {:.1e} / p99 {:.1e} / max {:.1e}; beyond {:.0e} at {} of {} compared steps; there: clarabel re-solved at tol {:.0e} agrees to {:.1e} ({} re-solves not solved); ρ = (J(U_cl) − J(U))/(½eᵀHe) ≥ {:.3} (≥ 1: clarabel's point is higher than ours by at least ½eᵀHe); clarabel's constraint violation ≤ {:.1e}",
+            pcac_cost::CLARABEL_TOL,
+            diff_q(0.5),
+            diff_q(0.9),
+            diff_q(0.99),
+            c.max_first_move_diff,
+            pcac_cost::AGREE_TOL,
+            c.over_tol,
+            c.compared,
+            pcac_cost::CLARABEL_TIGHT_TOL,
+            c.tight_diff,
+            c.tight_unsolved,
+            c.optimality_ratio,
+            c.clarabel_violation,
+        ),
+        format!(
+            "{slug}: {} timed steps; max |u| {:.3}; counters over the whole run: {} MPC steps, {} solved, {} fallbacks ({} infeasible, {} iteration cap, {} numerical, {} refused), {} identification resets; reference copy mismatches {}; pieces' first move vs the step's {:.1e}",
+            timed,
+            c.max_abs_u,
+            ct.steps,
+            ct.solved,
+            ct.fallbacks,
+            ct.infeasible,
+            ct.max_iterations,
+            ct.numerical_error,
+            ct.refused,
+            ct.id_resets,
+            c.replica_mismatches,
+            c.pieces_diff,
+        ),
+    ];
+    let active_hist: Vec<(u64, u64)> = c
+        .active
+        .iter_recorded()
+        .map(|v| (v.value_iterated_to(), v.count_at_value()))
+        .collect();
+    let v = json!({
+        "step": step,
+        "cold": Summary::of(&c.cold),
+        "clarabel": if clarabel { Some(cl) } else { None },
+        "pieces": pcac_cost::PIECES.iter().zip(&c.pieces).map(|(n, h)| json!({"name": n, "summary": Summary::of(h)})).collect::<Vec<_>>(),
+        "max_first_move_diff": c.max_first_move_diff,
+        "compared": c.compared,
+        "clarabel_unsolved": c.clarabel_unsolved,
+        "pieces_diff": c.pieces_diff,
+        "first_move_diff_p50": diff_q(0.5),
+        "first_move_diff_p90": diff_q(0.9),
+        "first_move_diff_p99": diff_q(0.99),
+        "tight_unsolved": c.tight_unsolved,
+        "over_agree_tol": c.over_tol,
+        "tight_tol_diff": c.tight_diff,
+        "optimality_ratio": if c.optimality_ratio.is_finite() { Some(c.optimality_ratio) } else { None },
+        "clarabel_violation": c.clarabel_violation,
+        "replica_mismatches": c.replica_mismatches,
+        "saturated_steps": c.saturated,
+        "move_bound_steps": c.at_move_bound,
+        "fallback_steps": c.fallback_steps,
+        "max_abs_u": c.max_abs_u,
+        "active_constraints": active_hist,
+        "iterations": Summary::of(&c.iterations),
+        "counters": {
+            "steps": ct.steps, "solved": ct.solved, "fallbacks": ct.fallbacks,
+            "infeasible": ct.infeasible, "max_iterations": ct.max_iterations,
+            "numerical_error": ct.numerical_error, "refused": ct.refused,
+            "id_resets": ct.id_resets,
+        },
+        "target_p99_ns": w.target_ns(),
+        "stretch_p99_ns": w.stretch_ns(),
+    });
+    (rows, lines, v)
+}
