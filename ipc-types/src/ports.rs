@@ -375,7 +375,28 @@ pub type PlantPorts = Ports<Measurement, Actuation>;
 /// The service's ports: publishes [`Actuation`], receives [`Measurement`].
 pub type ServicePorts = Ports<Actuation, Measurement>;
 
-/// Options for [`connect`].
+/// Options for [`connect`], made by [`ConnectOptions::new`] with the peer timeout and the
+/// defaults below, then changed by the `with_` methods (the fields are public as well):
+///
+/// | field             | default | set by                                    |
+/// |-------------------|---------|-------------------------------------------|
+/// | `peer_timeout`    | —       | [`ConnectOptions::new`]                   |
+/// | `shutdown`        | `None`  | [`ConnectOptions::with_shutdown`]         |
+/// | `listen`          | `false` | [`ConnectOptions::with_listener`]         |
+/// | `waiting_message` | `None`  | [`ConnectOptions::with_waiting_message`]  |
+///
+/// ```
+/// use core::time::Duration;
+/// use ipc_types::ports::ConnectOptions;
+/// use std::sync::atomic::AtomicBool;
+///
+/// let stop = AtomicBool::new(false);
+/// let opts = ConnectOptions::new(Duration::from_secs(5))
+///     .with_shutdown(&stop)
+///     .with_listener(true);
+/// assert_eq!(opts.peer_timeout, Duration::from_secs(5));
+/// assert!(opts.shutdown.is_some() && opts.listen && opts.waiting_message.is_none());
+/// ```
 #[derive(Debug, Clone, Copy)]
 pub struct ConnectOptions<'a> {
     /// How long to wait for the peer's service to appear.
@@ -387,6 +408,39 @@ pub struct ConnectOptions<'a> {
     /// Printed to stderr once this side's own service exists and the wait for the peer
     /// begins (so that a person or a test knows the peer can be started now).
     pub waiting_message: Option<&'a str>,
+}
+
+impl<'a> ConnectOptions<'a> {
+    /// Waits up to `peer_timeout` for the peer; no shutdown flag, no listener, no waiting
+    /// message.
+    pub const fn new(peer_timeout: Duration) -> Self {
+        Self {
+            peer_timeout,
+            shutdown: None,
+            listen: false,
+            waiting_message: None,
+        }
+    }
+
+    /// Abandons the wait for the peer once `shutdown` is set (from a signal handler).
+    pub const fn with_shutdown(mut self, shutdown: &'a AtomicBool) -> Self {
+        self.shutdown = Some(shutdown);
+        self
+    }
+
+    /// Creates a listener on the peer's event service when `listen` is true (for blocking
+    /// waits on the peer's notifications).
+    pub const fn with_listener(mut self, listen: bool) -> Self {
+        self.listen = listen;
+        self
+    }
+
+    /// Prints `message` (a `&str`, or `None` for no message) to stderr when the wait for
+    /// the peer begins.
+    pub fn with_waiting_message(mut self, message: impl Into<Option<&'a str>>) -> Self {
+        self.waiting_message = message.into();
+        self
+    }
 }
 
 /// Opens this side's own publish-subscribe service (creating it with `own`'s attributes if
@@ -706,6 +760,22 @@ mod tests {
     }
 
     #[test]
+    fn connect_options_name_only_what_differs_from_the_defaults() {
+        let stop = AtomicBool::new(false);
+        let plain = ConnectOptions::new(Duration::from_millis(250));
+        assert_eq!(plain.peer_timeout, Duration::from_millis(250));
+        assert!(plain.shutdown.is_none() && !plain.listen && plain.waiting_message.is_none());
+        let full = plain
+            .with_shutdown(&stop)
+            .with_listener(true)
+            .with_waiting_message("waiting");
+        assert!(full.shutdown.is_some_and(|s| core::ptr::eq(s, &stop)));
+        assert!(full.listen);
+        assert_eq!(full.waiting_message, Some("waiting"));
+        assert_eq!(full.with_waiting_message(None).waiting_message, None);
+    }
+
+    #[test]
     fn a_peer_with_other_counts_is_refused_at_connect_time() {
         let rig = format!("unit-mismatch-{}", std::process::id());
         let plant = info(Side::Plant, 1, 2, 1_000_000);
@@ -714,21 +784,11 @@ mod tests {
         // The service is up first and waits; the plant that then arrives with other counts
         // sees the service's attributes and refuses, naming the difference.
         let t = std::thread::spawn(move || {
-            let opts = ConnectOptions {
-                peer_timeout: Duration::from_secs(2),
-                shutdown: None,
-                listen: false,
-                waiting_message: None,
-            };
+            let opts = ConnectOptions::new(Duration::from_secs(2));
             connect::<Actuation, Measurement>(&rig2, service, "unit-service", opts).map(|_| ())
         });
         std::thread::sleep(Duration::from_millis(300));
-        let opts = ConnectOptions {
-            peer_timeout: Duration::from_secs(5),
-            shutdown: None,
-            listen: false,
-            waiting_message: None,
-        };
+        let opts = ConnectOptions::new(Duration::from_secs(5));
         let err = connect::<Measurement, Actuation>(&rig, plant, "unit-plant", opts)
             .err()
             .expect("the mismatch must be refused");
@@ -749,12 +809,7 @@ mod tests {
         let rig = format!("unit-match-{}", std::process::id());
         let plant = info(Side::Plant, 2, 1, 1_000_000);
         let service = info(Side::Service, 2, 1, 1_000_000);
-        let opts = ConnectOptions {
-            peer_timeout: Duration::from_secs(5),
-            shutdown: None,
-            listen: false,
-            waiting_message: None,
-        };
+        let opts = ConnectOptions::new(Duration::from_secs(5));
         let rig2 = rig.clone();
         let t = std::thread::spawn(move || {
             let ports =

@@ -58,11 +58,11 @@ use control::mpc::qp::{
 use control::pcac::{
     HorizonPrediction, IdKernel, IoModel, IoModelParams, Pcac, PcacCounters, PcacParams, PcacTiming,
 };
+use control::status;
 use control::{Controller, MAX_INTERNALS, StepInput};
 use hdrhistogram::Histogram;
-use ipc_types::clock::monotonic_ns;
-use control::status;
 use ipc_types::ChannelCounts;
+use ipc_types::clock::monotonic_ns;
 use plant_proxy::sim::PlantSim;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -375,12 +375,10 @@ pub fn run_plant(
         "[plant-proxy] rig '{}': waiting for the service ...",
         scenario.rig.name
     );
-    let copts = ConnectOptions {
-        peer_timeout: proxy.peer_timeout,
-        shutdown: Some(shutdown),
-        listen: proxy.mode == Mode::Lockstep,
-        waiting_message: opts.verbose.then_some(waiting.as_str()),
-    };
+    let copts = ConnectOptions::new(proxy.peer_timeout)
+        .with_shutdown(shutdown)
+        .with_listener(proxy.mode == Mode::Lockstep)
+        .with_waiting_message(opts.verbose.then_some(waiting.as_str()));
     let ports: PlantPorts =
         ipc_types::ports::connect(&scenario.rig.name, own, "adaptive-rig-plant", copts)
             .map_err(PlantError::Connect)?;

@@ -536,7 +536,7 @@ alpha = 0.001
 /// inside it make no allocation.
 #[test]
 fn the_pcac_step_does_not_allocate() {
-    use ipc_types::actuation_status;
+    use control::status;
     let (mut ctl, mut stuck) =
         service::rt_alloc::outside_rt(|| (truss_size_pcac(false), truss_size_pcac(true)));
     // A lightly damped 2-input, 4-output plant (one mode per output) with a disturbance,
@@ -570,7 +570,7 @@ fn the_pcac_step_does_not_allocate() {
             ctl.observe(&input, &mut u);
         } else {
             let s = ctl.step(&input, &mut u);
-            if s & actuation_status::FALLBACK != 0 {
+            if s & status::FALLBACK != 0 {
                 *fallbacks += 1;
             } else {
                 *solved += 1;

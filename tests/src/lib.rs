@@ -1,6 +1,7 @@
 //! Helpers for the closed-loop integration tests in `tests/tests/`: finding the built
-//! binaries, writing scenario files into a fresh folder, starting `service` and
-//! `plant-proxy` as real processes, and watching what they print.
+//! binaries, reading the TOML fixtures of `tests/fixtures/` ([`fixture`]) and the
+//! repository's scenarios ([`scenario_text`]), writing scenario files into a fresh folder,
+//! starting `service` and `plant-proxy` as real processes, and watching what they print.
 //!
 //! The tests run the two processes in lockstep where the result must not depend on timing,
 //! and give every test its own rig name so that they can run in parallel.
@@ -179,46 +180,46 @@ impl Drop for Proc {
     }
 }
 
-/// The service tables used by the tests: no RT privileges asked (the tests share two cores
-/// with the harness), blocking wait, quick silence detection.
-pub fn test_service_tables(extra_service: &str, controller: &str) -> String {
-    format!(
-        r#"
-[service]
-fifo-priority = 0
-mlockall = false
-wait = "block"
-silent-periods = 100
-peer-timeout = 20.0
-grace-periods = 10
-{extra_service}
+/// Reads `path`, panicking with its name when it cannot.
+fn read_text(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()))
+}
 
-{controller}
-
-[log]
-decimation = 1
-"#
+/// A fixture of the tests: the file `name` in `tests/fixtures/` (TOML tables that tests
+/// put together into scenario files, e.g. `static-gain-controller.toml`).
+pub fn fixture(name: &str) -> String {
+    read_text(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures")
+            .join(name),
     )
 }
 
-/// The controller most tests close the loop with: the static gain `u = −2 y`.
-pub const STATIC_GAIN_CONTROLLER: &str = r#"
-[controller]
-kind = "lti"
-[controller.ss]
-a = []
-b = []
-c = []
-d = [[-2.0]]
-"#;
+/// The controller most tests close the loop with: the static gain `u = −2 y`
+/// (`fixtures/static-gain-controller.toml`).
+pub fn static_gain_controller() -> String {
+    fixture("static-gain-controller.toml")
+}
+
+/// The service and log tables used by the tests (`fixtures/service-tables.toml`: no RT
+/// privileges asked, the tests share two cores with the harness; blocking wait; quick
+/// silence detection) with the lines `extra_service` added to `[service]`, then the
+/// `controller` tables.
+pub fn test_service_tables(extra_service: &str, controller: &str) -> String {
+    format!(
+        "\n{}{extra_service}\n\n{controller}\n",
+        fixture("service-tables.toml")
+    )
+}
 
 /// A scenario file from the repository's `scenarios/` folder.
 pub fn scenario_text(name: &str) -> String {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join("scenarios")
-        .join(name);
-    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("reading {}: {e}", p.display()))
+    read_text(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join("scenarios")
+            .join(name),
+    )
 }
 
 /// Replaces the rig name of a scenario text (so parallel tests do not share services).
@@ -247,8 +248,7 @@ pub fn rig_name(test: &str) -> String {
 
 /// Reads a CSV file into its header and rows of numbers (non-numbers become NaN).
 pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text =
-        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+    let text = read_text(path);
     let mut lines = text.lines();
     let header: Vec<String> = lines
         .next()
@@ -269,9 +269,7 @@ pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 
 /// Reads a JSON file.
 pub fn read_json(path: &Path) -> serde_json::Value {
-    let text =
-        std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
-    serde_json::from_str(&text).expect("valid JSON")
+    serde_json::from_str(&read_text(path)).expect("valid JSON")
 }
 
 /// Runs the service (`run --exit-with-plant`) against plant-proxy in lockstep for `steps`

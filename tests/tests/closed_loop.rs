@@ -43,7 +43,7 @@ fn run_lockstep(
 
 #[test]
 fn a_static_gain_loop_matches_the_hand_computed_response_to_1e_9() {
-    let (rows, report, _dir) = run_lockstep("static-gain", STATIC_GAIN_CONTROLLER, "", "", 2000);
+    let (rows, report, _dir) = run_lockstep("static-gain", &static_gain_controller(), "", "", 2000);
     let (a, b) = first_order_ab();
     let k_gain = 2.0;
     // y_k = (a − b K)^k y_0 with y_0 = 1: the closed loop computed by hand.
@@ -62,16 +62,9 @@ fn a_static_gain_loop_matches_the_hand_computed_response_to_1e_9() {
 
 #[test]
 fn a_dynamic_controller_loop_matches_an_independent_recursion_to_1e_9() {
-    let controller = r#"
-[controller]
-kind = "lti"
-[controller.ss]
-a = [[0.9, 0.05], [0.0, 0.7]]
-b = [[1.0], [0.5]]
-c = [[-0.3, -0.2]]
-d = [[-1.0]]
-"#;
-    let (rows, _report, _dir) = run_lockstep("dynamic", controller, "", "", 3000);
+    // fixtures/dynamic-controller.toml: the matrices of the recursion below.
+    let controller = fixture("dynamic-controller.toml");
+    let (rows, _report, _dir) = run_lockstep("dynamic", &controller, "", "", 3000);
     let (a, b) = first_order_ab();
     // Independent recursion of plant and controller.
     let (mut x, mut xc) = (1.0_f64, [0.0_f64; 2]);
@@ -88,8 +81,9 @@ d = [[-1.0]]
 
 #[test]
 fn lockstep_runs_are_bit_for_bit_repeatable() {
-    let (r1, _, _d1) = run_lockstep("repeat-a", STATIC_GAIN_CONTROLLER, "", "", 500);
-    let (r2, _, _d2) = run_lockstep("repeat-b", STATIC_GAIN_CONTROLLER, "", "", 500);
+    let controller = static_gain_controller();
+    let (r1, _, _d1) = run_lockstep("repeat-a", &controller, "", "", 500);
+    let (r2, _, _d2) = run_lockstep("repeat-b", &controller, "", "", 500);
     for (a, b) in r1.iter().zip(&r2) {
         for (x, y) in a.iter().zip(b) {
             assert_eq!(x.to_bits(), y.to_bits());
@@ -99,19 +93,12 @@ fn lockstep_runs_are_bit_for_bit_repeatable() {
 
 #[test]
 fn nan_inf_and_out_of_range_measurements_are_rejected_counted_and_u_stays_finite() {
-    let faults = r#"
-[proxy.faults]
-nan-at = [10, 11]
-inf-at = [20]
-neg-inf-at = [30]
-out-of-range-at = [40, 41, 42]
-out-of-range-value = 50.0
-"#;
+    // fixtures/proxy-faults.toml: NaN at 10 and 11, ±∞ at 20 and 30, 50.0 at 40–42.
     let (rows, report, dir) = run_lockstep(
         "faults",
-        STATIC_GAIN_CONTROLLER,
+        &static_gain_controller(),
         "y-min = -10.0\ny-max = 10.0",
-        faults,
+        &fixture("proxy-faults.toml"),
         200,
     );
     let stats = &report["stats"];

@@ -26,7 +26,9 @@ const W_TONE: f64 = 2.0 * std::f64::consts::PI * 3.0 * 0.01;
 const REQUIRED_DB: f64 = 30.0;
 /// The command.
 const R: f64 = 0.5;
+/// Input bound of `fixtures/pcac-controller.toml`.
 const U_MAX: f64 = 3.0;
+/// Move bound of `fixtures/pcac-controller.toml`.
 const DU_MAX: f64 = 0.5;
 
 fn plant_text(rig: &str) -> String {
@@ -43,28 +45,18 @@ fn pcac_from_a_cold_start_tracks_a_step_and_rejects_a_tone_across_processes() {
     let test = "pcac_loop";
     let dir = TestDir::new(test);
     let rig = rig_name(test);
-    let controller = format!(
-        r#"
-[controller]
-kind = "pcac"
-n-hat = 6
-p0 = 100.0
-theta0 = 1e-10
-horizon = 20
-q = 1e4
-r = 1.0
-u-min = -{U_MAX}
-u-max = {U_MAX}
-du-min = -{DU_MAX}
-du-max = {DU_MAX}
-[controller.forgetting]
-rule = "f-test"
-tau-n = 20
-tau-d = 200
-eta = 0.1
-alpha = 0.001
-"#
-    );
+    let controller = fixture("pcac-controller.toml");
+    for (key, bound) in [("u", U_MAX), ("du", DU_MAX)] {
+        for line in [
+            format!("{key}-min = -{bound:?}\n"),
+            format!("{key}-max = {bound:?}\n"),
+        ] {
+            assert!(
+                controller.contains(&line),
+                "fixtures/pcac-controller.toml does not say {line:?}"
+            );
+        }
+    }
     let text = plant_text(&rig) + &test_service_tables("", &controller);
     let scenario = dir.write("scenario.toml", &text);
     let run_folder = run_lockstep_pair(&dir, &scenario, STEPS as u64, &[]);

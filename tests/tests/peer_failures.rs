@@ -6,7 +6,7 @@ use std::time::Duration;
 
 fn scenario(dir: &TestDir, test: &str, extra_service: &str, extra: &str) -> std::path::PathBuf {
     let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), &rig_name(test))
-        + &test_service_tables(extra_service, STATIC_GAIN_CONTROLLER)
+        + &test_service_tables(extra_service, &static_gain_controller())
         + extra;
     dir.write("scenario.toml", &text)
 }
@@ -86,14 +86,8 @@ fn killing_the_plant_is_detected_and_a_new_plant_is_served() {
 fn killing_the_service_puts_the_plant_into_its_safe_output_and_a_restarted_service_resumes_control()
 {
     let dir = TestDir::new("kill-service");
-    let proxy = r#"
-[proxy]
-lockstep-timeout = 0.02
-watchdog-periods = 5
-safe-input = [0.25]
-late-policy = "safe"
-"#;
-    let sc = scenario(&dir, "kill-service", "", proxy);
+    // fixtures/proxy-safe-output.toml: safe input 0.25 after 5 silent periods.
+    let sc = scenario(&dir, "kill-service", "", &fixture("proxy-safe-output.toml"));
     let sc = sc.to_str().unwrap();
     let trace = dir.path.join("trace.csv");
     let report_path = dir.path.join("plant-report.json");
@@ -217,17 +211,11 @@ fn a_malformed_configuration_is_refused_naming_the_file_and_the_field() {
 
 /// The service expects two inputs; the plant has one.
 fn mismatched_scenario(dir: &TestDir, test: &str) -> String {
-    let controller = r#"
-[controller]
-kind = "lti"
-[controller.ss]
-a = []
-b = []
-c = []
-d = [[-2.0], [0.0]]
-"#;
     let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), &rig_name(test))
-        + &test_service_tables("channels = { y = 1, z = 1, u = 2 }", controller);
+        + &test_service_tables(
+            "channels = { y = 1, z = 1, u = 2 }",
+            &fixture("two-input-static-gain-controller.toml"),
+        );
     dir.write("scenario.toml", &text)
         .to_str()
         .unwrap()

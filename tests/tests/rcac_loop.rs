@@ -38,6 +38,10 @@ const WINDOW: usize = 300;
 const W_TONE: f64 = 2.0 * std::f64::consts::PI * 3.0 * 0.01;
 /// Required reduction of the tone's amplitude in z.
 const REQUIRED_DB: f64 = 40.0;
+/// The update-law keys of RLS, `p0 = 100`, `λ = 1`.
+const RLS: &str = "update = \"rls\"\np0 = 100.0\nlambda = 1.0";
+/// The update-law keys of the gradient update, `μ_Exp`, `α = 0.5`.
+const GRADIENT: &str = "update = \"gradient\"\nstep-size = \"exp\"\nalpha = 0.5";
 
 /// What one closed-loop run measured.
 struct LoopResult {
@@ -90,20 +94,9 @@ fn run_rcac_with(test: &str, update: &str, service_extra: &str) -> (LoopResult, 
         h[0][(0, 0)] == 0.0 && h[1][(0, 0)] == 0.0 && h[2][(0, 0)] > 0.0 && h[3][(0, 0)] == 0.0,
         "first nonzero Markov parameter H_2 expected: {h:?}\n{said}"
     );
-    let controller = format!(
-        r#"
-[controller]
-kind = "rcac"
-input = "y"
-nc = 20
-kw = {KW}
-rz = 1.0
-u-min = -10.0
-u-max = 10.0
-target-model-file = "design/target-model.toml"
-{update}
-"#
-    );
+    let controller = fixture("rcac-controller.toml");
+    assert!(controller.contains(&format!("\nkw = {KW}\n")), "k_w = {KW}");
+    let controller = controller + update + "\n";
     let text = plant_only + &test_service_tables(service_extra, &controller);
     let scenario = dir.write("scenario.toml", &text);
     let run_folder = run_lockstep_pair(&dir, &scenario, STEPS as u64, &[]);
@@ -192,16 +185,13 @@ fn check(name: &str, r: &LoopResult) {
 
 #[test]
 fn rcac_rls_rejects_the_tone_across_processes() {
-    let r = run_rcac("rcac-rls", "update = \"rls\"\np0 = 100.0\nlambda = 1.0");
+    let r = run_rcac("rcac-rls", RLS);
     check("RLS (p0 = 100, λ = 1)", &r);
 }
 
 #[test]
 fn rcac_gradient_rejects_the_tone_across_processes() {
-    let r = run_rcac(
-        "rcac-gradient",
-        "update = \"gradient\"\nstep-size = \"exp\"\nalpha = 0.5",
-    );
+    let r = run_rcac("rcac-gradient", GRADIENT);
     check("gradient (μ_Exp, α = 0.5)", &r);
 }
 
@@ -215,11 +205,7 @@ fn rcac_gradient_rejects_the_tone_across_processes() {
 #[test]
 fn the_run_report_gives_the_suppression_of_the_tone() {
     let service = "open-loop = 6.0\nreport = { tones-hz = [3.0], window = 3.0 }";
-    let (r, report) = run_rcac_with(
-        "rcac-report",
-        "update = \"gradient\"\nstep-size = \"exp\"\nalpha = 0.5",
-        service,
-    );
+    let (r, report) = run_rcac_with("rcac-report", GRADIENT, service);
     let tone = &report["tones"]["tones"][0];
     let (open, closed, suppression) = (
         tone["open"].as_f64().unwrap(),

@@ -17,6 +17,7 @@
 //! The step draws `n_u` normal numbers (ziggurat sampling of `rand_distr`): no allocation,
 //! no lock, bounded work.
 
+use crate::ParamError;
 use crate::controller::{Controller, OutputLimits, StepInput};
 use crate::controller::{Dimensions, status};
 use rand::SeedableRng;
@@ -33,20 +34,38 @@ pub struct ExcitationSource {
     limits: Option<OutputLimits>,
 }
 
-impl ExcitationSource {
-    /// A source for `counts.n_u` inputs with standard deviations `std` (one per input,
-    /// finite, ≥ 0) and generator seed `seed`.
-    pub fn new(
-        counts: Dimensions,
-        std: Vec<f64>,
-        seed: u64,
-        limits: Option<OutputLimits>,
-    ) -> Result<Self, String> {
+/// The parameters of an [`ExcitationSource`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExcitationParams {
+    /// Standard deviation `σ_j` per input (finite, ≥ 0, not all zero).
+    pub std: Vec<f64>,
+    /// Generator seed.
+    pub seed: u64,
+    /// Output saturation.
+    pub limits: Option<OutputLimits>,
+}
+
+impl ExcitationParams {
+    /// The seed when a configuration gives none.
+    pub const DEFAULT_SEED: u64 = 1;
+
+    /// Checks the parameters against the rig's channels without building anything.
+    ///
+    /// # Errors
+    ///
+    /// `"std"`: not one value per input, or all zero (nothing to identify); `"std"` with
+    /// the index of a value that is not a standard deviation; `"u-min"`: limits of the
+    /// wrong length.
+    pub fn validate(&self, counts: Dimensions) -> Result<(), ParamError> {
         let n_u = counts.n_u;
+        let std = &self.std;
         if std.len() != n_u {
-            return Err(format!(
-                "excitation std has {} values, expected one per control input ({n_u})",
-                std.len()
+            return Err(ParamError::new(
+                "std",
+                format!(
+                    "excitation std has {} values, expected one per control input ({n_u})",
+                    std.len()
+                ),
             ));
         }
         if let Some((j, s)) = std
@@ -54,24 +73,59 @@ impl ExcitationSource {
             .enumerate()
             .find(|(_, s)| !(s.is_finite() && **s >= 0.0))
         {
-            return Err(format!(
-                "excitation std[{j}] = {s} is not a standard deviation"
+            return Err(ParamError::at(
+                "std",
+                j,
+                format!("excitation std[{j}] = {s} is not a standard deviation"),
             ));
         }
         if std.iter().all(|s| *s == 0.0) {
-            return Err("excitation std is zero on every input: nothing to identify".into());
+            return Err(ParamError::new(
+                "std",
+                "excitation std is zero on every input: nothing to identify",
+            ));
         }
-        if let Some(l) = &limits
+        if let Some(l) = &self.limits
             && (l.min.len() != n_u || l.max.len() != n_u)
         {
-            return Err(format!("u-min/u-max need {n_u} values"));
+            return Err(ParamError::new(
+                "u-min",
+                format!("u-min/u-max need {n_u} values"),
+            ));
         }
+        Ok(())
+    }
+}
+
+impl ExcitationSource {
+    /// A source for `counts.n_u` inputs with standard deviations `std` (one per input,
+    /// finite, ≥ 0) and generator seed `seed`.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ExcitationParams::validate`].
+    pub fn new(
+        counts: Dimensions,
+        std: Vec<f64>,
+        seed: u64,
+        limits: Option<OutputLimits>,
+    ) -> Result<Self, ParamError> {
+        Self::from_params(&ExcitationParams { std, seed, limits }, counts)
+    }
+
+    /// A source for `counts.n_u` inputs, after [`ExcitationParams::validate`].
+    ///
+    /// # Errors
+    ///
+    /// Those of [`ExcitationParams::validate`].
+    pub fn from_params(params: &ExcitationParams, counts: Dimensions) -> Result<Self, ParamError> {
+        params.validate(counts)?;
         Ok(Self {
             counts,
-            std,
-            seed,
-            rng: ChaCha8Rng::seed_from_u64(seed),
-            limits,
+            std: params.std.clone(),
+            seed: params.seed,
+            rng: ChaCha8Rng::seed_from_u64(params.seed),
+            limits: params.limits.clone(),
         })
     }
 }
@@ -109,9 +163,17 @@ mod tests {
         Dimensions::new(1, 1, 0, 2)
     }
 
+    fn source(
+        std: Vec<f64>,
+        seed: u64,
+        limits: Option<OutputLimits>,
+    ) -> Result<ExcitationSource, ParamError> {
+        ExcitationSource::new(counts(), std, seed, limits)
+    }
+
     #[test]
     fn inputs_have_the_configured_spread_and_are_uncorrelated() {
-        let mut src = ExcitationSource::new(counts(), vec![2.0, 0.5], 7, None).unwrap();
+        let mut src = source(vec![2.0, 0.5], 7, None).unwrap();
         let input = StepInput {
             seq: 0,
             y: &[0.0],
@@ -146,7 +208,7 @@ mod tests {
             min: vec![-1.0; 2],
             max: vec![1.0; 2],
         };
-        let mut src = ExcitationSource::new(counts(), vec![3.0, 3.0], 1, Some(l)).unwrap();
+        let mut src = source(vec![3.0, 3.0], 1, Some(l)).unwrap();
         let input = StepInput {
             seq: 0,
             y: &[0.0],
@@ -172,11 +234,14 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_refused() {
-        let e = ExcitationSource::new(counts(), vec![1.0], 0, None).unwrap_err();
-        assert!(e.contains("expected one per control input (2)"), "{e}");
-        let e = ExcitationSource::new(counts(), vec![1.0, f64::NAN], 0, None).unwrap_err();
-        assert!(e.contains("std[1]"), "{e}");
-        let e = ExcitationSource::new(counts(), vec![0.0, 0.0], 0, None).unwrap_err();
-        assert!(e.contains("nothing to identify"), "{e}");
+        let e = source(vec![1.0], 0, None).unwrap_err();
+        assert!(
+            e.message.contains("expected one per control input (2)"),
+            "{e}"
+        );
+        let e = source(vec![1.0, f64::NAN], 0, None).unwrap_err();
+        assert_eq!(e.path(), "std[1]");
+        let e = source(vec![0.0, 0.0], 0, None).unwrap_err();
+        assert!(e.message.contains("nothing to identify"), "{e}");
     }
 }

@@ -64,6 +64,7 @@
 //!
 //! [`Forgetting::beta`] does not allocate: every buffer is sized in [`Forgetting::new`].
 
+use crate::ParamError;
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// Relative size of the "no evidence" floor `δ` with respect to the data scale.
@@ -234,24 +235,41 @@ pub struct Forgetting {
     last_g: f64,
 }
 
-impl Forgetting {
-    /// Builds the forgetting state for `p` outputs, validating the rule and computing the
-    /// F quantile (once, here).
+impl ForgettingRule {
+    /// No forgetting, `λ = 1`: the rule when a configuration gives none.
+    pub const DEFAULT: ForgettingRule = ForgettingRule::Constant { lambda: 1.0 };
+
+    /// Checks the rule for `p` outputs without building anything.
     ///
     /// # Errors
     ///
-    /// A message naming the offending parameter: `λ ∉ (0, 1]`, `p = 0`, not `τd > τn ≥ p`,
-    /// `η ≤ 0`, `α ∉ (0, 1)`, or (F-test, `p > 1`) `τd ≤ p + 3` where (5.6) is undefined.
-    pub fn new(rule: &ForgettingRule, p: usize) -> Result<Self, String> {
+    /// The first refused field, named as in a `[forgetting]` table (`"forgetting.lambda"`,
+    /// `"forgetting.tau-n"`, `"forgetting.tau-d"`, `"forgetting.eta"`,
+    /// `"forgetting.alpha"`; `"forgetting"` for `p = 0` and for `τd ≤ τn`, which involves
+    /// both windows): `λ ∉ (0, 1]`, not `τd > τn ≥ p`,
+    /// `η ≤ 0`, `α ∉ (0, 1)`, or (F-test, `p > 1`) `τd ≤ p + 3`, where (5.6) is undefined.
+    pub fn validate(&self, p: usize) -> Result<(), ParamError> {
+        self.kind(p).map(|_| ())
+    }
+
+    /// The rule's constants for `p` outputs (the F quantile is computed here), or the first
+    /// refused field ([`ForgettingRule::validate`]).
+    fn kind(&self, p: usize) -> Result<Kind, ParamError> {
         if p == 0 {
-            return Err("forgetting: the output dimension p must be at least 1".into());
+            return Err(ParamError::new(
+                "forgetting",
+                "the output dimension p must be at least 1",
+            ));
         }
-        let (kind, tau_n, tau_d) = match *rule {
+        match *self {
             ForgettingRule::Constant { lambda } => {
                 if !(lambda > 0.0 && lambda <= 1.0) {
-                    return Err(format!("forgetting: lambda = {lambda} must be in (0, 1]"));
+                    return Err(ParamError::new(
+                        "forgetting.lambda",
+                        format!("lambda = {lambda} must be in (0, 1]"),
+                    ));
                 }
-                (Kind::Constant { beta: 1.0 / lambda }, 0, 0)
+                Ok(Kind::Constant { beta: 1.0 / lambda })
             }
             ForgettingRule::FTest {
                 tau_n,
@@ -261,7 +279,10 @@ impl Forgetting {
             } => {
                 check_windows(tau_n, tau_d, eta, p)?;
                 if !(alpha > 0.0 && alpha < 1.0) {
-                    return Err(format!("forgetting: alpha = {alpha} must be in (0, 1)"));
+                    return Err(ParamError::new(
+                        "forgetting.alpha",
+                        format!("alpha = {alpha} must be in (0, 1)"),
+                    ));
                 }
                 let (tn, td, pf) = (tau_n as f64, tau_d as f64, p as f64);
                 let (scale, d1, d2) = if p == 1 {
@@ -270,49 +291,75 @@ impl Forgetting {
                 } else {
                     // (5.6)-(5.7): Lawley–Hotelling trace approximation.
                     if tau_d <= p + 3 {
-                        return Err(format!(
-                            "forgetting: the F-test for p = {p} needs tau_d > p + 3 (5.6), got {tau_d}"
+                        return Err(ParamError::new(
+                            "forgetting.tau-d",
+                            format!(
+                                "the F-test for p = {p} needs tau_d > p + 3 (5.6), got {tau_d}"
+                            ),
                         ));
                     }
                     let a = (tn + td - pf - 1.0) * (td - 1.0) / ((td - pf - 3.0) * (td - pf));
                     if a <= 1.0 {
-                        return Err(format!("forgetting: (5.6) gives a = {a} ≤ 1"));
+                        return Err(ParamError::new(
+                            "forgetting.tau-d",
+                            format!("(5.6) gives a = {a} ≤ 1"),
+                        ));
                     }
                     let b = 4.0 + (pf * tn + 2.0) / (a - 1.0);
                     let c = pf * tn * (b - 2.0) / (b * (td - pf - 1.0));
                     if !(c > 0.0 && c.is_finite()) {
-                        return Err(format!("forgetting: (5.6) gives c = {c} ≤ 0"));
+                        return Err(ParamError::new(
+                            "forgetting.tau-d",
+                            format!("(5.6) gives c = {c} ≤ 0"),
+                        ));
                     }
                     (tn / (td * c), pf * tn, b)
                 };
-                let f = FisherSnedecor::new(d1, d2)
-                    .map_err(|e| format!("forgetting: F({d1}, {d2}) distribution: {e}"))?;
+                let f = FisherSnedecor::new(d1, d2).map_err(|e| {
+                    ParamError::new(
+                        "forgetting.tau-n",
+                        format!("F({d1}, {d2}) distribution: {e}"),
+                    )
+                })?;
                 let q = f.inverse_cdf(1.0 - alpha);
                 if !(q.is_finite() && q > 0.0) {
-                    return Err(format!("forgetting: F quantile {q} is not usable"));
+                    return Err(ParamError::new(
+                        "forgetting.alpha",
+                        format!("F quantile {q} is not usable"),
+                    ));
                 }
-                (
-                    Kind::Windowed {
-                        eta,
-                        scale,
-                        threshold: q.sqrt(),
-                    },
-                    tau_n,
-                    tau_d,
-                )
+                Ok(Kind::Windowed {
+                    eta,
+                    scale,
+                    threshold: q.sqrt(),
+                })
             }
             ForgettingRule::RmsRatio { tau_n, tau_d, eta } => {
                 check_windows(tau_n, tau_d, eta, p)?;
-                (
-                    Kind::Windowed {
-                        eta,
-                        scale: 1.0 / p as f64,
-                        threshold: 1.0,
-                    },
-                    tau_n,
-                    tau_d,
-                )
+                Ok(Kind::Windowed {
+                    eta,
+                    scale: 1.0 / p as f64,
+                    threshold: 1.0,
+                })
             }
+        }
+    }
+}
+
+impl Forgetting {
+    /// Builds the forgetting state for `p` outputs, validating the rule and computing the
+    /// F quantile (once, here).
+    ///
+    /// # Errors
+    ///
+    /// The [`ForgettingRule::validate`] error as text (`"forgetting.tau-d: …"`); the RLS
+    /// kernels that build this state report their errors as text.
+    pub fn new(rule: &ForgettingRule, p: usize) -> Result<Self, String> {
+        let kind = rule.kind(p).map_err(|e| e.to_string())?;
+        let (tau_n, tau_d) = match *rule {
+            ForgettingRule::Constant { .. } => (0, 0),
+            ForgettingRule::FTest { tau_n, tau_d, .. }
+            | ForgettingRule::RmsRatio { tau_n, tau_d, .. } => (tau_n, tau_d),
         };
         let windowed = matches!(kind, Kind::Windowed { .. });
         let len = if windowed { (tau_d + 1) * p } else { 0 };
@@ -521,19 +568,26 @@ fn deviation(e: &[f64], c: &[f64], out: &mut [f64]) {
     }
 }
 
-fn check_windows(tau_n: usize, tau_d: usize, eta: f64, p: usize) -> Result<(), String> {
+/// `τd > τn ≥ max(p, 1)` and `η > 0`, finite.
+fn check_windows(tau_n: usize, tau_d: usize, eta: f64, p: usize) -> Result<(), ParamError> {
     if tau_n < p.max(1) {
-        return Err(format!(
-            "forgetting: tau_n = {tau_n} must be at least p = {p} and 1"
+        return Err(ParamError::new(
+            "forgetting.tau-n",
+            format!("tau_n = {tau_n} must be at least p = {p} and 1"),
         ));
     }
     if tau_d <= tau_n {
-        return Err(format!(
-            "forgetting: tau_d = {tau_d} must exceed tau_n = {tau_n}"
+        // A relation between two fields: the table is named.
+        return Err(ParamError::new(
+            "forgetting",
+            format!("tau_d = {tau_d} must exceed tau_n = {tau_n}"),
         ));
     }
     if !(eta > 0.0 && eta.is_finite()) {
-        return Err(format!("forgetting: eta = {eta} must be positive"));
+        return Err(ParamError::new(
+            "forgetting.eta",
+            format!("eta = {eta} must be positive"),
+        ));
     }
     Ok(())
 }
@@ -651,6 +705,30 @@ mod tests {
             alpha: 0.01,
         };
         assert!(Forgetting::new(&r, 3).is_err(), "tau_d <= p + 3 accepted");
+    }
+
+    #[test]
+    fn a_refused_rule_names_the_field_of_the_forgetting_table() {
+        let field = |r: ForgettingRule, p: usize| r.validate(p).unwrap_err().path();
+        assert_eq!(
+            field(ForgettingRule::Constant { lambda: 0.0 }, 1),
+            "forgetting.lambda"
+        );
+        let ftest = |tau_n, tau_d, eta, alpha| ForgettingRule::FTest {
+            tau_n,
+            tau_d,
+            eta,
+            alpha,
+        };
+        assert_eq!(field(ftest(1, 80, 1.0, 0.01), 2), "forgetting.tau-n");
+        assert_eq!(field(ftest(10, 10, 1.0, 0.01), 1), "forgetting");
+        assert_eq!(field(ftest(10, 80, 0.0, 0.01), 1), "forgetting.eta");
+        assert_eq!(field(ftest(10, 80, 1.0, 1.0), 1), "forgetting.alpha");
+        assert_eq!(field(ftest(3, 6, 1.0, 0.01), 3), "forgetting.tau-d");
+        assert_eq!(ForgettingRule::DEFAULT.validate(4), Ok(()));
+        // Forgetting::new refuses exactly what validate refuses.
+        let e = Forgetting::new(&ftest(3, 6, 1.0, 0.01), 3).unwrap_err();
+        assert!(e.starts_with("forgetting.tau-d: "), "{e}");
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! ([`ControllerInput`]), given as a matrix of discrete transfer functions or in state space.
 //!
 
+use crate::ParamError;
 use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
 use nalgebra::{DMatrix, DVector};
 
@@ -38,9 +39,119 @@ pub struct LtiController {
     limits: Option<OutputLimits>,
 }
 
+/// The parameters of an [`LtiController`]: its discrete state-space matrices, initial
+/// state, input and saturation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LtiParams {
+    /// `A` (`n × n`).
+    pub a: DMatrix<f64>,
+    /// `B` (`n × n_e`, `n_e` the number of controller inputs).
+    pub b: DMatrix<f64>,
+    /// `C` (`n_u × n`).
+    pub c: DMatrix<f64>,
+    /// `D` (`n_u × n_e`).
+    pub d: DMatrix<f64>,
+    /// Initial state (also the state [`Controller::reset`] returns to); `None`: zero.
+    pub x0: Option<DVector<f64>>,
+    /// What feeds the controller.
+    pub input: ControllerInput,
+    /// Output saturation.
+    pub limits: Option<OutputLimits>,
+}
+
+impl LtiParams {
+    /// The number of controller inputs `n_e` for a rig with `counts`: `n_y`, or
+    /// `n_y + n_r` for [`ControllerInput::YAndR`].
+    pub fn input_len(input: ControllerInput, counts: Dimensions) -> usize {
+        match input {
+            ControllerInput::YAndR => counts.n_y + counts.n_r,
+            ControllerInput::Y | ControllerInput::Error => counts.n_y,
+        }
+    }
+
+    /// Checks the parameters against the rig's channels without building anything.
+    ///
+    /// # Errors
+    ///
+    /// `"input"`: `input = "error"` without one command per measurement; `"a"`, `"b"`,
+    /// `"c"`, `"d"`: a matrix of the wrong size (the message names the sizes) or with a
+    /// non-finite entry; `"x0"`: an initial state of the wrong length;
+    /// `"u-min"`: limits of the wrong length or with `min > max`.
+    pub fn validate(&self, counts: Dimensions) -> Result<(), ParamError> {
+        let n = self.a.nrows();
+        let (n_y, n_r, n_u) = (counts.n_y, counts.n_r, counts.n_u);
+        if self.input == ControllerInput::Error && n_r != n_y {
+            return Err(ParamError::new(
+                "input",
+                format!(
+                    "input = \"error\" needs as many commands as measurements (r: {n_r}, y: {n_y})"
+                ),
+            ));
+        }
+        let n_e = Self::input_len(self.input, counts);
+        let shape = |name: &'static str, m: &DMatrix<f64>, r: usize, c: usize| {
+            if m.nrows() != r || m.ncols() != c {
+                Err(ParamError::new(
+                    name,
+                    format!(
+                        "{name} is {}×{}, expected {r}×{c} ({n} states, {n_e} controller inputs, {n_u} outputs u)",
+                        m.nrows(),
+                        m.ncols()
+                    ),
+                ))
+            } else if m.iter().any(|v| !v.is_finite()) {
+                Err(ParamError::new(
+                    name,
+                    format!("{name} has a non-finite entry"),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        shape("a", &self.a, n, n)?;
+        shape("b", &self.b, n, n_e)?;
+        shape("c", &self.c, n_u, n)?;
+        shape("d", &self.d, n_u, n_e)?;
+        if let Some(x0) = &self.x0
+            && x0.len() != n
+        {
+            return Err(ParamError::new(
+                "x0",
+                format!(
+                    "initial state has {} entries, the controller has {n} states",
+                    x0.len()
+                ),
+            ));
+        }
+        if let Some(l) = &self.limits {
+            if l.min.len() != n_u || l.max.len() != n_u {
+                return Err(ParamError::new(
+                    "u-min",
+                    format!("output limits need {n_u} entries for min and max"),
+                ));
+            }
+            if l.min
+                .iter()
+                .zip(&l.max)
+                .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
+            {
+                return Err(ParamError::new(
+                    "u-min",
+                    "output limits need min ≤ max for every input",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl LtiController {
-    /// Builds the controller from its discrete state-space matrices. `counts` gives the
-    /// channels of the rig; the matrix sizes must agree with them and with `input`.
+    /// Builds the controller from its discrete state-space matrices for a rig with
+    /// `counts` (zero initial state; see [`LtiController::from_params`]).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`LtiParams::validate`].
     pub fn new(
         a: DMatrix<f64>,
         b: DMatrix<f64>,
@@ -49,76 +160,44 @@ impl LtiController {
         input: ControllerInput,
         counts: Dimensions,
         limits: Option<OutputLimits>,
-    ) -> Result<Self, String> {
-        let n = a.nrows();
-        let n_y = counts.n_y;
-        let n_r = counts.n_r;
-        let n_u = counts.n_u;
-        let n_e = match input {
-            ControllerInput::Y => n_y,
-            ControllerInput::Error => {
-                if n_r != n_y {
-                    return Err(format!(
-                        "input = \"error\" needs as many commands as measurements (r: {n_r}, y: {n_y})"
-                    ));
-                }
-                n_y
-            }
-            ControllerInput::YAndR => n_y + n_r,
-        };
-        let shape = |name: &str, m: &DMatrix<f64>, r: usize, c: usize| {
-            if m.nrows() != r || m.ncols() != c {
-                Err(format!(
-                    "{name} is {}×{}, expected {r}×{c} ({n} states, {n_e} controller inputs, {n_u} outputs u)",
-                    m.nrows(),
-                    m.ncols()
-                ))
-            } else if m.iter().any(|v| !v.is_finite()) {
-                Err(format!("{name} has a non-finite entry"))
-            } else {
-                Ok(())
-            }
-        };
-        shape("a", &a, n, n)?;
-        shape("b", &b, n, n_e)?;
-        shape("c", &c, n_u, n)?;
-        shape("d", &d, n_u, n_e)?;
-        if let Some(l) = &limits {
-            if l.min.len() != n_u || l.max.len() != n_u {
-                return Err(format!("output limits need {n_u} entries for min and max"));
-            }
-            if l.min.iter().zip(&l.max).any(|(lo, hi)| !(lo <= hi)) {
-                return Err("output limits need min ≤ max for every input".into());
-            }
-        }
-        Ok(Self {
-            x0: DVector::zeros(n),
-            x: DVector::zeros(n),
-            x_next: DVector::zeros(n),
-            e: DVector::zeros(n_e),
-            u: DVector::zeros(n_u),
+    ) -> Result<Self, ParamError> {
+        let params = LtiParams {
             a,
             b,
             c,
             d,
+            x0: None,
             input,
-            counts,
             limits,
-        })
+        };
+        Self::from_params(&params, counts)
     }
 
-    /// Sets the initial state (also used by [`Controller::reset`]).
-    pub fn with_initial_state(mut self, x0: DVector<f64>) -> Result<Self, String> {
-        if x0.len() != self.x.len() {
-            return Err(format!(
-                "initial state has {} entries, the controller has {} states",
-                x0.len(),
-                self.x.len()
-            ));
-        }
-        self.x.copy_from(&x0);
-        self.x0 = x0;
-        Ok(self)
+    /// Builds the controller for a rig with `counts` (allocating), after
+    /// [`LtiParams::validate`].
+    ///
+    /// # Errors
+    ///
+    /// Those of [`LtiParams::validate`].
+    pub fn from_params(params: &LtiParams, counts: Dimensions) -> Result<Self, ParamError> {
+        params.validate(counts)?;
+        let n = params.a.nrows();
+        let n_e = LtiParams::input_len(params.input, counts);
+        let x0 = params.x0.clone().unwrap_or_else(|| DVector::zeros(n));
+        Ok(Self {
+            x: x0.clone(),
+            x0,
+            x_next: DVector::zeros(n),
+            e: DVector::zeros(n_e),
+            u: DVector::zeros(counts.n_u),
+            a: params.a.clone(),
+            b: params.b.clone(),
+            c: params.c.clone(),
+            d: params.d.clone(),
+            input: params.input,
+            counts,
+            limits: params.limits.clone(),
+        })
     }
 
     /// Number of controller states.
@@ -301,7 +380,8 @@ mod tests {
         )
         .err()
         .unwrap();
-        assert!(err.contains("d is 2×1, expected 1×1"), "{err}");
+        assert_eq!(err.field, "d");
+        assert!(err.message.contains("d is 2×1, expected 1×1"), "{err}");
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! `kind = "pcac"`: the `[controller]` table of predictive cost adaptive control
-//! ([`Pcac`](control::pcac::Pcac)).
+//! ([`Pcac`](control::pcac::Pcac), (2.24)–(2.51)). `p0`, `lambda` and
+//! `[controller.forgetting]` are described in the `forgetting` module.
 //!
 //! ```toml
 //! [controller]
@@ -34,12 +35,13 @@
 use ipc_types::ChannelCounts;
 use serde::Deserialize;
 
-use super::{
-    ConfigError, RawForgetting, ScalarOrVec, forgetting_rule, matrix, per_channel, positive_p0,
-};
+use super::controller::{ControllerConfig, param_error, raw};
+use super::forgetting::{RawForgetting, forgetting_rule, required_p0};
+use super::values::{ScalarOrVec, matrix, one_of, per_channel, row_major};
+use super::{ConfigError, ErrFn};
 use control::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
 use control::mpc::qp::QpSettings;
-use control::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
+use control::pcac::{IdKernel, IoModelParams, PcacParams, PcacTiming};
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
@@ -73,61 +75,32 @@ struct RawOutputConstraints {
     d: Vec<f64>,
 }
 
-/// Reads and validates the table (building the controller once, so that every check
-/// reports at load time).
-pub(super) fn parse_pcac(
+/// Reads the table into [`PcacParams`] and validates them (the controller is built
+/// later, once, by the runtime).
+pub(super) fn parse(
     value: toml::Value,
     counts: ChannelCounts,
-    err: &dyn Fn(&str, String) -> ConfigError,
-) -> Result<PcacParams, ConfigError> {
-    let raw: RawPcac = value
-        .try_into()
-        .map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
-    let (p, m) = (counts.n_y as usize, counts.n_u as usize);
+    err: &ErrFn<'_>,
+) -> Result<ControllerConfig, ConfigError> {
+    let raw: RawPcac = raw(value, err)?;
+    let dims = crate::wire::dimensions(counts);
+    let (p, m) = (dims.n_y, dims.n_u);
     let n_hat = raw
         .n_hat
         .ok_or_else(|| err("controller.n-hat", "missing (the model order n̂)".into()))?;
-    if n_hat == 0 {
-        return Err(err("controller.n-hat", "must be at least 1".into()));
-    }
-    let ntheta = n_hat * p * (p + m);
-    let p0 = positive_p0(raw.p0, "for kind = \"pcac\"", err)?;
+    let p0 = required_p0(raw.p0, "for kind = \"pcac\"", err)?;
     let theta0 = match &raw.theta0 {
         None => Vec::new(),
-        Some(ScalarOrVec::Scalar(x)) => vec![*x; ntheta],
-        Some(ScalarOrVec::Vec(v)) if v.len() == ntheta => v.clone(),
-        Some(ScalarOrVec::Vec(v)) => {
-            return Err(err(
-                "controller.theta0",
-                format!(
-                    "has {} values, expected one or n̂·p·(p+m) = {n_hat}·{p}·{} = {ntheta}",
-                    v.len(),
-                    p + m
-                ),
-            ));
-        }
+        Some(ScalarOrVec::Scalar(x)) => vec![*x; PcacParams::theta_len(n_hat, p, m)],
+        Some(ScalarOrVec::Vec(v)) => v.clone(),
     };
-    if theta0.iter().any(|x| !x.is_finite()) {
-        return Err(err("controller.theta0", "must be finite".into()));
-    }
-    let trace0 = ntheta as f64 * p0;
-    let trace_limit = raw.trace_limit.unwrap_or(1e6 * trace0);
-    if trace_limit.is_nan() || trace_limit <= trace0 {
-        return Err(err(
-            "controller.trace-limit",
-            format!("{trace_limit} must exceed tr(P_0) = n̂ p (p+m) p0 = {trace0}"),
-        ));
-    }
+    let trace_limit = raw
+        .trace_limit
+        .unwrap_or_else(|| PcacParams::default_trace_limit(n_hat, p, m, p0));
     let rule = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
     let horizon = raw
         .horizon
         .ok_or_else(|| err("controller.horizon", "missing (the horizon ℓ)".into()))?;
-    if horizon < 2 {
-        return Err(err(
-            "controller.horizon",
-            format!("{horizon}: the horizon ℓ must be at least 2 (y_{{1|k}} is already decided)"),
-        ));
-    }
     let tracking = match &raw.tracking {
         None => nalgebra::DMatrix::identity(p, p),
         Some(rows) => {
@@ -145,61 +118,17 @@ pub(super) fn parse_pcac(
         ));
     }
     let pt = tracking.nrows();
-    let n_r = counts.n_r as usize;
-    if n_r != 0 && n_r != pt {
-        return Err(err(
-            "controller.tracking",
-            format!("has {pt} tracked outputs but the rig has {n_r} commands r (need 0 or {pt})"),
-        ));
-    }
-    let q = per_channel(&raw.q, pt, 1.0, "controller.q", err)?;
-    let r = per_channel(&raw.r, m, 1.0, "controller.r", err)?;
-    if q.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
-        return Err(err("controller.q", "weights must be finite and ≥ 0".into()));
-    }
-    if r.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-        return Err(err(
-            "controller.r",
-            "weights must be finite and > 0 (they make the QP strictly convex)".into(),
-        ));
-    }
+    let q = per_channel(&raw.q, pt, PcacParams::DEFAULT_Q, "controller.q", err)?;
+    let r = per_channel(&raw.r, m, PcacParams::DEFAULT_R, "controller.r", err)?;
     let u_min = per_channel(&raw.u_min, m, f64::NEG_INFINITY, "controller.u-min", err)?;
     let u_max = per_channel(&raw.u_max, m, f64::INFINITY, "controller.u-max", err)?;
-    for j in 0..m {
-        let (lo, hi) = (u_min[j], u_max[j]);
-        if lo.is_nan() || hi.is_nan() || lo > hi || lo == f64::INFINITY || hi == f64::NEG_INFINITY {
-            return Err(err(
-                "controller.u-min",
-                format!("input {j}: need u-min ≤ u-max, got [{lo}, {hi}]"),
-            ));
-        }
-    }
     let move_bounds = if raw.du_min.is_none() && raw.du_max.is_none() {
         None
     } else {
-        let min = per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?;
-        let max = per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?;
-        for j in 0..m {
-            if min[j].is_nan() || min[j] > 0.0 {
-                return Err(err(
-                    "controller.du-min",
-                    format!(
-                        "input {j}: {} must be ≤ 0 (holding the input must be allowed)",
-                        min[j]
-                    ),
-                ));
-            }
-            if max[j].is_nan() || max[j] < 0.0 {
-                return Err(err(
-                    "controller.du-max",
-                    format!(
-                        "input {j}: {} must be ≥ 0 (holding the input must be allowed)",
-                        max[j]
-                    ),
-                ));
-            }
-        }
-        Some(MoveBounds { min, max })
+        Some(MoveBounds {
+            min: per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?,
+            max: per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?,
+        })
     };
     let output_constraints = match &raw.output_constraints {
         None => None,
@@ -212,36 +141,24 @@ pub(super) fn parse_pcac(
                     format!("is {}×{}, expected n_c × {p}", c.nrows(), c.ncols()),
                 ));
             }
-            if oc.d.len() != c.nrows() {
-                return Err(err(
-                    "controller.output-constraints.d",
-                    format!("has {} values, C_c has {} rows", oc.d.len(), c.nrows()),
-                ));
-            }
             Some(OutputConstraints {
                 c: row_major(&c),
                 d: oc.d.clone(),
             })
         }
     };
-    let timing = match raw.timing.as_deref().unwrap_or("same-step") {
-        "same-step" => PcacTiming::SameStep,
-        "next-step" => PcacTiming::NextStep,
-        other => {
-            return Err(err(
-                "controller.timing",
-                format!("'{other}' is not \"same-step\" or \"next-step\""),
-            ));
-        }
-    };
+    let timing = one_of(
+        raw.timing.as_deref(),
+        PcacTiming::default(),
+        &[
+            ("same-step", PcacTiming::SameStep),
+            ("next-step", PcacTiming::NextStep),
+        ],
+        "controller.timing",
+        err,
+    )?;
     let mut qp = QpSettings::default();
     if let Some(n) = raw.qp_max_iterations {
-        if n == 0 {
-            return Err(err(
-                "controller.qp-max-iterations",
-                "must be at least 1".into(),
-            ));
-        }
         qp.max_iterations = n;
     }
     let params = PcacParams {
@@ -251,7 +168,7 @@ pub(super) fn parse_pcac(
             m,
             theta0,
             p0,
-            rule,
+            rule: rule.rule.clone(),
             trace_limit,
             kernel: IdKernel::Shared,
         },
@@ -270,29 +187,14 @@ pub(super) fn parse_pcac(
         },
         timing,
         qp,
-        warm_start: raw.warm_start.unwrap_or(true),
+        warm_start: raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START),
     };
-    // The remaining checks (the forgetting rule's windows, the output constraints' values)
-    // happen in the constructors.
-    Pcac::new(&params, crate::wire::dimensions(counts)).map_err(|m| {
-        let field = if m.contains("forgetting") || m.contains("tau") {
-            "controller.forgetting"
-        } else {
-            "controller"
-        };
-        err(field, m)
-    })?;
-    Ok(params)
-}
-
-fn row_major(a: &nalgebra::DMatrix<f64>) -> Vec<f64> {
-    let mut v = Vec::with_capacity(a.len());
-    for i in 0..a.nrows() {
-        for j in 0..a.ncols() {
-            v.push(a[(i, j)]);
-        }
-    }
-    v
+    params
+        .validate(dims)
+        .map_err(|e| param_error(rule.locate(e), err))?;
+    Ok(ControllerConfig::Pcac {
+        params: Box::new(params),
+    })
 }
 
 #[cfg(test)]
@@ -301,40 +203,12 @@ mod tests {
     use control::mpc::condense::Weight;
     use control::pcac::PcacTiming;
 
-    const GOOD: &str = r#"
-[rig]
-name = "pcac"
-sample-period = 0.02
-[service]
-channels = { y = 4, z = 4, r = 0, u = 2 }
-[controller]
-kind = "pcac"
-n-hat = 25
-p0 = 1.0
-theta0 = 1e-10
-horizon = 40
-tracking = [[0.0, 0.0, 0.0, 1.0]]
-q = 1e6
-r = 1.0
-u-min = -10.0
-u-max = 10.0
-du-max = 3.0
-timing = "next-step"
-[controller.forgetting]
-rule = "f-test"
-tau-n = 40
-tau-d = 200
-eta = 0.1
-alpha = 0.001
-[controller.output-constraints]
-c = [[0.0, 0.0, 1.0, 0.0]]
-d = [-5.0]
-"#;
+    const GOOD: &str = include_str!("../../../tests/fixtures/config/pcac-chapter-6.toml");
 
     fn params(text: &str) -> Result<Box<super::PcacParams>, String> {
         let c = ServiceConfig::parse(text, "pcac.toml").map_err(|e| e.to_string())?;
         match c.controller {
-            super::super::ControllerConfig::Pcac { params } => Ok(params),
+            crate::config::ControllerConfig::Pcac { params } => Ok(params),
             other => panic!("not pcac: {other:?}"),
         }
     }

@@ -76,61 +76,7 @@ impl TargetModelFile for TargetModel {
     }
 
     fn from_value(value: toml::Value, origin: &str) -> Result<Self, String> {
-        let raw: RawTarget = value
-            .try_into()
-            .map_err(|e: toml::de::Error| format!("{origin}: target-model: {e}"))?;
-        let err = |field: &str, m: &str| format!("{origin}: target-model.{field}: {m}");
-        let form = match raw.form.as_str() {
-            "transfer-function" => {
-                if !raw.markov.is_empty() {
-                    return Err(err("markov", "given with form = \"transfer-function\""));
-                }
-                TargetForm::TransferFunction(
-                    raw.channel
-                        .into_iter()
-                        .map(|c| TargetChannel {
-                            output: c.output,
-                            input: c.input,
-                            delay: c.delay,
-                            num: c.num,
-                            den: c.den,
-                        })
-                        .collect(),
-                )
-            }
-            "markov" => {
-                if !raw.channel.is_empty() {
-                    return Err(err("channel", "given with form = \"markov\""));
-                }
-                let mut hs = Vec::with_capacity(raw.markov.len());
-                for (i, h) in raw.markov.iter().enumerate() {
-                    if h.len() != raw.outputs || h.iter().any(|r| r.len() != raw.inputs) {
-                        return Err(err(
-                            &format!("markov[{i}]"),
-                            &format!("must be {} rows of {} values", raw.outputs, raw.inputs),
-                        ));
-                    }
-                    hs.push(DMatrix::from_fn(raw.outputs, raw.inputs, |r, c| h[r][c]));
-                }
-                TargetForm::Markov(hs)
-            }
-            other => {
-                return Err(err(
-                    "form",
-                    &format!("'{other}' is not \"transfer-function\" or \"markov\""),
-                ));
-            }
-        };
-        let model = TargetModel {
-            sample_period: raw.sample_period,
-            outputs: raw.outputs,
-            inputs: raw.inputs,
-            beta: raw.beta,
-            source: raw.source,
-            form,
-        };
-        model.validate().map_err(|e| err(&e.path(), &e.message))?;
-        Ok(model)
+        read_table(value).map_err(|e| format!("{origin}: {}: {}", e.field, e.message))
     }
 
     fn to_toml(&self) -> String {
@@ -179,6 +125,80 @@ impl TargetModelFile for TargetModel {
         std::fs::write(path, self.to_toml())
             .map_err(|e| format!("writing the target model {}: {e}", path.display()))
     }
+}
+
+/// A refused `[target-model]` table: the dotted field (`target-model.channel[0].den`, or
+/// `target-model` for the table) and why.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct TableError {
+    /// The field path from `target-model` on.
+    pub field: String,
+    /// Why it is refused.
+    pub message: String,
+}
+
+/// Reads and validates a `[target-model]` table (the RCAC configuration may hold it
+/// inline, under `controller.`).
+pub(super) fn read_table(value: toml::Value) -> Result<TargetModel, TableError> {
+    let raw: RawTarget = value.try_into().map_err(|e: toml::de::Error| TableError {
+        field: "target-model".into(),
+        message: e.to_string(),
+    })?;
+    let err = |field: &str, m: &str| TableError {
+        field: format!("target-model.{field}"),
+        message: m.to_string(),
+    };
+    let form = match raw.form.as_str() {
+        "transfer-function" => {
+            if !raw.markov.is_empty() {
+                return Err(err("markov", "given with form = \"transfer-function\""));
+            }
+            TargetForm::TransferFunction(
+                raw.channel
+                    .into_iter()
+                    .map(|c| TargetChannel {
+                        output: c.output,
+                        input: c.input,
+                        delay: c.delay,
+                        num: c.num,
+                        den: c.den,
+                    })
+                    .collect(),
+            )
+        }
+        "markov" => {
+            if !raw.channel.is_empty() {
+                return Err(err("channel", "given with form = \"markov\""));
+            }
+            let mut hs = Vec::with_capacity(raw.markov.len());
+            for (i, h) in raw.markov.iter().enumerate() {
+                if h.len() != raw.outputs || h.iter().any(|r| r.len() != raw.inputs) {
+                    return Err(err(
+                        &format!("markov[{i}]"),
+                        &format!("must be {} rows of {} values", raw.outputs, raw.inputs),
+                    ));
+                }
+                hs.push(DMatrix::from_fn(raw.outputs, raw.inputs, |r, c| h[r][c]));
+            }
+            TargetForm::Markov(hs)
+        }
+        other => {
+            return Err(err(
+                "form",
+                &format!("'{other}' is not \"transfer-function\" or \"markov\""),
+            ));
+        }
+    };
+    let model = TargetModel {
+        sample_period: raw.sample_period,
+        outputs: raw.outputs,
+        inputs: raw.inputs,
+        beta: raw.beta,
+        source: raw.source,
+        form,
+    };
+    model.validate().map_err(|e| err(&e.path(), &e.message))?;
+    Ok(model)
 }
 
 #[cfg(test)]

@@ -45,8 +45,9 @@
 use crate::controller::{Dimensions, status};
 
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
+use crate::ParamError;
 use crate::controller::{Controller, MAX_INTERNALS, StepInput};
-use crate::mpc::condense::{Condenser, MpcSpec};
+use crate::mpc::condense::{Condenser, MpcSpec, Weight};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
 
 #[cfg(test)]
@@ -150,41 +151,264 @@ pub struct Pcac {
     tracked_prediction: f64,
 }
 
-impl Pcac {
-    /// Builds the controller (allocating every workspace) for a rig with `counts`.
+impl PcacParams {
+    /// The default trace limit is this many times `tr P_0 = n̂ p (p+m) p0`.
+    pub const TRACE_LIMIT_FACTOR: f64 = 1e6;
+    /// `Q` on every tracked output when a configuration gives none.
+    pub const DEFAULT_Q: f64 = 1.0;
+    /// `R` on every input when a configuration gives none.
+    pub const DEFAULT_R: f64 = 1.0;
+    /// Warm starts when a configuration does not say.
+    pub const DEFAULT_WARM_START: bool = true;
+
+    /// `n̂ p (p+m)`, the number of identified coefficients.
+    pub fn theta_len(n_hat: usize, p: usize, m: usize) -> usize {
+        n_hat * p * (p + m)
+    }
+
+    /// The trace limit when a configuration gives none: `10⁶ n̂ p (p+m) p0`.
+    pub fn default_trace_limit(n_hat: usize, p: usize, m: usize, p0: f64) -> f64 {
+        Self::TRACE_LIMIT_FACTOR * (Self::theta_len(n_hat, p, m) as f64 * p0)
+    }
+
+    /// Checks the parameters for a rig with `counts` without building anything;
+    /// [`Pcac::new`] calls it.
     ///
     /// # Errors
     ///
-    /// A message naming what does not fit: the model's `p`/`m` against `n_y`/`n_u`, the
-    /// MPC spec's dimensions against the model's, `n_r` neither 0 nor `p_t`, or the
-    /// errors of [`IoModel::new`] and [`Condenser::new`].
-    pub fn new(params: &PcacParams, counts: Dimensions) -> Result<Self, String> {
+    /// The first refused field, named as PCAC's configuration table names it: `"n-hat"`,
+    /// `"theta0"`, `"p0"`, `"trace-limit"`, the [`ForgettingRule::validate`] fields
+    /// (`"forgetting.tau-d"`, …), `"horizon"` (`ℓ < 2`), `"tracking"` (a `C_t` of the
+    /// wrong size or non-finite, or `n_r` neither 0 nor `p_t`), `"q"` (not finite and
+    /// `≥ 0`), `"r"` (not finite and `> 0`), `"u-min"` (`u_min ≤ u_max` violated),
+    /// `"du-min"`, `"du-max"` (holding the input not allowed), `"output-constraints.c"`,
+    /// `"output-constraints.d"`, `"qp-max-iterations"` (0); and the empty field when the
+    /// model's or the MPC problem's `p`, `m` do not match the rig's `n_y`, `n_u`.
+    ///
+    /// [`ForgettingRule::validate`]: crate::forgetting::ForgettingRule::validate
+    pub fn validate(&self, counts: Dimensions) -> Result<(), ParamError> {
         let (n_y, n_r, n_u) = (counts.n_y, counts.n_r, counts.n_u);
-        let mp = &params.model;
-        if mp.p != n_y || mp.m != n_u {
-            return Err(format!(
-                "pcac: the model has p = {} outputs and m = {} inputs, the rig has {n_y} \
-                 measurements y and {n_u} inputs u",
-                mp.p, mp.m
+        let mp = &self.model;
+        let (p, m) = (mp.p, mp.m);
+        if p != n_y || m != n_u || p == 0 || m == 0 {
+            return Err(ParamError::new(
+                "",
+                format!(
+                    "pcac: the model has p = {p} outputs and m = {m} inputs, the rig has {n_y} \
+                     measurements y and {n_u} inputs u"
+                ),
             ));
         }
-        let spec = &params.mpc;
-        if spec.n_outputs != mp.p || spec.n_inputs != mp.m {
-            return Err(format!(
-                "pcac: the MPC problem has {} outputs and {} inputs, the model {} and {}",
-                spec.n_outputs, spec.n_inputs, mp.p, mp.m
+        let spec = &self.mpc;
+        if spec.n_outputs != p || spec.n_inputs != m {
+            return Err(ParamError::new(
+                "",
+                format!(
+                    "pcac: the MPC problem has {} outputs and {} inputs, the model {p} and {m}",
+                    spec.n_outputs, spec.n_inputs
+                ),
             ));
         }
-        if n_r != 0 && n_r != spec.n_tracked {
-            return Err(format!(
-                "pcac: the rig has {n_r} commands r; PCAC needs none (regulate C_t y to 0) or \
-                 one per tracked output ({})",
-                spec.n_tracked
+        self.validate_model()?;
+        let pt = spec.n_tracked;
+        if spec.horizon < 2 {
+            return Err(ParamError::new(
+                "horizon",
+                format!(
+                    "{}: the horizon ℓ must be at least 2 (y_{{1|k}} is already decided)",
+                    spec.horizon
+                ),
             ));
         }
-        let model = IoModel::new(mp)?;
-        let pred = HorizonPrediction::new(&model, spec.horizon)?;
-        let cond = Condenser::new(spec).map_err(|e| format!("pcac: {e}"))?;
+        if pt == 0 || spec.tracking.len() != pt * p {
+            return Err(ParamError::new(
+                "tracking",
+                format!(
+                    "has {} values, expected p_t × {p} with p_t = {pt} ≥ 1 tracked outputs",
+                    spec.tracking.len()
+                ),
+            ));
+        }
+        if spec.tracking.iter().any(|x| !x.is_finite()) {
+            return Err(ParamError::new("tracking", "entries must be finite"));
+        }
+        if n_r != 0 && n_r != pt {
+            return Err(ParamError::new(
+                "tracking",
+                format!(
+                    "has {pt} tracked outputs but the rig has {n_r} commands r (need 0 or {pt}: \
+                     regulate C_t y to 0, or one command per tracked output)"
+                ),
+            ));
+        }
+        check_weight(&spec.q, "q", pt, spec.horizon, false)?;
+        check_weight(&spec.r, "r", m, spec.horizon, true)?;
+        if spec.u_min.len() != m || spec.u_max.len() != m {
+            return Err(ParamError::new(
+                "u-min",
+                format!("u-min and u-max need {m} values"),
+            ));
+        }
+        for j in 0..m {
+            let (lo, hi) = (spec.u_min[j], spec.u_max[j]);
+            if lo.is_nan()
+                || hi.is_nan()
+                || lo > hi
+                || lo == f64::INFINITY
+                || hi == f64::NEG_INFINITY
+            {
+                return Err(ParamError::new(
+                    "u-min",
+                    format!("input {j}: need u-min ≤ u-max, got [{lo}, {hi}]"),
+                ));
+            }
+        }
+        if let Some(mb) = &spec.move_bounds {
+            if mb.min.len() != m || mb.max.len() != m {
+                return Err(ParamError::new(
+                    "du-min",
+                    format!("du-min and du-max need {m} values"),
+                ));
+            }
+            for j in 0..m {
+                if mb.min[j].is_nan() || mb.min[j] > 0.0 {
+                    return Err(ParamError::new(
+                        "du-min",
+                        format!(
+                            "input {j}: {} must be ≤ 0 (holding the input must be allowed)",
+                            mb.min[j]
+                        ),
+                    ));
+                }
+                if mb.max[j].is_nan() || mb.max[j] < 0.0 {
+                    return Err(ParamError::new(
+                        "du-max",
+                        format!(
+                            "input {j}: {} must be ≥ 0 (holding the input must be allowed)",
+                            mb.max[j]
+                        ),
+                    ));
+                }
+            }
+        }
+        if let Some(oc) = &spec.output_constraints {
+            if oc.d.is_empty() || oc.c.len() != oc.d.len() * p {
+                return Err(ParamError::new(
+                    "output-constraints.d",
+                    format!(
+                        "has {} values, expected one per row of C_c ({} entries, {p} per row)",
+                        oc.d.len(),
+                        oc.c.len()
+                    ),
+                ));
+            }
+            if oc.c.iter().any(|x| !x.is_finite()) {
+                return Err(ParamError::new("output-constraints.c", "must be finite"));
+            }
+            if oc.d.iter().any(|x| !x.is_finite()) {
+                return Err(ParamError::new("output-constraints.d", "must be finite"));
+            }
+        }
+        if self.qp.max_iterations == 0 {
+            return Err(ParamError::new("qp-max-iterations", "must be at least 1"));
+        }
+        Ok(())
+    }
+
+    /// The identification part of [`PcacParams::validate`].
+    fn validate_model(&self) -> Result<(), ParamError> {
+        let mp = &self.model;
+        if mp.n_hat == 0 {
+            return Err(ParamError::new("n-hat", "must be at least 1"));
+        }
+        let ntheta = Self::theta_len(mp.n_hat, mp.p, mp.m);
+        if !mp.theta0.is_empty() && mp.theta0.len() != ntheta {
+            return Err(ParamError::new(
+                "theta0",
+                format!(
+                    "has {} values, expected n̂·p·(p+m) = {}·{}·{} = {ntheta}",
+                    mp.theta0.len(),
+                    mp.n_hat,
+                    mp.p,
+                    mp.p + mp.m
+                ),
+            ));
+        }
+        if mp.theta0.iter().any(|x| !x.is_finite()) {
+            return Err(ParamError::new("theta0", "must be finite"));
+        }
+        if !(mp.p0 > 0.0 && mp.p0.is_finite()) {
+            return Err(ParamError::new(
+                "p0",
+                format!("{} must be positive and finite", mp.p0),
+            ));
+        }
+        let trace0 = ntheta as f64 * mp.p0;
+        if mp.trace_limit.is_nan() || mp.trace_limit <= trace0 {
+            return Err(ParamError::new(
+                "trace-limit",
+                format!(
+                    "{} must exceed tr(P_0) = n̂ p (p+m) p0 = {trace0}",
+                    mp.trace_limit
+                ),
+            ));
+        }
+        mp.rule.validate(mp.p)
+    }
+}
+
+/// A weight of the cost: the right number of values, finite, `≥ 0` (`> 0` when
+/// `positive`).
+fn check_weight(
+    w: &Weight,
+    field: &'static str,
+    channels: usize,
+    ell: usize,
+    positive: bool,
+) -> Result<(), ParamError> {
+    let values: &[f64] = match w {
+        Weight::Scalar(s) => std::slice::from_ref(s),
+        Weight::PerChannel(c) if c.len() == channels => c,
+        Weight::PerStep(c) if c.len() == ell * channels => c,
+        Weight::PerChannel(c) | Weight::PerStep(c) => {
+            return Err(ParamError::new(
+                field,
+                format!(
+                    "has {} values, expected {channels} (one per channel) or {} (per step)",
+                    c.len(),
+                    ell * channels
+                ),
+            ));
+        }
+    };
+    if positive && values.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(ParamError::new(
+            field,
+            "weights must be finite and > 0 (they make the QP strictly convex)",
+        ));
+    }
+    if values.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        return Err(ParamError::new(field, "weights must be finite and ≥ 0"));
+    }
+    Ok(())
+}
+
+impl Pcac {
+    /// Builds the controller (allocating every workspace) for a rig with `counts`, after
+    /// [`PcacParams::validate`].
+    ///
+    /// # Errors
+    ///
+    /// Those of [`PcacParams::validate`].
+    pub fn new(params: &PcacParams, counts: Dimensions) -> Result<Self, ParamError> {
+        params.validate(counts)?;
+        let (n_y, n_u) = (counts.n_y, counts.n_u);
+        let (mp, spec) = (&params.model, &params.mpc);
+        // Validated above: what the pieces still refuse is reported for the whole table.
+        let whole = |e: String| ParamError::new("", e);
+        let model = IoModel::new(mp).map_err(whole)?;
+        let pred = HorizonPrediction::new(&model, spec.horizon).map_err(whole)?;
+        let cond = Condenser::new(spec).map_err(|e| whole(format!("pcac: {e}")))?;
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
         let n_ids = cond.n() + cond.n_ineq();
         let mut c = Self {

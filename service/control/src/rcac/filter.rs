@@ -25,6 +25,7 @@
 //! Work per step: `Σ_channels (|taps| + n)(N + 1)` multiply-adds, no allocation, no
 //! re-summing of history beyond the filter's own lags.
 
+use crate::ParamError;
 use crate::linalg::axpy;
 use crate::target::{TargetForm, TargetModel};
 use nalgebra::DMatrix;
@@ -69,96 +70,42 @@ pub struct TargetFilter {
 }
 
 impl TargetFilter {
-    /// Builds the filter of `target` for `l_y` measurements and controller order `n_c`.
+    /// Checks that `target` can be run as RCAC's filter, without building it.
     ///
     /// # Errors
     ///
-    /// A target model with a feedthrough (`H_0 ≠ 0`, or a transfer-function channel with
-    /// delay 0 and a biproper `Ĝ_d`): `z_k` is sampled before `u_k` is applied, so
-    /// `G_{zu,d}` is strictly proper and RCAC's update needs `G_f` strictly proper to be
-    /// causal. An unstable denominator (a pole on or outside the unit circle).
-    pub fn new(target: &TargetModel, ly: usize, nc: usize) -> Result<Self, String> {
+    /// The field relative to the target model, as [`TargetModel::validate`] names it:
+    /// `"markov"` or `"channel"` with the index of the entry. A feedthrough (`H_0 ≠ 0`, or
+    /// a transfer-function channel with delay 0 and a biproper `Ĝ_d`): `z_k` is sampled
+    /// before `u_k` is applied, so `G_{zu,d}` is strictly proper and RCAC's update needs
+    /// `G_f` strictly proper to be causal. An unstable denominator (a pole on or outside the
+    /// unit circle). A Markov parameter of the wrong size, a channel out of range or
+    /// improper.
+    pub fn validate(target: &TargetModel) -> Result<(), ParamError> {
+        channel_filters(target).map(|_| ())
+    }
+
+    /// The largest lag of `G_f`'s numerators (1 when `G_f = 0`); the filter keeps this
+    /// many samples plus `n_c` ([`TargetFilter::history_len`]).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`TargetFilter::validate`].
+    pub fn largest_lag(target: &TargetModel) -> Result<usize, ParamError> {
+        channel_filters(target).map(|c| largest_lag(&c))
+    }
+
+    /// Builds the filter of `target` for `l_y` measurements and controller order `n_c`,
+    /// after [`TargetFilter::validate`].
+    ///
+    /// # Errors
+    ///
+    /// Those of [`TargetFilter::validate`].
+    pub fn new(target: &TargetModel, ly: usize, nc: usize) -> Result<Self, ParamError> {
         let (lz, lu) = (target.outputs, target.inputs);
         let nphi = nc * (lu + ly);
-        let mut chans: Vec<(Taps, Vec<f64>)> = vec![(Vec::new(), Vec::new()); lz * lu];
-        let beta = target.beta;
-        match &target.form {
-            TargetForm::Markov(hs) => {
-                for (i, h) in hs.iter().enumerate() {
-                    if h.nrows() != lz || h.ncols() != lu {
-                        return Err(format!(
-                            "target model: markov[{i}] is {}×{}, expected {lz}×{lu}",
-                            h.nrows(),
-                            h.ncols()
-                        ));
-                    }
-                    for o in 0..lz {
-                        for j in 0..lu {
-                            let c = h[(o, j)];
-                            if c == 0.0 {
-                                continue;
-                            }
-                            if i == 0 {
-                                return Err(format!(
-                                    "target model: H_0[{o}][{j}] = {c} is a feedthrough; z_k is \
-                                     sampled before u_k is applied, so G_f must be strictly \
-                                     proper (H_0 = 0)"
-                                ));
-                            }
-                            chans[o * lu + j].0.push((i, beta * c));
-                        }
-                    }
-                }
-            }
-            TargetForm::TransferFunction(list) => {
-                for (k, ch) in list.iter().enumerate() {
-                    if ch.output >= lz || ch.input >= lu || ch.den.is_empty() {
-                        return Err(format!("target model: channel[{k}] is out of range"));
-                    }
-                    let n = ch.den.len() - 1;
-                    if ch.num.len() > n + 1 {
-                        return Err(format!("target model: channel[{k}] is improper"));
-                    }
-                    let pad = n + 1 - ch.num.len();
-                    let mut taps = Vec::new();
-                    for (t, &b) in ch.num.iter().enumerate() {
-                        let lag = ch.delay + pad + t;
-                        if b == 0.0 {
-                            continue;
-                        }
-                        if lag == 0 {
-                            return Err(format!(
-                                "target model: channel[{k}] (output {}, input {}) has a \
-                                 feedthrough (delay 0 and deg num = deg den); z_k is sampled \
-                                 before u_k is applied, so G_f must be strictly proper",
-                                ch.output, ch.input
-                            ));
-                        }
-                        taps.push((lag, beta * b));
-                    }
-                    if taps.is_empty() {
-                        continue; // a zero channel
-                    }
-                    let den: Vec<f64> = ch.den[1..].to_vec();
-                    if !den.is_empty() {
-                        let r = spectral_radius(&den);
-                        if r.is_nan() || r >= 1.0 {
-                            return Err(format!(
-                                "target model: channel[{k}] (output {}, input {}) has a pole \
-                                 of magnitude {r:.6} ≥ 1; G_f must be asymptotically stable",
-                                ch.output, ch.input
-                            ));
-                        }
-                    }
-                    chans[ch.output * lu + ch.input] = (taps, den);
-                }
-            }
-        }
-        let max_lag = chans
-            .iter()
-            .flat_map(|(t, _)| t.iter().map(|(l, _)| *l))
-            .max()
-            .unwrap_or(1);
+        let chans = channel_filters(target)?;
+        let max_lag = largest_lag(&chans);
         let len = max_lag + nc.max(1);
         let channels = chans
             .into_iter()
@@ -319,6 +266,108 @@ impl TargetFilter {
 
 /// Largest root magnitude of `z^n + a_1 z^{n−1} + … + a_n` (companion-matrix eigenvalues;
 /// allocates, construction only).
+/// Checks the target model as a filter and returns the taps and the denominator of every
+/// `(output, input)` channel, at `o l_u + j` (the errors of [`TargetFilter::validate`]).
+fn channel_filters(target: &TargetModel) -> Result<Vec<(Taps, Vec<f64>)>, ParamError> {
+    let (lz, lu) = (target.outputs, target.inputs);
+    let mut chans: Vec<(Taps, Vec<f64>)> = vec![(Vec::new(), Vec::new()); lz * lu];
+    let beta = target.beta;
+    match &target.form {
+        TargetForm::Markov(hs) => {
+            for (i, h) in hs.iter().enumerate() {
+                if h.nrows() != lz || h.ncols() != lu {
+                    return Err(ParamError::at(
+                        "markov",
+                        i,
+                        format!("is {}×{}, expected {lz}×{lu}", h.nrows(), h.ncols()),
+                    ));
+                }
+                for o in 0..lz {
+                    for j in 0..lu {
+                        let c = h[(o, j)];
+                        if c == 0.0 {
+                            continue;
+                        }
+                        if i == 0 {
+                            return Err(ParamError::at(
+                                "markov",
+                                0,
+                                format!(
+                                    "H_0[{o}][{j}] = {c} is a feedthrough; z_k is sampled \
+                                         before u_k is applied, so G_f must be strictly proper \
+                                         (H_0 = 0)"
+                                ),
+                            ));
+                        }
+                        chans[o * lu + j].0.push((i, beta * c));
+                    }
+                }
+            }
+        }
+        TargetForm::TransferFunction(list) => {
+            for (k, ch) in list.iter().enumerate() {
+                if ch.output >= lz || ch.input >= lu || ch.den.is_empty() {
+                    return Err(ParamError::at("channel", k, "is out of range"));
+                }
+                let n = ch.den.len() - 1;
+                if ch.num.len() > n + 1 {
+                    return Err(ParamError::at("channel", k, "is improper"));
+                }
+                let pad = n + 1 - ch.num.len();
+                let mut taps = Vec::new();
+                for (t, &b) in ch.num.iter().enumerate() {
+                    let lag = ch.delay + pad + t;
+                    if b == 0.0 {
+                        continue;
+                    }
+                    if lag == 0 {
+                        return Err(ParamError::at(
+                            "channel",
+                            k,
+                            format!(
+                                "(output {}, input {}) has a feedthrough (delay 0 and deg \
+                                     num = deg den); z_k is sampled before u_k is applied, so \
+                                     G_f must be strictly proper",
+                                ch.output, ch.input
+                            ),
+                        ));
+                    }
+                    taps.push((lag, beta * b));
+                }
+                if taps.is_empty() {
+                    continue; // a zero channel
+                }
+                let den: Vec<f64> = ch.den[1..].to_vec();
+                if !den.is_empty() {
+                    let r = spectral_radius(&den);
+                    if r.is_nan() || r >= 1.0 {
+                        return Err(ParamError::at(
+                            "channel",
+                            k,
+                            format!(
+                                "(output {}, input {}) has a pole of magnitude {r:.6} ≥ 1; \
+                                     G_f must be asymptotically stable",
+                                ch.output, ch.input
+                            ),
+                        ));
+                    }
+                }
+                chans[ch.output * lu + ch.input] = (taps, den);
+            }
+        }
+    }
+    Ok(chans)
+}
+
+/// The largest lag of any channel's numerator (1 when every channel is zero).
+fn largest_lag(chans: &[(Taps, Vec<f64>)]) -> usize {
+    chans
+        .iter()
+        .flat_map(|(t, _)| t.iter().map(|(l, _)| *l))
+        .max()
+        .unwrap_or(1)
+}
+
 fn spectral_radius(a: &[f64]) -> f64 {
     let n = a.len();
     let mut c = DMatrix::<f64>::zeros(n, n);

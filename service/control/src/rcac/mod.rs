@@ -151,6 +151,7 @@ mod tests;
 
 pub use filter::TargetFilter;
 
+use crate::ParamError;
 use crate::controller::{Controller, OutputLimits, StepInput};
 use crate::controller::{Dimensions, status};
 use crate::forgetting::ForgettingRule;
@@ -291,20 +292,30 @@ impl std::fmt::Debug for Rcac {
 /// Symmetric square root rows `W` with `Wᵀ W = M` (eigen decomposition; rows of zero
 /// eigenvalues dropped when `drop_zero`). Errors when `M` is not symmetric, has a
 /// negative eigenvalue, or (without `drop_zero`) is not positive definite.
-fn sqrt_rows(m: &DMatrix<f64>, name: &str, definite: bool) -> Result<(Vec<f64>, usize), String> {
+fn sqrt_rows(
+    m: &DMatrix<f64>,
+    name: &'static str,
+    definite: bool,
+) -> Result<(Vec<f64>, usize), ParamError> {
     let n = m.nrows();
     if m.ncols() != n {
-        return Err(format!("{name} is {}×{}, must be square", n, m.ncols()));
+        return Err(ParamError::new(
+            name,
+            format!("{name} is {}×{}, must be square", n, m.ncols()),
+        ));
     }
     if m.iter().any(|v| !v.is_finite()) {
-        return Err(format!("{name} has a non-finite entry"));
+        return Err(ParamError::new(
+            name,
+            format!("{name} has a non-finite entry"),
+        ));
     }
     let scale = m.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
     if (m - m.transpose())
         .iter()
         .any(|v| v.abs() > 1e-12 * scale.max(1e-300))
     {
-        return Err(format!("{name} is not symmetric"));
+        return Err(ParamError::new(name, format!("{name} is not symmetric")));
     }
     let eig = m.clone().symmetric_eigen();
     let tol = 1e-12 * scale.max(1e-300) * n as f64;
@@ -312,13 +323,15 @@ fn sqrt_rows(m: &DMatrix<f64>, name: &str, definite: bool) -> Result<(Vec<f64>, 
     let mut count = 0;
     for (i, &l) in eig.eigenvalues.iter().enumerate() {
         if definite && (l.is_nan() || l <= tol) {
-            return Err(format!(
-                "{name} is not positive definite (eigenvalue {l:e})"
+            return Err(ParamError::new(
+                name,
+                format!("{name} is not positive definite (eigenvalue {l:e})"),
             ));
         }
         if l < -tol {
-            return Err(format!(
-                "{name} is not positive semidefinite (eigenvalue {l:e})"
+            return Err(ParamError::new(
+                name,
+                format!("{name} is not positive semidefinite (eigenvalue {l:e})"),
             ));
         }
         if l <= tol {
@@ -333,119 +346,259 @@ fn sqrt_rows(m: &DMatrix<f64>, name: &str, definite: bool) -> Result<(Vec<f64>, 
     Ok((rows, count))
 }
 
-impl Rcac {
-    /// Builds the controller for the rig's channels (`l_y = n_y`, `l_z = n_z`,
-    /// `l_u = n_u`), allocating every buffer.
+/// What [`RcacParams::validate`] computes and [`Rcac::new`] keeps.
+struct Checked {
+    /// `W_z` (l_z × l_z row-major).
+    wz: Vec<f64>,
+    /// `W_u` (ru_rows × l_u row-major).
+    wu: Vec<f64>,
+    ru_rows: usize,
+    theta0: Vec<f64>,
+}
+
+impl RcacParams {
+    /// `R_z = DEFAULT_RZ · I` when a configuration gives none.
+    pub const DEFAULT_RZ: f64 = 1.0;
+    /// `R_u = DEFAULT_RU · I` when a configuration gives none.
+    pub const DEFAULT_RU: f64 = 0.0;
+    /// The default trace limit is this many times `tr P_0 = l_θ p0`.
+    pub const TRACE_LIMIT_FACTOR: f64 = 1e6;
+    /// The gradient update's step size when a configuration gives none.
+    pub const DEFAULT_STEP_SIZE: StepSize = StepSize::Exp;
+    /// The gradient update's `R = r I` when a configuration gives none.
+    pub const DEFAULT_GRADIENT_R: f64 = 0.0;
+
+    /// `l_θ = l_u n_c (l_u + l_y)`, the number of coefficients for a rig with `counts`.
+    pub fn theta_len(nc: usize, counts: Dimensions) -> usize {
+        counts.n_u * nc * (counts.n_u + counts.n_y)
+    }
+
+    /// The trace limit when a configuration gives none: `10⁶ l_θ p0`.
+    pub fn default_trace_limit(nc: usize, counts: Dimensions, p0: f64) -> f64 {
+        Self::TRACE_LIMIT_FACTOR * Self::theta_len(nc, counts) as f64 * p0
+    }
+
+    /// `k_w` when [`RcacParams::kw`] is `None`: `n_c` plus the largest lag of `G_f`, the
+    /// first step at which `Φ_{f,k}` holds measured data in every entry.
     ///
     /// # Errors
     ///
-    /// `n_c = 0`; a target model with `outputs ≠ l_z` or `inputs ≠ l_u`, another sample
-    /// period, a feedthrough or an unstable pole; `R_z` not positive definite; `R_u` not
-    /// positive semidefinite or of the wrong size; `θ_0` of the wrong length or
-    /// non-finite; `p0`, `trace_limit`, forgetting, `α ∉ (0, 1]` or `r < 0`; bad limits.
-    pub fn new(params: &RcacParams, counts: Dimensions) -> Result<Self, String> {
-        let (ly, lz, lu) = (counts.n_y, counts.n_z, counts.n_u);
-        if params.nc == 0 {
-            return Err("nc = 0: the controller order n_c must be at least 1".into());
+    /// A target model that [`TargetFilter::validate`] refuses (field `"target-model"`).
+    pub fn default_kw(&self) -> Result<usize, ParamError> {
+        let lag = TargetFilter::largest_lag(&self.target).map_err(in_target_model)?;
+        Ok(lag + self.nc.max(1))
+    }
+
+    /// Checks the parameters for a rig with `counts` (`l_y = n_y`, `l_z = n_z`,
+    /// `l_u = n_u`) without building anything; [`Rcac::new`] calls it.
+    ///
+    /// # Errors
+    ///
+    /// The first refused field, named as RCAC's configuration table names it: `"nc"`
+    /// (`n_c = 0`); `"target-model"` (`outputs ≠ l_z`, `inputs ≠ l_u`, or what
+    /// [`TargetFilter::validate`] refuses: a feedthrough or an unstable pole, the message
+    /// naming the entry; the model's own values are [`TargetModel::validate`]'s to check
+    /// when it is read); `"target-model.sample-period"` (another sample period); `"rz"` (not
+    /// `l_z × l_z` symmetric positive definite); `"ru"` (not `l_u × l_u` symmetric positive
+    /// semidefinite); `"theta0"` (not `l_θ` finite values); `"u-min"` (bad limits);
+    /// `"p0"`, `"trace-limit"` and the [`ForgettingRule::validate`] fields for RLS;
+    /// `"alpha"` (`∉ (0, 1]`) and `"r"` (`< 0`) for the gradient update.
+    pub fn validate(&self, counts: Dimensions) -> Result<(), ParamError> {
+        self.check(counts).map(|_| ())
+    }
+
+    fn check(&self, counts: Dimensions) -> Result<Checked, ParamError> {
+        let (lz, lu) = (counts.n_z, counts.n_u);
+        if self.nc == 0 {
+            return Err(ParamError::new(
+                "nc",
+                "0: the controller order n_c must be at least 1",
+            ));
         }
         if lz == 0 || lu == 0 {
-            return Err(format!(
-                "RCAC needs at least one performance variable z and one input u (z: {lz}, u: {lu})"
+            return Err(ParamError::new(
+                "target-model",
+                format!(
+                    "RCAC needs at least one performance variable z and one input u (z: {lz}, u: {lu})"
+                ),
             ));
         }
-        let t = &params.target;
+        let t = &self.target;
         if t.outputs != lz || t.inputs != lu {
-            return Err(format!(
-                "the target model is {}×{} (outputs × inputs), the rig has l_z = {lz} \
-                 performance variables and l_u = {lu} inputs",
-                t.outputs, t.inputs
+            return Err(ParamError::new(
+                "target-model",
+                format!(
+                    "has {} outputs and {} inputs; the rig has l_z = {lz} performance \
+                     variables and l_u = {lu} inputs",
+                    t.outputs, t.inputs
+                ),
             ));
         }
-        let ts = params.sample_period;
+        let ts = self.sample_period;
         if ts.is_nan() || ts <= 0.0 || (t.sample_period - ts).abs() > 1e-9 * ts {
-            return Err(format!(
-                "the target model's sample period {} s differs from the rig's {ts} s",
-                t.sample_period
+            return Err(ParamError::new(
+                "target-model.sample-period",
+                format!(
+                    "{} s differs from the rig's sample period {ts} s",
+                    t.sample_period
+                ),
             ));
         }
-        let filter = TargetFilter::new(t, ly, params.nc)?;
-        let nphi = filter.regressor_len();
-        let ltheta = lu * nphi;
-        let (wz, _) = sqrt_rows(&params.rz, "rz", true)?;
-        if params.rz.nrows() != lz {
-            return Err(format!(
-                "rz is {}×{}, expected {lz}×{lz}",
-                params.rz.nrows(),
-                params.rz.ncols()
+        TargetFilter::validate(t).map_err(in_target_model)?;
+        let ltheta = Self::theta_len(self.nc, counts);
+        let (wz, _) = sqrt_rows(&self.rz, "rz", true)?;
+        if self.rz.nrows() != lz {
+            return Err(ParamError::new(
+                "rz",
+                format!(
+                    "rz is {}×{}, expected {lz}×{lz}",
+                    self.rz.nrows(),
+                    self.rz.ncols()
+                ),
             ));
         }
-        if params.ru.nrows() != lu {
-            return Err(format!(
-                "ru is {}×{}, expected {lu}×{lu}",
-                params.ru.nrows(),
-                params.ru.ncols()
+        if self.ru.nrows() != lu {
+            return Err(ParamError::new(
+                "ru",
+                format!(
+                    "ru is {}×{}, expected {lu}×{lu}",
+                    self.ru.nrows(),
+                    self.ru.ncols()
+                ),
             ));
         }
-        let (wu, ru_rows) = sqrt_rows(&params.ru, "ru", false)?;
-        let theta0 = match &params.theta0 {
+        let (wu, ru_rows) = sqrt_rows(&self.ru, "ru", false)?;
+        let theta0 = match &self.theta0 {
             None => vec![0.0; ltheta],
             Some(v) if v.len() == ltheta && v.iter().all(|x| x.is_finite()) => v.clone(),
-            Some(v) if v.len() == ltheta => return Err("theta0 has a non-finite entry".into()),
+            Some(v) if v.len() == ltheta => {
+                return Err(ParamError::new("theta0", "theta0 has a non-finite entry"));
+            }
             Some(v) => {
-                return Err(format!(
-                    "theta0 has {} entries, expected l_θ = l_u n_c (l_u + l_y) = {ltheta}",
-                    v.len()
+                return Err(ParamError::new(
+                    "theta0",
+                    format!(
+                        "theta0 has {} entries, expected l_θ = l_u n_c (l_u + l_y) = {ltheta}",
+                        v.len()
+                    ),
                 ));
             }
         };
-        if let Some(l) = &params.limits {
+        if let Some(l) = &self.limits {
             if l.min.len() != lu || l.max.len() != lu {
-                return Err(format!("output limits need {lu} entries for min and max"));
+                return Err(ParamError::new(
+                    "u-min",
+                    format!("output limits need {lu} entries for min and max"),
+                ));
             }
             if l.min
                 .iter()
                 .zip(&l.max)
                 .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
             {
-                return Err("output limits need u-min ≤ u-max for every input".into());
+                return Err(ParamError::new(
+                    "u-min",
+                    "output limits need u-min ≤ u-max for every input",
+                ));
             }
         }
+        match &self.update {
+            RcacUpdate::Rls {
+                p0,
+                rule,
+                trace_limit,
+            } => {
+                if !(*p0 > 0.0 && p0.is_finite()) {
+                    return Err(ParamError::new(
+                        "p0",
+                        format!("{p0} must be positive and finite"),
+                    ));
+                }
+                let trace0 = ltheta as f64 * p0;
+                if trace_limit.is_nan() || *trace_limit <= trace0 {
+                    return Err(ParamError::new(
+                        "trace-limit",
+                        format!("{trace_limit} must exceed tr(P_0) = l_θ p0 = {trace0}"),
+                    ));
+                }
+                rule.validate(lz + ru_rows)?;
+            }
+            RcacUpdate::Gradient { alpha, r, .. } => {
+                if !(*alpha > 0.0 && *alpha <= 1.0) {
+                    return Err(ParamError::new(
+                        "alpha",
+                        format!("{alpha} is outside (0, 1]"),
+                    ));
+                }
+                if !(*r >= 0.0 && r.is_finite()) {
+                    return Err(ParamError::new("r", format!("{r} must be finite and ≥ 0")));
+                }
+            }
+        }
+        Ok(Checked {
+            wz,
+            wu,
+            ru_rows,
+            theta0,
+        })
+    }
+}
+
+/// A target-model error as an error of RCAC's `target-model` field, the entry in the
+/// message.
+fn in_target_model(e: ParamError) -> ParamError {
+    ParamError::new("target-model", e.to_string())
+}
+
+impl Rcac {
+    /// Builds the controller for the rig's channels (`l_y = n_y`, `l_z = n_z`,
+    /// `l_u = n_u`), allocating every buffer, after [`RcacParams::validate`].
+    ///
+    /// # Errors
+    ///
+    /// Those of [`RcacParams::validate`].
+    pub fn new(params: &RcacParams, counts: Dimensions) -> Result<Self, ParamError> {
+        let Checked {
+            wz,
+            wu,
+            ru_rows,
+            theta0,
+        } = params.check(counts)?;
+        let (ly, lz, lu) = (counts.n_y, counts.n_z, counts.n_u);
+        let filter = TargetFilter::new(&params.target, ly, params.nc).map_err(in_target_model)?;
+        let nphi = filter.regressor_len();
+        let ltheta = lu * nphi;
         let p = lz + ru_rows;
         let law = match &params.update {
             RcacUpdate::Rls {
                 p0,
                 rule,
                 trace_limit,
-            } => Law::Rls(Box::new(Rls::new(&RlsConfig {
-                n: ltheta,
-                p,
-                theta0: theta0.clone(),
-                p0: *p0,
-                rule: rule.clone(),
-                trace_limit: *trace_limit,
-            })?)),
+            } => Law::Rls(Box::new(
+                Rls::new(&RlsConfig {
+                    n: ltheta,
+                    p,
+                    theta0: theta0.clone(),
+                    p0: *p0,
+                    rule: rule.clone(),
+                    trace_limit: *trace_limit,
+                })
+                .map_err(|e| ParamError::new("update", e))?,
+            )),
             RcacUpdate::Gradient {
                 step_size,
                 alpha,
                 r,
-            } => {
-                if !(*alpha > 0.0 && *alpha <= 1.0) {
-                    return Err(format!("alpha = {alpha} is outside (0, 1]"));
-                }
-                if !(*r >= 0.0 && r.is_finite()) {
-                    return Err(format!("r = {r} must be finite and ≥ 0"));
-                }
-                Law::Gradient {
-                    step_size: *step_size,
-                    alpha: *alpha,
-                    r: *r,
-                    theta: theta0.clone(),
-                    res: vec![0.0; p],
-                    grad: vec![0.0; ltheta],
-                    gram: vec![0.0; p * p],
-                    resets: 0,
-                }
-            }
+            } => Law::Gradient {
+                step_size: *step_size,
+                alpha: *alpha,
+                r: *r,
+                theta: theta0.clone(),
+                res: vec![0.0; p],
+                grad: vec![0.0; ltheta],
+                gram: vec![0.0; p * p],
+                resets: 0,
+            },
         };
         let mut s = Self {
             counts,

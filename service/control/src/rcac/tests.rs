@@ -143,18 +143,22 @@ fn a_target_model_with_a_feedthrough_or_an_unstable_pole_is_refused() {
         ch[2] = tf(1, 0, 0, &[1.0, 0.4], &[1.0, 0.3]);
     }
     let e = TargetFilter::new(&m, 1, 2).unwrap_err();
-    assert!(e.contains("feedthrough"), "{e}");
+    assert_eq!(e.path(), "channel[2]", "{e}");
+    assert!(e.message.contains("feedthrough"), "{e}");
     let mut m = mimo_tf_target();
     if let TargetForm::TransferFunction(ch) = &mut m.form {
         ch[0] = tf(0, 0, 1, &[0.5], &[1.0, -1.01]);
     }
     let e = TargetFilter::new(&m, 1, 2).unwrap_err();
-    assert!(e.contains("pole"), "{e}");
+    assert_eq!(e.path(), "channel[0]", "{e}");
+    assert!(e.message.contains("pole"), "{e}");
     let m = TargetModel {
         form: TargetForm::Markov(vec![DMatrix::from_element(2, 2, 0.1)]),
         ..mimo_tf_target()
     };
-    assert!(TargetFilter::new(&m, 1, 2).unwrap_err().contains("H_0"));
+    let e = TargetFilter::new(&m, 1, 2).unwrap_err();
+    assert_eq!(e.path(), "markov[0]", "{e}");
+    assert!(e.message.contains("H_0"), "{e}");
 }
 
 fn params(target: TargetModel, nc: usize, update: RcacUpdate) -> RcacParams {
@@ -322,6 +326,7 @@ fn weights_become_square_root_rows() {
     assert!(
         sqrt_rows(&ru, "rz", true)
             .unwrap_err()
+            .message
             .contains("not positive definite")
     );
     let neg = DMatrix::from_row_slice(1, 1, &[-1.0]);
@@ -722,4 +727,71 @@ fn rcac_rejects_the_tone_through_late_and_lost_samples() {
         assert!(c.theta().iter().all(|v| v.is_finite()));
         assert_eq!(c.resets(), 0);
     }
+}
+
+#[test]
+fn refused_parameters_name_the_field_of_the_configuration_table() {
+    let good = params(siso_target(), 4, rls(10.0, 0.99));
+    let dims = counts(1, 1, 1);
+    assert_eq!(good.validate(dims), Ok(()));
+    let field = |p: RcacParams| p.validate(dims).unwrap_err().path();
+    assert_eq!(
+        field(RcacParams {
+            nc: 0,
+            ..good.clone()
+        }),
+        "nc"
+    );
+    assert_eq!(field(params(siso_target(), 4, rls(-1.0, 0.99))), "p0");
+    assert_eq!(
+        field(params(siso_target(), 4, rls(10.0, 1.5))),
+        "forgetting.lambda"
+    );
+    let tight = RcacUpdate::Rls {
+        p0: 10.0,
+        rule: ForgettingRule::DEFAULT,
+        trace_limit: 1.0,
+    };
+    assert_eq!(field(params(siso_target(), 4, tight)), "trace-limit");
+    assert_eq!(
+        field(params(siso_target(), 4, grad(StepSize::Exp, 0.0, 0.0))),
+        "alpha"
+    );
+    assert_eq!(
+        field(params(siso_target(), 4, grad(StepSize::Exp, 0.5, -1.0))),
+        "r"
+    );
+    let rz = DMatrix::from_element(1, 1, -1.0);
+    assert_eq!(field(RcacParams { rz, ..good.clone() }), "rz");
+    let theta0 = Some(vec![0.0; 3]);
+    assert_eq!(
+        field(RcacParams {
+            theta0,
+            ..good.clone()
+        }),
+        "theta0"
+    );
+    let sample_period = TS / 2.0;
+    assert_eq!(
+        field(RcacParams {
+            sample_period,
+            ..good.clone()
+        }),
+        "target-model.sample-period"
+    );
+}
+
+#[test]
+fn the_defaults_are_those_the_constructor_uses() {
+    let p = params(siso_target(), 4, rls(10.0, 0.99));
+    let dims = counts(1, 1, 1);
+    // l_θ = l_u n_c (l_u + l_y) = 8; the target's largest lag is 2.
+    assert_eq!(RcacParams::theta_len(4, dims), 8);
+    assert_eq!(
+        RcacParams::default_trace_limit(4, dims, 10.0),
+        1e6 * 8.0 * 10.0
+    );
+    assert_eq!(p.default_kw(), Ok(2 + 4));
+    let c = Rcac::new(&p, dims).unwrap();
+    assert_eq!(c.theta_len(), RcacParams::theta_len(4, dims));
 }

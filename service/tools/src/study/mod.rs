@@ -14,3 +14,4 @@ pub mod plant;
 pub mod rcac_common;
 pub mod rcac_miso;
 pub mod rcac_siso;
+pub mod rcac_study;

@@ -487,7 +487,8 @@ pub fn run_experiment(
             n_r: p.n_r() as u16,
             n_u: p.n_u() as u16,
         };
-        let mut pcac = Pcac::new(&params, service::wire::dimensions(counts))?;
+        let mut pcac =
+            Pcac::new(&params, service::wire::dimensions(counts)).map_err(|e| e.to_string())?;
         let mut trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
         // Compare in the open loop's unit (10·mm): the controller saw its own.
         let to_mm = setting.to_millimetres();

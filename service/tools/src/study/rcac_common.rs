@@ -328,7 +328,7 @@ pub fn run_closed(
         n_r: p.n_r() as u16,
         n_u: p.n_u() as u16,
     };
-    let mut c = Rcac::new(params, service::wire::dimensions(counts))?;
+    let mut c = Rcac::new(params, service::wire::dimensions(counts)).map_err(|e| e.to_string())?;
     let probe = |c: &Rcac| c.theta().to_vec();
     let theta = (theta_every > 0).then_some((&probe as &dyn Fn(&Rcac) -> Vec<f64>, theta_every));
     let run = simulate::closed_loop(p, sc.rig.sample_period, Some(&mut c), steps, theta);

@@ -38,25 +38,26 @@
 //! values from 0.01 to 0.5, equally spaced (0.01, 0.02, …, 0.5, which contains the nominal
 //! 0.1). RCAC: `n_c = 20`, `θ_0 = 0`, `k_w = 5 n_c`, gradient `μ_Exp` with `α = 0.2`,
 //! `R = 0`, and RLS (`P_0 = I`, `λ = 1`); runs and measurements as in `rcac_common`.
+//! [`rcac_study`](crate::study::rcac_study) drives the runs.
 
-use crate::design::target_response::TargetResponse;
+use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
-use crate::design::C64;
 use crate::design::model::{DiscreteModel, OutputSet};
 use crate::design::plots::{Curve, bode_figure};
-use crate::plot::{Mark, figure};
-use control::tones::suppression_db;
+use crate::plot::Mark;
 use plant_proxy::scenario::{self, Scenario};
 use plotters::style::RGBColor;
 use rayon::prelude::*;
 
 use crate::study::rcac_common::{
     self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, TS, Update,
-    WINDOW_SECONDS, design_dtm, error_plane_panel, median, model_error, poly_mul, rcac_params,
-    run_closed, run_open, single_run_figure, toml_f64, toml_list,
+    WINDOW_SECONDS, Window, design_dtm, error_plane_panel, median, poly_mul, toml_f64, toml_list,
+};
+pub use crate::study::rcac_study::Options;
+use crate::study::rcac_study::{
+    self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleRun, tone_errors,
 };
 
 const PI: f64 = std::f64::consts::PI;
@@ -161,52 +162,8 @@ pub fn zetas(points: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Options of the study.
-#[derive(Debug, Clone)]
-pub struct Options {
-    /// Number of damping values.
-    pub points: usize,
-    /// Update laws to run.
-    pub updates: Vec<Update>,
-}
-
-/// One row of the sweep.
-#[derive(Debug, Clone)]
-pub struct Row {
-    /// True damping.
-    pub zeta: f64,
-    /// DTM method.
-    pub method: Method,
-    /// Update law.
-    pub update: Update,
-    /// Per input channel `j`: `(magnitude error dB, phase error °)` of `G_f` at `ω_dj`.
-    pub error: [(f64, f64); 2],
-    /// Open-loop amplitude of each tone in `z`.
-    pub open_amp: [f64; 2],
-    /// Closed-loop amplitude of each tone on the last window (NaN: diverged).
-    pub closed_amp: [f64; 2],
-    /// The same on the window before.
-    pub closed_amp_prev: [f64; 2],
-    /// Open-loop peak `|z|`.
-    pub open_peak: f64,
-    /// Closed-loop peak `|z|` on the last window.
-    pub closed_peak: f64,
-    /// Finite, bounded, no guard reset.
-    pub finite: bool,
-    /// Settling time after RCAC starts, s.
-    pub settle: Option<f64>,
-}
-
-impl Row {
-    /// Suppression of tone `j`, dB (−∞ when diverged).
-    pub fn suppression(&self, j: usize) -> f64 {
-        if self.finite {
-            suppression_db(self.open_amp[j], self.closed_amp[j])
-        } else {
-            f64::NEG_INFINITY
-        }
-    }
-}
+/// One row of the sweep: `at` is the true damping, tone `j` is the tone of input `u_j`.
+pub type Row = rcac_study::Row<f64, 2>;
 
 /// `θ` of each tone, rad/sample.
 fn thetas() -> [f64; 2] {
@@ -215,132 +172,305 @@ fn thetas() -> [f64; 2] {
 
 /// `(magnitude error, phase error)` of `G_f` against `model` at each channel's tone.
 fn errors(model: &DiscreteModel, dtm: &Dtm) -> Result<[(f64, f64); 2], String> {
-    let th = thetas();
-    let g = model.frf(&th)?;
-    let gf = dtm.target.frf(&th);
-    Ok([
-        model_error(g.response[0][0], gf.response[0][0]),
-        model_error(g.response[1][1], gf.response[1][1]),
-    ])
-}
-
-fn sweep_point(zeta: f64, dtms: &[(Method, Dtm)], updates: &[Update]) -> Result<Vec<Row>, String> {
-    let sc = scenario(zeta)?;
-    let model = DiscreteModel::from_scenario(&sc, OutputSet::Z)?;
-    let steps = (RUN_SECONDS / TS).round() as usize;
-    let window = (WINDOW_SECONDS / TS).round() as usize;
-    let th = thetas();
-    let (open, _) = run_open(&sc, steps, window, &th)?;
-    let mut rows = Vec::new();
-    for (method, dtm) in dtms {
-        let error = errors(&model, dtm)?;
-        for &update in updates {
-            let p = run_closed(
-                &sc,
-                &rcac_params(&dtm.target, update, ALPHA),
-                steps,
-                window,
-                &th,
-                open.peak,
-                false,
-                0,
-            )?;
-            let finite = p.finite();
-            let w = p.closed.unwrap_or_default();
-            let two = |v: &[f64]| [0, 1].map(|j| v.get(j).copied().unwrap_or(f64::NAN));
-            rows.push(Row {
-                zeta,
-                method: *method,
-                update,
-                error,
-                open_amp: two(&open.amp),
-                closed_amp: two(&w.amp),
-                closed_amp_prev: two(&w.amp_prev),
-                open_peak: open.peak,
-                closed_peak: if finite { w.peak } else { f64::NAN },
-                finite,
-                settle: p.settle,
-            });
-        }
-    }
-    Ok(rows)
+    tone_errors(model, dtm, &thetas())
 }
 
 /// The study (see the module docs); writes into `out` and prints the summary.
 pub fn run(out: &Path, opts: &Options) -> Result<(), String> {
-    let t0 = Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let mut report = String::new();
-    let _ = writeln!(
-        report,
-        "study rcac-miso: 4-mode 2-input 1-output structure, modes {MODES_HZ:?} Hz, zeros of G_1 {ZEROS_U1_HZ:?} Hz, \
-         of G_2 {ZEROS_U2_HZ:?} Hz, T_s = {TS} s\n\
-         tones: 11 Hz (22pi rad/s) on w_1 (with u_1), 17 Hz (34pi rad/s) on w_2 (with u_2); true zeta from {} to {}, {} values (linear)\n\
-         DTMs from the zeta = {NOMINAL_ZETA} model: windowed average n = 2, one zero, Delta = 8pi rad/s, beta = {}; \
-         optimization n_max = 2, m = n - 1, beta = {}\n\
-         RCAC: n_c = {}, theta_0 = 0, k_w = {KW}, R_z = 1, R_u = 0; gradient mu_Exp, alpha = {ALPHA}, R = 0; RLS P_0 = {} I, lambda = {}\n\
-         runs of {RUN_SECONDS} s; tone amplitudes of z on the last {WINDOW_SECONDS} s",
-        ZETA_RANGE.0,
-        ZETA_RANGE.1,
-        opts.points,
-        beta(Method::Average),
-        beta(Method::Optimize),
-        common::NC,
-        common::RLS_P0,
-        common::RLS_LAMBDA,
-    );
-    let nominal = scenario(NOMINAL_ZETA)?;
-    common::write(
-        &out.join("scenario-zeta-0.1.toml"),
-        &scenario_text(NOMINAL_ZETA),
-    )?;
-    let dtms: Vec<(Method, Dtm)> = Method::ALL
-        .par_iter()
-        .map(|&m| Ok((m, design_dtm(&nominal, m, beta(m))?)))
-        .collect::<Result<_, String>>()?;
-    for (m, d) in &dtms {
-        for (j, f) in d.dtfs.iter().enumerate() {
-            let _ = writeln!(
-                report,
-                "  {:<22} u_{}: G^_d(z) = ({}) / ({})",
-                m.label(),
-                j + 1,
-                crate::design::dtf::format_poly(&f.num),
-                crate::design::dtf::format_poly(&f.den)
-            );
+    rcac_study::run(&Miso, out, opts)
+}
+
+/// The MISO study of §3.3.2 as [`rcac_study`] drives it.
+pub struct Miso;
+
+impl RcacStudy<2> for Miso {
+    /// The true damping `ζ`.
+    type At = f64;
+    /// The DTM of each method, from the nominal model.
+    type Designs = Vec<(Method, Dtm)>;
+
+    const ALPHA: f64 = ALPHA;
+    const REPORTS_DESIGN_TIME: bool = false;
+    const FIGURES: [FigureNumbers; 2] = [
+        FigureNumbers {
+            plane: "3.12",
+            bode: "3.13",
+            run: "3.14",
+        },
+        FigureNumbers {
+            plane: "3.15",
+            bode: "3.16",
+            run: "3.17",
+        },
+    ];
+
+    fn header(&self, points: usize, report: &mut String) {
+        let _ = writeln!(
+            report,
+            "study rcac-miso: 4-mode 2-input 1-output structure, modes {MODES_HZ:?} Hz, zeros of G_1 {ZEROS_U1_HZ:?} Hz, \
+             of G_2 {ZEROS_U2_HZ:?} Hz, T_s = {TS} s\n\
+             tones: 11 Hz (22pi rad/s) on w_1 (with u_1), 17 Hz (34pi rad/s) on w_2 (with u_2); true zeta from {} to {}, {} values (linear)\n\
+             DTMs from the zeta = {NOMINAL_ZETA} model: windowed average n = 2, one zero, Delta = 8pi rad/s, beta = {}; \
+             optimization n_max = 2, m = n - 1, beta = {}\n\
+             RCAC: n_c = {}, theta_0 = 0, k_w = {KW}, R_z = 1, R_u = 0; gradient mu_Exp, alpha = {ALPHA}, R = 0; RLS P_0 = {} I, lambda = {}\n\
+             runs of {RUN_SECONDS} s; tone amplitudes of z on the last {WINDOW_SECONDS} s",
+            ZETA_RANGE.0,
+            ZETA_RANGE.1,
+            points,
+            beta(Method::Average),
+            beta(Method::Optimize),
+            common::NC,
+            common::RLS_P0,
+            common::RLS_LAMBDA,
+        );
+    }
+
+    /// Both DTMs from the nominal model; its scenario is written to `out` as well.
+    fn design(&self, out: &Path, report: &mut String) -> Result<Self::Designs, String> {
+        let nominal = scenario(NOMINAL_ZETA)?;
+        common::write(
+            &out.join("scenario-zeta-0.1.toml"),
+            &scenario_text(NOMINAL_ZETA),
+        )?;
+        let dtms: Vec<(Method, Dtm)> = Method::ALL
+            .par_iter()
+            .map(|&m| Ok((m, design_dtm(&nominal, m, beta(m))?)))
+            .collect::<Result<_, String>>()?;
+        for (m, d) in &dtms {
+            for (j, f) in d.dtfs.iter().enumerate() {
+                let _ = writeln!(
+                    report,
+                    "  {:<22} u_{}: G^_d(z) = ({}) / ({})",
+                    m.label(),
+                    j + 1,
+                    crate::design::dtf::format_poly(&f.num),
+                    crate::design::dtf::format_poly(&f.den)
+                );
+            }
+        }
+        Ok(dtms)
+    }
+
+    fn sweep_points(&self, points: usize) -> Vec<f64> {
+        zetas(points)
+    }
+
+    fn setup<'d>(&self, designs: &'d Self::Designs, zeta: f64) -> Result<Setup<'d, 2>, String> {
+        let sc = scenario(zeta)?;
+        let model = DiscreteModel::from_scenario(&sc, OutputSet::Z)?;
+        Ok(Setup {
+            scenario: sc,
+            model: Cow::Owned(model),
+            dtms: designs,
+            thetas: thetas(),
+        })
+    }
+
+    /// Figures 3.13/3.14 and 3.16/3.17 at `ζ = 0.01`.
+    fn single_at(&self) -> f64 {
+        ZETA_RANGE.0
+    }
+
+    fn write_csv(&self, out: &Path, rows: &[Row]) -> Result<(), String> {
+        write_csv(&out.join("sweep.csv"), rows)
+    }
+
+    /// Figure 3.12 (average) or 3.15 (optimization): per input channel, the error plane over
+    /// the damping sweep, colored by the closed-loop amplitude of that channel's tone.
+    fn plane_figure(
+        &self,
+        designs: &Self::Designs,
+        rows: &[Row],
+        method: Method,
+        update: Update,
+    ) -> Result<PlaneFigure, String> {
+        let dtm = &designs
+            .iter()
+            .find(|d| d.0 == method)
+            .ok_or("missing DTM")?
+            .1;
+        // The locus over a fine damping grid, and the three marks.
+        let fine = zetas(197);
+        let locus: Vec<[(f64, f64); 2]> = fine
+            .iter()
+            .map(|&z| {
+                let m = DiscreteModel::from_scenario(&scenario(z)?, OutputSet::Z)?;
+                errors(&m, dtm)
+            })
+            .collect::<Result<_, String>>()?;
+        let at = |z: f64| -> Result<[(f64, f64); 2], String> {
+            errors(
+                &DiscreteModel::from_scenario(&scenario(z)?, OutputSet::Z)?,
+                dtm,
+            )
+        };
+        let ends = [at(ZETA_RANGE.0)?, at(ZETA_RANGE.1)?, at(NOMINAL_ZETA)?];
+        let mut panels = Vec::new();
+        for j in 0..2 {
+            let points: Vec<PlanePoint> = rows
+                .iter()
+                .filter(|r| r.method == method && r.update == update)
+                .map(|r| PlanePoint {
+                    mag_db: r.error[j].0,
+                    phase_deg: r.error[j].1,
+                    error: r.finite.then_some(r.closed_amp[j]),
+                })
+                .collect();
+            let l: Vec<(f64, f64)> = locus.iter().map(|e| (e[j].1, e[j].0)).collect();
+            let mk = |label: &str, i: usize, mark, color| PlaneMark {
+                label: label.into(),
+                at: (ends[i][j].1, ends[i][j].0),
+                mark,
+                color,
+            };
+            let marks = [
+                mk("ζ = 0.01", 0, Mark::Cross, RGBColor(0, 150, 0)),
+                mk("ζ = 0.5", 1, Mark::Cross, RGBColor(150, 0, 150)),
+                mk("ζ = 0.1 (model)", 2, Mark::Cross, RGBColor(0, 0, 0)),
+            ];
+            panels.push(error_plane_panel(
+                &format!(
+                    "{}) input u_{}: tone at {:.0} Hz, color = its closed-loop amplitude",
+                    if j == 0 { 'a' } else { 'b' },
+                    j + 1,
+                    TONES[j].1 / (2.0 * PI)
+                ),
+                &points,
+                &l,
+                &marks,
+            ));
+        }
+        Ok(PlaneFigure {
+            title: format!(
+                "4-mode MISO, {} (β = {}) from ζ = 0.1, RCAC {}: true ζ from 0.01 to 0.5",
+                method.label(),
+                beta(method),
+                update.name()
+            ),
+            layout: (1, 2),
+            size: (1600, 700),
+            panels,
+        })
+    }
+
+    fn single_open_line(&self, open: &Window) -> String {
+        format!(
+            "\nzeta = 0.01 (Figures 3.13/3.14, 3.16/3.17): open-loop tone amplitudes {:.4} (11 Hz), {:.4} (17 Hz)",
+            open.amp[0], open.amp[1]
+        )
+    }
+
+    fn bode_figure(&self, path: &Path, b: &Bode<'_>) -> Result<(), String> {
+        bode_figure(
+            path,
+            &format!(
+                "4-mode MISO: G_zu,d at ζ = 0.01 and the {} G_f from ζ = 0.1 (β = {})",
+                b.method.label(),
+                beta(b.method)
+            ),
+            b.hz,
+            &[
+                Curve::new("G_zu,d u_1", &b.g[0]),
+                Curve::new("G_zu,d u_2", &b.g[1]),
+                Curve::new("G_f u_1", &b.gf[0]).dashed(),
+                Curve::new("G_f u_2", &b.gf[1]).dashed(),
+                Curve::new("G_f/G_zu,d u_1", &b.ratio[0]).dashed(),
+                Curve::new("G_f/G_zu,d u_2", &b.ratio[1]).dashed(),
+            ],
+            &[],
+        )
+    }
+
+    fn single_line(&self, run: &SingleRun<'_, 2>) -> String {
+        let (sup, e) = (run.suppression, run.error);
+        format!(
+            "suppression {:.1} dB (11 Hz), {:.1} dB (17 Hz); G_f error at the tones {:+.1} dB {:+.1} deg (u_1), {:+.1} dB {:+.1} deg (u_2); settles in {}",
+            sup[0],
+            sup[1],
+            e[0].0,
+            e[0].1,
+            e[1].0,
+            e[1].1,
+            run.settle.map_or("never".into(), |t| format!("{t:.0} s")),
+        )
+    }
+
+    fn single_title(&self, run: &SingleRun<'_, 2>) -> String {
+        format!(
+            "4-mode MISO at ζ = 0.01, {} from ζ = 0.1, RCAC {} (starts at {} s): tones −{:.0} dB, −{:.0} dB",
+            run.method.label(),
+            run.update.name(),
+            KW as f64 * TS,
+            run.suppression[0],
+            run.suppression[1]
+        )
+    }
+
+    /// The sweep's table: per method and update law, over the true damping.
+    fn summary(&self, rows: &[Row], updates: &[Update], report: &mut String) {
+        let _ = writeln!(
+            report,
+            "\nsweep over the true damping: tone suppression (dB) median and worst, points below 20 dB or diverged, median settling time (s)"
+        );
+        let _ = writeln!(
+            report,
+            "{:<9} {:<8} {:>13} {:>13} {:>6} {:>4} {:>8} {:>22}",
+            "DTM",
+            "update",
+            "11 Hz med/min",
+            "17 Hz med/min",
+            "poor",
+            "div",
+            "settle50",
+            "zeta of the worst"
+        );
+        for method in Method::ALL {
+            for &update in updates {
+                let rs: Vec<&Row> = rows
+                    .iter()
+                    .filter(|r| r.method == method && r.update == update)
+                    .collect();
+                let s = |j: usize| rs.iter().map(|r| r.suppression(j)).collect::<Vec<_>>();
+                let (s0, s1) = (s(0), s(1));
+                let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+                let poor = rs
+                    .iter()
+                    .filter(|r| r.suppression(0).min(r.suppression(1)) < 20.0)
+                    .count();
+                let div = rs.iter().filter(|r| !r.finite).count();
+                let st = median(
+                    &rs.iter()
+                        .map(|r| r.settle.unwrap_or(f64::INFINITY))
+                        .collect::<Vec<_>>(),
+                );
+                let worst = rs
+                    .iter()
+                    .min_by(|a, b| {
+                        a.suppression(0)
+                            .min(a.suppression(1))
+                            .total_cmp(&b.suppression(0).min(b.suppression(1)))
+                    })
+                    .map_or(f64::NAN, |r| r.at);
+                let _ = writeln!(
+                    report,
+                    "{:<9} {:<8} {:>13} {:>13} {:>3}/{:<2} {:>4} {:>8} {:>22}",
+                    method.name(),
+                    update.name(),
+                    format!("{:.0}/{:.0}", median(&s0), min(&s0)),
+                    format!("{:.0}/{:.0}", median(&s1), min(&s1)),
+                    poor,
+                    rs.len(),
+                    div,
+                    if st.is_finite() {
+                        format!("{st:.1}")
+                    } else {
+                        "never".into()
+                    },
+                    worst
+                );
+            }
         }
     }
-    let t1 = Instant::now();
-    let zs = zetas(opts.points);
-    let rows: Vec<Row> = zs
-        .par_iter()
-        .map(|&z| sweep_point(z, &dtms, &opts.updates))
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter()
-        .flatten()
-        .collect();
-    let t_sweep = t1.elapsed().as_secs_f64();
-    write_csv(&out.join("sweep.csv"), &rows)?;
-    let t2 = Instant::now();
-    for (method, dtm) in &dtms {
-        for &update in &opts.updates {
-            plane_figure(out, dtm, &rows, *method, update)?;
-        }
-    }
-    single_run(out, &dtms, &opts.updates, &mut report)?;
-    let t_fig = t2.elapsed().as_secs_f64();
-    summary(&rows, &opts.updates, &mut report);
-    let _ = writeln!(
-        report,
-        "\ntime: sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), figures and single runs {t_fig:.1} s, total {:.1} s; files in {}",
-        zs.len() * (1 + Method::ALL.len() * opts.updates.len()),
-        (RUN_SECONDS / TS).round(),
-        rayon::current_num_threads(),
-        t0.elapsed().as_secs_f64(),
-        out.display()
-    );
-    print!("{report}");
-    common::write(&out.join("summary.txt"), &report)
 }
 
 fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
@@ -351,7 +481,7 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
         let _ = writeln!(
             s,
             "{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.3},{:.3},{:.6e},{:.6e},{},{}",
-            r.zeta,
+            r.at,
             r.method.name(),
             r.update.name(),
             r.error[0].0,
@@ -375,283 +505,19 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
     common::write(path, &s)
 }
 
-/// Figure 3.12 (average) or 3.15 (optimization): per input channel, the error plane over
-/// the damping sweep, colored by the closed-loop amplitude of that channel's tone.
-fn plane_figure(
-    out: &Path,
-    dtm: &Dtm,
-    rows: &[Row],
-    method: Method,
-    update: Update,
-) -> Result<(), String> {
-    // The locus over a fine damping grid, and the three marks.
-    let fine = zetas(197);
-    let locus: Vec<[(f64, f64); 2]> = fine
-        .iter()
-        .map(|&z| {
-            let m = DiscreteModel::from_scenario(&scenario(z)?, OutputSet::Z)?;
-            errors(&m, dtm)
-        })
-        .collect::<Result<_, String>>()?;
-    let at = |z: f64| -> Result<[(f64, f64); 2], String> {
-        errors(
-            &DiscreteModel::from_scenario(&scenario(z)?, OutputSet::Z)?,
-            dtm,
-        )
-    };
-    let ends = [at(ZETA_RANGE.0)?, at(ZETA_RANGE.1)?, at(NOMINAL_ZETA)?];
-    let mut panels = Vec::new();
-    for j in 0..2 {
-        let points: Vec<PlanePoint> = rows
-            .iter()
-            .filter(|r| r.method == method && r.update == update)
-            .map(|r| PlanePoint {
-                mag_db: r.error[j].0,
-                phase_deg: r.error[j].1,
-                error: r.finite.then_some(r.closed_amp[j]),
-            })
-            .collect();
-        let l: Vec<(f64, f64)> = locus.iter().map(|e| (e[j].1, e[j].0)).collect();
-        let mk = |label: &str, i: usize, mark, color| PlaneMark {
-            label: label.into(),
-            at: (ends[i][j].1, ends[i][j].0),
-            mark,
-            color,
-        };
-        let marks = [
-            mk("ζ = 0.01", 0, Mark::Cross, RGBColor(0, 150, 0)),
-            mk("ζ = 0.5", 1, Mark::Cross, RGBColor(150, 0, 150)),
-            mk("ζ = 0.1 (model)", 2, Mark::Cross, RGBColor(0, 0, 0)),
-        ];
-        panels.push(error_plane_panel(
-            &format!(
-                "{}) input u_{}: tone at {:.0} Hz, color = its closed-loop amplitude",
-                if j == 0 { 'a' } else { 'b' },
-                j + 1,
-                TONES[j].1 / (2.0 * PI)
-            ),
-            &points,
-            &l,
-            &marks,
-        ));
-    }
-    let fig = match method {
-        Method::Average => "3.12",
-        Method::Optimize => "3.15",
-    };
-    figure(
-        &out.join(format!(
-            "figure-{fig}-{}-{}.png",
-            method.name(),
-            update.name()
-        )),
-        &format!(
-            "4-mode MISO, {} (β = {}) from ζ = 0.1, RCAC {}: true ζ from 0.01 to 0.5",
-            method.label(),
-            beta(method),
-            update.name()
-        ),
-        (1, 2),
-        (1600, 700),
-        &panels,
-    )
-}
-
-/// Figures 3.13/3.14 and 3.16/3.17 at `ζ = 0.01`.
-fn single_run(
-    out: &Path,
-    dtms: &[(Method, Dtm)],
-    updates: &[Update],
-    report: &mut String,
-) -> Result<(), String> {
-    let zeta = ZETA_RANGE.0;
-    let sc = scenario(zeta)?;
-    let model = DiscreteModel::from_scenario(&sc, OutputSet::Z)?;
-    let steps = (RUN_SECONDS / TS).round() as usize;
-    let window = (WINDOW_SECONDS / TS).round() as usize;
-    let th = thetas();
-    let (open_w, open) = run_open(&sc, steps, window, &th)?;
-    let _ = writeln!(
-        report,
-        "\nzeta = 0.01 (Figures 3.13/3.14, 3.16/3.17): open-loop tone amplitudes {:.4} (11 Hz), {:.4} (17 Hz)",
-        open_w.amp[0], open_w.amp[1]
-    );
-    let grid: Vec<f64> = crate::design::grid(1e-3 * PI, PI, 2000, true)?;
-    let hz: Vec<f64> = grid.iter().map(|t| t / (2.0 * PI * TS)).collect();
-    let g = model.frf(&grid)?;
-    for (method, dtm) in dtms {
-        let gf = dtm.target.frf(&grid);
-        let ratio: Vec<Vec<C64>> = (0..2)
-            .map(|j| {
-                gf.response[j]
-                    .iter()
-                    .zip(&g.response[j])
-                    .map(|(a, b)| a / b)
-                    .collect()
-            })
-            .collect();
-        let (fig_bode, fig_run) = match method {
-            Method::Average => ("3.13", "3.14"),
-            Method::Optimize => ("3.16", "3.17"),
-        };
-        bode_figure(
-            &out.join(format!("figure-{fig_bode}-{}-bode.png", method.name())),
-            &format!(
-                "4-mode MISO: G_zu,d at ζ = 0.01 and the {} G_f from ζ = 0.1 (β = {})",
-                method.label(),
-                beta(*method)
-            ),
-            &hz,
-            &[
-                Curve::new("G_zu,d u_1", &g.response[0]),
-                Curve::new("G_zu,d u_2", &g.response[1]),
-                Curve::new("G_f u_1", &gf.response[0]).dashed(),
-                Curve::new("G_f u_2", &gf.response[1]).dashed(),
-                Curve::new("G_f/G_zu,d u_1", &ratio[0]).dashed(),
-                Curve::new("G_f/G_zu,d u_2", &ratio[1]).dashed(),
-            ],
-            &[],
-        )?;
-        let e = errors(&model, dtm)?;
-        for &update in updates {
-            let every = 10;
-            let p = run_closed(
-                &sc,
-                &rcac_params(&dtm.target, update, ALPHA),
-                steps,
-                window,
-                &th,
-                open_w.peak,
-                true,
-                every,
-            )?;
-            let Some(closed) = p.trace.as_ref().filter(|_| p.finite()) else {
-                let _ = writeln!(
-                    report,
-                    "  {:<22} {:<8}: diverged (no figure)",
-                    method.label(),
-                    update.name()
-                );
-                continue;
-            };
-            let w = p.closed.clone().unwrap_or_default();
-            let sup: Vec<f64> = (0..2)
-                .map(|j| {
-                    w.amp
-                        .get(j)
-                        .map_or(f64::NEG_INFINITY, |a| suppression_db(open_w.amp[j], *a))
-                })
-                .collect();
-            let _ = writeln!(
-                report,
-                "  {:<22} {:<8}: suppression {:.1} dB (11 Hz), {:.1} dB (17 Hz); G_f error at the tones {:+.1} dB {:+.1} deg (u_1), {:+.1} dB {:+.1} deg (u_2); settles in {}",
-                method.label(),
-                update.name(),
-                sup[0],
-                sup[1],
-                e[0].0,
-                e[0].1,
-                e[1].0,
-                e[1].1,
-                p.settle.map_or("never".into(), |t| format!("{t:.0} s")),
-            );
-            single_run_figure(
-                &out.join(format!(
-                    "figure-{fig_run}-{}-{}.png",
-                    method.name(),
-                    update.name()
-                )),
-                format!(
-                    "4-mode MISO at ζ = 0.01, {} from ζ = 0.1, RCAC {} (starts at {} s): tones −{:.0} dB, −{:.0} dB",
-                    method.label(),
-                    update.name(),
-                    KW as f64 * TS,
-                    sup[0],
-                    sup[1]
-                ),
-                &open,
-                closed,
-                every,
-            )?;
-        }
-    }
-    Ok(())
-}
-
-fn summary(rows: &[Row], updates: &[Update], report: &mut String) {
-    let _ = writeln!(
-        report,
-        "\nsweep over the true damping: tone suppression (dB) median and worst, points below 20 dB or diverged, median settling time (s)"
-    );
-    let _ = writeln!(
-        report,
-        "{:<9} {:<8} {:>13} {:>13} {:>6} {:>4} {:>8} {:>22}",
-        "DTM",
-        "update",
-        "11 Hz med/min",
-        "17 Hz med/min",
-        "poor",
-        "div",
-        "settle50",
-        "zeta of the worst"
-    );
-    for method in Method::ALL {
-        for &update in updates {
-            let rs: Vec<&Row> = rows
-                .iter()
-                .filter(|r| r.method == method && r.update == update)
-                .collect();
-            let s = |j: usize| rs.iter().map(|r| r.suppression(j)).collect::<Vec<_>>();
-            let (s0, s1) = (s(0), s(1));
-            let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
-            let poor = rs
-                .iter()
-                .filter(|r| r.suppression(0).min(r.suppression(1)) < 20.0)
-                .count();
-            let div = rs.iter().filter(|r| !r.finite).count();
-            let st = median(
-                &rs.iter()
-                    .map(|r| r.settle.unwrap_or(f64::INFINITY))
-                    .collect::<Vec<_>>(),
-            );
-            let worst = rs
-                .iter()
-                .min_by(|a, b| {
-                    a.suppression(0)
-                        .min(a.suppression(1))
-                        .total_cmp(&b.suppression(0).min(b.suppression(1)))
-                })
-                .map_or(f64::NAN, |r| r.zeta);
-            let _ = writeln!(
-                report,
-                "{:<9} {:<8} {:>13} {:>13} {:>3}/{:<2} {:>4} {:>8} {:>22}",
-                method.name(),
-                update.name(),
-                format!("{:.0}/{:.0}", median(&s0), min(&s0)),
-                format!("{:.0}/{:.0}", median(&s1), min(&s1)),
-                poor,
-                rs.len(),
-                div,
-                if st.is_finite() {
-                    format!("{st:.1}")
-                } else {
-                    "never".into()
-                },
-                worst
-            );
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::design::C64;
+    use crate::study::rcac_common::{rcac_params, run_closed, run_open};
+    use control::tones::suppression_db;
 
     /// The committed `scenarios/rcac/miso-4-mode.toml` holds exactly the generator's
     /// `[rig]` and `[plant]` tables at ζ = 0.1.
     #[test]
     fn the_committed_miso_file_is_the_generator_at_the_nominal_damping() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/rcac/miso-4-mode.toml");
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios/rcac/miso-4-mode.toml");
         let text = std::fs::read_to_string(&path).unwrap();
         let file: toml::Table = toml::from_str(&text).unwrap();
         let generated: toml::Table = toml::from_str(&scenario_text(NOMINAL_ZETA)).unwrap();

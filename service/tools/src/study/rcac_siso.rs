@@ -20,26 +20,28 @@
 //! has four samples per period. Every point runs the open loop and RCAC (`n_c = 20`,
 //! `θ_0 = 0`, `k_w = 5 n_c`, gradient `μ_Exp` with `α = 0.5`, `R = 0`, and/or RLS with
 //! `P_0 = I`, `λ = 1`) for [`RUN_SECONDS`] and measures the last [`WINDOW_SECONDS`] (see
-//! `rcac_common`).
+//! `rcac_common`); [`rcac_study`](crate::study::rcac_study) drives the runs.
 
-use crate::design::target_response::TargetResponse;
+use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
 use crate::design::C64;
 use crate::design::model::{DiscreteModel, OutputSet};
 use crate::design::plots::{Curve, PoleZero, bode_figure};
-use crate::plot::{Mark, figure};
-use control::tones::suppression_db;
+use crate::design::target_response::TargetResponse;
+use crate::plot::Mark;
 use plant_proxy::scenario::{self, Scenario};
 use plotters::style::RGBColor;
 use rayon::prelude::*;
 
 use crate::study::rcac_common::{
     self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, TS, Update,
-    WINDOW_SECONDS, design_dtm, error_plane_panel, median, model_error, rcac_params, run_closed,
-    run_open, single_run_figure, toml_list,
+    WINDOW_SECONDS, Window, design_dtm, error_plane_panel, median, model_error, toml_list,
+};
+pub use crate::study::rcac_study::Options;
+use crate::study::rcac_study::{
+    self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleRun,
 };
 
 const PI: f64 = std::f64::consts::PI;
@@ -115,8 +117,9 @@ pub const CASES: [Case; 6] = [
     },
 ];
 
-/// The run of Figures 3.6/3.7 and 3.9/3.10: `ζ = 0.01`, `ω_z = 22π`, `ω_d = 21π` rad/s.
-pub const SINGLE: (Case, f64) = (CASES[0], 21.0);
+/// The run of Figures 3.6/3.7 and 3.9/3.10: case a) (index into [`CASES`]: `ζ = 0.01`,
+/// `ω_z = 22π`) at `ω_d / π = 21` rad/s.
+pub const SINGLE: (usize, f64) = (0, 21.0);
 
 /// The coefficients of (3.50) in descending powers of `s`: `(num, den)`.
 pub fn coefficients(zeta: f64, wz: f64) -> (Vec<f64>, Vec<f64>) {
@@ -170,65 +173,17 @@ pub fn sweep(points: usize) -> Vec<f64> {
         .collect()
 }
 
-/// One row of the sweep CSV.
-#[derive(Debug, Clone)]
-pub struct Row {
+/// Where a sweep point lies: a case of Figure 3.5 and a disturbance frequency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweepAt {
     /// Index into [`CASES`].
     pub case: usize,
     /// `ω_d`, rad/s.
     pub wd: f64,
-    /// The method of the target model.
-    pub method: Method,
-    /// The update law.
-    pub update: Update,
-    /// `20 log10 |G_f/G_{zu,d}|` at `ω_d`.
-    pub mag_db: f64,
-    /// `∠(G_f/G_{zu,d})` at `ω_d`, degrees.
-    pub phase_deg: f64,
-    /// Open-loop tone amplitude of `z`.
-    pub open_amp: f64,
-    /// Open-loop peak `|z|` on the window.
-    pub open_peak: f64,
-    /// Closed-loop tone amplitude on the last window (NaN when diverged).
-    pub closed_amp: f64,
-    /// The same on the window before.
-    pub closed_amp_prev: f64,
-    /// Closed-loop peak `|z|` on the last window (NaN when diverged).
-    pub closed_peak: f64,
-    /// Stayed finite, bounded, no guard reset.
-    pub finite: bool,
-    /// Settling time after RCAC starts, s (see `rcac_common::Point::settle`).
-    pub settle: Option<f64>,
 }
 
-impl Row {
-    /// Tone suppression, dB (−∞ when diverged).
-    pub fn suppression(&self) -> f64 {
-        if self.finite {
-            suppression_db(self.open_amp, self.closed_amp)
-        } else {
-            f64::NEG_INFINITY
-        }
-    }
-
-    /// Suppression of the peak `|z|` on the window, dB (−∞ when diverged).
-    pub fn peak_suppression(&self) -> f64 {
-        if self.finite {
-            suppression_db(self.open_peak, self.closed_peak)
-        } else {
-            f64::NEG_INFINITY
-        }
-    }
-}
-
-/// Options of the study.
-#[derive(Debug, Clone)]
-pub struct Options {
-    /// Sweep points per case.
-    pub points: usize,
-    /// Update laws to run.
-    pub updates: Vec<Update>,
-}
+/// One row of the sweep CSV: one tone, `error[0]` is `G_f/G_{zu,d}` at `ω_d`.
+pub type Row = rcac_study::Row<SweepAt, 1>;
 
 /// `G_{zu,d}` and `G_f` of a case at `θ` (rad/sample).
 fn responses(
@@ -242,142 +197,321 @@ fn responses(
     ))
 }
 
-/// Runs one sweep point (open loop and every method × update).
-fn sweep_point(
-    case: usize,
-    wd: f64,
-    dtms: &[(Method, Dtm)],
-    model: &DiscreteModel,
-    updates: &[Update],
-) -> Result<Vec<Row>, String> {
-    let c = CASES[case];
-    let sc = scenario(c.zeta, c.wz(), wd)?;
-    let steps = (RUN_SECONDS / TS).round() as usize;
-    let window = (WINDOW_SECONDS / TS).round() as usize;
-    let theta = wd * TS;
-    let (open, _) = run_open(&sc, steps, window, &[theta])?;
-    let mut rows = Vec::new();
-    for (method, dtm) in dtms {
-        let (g, gf) = responses(model, dtm, &[theta])?;
-        let (mag_db, phase_deg) = model_error(g[0], gf[0]);
-        for &update in updates {
-            let p = run_closed(
-                &sc,
-                &rcac_params(&dtm.target, update, ALPHA),
-                steps,
-                window,
-                &[theta],
-                open.peak,
-                false,
-                0,
-            )?;
-            let finite = p.finite();
-            let w = p.closed.unwrap_or_default();
-            let get = |v: &[f64]| v.first().copied().unwrap_or(f64::NAN);
-            rows.push(Row {
-                case,
-                wd,
-                method: *method,
-                update,
-                mag_db,
-                phase_deg,
-                open_amp: open.amp[0],
-                open_peak: open.peak,
-                closed_amp: get(&w.amp),
-                closed_amp_prev: get(&w.amp_prev),
-                closed_peak: if finite { w.peak } else { f64::NAN },
-                finite,
-                settle: p.settle,
-            });
-        }
-    }
-    Ok(rows)
-}
-
 /// The study (see the module docs); writes into `out` and prints the summary.
 pub fn run(out: &Path, opts: &Options) -> Result<(), String> {
-    let t0 = Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let mut report = String::new();
-    let _ = writeln!(
-        report,
-        "study rcac-siso: (3.50), T_s = {TS} s, omega_p = 20pi rad/s; omega_d from 4pi to 50pi rad/s, {} points per case\n\
-         RCAC: n_c = {}, theta_0 = 0, k_w = {KW}, R_z = 1, R_u = 0; gradient: mu_Exp (3.63), alpha = {ALPHA}, R = 0; \
-         RLS: P_0 = {} I, lambda = {}\n\
-         runs of {RUN_SECONDS} s; asymptotic error = tone amplitude of z on the last {WINDOW_SECONDS} s (least squares)\n\
-         DTMs: windowed average n = 2, one zero, Delta = 8pi rad/s, beta = {}; optimization n_max = 2, m = n - 1, beta = {}",
-        opts.points,
-        common::NC,
-        common::RLS_P0,
-        common::RLS_LAMBDA,
-        beta(Method::Average),
-        beta(Method::Optimize),
-    );
-    // Target models, one per case and method.
-    let designs: Vec<(DiscreteModel, Vec<(Method, Dtm)>)> = CASES
-        .par_iter()
-        .map(|c| -> Result<_, String> {
-            let sc = scenario(c.zeta, c.wz(), SWEEP.0)?;
-            let model = DiscreteModel::from_scenario(&sc, OutputSet::Z)?;
-            let dtms = Method::ALL
-                .iter()
-                .map(|&m| Ok((m, design_dtm(&sc, m, beta(m))?)))
-                .collect::<Result<Vec<_>, String>>()?;
-            Ok((model, dtms))
+    rcac_study::run(&Siso, out, opts)
+}
+
+/// The SISO study of §3.3.1 as [`rcac_study`] drives it.
+pub struct Siso;
+
+impl RcacStudy<1> for Siso {
+    type At = SweepAt;
+    /// Per case: `G_{zu,d}` and the DTM of each method.
+    type Designs = Vec<(DiscreteModel, Vec<(Method, Dtm)>)>;
+
+    const ALPHA: f64 = ALPHA;
+    const REPORTS_DESIGN_TIME: bool = true;
+    const FIGURES: [FigureNumbers; 2] = [
+        FigureNumbers {
+            plane: "3.5",
+            bode: "3.6",
+            run: "3.7",
+        },
+        FigureNumbers {
+            plane: "3.8",
+            bode: "3.9",
+            run: "3.10",
+        },
+    ];
+
+    fn header(&self, points: usize, report: &mut String) {
+        let _ = writeln!(
+            report,
+            "study rcac-siso: (3.50), T_s = {TS} s, omega_p = 20pi rad/s; omega_d from 4pi to 50pi rad/s, {} points per case\n\
+             RCAC: n_c = {}, theta_0 = 0, k_w = {KW}, R_z = 1, R_u = 0; gradient: mu_Exp (3.63), alpha = {ALPHA}, R = 0; \
+             RLS: P_0 = {} I, lambda = {}\n\
+             runs of {RUN_SECONDS} s; asymptotic error = tone amplitude of z on the last {WINDOW_SECONDS} s (least squares)\n\
+             DTMs: windowed average n = 2, one zero, Delta = 8pi rad/s, beta = {}; optimization n_max = 2, m = n - 1, beta = {}",
+            points,
+            common::NC,
+            common::RLS_P0,
+            common::RLS_LAMBDA,
+            beta(Method::Average),
+            beta(Method::Optimize),
+        );
+    }
+
+    /// Target models, one per case and method.
+    fn design(&self, _out: &Path, report: &mut String) -> Result<Self::Designs, String> {
+        let designs: Self::Designs = CASES
+            .par_iter()
+            .map(|c| -> Result<_, String> {
+                let sc = scenario(c.zeta, c.wz(), SWEEP.0)?;
+                let model = DiscreteModel::from_scenario(&sc, OutputSet::Z)?;
+                let dtms = Method::ALL
+                    .iter()
+                    .map(|&m| Ok((m, design_dtm(&sc, m, beta(m))?)))
+                    .collect::<Result<Vec<_>, String>>()?;
+                Ok((model, dtms))
+            })
+            .collect::<Result<_, _>>()?;
+        for (i, (_, dtms)) in designs.iter().enumerate() {
+            for (m, d) in dtms {
+                let _ = writeln!(
+                    report,
+                    "  {:<22} {:<22} G^_d(z) = ({}) / ({})",
+                    CASES[i].name(i),
+                    m.label(),
+                    crate::design::dtf::format_poly(&d.dtfs[0].num),
+                    crate::design::dtf::format_poly(&d.dtfs[0].den)
+                );
+            }
+        }
+        Ok(designs)
+    }
+
+    /// Every case × `ω_d`.
+    fn sweep_points(&self, points: usize) -> Vec<SweepAt> {
+        let wds = sweep(points);
+        (0..CASES.len())
+            .flat_map(|case| wds.iter().map(move |&wd| SweepAt { case, wd }))
+            .collect()
+    }
+
+    fn setup<'d>(&self, designs: &'d Self::Designs, at: SweepAt) -> Result<Setup<'d, 1>, String> {
+        let c = CASES[at.case];
+        let (model, dtms) = &designs[at.case];
+        Ok(Setup {
+            scenario: scenario(c.zeta, c.wz(), at.wd)?,
+            model: Cow::Borrowed(model),
+            dtms,
+            thetas: [at.wd * TS],
         })
-        .collect::<Result<_, _>>()?;
-    let t_design = t0.elapsed().as_secs_f64();
-    for (i, (_, dtms)) in designs.iter().enumerate() {
-        for (m, d) in dtms {
-            let _ = writeln!(
-                report,
-                "  {:<22} {:<22} G^_d(z) = ({}) / ({})",
-                CASES[i].name(i),
-                m.label(),
-                crate::design::dtf::format_poly(&d.dtfs[0].num),
-                crate::design::dtf::format_poly(&d.dtfs[0].den)
+    }
+
+    fn single_at(&self) -> SweepAt {
+        SweepAt {
+            case: SINGLE.0,
+            wd: SINGLE.1 * PI,
+        }
+    }
+
+    /// One file per method.
+    fn write_csv(&self, out: &Path, rows: &[Row]) -> Result<(), String> {
+        for method in Method::ALL {
+            write_csv(
+                &out.join(format!("sweep-{}.csv", method.name())),
+                rows,
+                method,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Figure 3.5 (average) or 3.8 (optimization) for one update law.
+    fn plane_figure(
+        &self,
+        designs: &Self::Designs,
+        rows: &[Row],
+        method: Method,
+        update: Update,
+    ) -> Result<PlaneFigure, String> {
+        let mut panels = Vec::new();
+        for (i, c) in CASES.iter().enumerate() {
+            let (model, dtms) = &designs[i];
+            let dtm = &dtms.iter().find(|d| d.0 == method).ok_or("missing DTM")?.1;
+            let points: Vec<PlanePoint> = rows
+                .iter()
+                .filter(|r| r.at.case == i && r.method == method && r.update == update)
+                .map(|r| PlanePoint {
+                    mag_db: r.error[0].0,
+                    phase_deg: r.error[0].1,
+                    error: r.finite.then_some(r.closed_peak),
+                })
+                .collect();
+            let (m, locus) = marks(model, dtm, *c)?;
+            panels.push(error_plane_panel(
+                &format!(
+                    "{}) ζ = {}, ω_z = {}π rad/s",
+                    (b'a' + i as u8) as char,
+                    c.zeta,
+                    c.wz_over_pi
+                ),
+                &points,
+                &locus,
+                &m,
+            ));
+        }
+        Ok(PlaneFigure {
+            title: format!(
+                "(3.50), {} (β = {}), RCAC {}: asymptotic |z| (color) vs error of G_f at ω_d = 4π…50π rad/s",
+                method.label(),
+                beta(method),
+                update.name()
+            ),
+            layout: (3, 2),
+            size: (1500, 1500),
+            panels,
+        })
+    }
+
+    fn single_open_line(&self, open: &Window) -> String {
+        let (c, wd_over_pi) = (CASES[SINGLE.0], SINGLE.1);
+        format!(
+            "\nsingle run (Figures 3.6/3.7, 3.9/3.10): zeta = {}, omega_z = {}pi, omega_d = {wd_over_pi}pi rad/s; open-loop tone amplitude {:.4}",
+            c.zeta, c.wz_over_pi, open.amp[0]
+        )
+    }
+
+    fn bode_figure(&self, path: &Path, b: &Bode<'_>) -> Result<(), String> {
+        let poles = b.dtm.dtfs[0].poles()?;
+        let zeros = b.dtm.dtfs[0].zeros()?;
+        bode_figure(
+            path,
+            &format!(
+                "(3.50) ζ = 0.01, ω_z = 22π: G_zu,d and the {} G_f (β = {})",
+                b.method.label(),
+                beta(b.method)
+            ),
+            b.hz,
+            &[
+                Curve::new("G_zu,d", &b.g[0]),
+                Curve::new("G_f", &b.gf[0]),
+                Curve::new("error G_f / G_zu,d", &b.ratio[0]).dashed(),
+            ],
+            &[PoleZero {
+                label: "Ĝ_d",
+                poles: &poles,
+                zeros: &zeros,
+            }],
+        )
+    }
+
+    fn single_line(&self, run: &SingleRun<'_, 1>) -> String {
+        let ((mag, ph), sup) = (run.error[0], run.suppression[0]);
+        format!(
+            "error of G_f at omega_d {mag:+.2} dB, {ph:+.1} deg; closed tone amplitude {:.3e}, suppression {sup:.1} dB",
+            run.closed.amp.first().copied().unwrap_or(f64::NAN),
+        )
+    }
+
+    fn single_title(&self, run: &SingleRun<'_, 1>) -> String {
+        format!(
+            "(3.50) ζ = 0.01, ω_z = 22π, ω_d = 21π rad/s, {}, RCAC {} (starts at {} s): suppression {:.1} dB",
+            run.method.label(),
+            run.update.name(),
+            KW as f64 * TS,
+            run.suppression[0]
+        )
+    }
+
+    /// The sweep's tables: per case, method and update law, and per phase-error bin.
+    fn summary(&self, rows: &[Row], updates: &[Update], report: &mut String) {
+        let settle = |r: &Row| r.settle.unwrap_or(f64::INFINITY);
+        let _ = writeln!(
+            report,
+            "\nsweep summary: tone suppression 20 log10(open/closed) in dB over the omega_d sweep; \
+             poor = below {POOR_DB} dB or diverged (div); settle = s after RCAC starts until every later 1 s window \
+             has peak |z| {} dB below the open loop's; |ph| = |phase error of G_f at omega_d| (median over the points)",
+            common::SETTLE_DB
+        );
+        let _ = writeln!(
+            report,
+            "{:<22} {:<9} {:<8} {:>7} {:>7} {:>6} {:>4} {:>8} {:>8} {:>7} {:>11}",
+            "case",
+            "DTM",
+            "update",
+            "median",
+            "worst",
+            "poor",
+            "div",
+            "settle50",
+            "settle90",
+            "|ph|",
+            "max |ph|"
+        );
+        for (i, c) in CASES.iter().enumerate() {
+            for method in Method::ALL {
+                for &update in updates {
+                    let rs: Vec<&Row> = rows
+                        .iter()
+                        .filter(|r| r.at.case == i && r.method == method && r.update == update)
+                        .collect();
+                    let sup: Vec<f64> = rs.iter().map(|r| r.suppression(0)).collect();
+                    let worst = sup.iter().copied().fold(f64::INFINITY, f64::min);
+                    let poor = rs.iter().filter(|r| r.suppression(0) < POOR_DB).count();
+                    let div = rs.iter().filter(|r| !r.finite).count();
+                    let mut st: Vec<f64> = rs.iter().map(|r| settle(r)).collect();
+                    st.sort_by(f64::total_cmp);
+                    let p90 = st
+                        .get((st.len() * 9).div_ceil(10).saturating_sub(1))
+                        .copied()
+                        .unwrap_or(f64::NAN);
+                    let ph: Vec<f64> = rs.iter().map(|r| r.error[0].1.abs()).collect();
+                    let _ = writeln!(
+                        report,
+                        "{:<22} {:<9} {:<8} {:>7.1} {:>7.1} {:>3}/{:<2} {:>4} {:>8} {:>8} {:>7.1} {:>11.1}",
+                        c.name(i),
+                        method.name(),
+                        update.name(),
+                        median(&sup),
+                        worst,
+                        poor,
+                        rs.len(),
+                        div,
+                        secs(median(&st)),
+                        secs(p90),
+                        median(&ph),
+                        ph.iter().copied().fold(0.0, f64::max)
+                    );
+                }
+            }
+        }
+        let _ = writeln!(
+            report,
+            "\nphase error against performance, all six cases: per |phase error| bin, points with suppression >= {POOR_DB} dB / points, \
+             median suppression (dB) and median settling time (s)"
+        );
+        let mut head = format!("{:<9} {:<8}", "DTM", "update");
+        for w in PHASE_BINS.windows(2) {
+            let _ = write!(
+                head,
+                " {:>22}",
+                format!("{:.0}-{:.0} deg", w[0], w[1].floor())
             );
         }
-    }
-    // The sweep, in parallel over (case, ω_d).
-    let wds = sweep(opts.points);
-    let jobs: Vec<(usize, f64)> = (0..CASES.len())
-        .flat_map(|c| wds.iter().map(move |&w| (c, w)))
-        .collect();
-    let t1 = Instant::now();
-    let rows: Vec<Row> = jobs
-        .par_iter()
-        .map(|&(c, w)| sweep_point(c, w, &designs[c].1, &designs[c].0, &opts.updates))
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter()
-        .flatten()
-        .collect();
-    let t_sweep = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    for method in Method::ALL {
-        write_csv(
-            &out.join(format!("sweep-{}.csv", method.name())),
-            &rows,
-            method,
-        )?;
-        for &update in &opts.updates {
-            plane_figure(out, &designs, &rows, method, update)?;
+        let _ = writeln!(report, "{head}");
+        for method in Method::ALL {
+            for &update in updates {
+                let mut line = format!("{:<9} {:<8}", method.name(), update.name());
+                for w in PHASE_BINS.windows(2) {
+                    let rs: Vec<&Row> = rows
+                        .iter()
+                        .filter(|r| {
+                            r.method == method
+                                && r.update == update
+                                && r.error[0].1.abs() >= w[0]
+                                && r.error[0].1.abs() < w[1]
+                        })
+                        .collect();
+                    if rs.is_empty() {
+                        let _ = write!(line, " {:>22}", "-");
+                        continue;
+                    }
+                    let ok = rs.iter().filter(|r| r.suppression(0) >= POOR_DB).count();
+                    let med = median(&rs.iter().map(|r| r.suppression(0)).collect::<Vec<_>>());
+                    let st = median(&rs.iter().map(|r| settle(r)).collect::<Vec<_>>());
+                    let _ = write!(
+                        line,
+                        " {:>22}",
+                        format!("{ok}/{} {med:.0} dB {}s", rs.len(), secs(st))
+                    );
+                }
+                let _ = writeln!(report, "{line}");
+            }
         }
     }
-    single_run(out, &designs[0], &opts.updates, &mut report)?;
-    let t_single = t2.elapsed().as_secs_f64();
-    summary(&rows, &opts.updates, &mut report);
-    let _ = writeln!(
-        report,
-        "\ntime: designs {t_design:.1} s, sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), figures and single runs {t_single:.1} s, total {:.1} s; files in {}",
-        jobs.len() * (1 + Method::ALL.len() * opts.updates.len()),
-        (RUN_SECONDS / TS).round(),
-        rayon::current_num_threads(),
-        t0.elapsed().as_secs_f64(),
-        out.display()
-    );
-    print!("{report}");
-    common::write(&out.join("summary.txt"), &report)
 }
 
 fn write_csv(path: &Path, rows: &[Row], method: Method) -> Result<(), String> {
@@ -385,22 +519,22 @@ fn write_csv(path: &Path, rows: &[Row], method: Method) -> Result<(), String> {
         "case,zeta,omega_z_over_pi,omega_d_over_pi,freq_hz,update,mag_err_db,phase_err_deg,open_amp,closed_amp,closed_amp_prev,suppression_db,open_peak,closed_peak,peak_suppression_db,finite,settle_s\n",
     );
     for r in rows.iter().filter(|r| r.method == method) {
-        let c = CASES[r.case];
+        let c = CASES[r.at.case];
         let _ = writeln!(
             s,
             "{},{},{},{:.6},{:.6},{},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.3},{:.6e},{:.6e},{:.3},{},{}",
-            (b'a' + r.case as u8) as char,
+            (b'a' + r.at.case as u8) as char,
             c.zeta,
             c.wz_over_pi,
-            r.wd / PI,
-            r.wd / (2.0 * PI),
+            r.at.wd / PI,
+            r.at.wd / (2.0 * PI),
             r.update.name(),
-            r.mag_db,
-            r.phase_deg,
-            r.open_amp,
-            r.closed_amp,
-            r.closed_amp_prev,
-            r.suppression(),
+            r.error[0].0,
+            r.error[0].1,
+            r.open_amp[0],
+            r.closed_amp[0],
+            r.closed_amp_prev[0],
+            r.suppression(0),
             r.open_peak,
             r.closed_peak,
             r.peak_suppression(),
@@ -450,169 +584,6 @@ fn error_plane(model: &DiscreteModel, dtm: &Dtm, theta: &[f64]) -> Result<Vec<(f
         .collect())
 }
 
-/// Figure 3.5 (average) or 3.8 (optimization) for one update law.
-fn plane_figure(
-    out: &Path,
-    designs: &[(DiscreteModel, Vec<(Method, Dtm)>)],
-    rows: &[Row],
-    method: Method,
-    update: Update,
-) -> Result<(), String> {
-    let mut panels = Vec::new();
-    for (i, c) in CASES.iter().enumerate() {
-        let (model, dtms) = &designs[i];
-        let dtm = &dtms.iter().find(|d| d.0 == method).ok_or("missing DTM")?.1;
-        let points: Vec<PlanePoint> = rows
-            .iter()
-            .filter(|r| r.case == i && r.method == method && r.update == update)
-            .map(|r| PlanePoint {
-                mag_db: r.mag_db,
-                phase_deg: r.phase_deg,
-                error: r.finite.then_some(r.closed_peak),
-            })
-            .collect();
-        let (m, locus) = marks(model, dtm, *c)?;
-        panels.push(error_plane_panel(
-            &format!(
-                "{}) ζ = {}, ω_z = {}π rad/s",
-                (b'a' + i as u8) as char,
-                c.zeta,
-                c.wz_over_pi
-            ),
-            &points,
-            &locus,
-            &m,
-        ));
-    }
-    let fig = match method {
-        Method::Average => "3.5",
-        Method::Optimize => "3.8",
-    };
-    figure(
-        &out.join(format!(
-            "figure-{fig}-{}-{}.png",
-            method.name(),
-            update.name()
-        )),
-        &format!(
-            "(3.50), {} (β = {}), RCAC {}: asymptotic |z| (color) vs error of G_f at ω_d = 4π…50π rad/s",
-            method.label(),
-            beta(method),
-            update.name()
-        ),
-        (3, 2),
-        (1500, 1500),
-        &panels,
-    )
-}
-
-/// Figures 3.6/3.7 and 3.9/3.10: the Bode plot of `G_{zu,d}` and `G_f` and the single run.
-fn single_run(
-    out: &Path,
-    design: &(DiscreteModel, Vec<(Method, Dtm)>),
-    updates: &[Update],
-    report: &mut String,
-) -> Result<(), String> {
-    let (c, wd_over_pi) = SINGLE;
-    let wd = wd_over_pi * PI;
-    let (model, dtms) = design;
-    let sc = scenario(c.zeta, c.wz(), wd)?;
-    let steps = (RUN_SECONDS / TS).round() as usize;
-    let window = (WINDOW_SECONDS / TS).round() as usize;
-    let theta = wd * TS;
-    let (open_w, open) = run_open(&sc, steps, window, &[theta])?;
-    let _ = writeln!(
-        report,
-        "\nsingle run (Figures 3.6/3.7, 3.9/3.10): zeta = {}, omega_z = {}pi, omega_d = {wd_over_pi}pi rad/s; open-loop tone amplitude {:.4}",
-        c.zeta, c.wz_over_pi, open_w.amp[0]
-    );
-    let th: Vec<f64> = crate::design::grid(1e-3 * PI, PI, 2000, true)?;
-    let hz: Vec<f64> = th.iter().map(|t| t / (2.0 * PI * TS)).collect();
-    let g = model.frf(&th)?.response[0].clone();
-    for (method, dtm) in dtms {
-        let gf = dtm.target.frf(&th).response[0].clone();
-        let ratio: Vec<C64> = gf.iter().zip(&g).map(|(a, b)| a / b).collect();
-        let (fig_bode, fig_run) = match method {
-            Method::Average => ("3.6", "3.7"),
-            Method::Optimize => ("3.9", "3.10"),
-        };
-        let poles = dtm.dtfs[0].poles()?;
-        let zeros = dtm.dtfs[0].zeros()?;
-        bode_figure(
-            &out.join(format!("figure-{fig_bode}-{}-bode.png", method.name())),
-            &format!(
-                "(3.50) ζ = 0.01, ω_z = 22π: G_zu,d and the {} G_f (β = {})",
-                method.label(),
-                beta(*method)
-            ),
-            &hz,
-            &[
-                Curve::new("G_zu,d", &g),
-                Curve::new("G_f", &gf),
-                Curve::new("error G_f / G_zu,d", &ratio).dashed(),
-            ],
-            &[PoleZero {
-                label: "Ĝ_d",
-                poles: &poles,
-                zeros: &zeros,
-            }],
-        )?;
-        let (gz, gfz) = responses(model, dtm, &[theta])?;
-        let (mag, ph) = model_error(gz[0], gfz[0]);
-        for &update in updates {
-            let every = 10;
-            let p = run_closed(
-                &sc,
-                &rcac_params(&dtm.target, update, ALPHA),
-                steps,
-                window,
-                &[theta],
-                open_w.peak,
-                true,
-                every,
-            )?;
-            let Some(closed) = p.trace.as_ref().filter(|_| p.finite()) else {
-                let _ = writeln!(
-                    report,
-                    "  {:<22} {:<8}: diverged (no figure)",
-                    method.label(),
-                    update.name()
-                );
-                continue;
-            };
-            let w = p.closed.clone().unwrap_or_default();
-            let sup = w
-                .amp
-                .first()
-                .map_or(f64::NEG_INFINITY, |a| suppression_db(open_w.amp[0], *a));
-            let _ = writeln!(
-                report,
-                "  {:<22} {:<8}: error of G_f at omega_d {mag:+.2} dB, {ph:+.1} deg; closed tone amplitude {:.3e}, suppression {sup:.1} dB",
-                method.label(),
-                update.name(),
-                w.amp.first().copied().unwrap_or(f64::NAN),
-            );
-            single_run_figure(
-                &out.join(format!(
-                    "figure-{fig_run}-{}-{}.png",
-                    method.name(),
-                    update.name()
-                )),
-                format!(
-                    "(3.50) ζ = 0.01, ω_z = 22π, ω_d = 21π rad/s, {}, RCAC {} (starts at {} s): suppression {sup:.1} dB",
-                    method.label(),
-                    update.name(),
-                    KW as f64 * TS
-                ),
-                &open,
-                closed,
-                every,
-            )?;
-        }
-    }
-    Ok(())
-}
-
 /// Phase-error bins (|degrees|) of the correlation table.
 const PHASE_BINS: [f64; 6] = [0.0, 30.0, 60.0, 90.0, 120.0, 180.01];
 
@@ -628,121 +599,17 @@ fn secs(t: f64) -> String {
     }
 }
 
-fn summary(rows: &[Row], updates: &[Update], report: &mut String) {
-    let settle = |r: &Row| r.settle.unwrap_or(f64::INFINITY);
-    let _ = writeln!(
-        report,
-        "\nsweep summary: tone suppression 20 log10(open/closed) in dB over the omega_d sweep; \
-         poor = below {POOR_DB} dB or diverged (div); settle = s after RCAC starts until every later 1 s window \
-         has peak |z| {} dB below the open loop's; |ph| = |phase error of G_f at omega_d| (median over the points)",
-        common::SETTLE_DB
-    );
-    let _ = writeln!(
-        report,
-        "{:<22} {:<9} {:<8} {:>7} {:>7} {:>6} {:>4} {:>8} {:>8} {:>7} {:>11}",
-        "case",
-        "DTM",
-        "update",
-        "median",
-        "worst",
-        "poor",
-        "div",
-        "settle50",
-        "settle90",
-        "|ph|",
-        "max |ph|"
-    );
-    for (i, c) in CASES.iter().enumerate() {
-        for method in Method::ALL {
-            for &update in updates {
-                let rs: Vec<&Row> = rows
-                    .iter()
-                    .filter(|r| r.case == i && r.method == method && r.update == update)
-                    .collect();
-                let sup: Vec<f64> = rs.iter().map(|r| r.suppression()).collect();
-                let worst = sup.iter().copied().fold(f64::INFINITY, f64::min);
-                let poor = rs.iter().filter(|r| r.suppression() < POOR_DB).count();
-                let div = rs.iter().filter(|r| !r.finite).count();
-                let mut st: Vec<f64> = rs.iter().map(|r| settle(r)).collect();
-                st.sort_by(f64::total_cmp);
-                let p90 = st
-                    .get((st.len() * 9).div_ceil(10).saturating_sub(1))
-                    .copied()
-                    .unwrap_or(f64::NAN);
-                let ph: Vec<f64> = rs.iter().map(|r| r.phase_deg.abs()).collect();
-                let _ = writeln!(
-                    report,
-                    "{:<22} {:<9} {:<8} {:>7.1} {:>7.1} {:>3}/{:<2} {:>4} {:>8} {:>8} {:>7.1} {:>11.1}",
-                    c.name(i),
-                    method.name(),
-                    update.name(),
-                    median(&sup),
-                    worst,
-                    poor,
-                    rs.len(),
-                    div,
-                    secs(median(&st)),
-                    secs(p90),
-                    median(&ph),
-                    ph.iter().copied().fold(0.0, f64::max)
-                );
-            }
-        }
-    }
-    let _ = writeln!(
-        report,
-        "\nphase error against performance, all six cases: per |phase error| bin, points with suppression >= {POOR_DB} dB / points, \
-         median suppression (dB) and median settling time (s)"
-    );
-    let mut head = format!("{:<9} {:<8}", "DTM", "update");
-    for w in PHASE_BINS.windows(2) {
-        let _ = write!(
-            head,
-            " {:>22}",
-            format!("{:.0}-{:.0} deg", w[0], w[1].floor())
-        );
-    }
-    let _ = writeln!(report, "{head}");
-    for method in Method::ALL {
-        for &update in updates {
-            let mut line = format!("{:<9} {:<8}", method.name(), update.name());
-            for w in PHASE_BINS.windows(2) {
-                let rs: Vec<&Row> = rows
-                    .iter()
-                    .filter(|r| {
-                        r.method == method
-                            && r.update == update
-                            && r.phase_deg.abs() >= w[0]
-                            && r.phase_deg.abs() < w[1]
-                    })
-                    .collect();
-                if rs.is_empty() {
-                    let _ = write!(line, " {:>22}", "-");
-                    continue;
-                }
-                let ok = rs.iter().filter(|r| r.suppression() >= POOR_DB).count();
-                let med = median(&rs.iter().map(|r| r.suppression()).collect::<Vec<_>>());
-                let st = median(&rs.iter().map(|r| settle(r)).collect::<Vec<_>>());
-                let _ = write!(
-                    line,
-                    " {:>22}",
-                    format!("{ok}/{} {med:.0} dB {}s", rs.len(), secs(st))
-                );
-            }
-            let _ = writeln!(report, "{line}");
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::study::rcac_common::{rcac_params, run_closed, run_open};
+    use control::tones::suppression_db;
 
     /// The generator reproduces the expanded coefficients of `scenarios/siso-3-50.toml`
     /// (ζ = 0.1, ω_z = 15π) to 1e-13 relative, and its tone.
     #[test]
     fn the_generator_reproduces_the_committed_siso_3_50_file() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/siso-3-50.toml");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenarios/siso-3-50.toml");
         let file = scenario::load(&path).unwrap();
         let generated = scenario(0.1, 15.0 * PI, 11.0 * PI).unwrap();
         let text: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();

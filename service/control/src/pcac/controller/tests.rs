@@ -388,7 +388,51 @@ fn observe_identifies_without_answering_and_reset_returns_to_the_start() {
 fn mismatched_dimensions_are_refused_with_a_message() {
     let p = params(PcacTiming::SameStep);
     let e = Pcac::new(&p, Dimensions::new(2, 1, 0, 1)).err().unwrap();
-    assert!(e.contains("p = 1") && e.contains("2 measurements"), "{e}");
+    assert_eq!(e.field, "", "{e}");
+    assert!(
+        e.message.contains("p = 1") && e.message.contains("2 measurements"),
+        "{e}"
+    );
     let e = Pcac::new(&p, Dimensions::new(1, 1, 2, 1)).err().unwrap();
-    assert!(e.contains("2 commands"), "{e}");
+    assert_eq!(e.field, "tracking", "{e}");
+    assert!(e.message.contains("2 commands"), "{e}");
+}
+
+#[test]
+fn refused_parameters_name_the_field_of_the_configuration_table() {
+    let good = params(PcacTiming::SameStep);
+    assert_eq!(good.validate(counts(0)), Ok(()));
+    let field = |change: &dyn Fn(&mut PcacParams)| {
+        let mut p = good.clone();
+        change(&mut p);
+        p.validate(counts(0)).unwrap_err().path()
+    };
+    assert_eq!(field(&|p| p.model.n_hat = 0), "n-hat");
+    assert_eq!(field(&|p| p.model.theta0 = vec![0.0; 3]), "theta0");
+    assert_eq!(field(&|p| p.model.p0 = 0.0), "p0");
+    assert_eq!(field(&|p| p.model.trace_limit = 1.0), "trace-limit");
+    assert_eq!(
+        field(&|p| p.model.rule = ForgettingRule::Constant { lambda: 2.0 }),
+        "forgetting.lambda"
+    );
+    assert_eq!(field(&|p| p.mpc.horizon = 1), "horizon");
+    assert_eq!(field(&|p| p.mpc.r = Weight::Scalar(0.0)), "r");
+    assert_eq!(field(&|p| p.mpc.q = Weight::Scalar(-1.0)), "q");
+    assert_eq!(field(&|p| p.mpc.u_min = vec![2.0 * U_MAX]), "u-min");
+    assert_eq!(
+        field(&|p| p.mpc.move_bounds.as_mut().unwrap().max = vec![-1.0]),
+        "du-max"
+    );
+    assert_eq!(
+        field(&|p| {
+            p.mpc.output_constraints = Some(OutputConstraints {
+                c: vec![1.0],
+                d: vec![0.0, 1.0],
+            })
+        }),
+        "output-constraints.d"
+    );
+    assert_eq!(field(&|p| p.qp.max_iterations = 0), "qp-max-iterations");
+    // What validate accepts, the constructor builds.
+    assert!(Pcac::new(&good, counts(0)).is_ok());
 }

@@ -180,7 +180,11 @@ fn mimo_fir_is_recovered_with_its_delays() {
 /// both loudspeakers; without `disturbance` the tones and ambient noise are zeroed (the
 /// microphone noise stays).
 fn acoustic_run(disturbance: bool, n: usize) -> (Scenario, [Vec<f64>; 2], Vec<f64>) {
-    let mut sc = scenario::load(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/acoustic-rig.toml"))).unwrap();
+    let mut sc = scenario::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/acoustic-rig.toml"
+    )))
+    .unwrap();
     if !disturbance {
         sc.plant.disturbance.tones.clear();
         sc.plant.disturbance.white_std = vec![0.0];

@@ -1,0 +1,170 @@
+//! `[controller]`: which controller runs, chosen by `kind`, and what every kind shares.
+//!
+//! ```toml
+//! [controller]
+//! kind = "lti"                    # "lti", "excitation", "rcac" or "pcac"
+//! u-min = -1.0                    # optional saturation, scalar or one per input u
+//! u-max = 1.0
+//! ```
+//!
+//! The other fields depend on the kind and are listed in the kind's module: `lti`
+//! ([`ControllerConfig::Lti`]), `excitation` ([`ControllerConfig::Excitation`]), `rcac`
+//! ([`ControllerConfig::Rcac`]) and `pcac` ([`ControllerConfig::Pcac`]).
+//!
+//! Each kind's `parse` turns its table into the kernel's parameter struct (defaults from
+//! the kernel's constants) and calls the struct's `validate`, which builds nothing; the
+//! runtime builds the controller once, with [`ControllerConfig::build`]. A kernel's
+//! [`ParamError`] names the field as the table does, so the error is `controller.` and
+//! its path. A new kind adds a variant, a module with its `parse`, and a line in this
+//! module's `parse` and in the two `match`es of [`ControllerConfig`].
+
+use super::values::{ScalarOrVec, per_channel};
+use super::{ConfigError, ErrFn, excitation, lti, pcac, rcac};
+use control::excitation::ExcitationParams;
+use control::lti::LtiParams;
+use control::pcac::{Pcac, PcacParams};
+use control::{
+    Controller, ExcitationSource, LtiController, OutputLimits, ParamError, Rcac, RcacParams,
+};
+use ipc_types::ChannelCounts;
+use std::path::Path;
+
+/// The controller as configured: validated ([`ControllerConfig::validate`] passed when
+/// the file was read), not yet built. The runtime builds it once, with
+/// [`ControllerConfig::build`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum ControllerConfig {
+    /// A discrete LTI controller ([`LtiController`]).
+    Lti {
+        /// The validated parameters.
+        params: Box<LtiParams>,
+    },
+    /// Independent white Gaussian inputs for identification ([`ExcitationSource`]).
+    Excitation {
+        /// The validated parameters.
+        params: Box<ExcitationParams>,
+    },
+    /// Retrospective cost adaptive control ([`Rcac`]).
+    Rcac {
+        /// The validated parameters.
+        params: Box<RcacParams>,
+    },
+    /// Predictive cost adaptive control ([`Pcac`]).
+    Pcac {
+        /// The validated parameters.
+        params: Box<PcacParams>,
+    },
+}
+
+impl ControllerConfig {
+    /// Checks the parameters for the rig's channels without building the controller.
+    ///
+    /// # Errors
+    ///
+    /// The kernel's [`ParamError`], its field named as in the `[controller]` table.
+    pub fn validate(&self, counts: ChannelCounts) -> Result<(), ParamError> {
+        let dims = crate::wire::dimensions(counts);
+        match self {
+            ControllerConfig::Lti { params } => params.validate(dims),
+            ControllerConfig::Excitation { params } => params.validate(dims),
+            ControllerConfig::Rcac { params } => params.validate(dims),
+            ControllerConfig::Pcac { params } => params.validate(dims),
+        }
+    }
+
+    /// Builds the controller (allocating; before the RT thread starts).
+    ///
+    /// # Errors
+    ///
+    /// Only for parameters that [`ControllerConfig::validate`] refuses (a configuration
+    /// read by [`ServiceConfig::parse`](super::ServiceConfig::parse) has passed it): the
+    /// field in the `[controller]` table and the reason, as text.
+    pub fn build(&self, counts: ChannelCounts) -> Result<Box<dyn Controller>, String> {
+        let dims = crate::wire::dimensions(counts);
+        let built: Result<Box<dyn Controller>, ParamError> = match self {
+            ControllerConfig::Lti { params } => {
+                LtiController::from_params(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
+            }
+            ControllerConfig::Excitation { params } => ExcitationSource::from_params(params, dims)
+                .map(|c| Box::new(c) as Box<dyn Controller>),
+            ControllerConfig::Rcac { params } => {
+                Rcac::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
+            }
+            ControllerConfig::Pcac { params } => {
+                Pcac::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
+            }
+        };
+        built.map_err(|e| format!("{}: {}", table_field(&e), e.message))
+    }
+}
+
+/// The dotted path of a kernel's refused field in the file: `controller.` and the
+/// field's path (`controller.forgetting.tau-d`), or `controller` for the whole table (the
+/// empty field).
+pub(super) fn table_field(e: &ParamError) -> String {
+    if e.field.is_empty() {
+        "controller".to_string()
+    } else {
+        format!("controller.{}", e.path())
+    }
+}
+
+/// A kernel's [`ParamError`] as the [`ConfigError`] of the file being read.
+pub(super) fn param_error(e: ParamError, err: &ErrFn<'_>) -> ConfigError {
+    err(&table_field(&e), e.message)
+}
+
+/// The kinds [`parse`] knows, for the error messages.
+const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac";
+
+/// Reads the `[controller]` table of the kind it names.
+pub(super) fn parse(
+    value: toml::Value,
+    counts: ChannelCounts,
+    period: f64,
+    base_dir: &Path,
+    err: &ErrFn<'_>,
+) -> Result<ControllerConfig, ConfigError> {
+    let kind = value.get("kind").and_then(|v| v.as_str()).unwrap_or("");
+    match kind {
+        "lti" => lti::parse(value, counts, err),
+        "excitation" => excitation::parse(value, counts, err),
+        "rcac" => rcac::parse(value, counts, period, base_dir, err),
+        "pcac" => pcac::parse(value, counts, err),
+        "" => Err(err(
+            "controller.kind",
+            format!("missing; known kinds: {CONTROLLER_KINDS}"),
+        )),
+        other => Err(err(
+            "controller.kind",
+            format!("unknown controller '{other}'; known kinds: {CONTROLLER_KINDS}"),
+        )),
+    }
+}
+
+/// The optional `u-min`/`u-max` pair of a controller table (scalar or one per input).
+pub(super) fn output_limits(
+    lo: &Option<ScalarOrVec>,
+    hi: &Option<ScalarOrVec>,
+    n_u: usize,
+    err: &ErrFn<'_>,
+) -> Result<Option<OutputLimits>, ConfigError> {
+    if lo.is_none() && hi.is_none() {
+        return Ok(None);
+    }
+    Ok(Some(OutputLimits {
+        min: per_channel(lo, n_u, f64::NEG_INFINITY, "controller.u-min", err)?,
+        max: per_channel(hi, n_u, f64::INFINITY, "controller.u-max", err)?,
+    }))
+}
+
+/// Deserializes a controller table into its raw form, naming the table on an unknown or
+/// mistyped field.
+pub(super) fn raw<T: serde::de::DeserializeOwned>(
+    value: toml::Value,
+    err: &ErrFn<'_>,
+) -> Result<T, ConfigError> {
+    value
+        .try_into()
+        .map_err(|e: toml::de::Error| err("controller", e.to_string()))
+}

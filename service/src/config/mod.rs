@@ -1,0 +1,365 @@
+//! The service's configuration: the `[rig]`, `[service]`, `[controller]` and `[log]` tables
+//! of a scenario TOML file, read once at start-up, validated, and turned into typed
+//! parameters. Nothing in the real-time loop reads a string or a map.
+//!
+//! A bad file or value is refused before anything starts, with the file, the field and
+//! what is wrong ([`ConfigError`]). The tables read by plant-proxy (`[plant]`, `[proxy]`)
+//! may share the file; the service only reads the channel counts from `[plant]` when
+//! `[service.channels]` is absent, and the tones of `[plant.disturbance]` for the report.
+//!
+//! Each table's fields, defaults and checks are listed in the module that reads it (the
+//! types are re-exported here):
+//!
+//! | table | module | result |
+//! |---|---|---|
+//! | `[rig]` | [`rig`] | [`ServiceConfig::rig`], [`ServiceConfig::sample_period_ns`] |
+//! | `[service]`, `[service.channels]` | [`service_table`] | [`RtRequest`], [`WaitMode`], [`DeadlinePolicy`], [`MeasurementLimits`], … |
+//! | `[service.report]` | [`tone_report`] | [`ToneReportConfig`] |
+//! | `[log]` | [`log`] | [`LogConfig`] |
+//! | `[controller]` | [`controller`] (the `kind` dispatch) | [`ControllerConfig`] |
+//! | `kind = "lti"` | [`lti`] | [`ControllerConfig::Lti`] |
+//! | `kind = "excitation"` | [`excitation`] | [`ControllerConfig::Excitation`] |
+//! | `kind = "rcac"` | [`rcac`], [`forgetting`], [`target_model_file`] | [`ControllerConfig::Rcac`] |
+//! | `kind = "pcac"` | [`pcac`], [`forgetting`] | [`ControllerConfig::Pcac`] |
+//!
+//! The shared value shapes (a scalar or one value per channel, a scalar or a matrix,
+//! positive durations, "one of" names) are in `values`.
+//!
+//! A minimal file:
+//!
+//! ```toml
+//! [rig]
+//! name = "acoustic-rig"
+//! sample-period = 1.25e-4
+//!
+//! [service]
+//! channels = { y = 1, z = 1, u = 1 }
+//!
+//! [controller]
+//! kind = "lti"
+//! [controller.ss]
+//! a = []
+//! b = []
+//! c = []
+//! d = [[-2.0]]
+//! ```
+//!
+//! [`ServiceConfig::load_with_controller`] replaces the `[controller]` (and `[log]`)
+//! tables of a scenario by those of another file.
+
+pub mod controller;
+pub mod excitation;
+pub mod forgetting;
+pub mod log;
+pub mod lti;
+pub mod pcac;
+pub mod rcac;
+pub mod rig;
+pub mod service_table;
+pub mod target_model_file;
+pub mod tone_report;
+mod values;
+
+pub use controller::ControllerConfig;
+pub use log::LogConfig;
+pub use service_table::{DeadlinePolicy, MeasurementLimits, MissSource, WaitMode};
+pub use target_model_file::TargetModelFile;
+pub use tone_report::ToneReportConfig;
+
+use ipc_types::ChannelCounts;
+use ipc_types::rt::RtRequest;
+use serde::Deserialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Top-level tables a scenario file may contain.
+pub const KNOWN_TABLES: &[&str] = &["rig", "plant", "proxy", "service", "controller", "log"];
+
+/// A refused configuration: the file, the field and what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigError {
+    /// The file read (or the origin given to [`ServiceConfig::parse`]).
+    pub file: String,
+    /// The dotted field path, empty when the whole file is at fault.
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.field.is_empty() {
+            write!(f, "{}: {}", self.file, self.message)
+        } else {
+            write!(f, "{}: field '{}': {}", self.file, self.field, self.message)
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// Makes the [`ConfigError`] of the file being read from a field path and a message.
+type ErrFn<'a> = dyn Fn(&str, String) -> ConfigError + 'a;
+
+/// The validated configuration of the service.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServiceConfig {
+    /// The file it came from.
+    pub origin: String,
+    /// Rig name (service names derive from it).
+    pub rig: String,
+    /// Sampling period the controller was designed for, in ns.
+    pub sample_period_ns: u64,
+    /// Channels the service reads and writes.
+    pub counts: ChannelCounts,
+    /// Real-time set-up of the loop thread.
+    pub rt: RtRequest,
+    /// Refuse to run when any RT set-up step is refused.
+    pub require_rt: bool,
+    /// How the loop waits.
+    pub wait: WaitMode,
+    /// Deadline and silence policy.
+    pub policy: DeadlinePolicy,
+    /// Accepted measurement ranges.
+    pub limits: MeasurementLimits,
+    /// Input applied in the safe state and before the first controller output.
+    pub safe_input: Vec<f64>,
+    /// How long to wait for the plant at start.
+    pub peer_timeout: Duration,
+    /// Cycles per histogram interval.
+    pub histogram_interval_cycles: u64,
+    /// Response-time budget for the "over budget" count, in ns (the sample period).
+    pub budget_ns: u64,
+    /// Signal logging.
+    pub log: LogConfig,
+    /// Folder under which each run gets its own folder.
+    pub run_dir: PathBuf,
+    /// The controller.
+    pub controller: ControllerConfig,
+    /// Cycles after which the "settled" RMS of `z` starts accumulating.
+    pub rms_settle_cycles: u64,
+    /// Cycles at the start of each session run open loop (`u` = safe input) while the
+    /// controller only observes.
+    pub open_loop_cycles: u64,
+    /// The per-tone suppression report.
+    pub tone_report: ToneReportConfig,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case")]
+struct RawFile {
+    rig: Option<rig::RawRig>,
+    service: Option<service_table::RawService>,
+    controller: Option<toml::Value>,
+    log: Option<log::RawLog>,
+    plant: Option<toml::Value>,
+}
+
+impl ServiceConfig {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            file: origin.clone(),
+            field: String::new(),
+            message: format!("cannot read the file: {e}"),
+        })?;
+        Self::parse(&text, &origin)
+    }
+
+    /// Reads a scenario file whose `[controller]` table (and `[log]` table, if present) is
+    /// replaced by those of `controller_file`: the same rig, plant and service, another
+    /// controller (for example an identification run with `kind = "excitation"`). Errors
+    /// in the replaced tables name `controller_file`; a relative target-model file in it is
+    /// found from `controller_file`'s folder.
+    pub fn load_with_controller(path: &Path, controller_file: &Path) -> Result<Self, ConfigError> {
+        let read = |p: &Path| -> Result<toml::Table, ConfigError> {
+            let origin = p.display().to_string();
+            let e = |message: String| ConfigError {
+                file: origin.clone(),
+                field: String::new(),
+                message,
+            };
+            let text =
+                std::fs::read_to_string(p).map_err(|x| e(format!("cannot read the file: {x}")))?;
+            toml::from_str(&text).map_err(|x| e(format!("not valid TOML: {x}")))
+        };
+        let mut base = read(path)?;
+        let over = read(controller_file)?;
+        let origin = format!(
+            "{} (controller from {})",
+            path.display(),
+            controller_file.display()
+        );
+        for key in over.keys() {
+            if key != "controller" && key != "log" {
+                return Err(ConfigError {
+                    file: controller_file.display().to_string(),
+                    field: key.clone(),
+                    message: "a controller file may hold only [controller] and [log]".into(),
+                });
+            }
+        }
+        if !over.contains_key("controller") {
+            return Err(ConfigError {
+                file: controller_file.display().to_string(),
+                field: "controller".into(),
+                message: "the [controller] table is missing".into(),
+            });
+        }
+        for (k, v) in over {
+            base.insert(k, v);
+        }
+        let text = toml::to_string(&base).map_err(|e| ConfigError {
+            file: origin.clone(),
+            field: String::new(),
+            message: format!("cannot merge the tables: {e}"),
+        })?;
+        let base_dir = controller_file
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        Self::parse_in(&text, &origin, &base_dir)
+    }
+
+    /// Validates the text of a scenario file; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let base_dir = Path::new(origin)
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        Self::parse_in(text, origin, &base_dir)
+    }
+
+    /// [`ServiceConfig::parse`] with relative file names in the controller table (a
+    /// target-model file) resolved from `base_dir`.
+    fn parse_in(text: &str, origin: &str, base_dir: &Path) -> Result<Self, ConfigError> {
+        let err = |field: &str, message: String| ConfigError {
+            file: origin.to_string(),
+            field: field.to_string(),
+            message,
+        };
+        let table: toml::Table =
+            toml::from_str(text).map_err(|e| err("", format!("not valid TOML: {e}")))?;
+        for key in table.keys() {
+            if !KNOWN_TABLES.contains(&key.as_str()) {
+                return Err(err(
+                    key,
+                    format!(
+                        "unknown table; the known ones are {}",
+                        KNOWN_TABLES.join(", ")
+                    ),
+                ));
+            }
+        }
+        let raw: RawFile = toml::from_str(text).map_err(|e| err("", e.to_string()))?;
+        let rig = rig::parse(
+            raw.rig
+                .ok_or_else(|| err("rig", "the [rig] table is missing".into()))?,
+            &err,
+        )?;
+        let period = rig.period;
+        let sample_period_ns = (period * 1e9).round() as u64;
+        let mut raw_service = raw.service.unwrap_or_default();
+        let s = service_table::parse(&raw_service, raw.plant.as_ref(), period, &err)?;
+        let log = log::parse(raw.log.unwrap_or_default(), &err)?;
+        let tone_report = tone_report::parse(
+            raw_service.report.take().unwrap_or_default(),
+            raw.plant.as_ref(),
+            period,
+            s.open_loop_cycles,
+            &err,
+        )?;
+        let controller_value = raw
+            .controller
+            .ok_or_else(|| err("controller", "the [controller] table is missing".into()))?;
+        let controller = controller::parse(controller_value, s.counts, period, base_dir, &err)?;
+
+        Ok(ServiceConfig {
+            origin: origin.to_string(),
+            rig: rig.name,
+            sample_period_ns,
+            counts: s.counts,
+            rt: s.rt,
+            require_rt: s.require_rt,
+            wait: s.wait,
+            policy: s.policy,
+            limits: s.limits,
+            safe_input: s.safe_input,
+            peer_timeout: s.peer_timeout,
+            histogram_interval_cycles: s.histogram_interval_cycles,
+            budget_ns: sample_period_ns,
+            log,
+            run_dir: s.run_dir,
+            controller,
+            rms_settle_cycles: s.rms_settle_cycles,
+            open_loop_cycles: s.open_loop_cycles,
+            tone_report,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = include_str!("../../../tests/fixtures/config/lti-static-gain.toml");
+
+    #[test]
+    fn a_good_file_gives_typed_parameters() {
+        let c = ServiceConfig::parse(GOOD, "good.toml").unwrap();
+        assert_eq!(c.sample_period_ns, 1_000_000);
+        assert_eq!(
+            c.counts,
+            ChannelCounts {
+                n_y: 1,
+                n_z: 1,
+                n_r: 0,
+                n_u: 1
+            }
+        );
+        assert_eq!(c.limits.y_max, vec![5.0]);
+        assert_eq!(c.wait, WaitMode::BusyPoll);
+    }
+
+    fn refused(text: &str) -> String {
+        ServiceConfig::parse(text, "bad.toml")
+            .expect_err("must be refused")
+            .to_string()
+    }
+
+    #[test]
+    fn bad_values_are_refused_naming_file_and_field() {
+        let m = refused(&GOOD.replace("y-max = 5.0", "y-max = -6.0"));
+        assert!(m.starts_with("bad.toml: field 'service.y-min'"), "{m}");
+        let m = refused(&GOOD.replace("d = [[-2.0]]", "d = [[-2.0, 1.0]]"));
+        assert!(
+            m.contains("field 'controller'") && m.contains("d is 1×2, expected 1×1"),
+            "{m}"
+        );
+        let m = refused(&GOOD.replace("kind = \"lti\"", "kind = \"pid\""));
+        assert!(m.contains("controller.kind") && m.contains("pid"), "{m}");
+        let m = refused(&GOOD.replace("[service]", "[service]\nwiat = \"block\""));
+        assert!(m.contains("wiat"), "{m}");
+        let m = refused(&GOOD.replace("[rig]", "[rigg]\n[rig]"));
+        assert!(
+            m.contains("field 'rigg'") && m.contains("unknown table"),
+            "{m}"
+        );
+        let m = refused(&GOOD.replace("sample-period = 0.001", "sample-period = -1.0"));
+        assert!(m.contains("rig.sample-period"), "{m}");
+        let m = refused(&GOOD.replace("name = \"unit\"", "name = \"a/b\""));
+        assert!(m.contains("rig.name"), "{m}");
+        let m = refused("[rig\nname=");
+        assert!(m.starts_with("bad.toml: not valid TOML"), "{m}");
+    }
+
+    #[test]
+    fn channel_counts_come_from_the_plant_table_when_not_given() {
+        let text = GOOD.replace("channels = { y = 1, z = 1, u = 1 }", "")
+            + "\n[plant]\nkind = \"transfer-function\"\ninputs = 1\noutputs-y = 1\noutputs-z = 1\ndisturbances = 0\n";
+        let c = ServiceConfig::parse(&text, "x.toml").unwrap();
+        assert_eq!(c.counts.n_u, 1);
+    }
+}

@@ -1,0 +1,546 @@
+//! `kind = "rcac"`: retrospective cost adaptive control ([`Rcac`](control::Rcac),
+//! (2.15)–(2.23), (3.51)–(3.63)).
+//!
+//! ```toml
+//! [controller]
+//! kind = "rcac"
+//! update = "rls"                  # or "gradient"
+//! input = "y"                     # the only input RCAC takes
+//! nc = 50                         # controller order n_c (≥ 1)
+//! kw = 100                        # u = 0, no update for the first kw steps (default: nc plus
+//!                                 # the largest lag of G_f)
+//! rz = 1.0                        # R_z: scalar (times I) or l_z×l_z matrix, positive definite
+//! ru = 0.0                        # R_u: scalar or l_u×l_u matrix, ≥ 0 (default 0)
+//! theta0 = [0.0, 0.0]             # optional, l_θ = l_u nc (l_u + l_y) values (default 0)
+//! u-min = -1.0                    # optional saturation, scalar or per input
+//! u-max = 1.0
+//! target-model-file = "target-model.toml"   # relative to this file's folder, or inline:
+//! # [controller.target-model] with the fields of control::target (form, sample-period, …)
+//!
+//! # update = "rls" (the forgetting module lists p0, lambda, [controller.forgetting]):
+//! p0 = 1.0                        # P_0 = p0 I (R_θ = I / p0), required
+//! lambda = 0.999                  # constant forgetting (default 1), or [controller.forgetting]
+//! trace-limit = 1e9               # tr P above this resets θ, P (default 10⁶ l_θ p0)
+//!
+//! # update = "gradient":
+//! # step-size = "exp"             # "opt" (3.57), "sigma" (3.60), "frobenius" (3.61), "exp" (3.63)
+//! # alpha = 0.5                   # in (0, 1], required
+//! # r = 0.0                       # R = r I ≥ 0 (default 0)
+//! ```
+//!
+//! The target model must have `l_z` outputs and `l_u` inputs and the rig's sample period.
+
+use super::controller::{ControllerConfig, output_limits, param_error, raw};
+use super::forgetting::{RawForgetting, forgetting_rule, required_p0};
+use super::target_model_file::read_table;
+use super::values::{ScalarOrMatrix, ScalarOrVec, one_of, weight};
+use super::{ConfigError, ErrFn, TargetModelFile};
+use control::target::TargetModel;
+use control::{RcacParams, RcacUpdate, StepSize};
+use ipc_types::ChannelCounts;
+use serde::Deserialize;
+use std::path::Path;
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawRcac {
+    #[allow(dead_code)]
+    kind: String,
+    update: Option<String>,
+    input: Option<String>,
+    nc: Option<usize>,
+    kw: Option<usize>,
+    target_model: Option<toml::Value>,
+    target_model_file: Option<String>,
+    rz: Option<ScalarOrMatrix>,
+    ru: Option<ScalarOrMatrix>,
+    theta0: Option<Vec<f64>>,
+    u_min: Option<ScalarOrVec>,
+    u_max: Option<ScalarOrVec>,
+    p0: Option<f64>,
+    lambda: Option<f64>,
+    forgetting: Option<RawForgetting>,
+    trace_limit: Option<f64>,
+    step_size: Option<String>,
+    alpha: Option<f64>,
+    r: Option<f64>,
+}
+
+/// Reads the table into [`RcacParams`] and validates them (the controller is built later,
+/// once, by the runtime).
+pub(super) fn parse(
+    value: toml::Value,
+    counts: ChannelCounts,
+    period: f64,
+    base_dir: &Path,
+    err: &ErrFn<'_>,
+) -> Result<ControllerConfig, ConfigError> {
+    let raw: RawRcac = raw(value, err)?;
+    let dims = crate::wire::dimensions(counts);
+    let (n_z, n_u) = (dims.n_z, dims.n_u);
+    match raw.input.as_deref().unwrap_or("y") {
+        "y" => {}
+        other => {
+            return Err(err(
+                "controller.input",
+                format!("'{other}': RCAC takes input = \"y\" only"),
+            ));
+        }
+    }
+    let nc = raw
+        .nc
+        .ok_or_else(|| err("controller.nc", "missing (the controller order n_c)".into()))?;
+    let target = target_model(raw.target_model, raw.target_model_file, base_dir, err)?;
+    let rz = weight(&raw.rz, n_z, RcacParams::DEFAULT_RZ, "controller.rz", err)?;
+    let ru = weight(&raw.ru, n_u, RcacParams::DEFAULT_RU, "controller.ru", err)?;
+    let update = one_of(
+        raw.update.as_deref(),
+        Update::Rls,
+        &[("rls", Update::Rls), ("gradient", Update::Gradient)],
+        "controller.update",
+        err,
+    )?;
+    let mut rule = None;
+    let update = match update {
+        Update::Rls => {
+            only_for(
+                &[
+                    (raw.step_size.is_some(), "step-size"),
+                    (raw.alpha.is_some(), "alpha"),
+                    (raw.r.is_some(), "r"),
+                ],
+                "gradient",
+                err,
+            )?;
+            let p0 = required_p0(raw.p0, "for update = \"rls\"", err)?;
+            let read = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
+            let update = RcacUpdate::Rls {
+                p0,
+                rule: read.rule.clone(),
+                trace_limit: raw
+                    .trace_limit
+                    .unwrap_or_else(|| RcacParams::default_trace_limit(nc, dims, p0)),
+            };
+            rule = Some(read);
+            update
+        }
+        Update::Gradient => {
+            only_for(
+                &[
+                    (raw.p0.is_some(), "p0"),
+                    (raw.lambda.is_some(), "lambda"),
+                    (raw.forgetting.is_some(), "forgetting"),
+                    (raw.trace_limit.is_some(), "trace-limit"),
+                ],
+                "rls",
+                err,
+            )?;
+            RcacUpdate::Gradient {
+                step_size: one_of(
+                    raw.step_size.as_deref(),
+                    RcacParams::DEFAULT_STEP_SIZE,
+                    &[
+                        ("opt", StepSize::Opt),
+                        ("sigma", StepSize::Sigma),
+                        ("frobenius", StepSize::Frobenius),
+                        ("exp", StepSize::Exp),
+                    ],
+                    "controller.step-size",
+                    err,
+                )?,
+                alpha: raw.alpha.ok_or_else(|| {
+                    err(
+                        "controller.alpha",
+                        "missing (the step-size factor α ∈ (0, 1])".into(),
+                    )
+                })?,
+                r: raw.r.unwrap_or(RcacParams::DEFAULT_GRADIENT_R),
+            }
+        }
+    };
+    let params = RcacParams {
+        nc,
+        kw: raw.kw,
+        target,
+        rz,
+        ru,
+        theta0: raw.theta0,
+        update,
+        limits: output_limits(&raw.u_min, &raw.u_max, n_u, err)?,
+        sample_period: period,
+    };
+    params.validate(dims).map_err(|e| {
+        let e = match &rule {
+            Some(read) => read.locate(e),
+            None => e,
+        };
+        param_error(e, err)
+    })?;
+    Ok(ControllerConfig::Rcac {
+        params: Box::new(params),
+    })
+}
+
+/// The update laws, as `update` names them.
+#[derive(Clone, Copy)]
+enum Update {
+    Rls,
+    Gradient,
+}
+
+/// Refuses the fields of the other update law (`(given, name)` pairs) that are given.
+fn only_for(fields: &[(bool, &str)], law: &str, err: &ErrFn<'_>) -> Result<(), ConfigError> {
+    match fields.iter().find(|(given, _)| *given) {
+        Some((_, name)) => Err(err(
+            &format!("controller.{name}"),
+            format!("only for update = \"{law}\""),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The target model: inline (`[controller.target-model]`) or from `target-model-file`
+/// (relative to `base_dir`), exactly one of the two.
+fn target_model(
+    inline: Option<toml::Value>,
+    file: Option<String>,
+    base_dir: &Path,
+    err: &ErrFn<'_>,
+) -> Result<TargetModel, ConfigError> {
+    match (inline, file) {
+        (Some(v), None) => {
+            read_table(v).map_err(|e| err(&format!("controller.{}", e.field), e.message))
+        }
+        (None, Some(f)) => {
+            let p = Path::new(&f);
+            let path = if p.is_relative() {
+                base_dir.join(p)
+            } else {
+                p.to_path_buf()
+            };
+            if !path.is_file() {
+                return Err(err(
+                    "controller.target-model-file",
+                    format!(
+                        "'{f}' resolves to {}, which is not a readable file",
+                        path.display()
+                    ),
+                ));
+            }
+            TargetModel::load(&path).map_err(|m| err("controller.target-model-file", m))
+        }
+        (Some(_), Some(_)) => Err(err(
+            "controller.target-model",
+            "give [controller.target-model] or target-model-file, not both".into(),
+        )),
+        (None, None) => Err(err(
+            "controller.target-model",
+            "missing: give [controller.target-model] or target-model-file".into(),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ServiceConfig;
+    use control::forgetting::ForgettingRule;
+    use nalgebra::DMatrix;
+
+    const GOOD: &str = include_str!("../../../tests/fixtures/config/lti-static-gain.toml");
+    const RCAC: &str = include_str!("../../../tests/fixtures/config/rcac-inline-target-model.toml");
+
+    #[test]
+    fn an_rcac_controller_is_read_with_an_inline_target_model_and_built() {
+        let c = ServiceConfig::parse(RCAC, "rcac.toml").unwrap();
+        let ControllerConfig::Rcac { params } = &c.controller else {
+            panic!("not rcac: {:?}", c.controller);
+        };
+        assert_eq!(params.nc, 4);
+        assert_eq!(params.target.inputs, 2);
+        assert_eq!(
+            params.update,
+            RcacUpdate::Rls {
+                p0: 10.0,
+                rule: ForgettingRule::Constant { lambda: 0.999 },
+                trace_limit: 1e6 * 24.0 * 10.0,
+            }
+        );
+        let ctl = c.controller.build(c.counts).unwrap();
+        assert_eq!(ctl.kind(), "rcac");
+        assert_eq!(ctl.internal_names().len(), 7);
+        // The gradient variant, and the forgetting table.
+        let g = RCAC
+            .replace("update = \"rls\"", "update = \"gradient\"")
+            .replace(
+                "p0 = 10.0\n",
+                "step-size = \"sigma\"\nalpha = 0.3\nr = 0.01\n",
+            )
+            .replace("lambda = 0.999\n", "");
+        let c = ServiceConfig::parse(&g, "rcac.toml").unwrap();
+        let ControllerConfig::Rcac { params } = &c.controller else {
+            panic!()
+        };
+        assert_eq!(
+            params.update,
+            RcacUpdate::Gradient {
+                step_size: StepSize::Sigma,
+                alpha: 0.3,
+                r: 0.01
+            }
+        );
+        let f = RCAC.replace(
+            "lambda = 0.999",
+            "[controller.forgetting]\nrule = \"f-test\"\ntau-n = 10\ntau-d = 80\neta = 0.5\nalpha = 0.01",
+        );
+        let c = ServiceConfig::parse(&f, "rcac.toml");
+        assert!(c.is_ok(), "{c:?}");
+    }
+
+    #[test]
+    fn a_target_model_file_is_found_next_to_the_scenario() {
+        let dir = std::env::temp_dir().join(format!("rcac-config-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let (head, tm) = RCAC.split_once("[controller.target-model]").unwrap();
+        let tm = format!(
+            "[target-model]{}",
+            tm.replace("controller.target-model.", "target-model.")
+        );
+        std::fs::write(dir.join("sub/tm.toml"), tm).unwrap();
+        let text = head.replace(
+            "kind = \"rcac\"",
+            "kind = \"rcac\"\ntarget-model-file = \"sub/tm.toml\"",
+        );
+        let origin = dir.join("scenario.toml").display().to_string();
+        let c = ServiceConfig::parse(&text, &origin).unwrap();
+        assert!(matches!(c.controller, ControllerConfig::Rcac { .. }));
+        // A controller file elsewhere: relative to its own folder.
+        std::fs::write(
+            dir.join("scenario.toml"),
+            GOOD.replace("u = 1", "u = 2").replace("0.001", "0.01"),
+        )
+        .unwrap();
+        std::fs::write(
+            dir.join("sub/ctl.toml"),
+            text.split_once("[controller]")
+                .unwrap()
+                .1
+                .replace("sub/tm.toml", "tm.toml")
+                .replace("kind", "[controller]\nkind"),
+        )
+        .unwrap();
+        let c = ServiceConfig::load_with_controller(
+            &dir.join("scenario.toml"),
+            &dir.join("sub/ctl.toml"),
+        );
+        assert!(
+            matches!(
+                c,
+                Ok(ServiceConfig {
+                    controller: ControllerConfig::Rcac { .. },
+                    ..
+                })
+            ),
+            "{c:?}"
+        );
+        // A Markov (FIR) model as the design tools write it (TargetModel::save), as is.
+        let fir = TargetModel {
+            sample_period: 0.01,
+            outputs: 1,
+            inputs: 2,
+            beta: 0.9,
+            source: "rig-design markov".into(),
+            form: control::target::TargetForm::Markov(vec![
+                DMatrix::zeros(1, 2),
+                DMatrix::from_row_slice(1, 2, &[0.05, 0.0]),
+                DMatrix::from_row_slice(1, 2, &[0.0, -0.02]),
+            ]),
+        };
+        fir.save(&dir.join("sub/fir.toml")).unwrap();
+        let c = ServiceConfig::parse(&text.replace("sub/tm.toml", "sub/fir.toml"), &origin);
+        assert!(
+            matches!(&c, Ok(ServiceConfig { controller: ControllerConfig::Rcac { params }, .. })
+                if params.target == fir),
+            "{c:?}"
+        );
+        // Not there: the field is named.
+        let m = ServiceConfig::parse(&text.replace("sub/tm.toml", "nope.toml"), &origin)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            m.contains("field 'controller.target-model-file'") && m.contains("nope.toml"),
+            "{m}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn bad_rcac_settings_are_refused_naming_file_and_field() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("nc = 4", "nc = 0", "controller.nc"),
+            ("outputs = 1", "outputs = 2", "controller.target-model"),
+            (
+                "sample-period = 0.01\noutputs",
+                "sample-period = 0.001\noutputs",
+                "controller.target-model.sample-period",
+            ),
+            ("beta = 0.8", "beta = 1.8", "controller.target-model.beta"),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nrz = -1.0",
+                "controller.rz",
+            ),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nrz = [[1.0, 0.0]]",
+                "controller.rz",
+            ),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nru = [[1.0, 2.0], [2.0, 1.0]]",
+                "controller.ru",
+            ),
+            ("lambda = 0.999", "lambda = 1.5", "controller.lambda"),
+            ("p0 = 10.0\n", "", "controller.p0"),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\nalpha = 0.5",
+                "controller.alpha",
+            ),
+            (
+                "lambda = 0.999",
+                "lambda = 0.999\ntheta0 = [1.0, 2.0]",
+                "controller.theta0",
+            ),
+            ("update = \"rls\"", "update = \"lms\"", "controller.update"),
+            (
+                "kind = \"rcac\"",
+                "kind = \"rcac\"\ninput = \"error\"",
+                "controller.input",
+            ),
+            (
+                "den = [1.0, -0.5]",
+                "den = [1.0, -1.5]",
+                "controller.target-model",
+            ),
+            (
+                "delay = 1\nnum = [0.5]",
+                "delay = 0\nnum = [0.5, 0.1]",
+                "controller.target-model",
+            ),
+            ("u-max = 1.0", "u-max = -1.5", "controller.u-min"),
+            (
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"rms-ratio\"\ntau-n = 10\neta = 1.0",
+                "controller.forgetting.tau-d",
+            ),
+            (
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"rms-ratio\"\ntau-n = 10\ntau-d = 5\neta = 1.0",
+                "controller.forgetting",
+            ),
+            (
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"newton\"",
+                "controller.forgetting.rule",
+            ),
+            (
+                "kind = \"rcac\"",
+                "kind = \"rcac\"\ntarget-model-file = \"x.toml\"",
+                "controller.target-model",
+            ),
+        ];
+        for (from, to, field) in cases {
+            let text = RCAC.replacen(from, to, 1);
+            assert_ne!(text, RCAC, "{from}");
+            let m = ServiceConfig::parse(&text, "bad.toml")
+                .err()
+                .unwrap_or_else(|| panic!("accepted: {to}"))
+                .to_string();
+            eprintln!("{m}");
+            assert!(
+                m.starts_with(&format!("bad.toml: field '{field}'")),
+                "{to}: {m}"
+            );
+        }
+        let grad = RCAC
+            .replace("update = \"rls\"", "update = \"gradient\"")
+            .replace("p0 = 10.0\n", "alpha = 0.5\n")
+            .replace("lambda = 0.999\n", "");
+        for (from, to, field) in [
+            ("alpha = 0.5", "alpha = 1.5", "controller.alpha"),
+            ("alpha = 0.5", "alpha = 0.0", "controller.alpha"),
+            ("alpha = 0.5", "", "controller.alpha"),
+            (
+                "alpha = 0.5",
+                "alpha = 0.5\nstep-size = \"fast\"",
+                "controller.step-size",
+            ),
+            ("alpha = 0.5", "alpha = 0.5\nr = -1.0", "controller.r"),
+            (
+                "alpha = 0.5",
+                "alpha = 0.5\nlambda = 0.9",
+                "controller.lambda",
+            ),
+        ] {
+            let text = grad.replacen(from, to, 1);
+            assert_ne!(text, grad, "{from}");
+            let m = ServiceConfig::parse(&text, "bad.toml")
+                .err()
+                .unwrap_or_else(|| panic!("accepted: {to}"))
+                .to_string();
+            eprintln!("{m}");
+            assert!(
+                m.starts_with(&format!("bad.toml: field '{field}'")),
+                "{to}: {m}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_forgetting_factor_is_named_where_the_file_gives_it() {
+        let field_of = |text: &str| {
+            ServiceConfig::parse(text, "bad.toml")
+                .expect_err("must be refused")
+                .field
+        };
+        assert_eq!(
+            field_of(&RCAC.replace("lambda = 0.999", "lambda = 1.5")),
+            "controller.lambda"
+        );
+        assert_eq!(
+            field_of(&RCAC.replace(
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"constant\"\nlambda = 1.5"
+            )),
+            "controller.forgetting.lambda"
+        );
+        assert_eq!(
+            field_of(&RCAC.replace(
+                "lambda = 0.999",
+                "[controller.forgetting]\nrule = \"f-test\"\ntau-n = 10\ntau-d = 80\neta = 0.0\nalpha = 0.01"
+            )),
+            "controller.forgetting.eta"
+        );
+    }
+
+    #[test]
+    fn the_defaults_come_from_the_kernel() {
+        let c = ServiceConfig::parse(&RCAC.replace("lambda = 0.999\n", ""), "rcac.toml").unwrap();
+        let ControllerConfig::Rcac { params } = &c.controller else {
+            panic!("not rcac: {:?}", c.controller);
+        };
+        let dims = crate::wire::dimensions(c.counts);
+        assert_eq!(
+            params.update,
+            RcacUpdate::Rls {
+                p0: 10.0,
+                rule: ForgettingRule::DEFAULT,
+                trace_limit: RcacParams::default_trace_limit(4, dims, 10.0),
+            }
+        );
+        assert_eq!(params.rz, DMatrix::identity(1, 1) * RcacParams::DEFAULT_RZ);
+        assert_eq!(params.kw, None);
+        assert_eq!(c.controller.validate(c.counts), Ok(()));
+    }
+}

@@ -1,0 +1,281 @@
+//! `[service]`: the real-time set-up, the deadline policy, the measurement limits and the
+//! session of the service, and `[service.channels]`.
+//!
+//! ```toml
+//! [service]
+//! core = 1                        # pin the RT thread (omit: no pinning)
+//! fifo-priority = 80              # SCHED_FIFO priority (0: stay SCHED_OTHER)
+//! mlockall = true
+//! require-rt = false              # true: refuse to run when the OS refuses any of the above
+//! wait = "busy-poll"              # or "block" (WaitMode)
+//! grace-periods = 100             # start-up cycles whose misses do not count toward the limit
+//! max-consecutive-misses = 10     # then go to the safe state (≥ 1)
+//! miss-source = "plant"           # misses the plant reports, or "response-time" (measured here)
+//! recover-after = 0               # 0: the safe state latches; N: leave it after N good cycles
+//! silent-periods = 400            # no sample for this many periods: the plant is silent (≥ 1)
+//! reset-on-resume = true          # reset the controller when a silent plant comes back
+//! peer-timeout = 30.0             # s to wait for the plant at start
+//! safe-input = [0.0, 0.0]         # scalar or one per input u (default 0)
+//! y-min = -10.0                   # scalar or one per channel; measurements outside are rejected
+//! y-max = 10.0                    # (default ±∞; also z-min, z-max)
+//! histogram-interval = 1.0        # s between interval-log entries
+//! run-dir = "runs"
+//! rms-settle = 2.0                # s after which the "settled" RMS of z starts
+//! open-loop = 1.0                 # s of each session run open loop (u = safe-input) before
+//!                                 # the controller acts; it observes those samples
+//! [service.report]                # see the tone_report module
+//! [service.channels]              # optional; default from [plant]
+//! y = 1
+//! z = 1
+//! r = 0                           # default 0
+//! u = 2                           # at least 1
+//! ```
+//!
+//! Without `[service.channels]` the counts come from the plant proxy's `[plant]` table
+//! (`outputs-y`, `outputs-z`, `commands` (default 0), `inputs`).
+
+use super::values::{ScalarOrVec, per_channel, positive, positive_seconds};
+use super::{ConfigError, ErrFn};
+use ipc_types::ChannelCounts;
+use ipc_types::rt::RtRequest;
+use serde::Deserialize;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// How the RT thread waits for the next measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WaitMode {
+    /// Spin on the subscriber (lowest latency; burns the pinned core).
+    BusyPoll,
+    /// Sleep on the plant's iceoryx2 event (spares the core; adds a wake-up).
+    Block,
+}
+
+/// Which misses count toward the safe-state limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MissSource {
+    /// The plant's own verdict, carried in the next sample (`PREVIOUS_ACTUATION_MISSED`):
+    /// the plant is the clock master and applies `u` at its deadline, so it decides.
+    Plant,
+    /// The service's measurement: publish time − sample time > the deadline. Stricter: it
+    /// also counts the plant process's own lateness in waking up.
+    ResponseTime,
+}
+
+/// The deadline and silence policy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeadlinePolicy {
+    /// Cycles after (re)connection whose misses do not count toward the limit.
+    pub grace_cycles: u64,
+    /// Consecutive misses that send the service to its safe state.
+    pub max_consecutive_misses: u64,
+    /// Good cycles after which the safe state is left; `None` latches it.
+    pub recover_after: Option<u64>,
+    /// Periods without a sample after which the plant is declared silent.
+    pub silent_periods: u64,
+    /// Reset the controller when a silent plant comes back.
+    pub reset_on_resume: bool,
+    /// Which misses count toward `max_consecutive_misses`.
+    pub miss_source: MissSource,
+}
+
+/// Accepted range of each measurement channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasurementLimits {
+    /// Lower bounds of `y`.
+    pub y_min: Vec<f64>,
+    /// Upper bounds of `y`.
+    pub y_max: Vec<f64>,
+    /// Lower bounds of `z`.
+    pub z_min: Vec<f64>,
+    /// Upper bounds of `z`.
+    pub z_max: Vec<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawChannels {
+    y: usize,
+    z: usize,
+    #[serde(default)]
+    r: usize,
+    u: usize,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub(super) struct RawService {
+    core: Option<usize>,
+    fifo_priority: Option<i32>,
+    mlockall: Option<bool>,
+    require_rt: Option<bool>,
+    wait: Option<WaitMode>,
+    grace_periods: Option<u64>,
+    max_consecutive_misses: Option<u64>,
+    recover_after: Option<u64>,
+    silent_periods: Option<u64>,
+    reset_on_resume: Option<bool>,
+    miss_source: Option<MissSource>,
+    peer_timeout: Option<f64>,
+    safe_input: Option<ScalarOrVec>,
+    y_min: Option<ScalarOrVec>,
+    y_max: Option<ScalarOrVec>,
+    z_min: Option<ScalarOrVec>,
+    z_max: Option<ScalarOrVec>,
+    histogram_interval: Option<f64>,
+    run_dir: Option<PathBuf>,
+    rms_settle: Option<f64>,
+    open_loop: Option<f64>,
+    /// `[service.report]`, read by the tone_report module.
+    pub report: Option<super::tone_report::RawReport>,
+    channels: Option<RawChannels>,
+}
+
+/// The `[service]` table, validated, its durations converted to cycles.
+pub(super) struct ServiceTable {
+    pub counts: ChannelCounts,
+    pub rt: RtRequest,
+    pub require_rt: bool,
+    pub wait: WaitMode,
+    pub policy: DeadlinePolicy,
+    pub limits: MeasurementLimits,
+    pub safe_input: Vec<f64>,
+    pub peer_timeout: Duration,
+    pub histogram_interval_cycles: u64,
+    pub run_dir: PathBuf,
+    pub rms_settle_cycles: u64,
+    pub open_loop_cycles: u64,
+}
+
+/// Validates the table; `plant` gives the channel counts when `[service.channels]` is
+/// absent, `period` (s) converts the durations to cycles.
+pub(super) fn parse(
+    s: &RawService,
+    plant: Option<&toml::Value>,
+    period: f64,
+    err: &ErrFn<'_>,
+) -> Result<ServiceTable, ConfigError> {
+    let counts = match &s.channels {
+        Some(c) => {
+            ChannelCounts::new(c.y, c.z, c.r, c.u).map_err(|m| err("service.channels", m))?
+        }
+        None => channels_from_plant(plant).map_err(|m| err("service.channels", m))?,
+    };
+    let n_y = counts.n_y as usize;
+    let n_z = counts.n_z as usize;
+    let n_u = counts.n_u as usize;
+    if n_u == 0 {
+        return Err(err(
+            "service.channels.u",
+            "the service needs at least one input u".into(),
+        ));
+    }
+
+    let fifo_priority = ipc_types::rt::fifo_priority_from_config(s.fifo_priority, 80)
+        .map_err(|m| err("service.fifo-priority", m))?;
+    let rt = RtRequest {
+        core: s.core,
+        fifo_priority,
+        mlockall: s.mlockall.unwrap_or(true),
+        prefault_stack_bytes: 256 * 1024,
+    };
+    let policy = DeadlinePolicy {
+        grace_cycles: s.grace_periods.unwrap_or(100),
+        max_consecutive_misses: positive(
+            s.max_consecutive_misses.unwrap_or(10),
+            "service.max-consecutive-misses",
+            err,
+        )?,
+        recover_after: s.recover_after.filter(|n| *n > 0),
+        silent_periods: positive(
+            s.silent_periods.unwrap_or(400),
+            "service.silent-periods",
+            err,
+        )?,
+        reset_on_resume: s.reset_on_resume.unwrap_or(true),
+        miss_source: s.miss_source.unwrap_or(MissSource::Plant),
+    };
+    let limits = MeasurementLimits {
+        y_min: per_channel(&s.y_min, n_y, f64::NEG_INFINITY, "service.y-min", err)?,
+        y_max: per_channel(&s.y_max, n_y, f64::INFINITY, "service.y-max", err)?,
+        z_min: per_channel(&s.z_min, n_z, f64::NEG_INFINITY, "service.z-min", err)?,
+        z_max: per_channel(&s.z_max, n_z, f64::INFINITY, "service.z-max", err)?,
+    };
+    check_range(&limits.y_min, &limits.y_max, "y", "service.y-min", err)?;
+    check_range(&limits.z_min, &limits.z_max, "z", "service.z-min", err)?;
+    let safe_input = per_channel(&s.safe_input, n_u, 0.0, "service.safe-input", err)?;
+    if safe_input.iter().any(|v| !v.is_finite()) {
+        return Err(err("service.safe-input", "must be finite".into()));
+    }
+    let peer_timeout =
+        positive_seconds(s.peer_timeout.unwrap_or(30.0), "service.peer-timeout", err)?;
+    let interval = positive_seconds(
+        s.histogram_interval.unwrap_or(1.0),
+        "service.histogram-interval",
+        err,
+    )?;
+    let open_loop = s.open_loop.unwrap_or(0.0);
+    if !(open_loop.is_finite() && open_loop >= 0.0) {
+        return Err(err(
+            "service.open-loop",
+            format!("{open_loop} s is not a duration ≥ 0"),
+        ));
+    }
+    Ok(ServiceTable {
+        counts,
+        rt,
+        require_rt: s.require_rt.unwrap_or(false),
+        wait: s.wait.unwrap_or(WaitMode::BusyPoll),
+        policy,
+        limits,
+        safe_input,
+        peer_timeout: Duration::from_secs_f64(peer_timeout),
+        histogram_interval_cycles: ((interval / period).round() as u64).max(1),
+        run_dir: s.run_dir.clone().unwrap_or_else(|| PathBuf::from("runs")),
+        rms_settle_cycles: (s.rms_settle.unwrap_or(0.0).max(0.0) / period).round() as u64,
+        open_loop_cycles: (open_loop / period).round() as u64,
+    })
+}
+
+/// Every channel's `min < max` (`signal` is `y` or `z`; `field` names the lower bound).
+fn check_range(
+    min: &[f64],
+    max: &[f64],
+    signal: &str,
+    field: &str,
+    err: &ErrFn<'_>,
+) -> Result<(), ConfigError> {
+    for (i, (lo, hi)) in min.iter().zip(max).enumerate() {
+        if lo.is_nan() || hi.is_nan() || lo >= hi {
+            return Err(err(
+                field,
+                format!("channel {i}: {signal}-min {lo} must be below {signal}-max {hi}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The channel counts from the plant proxy's `[plant]` table.
+fn channels_from_plant(plant: Option<&toml::Value>) -> Result<ChannelCounts, String> {
+    let plant = plant.ok_or(
+        "neither [service.channels] nor a [plant] table says how many channels the rig has",
+    )?;
+    let get = |k: &str, default: Option<i64>| -> Result<usize, String> {
+        match plant.get(k).and_then(|v| v.as_integer()).or(default) {
+            Some(n) if n >= 0 => Ok(n as usize),
+            Some(n) => Err(format!("plant.{k} = {n} is negative")),
+            None => Err(format!(
+                "plant.{k} is missing, and [service.channels] is not given"
+            )),
+        }
+    };
+    ChannelCounts::new(
+        get("outputs-y", None)?,
+        get("outputs-z", None)?,
+        get("commands", Some(0))?,
+        get("inputs", None)?,
+    )
+}
