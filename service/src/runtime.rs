@@ -269,8 +269,7 @@ impl LoopCore {
         log: Option<LogProducer>,
         events: rtrb::Producer<LoopEvent>,
     ) -> Self {
-        // Configuration hook: `service.on-timing-fault` goes here.
-        let on_timing_fault = TimingFaultReset::default();
+        let on_timing_fault = cfg.policy.on_timing_fault;
         let mut safe_input = [0.0; MAX_U];
         safe_input[..cfg.safe_input.len()].copy_from_slice(&cfg.safe_input);
         Self {

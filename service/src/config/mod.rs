@@ -362,4 +362,19 @@ mod tests {
         let c = ServiceConfig::parse(&text, "x.toml").unwrap();
         assert_eq!(c.counts.n_u, 1);
     }
+
+    #[test]
+    fn a_timing_fault_keeps_what_the_controller_learned_unless_configured() {
+        use crate::runtime::TimingFaultReset;
+        let c = ServiceConfig::parse(GOOD, "good.toml").unwrap();
+        assert_eq!(c.policy.on_timing_fault, TimingFaultReset::KeepLearned);
+        let text = GOOD.replace(
+            "[service]",
+            "[service]\non-timing-fault = \"reset-controller\"",
+        );
+        let c = ServiceConfig::parse(&text, "x.toml").unwrap();
+        assert_eq!(c.policy.on_timing_fault, TimingFaultReset::ResetController);
+        let m = refused(&GOOD.replace("[service]", "[service]\non-timing-fault = \"forget\""));
+        assert!(m.contains("on-timing-fault") || m.contains("forget"), "{m}");
+    }
 }

@@ -13,7 +13,12 @@
 //! miss-source = "plant"           # misses the plant reports, or "response-time" (measured here)
 //! recover-after = 0               # 0: the safe state latches; N: leave it after N good cycles
 //! silent-periods = 400            # no sample for this many periods: the plant is silent (≥ 1)
-//! reset-on-resume = true          # reset the controller when a silent plant comes back
+//! reset-on-resume = true          # reset the controller when a new plant session starts
+//!                                 # (its sequence number restarts or goes back)
+//! on-timing-fault = "keep-learned" # what leaving the safe state and a stalled plant that
+//!                                 # resumes do to the controller: "keep-learned" (default:
+//!                                 # a timing fault is not the controller's) or
+//!                                 # "reset-controller" (back to its initial state)
 //! peer-timeout = 30.0             # s to wait for the plant at start
 //! safe-input = [0.0, 0.0]         # scalar or one per input u (default 0)
 //! y-min = -10.0                   # scalar or one per channel; measurements outside are rejected
@@ -36,6 +41,7 @@
 
 use super::values::{ScalarOrVec, per_channel, positive, positive_seconds};
 use super::{ConfigError, ErrFn};
+use crate::runtime::TimingFaultReset;
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
 use serde::Deserialize;
@@ -75,8 +81,12 @@ pub struct DeadlinePolicy {
     pub recover_after: Option<u64>,
     /// Periods without a sample after which the plant is declared silent.
     pub silent_periods: u64,
-    /// Reset the controller when a silent plant comes back.
+    /// Reset the controller when a new plant session starts (the sequence number
+    /// restarts or goes back).
     pub reset_on_resume: bool,
+    /// What a timing fault (leaving the safe state, a stalled plant that resumes) does to
+    /// the controller's learned state.
+    pub on_timing_fault: TimingFaultReset,
     /// Which misses count toward `max_consecutive_misses`.
     pub miss_source: MissSource,
 }
@@ -117,6 +127,7 @@ pub(super) struct RawService {
     recover_after: Option<u64>,
     silent_periods: Option<u64>,
     reset_on_resume: Option<bool>,
+    on_timing_fault: Option<TimingFaultReset>,
     miss_source: Option<MissSource>,
     peer_timeout: Option<f64>,
     safe_input: Option<ScalarOrVec>,
@@ -195,6 +206,7 @@ pub(super) fn parse(
             err,
         )?,
         reset_on_resume: s.reset_on_resume.unwrap_or(true),
+        on_timing_fault: s.on_timing_fault.unwrap_or_default(),
         miss_source: s.miss_source.unwrap_or(MissSource::Plant),
     };
     let limits = MeasurementLimits {
