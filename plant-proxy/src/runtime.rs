@@ -317,7 +317,8 @@ impl Trace {
         Ok(Self { out })
     }
 
-    fn row(&mut self, k: u64, t: f64, y: &[f64], z: &[f64], u: &[f64], flags: u32, status: u32) {
+    /// One row: sample `k` at time `t`, the signals `[y, z, u]`, the flags and status.
+    fn row(&mut self, k: u64, t: f64, [y, z, u]: [&[f64]; 3], flags: u32, status: u32) {
         let _ = write!(self.out, "{k},{t}");
         for v in y.iter().chain(z).chain(u) {
             let _ = write!(self.out, ",{v:e}");
@@ -536,9 +537,7 @@ pub fn run_plant(
             t.row(
                 k,
                 sim.time(),
-                &m.y[..n_y],
-                &z,
-                &u_applied[..n_u],
+                [&m.y[..n_y], &z, &u_applied[..n_u]],
                 m.flags,
                 status,
             );

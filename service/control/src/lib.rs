@@ -6,7 +6,7 @@
 //! [`Controller`] trait; the offline tools (`rig-tools`) run the same kernels in studies.
 //!
 //! - [`controller`]: the [`Controller`] trait, [`StepInput`], [`Dimensions`], the
-//!   [`status`](controller::status) bits and [`OutputLimits`].
+//!   [`status`] bits and [`OutputLimits`].
 //! - [`rls`]: recursive least squares with variable-rate forgetting (2.12)–(2.14), an
 //!   allocation-free kernel and a textbook oracle.
 //! - [`forgetting`]: forgetting factors for RLS: constant, F-test (Algorithm 1,

@@ -90,7 +90,7 @@ mod tests {
     fn every_dot_order_gives_the_exact_sum_of_small_integers() {
         let a: Vec<f64> = (0..19).map(|i| i as f64).collect();
         let b: Vec<f64> = (0..19).map(|i| (i % 5) as f64 - 2.0).collect();
-        let want: f64 = (0..19).map(|i| (i * ((i % 5) as i64 - 2)) as f64).sum();
+        let want: f64 = (0..19i64).map(|i| (i * (i % 5 - 2)) as f64).sum();
         assert_eq!(dot(&a, &b), want);
         assert_eq!(dot_wide(&a, &b), want);
         assert_eq!(dot_in_order(&a, &b), want);

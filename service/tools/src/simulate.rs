@@ -170,12 +170,7 @@ pub fn closed_loop<C: Controller + ?Sized>(
     if let Some(c) = controller.as_deref() {
         let counts = c.counts();
         let want = (n_y, n_z, n_r, n_u);
-        let got = (
-            counts.n_y as usize,
-            counts.n_z as usize,
-            counts.n_r as usize,
-            counts.n_u as usize,
-        );
+        let got = (counts.n_y, counts.n_z, counts.n_r, counts.n_u);
         if want != got {
             return Err(format!(
                 "the controller has (n_y, n_z, n_r, n_u) = {got:?}, the plant {want:?}"

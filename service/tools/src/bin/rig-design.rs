@@ -218,6 +218,9 @@ enum Command {
     },
 }
 
+/// A labelled set of poles and zeros.
+type PoleZeroSet = (&'static str, Vec<C64>, Vec<C64>);
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -745,8 +748,10 @@ fn example_3_41(out: &Path) -> Result<(), String> {
         ex.averaged.response(th),
         ex.printed_3_43.response(th),
     );
-    let roots = |sets: &[(&'static str, &dtf::Dtf)]| -> Result<Vec<(&'static str, Vec<C64>, Vec<C64>)>, String> {
-        sets.iter().map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?))).collect()
+    let roots = |sets: &[(&'static str, &dtf::Dtf)]| -> Result<Vec<PoleZeroSet>, String> {
+        sets.iter()
+            .map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?)))
+            .collect()
     };
     let r = roots(&[
         ("G_d", &ex.gd),

@@ -41,7 +41,7 @@ enum Command {
         /// Seconds of plant time (default: rig.duration).
         #[arg(long)]
         duration: Option<f64>,
-        /// Folder for this run's artifacts (default: <service.run-dir>/<rig>-<time>).
+        /// Folder for this run's artifacts (default: `<service.run-dir>/<rig>-<time>`).
         #[arg(long)]
         run_folder: Option<PathBuf>,
         /// Override service.wait (busy-poll or block).
@@ -50,7 +50,7 @@ enum Command {
         /// Override service.core (the RT core).
         #[arg(long)]
         core: Option<usize>,
-        /// Replace the scenario's [controller] (and [log]) table by this file's.
+        /// Replace the scenario's `[controller]` (and `[log]`) table by this file's.
         #[arg(long)]
         controller: Option<PathBuf>,
     },

@@ -38,7 +38,7 @@
 //! values from 0.01 to 0.5, equally spaced (0.01, 0.02, …, 0.5, which contains the nominal
 //! 0.1). RCAC: `n_c = 20`, `θ_0 = 0`, `k_w = 5 n_c`, gradient `μ_Exp` with `α = 0.2`,
 //! `R = 0`, and RLS (`P_0 = I`, `λ = 1`); runs and measurements as in `rcac_common`.
-//! [`rcac_study`](crate::study::rcac_study) drives the runs.
+//! [`rcac_study`] drives the runs.
 
 use std::borrow::Cow;
 use std::fmt::Write as _;

@@ -20,7 +20,7 @@
 //! has four samples per period. Every point runs the open loop and RCAC (`n_c = 20`,
 //! `θ_0 = 0`, `k_w = 5 n_c`, gradient `μ_Exp` with `α = 0.5`, `R = 0`, and/or RLS with
 //! `P_0 = I`, `λ = 1`) for [`RUN_SECONDS`] and measures the last [`WINDOW_SECONDS`] (see
-//! `rcac_common`); [`rcac_study`](crate::study::rcac_study) drives the runs.
+//! `rcac_common`); [`rcac_study`] drives the runs.
 
 use std::borrow::Cow;
 use std::fmt::Write as _;
