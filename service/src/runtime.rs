@@ -1079,12 +1079,10 @@ fn rt_thread_main(
     }
     let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns);
     let waiting = format!("[service] waiting for the plant on rig '{}' ...", cfg.rig);
-    let opts = ConnectOptions {
-        peer_timeout: cfg.peer_timeout,
-        shutdown: Some(&shutdown),
-        listen: cfg.wait == WaitMode::Block,
-        waiting_message: Some(&waiting),
-    };
+    let opts = ConnectOptions::new(cfg.peer_timeout)
+        .with_shutdown(&shutdown)
+        .with_listener(cfg.wait == WaitMode::Block)
+        .with_waiting_message(waiting.as_str());
     let ports: ServicePorts =
         match ipc_types::ports::connect(&cfg.rig, own, "adaptive-rig-service", opts) {
             Ok(p) => p,

@@ -136,12 +136,7 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     let plant_rig = rig.clone();
     let plant = std::thread::spawn(move || {
         let own = ContractInfo::new(Side::Plant, counts, period_ns);
-        let opts = ConnectOptions {
-            peer_timeout: Duration::from_secs(20),
-            shutdown: None,
-            listen: false,
-            waiting_message: None,
-        };
+        let opts = ConnectOptions::new(Duration::from_secs(20));
         let ports: PlantPorts =
             ipc_types::ports::connect(&plant_rig, own, "noalloc-plant", opts).unwrap();
         let mut x = [1.0_f64, -1.0];
@@ -178,12 +173,7 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     });
 
     let own = ContractInfo::new(Side::Service, counts, period_ns);
-    let opts = ConnectOptions {
-        peer_timeout: Duration::from_secs(20),
-        shutdown: None,
-        listen: false,
-        waiting_message: None,
-    };
+    let opts = ConnectOptions::new(Duration::from_secs(20));
     let ports: ServicePorts =
         ipc_types::ports::connect(&rig, own, "noalloc-service", opts).unwrap();
     let shutdown = AtomicBool::new(false);

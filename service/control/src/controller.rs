@@ -8,6 +8,8 @@
 //! inside. The interface speaks in its own types: [`Dimensions`] for the channel counts and
 //! [`status`] bits for what a step did; the service maps them to the wire contract.
 
+use crate::ParamError;
+
 /// The channels a controller reads (`n_y`, `n_z`, `n_r`) and writes (`n_u`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Dimensions {
@@ -129,6 +131,29 @@ pub struct OutputLimits {
 }
 
 impl OutputLimits {
+    /// Checks that there are `n_u` lower and upper limits with `u-min ≤ u-max` (no NaN)
+    /// for every input; the error names the field `u-min`.
+    pub fn validate(&self, n_u: usize) -> Result<(), ParamError> {
+        if self.min.len() != n_u || self.max.len() != n_u {
+            return Err(ParamError::new(
+                "u-min",
+                format!("output limits need {n_u} entries for min and max"),
+            ));
+        }
+        if self
+            .min
+            .iter()
+            .zip(&self.max)
+            .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
+        {
+            return Err(ParamError::new(
+                "u-min",
+                "output limits need u-min ≤ u-max for every input",
+            ));
+        }
+        Ok(())
+    }
+
     /// Clips `u` in place; returns true when any entry was clipped. Non-finite entries are
     /// replaced by 0 clipped into the limits, so the result is always finite.
     #[inline]

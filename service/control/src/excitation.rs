@@ -85,13 +85,8 @@ impl ExcitationParams {
                 "excitation std is zero on every input: nothing to identify",
             ));
         }
-        if let Some(l) = &self.limits
-            && (l.min.len() != n_u || l.max.len() != n_u)
-        {
-            return Err(ParamError::new(
-                "u-min",
-                format!("u-min/u-max need {n_u} values"),
-            ));
+        if let Some(l) = &self.limits {
+            l.validate(n_u)?;
         }
         Ok(())
     }

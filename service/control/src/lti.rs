@@ -124,22 +124,7 @@ impl LtiParams {
             ));
         }
         if let Some(l) = &self.limits {
-            if l.min.len() != n_u || l.max.len() != n_u {
-                return Err(ParamError::new(
-                    "u-min",
-                    format!("output limits need {n_u} entries for min and max"),
-                ));
-            }
-            if l.min
-                .iter()
-                .zip(&l.max)
-                .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
-            {
-                return Err(ParamError::new(
-                    "u-min",
-                    "output limits need min ≤ max for every input",
-                ));
-            }
+            l.validate(n_u)?;
         }
         Ok(())
     }

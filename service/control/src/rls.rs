@@ -76,7 +76,10 @@ use nalgebra::{DMatrix, DVector};
 use crate::forgetting::{Forgetting, ForgettingRule, cholesky_in_place};
 use crate::linalg::{axpy, dot};
 
+mod shared;
 mod simd;
+
+pub use shared::SharedRls;
 
 /// Configuration of an RLS estimator.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,6 +141,59 @@ pub struct RlsStep {
     pub error_norm: f64,
     /// `true` when the guard reset `θ, P` to `θ_0, P_0` in this step.
     pub reset: bool,
+}
+
+impl RlsStep {
+    /// An update that passed the guard.
+    fn accepted(lambda: f64, error_norm: f64) -> Self {
+        Self {
+            lambda,
+            error_norm,
+            reset: false,
+        }
+    }
+
+    /// An update whose guard reset the estimator.
+    fn guard_reset(lambda: f64, error_norm: f64) -> Self {
+        Self {
+            lambda,
+            error_norm,
+            reset: true,
+        }
+    }
+}
+
+/// True when every entry of the regressor and the measurement is finite; otherwise the
+/// step is refused and the estimator reset, before anything is computed.
+fn data_finite(regressor: &[f64], y: &[f64]) -> bool {
+    regressor.iter().chain(y).all(|x| x.is_finite())
+}
+
+/// The prior errors `e_l = y_l − ŷ_l` (2.7), `ŷ_l = prediction(l)`, written into `err`;
+/// returns `(‖e‖, ‖y‖²)` for the forgetting rule.
+#[inline(always)]
+fn prior_errors(y: &[f64], err: &mut [f64], prediction: impl Fn(usize) -> f64) -> (f64, f64) {
+    let (mut e2, mut y2) = (0.0, 0.0);
+    for (l, (e_out, &yl)) in err.iter_mut().zip(y).enumerate() {
+        let e = yl - prediction(l);
+        *e_out = e;
+        e2 += e * e;
+        y2 += yl * yl;
+    }
+    (e2.sqrt(), y2)
+}
+
+/// The guard after an update: the new covariance's entries finite (`entries_finite`),
+/// the estimate finite, its smallest diagonal entry positive and its trace within the
+/// limit. When it fails the estimator is reset to `θ_0, P_0`.
+fn guard_passes(
+    theta: &[f64],
+    entries_finite: bool,
+    min_diag: f64,
+    trace: f64,
+    trace_limit: f64,
+) -> bool {
+    entries_finite && theta.iter().all(|x| x.is_finite()) && min_diag > 0.0 && trace <= trace_limit
 }
 
 /// The allocation-free RLS-VRF estimator (2.12)–(2.14).
@@ -225,25 +281,15 @@ impl Rls {
         let (n, p) = (self.n, self.p);
         assert_eq!(phi.len(), n * p, "rls: phi must have length p·n");
         assert_eq!(y.len(), p, "rls: y must have length p");
-        if phi.iter().chain(y).any(|x| !x.is_finite()) {
+        if !data_finite(phi, y) {
             self.err.fill(0.0);
-            self.guard_reset();
-            return RlsStep {
-                lambda: 1.0,
-                error_norm: f64::INFINITY,
-                reset: true,
-            };
+            return self.fail(1.0, f64::INFINITY);
         }
 
         // e_k = y_k − φ_k θ_k (2.7).
-        let (mut e2, mut y2) = (0.0, 0.0);
-        for l in 0..p {
-            let e = y[l] - dot(&phi[l * n..(l + 1) * n], &self.theta);
-            self.err[l] = e;
-            e2 += e * e;
-            y2 += y[l] * y[l];
-        }
-        let error_norm = e2.sqrt();
+        let theta = &self.theta;
+        let (error_norm, y2) =
+            prior_errors(y, &mut self.err, |l| dot(&phi[l * n..(l + 1) * n], theta));
         let beta = self.forgetting.beta_scaled(&self.err, y2);
         let lambda = 1.0 / beta;
 
@@ -311,32 +357,19 @@ impl Rls {
         // computed now, exactly as the sweep will store it, for the guard and tr(P).
         let (trace, min_diag, diag_ok) =
             simd::next_diag(self.level, &self.cov, &self.g, beta, n, p);
-        let theta_ok = self.theta.iter().all(|x| x.is_finite());
-        if !(diag_ok && theta_ok && min_diag > 0.0 && trace <= self.trace_limit) {
+        if !guard_passes(&self.theta, diag_ok, min_diag, trace, self.trace_limit) {
             return self.fail(lambda, error_norm);
         }
         std::mem::swap(&mut self.g, &mut self.w_pend);
         self.beta_pend = beta;
         self.trace = trace;
-        RlsStep {
-            lambda,
-            error_norm,
-            reset: false,
-        }
+        RlsStep::accepted(lambda, error_norm)
     }
 
     fn fail(&mut self, lambda: f64, error_norm: f64) -> RlsStep {
-        self.guard_reset();
-        RlsStep {
-            lambda,
-            error_norm,
-            reset: true,
-        }
-    }
-
-    fn guard_reset(&mut self) {
         self.resets += 1;
         self.reset();
+        RlsStep::guard_reset(lambda, error_norm)
     }
 
     /// The current estimate `θ_k` (length `n`).

@@ -205,30 +205,29 @@ pub(super) fn read_table(value: toml::Value) -> Result<TargetModel, TableError> 
 mod tests {
     use super::*;
 
+    /// The shared test fixture, as written in its file.
+    const FIXTURE: &str = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/fixtures/target-model/two-input-transfer-function.toml"
+    ));
+
     fn tf_model() -> TargetModel {
-        TargetModel {
-            sample_period: 1.25e-4,
-            outputs: 1,
-            inputs: 2,
-            beta: 0.8,
-            source: "test".into(),
-            form: TargetForm::TransferFunction(vec![
-                TargetChannel {
-                    output: 0,
-                    input: 0,
-                    delay: 9,
-                    num: vec![0.5],
-                    den: vec![1.0, -0.5],
-                },
-                TargetChannel {
-                    output: 0,
-                    input: 1,
-                    delay: 16,
-                    num: vec![0.2, 0.1],
-                    den: vec![1.0, -1.2, 0.5],
-                },
-            ]),
-        }
+        TargetModel::parse(FIXTURE, "two-input-transfer-function.toml").unwrap()
+    }
+
+    #[test]
+    fn the_fixture_reads_as_written() {
+        let m = tf_model();
+        assert_eq!(
+            (m.sample_period, m.outputs, m.inputs, m.beta),
+            (1.25e-4, 1, 2, 0.8)
+        );
+        let TargetForm::TransferFunction(ch) = &m.form else {
+            panic!("not a transfer-function model");
+        };
+        let delays: Vec<usize> = ch.iter().map(|c| c.delay).collect();
+        assert_eq!(delays, [9, 16]);
+        assert_eq!(ch[1].den, [1.0, -1.2, 0.5]);
     }
 
     #[test]

@@ -14,37 +14,6 @@ fn counts(n_y: usize, n_z: usize, n_u: usize) -> Dimensions {
     Dimensions::new(n_y, n_z, 0, n_u)
 }
 
-fn params(target: TargetModel, nc: usize, update: RcacUpdate) -> RcacParams {
-    let (lz, lu) = (target.outputs, target.inputs);
-    RcacParams {
-        nc,
-        kw: None,
-        target,
-        rz: DMatrix::identity(lz, lz),
-        ru: DMatrix::zeros(lu, lu),
-        theta0: None,
-        update,
-        limits: None,
-        sample_period: 0.01,
-    }
-}
-
-fn rls(p0: f64, lambda: f64) -> RcacUpdate {
-    RcacUpdate::Rls {
-        p0,
-        rule: ForgettingRule::Constant { lambda },
-        trace_limit: f64::INFINITY,
-    }
-}
-
-fn grad(step_size: StepSize, alpha: f64, r: f64) -> RcacUpdate {
-    RcacUpdate::Gradient {
-        step_size,
-        alpha,
-        r,
-    }
-}
-
 /// Sampled-data loop (exact ZOH, `plant_proxy::sim::PlantSim`) on the dissertation's SISO
 /// structure (3.50) of `scenarios/siso-3-50.toml` (T_s = 0.01 s, ζ = 0.1, tone at 5.5 Hz on
 /// `w`). Target: the first nonzero Markov parameter of `G_{zu,d}` (`FirTarget`, (3.39)),
@@ -104,10 +73,21 @@ fn rcac_rejects_the_tone_of_the_sampled_data_structure_3_50() {
         (tone_amplitudes(&zs, 2000, &[w]).unwrap()[0], c)
     };
     let (open, _) = run(None);
-    for update in [rls(1.0, 1.0), grad(StepSize::Exp, 0.5, 0.0)] {
+    let updates = [
+        RcacUpdate::Rls {
+            p0: 1.0,
+            rule: ForgettingRule::Constant { lambda: 1.0 },
+            trace_limit: f64::INFINITY,
+        },
+        RcacUpdate::Gradient {
+            step_size: StepSize::Exp,
+            alpha: 0.5,
+            r: 0.0,
+        },
+    ];
+    for update in updates {
         let name = format!("{update:?}");
-        let mut p = params(target.clone(), 20, update);
-        p.sample_period = ts;
+        let p = RcacParams::new(target.clone(), 20, update);
         let c = Rcac::new(&p, counts(1, 1, 1)).unwrap();
         let (closed, c) = run(Some(c));
         let c = c.unwrap();

@@ -39,12 +39,10 @@
 //! steps. For the truss (`n̂ = 25, p = 4, m = 2`) this is `N = 150` instead of
 //! `Np = 600`: a `150×150` covariance (11 325 packed entries, 89 KB) instead of a
 //! `600×600` one (1.4 MB), `O(N²)` per step instead of the kernel's `O((Np)² p)`.
-//! Measured on the 2-core development VM (`cargo test --release -p service --lib
-//! pcac_id_timing -- --ignored --nocapture`, F-test forgetting, not pinned): p50 11 µs,
-//! p99 20 µs per update for the shared form against p50 144–152 µs, p99 180–220 µs for
-//! [`Rls`] on the full rows.
+//! The ignored test `pcac_id_timing` (`cargo test --release -p control --lib
+//! pcac_id_timing -- --ignored --nocapture`) times both forms.
 //!
-//! [`IdKernel::Shared`] is this reduced form (its own small kernel below, since
+//! [`IdKernel::Shared`] is this reduced form ([`SharedRls`](crate::rls::SharedRls), since
 //! [`Rls`] estimates a vector `θ` only and cannot share one covariance between right-hand
 //! sides); [`IdKernel::Full`] runs [`Rls`] on the full rows `ψ_k ⊗ I_p` (`n = Np`
 //! parameters, `p` rows) and is the reference: the tests check both give the same
@@ -78,9 +76,8 @@
 use crate::bocf::{DataWindow, IdentifiedModel, Realization, check};
 /// The realization's types, here so that `pcac::model` paths keep naming them.
 pub use crate::bocf::{DimError, HorizonPrediction};
-use crate::forgetting::{Forgetting, ForgettingRule};
-use crate::linalg::{axpy, dot};
-use crate::rls::{Rls, RlsConfig, RlsStep};
+use crate::forgetting::ForgettingRule;
+use crate::rls::{Rls, RlsConfig, RlsStep, SharedRls};
 
 /// Which RLS form identifies the coefficients.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -152,173 +149,6 @@ impl Ring {
         let idx = (self.head + self.cap - j) % self.cap;
         &self.data[idx * self.dim..(idx + 1) * self.dim]
     }
-}
-
-/// Scalar-row RLS with `p` right-hand sides sharing one covariance `P̃` (the Kronecker
-/// reduction in the module docs), with the same guard semantics as [`Rls`].
-#[derive(Debug, Clone)]
-struct SharedRls {
-    n: usize,
-    p: usize,
-    p0: f64,
-    trace_limit: f64,
-    forgetting: Forgetting,
-    /// `Θ̃_0`, p×n row-major.
-    theta0: Vec<f64>,
-    /// `Θ̃_k`, p×n row-major.
-    theta: Vec<f64>,
-    /// `P̃_k`, upper triangle row-packed (row `i` has `n − i` entries, diagonal first).
-    cov: Vec<f64>,
-    /// `tr P̃_k`.
-    trace: f64,
-    /// `g = P̃_k ψᵀ`.
-    g: Vec<f64>,
-    /// Prior error `z_k`.
-    err: Vec<f64>,
-    resets: u64,
-}
-
-impl SharedRls {
-    fn new(
-        n: usize,
-        p: usize,
-        theta0_rows: Vec<f64>,
-        p0: f64,
-        rule: &ForgettingRule,
-        trace_limit: f64,
-    ) -> Result<Self, String> {
-        let mut s = Self {
-            n,
-            p,
-            p0,
-            trace_limit,
-            forgetting: Forgetting::new(rule, p).map_err(|e| e.to_string())?,
-            theta: theta0_rows.clone(),
-            theta0: theta0_rows,
-            cov: vec![0.0; n * (n + 1) / 2],
-            trace: 0.0,
-            g: vec![0.0; n],
-            err: vec![0.0; p],
-            resets: 0,
-        };
-        s.reset();
-        Ok(s)
-    }
-
-    fn reset(&mut self) {
-        self.theta.copy_from_slice(&self.theta0);
-        self.cov.fill(0.0);
-        let mut off = 0;
-        for i in 0..self.n {
-            self.cov[off] = self.p0;
-            off += self.n - i;
-        }
-        self.trace = self.n as f64 * self.p0;
-        self.forgetting.reset();
-    }
-
-    fn fail(&mut self, lambda: f64, error_norm: f64) -> RlsStep {
-        self.resets += 1;
-        self.reset();
-        RlsStep {
-            lambda,
-            error_norm,
-            reset: true,
-        }
-    }
-
-    /// One step of (2.30)–(2.32) in the reduced form; `psi` has length `n`, `y` length `p`.
-    fn update(&mut self, psi: &[f64], y: &[f64]) -> RlsStep {
-        let (n, p) = (self.n, self.p);
-        if psi.iter().chain(y).any(|x| !x.is_finite()) {
-            self.err.fill(0.0);
-            return self.fail(1.0, f64::INFINITY);
-        }
-        // z_k = y_k − Θ̃_k ψ_kᵀ (2.26).
-        let (mut e2, mut y2) = (0.0, 0.0);
-        for l in 0..p {
-            let e = y[l] - dot(&self.theta[l * n..(l + 1) * n], psi);
-            self.err[l] = e;
-            e2 += e * e;
-            y2 += y[l] * y[l];
-        }
-        let error_norm = e2.sqrt();
-        let beta = self.forgetting.beta_scaled(&self.err, y2);
-        let lambda = 1.0 / beta;
-
-        // g = P̃ ψᵀ from the packed upper triangle, row by row: the row's entries right of
-        // the diagonal serve both g_i (a dot product) and g_j, j > i (an axpy).
-        self.g.fill(0.0);
-        let mut off = 0;
-        for i in 0..n {
-            let row = &self.cov[off..off + n - i];
-            let acc = row[0] * psi[i] + dot(&row[1..], &psi[i + 1..]);
-            axpy(psi[i], &row[1..], &mut self.g[i + 1..]);
-            self.g[i] += acc;
-            off += n - i;
-        }
-        let s = dot(psi, &self.g);
-        let d = 1.0 + beta * s;
-        if !(d > 0.0 && d.is_finite()) {
-            return self.fail(lambda, error_norm);
-        }
-
-        // P̃_{k+1} = β P̃ − (β²/d) g gᵀ, in place (one pass), with its trace; `sum` of all
-        // entries is non-finite if any entry is (or on overflow, which resets as well).
-        let c = beta * beta / d;
-        let (mut trace, mut min_diag, mut sum) = (0.0, f64::INFINITY, 0.0);
-        let mut off = 0;
-        for i in 0..n {
-            let row = &mut self.cov[off..off + n - i];
-            sum += rank1_row(row, &self.g[i..], beta, c * self.g[i]);
-            trace += row[0];
-            min_diag = f64::min(min_diag, row[0]);
-            off += n - i;
-        }
-        // Θ̃_{k+1} = Θ̃_k + z_k (β/d) gᵀ (2.32).
-        let kf = beta / d;
-        for l in 0..p {
-            axpy(
-                kf * self.err[l],
-                &self.g,
-                &mut self.theta[l * n..(l + 1) * n],
-            );
-        }
-        let theta_ok = self.theta.iter().all(|x| x.is_finite());
-        if !(theta_ok && sum.is_finite() && min_diag > 0.0 && p as f64 * trace <= self.trace_limit)
-        {
-            return self.fail(lambda, error_norm);
-        }
-        self.trace = trace;
-        RlsStep {
-            lambda,
-            error_norm,
-            reset: false,
-        }
-    }
-}
-
-/// `row_j ← β row_j − cg g_j` over the common length; returns the sum of the new entries
-/// (four lanes, so the loop vectorizes).
-#[inline(always)]
-fn rank1_row(row: &mut [f64], g: &[f64], beta: f64, cg: f64) -> f64 {
-    let n = row.len().min(g.len());
-    let (row, g) = (&mut row[..n], &g[..n]);
-    let mut acc = [0.0; 4];
-    let mut rc = row.chunks_exact_mut(4);
-    let mut gc = g.chunks_exact(4);
-    for (r, gg) in (&mut rc).zip(&mut gc) {
-        for t in 0..4 {
-            r[t] = beta * r[t] - cg * gg[t];
-            acc[t] += r[t];
-        }
-    }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for (r, &gg) in rc.into_remainder().iter_mut().zip(gc.remainder()) {
-        *r = beta * *r - cg * gg;
-        s += *r;
-    }
-    s
 }
 
 #[derive(Debug, Clone)]
@@ -533,8 +363,8 @@ impl IoModel {
         let step = match &mut self.kernel {
             Kernel::Shared(k) => {
                 let st = k.update(&self.psi, y);
-                self.coef.copy_from_slice(&k.theta);
-                self.err.copy_from_slice(&k.err);
+                self.coef.copy_from_slice(k.theta());
+                self.err.copy_from_slice(k.prior_error());
                 st
             }
             Kernel::Full { rls, phi } => {
@@ -585,7 +415,7 @@ impl IoModel {
         match &mut self.kernel {
             Kernel::Shared(k) => {
                 k.reset();
-                self.coef.copy_from_slice(&k.theta);
+                self.coef.copy_from_slice(k.theta());
             }
             Kernel::Full { rls, .. } => {
                 rls.reset();
@@ -660,7 +490,7 @@ impl IoModel {
     /// `tr P_k` of the full covariance (`p · tr P̃_k` for the shared form).
     pub fn trace_p(&self) -> f64 {
         match &self.kernel {
-            Kernel::Shared(k) => k.p as f64 * k.trace,
+            Kernel::Shared(k) => k.p() as f64 * k.trace_p_tilde(),
             Kernel::Full { rls, .. } => rls.trace_p(),
         }
     }
@@ -668,7 +498,7 @@ impl IoModel {
     /// Number of guard resets of the estimator since construction.
     pub fn resets(&self) -> u64 {
         match &self.kernel {
-            Kernel::Shared(k) => k.resets,
+            Kernel::Shared(k) => k.resets(),
             Kernel::Full { rls, .. } => rls.resets(),
         }
     }
@@ -683,11 +513,11 @@ impl IoModel {
     pub fn covariance(&self) -> nalgebra::DMatrix<f64> {
         match &self.kernel {
             Kernel::Shared(k) => {
-                let (n, p) = (k.n, k.p);
+                let (n, p) = (k.n(), k.p());
                 let mut m = nalgebra::DMatrix::zeros(n * p, n * p);
                 let mut off = 0;
                 for i in 0..n {
-                    for (t, &v) in k.cov[off..off + n - i].iter().enumerate() {
+                    for (t, &v) in k.packed_covariance()[off..off + n - i].iter().enumerate() {
                         let j = i + t;
                         for r in 0..p {
                             m[(i * p + r, j * p + r)] = v;

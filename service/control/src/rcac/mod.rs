@@ -368,6 +368,25 @@ impl RcacParams {
     /// The gradient update's `R = r I` when a configuration gives none.
     pub const DEFAULT_GRADIENT_R: f64 = 0.0;
 
+    /// Parameters with the configuration's defaults for everything but the target model,
+    /// the order and the update law: `R_z = DEFAULT_RZ · I`, `R_u = DEFAULT_RU · I`,
+    /// `θ_0 = 0`, the default `k_w`, no saturation; the sample period is the target
+    /// model's.
+    pub fn new(target: TargetModel, nc: usize, update: RcacUpdate) -> Self {
+        let (lz, lu) = (target.outputs, target.inputs);
+        Self {
+            nc,
+            kw: None,
+            rz: DMatrix::identity(lz, lz) * Self::DEFAULT_RZ,
+            ru: DMatrix::identity(lu, lu) * Self::DEFAULT_RU,
+            theta0: None,
+            update,
+            limits: None,
+            sample_period: target.sample_period,
+            target,
+        }
+    }
+
     /// `l_θ = l_u n_c (l_u + l_y)`, the number of coefficients for a rig with `counts`.
     pub fn theta_len(nc: usize, counts: Dimensions) -> usize {
         counts.n_u * nc * (counts.n_u + counts.n_y)
@@ -485,22 +504,7 @@ impl RcacParams {
             }
         };
         if let Some(l) = &self.limits {
-            if l.min.len() != lu || l.max.len() != lu {
-                return Err(ParamError::new(
-                    "u-min",
-                    format!("output limits need {lu} entries for min and max"),
-                ));
-            }
-            if l.min
-                .iter()
-                .zip(&l.max)
-                .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
-            {
-                return Err(ParamError::new(
-                    "u-min",
-                    "output limits need u-min ≤ u-max for every input",
-                ));
-            }
+            l.validate(lu)?;
         }
         match &self.update {
             RcacUpdate::Rls {

@@ -162,18 +162,7 @@ fn a_target_model_with_a_feedthrough_or_an_unstable_pole_is_refused() {
 }
 
 fn params(target: TargetModel, nc: usize, update: RcacUpdate) -> RcacParams {
-    let (lz, lu) = (target.outputs, target.inputs);
-    RcacParams {
-        nc,
-        kw: None,
-        target,
-        rz: DMatrix::identity(lz, lz),
-        ru: DMatrix::zeros(lu, lu),
-        theta0: None,
-        update,
-        limits: None,
-        sample_period: TS,
-    }
+    RcacParams::new(target, nc, update)
 }
 
 fn rls(p0: f64, lambda: f64) -> RcacUpdate {

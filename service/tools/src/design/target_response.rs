@@ -51,32 +51,14 @@ impl TargetResponse for TargetModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use control::target::TargetChannel;
+    use service::config::TargetModelFile;
 
     fn tf_model() -> TargetModel {
-        TargetModel {
-            sample_period: 1.25e-4,
-            outputs: 1,
-            inputs: 2,
-            beta: 0.8,
-            source: "test".into(),
-            form: TargetForm::TransferFunction(vec![
-                TargetChannel {
-                    output: 0,
-                    input: 0,
-                    delay: 9,
-                    num: vec![0.5],
-                    den: vec![1.0, -0.5],
-                },
-                TargetChannel {
-                    output: 0,
-                    input: 1,
-                    delay: 16,
-                    num: vec![0.2, 0.1],
-                    den: vec![1.0, -1.2, 0.5],
-                },
-            ]),
-        }
+        let text = include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../tests/fixtures/target-model/two-input-transfer-function.toml"
+        ));
+        TargetModel::parse(text, "two-input-transfer-function.toml").unwrap()
     }
 
     #[test]
