@@ -14,9 +14,8 @@
 //! neither is the controller's fault, so with the default
 //! [`TimingFaultReset::KeepLearned`] the controller keeps its parameters, covariance and
 //! regressor across them (it observed the plant during the safe state, and after a stall
-//! it is told how many samples were lost). [`TimingFaultReset::ResetController`] gives the
-//! behaviour of earlier versions: a reset on leaving the safe state and, with
-//! `service.reset-on-resume`, on a resumed stall. A genuinely new plant session (the
+//! it is told how many samples were lost). [`TimingFaultReset::ResetController`] resets
+//! it on leaving the safe state and, with `service.reset-on-resume`, on a resumed stall. A genuinely new plant session (the
 //! sequence number did not advance: a restarted plant) is not a timing fault: it resets
 //! the controller exactly when `service.reset-on-resume` is true (the default), whatever
 //! `on_timing_fault` says. Controller faults (the `CONTROLLER_FAULT` status bit) are
@@ -33,7 +32,8 @@ pub enum TimingFaultReset {
     /// The controller keeps what it learned (the default): a timing fault is not its fault.
     #[default]
     KeepLearned,
-    /// The controller returns to its initial state, as in earlier versions.
+    /// The controller returns to its initial state on leaving the safe state and (with
+    /// `service.reset-on-resume`) after a stall.
     ResetController,
 }
 

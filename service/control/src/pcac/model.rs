@@ -309,22 +309,22 @@ impl IoModel {
 
     /// Model order `n̂`.
     pub fn n_hat(&self) -> usize {
-        self.n_hat
+        self.realization().n_hat()
     }
 
     /// Number of outputs `p`.
     pub fn p(&self) -> usize {
-        self.p
+        self.realization().p()
     }
 
     /// Number of inputs `m`.
     pub fn m(&self) -> usize {
-        self.m
+        self.realization().m()
     }
 
     /// State dimension `n̂p` of the realization.
     pub fn state_dim(&self) -> usize {
-        self.n_hat * self.p
+        self.realization().state_dim()
     }
 
     /// Which RLS form runs.

@@ -133,10 +133,9 @@
 //! `y_k` are replaced by the last finite ones in the history). A guard reset of `θ` also
 //! reports `CONTROLLER_FAULT`.
 //!
-//! Cost per step at the acoustic rig's size (`l_u = 2`, `l_y = l_z = 1`, `n_c = 50`,
-//! `l_θ = 300`, DTF target with delays 9 and 16), release build, unpinned on the 2-core
-//! development VM: RLS p50 12.5 µs, p99 19 µs (the `O(l_θ² p)` covariance sweep of
-//! [`Rls`]); gradient p50 2.1–2.3 µs for every step size.
+//! Cost per step: the RLS update is dominated by the `O(l_θ² p)` covariance sweep of
+//! [`Rls`], the gradient update is `O(l_θ p)`; latency-bench measures both at the acoustic
+//! rig's size (`docs/results/latency-bench.md`).
 //!
 //! # Internals (signal log)
 //!

@@ -79,10 +79,9 @@
 //!   real-root constraint is often active and otherwise piles several poles onto nearly one
 //!   point (a near-repeated, ill-conditioned cluster).
 //!
-//! On the acoustic rig's measured response (1024 FFT bins, `n̂_max = 6`, every `m̂`) this
-//! takes about 1 s per channel instead of about 100 s for the exhaustive multi-start search
-//! it replaced, at a relative cost a few percent above the clustered optimum; every
-//! structure tried is returned with its relative cost and the number of cost evaluations
+//! The search is local (one start per structure, from the clustered poles), not an
+//! exhaustive multi-start search, so its cost can lie a few percent above the best
+//! optimum; every structure tried is returned with its relative cost and the number of cost evaluations
 //! ([`optimize_all`], [`Candidate`]).
 //! [`optimized_dtfs`] does it for every channel of an [`Frf`].
 

@@ -248,26 +248,10 @@ mod tests {
 
     /// Two modes, two inputs delayed by 3 and 5 samples, two measurements (one of them a
     /// velocity) and one performance output.
-    const TWO_MODES: &str = r#"
-[rig]
-name = "markov-test"
-sample-period = 0.01
-duration = 1.0
-
-[plant]
-kind = "modal"
-inputs = 2
-disturbances = 1
-outputs-y = 2
-outputs-z = 1
-input-delays = [3, 5]
-
-[plant.modal]
-modes = [
-  { frequency-hz = 3.0, damping = 0.02, b-u = [150.0, -70.0], b-w = [1.0], c-y = [1.0, 0.0], c-y-vel = [0.0, 0.01], c-z = [0.5] },
-  { frequency-hz = 11.0, damping = 0.05, b-u = [40.0, 200.0], b-w = [0.3], c-y = [-0.8, 0.0], c-y-vel = [0.0, 0.02], c-z = [1.0] },
-]
-"#;
+    const TWO_MODES: &str = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../tests/fixtures/design/two-modes-two-delayed-inputs.toml"
+    ));
 
     fn scenario() -> plant_proxy::scenario::Scenario {
         parse(TWO_MODES, "markov-test").expect("the test scenario parses")

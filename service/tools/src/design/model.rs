@@ -132,25 +132,10 @@ mod tests {
     use plant_proxy::scenario;
 
     /// Two inputs with delays 3 and 5 and a feedthrough on the first: a 2-state plant.
-    const PLANT: &str = r#"
-[rig]
-name = "model-test"
-sample-period = 0.01
-duration = 1.0
-[plant]
-kind = "state-space"
-inputs = 2
-disturbances = 0
-outputs-y = 1
-outputs-z = 1
-input-delays = [3, 5]
-[plant.ss]
-a = [[0.0, 1.0], [-400.0, -4.0]]
-b-u = [[0.0, 0.0], [1.0, -2.0]]
-c-y = [[100.0, 0.0]]
-c-z = [[0.0, 1.0]]
-d-yu = [[0.5, 0.0]]
-"#;
+    const PLANT: &str = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../tests/fixtures/design/state-space-two-delayed-inputs.toml"
+    ));
 
     #[test]
     fn the_response_is_the_sum_of_the_markov_parameters() {
