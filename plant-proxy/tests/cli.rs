@@ -10,10 +10,10 @@ fn scenario(name: &str) -> String {
     format!("{}/../scenarios/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
-#[test]
-fn describe_prints_the_exact_zoh_discretization_as_json() {
+/// `plant-proxy describe` of a scenario, which must succeed and print JSON.
+fn describe(name: &str) -> serde_json::Value {
     let out = Command::new(BIN)
-        .args(["describe", &scenario("first-order-lockstep.toml")])
+        .args(["describe", &scenario(name)])
         .output()
         .unwrap();
     assert!(
@@ -21,7 +21,12 @@ fn describe_prints_the_exact_zoh_discretization_as_json() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let d: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+#[test]
+fn describe_prints_the_exact_zoh_discretization_as_json() {
+    let d = describe("first-order-lockstep.toml");
     // 1/(s + 5) at T = 1 ms: y_{k+1} = e^{-5T} y_k + (1 − e^{-5T})/5 u_k.
     let a = (-0.005_f64).exp();
     let ch = &d["channels"][0];
@@ -43,16 +48,7 @@ fn describe_prints_the_exact_zoh_discretization_as_json() {
 
 #[test]
 fn describe_reports_the_acoustic_rigs_input_delays() {
-    let out = Command::new(BIN)
-        .args(["describe", &scenario("acoustic-rig.toml")])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let d: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = describe("acoustic-rig.toml");
     let delays: Vec<u64> = d["channels"]
         .as_array()
         .unwrap()

@@ -68,6 +68,28 @@ impl Drop for TestDir {
     }
 }
 
+/// Starts `service run <scenario> --run-folder <folder>` as the process `name`.
+pub fn start_service(name: &str, scenario: &Path, folder: &Path) -> Proc {
+    Proc::start(
+        name,
+        &bin("service"),
+        &[
+            "run",
+            scenario.to_str().expect("UTF-8 path"),
+            "--run-folder",
+            folder.to_str().expect("UTF-8 path"),
+        ],
+    )
+}
+
+/// The index of column `name` in a CSV header; panics naming the header when absent.
+pub fn column(header: &[String], name: &str) -> usize {
+    header
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+}
+
 /// A running process whose stderr lines are collected.
 pub struct Proc {
     /// The child.

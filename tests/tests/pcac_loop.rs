@@ -61,12 +61,7 @@ fn pcac_from_a_cold_start_tracks_a_step_and_rejects_a_tone_across_processes() {
     let scenario = dir.write("scenario.toml", &text);
     let run_folder = run_lockstep_pair(&dir, &scenario, STEPS as u64, &[]);
     let (header, rows) = read_csv(&run_folder.join("signals.csv"));
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| h == name)
-            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
-    };
+    let col = |name: &str| column(&header, name);
     let (y0, u0, status) = (col("y0"), col("u0"), col("qp_status"));
     assert_eq!(rows.len(), STEPS, "every step is logged");
     let y: Vec<f64> = rows.iter().map(|r| r[y0]).collect();

@@ -2,6 +2,7 @@
 //! refused with messages that say what is wrong.
 
 use rig_tests::*;
+use std::path::Path;
 use std::time::Duration;
 
 fn scenario(dir: &TestDir, test: &str, extra_service: &str, extra: &str) -> std::path::PathBuf {
@@ -17,11 +18,7 @@ fn killing_the_plant_is_detected_and_a_new_plant_is_served() {
     let sc = scenario(&dir, "kill-plant", "", "");
     let sc = sc.to_str().unwrap();
     let run_folder = dir.path.join("service-run");
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &["run", sc, "--run-folder", run_folder.to_str().unwrap()],
-    );
+    let mut service = start_service("service", Path::new(sc), &run_folder);
     let plant1 = Proc::start(
         "plant-1",
         &bin("plant-proxy"),
@@ -107,31 +104,13 @@ fn killing_the_service_puts_the_plant_into_its_safe_output_and_a_restarted_servi
             report_path.to_str().unwrap(),
         ],
     );
-    let service1 = Proc::start(
-        "service-1",
-        &bin("service"),
-        &[
-            "run",
-            sc,
-            "--run-folder",
-            dir.path.join("s1").to_str().unwrap(),
-        ],
-    );
+    let service1 = start_service("service-1", Path::new(sc), &dir.path.join("s1"));
     service1.wait_for_line("plant connected", Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(300));
     service1.signal(libc::SIGKILL);
     plant.wait_for_line("WATCHDOG", Duration::from_secs(20));
 
-    let service2 = Proc::start(
-        "service-2",
-        &bin("service"),
-        &[
-            "run",
-            sc,
-            "--run-folder",
-            dir.path.join("s2").to_str().unwrap(),
-        ],
-    );
+    let service2 = start_service("service-2", Path::new(sc), &dir.path.join("s2"));
     plant.wait_for_line("leaving the safe output", Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(200));
     plant.signal(libc::SIGTERM);
@@ -233,16 +212,7 @@ fn a_service_that_expects_other_channel_counts_than_the_running_plant_is_refused
     );
     plant.wait_for_line("waiting for the service", Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(200));
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            &sc,
-            "--run-folder",
-            dir.path.join("s").to_str().unwrap(),
-        ],
-    );
+    let mut service = start_service("service", Path::new(&sc), &dir.path.join("s"));
     assert!(!service.wait(Duration::from_secs(30)).success());
     let out = service.output();
     assert!(out.contains("contract mismatch"), "{out}");
@@ -256,16 +226,7 @@ fn a_service_that_expects_other_channel_counts_than_the_running_plant_is_refused
 fn a_plant_with_other_channel_counts_than_the_running_service_is_refused() {
     let dir = TestDir::new("mismatch-b");
     let sc = mismatched_scenario(&dir, "mismatch-b");
-    let service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            &sc,
-            "--run-folder",
-            dir.path.join("s").to_str().unwrap(),
-        ],
-    );
+    let service = start_service("service", Path::new(&sc), &dir.path.join("s"));
     service.wait_for_line("waiting for the plant", Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(200));
     let mut plant = Proc::start(
@@ -287,16 +248,7 @@ fn require_rt_makes_a_refused_real_time_set_up_fatal() {
     let dir = TestDir::new("require-rt");
     // Core 4096 does not exist: pinning is refused, and require-rt turns that into an error.
     let sc = scenario(&dir, "require-rt", "require-rt = true\ncore = 4096", "");
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            sc.to_str().unwrap(),
-            "--run-folder",
-            dir.path.join("s").to_str().unwrap(),
-        ],
-    );
+    let mut service = start_service("service", &sc, &dir.path.join("s"));
     assert!(!service.wait(Duration::from_secs(30)).success());
     let out = service.output();
     assert!(

@@ -101,12 +101,7 @@ fn run_rcac_with(test: &str, update: &str, service_extra: &str) -> (LoopResult, 
     let scenario = dir.write("scenario.toml", &text);
     let run_folder = run_lockstep_pair(&dir, &scenario, STEPS as u64, &[]);
     let (header, rows) = read_csv(&run_folder.join("signals.csv"));
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| h == name)
-            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
-    };
+    let col = |name: &str| column(&header, name);
     let (seq, z0, u0, theta, resets) = (
         col("seq"),
         col("z0"),

@@ -54,6 +54,8 @@ pub mod log;
 pub mod lti;
 pub mod pcac;
 pub mod rcac;
+#[cfg(test)]
+mod refusal_cases;
 pub mod rig;
 pub mod service_table;
 pub mod target_model_file;

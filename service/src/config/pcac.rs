@@ -200,6 +200,7 @@ pub(super) fn parse(
 #[cfg(test)]
 mod tests {
     use crate::config::ServiceConfig;
+    use crate::config::refusal_cases::assert_refused_naming_fields;
     use control::mpc::condense::Weight;
     use control::pcac::PcacTiming;
 
@@ -264,14 +265,7 @@ mod tests {
             ),
             ("horizon = 40", "horizon = 40\nhorizn = 3", "controller"),
         ];
-        for (from, to, field) in cases {
-            assert!(GOOD.contains(from), "{from}");
-            let m = params(&GOOD.replace(from, to)).expect_err(to);
-            assert!(
-                m.starts_with(&format!("pcac.toml: field '{field}'")),
-                "{to}: {m}"
-            );
-        }
+        assert_refused_naming_fields(GOOD, "pcac.toml", &cases);
         // Commands must match the tracked outputs.
         let m = params(&GOOD.replace("r = 0, u = 2", "r = 2, u = 2")).unwrap_err();
         assert!(m.contains("2 commands r"), "{m}");

@@ -244,6 +244,7 @@ fn target_model(
 mod tests {
     use super::*;
     use crate::config::ServiceConfig;
+    use crate::config::refusal_cases::assert_refused_naming_fields;
     use control::forgetting::ForgettingRule;
     use nalgebra::DMatrix;
 
@@ -450,24 +451,12 @@ mod tests {
                 "controller.target-model",
             ),
         ];
-        for (from, to, field) in cases {
-            let text = RCAC.replacen(from, to, 1);
-            assert_ne!(text, RCAC, "{from}");
-            let m = ServiceConfig::parse(&text, "bad.toml")
-                .err()
-                .unwrap_or_else(|| panic!("accepted: {to}"))
-                .to_string();
-            eprintln!("{m}");
-            assert!(
-                m.starts_with(&format!("bad.toml: field '{field}'")),
-                "{to}: {m}"
-            );
-        }
+        assert_refused_naming_fields(RCAC, "bad.toml", cases);
         let grad = RCAC
             .replace("update = \"rls\"", "update = \"gradient\"")
             .replace("p0 = 10.0\n", "alpha = 0.5\n")
             .replace("lambda = 0.999\n", "");
-        for (from, to, field) in [
+        let cases: &[(&str, &str, &str)] = &[
             ("alpha = 0.5", "alpha = 1.5", "controller.alpha"),
             ("alpha = 0.5", "alpha = 0.0", "controller.alpha"),
             ("alpha = 0.5", "", "controller.alpha"),
@@ -482,19 +471,8 @@ mod tests {
                 "alpha = 0.5\nlambda = 0.9",
                 "controller.lambda",
             ),
-        ] {
-            let text = grad.replacen(from, to, 1);
-            assert_ne!(text, grad, "{from}");
-            let m = ServiceConfig::parse(&text, "bad.toml")
-                .err()
-                .unwrap_or_else(|| panic!("accepted: {to}"))
-                .to_string();
-            eprintln!("{m}");
-            assert!(
-                m.starts_with(&format!("bad.toml: field '{field}'")),
-                "{to}: {m}"
-            );
-        }
+        ];
+        assert_refused_naming_fields(&grad, "bad.toml", cases);
     }
 
     #[test]

@@ -47,8 +47,7 @@ fn response(b: &[f64], a: &[f64], th: f64) -> C64 {
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    control::linalg::percentile(&mut v, 0.5)
 }
 
 /// Relative errors `|Ĝ − G| / |G|` of channel `(o, j)` on bins `k ≥ 2` (bins 0 and 1 carry
