@@ -42,7 +42,7 @@
 //! The ignored test `pcac_id_timing` (`cargo test --release -p control --lib
 //! pcac_id_timing -- --ignored --nocapture`) times both forms.
 //!
-//! [`IdKernel::Shared`] is this reduced form ([`SharedRls`](crate::rls::SharedRls), since
+//! [`IdKernel::Shared`] is this reduced form ([`SharedRls`], since
 //! [`Rls`] estimates a vector `θ` only and cannot share one covariance between right-hand
 //! sides); [`IdKernel::Full`] runs [`Rls`] on the full rows `ψ_k ⊗ I_p` (`n = Np`
 //! parameters, `p` rows) and is the reference: the tests check both give the same
