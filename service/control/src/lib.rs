@@ -19,8 +19,9 @@
 //!   realization, receding-horizon control.
 //! - [`mpc`]: the receding-horizon optimization of PCAC (2.43)–(2.51): condensing and the
 //!   dense QP solver (with clarabel as the reference under the `clarabel` feature).
-//! - [`lti`]: a discrete-time LTI controller; [`excitation`]: white-noise inputs for
-//!   identification runs.
+//! - [`lti`]: a discrete-time LTI controller; `excitation` (crate feature `excitation`,
+//!   which brings the random number generator): white-noise inputs for identification
+//!   runs.
 //! - [`tones`]: amplitudes of known tones by least squares (run reports, studies).
 //! - [`linalg`]: the small vector helpers the kernels share.
 //! - [`ParamError`]: what a kernel says when it refuses a parameter.
@@ -29,6 +30,7 @@
 
 pub mod bocf;
 pub mod controller;
+#[cfg(feature = "excitation")]
 pub mod excitation;
 pub mod forgetting;
 pub mod linalg;
@@ -44,6 +46,7 @@ mod test_support;
 pub mod tones;
 
 pub use controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+#[cfg(feature = "excitation")]
 pub use excitation::ExcitationSource;
 pub use lti::{ControllerInput, LtiController};
 pub use param_error::ParamError;

@@ -46,8 +46,7 @@ use control::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
 use control::rcac::{Rcac, RcacParams, RcacUpdate, StepSize};
 use control::target::{TargetForm, TargetModel};
 use control::{
-    Controller, ControllerInput, Dimensions, ExcitationSource, LtiController, MAX_INTERNALS,
-    OutputLimits, StepInput,
+    Controller, ControllerInput, Dimensions, LtiController, MAX_INTERNALS, OutputLimits, StepInput,
 };
 use nalgebra::DMatrix;
 
@@ -176,8 +175,9 @@ fn lti() -> Box<dyn Controller> {
 }
 
 /// White-noise excitation of σ = 1 against ±1.5 limits.
+#[cfg(feature = "excitation")]
 fn excitation() -> Box<dyn Controller> {
-    let c = ExcitationSource::new(Dimensions::new(1, 1, 0, 1), vec![1.0], 42, limits())
+    let c = control::ExcitationSource::new(Dimensions::new(1, 1, 0, 1), vec![1.0], 42, limits())
         .expect("valid excitation parameters");
     Box::new(c)
 }
@@ -670,8 +670,9 @@ fn steady_state_steps_do_not_allocate(kind: &Kind) {
 
 /// One module per kind with one test per property; `name: kind,` per line.
 macro_rules! conformance {
-    ($($name:ident: $kind:expr,)*) => {
+    ($($(#[$attr:meta])* $name:ident: $kind:expr,)*) => {
         $(
+            $(#[$attr])*
             mod $name {
                 use super::*;
 
@@ -703,6 +704,7 @@ macro_rules! conformance {
 
 conformance! {
     lti: Kind { build: lti, limits: LIMITS, observe: Observe::AsStep },
+    #[cfg(feature = "excitation")]
     excitation: Kind { build: excitation, limits: LIMITS, observe: Observe::AsStep },
     rcac_rls: Kind { build: rcac_rls, limits: LIMITS, observe: Observe::RecordsData },
     rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData },
