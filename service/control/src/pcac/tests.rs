@@ -323,7 +323,7 @@ fn both_forms_reset_at_the_same_steps_on_a_covariance_blow_up() {
 }
 
 /// Timing of one identification step at the truss size (n̂ = 25, p = 4, m = 2), both
-/// forms: `cargo test --release -p service --lib pcac_id_timing -- --ignored --nocapture`.
+/// forms: `cargo test --release -p control --lib pcac_id_timing -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn pcac_id_timing() {

@@ -267,7 +267,7 @@ const GAIN_MM: &str = "gain = 10000.0";
 const GAIN_M: &str = "gain = 10.0";
 
 /// The plant and the PCAC parameters of an experiment with a setting, read as the
-/// service reads them (`service launch <scenario>`); [`Setting::Metres`] reads the same
+/// service reads them (`rig launch <scenario>`); [`Setting::Metres`] reads the same
 /// text with the eight sensor gains divided by 1000.
 pub fn load(exp: Experiment, setting: Setting) -> Result<(Scenario, PcacParams), String> {
     let path = exp.path();

@@ -859,7 +859,7 @@ fn summary(name: &str, v: &mut [f64]) {
     );
 }
 
-/// Timing: `cargo test --release -p service --lib qp_timing -- --ignored --nocapture`.
+/// Timing: `cargo test --release -p control --lib qp_timing -- --ignored --nocapture`.
 ///
 /// For each command amplitude `a`, a sequence of PCAC-shaped problems at `n = 100` (ℓ = 50,
 /// m = 2, boxes, 200 move rows, 3 output rows; one model) whose command amplitude
