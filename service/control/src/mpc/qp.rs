@@ -117,8 +117,8 @@
 //! variables, is sized at construction; the counting-allocator tests of the PCAC step
 //! cover it), and it never panics: the
 //! outcome is a [`QpStatus`]. The iteration cap ([`QpSettings::max_iterations`]) bounds
-//! its work. [`solve_with_clarabel`] solves the same problem with clarabel (it allocates;
-//! for tests and benchmarks).
+//! its work. `solve_with_clarabel` (crate feature `clarabel`) solves the same problem
+//! with clarabel (it allocates; for tests and benchmarks).
 //!
 //! Warm start in the receding horizon: take the previous step's active set
 //! ([`DenseQpSolver::active_set_into`]), shift it by one step (`Upper(i)` → `Upper(i − m)`

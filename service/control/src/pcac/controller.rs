@@ -467,7 +467,7 @@ impl Pcac {
     }
 
     /// The condensed QP of the last MPC step (e.g. to solve it with
-    /// [`solve_with_clarabel`](crate::mpc::qp::solve_with_clarabel) for comparison).
+    /// `mpc::qp::solve_with_clarabel` (feature `clarabel`) for comparison).
     pub fn last_problem(&self) -> crate::mpc::qp::QpProblem<'_> {
         self.cond.problem()
     }
