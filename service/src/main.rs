@@ -82,11 +82,7 @@ fn parse_wait(s: &str) -> Result<WaitMode, String> {
 }
 
 fn load(path: &Path, controller: Option<&Path>) -> Result<ServiceConfig, ExitCode> {
-    match controller {
-        Some(c) => ServiceConfig::load_with_controller(path, c),
-        None => ServiceConfig::load(path),
-    }
-    .map_err(|e| {
+    ServiceConfig::load_scenario(path, controller).map_err(|e| {
         eprintln!("service: configuration refused: {e}");
         ExitCode::from(2)
     })

@@ -456,8 +456,9 @@ impl LoopCore {
             self.accumulate_z(m);
         } else {
             let t0 = monotonic_ns();
-            let s = crate::wire::actuation_status(self.controller.step(&input, &mut act.u[..n_u]));
+            let s = self.controller.step(&input, &mut act.u[..n_u]);
             compute_ns = monotonic_ns().saturating_sub(t0);
+            let s = crate::wire::actuation_status(s);
             self.stats.controller_steps += 1;
             if s & actuation_status::SATURATED != 0 {
                 self.stats.saturated_cycles += 1;

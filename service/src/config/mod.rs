@@ -170,6 +170,15 @@ impl ServiceConfig {
         Self::parse(&text, &origin)
     }
 
+    /// [`ServiceConfig::load`], or [`ServiceConfig::load_with_controller`] when a controller
+    /// file is given (the `--controller` option of `service run` and `rig launch`).
+    pub fn load_scenario(path: &Path, controller_file: Option<&Path>) -> Result<Self, ConfigError> {
+        match controller_file {
+            Some(c) => Self::load_with_controller(path, c),
+            None => Self::load(path),
+        }
+    }
+
     /// Reads a scenario file whose `[controller]` table (and `[log]` table, if present) is
     /// replaced by those of `controller_file`: the same rig, plant and service, another
     /// controller (for example an identification run with `kind = "excitation"`). Errors

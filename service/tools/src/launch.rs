@@ -122,11 +122,8 @@ fn wait_within(child: &mut Child, grace: Duration) -> Option<ExitStatus> {
 
 /// Runs the main job (see the module docs); `stop` set by a signal handler asks it to end.
 pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicBool>) -> Result<Launched, LaunchError> {
-    let cfg = match &opts.controller {
-        Some(c) => ServiceConfig::load_with_controller(&opts.config, c),
-        None => ServiceConfig::load(&opts.config),
-    }
-    .map_err(|e| LaunchError::Config(e.to_string()))?;
+    let cfg = ServiceConfig::load_scenario(&opts.config, opts.controller.as_deref())
+        .map_err(|e| LaunchError::Config(e.to_string()))?;
     let plant_bin = sibling("plant-proxy")?;
     let service_bin = sibling("service")?;
     let folder = opts.run_folder.clone().unwrap_or_else(|| {
