@@ -109,6 +109,21 @@ pub(crate) fn check(what: &'static str, got: usize, expected: usize) -> Result<(
     }
 }
 
+/// The number of blocks of `blk` values in a slice of length `got`, or the [`DimError`]
+/// naming `what` (expecting the largest whole number of blocks) when `got` is not a
+/// multiple of `blk`.
+fn blocks(what: &'static str, got: usize, blk: usize) -> Result<usize, DimError> {
+    if got.is_multiple_of(blk) {
+        Ok(got / blk)
+    } else {
+        Err(DimError {
+            what,
+            expected: (got / blk) * blk,
+            got,
+        })
+    }
+}
+
 /// The past data the state estimate `x̂_k` (2.38)–(2.39) is built from, at step `k`.
 pub trait DataWindow {
     /// `y_{k−j}` (length `p`), for `0 ≤ j < n̂`; zeros before the first sample.
@@ -322,14 +337,7 @@ impl<'a> Realization<'a> {
     pub fn markov(&self, h: &mut [f64]) -> Result<(), DimError> {
         let (n_hat, p, m) = (self.n_hat, self.p, self.m);
         let blk = p * m;
-        if !h.len().is_multiple_of(blk) {
-            return Err(DimError {
-                what: "Markov parameters (a multiple of p·m)",
-                expected: (h.len() / blk) * blk,
-                got: h.len(),
-            });
-        }
-        let ell = h.len() / blk;
+        let ell = blocks("Markov parameters (a multiple of p·m)", h.len(), blk)?;
         for i in 1..=ell {
             let (done, rest) = h.split_at_mut((i - 1) * blk);
             let hi = &mut rest[..blk];
@@ -370,14 +378,7 @@ impl<'a> Realization<'a> {
         let (n_hat, p) = (self.n_hat, self.p);
         check("x_1", x1.len(), n_hat * p)?;
         check("work", work.len(), n_hat * p)?;
-        if !out.len().is_multiple_of(p) {
-            return Err(DimError {
-                what: "free response (a multiple of p)",
-                expected: (out.len() / p) * p,
-                got: out.len(),
-            });
-        }
-        let ell = out.len() / p;
+        let ell = blocks("free response (a multiple of p)", out.len(), p)?;
         work.copy_from_slice(x1);
         for i in 0..ell {
             let y = &mut out[i * p..(i + 1) * p];
@@ -450,13 +451,7 @@ impl HorizonPrediction {
         model: &M,
         u_k: &[f64],
     ) -> Result<(), DimError> {
-        let real = model.realization();
-        check(
-            "markov buffer",
-            self.markov.len(),
-            self.ell * real.p() * real.m(),
-        )?;
-        real.fill_state(model, &mut self.x_hat)?;
+        let real = self.fill_state(model)?;
         real.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
         real.markov(&mut self.markov)?;
         real.free_response(&self.x1, &mut self.work, &mut self.free)
@@ -475,6 +470,18 @@ impl HorizonPrediction {
         &mut self,
         model: &M,
     ) -> Result<(), DimError> {
+        let real = self.fill_state(model)?;
+        self.x1.copy_from_slice(&self.x_hat);
+        real.markov(&mut self.markov)?;
+        real.free_response(&self.x_hat, &mut self.work, &mut self.free)
+    }
+
+    /// The start of both computations: checks the buffers against the model's
+    /// dimensions, fills `x̂_k` and returns the realization.
+    fn fill_state<'m, M: IdentifiedModel + ?Sized>(
+        &mut self,
+        model: &'m M,
+    ) -> Result<Realization<'m>, DimError> {
         let real = model.realization();
         check(
             "markov buffer",
@@ -482,9 +489,7 @@ impl HorizonPrediction {
             self.ell * real.p() * real.m(),
         )?;
         real.fill_state(model, &mut self.x_hat)?;
-        self.x1.copy_from_slice(&self.x_hat);
-        real.markov(&mut self.markov)?;
-        real.free_response(&self.x_hat, &mut self.work, &mut self.free)
+        Ok(real)
     }
 
     /// The horizon `ℓ`.
@@ -527,31 +532,11 @@ mod tests {
     use super::{DimError, HorizonPrediction, Realization};
     use crate::forgetting::ForgettingRule;
     use crate::pcac::{IdKernel, IoModel, IoModelParams};
-    use crate::test_support::Gauss;
+    use crate::test_support::{Gauss, io_model_params, max_abs, max_abs_diff};
 
     fn params(n_hat: usize, p: usize, m: usize) -> IoModelParams {
-        IoModelParams {
-            n_hat,
-            p,
-            m,
-            theta0: Vec::new(),
-            p0: 100.0,
-            rule: ForgettingRule::Constant { lambda: 1.0 },
-            trace_limit: f64::INFINITY,
-            kernel: IdKernel::Shared,
-        }
-    }
-
-    fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-        assert_eq!(a.len(), b.len());
-        a.iter()
-            .zip(b)
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0, f64::max)
-    }
-
-    fn max_abs(a: &[f64]) -> f64 {
-        a.iter().map(|x| x.abs()).fold(0.0, f64::max)
+        let rule = ForgettingRule::Constant { lambda: 1.0 };
+        io_model_params(n_hat, p, m, rule, IdKernel::Shared)
     }
 
     /// A model with random coefficients `θ_0` (no identification) and random histories.

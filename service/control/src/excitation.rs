@@ -166,16 +166,21 @@ mod tests {
         ExcitationSource::new(counts(), std, seed, limits)
     }
 
-    #[test]
-    fn inputs_have_the_configured_spread_and_are_uncorrelated() {
-        let mut src = source(vec![2.0, 0.5], 7, None).unwrap();
-        let input = StepInput {
+    /// A measurement of zeros (the source does not read it).
+    fn zero_input() -> StepInput<'static> {
+        StepInput {
             seq: 0,
             y: &[0.0],
             z: &[0.0],
             r: &[],
             ..Default::default()
-        };
+        }
+    }
+
+    #[test]
+    fn inputs_have_the_configured_spread_and_are_uncorrelated() {
+        let mut src = source(vec![2.0, 0.5], 7, None).unwrap();
+        let input = zero_input();
         let n = 200_000;
         let (mut s0, mut s1, mut s01, mut lag) = (0.0, 0.0, 0.0, 0.0);
         let mut prev = 0.0;
@@ -204,13 +209,7 @@ mod tests {
             max: vec![1.0; 2],
         };
         let mut src = source(vec![3.0, 3.0], 1, Some(l)).unwrap();
-        let input = StepInput {
-            seq: 0,
-            y: &[0.0],
-            z: &[0.0],
-            r: &[],
-            ..Default::default()
-        };
+        let input = zero_input();
         let mut first = Vec::new();
         let mut saturated = 0;
         let mut u = [0.0; 2];

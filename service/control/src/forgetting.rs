@@ -638,7 +638,7 @@ pub(crate) fn cholesky_solve(c: &[f64], p: usize, b: &mut [f64]) {
 mod tests {
     use super::*;
 
-    use crate::test_support::Gauss;
+    use crate::test_support::{Gauss, f_test, proposition_5_2_1_rules};
 
     fn direct_cov(errs: &[Vec<f64>], p: usize) -> Vec<f64> {
         let m = errs.len() as f64;
@@ -671,24 +671,9 @@ mod tests {
         let bad = [
             ForgettingRule::Constant { lambda: 0.0 },
             ForgettingRule::Constant { lambda: 1.5 },
-            ForgettingRule::FTest {
-                tau_n: 10,
-                tau_d: 10,
-                eta: 1.0,
-                alpha: 0.01,
-            },
-            ForgettingRule::FTest {
-                tau_n: 10,
-                tau_d: 80,
-                eta: 0.0,
-                alpha: 0.01,
-            },
-            ForgettingRule::FTest {
-                tau_n: 10,
-                tau_d: 80,
-                eta: 1.0,
-                alpha: 1.0,
-            },
+            f_test(10, 10, 1.0, 0.01),
+            f_test(10, 80, 0.0, 0.01),
+            f_test(10, 80, 1.0, 1.0),
             ForgettingRule::RmsRatio {
                 tau_n: 0,
                 tau_d: 80,
@@ -698,12 +683,7 @@ mod tests {
         for r in &bad {
             assert!(Forgetting::new(r, 1).is_err(), "{r:?} accepted");
         }
-        let r = ForgettingRule::FTest {
-            tau_n: 3,
-            tau_d: 6,
-            eta: 1.0,
-            alpha: 0.01,
-        };
+        let r = f_test(3, 6, 1.0, 0.01);
         assert!(Forgetting::new(&r, 3).is_err(), "tau_d <= p + 3 accepted");
     }
 
@@ -714,20 +694,14 @@ mod tests {
             field(ForgettingRule::Constant { lambda: 0.0 }, 1),
             "forgetting.lambda"
         );
-        let ftest = |tau_n, tau_d, eta, alpha| ForgettingRule::FTest {
-            tau_n,
-            tau_d,
-            eta,
-            alpha,
-        };
-        assert_eq!(field(ftest(1, 80, 1.0, 0.01), 2), "forgetting.tau-n");
-        assert_eq!(field(ftest(10, 10, 1.0, 0.01), 1), "forgetting");
-        assert_eq!(field(ftest(10, 80, 0.0, 0.01), 1), "forgetting.eta");
-        assert_eq!(field(ftest(10, 80, 1.0, 1.0), 1), "forgetting.alpha");
-        assert_eq!(field(ftest(3, 6, 1.0, 0.01), 3), "forgetting.tau-d");
+        assert_eq!(field(f_test(1, 80, 1.0, 0.01), 2), "forgetting.tau-n");
+        assert_eq!(field(f_test(10, 10, 1.0, 0.01), 1), "forgetting");
+        assert_eq!(field(f_test(10, 80, 0.0, 0.01), 1), "forgetting.eta");
+        assert_eq!(field(f_test(10, 80, 1.0, 1.0), 1), "forgetting.alpha");
+        assert_eq!(field(f_test(3, 6, 1.0, 0.01), 3), "forgetting.tau-d");
         assert_eq!(ForgettingRule::DEFAULT.validate(4), Ok(()));
         // Forgetting::new refuses exactly what validate refuses.
-        let e = Forgetting::new(&ftest(3, 6, 1.0, 0.01), 3).unwrap_err();
+        let e = Forgetting::new(&f_test(3, 6, 1.0, 0.01), 3).unwrap_err();
         assert!(e.starts_with("forgetting.tau-d: "), "{e}");
     }
 
@@ -831,12 +805,7 @@ mod tests {
 
     #[test]
     fn non_finite_errors_are_not_pushed() {
-        let rule = ForgettingRule::FTest {
-            tau_n: 5,
-            tau_d: 30,
-            eta: 1.0,
-            alpha: 0.01,
-        };
+        let rule = f_test(5, 30, 1.0, 0.01);
         let mut f = Forgetting::new(&rule, 1).unwrap();
         let mut g = Gauss::new(5);
         for _ in 0..100 {
@@ -853,19 +822,7 @@ mod tests {
 
     #[test]
     fn proposition_5_2_1_f_test_equals_rms_ratio_when_alpha_is_one_minus_f_of_one() {
-        let (tn, td) = (10, 80);
-        let alpha = 1.0 - FisherSnedecor::new(tn as f64, td as f64).unwrap().cdf(1.0);
-        let ft = ForgettingRule::FTest {
-            tau_n: tn,
-            tau_d: td,
-            eta: 0.7,
-            alpha,
-        };
-        let rms = ForgettingRule::RmsRatio {
-            tau_n: tn,
-            tau_d: td,
-            eta: 0.7,
-        };
+        let (ft, rms) = proposition_5_2_1_rules(10, 80, 0.7);
         let (mut a, mut b) = (
             Forgetting::new(&ft, 1).unwrap(),
             Forgetting::new(&rms, 1).unwrap(),
@@ -885,12 +842,7 @@ mod tests {
     #[test]
     fn lawley_hotelling_test_fires_when_the_error_covariance_jumps() {
         for p in [2, 3] {
-            let rule = ForgettingRule::FTest {
-                tau_n: 10,
-                tau_d: 80,
-                eta: 1.0,
-                alpha: 0.001,
-            };
+            let rule = f_test(10, 80, 1.0, 0.001);
             let mut f = Forgetting::new(&rule, p).unwrap();
             let mut g = Gauss::new(21 + p as u64);
             let mut first = None;
@@ -910,12 +862,7 @@ mod tests {
     #[test]
     fn f_test_fires_rarely_on_stationary_noise() {
         for p in [1, 2, 4] {
-            let rule = ForgettingRule::FTest {
-                tau_n: 10,
-                tau_d: 80,
-                eta: 1.0,
-                alpha: 0.001,
-            };
+            let rule = f_test(10, 80, 1.0, 0.001);
             let mut f = Forgetting::new(&rule, p).unwrap();
             let mut g = Gauss::new(99 + p as u64);
             let n = 100_000;

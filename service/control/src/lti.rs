@@ -305,6 +305,25 @@ mod tests {
         )
     }
 
+    /// The static gain `u = d e` (no states) of one input to one output.
+    fn static_gain(
+        d: f64,
+        input: ControllerInput,
+        counts: Dimensions,
+        limits: Option<OutputLimits>,
+    ) -> LtiController {
+        LtiController::new(
+            DMatrix::zeros(0, 0),
+            DMatrix::zeros(0, 1),
+            DMatrix::zeros(1, 0),
+            DMatrix::from_element(1, 1, d),
+            input,
+            counts,
+            limits,
+        )
+        .unwrap()
+    }
+
     #[test]
     fn a_first_order_controller_follows_its_difference_equation() {
         // x+ = 0.5 x + e, u = 2 x + 0.1 e  ⇒  u_k = 2 Σ 0.5^{k-1-i} e_i + 0.1 e_k
@@ -331,19 +350,11 @@ mod tests {
 
     #[test]
     fn the_error_input_uses_r_minus_y_and_limits_clip() {
-        let mut c = LtiController::new(
-            DMatrix::zeros(0, 0),
-            DMatrix::zeros(0, 1),
-            DMatrix::zeros(1, 0),
-            DMatrix::from_element(1, 1, 10.0),
-            ControllerInput::Error,
-            counts(1, 1, 1),
-            Some(OutputLimits {
-                min: vec![-1.0],
-                max: vec![1.0],
-            }),
-        )
-        .unwrap();
+        let limits = OutputLimits {
+            min: vec![-1.0],
+            max: vec![1.0],
+        };
+        let mut c = static_gain(10.0, ControllerInput::Error, counts(1, 1, 1), Some(limits));
         let mut u = [0.0];
         assert_eq!(step(&mut c, &[0.0], &[0.05], &mut u), status::OK);
         assert!((u[0] - 0.5).abs() < 1e-15);
@@ -371,16 +382,7 @@ mod tests {
 
     #[test]
     fn a_non_finite_output_never_leaves_the_controller() {
-        let mut c = LtiController::new(
-            DMatrix::zeros(0, 0),
-            DMatrix::zeros(0, 1),
-            DMatrix::zeros(1, 0),
-            DMatrix::from_element(1, 1, 1.0),
-            ControllerInput::Y,
-            counts(1, 0, 1),
-            None,
-        )
-        .unwrap();
+        let mut c = static_gain(1.0, ControllerInput::Y, counts(1, 0, 1), None);
         let mut u = [0.0];
         let s = step(&mut c, &[f64::NAN], &[], &mut u);
         assert!(u[0].is_finite());

@@ -542,9 +542,8 @@ impl TextbookRls {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
-    use crate::test_support::Gauss;
+    use crate::test_support::{Gauss, f_test, proposition_5_2_1_rules};
 
     fn cfg(n: usize, p: usize, p0: f64, rule: ForgettingRule) -> RlsConfig {
         RlsConfig {
@@ -633,12 +632,7 @@ mod tests {
     fn multi_output_noiseless_identification_recovers_the_parameters() {
         for p in [2, 3] {
             let n = 10;
-            let rule = ForgettingRule::FTest {
-                tau_n: 10,
-                tau_d: 80,
-                eta: 1.0,
-                alpha: 0.001,
-            };
+            let rule = f_test(10, 80, 1.0, 0.001);
             let mut rls = Rls::new(&cfg(n, p, 1e4, rule)).unwrap();
             let mut g = Gauss::new(77 + p as u64);
             let truth = g.vec(n);
@@ -688,32 +682,14 @@ mod tests {
 
     #[test]
     fn fast_kernel_agrees_with_textbook_for_35_parameters_and_5_outputs() {
-        let rule = ForgettingRule::FTest {
-            tau_n: 10,
-            tau_d: 80,
-            eta: 0.3,
-            alpha: 0.01,
-        };
-        compare_fast_and_textbook(35, 5, 4000, rule);
+        compare_fast_and_textbook(35, 5, 4000, f_test(10, 80, 0.3, 0.01));
         compare_fast_and_textbook(35, 5, 3000, ForgettingRule::Constant { lambda: 0.999 });
-        let rule = ForgettingRule::FTest {
-            tau_n: 10,
-            tau_d: 80,
-            eta: 0.3,
-            alpha: 0.01,
-        };
-        compare_fast_and_textbook(20, 8, 2000, rule);
+        compare_fast_and_textbook(20, 8, 2000, f_test(10, 80, 0.3, 0.01));
     }
 
     #[test]
     fn fast_kernel_agrees_with_textbook_for_300_parameters_and_3_outputs() {
-        let rule = ForgettingRule::FTest {
-            tau_n: 10,
-            tau_d: 80,
-            eta: 0.3,
-            alpha: 0.01,
-        };
-        compare_fast_and_textbook(300, 3, 2000, rule);
+        compare_fast_and_textbook(300, 3, 2000, f_test(10, 80, 0.3, 0.01));
     }
 
     /// The packed triangle as stored (the sweep's output), in the order of
@@ -735,12 +711,7 @@ mod tests {
         for (n, p) in [(37, 1), (38, 2), (41, 3), (40, 4), (21, 6), (1, 1), (2, 3)] {
             for rule in [
                 ForgettingRule::Constant { lambda: 0.995 },
-                ForgettingRule::FTest {
-                    tau_n: 10,
-                    tau_d: 80,
-                    eta: 0.3,
-                    alpha: 0.01,
-                },
+                f_test(10, 80, 0.3, 0.01),
             ] {
                 let c = cfg(n, p, 10.0, rule);
                 let mut fast = Rls::new(&c).unwrap();
@@ -812,12 +783,7 @@ mod tests {
     #[test]
     fn non_finite_input_resets_and_is_reported_without_propagating_nan() {
         let n = 4;
-        let rule = ForgettingRule::FTest {
-            tau_n: 5,
-            tau_d: 30,
-            eta: 1.0,
-            alpha: 0.01,
-        };
+        let rule = f_test(5, 30, 1.0, 0.01);
         let mut c = cfg(n, 1, 10.0, rule);
         c.theta0 = vec![0.5; n];
         let mut rls = Rls::new(&c).unwrap();
@@ -917,12 +883,7 @@ mod tests {
 
     #[test]
     fn f_test_forgets_after_an_abrupt_parameter_change() {
-        let rule = ForgettingRule::FTest {
-            tau_n: 10,
-            tau_d: 80,
-            eta: 1.0,
-            alpha: 0.001,
-        };
+        let rule = f_test(10, 80, 1.0, 0.001);
         let (rls, steps, truth) = msd_run(rule, 0.01, 200, 300, 17);
         let before = steps[..200].iter().filter(|s| s.lambda < 1.0).count();
         let after = steps[200..230].iter().filter(|s| s.lambda < 1.0).count();
@@ -937,12 +898,7 @@ mod tests {
 
     #[test]
     fn f_test_rarely_forgets_on_a_stationary_noisy_problem() {
-        let rule = ForgettingRule::FTest {
-            tau_n: 10,
-            tau_d: 80,
-            eta: 1.0,
-            alpha: 0.001,
-        };
+        let rule = f_test(10, 80, 1.0, 0.001);
         let (rls, steps, truth) = msd_run(rule, 0.1, usize::MAX, 20_000, 23);
         let forgot = steps.iter().filter(|s| s.lambda < 1.0).count();
         let frac = forgot as f64 / steps.len() as f64;
@@ -956,12 +912,7 @@ mod tests {
         // Noiseless data: the prior errors decay (the P_0 regularization is forgotten) until
         // they reach the roundoff level ≲ 1e-10 ‖y‖; from then on the variances are
         // "numerical zero" and there must be no forgetting even at a loose α = 0.1.
-        let rule = ForgettingRule::FTest {
-            tau_n: 10,
-            tau_d: 80,
-            eta: 1.0,
-            alpha: 0.1,
-        };
+        let rule = f_test(10, 80, 1.0, 0.1);
         let (rls, steps, truth) = msd_run(rule, 0.0, usize::MAX, 6000, 31);
         let last_big = steps.iter().rposition(|s| s.error_norm > 1e-9).unwrap();
         assert!(
@@ -980,17 +931,7 @@ mod tests {
             let n = 12;
             let mut g = Gauss::new(8 + p as u64);
             let truth = g.vec(n);
-            let mut c = cfg(
-                n,
-                p,
-                100.0,
-                ForgettingRule::FTest {
-                    tau_n: 10,
-                    tau_d: 80,
-                    eta: 1.0,
-                    alpha: 0.1,
-                },
-            );
+            let mut c = cfg(n, p, 100.0, f_test(10, 80, 1.0, 0.1));
             c.theta0 = truth.clone();
             let mut rls = Rls::new(&c).unwrap();
             for _ in 0..3000 {
@@ -1003,19 +944,7 @@ mod tests {
 
     #[test]
     fn proposition_5_2_1_holds_inside_rls() {
-        let (tn, td) = (10, 80);
-        let alpha = 1.0 - FisherSnedecor::new(tn as f64, td as f64).unwrap().cdf(1.0);
-        let a = ForgettingRule::FTest {
-            tau_n: tn,
-            tau_d: td,
-            eta: 0.5,
-            alpha,
-        };
-        let b = ForgettingRule::RmsRatio {
-            tau_n: tn,
-            tau_d: td,
-            eta: 0.5,
-        };
+        let (a, b) = proposition_5_2_1_rules(10, 80, 0.5);
         let (_, sa, _) = msd_run(a, 0.05, 1000, 3000, 3);
         let (_, sb, _) = msd_run(b, 0.05, 1000, 3000, 3);
         let mut forgot = 0;

@@ -323,14 +323,7 @@ impl Plant {
         }
         let command = if (self.k / 100) % 2 == 1 { 0.5 } else { 0.0 };
         self.r.fill(command);
-        StepInput {
-            seq: self.k,
-            y: &self.y,
-            z: &self.z,
-            r: &self.r,
-            u_applied: None,
-            lost: 0,
-        }
+        on_time(self.k, &self.y, &self.z, &self.r)
     }
 
     /// Applies `u` over the period and moves to the next sample.
@@ -358,14 +351,7 @@ struct Sample {
 
 impl Sample {
     fn input(&self) -> StepInput<'_> {
-        StepInput {
-            seq: self.seq,
-            y: &self.y,
-            z: &self.z,
-            r: &self.r,
-            u_applied: None,
-            lost: 0,
-        }
+        on_time(self.seq, &self.y, &self.z, &self.r)
     }
 }
 
@@ -386,6 +372,19 @@ fn closed_loop(c: &mut dyn Controller, plant: &mut Plant, steps: usize) -> Vec<S
         plant.advance(&u);
     }
     samples
+}
+
+/// The signals of sample `seq`, answered on time: no sample lost, no applied input
+/// reported.
+fn on_time<'a>(seq: u64, y: &'a [f64], z: &'a [f64], r: &'a [f64]) -> StepInput<'a> {
+    StepInput {
+        seq,
+        y,
+        z,
+        r,
+        u_applied: None,
+        lost: 0,
+    }
 }
 
 /// `u` is finite and, when the kind has limits, within them.
@@ -440,23 +439,9 @@ fn bad_measurements_leave_u_finite(kind: &Kind) {
         );
         let (zz, rr) = (vec![0.1; counts.n_z], vec![0.0; counts.n_r]);
         let input = if round < bad.len() {
-            StepInput {
-                seq,
-                y: &y,
-                z: &z,
-                r: &r,
-                u_applied: None,
-                lost: 0,
-            }
+            on_time(seq, &y, &z, &r)
         } else {
-            StepInput {
-                seq,
-                y: &y,
-                z: &zz,
-                r: &rr,
-                u_applied: None,
-                lost: 0,
-            }
+            on_time(seq, &y, &zz, &rr)
         };
         c.step(&input, &mut u);
         assert_admissible(kind, &u, &format!("after y = {v}"));
@@ -474,17 +459,7 @@ fn bad_measurements_leave_u_finite(kind: &Kind) {
         let y = vec![v; counts.n_y];
         let z = vec![v; counts.n_z];
         let r = vec![0.0; counts.n_r];
-        c.step(
-            &StepInput {
-                seq,
-                y: &y,
-                z: &z,
-                r: &r,
-                u_applied: None,
-                lost: 0,
-            },
-            &mut u,
-        );
+        c.step(&on_time(seq, &y, &z, &r), &mut u);
         assert_admissible(kind, &u, &format!("burst sample {i} (y = {v})"));
         seq += 1;
     }
@@ -527,27 +502,14 @@ fn reset_returns_to_the_initial_state(kind: &Kind) {
         vec![0.2; counts.n_z],
         vec![0.5; counts.n_r],
     );
-    used.step(
-        &StepInput {
-            seq: 200,
-            y: &y,
-            z: &z,
-            r: &r,
-            u_applied: None,
-            lost: 0,
-        },
-        &mut u,
-    );
+    used.step(&on_time(200, &y, &z, &r), &mut u);
     let ua = vec![0.7; counts.n_u];
     let y = vec![0.3; counts.n_y];
     used.observe(
         &StepInput {
-            seq: 202,
-            y: &y,
-            z: &z,
-            r: &r,
             u_applied: Some(&ua),
             lost: 1,
+            ..on_time(202, &y, &z, &r)
         },
         &mut u,
     );

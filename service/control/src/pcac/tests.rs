@@ -5,34 +5,10 @@
 
 use super::model::{DimError, IdKernel, IoModel, IoModelParams};
 use crate::forgetting::ForgettingRule;
-use crate::test_support::Gauss;
-
-fn params(
-    n_hat: usize,
-    p: usize,
-    m: usize,
-    rule: ForgettingRule,
-    kernel: IdKernel,
-) -> IoModelParams {
-    IoModelParams {
-        n_hat,
-        p,
-        m,
-        theta0: Vec::new(),
-        p0: 100.0,
-        rule,
-        trace_limit: f64::INFINITY,
-        kernel,
-    }
-}
+use crate::test_support::{Gauss, f_test, io_model_params, max_abs, max_abs_diff};
 
 fn ftest() -> ForgettingRule {
-    ForgettingRule::FTest {
-        tau_n: 10,
-        tau_d: 80,
-        eta: 1.0,
-        alpha: 0.001,
-    }
+    f_test(10, 80, 1.0, 0.001)
 }
 
 /// A MIMO ARX system (2.24) with known coefficients, simulated exactly.
@@ -75,6 +51,13 @@ impl Arx {
         }
     }
 
+    /// A random system and the random coefficients it jumps to later (drawn after it).
+    fn random_with_jump(g: &mut Gauss, n: usize, p: usize, m: usize) -> (Self, Vec<f64>) {
+        let sys = Self::random(g, n, p, m);
+        let jump = Self::random(g, n, p, m).coef;
+        (sys, jump)
+    }
+
     /// `y_k` given `u_{k−1}` (pushed first); histories newest first.
     fn step(&mut self, u_prev: &[f64]) -> Vec<f64> {
         let (n, p, m) = (self.n, self.p, self.m);
@@ -98,18 +81,6 @@ impl Arx {
     }
 }
 
-fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max)
-}
-
-fn max_abs(a: &[f64]) -> f64 {
-    a.iter().map(|x| x.abs()).fold(0.0, f64::max)
-}
-
 #[test]
 fn identification_recovers_a_stable_mimo_arx_system_exactly() {
     let (n, p, m) = (3, 2, 2);
@@ -117,7 +88,7 @@ fn identification_recovers_a_stable_mimo_arx_system_exactly() {
     let mut sys = Arx::random(&mut g, n, p, m);
     let mut worst: f64 = 0.0;
     for kernel in [IdKernel::Shared, IdKernel::Full] {
-        let mut pr = params(n, p, m, ForgettingRule::Constant { lambda: 1.0 }, kernel);
+        let mut pr = io_model_params(n, p, m, ForgettingRule::Constant { lambda: 1.0 }, kernel);
         pr.p0 = 1e8;
         let mut model = IoModel::new(&pr).unwrap();
         let mut gu = Gauss::new(12);
@@ -144,12 +115,11 @@ fn shared_covariance_rls_equals_the_full_kronecker_rls() {
     // and a parameter jump, so forgetting is exercised.
     let (n, p, m) = (4, 4, 2);
     let mut g = Gauss::new(21);
-    let mut sys = Arx::random(&mut g, n, p, m);
-    let jump = Arx::random(&mut g, n, p, m).coef;
+    let (mut sys, jump) = Arx::random_with_jump(&mut g, n, p, m);
     let mut th0 = g.vec(n * p * (p + m));
     th0.iter_mut().for_each(|x| *x *= 0.1);
     let mk = |kernel| {
-        let mut pr = params(n, p, m, ftest(), kernel);
+        let mut pr = io_model_params(n, p, m, ftest(), kernel);
         pr.theta0 = th0.clone();
         pr.p0 = 10.0;
         IoModel::new(&pr).unwrap()
@@ -191,10 +161,9 @@ fn shared_covariance_rls_equals_the_full_kronecker_rls() {
 fn f_test_forgetting_reacts_to_a_jump_and_not_to_noise() {
     let (n, p, m) = (2, 2, 2);
     let mut g = Gauss::new(51);
-    let mut sys = Arx::random(&mut g, n, p, m);
-    let after = Arx::random(&mut g, n, p, m).coef;
+    let (mut sys, after) = Arx::random_with_jump(&mut g, n, p, m);
     let run = |rule: ForgettingRule, g: &mut Gauss, sys: &mut Arx| {
-        let mut model = IoModel::new(&params(n, p, m, rule, IdKernel::Shared)).unwrap();
+        let mut model = IoModel::new(&io_model_params(n, p, m, rule, IdKernel::Shared)).unwrap();
         let mut lambdas = Vec::new();
         let before = sys.coef.clone();
         let mut u_prev = vec![0.0; m];
@@ -236,7 +205,7 @@ fn f_test_forgetting_reacts_to_a_jump_and_not_to_noise() {
 
 #[test]
 fn bad_parameters_and_lengths_are_refused_with_a_message() {
-    let ok = params(3, 2, 1, ftest(), IdKernel::Shared);
+    let ok = io_model_params(3, 2, 1, ftest(), IdKernel::Shared);
     assert!(IoModel::new(&ok).is_ok());
     let bad = |f: &dyn Fn(&mut IoModelParams), want: &str| {
         for kernel in [IdKernel::Shared, IdKernel::Full] {
@@ -259,17 +228,7 @@ fn bad_parameters_and_lengths_are_refused_with_a_message() {
     );
     bad(&|p| p.theta0 = vec![f64::NAN; 18], "theta0");
     bad(&|p| p.trace_limit = 10.0, "trace_limit");
-    bad(
-        &|p| {
-            p.rule = ForgettingRule::FTest {
-                tau_n: 2,
-                tau_d: 5,
-                eta: 1.0,
-                alpha: 0.01,
-            }
-        },
-        "forgetting",
-    );
+    bad(&|p| p.rule = f_test(2, 5, 1.0, 0.01), "forgetting");
 
     let mut model = IoModel::new(&ok).unwrap();
     let e = model.update(&[1.0], &[0.0]).unwrap_err();
@@ -291,7 +250,7 @@ fn bad_parameters_and_lengths_are_refused_with_a_message() {
 #[test]
 fn non_finite_data_reset_the_estimate_without_nan() {
     for kernel in [IdKernel::Shared, IdKernel::Full] {
-        let mut model = IoModel::new(&params(2, 2, 1, ftest(), kernel)).unwrap();
+        let mut model = IoModel::new(&io_model_params(2, 2, 1, ftest(), kernel)).unwrap();
         let mut g = Gauss::new(61);
         for _ in 0..50 {
             model.update(&g.vec(2), &g.vec(1)).unwrap();
@@ -309,7 +268,7 @@ fn both_forms_reset_at_the_same_steps_on_a_covariance_blow_up() {
     // No excitation and λ = 0.5: tr P doubles per step until the limit resets it.
     let mut steps = Vec::new();
     for kernel in [IdKernel::Shared, IdKernel::Full] {
-        let mut pr = params(2, 2, 1, ForgettingRule::Constant { lambda: 0.5 }, kernel);
+        let mut pr = io_model_params(2, 2, 1, ForgettingRule::Constant { lambda: 0.5 }, kernel);
         pr.trace_limit = 1e6;
         let mut model = IoModel::new(&pr).unwrap();
         let resets: Vec<bool> = (0..60)
@@ -329,7 +288,7 @@ fn both_forms_reset_at_the_same_steps_on_a_covariance_blow_up() {
 fn pcac_id_timing() {
     let (n, p, m) = (25, 4, 2);
     for kernel in [IdKernel::Shared, IdKernel::Full] {
-        let mut model = IoModel::new(&params(n, p, m, ftest(), kernel)).unwrap();
+        let mut model = IoModel::new(&io_model_params(n, p, m, ftest(), kernel)).unwrap();
         let mut g = Gauss::new(71);
         let data: Vec<(Vec<f64>, Vec<f64>)> = (0..2000).map(|_| (g.vec(p), g.vec(m))).collect();
         let mut times = Vec::with_capacity(data.len());

@@ -288,6 +288,18 @@ impl std::fmt::Debug for Rcac {
     }
 }
 
+/// `Ok` when the weight `m`, named `name`, has the `n` rows of an `n × n` weight, else
+/// the refusal that names its size.
+fn check_weight_size(m: &DMatrix<f64>, name: &'static str, n: usize) -> Result<(), ParamError> {
+    if m.nrows() == n {
+        return Ok(());
+    }
+    Err(ParamError::new(
+        name,
+        format!("{name} is {}×{}, expected {n}×{n}", m.nrows(), m.ncols()),
+    ))
+}
+
 /// Symmetric square root rows `W` with `Wᵀ W = M` (eigen decomposition; rows of zero
 /// eigenvalues dropped when `drop_zero`). Errors when `M` is not symmetric, has a
 /// negative eigenvalue, or (without `drop_zero`) is not positive definite.
@@ -465,26 +477,8 @@ impl RcacParams {
         TargetFilter::validate(t).map_err(in_target_model)?;
         let ltheta = Self::theta_len(self.nc, counts);
         let (wz, _) = sqrt_rows(&self.rz, "rz", true)?;
-        if self.rz.nrows() != lz {
-            return Err(ParamError::new(
-                "rz",
-                format!(
-                    "rz is {}×{}, expected {lz}×{lz}",
-                    self.rz.nrows(),
-                    self.rz.ncols()
-                ),
-            ));
-        }
-        if self.ru.nrows() != lu {
-            return Err(ParamError::new(
-                "ru",
-                format!(
-                    "ru is {}×{}, expected {lu}×{lu}",
-                    self.ru.nrows(),
-                    self.ru.ncols()
-                ),
-            ));
-        }
+        check_weight_size(&self.rz, "rz", lz)?;
+        check_weight_size(&self.ru, "ru", lu)?;
         let (wu, ru_rows) = sqrt_rows(&self.ru, "ru", false)?;
         let theta0 = match &self.theta0 {
             None => vec![0.0; ltheta],

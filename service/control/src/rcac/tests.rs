@@ -44,6 +44,18 @@ fn mimo_tf_target() -> TargetModel {
     }
 }
 
+/// A 1×2 transfer-function target (`β = 1`) with the given channels.
+fn miso_tf_target(channels: Vec<TargetChannel>) -> TargetModel {
+    TargetModel {
+        sample_period: TS,
+        outputs: 1,
+        inputs: 2,
+        beta: 1.0,
+        source: String::new(),
+        form: TargetForm::TransferFunction(channels),
+    }
+}
+
 /// `φ_m = [u_{m−1}; …; u_{m−n_c}; y_{m−1}; …; y_{m−n_c}]` with zeros before time 0.
 fn phi_direct(
     us: &[Vec<f64>],
@@ -185,17 +197,10 @@ fn grad(step_size: StepSize, alpha: f64, r: f64) -> RcacUpdate {
 /// the applied inputs and the measurements, for both update laws and with saturation.
 #[test]
 fn the_input_is_the_updated_coefficients_times_the_regressor_of_applied_data() {
-    let target = TargetModel {
-        sample_period: TS,
-        outputs: 1,
-        inputs: 2,
-        beta: 1.0,
-        source: String::new(),
-        form: TargetForm::TransferFunction(vec![
-            tf(0, 0, 1, &[0.4], &[1.0, -0.3]),
-            tf(0, 1, 4, &[-0.2], &[1.0]),
-        ]),
-    };
+    let target = miso_tf_target(vec![
+        tf(0, 0, 1, &[0.4], &[1.0, -0.3]),
+        tf(0, 1, 4, &[-0.2], &[1.0]),
+    ]);
     for update in [rls(0.1, 0.999), grad(StepSize::Sigma, 0.5, 0.0)] {
         let nc = 3;
         let mut p = params(target.clone(), nc, update);
@@ -578,17 +583,10 @@ fn every_gradient_step_size_rejects_the_tone() {
 /// ≥ 40 dB.
 #[test]
 fn rcac_rejects_a_tone_with_two_inputs_and_per_input_delays() {
-    let target = TargetModel {
-        sample_period: TS,
-        outputs: 1,
-        inputs: 2,
-        beta: 1.0,
-        source: String::new(),
-        form: TargetForm::TransferFunction(vec![
-            tf(0, 0, 1, &[B1], &[1.0, 0.0]),
-            tf(0, 1, 3, &[0.6 * B1], &[1.0, 0.0]),
-        ]),
-    };
+    let target = miso_tf_target(vec![
+        tf(0, 0, 1, &[B1], &[1.0, 0.0]),
+        tf(0, 1, 3, &[0.6 * B1], &[1.0, 0.0]),
+    ]);
     for update in [rls(100.0, 1.0), grad(StepSize::Exp, 0.5, 0.0)] {
         let name = format!("{update:?}");
         let plant = Plant::new(vec![([B1, B2], 0), ([0.6 * B1, 0.4 * B2], 2)]);

@@ -6,6 +6,7 @@ use crate::linalg::percentile;
 use crate::mpc::qp::{
     ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
 };
+use crate::test_support::siso_mpc_spec;
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -165,6 +166,16 @@ fn random_case(spec: MpcSpec, rng: &mut ChaCha8Rng) -> Case {
     }
 }
 
+/// A random case for `spec`, the condenser built on it, and its dense reference.
+fn condensed_random_case(spec: MpcSpec, rng: &mut ChaCha8Rng) -> (Case, Condenser, Dense) {
+    let case = random_case(spec, rng);
+    let mut c = Condenser::new(&case.spec).unwrap();
+    c.build(&case.markov, &case.free, &case.u_k, &case.reference)
+        .unwrap();
+    let dn = dense(&case.spec, &case.markov);
+    (case, c, dn)
+}
+
 fn max_abs(m: &DMatrix<f64>) -> f64 {
     m.iter().fold(0.0f64, |a, v| a.max(v.abs()))
 }
@@ -194,11 +205,7 @@ fn condensed_cost_gradient_and_hessian_match_the_definitions() {
         if q_kind == 1 {
             s.r = Weight::PerStep((0..ell * m).map(|_| rng.random_range(0.1..1.0)).collect());
         }
-        let case = random_case(s, &mut rng);
-        let mut c = Condenser::new(&case.spec).unwrap();
-        c.build(&case.markov, &case.free, &case.u_k, &case.reference)
-            .unwrap();
-        let dn = dense(&case.spec, &case.markov);
+        let (case, c, dn) = condensed_random_case(s, &mut rng);
         let n = ell * m;
 
         // H and f against the dense formulas.
@@ -294,11 +301,7 @@ fn structured_tqt_matches_the_dense_product() {
         let mut s = spec(ell, m, p, pt, &mut rng);
         s.q = q;
         s.r = Weight::Scalar(0.25);
-        let case = random_case(s, &mut rng);
-        let mut c = Condenser::new(&case.spec).unwrap();
-        c.build(&case.markov, &case.free, &case.u_k, &case.reference)
-            .unwrap();
-        let dn = dense(&case.spec, &case.markov);
+        let (_, c, dn) = condensed_random_case(s, &mut rng);
         let n = ell * m;
         // H − 2 DᵀRD is the structured 2 TᵀC̄ᵀQ̄C̄T.
         let h = DMatrix::from_row_slice(n, n, c.problem().hess)
@@ -409,23 +412,11 @@ fn receding_horizon_on_a_small_plant_matches_clarabel_and_respects_the_bounds() 
     // The command 1.2 lies beyond the output limit 1.0: the output row binds at the end.
     let (u_max, du_max, y_max, command) = (0.3, 0.05, 1.0, 1.2);
     let spec = MpcSpec {
-        horizon: ell,
-        n_inputs: 1,
-        n_outputs: 1,
-        n_tracked: 1,
-        tracking: vec![1.0],
-        q: Weight::Scalar(1.0),
-        r: Weight::Scalar(0.05),
-        u_min: vec![-u_max],
-        u_max: vec![u_max],
-        move_bounds: Some(MoveBounds {
-            min: vec![-du_max],
-            max: vec![du_max],
-        }),
         output_constraints: Some(OutputConstraints {
             c: vec![1.0],
             d: vec![-y_max],
         }),
+        ..siso_mpc_spec(ell, 1.0, 0.05, u_max, du_max)
     };
     let mut c = Condenser::new(&spec).unwrap();
     let mut solver = DenseQpSolver::new(c.n(), c.n_ineq(), QpSettings::default());

@@ -3,8 +3,9 @@
 
 use super::*;
 use crate::forgetting::ForgettingRule;
-use crate::mpc::condense::{MoveBounds, OutputConstraints, Weight};
-use crate::test_support::Gauss;
+use crate::mpc::condense::{MoveBounds, OutputConstraints};
+use crate::pcac::IdKernel;
+use crate::test_support::{Gauss, f_test, io_model_params, siso_mpc_spec};
 
 const U_MAX: f64 = 1.5;
 const DU_MAX: f64 = 0.3;
@@ -51,38 +52,12 @@ fn counts(n_r: usize) -> Dimensions {
 fn params(timing: PcacTiming) -> PcacParams {
     PcacParams {
         model: IoModelParams {
-            n_hat: 6,
-            p: 1,
-            m: 1,
             // A cold start as in §6.2: θ_0 = 10⁻¹⁰ 1 (θ_0 = 0 would plan u = 0 forever, and
             // the input coefficients could never be identified).
             theta0: vec![1e-10; 12],
-            p0: 100.0,
-            rule: ForgettingRule::FTest {
-                tau_n: 20,
-                tau_d: 200,
-                eta: 0.1,
-                alpha: 0.001,
-            },
-            trace_limit: f64::INFINITY,
-            kernel: crate::pcac::IdKernel::Shared,
+            ..io_model_params(6, 1, 1, f_test(20, 200, 0.1, 0.001), IdKernel::Shared)
         },
-        mpc: MpcSpec {
-            horizon: 20,
-            n_inputs: 1,
-            n_outputs: 1,
-            n_tracked: 1,
-            tracking: vec![1.0],
-            q: Weight::Scalar(1e4),
-            r: Weight::Scalar(1.0),
-            u_min: vec![-U_MAX],
-            u_max: vec![U_MAX],
-            move_bounds: Some(MoveBounds {
-                min: vec![-DU_MAX],
-                max: vec![DU_MAX],
-            }),
-            output_constraints: None,
-        },
+        mpc: siso_mpc_spec(20, 1e4, 1.0, U_MAX, DU_MAX),
         timing,
         qp: QpSettings::default(),
         warm_start: true,
@@ -119,21 +94,50 @@ struct Run {
     fallbacks: u64,
 }
 
+/// A command that steps from 0 to `to` at sample `step_at`.
+#[derive(Clone, Copy)]
+struct Command {
+    step_at: usize,
+    to: f64,
+}
+
+/// `steps` samples of `c` in closed loop with a [`Plant`] with the disturbance amplitude
+/// `d_amp`, starting from the held input `u0`, following `command`; `each(k, y, u_prev, u,
+/// status)` sees every sample. Returns the last input.
+fn drive(
+    c: &mut Pcac,
+    d_amp: f64,
+    u0: f64,
+    steps: usize,
+    command: Command,
+    mut each: impl FnMut(usize, f64, f64, f64, u32),
+) -> f64 {
+    let mut plant = Plant::new(d_amp);
+    let mut u_prev = u0;
+    for k in 0..steps {
+        let r = if k >= command.step_at {
+            command.to
+        } else {
+            0.0
+        };
+        let y = plant.measure();
+        let (u, s) = step_once(c, y, Some(r), u_prev, 0);
+        each(k, y, u_prev, u, s);
+        plant.advance(u);
+        u_prev = u;
+    }
+    u_prev
+}
+
 /// `steps` samples; the command steps from 0 to 1 at `step_at`.
 fn closed_loop(timing: PcacTiming, steps: usize, step_at: usize) -> Run {
     let mut c = Pcac::new(&params(timing), counts(1)).unwrap();
-    let mut plant = Plant::new(0.5);
     let (mut y, mut u) = (Vec::new(), Vec::new());
-    let mut u_prev = 0.0;
-    for k in 0..steps {
-        let r = if k >= step_at { 1.0 } else { 0.0 };
-        let yk = plant.measure();
-        let (uk, _) = step_once(&mut c, yk, Some(r), u_prev, 0);
-        plant.advance(uk);
+    let command = Command { step_at, to: 1.0 };
+    drive(&mut c, 0.5, 0.0, steps, command, |_, yk, _, uk, _| {
         y.push(yk);
         u.push(uk);
-        u_prev = uk;
-    }
+    });
     Run {
         y,
         u,
@@ -209,21 +213,18 @@ fn from_a_cold_start_pcac_rejects_a_harmonic_and_tracks_a_step_within_its_bounds
 fn the_input_bound_is_respected_when_the_command_asks_for_more() {
     // r = 5 needs u ≈ 2.4 > U_MAX: the input sits on its bound, reported as saturated.
     let mut c = Pcac::new(&params(PcacTiming::SameStep), counts(1)).unwrap();
-    let mut plant = Plant::new(0.0);
-    let mut u_prev = 0.0;
     let mut saturated = 0;
-    for k in 0..1500 {
-        let r = if k >= 500 { 5.0 } else { 0.0 };
-        let y = plant.measure();
-        let (u, s) = step_once(&mut c, y, Some(r), u_prev, 0);
+    let command = Command {
+        step_at: 500,
+        to: 5.0,
+    };
+    let last = drive(&mut c, 0.0, 0.0, 1500, command, |k, _, u_prev, u, s| {
         assert!(u.abs() <= U_MAX && (u - u_prev).abs() <= DU_MAX + 1e-9);
         if k > 1000 && s & status::SATURATED != 0 {
             saturated += 1;
         }
-        plant.advance(u);
-        u_prev = u;
-    }
-    assert!((u_prev - U_MAX).abs() < 1e-9, "u = {u_prev}");
+    });
+    assert!((last - U_MAX).abs() < 1e-9, "u = {last}");
     assert!(
         saturated > 400,
         "saturated in {saturated} of the last 499 steps"
@@ -271,13 +272,12 @@ fn an_iteration_cap_that_is_too_small_gives_a_fallback_within_the_bounds() {
         max: vec![0.01],
     });
     let mut c = Pcac::new(&p, counts(1)).unwrap();
-    let mut plant = Plant::new(0.0);
-    let mut u_prev = 0.3;
     let mut capped = 0;
-    for k in 0..600 {
-        let r = if k >= 300 { 1.0 } else { 0.0 };
-        let y = plant.measure();
-        let (u, s) = step_once(&mut c, y, Some(r), u_prev, 0);
+    let command = Command {
+        step_at: 300,
+        to: 1.0,
+    };
+    drive(&mut c, 0.0, 0.3, 600, command, |k, _, u_prev, u, s| {
         assert!(
             u.abs() <= U_MAX && (u - u_prev).abs() <= 0.01 + 1e-9,
             "k {k}: {u_prev} → {u}"
@@ -286,9 +286,7 @@ fn an_iteration_cap_that_is_too_small_gives_a_fallback_within_the_bounds() {
             capped += 1;
             assert_eq!(u, u_prev);
         }
-        plant.advance(u);
-        u_prev = u;
-    }
+    });
     let n = c.counts_of();
     assert!(n.max_iterations > 0 && n.max_iterations == capped, "{n:?}");
     assert_eq!(
