@@ -151,6 +151,17 @@ impl Trace {
 /// Copies a controller's coefficients for [`Trace::theta`], every `every` samples.
 pub type ThetaProbe<'a, C> = (&'a dyn Fn(&C) -> Vec<f64>, usize);
 
+/// The controller dimensions that fit `plant`: its channel counts as the service contract
+/// carries them.
+pub fn plant_dimensions(plant: &PlantParams) -> control::Dimensions {
+    service::wire::dimensions(ipc_types::ChannelCounts {
+        n_y: plant.n_y() as u16,
+        n_z: plant.n_z() as u16,
+        n_r: plant.n_r() as u16,
+        n_u: plant.n_u() as u16,
+    })
+}
+
 /// Runs `steps` samples of the plant without control (`u ≡ 0`).
 pub fn open_loop(plant: &PlantParams, ts: f64, steps: usize) -> Result<Trace, String> {
     closed_loop::<control::Rcac>(plant, ts, None, steps, None)

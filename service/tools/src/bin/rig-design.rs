@@ -218,9 +218,6 @@ enum Command {
     },
 }
 
-/// A labelled set of poles and zeros.
-type PoleZeroSet = (&'static str, Vec<C64>, Vec<C64>);
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -675,15 +672,28 @@ fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<()
     Ok(())
 }
 
-/// Pole–zero sets of a figure from `(label, poles, zeros)`.
-fn pole_zero_sets<'a>(r: &'a [(&'a str, Vec<C64>, Vec<C64>)]) -> Vec<PoleZero<'a>> {
-    r.iter()
+/// A Bode figure of `curves` over `hz` beside the poles and zeros of each labelled DTF of
+/// `sets`.
+fn dtf_figure(
+    path: &Path,
+    title: &str,
+    hz: &[f64],
+    curves: &[Curve<'_>],
+    sets: &[(&str, &dtf::Dtf)],
+) -> Result<(), String> {
+    let roots = sets
+        .iter()
+        .map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?)))
+        .collect::<Result<Vec<_>, String>>()?;
+    let pz: Vec<PoleZero<'_>> = roots
+        .iter()
         .map(|(label, poles, zeros)| PoleZero {
             label,
             poles,
             zeros,
         })
-        .collect()
+        .collect();
+    bode_figure(path, title, hz, curves, &pz)
 }
 
 fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result<(), String> {
@@ -748,17 +758,7 @@ fn example_3_41(out: &Path) -> Result<(), String> {
         ex.averaged.response(th),
         ex.printed_3_43.response(th),
     );
-    let roots = |sets: &[(&'static str, &dtf::Dtf)]| -> Result<Vec<PoleZeroSet>, String> {
-        sets.iter()
-            .map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?)))
-            .collect()
-    };
-    let r = roots(&[
-        ("G_d", &ex.gd),
-        ("DTF", &ex.averaged),
-        ("(3.43)", &ex.printed_3_43),
-    ])?;
-    bode_figure(
+    dtf_figure(
         &out.join("figure-3.3-windowed-average.png"),
         "(3.41): complex windowed average DTF, Δ = 10π rad/s, n̂ = 2",
         &hz(th),
@@ -768,7 +768,11 @@ fn example_3_41(out: &Path) -> Result<(), String> {
             Curve::new("DTF Ĝ_d (this code)", &fit),
             Curve::new("printed (3.43)", &printed).dashed(),
         ],
-        &pole_zero_sets(&r),
+        &[
+            ("G_d", &ex.gd),
+            ("DTF", &ex.averaged),
+            ("(3.43)", &ex.printed_3_43),
+        ],
     )?;
     // Figure 3.4: G_d and the optimization DTF.
     let th = &ex.log_grid;
@@ -777,12 +781,7 @@ fn example_3_41(out: &Path) -> Result<(), String> {
         ex.optimized.response(th),
         ex.printed_3_48.response(th),
     );
-    let r = roots(&[
-        ("G_d", &ex.gd),
-        ("DTF", &ex.optimized),
-        ("(3.48)", &ex.printed_3_48),
-    ])?;
-    bode_figure(
+    dtf_figure(
         &out.join("figure-3.4-optimization.png"),
         "(3.41): optimization DTF, n̂_max = 1",
         &hz(th),
@@ -791,7 +790,11 @@ fn example_3_41(out: &Path) -> Result<(), String> {
             Curve::new("DTF Ĝ_d (this code)", &opt),
             Curve::new("printed (3.48)", &printed).dashed(),
         ],
-        &pole_zero_sets(&r),
+        &[
+            ("G_d", &ex.gd),
+            ("DTF", &ex.optimized),
+            ("(3.48)", &ex.printed_3_48),
+        ],
     )?;
     println!("wrote {} and the figures", path.display());
     Ok(())

@@ -43,7 +43,9 @@ use plotters::style::RGBColor;
 use rig_tools::study::experiment::{Case, Method, run, run_seed};
 use rig_tools::study::montecarlo::{Summary, monte_carlo};
 use rig_tools::study::plant::{Msd, PRINTED, Plant, SAMPLE_PERIOD};
-use rig_tools::study::{experiment, output, pcac_truss, plant, rcac_common, rcac_miso, rcac_siso};
+use rig_tools::study::{
+    experiment, output, pcac_truss, plant, rcac_common, rcac_miso, rcac_siso, rcac_study,
+};
 
 /// Command line.
 #[derive(Debug, Parser)]
@@ -52,6 +54,14 @@ struct Cli {
     /// The study to run.
     #[command(subcommand)]
     study: Study,
+}
+
+/// The `--update` option of the RCAC studies.
+#[derive(Debug, clap::Args)]
+struct UpdateArg {
+    /// RCAC update law: gradient (μ_Exp, the dissertation's α and R), rls, or both.
+    #[arg(long, default_value = "both")]
+    update: String,
 }
 
 /// Available studies.
@@ -78,9 +88,8 @@ enum Study {
         /// Disturbance frequencies per case (4π … 50π rad/s, equally spaced).
         #[arg(long, default_value_t = 47)]
         points: usize,
-        /// RCAC update law: gradient (μ_Exp, the dissertation's α and R), rls, or both.
-        #[arg(long, default_value = "both")]
-        update: String,
+        #[command(flatten)]
+        update: UpdateArg,
     },
     /// Chapter 3, §3.3.2: RCAC on a 4-mode 2-input 1-output structure whose damping is
     /// swept from 0.01 to 0.5, target models from the ζ = 0.1 model (Figures 3.11–3.17).
@@ -91,9 +100,8 @@ enum Study {
         /// Number of damping values (0.01 … 0.5, equally spaced).
         #[arg(long, default_value_t = 50)]
         points: usize,
-        /// RCAC update law: gradient (μ_Exp, the dissertation's α and R), rls, or both.
-        #[arg(long, default_value = "both")]
-        update: String,
+        #[command(flatten)]
+        update: UpdateArg,
     },
     /// Chapter 6, §6.2: PCAC on the 4-bay truss under harmonic and broadband disturbances,
     /// with and without aliasing (Figures 6.2–6.10), open and closed loop.
@@ -122,14 +130,12 @@ fn main() -> ExitCode {
             out,
             points,
             update,
-        } => rcac_common::Update::parse_set(&update)
-            .and_then(|updates| rcac_siso::run(&out, &rcac_siso::Options { points, updates })),
+        } => rcac(rcac_siso::run, &out, points, &update),
         Study::RcacMiso {
             out,
             points,
             update,
-        } => rcac_common::Update::parse_set(&update)
-            .and_then(|updates| rcac_miso::run(&out, &rcac_miso::Options { points, updates })),
+        } => rcac(rcac_miso::run, &out, points, &update),
         Study::PcacTruss {
             out,
             duration,
@@ -155,6 +161,18 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Runs the RCAC study `run` into `out` with `points` sweep points and the update laws of
+/// `update`.
+fn rcac(
+    run: fn(&Path, &rcac_study::Options) -> Result<(), String>,
+    out: &Path,
+    points: usize,
+    update: &UpdateArg,
+) -> Result<(), String> {
+    let updates = rcac_common::Update::parse_set(&update.update)?;
+    run(out, &rcac_study::Options { points, updates })
 }
 
 /// Formats a settling statistic (`+∞` as "never").

@@ -207,26 +207,24 @@ mod tests {
 
     #[test]
     fn bad_rows_name_file_line_and_column() {
-        let e = parse("a,b\n1,2\n3\n", "f.csv").unwrap_err();
-        assert!(
-            e.contains("f.csv: line 3: 1 fields, the header has 2 columns"),
-            "{e}"
-        );
-        let e = parse("a,b\n1,2,3\n", "f.csv").unwrap_err();
-        assert!(e.contains("line 2: 3 fields"), "{e}");
-        let e = parse("a,b\n1,2\n# c\n3,x1\n", "f.csv").unwrap_err();
-        assert!(
-            e.contains("f.csv: line 4, column 2 (`b`): `x1` is not a number"),
-            "{e}"
-        );
-        let e = parse("a,b\n1,\n", "f.csv").unwrap_err();
-        assert!(e.contains("line 2, column 2"), "{e}");
-        let e = parse("# only\n\n", "f.csv").unwrap_err();
-        assert!(e.contains("no header"), "{e}");
-        let e = parse("a,,b\n", "f.csv").unwrap_err();
-        assert!(e.contains("column 2 of the header has no name"), "{e}");
-        let e = parse("a,b,a\n", "f.csv").unwrap_err();
-        assert!(e.contains("`a` appears twice"), "{e}");
+        for (text, want) in [
+            (
+                "a,b\n1,2\n3\n",
+                "f.csv: line 3: 1 fields, the header has 2 columns",
+            ),
+            ("a,b\n1,2,3\n", "line 2: 3 fields"),
+            (
+                "a,b\n1,2\n# c\n3,x1\n",
+                "f.csv: line 4, column 2 (`b`): `x1` is not a number",
+            ),
+            ("a,b\n1,\n", "line 2, column 2"),
+            ("# only\n\n", "no header"),
+            ("a,,b\n", "column 2 of the header has no name"),
+            ("a,b,a\n", "`a` appears twice"),
+        ] {
+            let e = parse(text, "f.csv").unwrap_err();
+            assert!(e.contains(want), "{text:?}: {e}");
+        }
     }
 
     #[test]

@@ -219,23 +219,8 @@ impl FirTarget {
 
     /// `G_f(e^{jθ_k})` on the grid `theta` (rad/sample), as an [`Frf`].
     pub fn frf(&self, theta: &[f64]) -> Frf {
-        let (p, m) = (self.n_outputs(), self.n_inputs());
-        let mut response = vec![Vec::with_capacity(theta.len()); p * m];
-        for &th in theta {
-            let g = self.eval(th);
-            for o in 0..p {
-                for j in 0..m {
-                    response[o * m + j].push(g[(o, j)]);
-                }
-            }
-        }
-        Frf {
-            ts: self.ts,
-            theta: theta.to_vec(),
-            n_outputs: p,
-            n_inputs: m,
-            response,
-        }
+        let size = (self.n_outputs(), self.n_inputs());
+        Frf::from_fn(self.ts, theta, size, |th| self.eval(th))
     }
 }
 

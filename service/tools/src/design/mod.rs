@@ -32,7 +32,7 @@ pub mod plots;
 pub mod target_response;
 pub mod welch;
 
-use nalgebra::Complex;
+use nalgebra::{Complex, DMatrix};
 
 /// A complex number of `f64`, the element of every response here.
 pub type C64 = Complex<f64>;
@@ -53,6 +53,43 @@ pub struct Frf {
 }
 
 impl Frf {
+    /// The response of an `n_outputs × n_inputs` system at sample period `ts` on the grid
+    /// `theta`, from its `(output, input)` matrix `at(θ_k)` at each grid point.
+    pub fn from_fn(
+        ts: f64,
+        theta: &[f64],
+        (n_outputs, n_inputs): (usize, usize),
+        mut at: impl FnMut(f64) -> DMatrix<C64>,
+    ) -> Frf {
+        let never = |e: std::convert::Infallible| match e {};
+        Self::try_from_fn(ts, theta, (n_outputs, n_inputs), |th| Ok(at(th))).unwrap_or_else(never)
+    }
+
+    /// [`Frf::from_fn`] with an `at` that can fail; its first error is returned.
+    pub fn try_from_fn<E>(
+        ts: f64,
+        theta: &[f64],
+        (n_outputs, n_inputs): (usize, usize),
+        mut at: impl FnMut(f64) -> Result<DMatrix<C64>, E>,
+    ) -> Result<Frf, E> {
+        let mut response = vec![Vec::with_capacity(theta.len()); n_outputs * n_inputs];
+        for &th in theta {
+            let g = at(th)?;
+            for o in 0..n_outputs {
+                for i in 0..n_inputs {
+                    response[o * n_inputs + i].push(g[(o, i)]);
+                }
+            }
+        }
+        Ok(Frf {
+            ts,
+            theta: theta.to_vec(),
+            n_outputs,
+            n_inputs,
+            response,
+        })
+    }
+
     /// The response of channel `(output, input)`.
     pub fn channel(&self, output: usize, input: usize) -> &[C64] {
         &self.response[output * self.n_inputs + input]

@@ -73,28 +73,18 @@ impl DiscreteModel {
     /// `G_d(e^{jθ})` on the grid `theta` (rad/sample).
     pub fn frf(&self, theta: &[f64]) -> Result<Frf, String> {
         let (p, m) = (self.n_outputs(), self.n_inputs());
-        let mut response = vec![Vec::with_capacity(theta.len()); p * m];
-        for &th in theta {
+        Frf::try_from_fn(self.ts, theta, (p, m), |th| {
             let z = C64::from_polar(1.0, th);
             let g = self
                 .ss
                 .freq_response(z)
                 .map_err(|e| format!("model response at θ = {th}: {e}"))?;
             let zinv = z.inv();
-            for o in 0..p {
-                for i in 0..m {
-                    let v = g[(o, i)] - C64::new(self.ss.d[(o, i)], 0.0)
-                        + C64::new(self.ss.d[(o, i)], 0.0) * zinv;
-                    response[o * m + i].push(v * zinv.powu(self.delays[i] as u32));
-                }
-            }
-        }
-        Ok(Frf {
-            ts: self.ts,
-            theta: theta.to_vec(),
-            n_outputs: p,
-            n_inputs: m,
-            response,
+            Ok(DMatrix::from_fn(p, m, |o, i| {
+                let v = g[(o, i)] - C64::new(self.ss.d[(o, i)], 0.0)
+                    + C64::new(self.ss.d[(o, i)], 0.0) * zinv;
+                v * zinv.powu(self.delays[i] as u32)
+            }))
         })
     }
 

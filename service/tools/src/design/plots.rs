@@ -83,6 +83,24 @@ pub fn unwrapped_phase_deg(g: &[C64]) -> Vec<f64> {
     out
 }
 
+/// An empty panel over a logarithmic axis in Hz.
+fn hz_panel(title: &str, y_label: &str) -> Panel {
+    Panel {
+        title: title.into(),
+        x_label: "Hz".into(),
+        y_label: y_label.into(),
+        x_log: true,
+        ..Default::default()
+    }
+}
+
+/// The roots `z` in the complex plane, each drawn as `mark`.
+fn roots(label: &str, z: &[C64], color: plotters::style::RGBColor, mark: Mark) -> Series {
+    let re: Vec<f64> = z.iter().map(|c| c.re).collect();
+    let im: Vec<f64> = z.iter().map(|c| c.im).collect();
+    Series::line(label, &re, &im, color).with(mark)
+}
+
 /// Writes a figure with magnitude and phase of `curves` over `hz` and, when `pz` is not
 /// empty, a pole–zero map.
 pub fn bode_figure(
@@ -94,20 +112,8 @@ pub fn bode_figure(
 ) -> Result<(), String> {
     let keep: Vec<usize> = (0..hz.len()).filter(|&k| hz[k] > 0.0).collect();
     let x: Vec<f64> = keep.iter().map(|&k| hz[k]).collect();
-    let mut mag = Panel {
-        title: "magnitude".into(),
-        x_label: "Hz".into(),
-        y_label: "dB".into(),
-        x_log: true,
-        ..Default::default()
-    };
-    let mut phase = Panel {
-        title: "phase".into(),
-        x_label: "Hz".into(),
-        y_label: "degrees".into(),
-        x_log: true,
-        ..Default::default()
-    };
+    let mut mag = hz_panel("magnitude", "dB");
+    let mut phase = hz_panel("phase", "degrees");
     for (i, c) in curves.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         let mark = if c.dashed { Mark::Dashed } else { Mark::Line };
@@ -132,26 +138,18 @@ pub fn bode_figure(
         };
         for (i, s) in pz.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
-            let re = |v: &[C64]| v.iter().map(|c| c.re).collect::<Vec<_>>();
-            let im = |v: &[C64]| v.iter().map(|c| c.im).collect::<Vec<_>>();
-            map.series.push(
-                Series::line(
-                    &format!("{}, poles", s.label),
-                    &re(s.poles),
-                    &im(s.poles),
-                    color,
-                )
-                .with(Mark::Cross),
-            );
-            map.series.push(
-                Series::line(
-                    &format!("{}, zeros", s.label),
-                    &re(s.zeros),
-                    &im(s.zeros),
-                    color,
-                )
-                .with(Mark::Circle),
-            );
+            map.series.push(roots(
+                &format!("{}, poles", s.label),
+                s.poles,
+                color,
+                Mark::Cross,
+            ));
+            map.series.push(roots(
+                &format!("{}, zeros", s.label),
+                s.zeros,
+                color,
+                Mark::Circle,
+            ));
         }
         panels.push(map);
         figure(path, title, (1, 3), (1800, 600), &panels)
@@ -178,13 +176,9 @@ pub fn coherence_figure(
         })
         .collect();
     let panel = Panel {
-        title: "multiple coherence".into(),
-        x_label: "Hz".into(),
-        y_label: "γ²".into(),
-        x_log: true,
         y_range: Some((0.0, 1.05)),
         series,
-        ..Default::default()
+        ..hz_panel("multiple coherence", "γ²")
     };
     figure(path, title, (1, 1), (1000, 450), &[panel])
 }

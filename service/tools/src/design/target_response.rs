@@ -3,6 +3,7 @@
 
 use super::{C64, Frf, horner};
 use control::target::{TargetForm, TargetModel};
+use nalgebra::DMatrix;
 
 /// `G_f(e^{jθ})` of a target model.
 pub trait TargetResponse {
@@ -13,16 +14,15 @@ pub trait TargetResponse {
 impl TargetResponse for TargetModel {
     fn frf(&self, theta: &[f64]) -> Frf {
         let (p, m) = (self.outputs, self.inputs);
-        let mut response = vec![vec![C64::new(0.0, 0.0); theta.len()]; p * m];
-        for (k, &th) in theta.iter().enumerate() {
+        Frf::from_fn(self.sample_period, theta, (p, m), |th| {
             let zinv = C64::from_polar(1.0, -th);
+            let mut g = DMatrix::from_element(p, m, C64::new(0.0, 0.0));
             match &self.form {
                 TargetForm::TransferFunction(ch) => {
                     let z = zinv.inv();
                     for c in ch {
-                        let g = horner(&c.num, z) / horner(&c.den, z);
-                        response[c.output * m + c.input][k] =
-                            g * zinv.powu(c.delay as u32) * self.beta;
+                        let h = horner(&c.num, z) / horner(&c.den, z);
+                        g[(c.output, c.input)] = h * zinv.powu(c.delay as u32) * self.beta;
                     }
                 }
                 TargetForm::Markov(hs) => {
@@ -32,19 +32,13 @@ impl TargetResponse for TargetModel {
                             for h in hs.iter().rev() {
                                 acc = acc * zinv + h[(o, i)];
                             }
-                            response[o * m + i][k] = acc * self.beta;
+                            g[(o, i)] = acc * self.beta;
                         }
                     }
                 }
             }
-        }
-        Frf {
-            ts: self.sample_period,
-            theta: theta.to_vec(),
-            n_outputs: p,
-            n_inputs: m,
-            response,
-        }
+            g
+        })
     }
 }
 

@@ -2,7 +2,8 @@
 //!
 //! - [`experiment`], [`plant`], [`montecarlo`], [`output`]: chapter 5, RLS with F-test
 //!   variable-rate forgetting on the time-varying mass-spring-damper (5.8).
-//! - [`rcac_common`], [`rcac_siso`], [`rcac_miso`]: chapter 3, RCAC with dereverberated
+//! - [`rcac_common`], [`rcac_study`], [`rcac_sweep_csv`], [`rcac_sweep_stats`],
+//!   [`rcac_siso`], [`rcac_miso`]: chapter 3, RCAC with dereverberated
 //!   target models (§3.3.1 on (3.50), §3.3.2 on a 4-mode MISO structure).
 //! - [`pcac_truss`]: chapter 6, PCAC on the 4-bay truss (§6.2).
 
@@ -15,3 +16,5 @@ pub mod rcac_common;
 pub mod rcac_miso;
 pub mod rcac_siso;
 pub mod rcac_study;
+pub mod rcac_sweep_csv;
+pub mod rcac_sweep_stats;

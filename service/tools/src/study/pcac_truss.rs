@@ -481,14 +481,8 @@ pub fn run_experiment(
     for &setting in settings {
         let (sc, params) = load(exp, setting)?;
         let p = &sc.plant;
-        let counts = ipc_types::ChannelCounts {
-            n_y: p.n_y() as u16,
-            n_z: p.n_z() as u16,
-            n_r: p.n_r() as u16,
-            n_u: p.n_u() as u16,
-        };
         let mut pcac =
-            Pcac::new(&params, service::wire::dimensions(counts)).map_err(|e| e.to_string())?;
+            Pcac::new(&params, simulate::plant_dimensions(p)).map_err(|e| e.to_string())?;
         let mut trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
         // Compare in the open loop's unit (10·mm): the controller saw its own.
         let to_mm = setting.to_millimetres();
@@ -799,12 +793,31 @@ fn time_line(label: &str, x: &[f64], ts: f64, color: RGBColor) -> Series {
     }
 }
 
-fn file(out: &Path, fig: &str, o: &Outcome, c: &Closed, what: &str) -> PathBuf {
-    out.join(format!(
-        "figure-{fig}-{}-{}-{what}.png",
-        o.experiment.name(),
-        c.setting.name()
-    ))
+/// Writes Figure `fig` of the closed loop `c` of `o` into `figure-{fig}-{experiment}-{setting}-{what}.png`
+/// under the title "Figure {fig}: {experiment}, {setting}: {caption}".
+fn outcome_figure(
+    out: &Path,
+    (fig, what): (&str, &str),
+    (o, c): (&Outcome, &Closed),
+    caption: &str,
+    (layout, size): ((usize, usize), (u32, u32)),
+    panels: &[Panel],
+) -> Result<(), String> {
+    figure(
+        &out.join(format!(
+            "figure-{fig}-{}-{}-{what}.png",
+            o.experiment.name(),
+            c.setting.name()
+        )),
+        &format!(
+            "Figure {fig}: {}, {}: {caption}",
+            o.experiment.label(),
+            c.setting.label()
+        ),
+        layout,
+        size,
+        panels,
+    )
 }
 
 fn response_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), String> {
@@ -826,15 +839,12 @@ fn response_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), String> {
             ..Default::default()
         })
         .collect();
-    figure(
-        &file(out, fig, o, c, "response"),
-        &format!(
-            "Figure {fig}: {}, {}: open (OL) and closed (CL) loop",
-            o.experiment.label(),
-            c.setting.label()
-        ),
-        (2, 2),
-        (1600, 1000),
+    outcome_figure(
+        out,
+        (fig, "response"),
+        (o, c),
+        "open (OL) and closed (CL) loop",
+        ((2, 2), (1600, 1000)),
         &panels,
     )
 }
@@ -862,17 +872,16 @@ fn psd_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), String> {
             ..Default::default()
         });
     }
-    figure(
-        &file(out, fig, o, c, "psd"),
+    outcome_figure(
+        out,
+        (fig, "psd"),
+        (o, c),
         &format!(
-            "Figure {fig}: {}, {}: Welch PSD of z over {:.0}-{:.0} s (segments of {segment})",
-            o.experiment.label(),
-            c.setting.label(),
+            "Welch PSD of z over {:.0}-{:.0} s (segments of {segment})",
             o.late_start as f64 * o.ts,
             o.open.len() as f64 * o.ts
         ),
-        (2, 2),
-        (1600, 1000),
+        ((2, 2), (1600, 1000)),
         &panels,
     )
 }
@@ -921,15 +930,12 @@ fn identification_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), Stri
             ..Default::default()
         },
     ];
-    figure(
-        &file(out, fig, o, c, "identification"),
-        &format!(
-            "Figure {fig}: {}, {}: identification",
-            o.experiment.label(),
-            c.setting.label()
-        ),
-        (1, 2),
-        (1600, 600),
+    outcome_figure(
+        out,
+        (fig, "identification"),
+        (o, c),
+        "identification",
+        ((1, 2), (1600, 600)),
         &panels,
     )
 }

@@ -159,6 +159,20 @@ pub struct Dtm {
     pub dtfs: Vec<Dtf>,
 }
 
+/// The DTM of `method` among `dtms`.
+pub fn dtm_of(dtms: &[(Method, Dtm)], method: Method) -> Result<&Dtm, String> {
+    Ok(&dtms.iter().find(|d| d.0 == method).ok_or("missing DTM")?.1)
+}
+
+/// `β` of each method in both studies (§3.3.1.1, §3.3.1.2 and §3.3.2.1; the caption of
+/// Figure 3.13 says 0.8 for the windowed average of §3.3.2.1, its text `β = γ = 1`).
+pub fn beta(method: Method) -> f64 {
+    match method {
+        Method::Average => 1.0,
+        Method::Optimize => 0.8,
+    }
+}
+
 /// The DTM of `sc`'s `G_{zu,d}` by `method` with scaling `beta` (see the module docs).
 pub fn design_dtm(sc: &Scenario, method: Method, beta: f64) -> Result<Dtm, String> {
     let model = DiscreteModel::from_scenario(sc, OutputSet::Z)?;
@@ -322,13 +336,7 @@ pub fn run_closed(
     theta_every: usize,
 ) -> Result<Point, String> {
     let p = &sc.plant;
-    let counts = ipc_types::ChannelCounts {
-        n_y: p.n_y() as u16,
-        n_z: p.n_z() as u16,
-        n_r: p.n_r() as u16,
-        n_u: p.n_u() as u16,
-    };
-    let mut c = Rcac::new(params, service::wire::dimensions(counts)).map_err(|e| e.to_string())?;
+    let mut c = Rcac::new(params, simulate::plant_dimensions(p)).map_err(|e| e.to_string())?;
     let probe = |c: &Rcac| c.theta().to_vec();
     let theta = (theta_every > 0).then_some((&probe as &dyn Fn(&Rcac) -> Vec<f64>, theta_every));
     let run = simulate::closed_loop(p, sc.rig.sample_period, Some(&mut c), steps, theta);

@@ -53,12 +53,15 @@ use rayon::prelude::*;
 
 use crate::study::rcac_common::{
     self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, TS, Update,
-    WINDOW_SECONDS, Window, design_dtm, error_plane_panel, median, poly_mul, toml_f64, toml_list,
+    WINDOW_SECONDS, Window, beta, design_dtm, dtm_of, error_plane_panel, poly_mul, toml_f64,
+    toml_list,
 };
 pub use crate::study::rcac_study::Options;
 use crate::study::rcac_study::{
     self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleRun, tone_errors,
 };
+use crate::study::rcac_sweep_csv;
+use crate::study::rcac_sweep_stats::{POOR_DB, SweepStats, secs};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -82,14 +85,6 @@ pub const ALPHA: f64 = 0.2;
 
 /// The damping sweep: `(lowest, highest)`.
 pub const ZETA_RANGE: (f64, f64) = (0.01, 0.5);
-
-/// `β` of each method (see the module docs).
-pub fn beta(method: Method) -> f64 {
-    match method {
-        Method::Average => 1.0,
-        Method::Optimize => 0.8,
-    }
-}
 
 /// `(num, den)` of `G_j` in descending powers of `s` with damping `ζ` and zeros `zeros_hz`.
 pub fn channel(zeta: f64, zeros_hz: &[f64]) -> (Vec<f64>, Vec<f64>) {
@@ -284,11 +279,7 @@ impl RcacStudy<2> for Miso {
         method: Method,
         update: Update,
     ) -> Result<PlaneFigure, String> {
-        let dtm = &designs
-            .iter()
-            .find(|d| d.0 == method)
-            .ok_or("missing DTM")?
-            .1;
+        let dtm = dtm_of(designs, method)?;
         // The locus over a fine damping grid, and the three marks.
         let fine = zetas(197);
         let locus: Vec<[(f64, f64); 2]> = fine
@@ -309,7 +300,7 @@ impl RcacStudy<2> for Miso {
         for j in 0..2 {
             let points: Vec<PlanePoint> = rows
                 .iter()
-                .filter(|r| r.method == method && r.update == update)
+                .filter(|r| r.is(method, update))
                 .map(|r| PlanePoint {
                     mag_db: r.error[j].0,
                     phase_deg: r.error[j].1,
@@ -410,7 +401,7 @@ impl RcacStudy<2> for Miso {
     fn summary(&self, rows: &[Row], updates: &[Update], report: &mut String) {
         let _ = writeln!(
             report,
-            "\nsweep over the true damping: tone suppression (dB) median and worst, points below 20 dB or diverged, median settling time (s)"
+            "\nsweep over the true damping: tone suppression (dB) median and worst, points below {POOR_DB} dB or diverged, median settling time (s)"
         );
         let _ = writeln!(
             report,
@@ -426,46 +417,23 @@ impl RcacStudy<2> for Miso {
         );
         for method in Method::ALL {
             for &update in updates {
-                let rs: Vec<&Row> = rows
-                    .iter()
-                    .filter(|r| r.method == method && r.update == update)
-                    .collect();
-                let s = |j: usize| rs.iter().map(|r| r.suppression(j)).collect::<Vec<_>>();
-                let (s0, s1) = (s(0), s(1));
-                let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
-                let poor = rs
-                    .iter()
-                    .filter(|r| r.suppression(0).min(r.suppression(1)) < 20.0)
-                    .count();
-                let div = rs.iter().filter(|r| !r.finite).count();
-                let st = median(
-                    &rs.iter()
-                        .map(|r| r.settle.unwrap_or(f64::INFINITY))
-                        .collect::<Vec<_>>(),
-                );
+                let rs: Vec<&Row> = rows.iter().filter(|r| r.is(method, update)).collect();
+                let st = SweepStats::of(&rs);
                 let worst = rs
                     .iter()
-                    .min_by(|a, b| {
-                        a.suppression(0)
-                            .min(a.suppression(1))
-                            .total_cmp(&b.suppression(0).min(b.suppression(1)))
-                    })
+                    .min_by(|a, b| a.worst_suppression().total_cmp(&b.worst_suppression()))
                     .map_or(f64::NAN, |r| r.at);
                 let _ = writeln!(
                     report,
                     "{:<9} {:<8} {:>13} {:>13} {:>3}/{:<2} {:>4} {:>8} {:>22}",
                     method.name(),
                     update.name(),
-                    format!("{:.0}/{:.0}", median(&s0), min(&s0)),
-                    format!("{:.0}/{:.0}", median(&s1), min(&s1)),
-                    poor,
-                    rs.len(),
-                    div,
-                    if st.is_finite() {
-                        format!("{st:.1}")
-                    } else {
-                        "never".into()
-                    },
+                    format!("{:.0}/{:.0}", st.median[0], st.worst[0]),
+                    format!("{:.0}/{:.0}", st.median[1], st.worst[1]),
+                    st.poor,
+                    st.points,
+                    st.diverged,
+                    secs(st.settle_median()),
                     worst
                 );
             }
@@ -474,32 +442,18 @@ impl RcacStudy<2> for Miso {
 }
 
 fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
-    let mut s = String::from(
-        "zeta,method,update,mag_err1_db,phase_err1_deg,mag_err2_db,phase_err2_deg,open_amp1,open_amp2,closed_amp1,closed_amp2,closed_amp1_prev,closed_amp2_prev,suppression1_db,suppression2_db,open_peak,closed_peak,finite,settle_s\n",
+    let mut s = format!(
+        "zeta,method,update,{}\n",
+        rcac_sweep_csv::header::<2>(false)
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.3},{:.3},{:.6e},{:.6e},{},{}",
+            "{},{},{},{}",
             r.at,
             r.method.name(),
             r.update.name(),
-            r.error[0].0,
-            r.error[0].1,
-            r.error[1].0,
-            r.error[1].1,
-            r.open_amp[0],
-            r.open_amp[1],
-            r.closed_amp[0],
-            r.closed_amp[1],
-            r.closed_amp_prev[0],
-            r.closed_amp_prev[1],
-            r.suppression(0),
-            r.suppression(1),
-            r.open_peak,
-            r.closed_peak,
-            r.finite,
-            r.settle.map_or("never".into(), |t| format!("{t:.2}"))
+            rcac_sweep_csv::fields(r, false)
         );
     }
     common::write(path, &s)

@@ -37,12 +37,16 @@ use rayon::prelude::*;
 
 use crate::study::rcac_common::{
     self as common, Dtm, KW, Method, PlaneMark, PlanePoint, RUN_SECONDS, TS, Update,
-    WINDOW_SECONDS, Window, design_dtm, error_plane_panel, median, model_error, toml_list,
+    WINDOW_SECONDS, Window, beta, design_dtm, dtm_of, error_plane_panel, median, model_error,
+    toml_list,
 };
 pub use crate::study::rcac_study::Options;
 use crate::study::rcac_study::{
     self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleRun,
 };
+use crate::study::rcac_sweep_csv;
+pub use crate::study::rcac_sweep_stats::POOR_DB;
+use crate::study::rcac_sweep_stats::{SweepStats, secs};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -54,14 +58,6 @@ pub const ALPHA: f64 = 0.5;
 
 /// Lowest and highest disturbance frequency of the sweep, rad/s.
 pub const SWEEP: (f64, f64) = (4.0 * PI, 50.0 * PI);
-
-/// `β` of each method (§3.3.1.1 and §3.3.1.2).
-pub fn beta(method: Method) -> f64 {
-    match method {
-        Method::Average => 1.0,
-        Method::Optimize => 0.8,
-    }
-}
 
 /// One case of Figure 3.5: damping `ζ` of the poles and zeros, zero frequency `ω_z / π`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -320,10 +316,10 @@ impl RcacStudy<1> for Siso {
         let mut panels = Vec::new();
         for (i, c) in CASES.iter().enumerate() {
             let (model, dtms) = &designs[i];
-            let dtm = &dtms.iter().find(|d| d.0 == method).ok_or("missing DTM")?.1;
+            let dtm = dtm_of(dtms, method)?;
             let points: Vec<PlanePoint> = rows
                 .iter()
-                .filter(|r| r.at.case == i && r.method == method && r.update == update)
+                .filter(|r| r.at.case == i && r.is(method, update))
                 .map(|r| PlanePoint {
                     mag_db: r.error[0].0,
                     phase_deg: r.error[0].1,
@@ -408,7 +404,6 @@ impl RcacStudy<1> for Siso {
 
     /// The sweep's tables: per case, method and update law, and per phase-error bin.
     fn summary(&self, rows: &[Row], updates: &[Update], report: &mut String) {
-        let settle = |r: &Row| r.settle.unwrap_or(f64::INFINITY);
         let _ = writeln!(
             report,
             "\nsweep summary: tone suppression 20 log10(open/closed) in dB over the omega_d sweep; \
@@ -436,18 +431,9 @@ impl RcacStudy<1> for Siso {
                 for &update in updates {
                     let rs: Vec<&Row> = rows
                         .iter()
-                        .filter(|r| r.at.case == i && r.method == method && r.update == update)
+                        .filter(|r| r.at.case == i && r.is(method, update))
                         .collect();
-                    let sup: Vec<f64> = rs.iter().map(|r| r.suppression(0)).collect();
-                    let worst = sup.iter().copied().fold(f64::INFINITY, f64::min);
-                    let poor = rs.iter().filter(|r| r.suppression(0) < POOR_DB).count();
-                    let div = rs.iter().filter(|r| !r.finite).count();
-                    let mut st: Vec<f64> = rs.iter().map(|r| settle(r)).collect();
-                    st.sort_by(f64::total_cmp);
-                    let p90 = st
-                        .get((st.len() * 9).div_ceil(10).saturating_sub(1))
-                        .copied()
-                        .unwrap_or(f64::NAN);
+                    let st = SweepStats::of(&rs);
                     let ph: Vec<f64> = rs.iter().map(|r| r.error[0].1.abs()).collect();
                     let _ = writeln!(
                         report,
@@ -455,13 +441,13 @@ impl RcacStudy<1> for Siso {
                         c.name(i),
                         method.name(),
                         update.name(),
-                        median(&sup),
-                        worst,
-                        poor,
-                        rs.len(),
-                        div,
-                        secs(median(&st)),
-                        secs(p90),
+                        st.median[0],
+                        st.worst[0],
+                        st.poor,
+                        st.points,
+                        st.diverged,
+                        secs(st.settle_median()),
+                        secs(st.settle_p90()),
                         median(&ph),
                         ph.iter().copied().fold(0.0, f64::max)
                     );
@@ -489,8 +475,7 @@ impl RcacStudy<1> for Siso {
                     let rs: Vec<&Row> = rows
                         .iter()
                         .filter(|r| {
-                            r.method == method
-                                && r.update == update
+                            r.is(method, update)
                                 && r.error[0].1.abs() >= w[0]
                                 && r.error[0].1.abs() < w[1]
                         })
@@ -500,12 +485,16 @@ impl RcacStudy<1> for Siso {
                         continue;
                     }
                     let ok = rs.iter().filter(|r| r.suppression(0) >= POOR_DB).count();
-                    let med = median(&rs.iter().map(|r| r.suppression(0)).collect::<Vec<_>>());
-                    let st = median(&rs.iter().map(|r| settle(r)).collect::<Vec<_>>());
+                    let st = SweepStats::of(&rs);
                     let _ = write!(
                         line,
                         " {:>22}",
-                        format!("{ok}/{} {med:.0} dB {}s", rs.len(), secs(st))
+                        format!(
+                            "{ok}/{} {:.0} dB {}s",
+                            st.points,
+                            st.median[0],
+                            secs(st.settle_median())
+                        )
                     );
                 }
                 let _ = writeln!(report, "{line}");
@@ -515,31 +504,22 @@ impl RcacStudy<1> for Siso {
 }
 
 fn write_csv(path: &Path, rows: &[Row], method: Method) -> Result<(), String> {
-    let mut s = String::from(
-        "case,zeta,omega_z_over_pi,omega_d_over_pi,freq_hz,update,mag_err_db,phase_err_deg,open_amp,closed_amp,closed_amp_prev,suppression_db,open_peak,closed_peak,peak_suppression_db,finite,settle_s\n",
+    let mut s = format!(
+        "case,zeta,omega_z_over_pi,omega_d_over_pi,freq_hz,update,{}\n",
+        rcac_sweep_csv::header::<1>(true)
     );
     for r in rows.iter().filter(|r| r.method == method) {
         let c = CASES[r.at.case];
         let _ = writeln!(
             s,
-            "{},{},{},{:.6},{:.6},{},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.3},{:.6e},{:.6e},{:.3},{},{}",
+            "{},{},{},{:.6},{:.6},{},{}",
             (b'a' + r.at.case as u8) as char,
             c.zeta,
             c.wz_over_pi,
             r.at.wd / PI,
             r.at.wd / (2.0 * PI),
             r.update.name(),
-            r.error[0].0,
-            r.error[0].1,
-            r.open_amp[0],
-            r.closed_amp[0],
-            r.closed_amp_prev[0],
-            r.suppression(0),
-            r.open_peak,
-            r.closed_peak,
-            r.peak_suppression(),
-            r.finite,
-            r.settle.map_or("never".into(), |t| format!("{t:.2}"))
+            rcac_sweep_csv::fields(r, true)
         );
     }
     common::write(path, &s)
@@ -586,18 +566,6 @@ fn error_plane(model: &DiscreteModel, dtm: &Dtm, theta: &[f64]) -> Result<Vec<(f
 
 /// Phase-error bins (|degrees|) of the correlation table.
 const PHASE_BINS: [f64; 6] = [0.0, 30.0, 60.0, 90.0, 120.0, 180.01];
-
-/// Suppression below this is counted as poor, dB.
-pub const POOR_DB: f64 = 20.0;
-
-/// A time in s, or "never" for +∞.
-fn secs(t: f64) -> String {
-    if t.is_finite() {
-        format!("{t:.1}")
-    } else {
-        "never".into()
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -98,6 +98,16 @@ impl<At, const N: usize> Row<At, N> {
         }
     }
 
+    /// The smallest suppression over the tones, dB (−∞ when diverged).
+    pub fn worst_suppression(&self) -> f64 {
+        (1..N).fold(self.suppression(0), |m, j| m.min(self.suppression(j)))
+    }
+
+    /// Whether the row is a run with the DTM of `method` and the update law `update`.
+    pub fn is(&self, method: Method, update: Update) -> bool {
+        self.method == method && self.update == update
+    }
+
     /// Suppression of the peak `|z|` on the window, dB (−∞ when diverged).
     pub fn peak_suppression(&self) -> f64 {
         if self.finite {

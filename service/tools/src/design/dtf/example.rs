@@ -201,6 +201,11 @@ fn line(name: &str, d: &Dtf) -> String {
     )
 }
 
+/// [`line`] and a measure of the fit under it: `what` and `value`, already formatted.
+fn line_with(name: &str, d: &Dtf, what: &str, value: String) -> String {
+    format!("{}  {:<22} {what} {value}\n", line(name, d), "")
+}
+
 impl Example341 {
     /// A plain-text side-by-side report of both examples.
     pub fn report(&self) -> String {
@@ -217,35 +222,40 @@ impl Example341 {
             self.averaged.num.len() - 1,
             self.linear_grid.len()
         ));
-        s.push_str(&line("SK fit (this code)", &self.averaged));
-        s.push_str(&format!(
-            "  {:<22} relative RMS error to Ḡ_d {:.4}\n",
-            "", self.averaged_fit_error
+        s.push_str(&line_with(
+            "SK fit (this code)",
+            &self.averaged,
+            "relative RMS error to Ḡ_d",
+            format!("{:.4}", self.averaged_fit_error),
         ));
-        s.push_str(&line("Levy (1 SK iteration)", &self.levy));
-        s.push_str(&format!(
-            "  {:<22} relative RMS error to Ḡ_d {:.4}\n",
-            "", self.levy_fit_error
+        s.push_str(&line_with(
+            "Levy (1 SK iteration)",
+            &self.levy,
+            "relative RMS error to Ḡ_d",
+            format!("{:.4}", self.levy_fit_error),
         ));
-        s.push_str(&line("printed (3.43)", &self.printed_3_43));
-        s.push_str(&format!(
-            "  {:<22} relative RMS error to Ḡ_d {:.4}\n",
-            "", self.printed_3_43_fit_error
+        s.push_str(&line_with(
+            "printed (3.43)",
+            &self.printed_3_43,
+            "relative RMS error to Ḡ_d",
+            format!("{:.4}", self.printed_3_43_fit_error),
         ));
         s.push_str(&format!(
             "\n§3.2.2.1 optimization, n̂_max = 1, {} log-spaced points {:.5}…π rad/sample\n",
             self.log_grid.len(),
             self.log_grid[0]
         ));
-        s.push_str(&line("optimized (this code)", &self.optimized));
-        s.push_str(&format!(
-            "  {:<22} relative cost (3.44) {:.6}\n",
-            "", self.optimized_cost
+        s.push_str(&line_with(
+            "optimized (this code)",
+            &self.optimized,
+            "relative cost (3.44)",
+            format!("{:.6}", self.optimized_cost),
         ));
-        s.push_str(&line("printed (3.48)", &self.printed_3_48));
-        s.push_str(&format!(
-            "  {:<22} relative cost (3.44) {:.6}\n",
-            "", self.printed_3_48_cost
+        s.push_str(&line_with(
+            "printed (3.48)",
+            &self.printed_3_48,
+            "relative cost (3.44)",
+            format!("{:.6}", self.printed_3_48_cost),
         ));
         s
     }

@@ -5,6 +5,22 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol
 }
 
+/// The coefficients of `a` and `b` side by side: numerators, then denominators.
+fn coefficient_pairs<'a>(a: &'a Dtf, b: &'a Dtf) -> impl Iterator<Item = (f64, f64)> + 'a {
+    a.num
+        .iter()
+        .chain(&a.den)
+        .zip(b.num.iter().chain(&b.den))
+        .map(|(x, y)| (*x, *y))
+}
+
+/// Every coefficient of `got` within `tol` of that of `want`.
+fn assert_coefficients_close(got: &Dtf, want: &Dtf, tol: f64) {
+    for (a, b) in coefficient_pairs(got, want) {
+        assert!(close(a, b, tol), "{got:?} vs {want:?}");
+    }
+}
+
 /// Largest `|unwrap(arg a) − unwrap(arg b)|` in degrees over the grid, unwrapping both along
 /// the grid from its first point.
 fn phase_error_deg(theta: &[f64], a: &dyn Fn(f64) -> C64, b: &dyn Fn(f64) -> C64) -> f64 {
@@ -121,14 +137,7 @@ fn fit_recovers_an_exact_stable_model() {
     let theta = grid(0.0, PI, 200, false).unwrap();
     let g = truth.response(&theta);
     let d = fit(&theta, &g, None, 2, 1).unwrap();
-    for (a, b) in d
-        .num
-        .iter()
-        .chain(&d.den)
-        .zip(truth.num.iter().chain(&truth.den))
-    {
-        assert!(close(*a, *b, 1e-9), "{d:?} vs {truth:?}");
-    }
+    assert_coefficients_close(&d, &truth, 1e-9);
     // Weights change nothing for an exact model.
     let w: Vec<f64> = theta.iter().map(|t| 1.0 + t).collect();
     let d = fit(&theta, &g, Some(&w), 2, 1).unwrap();
@@ -189,14 +198,7 @@ fn optimize_recovers_low_order_models_with_real_roots() {
     let g = second.response(&theta);
     let d = optimize(&theta, &g, 2, ZeroCount::RelativeDegree(1)).unwrap();
     assert_eq!((d.order(), d.relative_degree()), (2, 1));
-    for (a, b) in d
-        .num
-        .iter()
-        .chain(&d.den)
-        .zip(second.num.iter().chain(&second.den))
-    {
-        assert!(close(*a, *b, 1e-4), "{d:?} vs {second:?}");
-    }
+    assert_coefficients_close(&d, &second, 1e-4);
     assert!(
         optimize(&theta, &g, 1, ZeroCount::Fixed(2)).is_err(),
         "no structure fits"
@@ -216,15 +218,10 @@ fn optimize_recovers_low_order_models_with_real_roots() {
 fn discretizing_3_41_gives_3_42_to_the_printed_digits() {
     let e = example_3_41().unwrap();
     assert_eq!((e.gd.num.len(), e.gd.den.len()), (2, 3));
-    for (a, b) in
-        e.gd.num
-            .iter()
-            .chain(&e.gd.den)
-            .zip(e.printed_3_42.num.iter().chain(&e.printed_3_42.den))
-    {
+    for (a, b) in coefficient_pairs(&e.gd, &e.printed_3_42) {
         // Printed to 4 decimals (−1.569 to 3): half a unit of the last digit.
-        let tol = if *b == -1.569 { 5e-4 } else { 5e-5 };
-        assert!(close(*a, *b, tol), "{:?} vs {:?}", e.gd, e.printed_3_42);
+        let tol = if b == -1.569 { 5e-4 } else { 5e-5 };
+        assert!(close(a, b, tol), "{:?} vs {:?}", e.gd, e.printed_3_42);
     }
     assert!(
         close(e.gd.dc_gain(), 1.0, 1e-12),
@@ -310,14 +307,7 @@ fn channel_wise_helpers_treat_each_channel_on_its_own() {
         d[0]
     );
     assert_eq!(d[0].order(), 1);
-    for (x, y) in d[1]
-        .num
-        .iter()
-        .chain(&d[1].den)
-        .zip(b.num.iter().chain(&b.den))
-    {
-        assert!(close(*x, *y, 1e-4), "{:?}", d[1]);
-    }
+    assert_coefficients_close(&d[1], &b, 1e-4);
     // Averaging then fitting a smooth response changes it little: the fit of the averaged
     // first-order channel keeps its pole near 0.7.
     let lin = grid(0.0, PI, 400, false).unwrap();
