@@ -57,19 +57,12 @@ pub struct Options {
     /// Timed steps per controller configuration (default 200000; 20000 with --quick).
     #[arg(long)]
     pub steps: Option<u64>,
-    /// Output folder (default bench-results/<unix-time>).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Results file the docs link to; this run replaces its section (default
-    /// docs/results/latency-bench.md of the workspace).
-    #[arg(long)]
-    pub results: Option<PathBuf>,
+    /// Output folder, results file, `--quick`.
+    #[command(flatten)]
+    pub run: RunArgs,
     /// Do not run cyclictest even if it is installed.
     #[arg(long)]
     pub skip_cyclictest: bool,
-    /// A short run for smoke tests.
-    #[arg(long)]
-    pub quick: bool,
     /// Enable the service's CSV signal log in the service runs (off by default).
     #[arg(long)]
     pub service_log: bool,
@@ -104,19 +97,37 @@ pub struct PcacArgs {
     /// Time the PCAC step only, without solving its QPs with clarabel.
     #[arg(long)]
     pub no_clarabel: bool,
-    /// Output folder (default bench-results/pcac-<unix-time>).
+    /// Core of the timing thread (pinned, SCHED_FIFO).
+    #[arg(long, default_value_t = 1)]
+    pub rt_core: usize,
+    /// Output folder, results file, `--quick`.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// The options of every run, full or `latency-bench pcac`: where it writes, and how long it
+/// takes.
+#[allow(rustdoc::invalid_html_tags)]
+#[derive(clap::Args, Debug, Clone)]
+pub struct RunArgs {
+    /// Output folder (default bench-results/<unix-time>; bench-results/pcac-<unix-time> for
+    /// `latency-bench pcac`).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Results file the docs link to; this run replaces its section (default
     /// docs/results/latency-bench.md of the workspace).
     #[arg(long)]
     pub results: Option<PathBuf>,
-    /// Core of the timing thread (pinned, SCHED_FIFO).
-    #[arg(long, default_value_t = 1)]
-    pub rt_core: usize,
     /// A short run for smoke tests.
     #[arg(long)]
     pub quick: bool,
+}
+
+impl RunArgs {
+    /// The results file: `--results`, else the default one.
+    pub fn results_file(&self) -> PathBuf {
+        self.results.clone().unwrap_or_else(default_results_file)
+    }
 }
 
 /// A subcommand: the PCAC phase alone, or one of the child roles.
@@ -184,16 +195,16 @@ impl Settings {
     pub fn from(o: &Options) -> Self {
         let samples = o
             .samples
-            .unwrap_or(if o.quick { 5_000 } else { 50_000 })
+            .unwrap_or(if o.run.quick { 5_000 } else { 50_000 })
             .max(1);
         let warmup = o.warmup.unwrap_or(samples / 10);
         let rounds = o
             .rounds
-            .unwrap_or(if o.quick { 2 } else { 5 })
+            .unwrap_or(if o.run.quick { 2 } else { 5 })
             .clamp(1, samples);
         let steps = o
             .steps
-            .unwrap_or(if o.quick { 20_000 } else { 200_000 })
+            .unwrap_or(if o.run.quick { 20_000 } else { 200_000 })
             .max(1);
         Self {
             rounds,
@@ -206,7 +217,7 @@ impl Settings {
             },
             seconds: o
                 .seconds
-                .unwrap_or(if o.quick { 1.0 } else { 5.0 })
+                .unwrap_or(if o.run.quick { 1.0 } else { 5.0 })
                 .max(0.01),
             steps,
             step_warmup: (steps / 20).max(100),
@@ -216,10 +227,10 @@ impl Settings {
             cyclictest: !o.skip_cyclictest,
             pcac_steps: (!o.skip_pcac).then(|| {
                 o.pcac_steps
-                    .unwrap_or(if o.quick { 300 } else { 2_000 })
+                    .unwrap_or(if o.run.quick { 300 } else { 2_000 })
                     .max(1)
             }),
-            results: o.results.clone().unwrap_or_else(default_results_file),
+            results: o.run.results_file(),
         }
     }
 

@@ -61,6 +61,9 @@ pub mod step_cost;
 pub mod table;
 
 use ipc_types::rt::{RtRequest, RtSetup};
+use report::Measured;
+use std::path::Path;
+use std::time::{Duration, Instant, SystemTime};
 
 /// Sampling period of the budget the bench checks: 8 kHz.
 pub const PERIOD_NS: u64 = 125_000;
@@ -98,6 +101,42 @@ pub fn on_rt_core<T: Send + 'static>(
         .map_err(|e| format!("starting the {name} thread: {e}"))?
         .join()
         .map_err(|_| format!("the {name} thread failed"))
+}
+
+/// What [`timed_on_rt_core`] ran: the RT set-up outcome, the work's result, and the
+/// wall-clock start and the duration of the run (for the interval logs).
+pub struct TimedRun<T> {
+    /// What the OS granted the thread.
+    pub setup: RtSetup,
+    /// The work's result.
+    pub value: T,
+    /// Wall-clock start of the run.
+    pub start: SystemTime,
+    /// How long the run took.
+    pub elapsed: Duration,
+}
+
+/// The frame of a phase that times kernels: creates the phase's folder `dir`, then runs
+/// `work` [`on_rt_core`] as the thread `name`, timing the run. When the folder or the
+/// thread cannot be made, the failed row `id`, `label` of the phase instead.
+pub fn timed_on_rt_core<T: Send + 'static>(
+    rt_core: usize,
+    dir: &Path,
+    name: &str,
+    (id, label): (&str, &str),
+    work: impl FnOnce() -> T + Send + 'static,
+) -> Result<TimedRun<T>, Box<Measured>> {
+    let failed = |why: String| Box::new(Measured::failed(id, label, why));
+    std::fs::create_dir_all(dir).map_err(|e| failed(format!("creating {}: {e}", dir.display())))?;
+    let start = SystemTime::now();
+    let t = Instant::now();
+    let (setup, value) = on_rt_core(rt_core, name, work).map_err(failed)?;
+    Ok(TimedRun {
+        setup,
+        value,
+        start,
+        elapsed: t.elapsed(),
+    })
 }
 
 /// A progress line on standard error (the table goes to standard output).

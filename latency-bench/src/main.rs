@@ -56,12 +56,37 @@ fn main() -> ExitCode {
     ExitCode::from(code.clamp(0, 255) as u8)
 }
 
-/// Creates the output folder; the exit code 2 when it cannot.
-fn create_out(out: &Path) -> Result<(), i32> {
-    std::fs::create_dir_all(out).map_err(|e| {
+/// The start of a run (Unix time) and its output folder, created: `out` when given, else
+/// `bench-results/<prefix><unix-time>`; the exit code 2 when it cannot be created.
+fn start_run(out: Option<&Path>, prefix: &str) -> Result<(u64, PathBuf), i32> {
+    let started = report::unix_now();
+    let out = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("bench-results").join(format!("{prefix}{started}")));
+    std::fs::create_dir_all(&out).map_err(|e| {
         eprintln!("cannot create {}: {e}", out.display());
         2
-    })
+    })?;
+    Ok((started, out))
+}
+
+/// `summary.json` of the run `bench` started at `started` with `command` on the machine
+/// `facts`: those four entries, then the object `rest`.
+fn summary(
+    bench: &str,
+    started: u64,
+    command: &[String],
+    facts: &MachineFacts,
+    rest: Value,
+) -> Map<String, Value> {
+    let mut m = into_map(json!({
+        "bench": bench,
+        "started_unix": started,
+        "command": command,
+        "machine": facts,
+    }));
+    m.extend(into_map(rest));
+    m
 }
 
 /// Collects and prints the machine facts for the RT set-up `probe` of the measuring thread.
@@ -79,14 +104,10 @@ fn machine_facts(probe: &RtSetup) -> MachineFacts {
 /// The full run: every phase in order, then the table and the files.
 fn bench(o: &Options) -> i32 {
     let s = Settings::from(o);
-    let started = report::unix_now();
-    let out = o
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("bench-results").join(started.to_string()));
-    if let Err(code) = create_out(&out) {
-        return code;
-    }
+    let (started, out) = match start_run(o.run.out.as_deref(), "") {
+        Ok(run) => run,
+        Err(code) => return code,
+    };
     // The plant thread's RT set-up, probed once for the machine facts (mlockall holds for
     // the whole process from here on).
     let probe = std::thread::spawn({
@@ -135,11 +156,12 @@ fn bench(o: &Options) -> i32 {
 
     let load_end = machine::load_average();
     let command: Vec<String> = std::env::args().collect();
-    let summary = json!({
-        "bench": "latency-bench",
-        "started_unix": started,
-        "command": command,
-        "machine": facts,
+    let summary = summary(
+        "latency-bench",
+        started,
+        &command,
+        &facts,
+        json!({
         "settings": s.json(),
         "ratios": {
             "contract_over_raw": contract_ratio,
@@ -148,7 +170,8 @@ fn bench(o: &Options) -> i32 {
         "load_average_at_end": load_end,
         "extra": Value::Object(std::mem::take(&mut col.extra)),
         "service_reports": Value::Object(std::mem::take(&mut col.reports)),
-    });
+        }),
+    );
     let record = RunRecord {
         kind: RunKind::Full,
         started_unix: started,
@@ -159,7 +182,7 @@ fn bench(o: &Options) -> i32 {
         results: &s.results,
     };
     let footer = [format!("load average at the end: {load_end}")];
-    report::finish(&record, &col, &footer, into_map(summary))
+    report::finish(&record, &col, &footer, summary)
 }
 
 /// `latency-bench pcac`: the PCAC phase alone, with the machine facts, the table, a
@@ -174,15 +197,14 @@ fn pcac_only(a: &PcacArgs) -> i32 {
             return 2;
         }
     };
-    let steps = a.steps.unwrap_or(if a.quick { 300 } else { 5_000 }).max(1);
-    let started = report::unix_now();
-    let out = a
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("bench-results").join(format!("pcac-{started}")));
-    if let Err(code) = create_out(&out) {
-        return code;
-    }
+    let steps = a
+        .steps
+        .unwrap_or(if a.run.quick { 300 } else { 5_000 })
+        .max(1);
+    let (started, out) = match start_run(a.run.out.as_deref(), "pcac-") {
+        Ok(run) => run,
+        Err(code) => return code,
+    };
     let probe = match on_rt_core(a.rt_core, "bench-probe", || ()) {
         Ok((setup, ())) => setup,
         Err(e) => {
@@ -208,18 +230,14 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         "load average at the start: {load_start}; at the end: {load_end}"
     ));
     let command: Vec<String> = std::env::args().collect();
-    let summary = json!({
-        "bench": "latency-bench pcac",
-        "started_unix": started,
-        "command": command,
-        "machine": facts,
-        "steps": steps,
-        "pcac": v,
-    });
-    let results = a
-        .results
-        .clone()
-        .unwrap_or_else(report::default_results_file);
+    let summary = summary(
+        "latency-bench pcac",
+        started,
+        &command,
+        &facts,
+        json!({ "steps": steps, "pcac": v }),
+    );
+    let results = a.run.results_file();
     let record = RunRecord {
         kind: RunKind::Pcac,
         started_unix: started,
@@ -235,7 +253,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         out: &out,
         results: &results,
     };
-    report::finish(&record, &col, &[], into_map(summary))
+    report::finish(&record, &col, &[], summary)
 }
 
 /// The object of a `json!({…})` literal.

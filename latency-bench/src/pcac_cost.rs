@@ -396,6 +396,24 @@ impl Driver {
         }
     }
 
+    /// Samples `y_k` into `y` (`z` as in [`Self::sample`]) and returns the controller's
+    /// input of sample `seq` (no command).
+    fn sampled_input<'a>(
+        &self,
+        seq: u64,
+        y: &'a mut [f64],
+        z: &'a mut [f64],
+    ) -> Result<StepInput<'a>, String> {
+        self.sample(y, z)?;
+        Ok(StepInput {
+            seq,
+            y,
+            z,
+            r: &[],
+            ..Default::default()
+        })
+    }
+
     fn advance(&mut self, u: &[f64]) -> Result<(), String> {
         match self {
             Driver::Truss(s) => s.advance(u).map_err(|e| e.to_string()),
@@ -670,14 +688,7 @@ pub fn measure(
         // 1. The timed copy.
         for j in k..end {
             let i = (j - k) as usize;
-            plant_t.sample(&mut y, &mut z)?;
-            let input = StepInput {
-                seq: j,
-                y: &y,
-                z: &z,
-                r: &[],
-                ..Default::default()
-            };
+            let input = plant_t.sampled_input(j, &mut y, &mut z)?;
             let t0 = monotonic_ns();
             let status = timed.step(&input, &mut u);
             let t1 = monotonic_ns();
@@ -715,14 +726,7 @@ pub fn measure(
         // 2. The reference copy and clarabel.
         for j in k..end {
             let i = (j - k) as usize;
-            plant_r.sample(&mut y, &mut z)?;
-            let input = StepInput {
-                seq: j,
-                y: &y,
-                z: &z,
-                r: &[],
-                ..Default::default()
-            };
+            let input = plant_r.sampled_input(j, &mut y, &mut z)?;
             reference.step(&input, &mut ur);
             plant_r.advance(&ur)?;
             if ur[..] != log.u[i * m..(i + 1) * m] {

@@ -3,14 +3,14 @@
 //! the full run and is all of `latency-bench pcac`.
 
 use crate::hist::{self, Summary, ratio};
-use crate::on_rt_core;
 use crate::pcac_cost::{self, PcacCost, Workload};
 use crate::report::Measured;
 use crate::table::fmt_ratio;
+use crate::timed_on_rt_core;
 use hdrhistogram::Histogram;
 use serde_json::{Value, json};
 use std::path::Path;
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, SystemTime};
 
 /// The PCAC step at each of `workloads` on the pinned RT core, beside clarabel on the same
 /// QPs when `clarabel` (see [`crate::pcac_cost`]): the table rows, the detail lines
@@ -23,38 +23,26 @@ pub fn pcac_phase(
     steps: u64,
     clarabel: bool,
 ) -> (Vec<Measured>, Vec<String>, Value) {
-    if let Err(e) = std::fs::create_dir_all(dir) {
-        return (
-            vec![Measured::failed(
-                "pcac",
-                "pcac step",
-                format!("creating {}: {e}", dir.display()),
-            )],
-            Vec::new(),
-            Value::Null,
-        );
-    }
     let list = workloads.to_vec();
-    let start = SystemTime::now();
-    let t = Instant::now();
-    let (setup, results) = match on_rt_core(rt_core, "bench-pcac", move || {
-        list.iter()
-            .map(|&w| {
-                let warm = warmup.unwrap_or(w.default_warmup());
-                (w, pcac_cost::measure(w, warm, steps, clarabel))
-            })
-            .collect::<Vec<_>>()
-    }) {
-        Ok(v) => v,
-        Err(e) => {
-            return (
-                vec![Measured::failed("pcac", "pcac step", e)],
-                Vec::new(),
-                Value::Null,
-            );
-        }
+    let run = match timed_on_rt_core(
+        rt_core,
+        dir,
+        "bench-pcac",
+        ("pcac", "pcac step"),
+        move || {
+            list.iter()
+                .map(|&w| {
+                    let warm = warmup.unwrap_or(w.default_warmup());
+                    (w, pcac_cost::measure(w, warm, steps, clarabel))
+                })
+                .collect::<Vec<_>>()
+        },
+    ) {
+        Ok(run) => run,
+        Err(failed) => return (vec![*failed], Vec::new(), Value::Null),
     };
-    let elapsed = t.elapsed();
+    let (setup, results) = (run.setup, run.value);
+    let (start, elapsed) = (run.start, run.elapsed);
     let mut rows = Vec::new();
     let mut lines = Vec::new();
     let mut json_out = serde_json::Map::new();

@@ -32,7 +32,7 @@ use crate::cli::Settings;
 use crate::hist::new_histogram;
 use crate::hist::{self, Summary};
 use crate::report::Measured;
-use crate::{PERIOD_NS, on_rt_core};
+use crate::{PERIOD_NS, timed_on_rt_core};
 use control::forgetting::ForgettingRule;
 use control::rls::{Rls, RlsConfig, TextbookRls};
 use hdrhistogram::Histogram;
@@ -40,7 +40,6 @@ use ipc_types::clock::monotonic_ns;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
-use std::time::{Instant, SystemTime};
 
 /// The sizes `(n, p)` the issue asks for: a chapter 5 identification, a small MIMO one,
 /// full-RLS RCAC with 300 coefficients (1 and 3 outputs) and a PCAC-size model.
@@ -92,6 +91,17 @@ pub fn measure(
     Ok((r.fast, r.text, r.diff))
 }
 
+/// Runs `f` between two `CLOCK_MONOTONIC` readings; the time between them, ns (its result
+/// is kept from being optimised away).
+#[inline(always)]
+fn time_ns<T>(f: impl FnOnce() -> T) -> u64 {
+    let t0 = monotonic_ns();
+    let step = f();
+    let t1 = monotonic_ns();
+    core::hint::black_box(step);
+    t1.saturating_sub(t0)
+}
+
 /// The measurement of the module docs: `warmup` untimed updates of both kernels, then
 /// `steps` timed textbook updates and `max(steps, FAST_MIN_STEPS)` timed fast ones, in
 /// interleaved blocks of [`BLOCK`], with the cold-cache rule.
@@ -133,17 +143,19 @@ pub fn measure_detailed(n: usize, p: usize, warmup: u64, steps: u64) -> Result<R
     let mut fast_theta_at_text_end = Vec::new();
     let mut cold_left = 0u64;
     let mut k = 0u64;
+    // The regressor and output of update `j`, from the table.
+    let data = |j: u64| {
+        let row = (j as usize) % TABLE;
+        (
+            &phis[row * p * n..(row + 1) * p * n],
+            &ys[row * p..(row + 1) * p],
+        )
+    };
     while k < fast_total {
         let end = (k + BLOCK).min(fast_total);
         for j in k..end {
-            let row = (j as usize) % TABLE;
-            let phi = &phis[row * p * n..(row + 1) * p * n];
-            let y = &ys[row * p..(row + 1) * p];
-            let t0 = monotonic_ns();
-            let step = fast.update(phi, y);
-            let t1 = monotonic_ns();
-            core::hint::black_box(step);
-            let dt = t1.saturating_sub(t0);
+            let (phi, y) = data(j);
+            let dt = time_ns(|| fast.update(phi, y));
             if cold_left > 0 {
                 cold_left -= 1;
                 if j >= warmup {
@@ -158,15 +170,10 @@ pub fn measure_detailed(n: usize, p: usize, warmup: u64, steps: u64) -> Result<R
         }
         let text_end = end.min(text_total);
         for j in k..text_end {
-            let row = (j as usize) % TABLE;
-            let phi = &phis[row * p * n..(row + 1) * p * n];
-            let y = &ys[row * p..(row + 1) * p];
-            let t0 = monotonic_ns();
-            let step = text.update(phi, y);
-            let t1 = monotonic_ns();
-            core::hint::black_box(step);
+            let (phi, y) = data(j);
+            let dt = time_ns(|| text.update(phi, y));
             if j >= warmup {
-                h_text.saturating_record(t1.saturating_sub(t0));
+                h_text.saturating_record(dt);
             }
         }
         if k < text_end {
@@ -192,29 +199,27 @@ pub fn measure_detailed(n: usize, p: usize, warmup: u64, steps: u64) -> Result<R
 /// The RLS update at the sizes of `rls_cost::RLS_SIZES`, fast and textbook kernels
 /// interleaved on the pinned RT core (see the module docs): a row per size and kernel, distributions written into `dir`.
 pub fn rls_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
-    if let Err(e) = std::fs::create_dir_all(dir) {
-        return vec![Measured::failed(
-            "rls",
-            "rls update",
-            format!("creating {}: {e}", dir.display()),
-        )];
-    }
     let base = (s.steps / 10).max(1000);
-    let start = SystemTime::now();
-    let t = Instant::now();
-    let results = match on_rt_core(s.rt_core, "bench-rls", move || {
-        RLS_SIZES
-            .iter()
-            .map(|&(n, p)| {
-                let steps = updates_for(n, p, base);
-                (n, p, measure(n, p, steps / 10, steps))
-            })
-            .collect::<Vec<_>>()
-    }) {
-        Ok((_, v)) => v,
-        Err(e) => return vec![Measured::failed("rls", "rls update", e)],
+    let run = match timed_on_rt_core(
+        s.rt_core,
+        dir,
+        "bench-rls",
+        ("rls", "rls update"),
+        move || {
+            RLS_SIZES
+                .iter()
+                .map(|&(n, p)| {
+                    let steps = updates_for(n, p, base);
+                    (n, p, measure(n, p, steps / 10, steps))
+                })
+                .collect::<Vec<_>>()
+        },
+    ) {
+        Ok(run) => run,
+        Err(failed) => return vec![*failed],
     };
-    let elapsed = t.elapsed();
+    let (start, elapsed) = (run.start, run.elapsed);
+    let results = run.value;
     let mut out = Vec::new();
     for (n, p, r) in results {
         let slug = format!("rls-{n}x{p}");

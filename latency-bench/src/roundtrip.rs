@@ -53,7 +53,6 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use ipc_types::clock::monotonic_ns;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
-use ipc_types::rt::RtRequest;
 use ipc_types::rt::RtSetup;
 use ipc_types::{Actuation, ChannelCounts, Measurement, measurement_flags};
 use serde_json::{Value, json};
@@ -166,18 +165,37 @@ pub fn contract_round_trips(
                 0
             };
         m.y[0] = test_signal(k);
-        ports
-            .publisher
-            .send_copy(m)
-            .map(|_| ())
-            .map_err(|e| format!("sending measurement {k}: {e:?}"))
+        publish(&ports.publisher, m, "measurement", k)
     };
-    let poll = || match ports.subscriber.receive() {
-        Ok(Some(a)) => Ok(Some(a.seq)),
-        Ok(None) => Ok(None),
-        Err(e) => Err(format!("receiving an actuation: {e:?}")),
-    };
+    let poll = || poll_seq(&ports.subscriber, |a| a.seq, "an actuation");
     time_round_trips(plan, abort, send, poll)
+}
+
+/// Publishes a copy of `payload`, the `what` of sequence number `k`, on `publisher`.
+fn publish<T: Debug + ZeroCopySend>(
+    publisher: &Publisher<ipc::Service, T, ()>,
+    payload: T,
+    what: &str,
+    k: u64,
+) -> Result<(), String> {
+    publisher
+        .send_copy(payload)
+        .map(|_| ())
+        .map_err(|e| format!("sending {what} {k}: {e:?}"))
+}
+
+/// The sequence number (`seq` of the payload) of the next answer on `subscriber`, if one
+/// came; a failure to receive names `what`.
+fn poll_seq<T: Debug + ZeroCopySend>(
+    subscriber: &Subscriber<ipc::Service, T, ()>,
+    seq: impl Fn(&T) -> u64,
+    what: &str,
+) -> Result<Option<u64>, String> {
+    match subscriber.receive() {
+        Ok(Some(a)) => Ok(Some(seq(&a))),
+        Ok(None) => Ok(None),
+        Err(e) => Err(format!("receiving {what}: {e:?}")),
+    }
 }
 
 const PING_FILL: usize = (size_of::<Measurement>() - 24) / 8;
@@ -353,17 +371,9 @@ pub fn raw_round_trips(
         p.seq = k;
         p.t_send_ns = t0;
         p.flags = if last { RAW_LAST } else { 0 };
-        ports
-            .publisher
-            .send_copy(p)
-            .map(|_| ())
-            .map_err(|e| format!("sending ping {k}: {e:?}"))
+        publish(&ports.publisher, p, "ping", k)
     };
-    let poll = || match ports.subscriber.receive() {
-        Ok(Some(a)) => Ok(Some(a.seq)),
-        Ok(None) => Ok(None),
-        Err(e) => Err(format!("receiving a pong: {e:?}")),
-    };
+    let poll = || poll_seq(&ports.subscriber, |a| a.seq, "a pong");
     time_round_trips(plan, abort, send, poll)
 }
 
@@ -372,12 +382,7 @@ pub fn raw_round_trips(
 /// busy-polling, and exits after the ping marked [`RAW_LAST`] (or on SIGTERM, or after 60 s
 /// without a ping). Returns the process exit code.
 pub fn run_echo_child(rig: &str, core: usize) -> i32 {
-    let setup = ipc_types::rt::setup_current_thread(&RtRequest {
-        core: Some(core),
-        fifo_priority: Some(RT_PRIORITY),
-        mlockall: true,
-        prefault_stack_bytes: 256 * 1024,
-    });
+    let setup = ipc_types::rt::setup_current_thread(&crate::rt_request(core));
     eprintln!("[echo] real-time set-up: {}", setup.describe());
     let shutdown = crate::child::shutdown_flag();
     let ports: RawPorts<RawPong, RawPing> = match raw_connect(

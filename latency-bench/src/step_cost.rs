@@ -29,7 +29,7 @@ use crate::configs::{LoopPlant, StepCase};
 use crate::hist::new_histogram;
 use crate::hist::{self, Summary};
 use crate::report::Measured;
-use crate::{PERIOD_NS, on_rt_core};
+use crate::{PERIOD_NS, timed_on_rt_core};
 use control::{Controller, MAX_INTERNALS, StepInput};
 use hdrhistogram::Histogram;
 use ipc_types::clock::monotonic_ns;
@@ -39,7 +39,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use service::config::ServiceConfig;
 use std::path::Path;
-use std::time::{Instant, SystemTime};
 
 /// Length of the precomputed input table.
 const TABLE: usize = 1024;
@@ -208,28 +207,26 @@ pub fn timer_overhead(n: u64) -> Histogram<u64> {
 /// [`measure`] on the pinned RT core, then [`timer_overhead`]; the rows (one per case, with
 /// its share of the period, and the timer overhead's), distributions written into `dir`.
 pub fn step_phase(s: &Settings, dir: &Path) -> Vec<Measured> {
-    if let Err(e) = std::fs::create_dir_all(dir) {
-        return vec![Measured::failed(
-            "step-cost",
-            "step cost",
-            format!("creating {}: {e}", dir.display()),
-        )];
-    }
     let cases = crate::configs::step_cases();
     let (warmup, steps) = (s.step_warmup, s.steps);
-    let start = SystemTime::now();
-    let t = Instant::now();
-    let (setup, (results, overhead)) = match on_rt_core(s.rt_core, "bench-step", move || {
-        let results: Vec<_> = cases
-            .iter()
-            .map(|c| (c.clone(), measure(c, warmup, steps)))
-            .collect();
-        (results, timer_overhead(steps))
-    }) {
-        Ok(v) => v,
-        Err(e) => return vec![Measured::failed("step-cost", "step cost", e)],
+    let run = match timed_on_rt_core(
+        s.rt_core,
+        dir,
+        "bench-step",
+        ("step-cost", "step cost"),
+        move || {
+            let results: Vec<_> = cases
+                .iter()
+                .map(|c| (c.clone(), measure(c, warmup, steps)))
+                .collect();
+            (results, timer_overhead(steps))
+        },
+    ) {
+        Ok(run) => run,
+        Err(failed) => return vec![*failed],
     };
-    let elapsed = t.elapsed();
+    let (setup, (results, overhead)) = (run.setup, run.value);
+    let (start, elapsed) = (run.start, run.elapsed);
     let mut out = Vec::new();
     for (case, r) in results {
         let id = format!("step-{}", case.slug);

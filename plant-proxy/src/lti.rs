@@ -330,6 +330,25 @@ fn canonical_block(
     (a, b, c, d)
 }
 
+/// Which of `n` states a search of the graph with the edges `k → l` where `edge(k, l)`
+/// reaches from the states where `start(k)`.
+fn reached(
+    n: usize,
+    start: impl Fn(usize) -> bool,
+    edge: impl Fn(usize, usize) -> bool,
+) -> Vec<bool> {
+    let mut reached = vec![false; n];
+    let mut stack: Vec<usize> = (0..n).filter(|&k| start(k)).collect();
+    while let Some(k) = stack.pop() {
+        if reached[k] {
+            continue;
+        }
+        reached[k] = true;
+        stack.extend((0..n).filter(|&l| edge(k, l) && !reached[l]));
+    }
+    reached
+}
+
 /// A state-space model `(A, B, C, D)`, continuous or discrete by context (see the module
 /// documentation).
 #[derive(Debug, Clone, PartialEq)]
@@ -445,25 +464,17 @@ impl StateSpace {
         }
         let n = self.n_states();
         // Reachable from the input: start where B has a nonzero, follow x_l ← x_k (A[l,k] ≠ 0).
-        let mut reach = vec![false; n];
-        let mut stack: Vec<usize> = (0..n).filter(|&k| self.b[(k, input)] != 0.0).collect();
-        while let Some(k) = stack.pop() {
-            if reach[k] {
-                continue;
-            }
-            reach[k] = true;
-            stack.extend((0..n).filter(|&l| self.a[(l, k)] != 0.0 && !reach[l]));
-        }
+        let reach = reached(
+            n,
+            |k| self.b[(k, input)] != 0.0,
+            |k, l| self.a[(l, k)] != 0.0,
+        );
         // Seen by the output: start where C has a nonzero, follow x_k ← x_l (A[k,l] ≠ 0).
-        let mut seen = vec![false; n];
-        let mut stack: Vec<usize> = (0..n).filter(|&k| self.c[(output, k)] != 0.0).collect();
-        while let Some(k) = stack.pop() {
-            if seen[k] {
-                continue;
-            }
-            seen[k] = true;
-            stack.extend((0..n).filter(|&l| self.a[(k, l)] != 0.0 && !seen[l]));
-        }
+        let seen = reached(
+            n,
+            |k| self.c[(output, k)] != 0.0,
+            |k, l| self.a[(k, l)] != 0.0,
+        );
         let keep: Vec<usize> = (0..n).filter(|&k| reach[k] && seen[k]).collect();
         let m = keep.len();
         let a = DMatrix::from_fn(m, m, |r, c| self.a[(keep[r], keep[c])]);

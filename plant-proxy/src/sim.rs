@@ -198,6 +198,25 @@ struct OffsetSteps {
     gamma2: DMatrix<f64>,
 }
 
+/// Makes the state `col` of the augmented system act on the plant as its disturbance input
+/// `input` does: column `col` of `a` (the plant's rows), `c_y` and `c_z` gets column `input`
+/// of `B_w`, `D_yw` and `D_zw`.
+fn feed_disturbance_state(
+    plant: &GeneralizedPlant,
+    a: &mut DMatrix<f64>,
+    c_y: &mut DMatrix<f64>,
+    c_z: &mut DMatrix<f64>,
+    col: usize,
+    input: usize,
+) {
+    a.view_mut((0, col), (plant.n_x(), 1))
+        .copy_from(&plant.b_w.column(input));
+    c_y.view_mut((0, col), (c_y.nrows(), 1))
+        .copy_from(&plant.d_yw.column(input));
+    c_z.view_mut((0, col), (c_z.nrows(), 1))
+        .copy_from(&plant.d_zw.column(input));
+}
+
 /// The sampled-data simulation of a plant (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct PlantSim {
@@ -379,13 +398,7 @@ impl PlantSim {
             let (e1, e2) = (n_p + 2 * t, n_p + 2 * t + 1);
             a_aug[(e1, e2)] = tone.omega;
             a_aug[(e2, e1)] = -tone.omega;
-            a_aug
-                .view_mut((0, e1), (n_p, 1))
-                .copy_from(&plant.b_w.column(tone.input));
-            c_y.view_mut((0, e1), (n_y, 1))
-                .copy_from(&plant.d_yw.column(tone.input));
-            c_z.view_mut((0, e1), (n_z, 1))
-                .copy_from(&plant.d_zw.column(tone.input));
+            feed_disturbance_state(plant, &mut a_aug, &mut c_y, &mut c_z, e1, tone.input);
             x0[e1] = tone.amplitude * tone.phase.sin();
             x0[e2] = tone.amplitude * tone.phase.cos();
         }
@@ -398,14 +411,7 @@ impl PlantSim {
             let g = b.rms / butterworth_noise_variance(b.order, b.omega_c).sqrt();
             a_aug.view_mut((at, at), (b.order, b.order)).copy_from(&af);
             g_noise.view_mut((at, j), (b.order, 1)).copy_from(&(bf * g));
-            let o = at + out;
-            a_aug
-                .view_mut((0, o), (n_p, 1))
-                .copy_from(&plant.b_w.column(b.input));
-            c_y.view_mut((0, o), (n_y, 1))
-                .copy_from(&plant.d_yw.column(b.input));
-            c_z.view_mut((0, o), (n_z, 1))
-                .copy_from(&plant.d_zw.column(b.input));
+            feed_disturbance_state(plant, &mut a_aug, &mut c_y, &mut c_z, at + out, b.input);
             band_limited.push((*b, at));
             at += b.order;
         }

@@ -82,6 +82,22 @@ pub fn start_service(name: &str, scenario: &Path, folder: &Path) -> Proc {
     )
 }
 
+/// Starts `plant-proxy run <scenario> --mode lockstep --steps <steps> <extra…>` as the
+/// process `name`.
+pub fn start_lockstep_plant(name: &str, scenario: &Path, steps: u64, extra: &[&str]) -> Proc {
+    let steps = steps.to_string();
+    let mut args = vec![
+        "run",
+        scenario.to_str().expect("UTF-8 path"),
+        "--mode",
+        "lockstep",
+        "--steps",
+        &steps,
+    ];
+    args.extend_from_slice(extra);
+    Proc::start(name, &bin("plant-proxy"), &args)
+}
+
 /// The index of column `name` in a CSV header; panics naming the header when absent.
 pub fn column(header: &[String], name: &str) -> usize {
     header
@@ -186,6 +202,21 @@ impl Proc {
             }
             std::thread::sleep(Duration::from_millis(10));
         }
+    }
+
+    /// Waits for the process to exit (see [`Self::wait`]) and asserts that it succeeded,
+    /// showing what it printed when it did not.
+    pub fn wait_success(&mut self, timeout: Duration) {
+        let ok = self.wait(timeout).success();
+        assert!(ok, "{} failed:\n{}", self.name, self.output());
+    }
+
+    /// Waits for the process to exit (see [`Self::wait`]), asserts that it failed, and
+    /// returns what it printed.
+    pub fn wait_failure(&mut self, timeout: Duration) -> String {
+        let ok = self.wait(timeout).success();
+        assert!(!ok, "{} succeeded:\n{}", self.name, self.output());
+        self.output()
     }
 
     /// Sends a signal (e.g. `libc::SIGKILL`, `libc::SIGTERM`).
@@ -305,32 +336,20 @@ pub fn run_lockstep_pair(
     plant_extra: &[&str],
 ) -> PathBuf {
     let run_folder = dir.path.join("service-run");
-    let scenario = scenario.to_str().expect("UTF-8 path");
     let mut service = Proc::start(
         "service",
         &bin("service"),
         &[
             "run",
-            scenario,
+            scenario.to_str().expect("UTF-8 path"),
             "--exit-with-plant",
             "--run-folder",
             run_folder.to_str().expect("UTF-8 path"),
         ],
     );
-    let steps = steps.to_string();
-    let mut args = vec!["run", scenario, "--mode", "lockstep", "--steps", &steps];
-    args.extend_from_slice(plant_extra);
-    let mut plant = Proc::start("plant", &bin("plant-proxy"), &args);
-    assert!(
-        plant.wait(Duration::from_secs(300)).success(),
-        "plant-proxy failed:\n{}",
-        plant.output()
-    );
-    assert!(
-        service.wait(Duration::from_secs(60)).success(),
-        "service failed:\n{}",
-        service.output()
-    );
+    let mut plant = start_lockstep_plant("plant", scenario, steps, plant_extra);
+    plant.wait_success(Duration::from_secs(300));
+    service.wait_success(Duration::from_secs(60));
     run_folder
 }
 

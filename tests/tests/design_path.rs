@@ -6,6 +6,7 @@
 use control::target::{TargetForm, TargetModel};
 use rig_tests::*;
 use service::config::TargetModelFile;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The `[rig]` and `[plant…]` tables of a scenario text (its service, controller, log and
@@ -29,7 +30,7 @@ fn rig_and_plant(text: &str) -> String {
 
 /// Runs the acoustic rig for `steps` samples in lockstep with the excitation source of
 /// `scenarios/identify/excitation.toml`; returns the folder and the log path.
-fn excitation_run(test: &str, steps: u64) -> (TestDir, std::path::PathBuf, std::path::PathBuf) {
+fn excitation_run(test: &str, steps: u64) -> (TestDir, PathBuf, PathBuf) {
     let dir = TestDir::new(test);
     let rig = rig_name(test);
     let excitation = scenario_text("identify/excitation.toml");
@@ -42,6 +43,16 @@ fn excitation_run(test: &str, steps: u64) -> (TestDir, std::path::PathBuf, std::
     let scenario = dir.write("scenario.toml", &text);
     let run_folder = run_lockstep_pair(&dir, &scenario, steps, &[]);
     (dir, scenario, run_folder.join("signals.csv"))
+}
+
+/// Runs `rig-design <args…> --out <out>`, asserts that it succeeded, and reads back the
+/// target model it wrote there; returns that and what it printed.
+fn rig_design_target(args: &[&str], out: &Path) -> (TargetModel, String) {
+    let (ok, text) = rig_design(&[args, &["--out", out.to_str().unwrap()]].concat());
+    assert!(ok, "rig-design {} failed:\n{text}", args[0]);
+    let tm = TargetModel::load(&out.join("target-model.toml"))
+        .unwrap_or_else(|e| panic!("the target model of rig-design {} reads back: {e}", args[0]));
+    (tm, text)
 }
 
 fn rig_design(args: &[&str]) -> (bool, String) {
@@ -58,28 +69,28 @@ fn rig_design(args: &[&str]) -> (bool, String) {
 fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() {
     let (dir, scenario, log) = excitation_run("design-path", 40_000);
     let out = dir.path.join("design");
-    let (ok, text) = rig_design(&[
-        "identify",
-        log.to_str().unwrap(),
-        "--inputs",
-        "u0,u1",
-        "--outputs",
-        "y0",
-        "--scenario",
-        scenario.to_str().unwrap(),
-        "--compare",
-        "--method",
-        "average",
-        "--delta-hz",
-        "500",
-        "--order",
-        "6",
-        "--beta",
-        "0.8",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(ok, "rig-design identify failed:\n{text}");
+    let (tm, text) = rig_design_target(
+        &[
+            "identify",
+            log.to_str().unwrap(),
+            "--inputs",
+            "u0,u1",
+            "--outputs",
+            "y0",
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--compare",
+            "--method",
+            "average",
+            "--delta-hz",
+            "500",
+            "--order",
+            "6",
+            "--beta",
+            "0.8",
+        ],
+        &out,
+    );
     // The delays of the rig (9 and 16 samples, §3.5) are found from the data.
     assert!(text.contains("delays found [9, 16]"), "{text}");
     // The H1 estimate agrees with the model: median relative error on coherent bins < 3 %.
@@ -92,7 +103,6 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
     assert!(medians.iter().all(|m| *m < 3.0), "{medians:?}\n{text}");
     // The target model is a file RCAC's configuration reads: two channels with the delays
     // added back, β as asked, stable denominators, the response finite.
-    let tm = TargetModel::load(&out.join("target-model.toml")).expect("target model reads back");
     assert_eq!((tm.outputs, tm.inputs, tm.beta), (1, 2, 0.8));
     assert_eq!(tm.sample_period, 1.25e-4);
     let TargetForm::TransferFunction(ch) = &tm.form else {
@@ -157,18 +167,17 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
     // then the model's Markov parameters to within 5 % (relative 2-norm over 200).
     let fir_out = dir.path.join("fir");
     let frf_csv = out.join("frf.csv");
-    let (ok, text) = rig_design(&[
-        "dtf",
-        frf_csv.to_str().unwrap(),
-        "--method",
-        "fir",
-        "--count",
-        "200",
-        "--out",
-        fir_out.to_str().unwrap(),
-    ]);
-    assert!(ok, "{text}");
-    let fir = TargetModel::load(&fir_out.join("target-model.toml")).expect("FIR target reads back");
+    let (fir, _) = rig_design_target(
+        &[
+            "dtf",
+            frf_csv.to_str().unwrap(),
+            "--method",
+            "fir",
+            "--count",
+            "200",
+        ],
+        &fir_out,
+    );
     let TargetForm::Markov(h_est) = &fir.form else {
         panic!("a Markov target model")
     };
@@ -218,7 +227,7 @@ fn an_excitation_log_of_the_acoustic_rig_gives_a_target_model_with_its_delays() 
             .collect::<Vec<_>>()
             .join("\n"),
     );
-    let frf = |log: &std::path::Path, inputs: &str| {
+    let frf = |log: &Path, inputs: &str| {
         let args = [
             "frf",
             log.to_str().unwrap(),
