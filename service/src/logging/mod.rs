@@ -9,7 +9,7 @@
 //!
 //! ```text
 //!  RT thread                        non-RT thread ("log-writer")
-//!  LogProducer::push ──► rtrb SPSC ring ──► LogWriter thread ──► BufWriter<File> (CSV)
+//!  LogProducer::push ──► rtrb SPSC ring ──► LogWriter thread ──► RecordFile (CSV)
 //!   decimation counter   (capacity fixed     drains, formats,
 //!   full → drop + count   at channel())      sleeps ~1 ms when empty
 //! ```
@@ -28,10 +28,20 @@
 //! - **Writer thread.** [`LogWriter::spawn`] creates the file and writes the header at
 //!   once (so a bad path is reported at start-up), then a helper thread (with the default
 //!   scheduling policy, even if spawned from an RT thread) drains the ring, formats rows
-//!   and writes them through a `BufWriter`, sleeping about 1 ms whenever the ring is
-//!   empty. [`LogWriterHandle::finish`] (called on SIGINT/SIGTERM and at the end of a
+//!   and writes them in whole rows through a [`RecordFile`], sleeping about 1 ms
+//!   whenever the ring is empty. [`LogWriterHandle::finish`] (called on SIGINT/SIGTERM and at the end of a
 //!   run) raises a stop flag; the thread drains everything pushed before that, flushes
 //!   and exits, and `finish` joins it.
+//! - **Full disk, I/O errors: whole rows, reported, counted, never blocking.** Rows go
+//!   through a [`RecordFile`]: they are buffered whole and written on row boundaries;
+//!   when a write fails the file is cut back to its last complete row, the failure is
+//!   reported once on standard error (`[service] writing <path>: <OS error>; …`), and the
+//!   writer keeps draining the queue, counting the rows it cannot write
+//!   ([`LogStats::lost_to_disk`], distinct from the queue's [`LogStats::dropped`]) and
+//!   trying again every [`RETRY_EVERY`]; if a retry succeeds (space was freed) writing
+//!   resumes. The RT thread never waits on any of this. [`LogWriterHandle::finish`]
+//!   returns the failure in [`LogStats`] (`lost_to_disk`, `write_failures`,
+//!   `first_error`, `intact`) instead of an error, so the run report can show it.
 //! - **CSV format.** Header `seq,t_sample_ns,status,flags,y0,…,z0,…,u0,…,<internal
 //!   names>` with only the channels in use ([`LogLayout`]). Floating-point values are
 //!   written in Rust's shortest round-trip form (plain decimal, or exponent notation for
@@ -70,8 +80,13 @@
 //! # std::fs::remove_file(&path).unwrap();
 //! ```
 
+mod record_file;
 mod writer;
 
+#[cfg(test)]
+mod disk_failure_tests;
+#[cfg(test)]
+pub(crate) mod full_disk;
 #[cfg(test)]
 mod tests;
 
@@ -82,7 +97,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use ipc_types::{MAX_U, MAX_Y, MAX_Z};
 use rtrb::{Consumer, Producer, RingBuffer};
 
-pub use writer::{LogStats, LogWriter, LogWriterHandle};
+pub use record_file::{RecordFile, RecordTarget, WriteHealth};
+pub use writer::{LogStats, LogWriter, LogWriterHandle, RETRY_EVERY};
 
 /// Capacity of [`LogRecord::internals`]: controller internals (parameter estimates,
 /// covariance trace, forgetting factor, …) logged per cycle.
@@ -259,6 +275,8 @@ struct Counters {
     pushed: AtomicU64,
     dropped: AtomicU64,
     decimated: AtomicU64,
+    /// Written by the writer thread only.
+    lost_to_disk: AtomicU64,
 }
 
 /// A cloneable read-only view of the log queue's counters, for the run report.
@@ -279,6 +297,12 @@ impl LogCounters {
     /// Records skipped by decimation (not an error).
     pub fn decimated(&self) -> u64 {
         self.0.decimated.load(Ordering::Relaxed)
+    }
+
+    /// Records the writer could not write to the file so far (full disk, I/O error);
+    /// updated after every drain of the queue.
+    pub fn lost_to_disk(&self) -> u64 {
+        self.0.lost_to_disk.load(Ordering::Relaxed)
     }
 }
 

@@ -1,7 +1,12 @@
 //! The non-RT end of the log queue: a thread that drains it into a CSV file.
+//!
+//! Rows go through a [`RecordFile`]: the file only ever holds whole rows, a failed write
+//! (full disk, I/O error) is reported once on standard error and counted, and the thread
+//! keeps draining the queue (dropping and counting rows while the file fails, retrying
+//! every [`RETRY_EVERY`]), so the RT thread never notices.
 
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,14 +15,17 @@ use std::time::{Duration, Instant};
 
 use rtrb::Consumer;
 
+use super::record_file::{RecordFile, RecordTarget, WriteHealth};
 use super::{Counters, LogCounters, LogLayout, LogRecord};
 
 /// Sleep of the writer thread when the queue is empty.
 const IDLE_SLEEP: Duration = Duration::from_millis(1);
 /// While idle, flush buffered rows to the file at most this often.
 const IDLE_FLUSH_EVERY: Duration = Duration::from_millis(200);
-/// Size of the file buffer.
+/// Buffered rows are written when they reach this many bytes.
 const BUFFER_BYTES: usize = 1 << 16;
+/// After a failed write, rows are dropped (and counted) for this long, then tried again.
+pub const RETRY_EVERY: Duration = Duration::from_secs(1);
 
 /// The non-RT end of a log queue, not yet writing. Turn it into a running writer with
 /// [`spawn`](Self::spawn).
@@ -28,9 +36,16 @@ pub struct LogWriter {
 }
 
 /// What a finished writer did.
+///
+/// Rows can be missing from the file for two distinct reasons: the queue was full
+/// ([`dropped`](Self::dropped), the writer fell behind) or writing the file failed
+/// ([`lost_to_disk`](Self::lost_to_disk), a full disk or an I/O error; then
+/// [`first_error`](Self::first_error) says why). In both cases the file still holds only
+/// whole rows (unless [`intact`](Self::intact) is `false`), and
+/// `written + dropped + lost_to_disk` is every record that was not decimated.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LogStats {
-    /// Rows written to the file.
+    /// Rows written to the file, complete.
     pub written: u64,
     /// Records the producer pushed into the queue.
     pub pushed: u64,
@@ -38,6 +53,16 @@ pub struct LogStats {
     pub dropped: u64,
     /// Records the producer skipped by decimation.
     pub decimated: u64,
+    /// Records the writer took from the queue but could not write to the file (full
+    /// disk, I/O error).
+    pub lost_to_disk: u64,
+    /// Failed writes of the file (0 on a healthy run); see [`WriteHealth::failures`].
+    pub write_failures: u64,
+    /// The first write failure, `writing <path>: <OS error>`; `None` if there was none.
+    pub first_error: Option<String>,
+    /// `false` only if the file could not be cut back to its last complete row after a
+    /// failure, so that it may end in a torn row.
+    pub intact: bool,
     /// The CSV file.
     pub path: PathBuf,
 }
@@ -47,7 +72,7 @@ pub struct LogStats {
 /// outcome.
 pub struct LogWriterHandle {
     stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<io::Result<u64>>>,
+    thread: Option<JoinHandle<WriteHealth>>,
     counters: Arc<Counters>,
     path: PathBuf,
 }
@@ -72,24 +97,63 @@ impl LogWriter {
     }
 
     /// Creates (truncates) the CSV file at `path`, writes the header, and spawns the
-    /// `log-writer` thread that drains the queue into it. File-creation and header errors
-    /// are returned here; later write errors end the thread and are returned by
-    /// [`LogWriterHandle::finish`] (the producer then just counts drops).
+    /// `log-writer` thread that drains the queue into it. Errors creating the file or
+    /// writing the header are returned here, naming the file. Later write errors do not
+    /// stop the thread: they are reported on standard error when they happen, the rows
+    /// that could not be written are counted, and [`LogWriterHandle::finish`] returns
+    /// them in [`LogStats`].
     ///
     /// The thread resets its own scheduling policy to `SCHED_OTHER`, so it does not keep
     /// a real-time priority inherited from its parent.
     pub fn spawn(self, path: PathBuf) -> io::Result<LogWriterHandle> {
-        let mut sink = CsvSink::new(File::create(&path)?, self.layout);
+        let file = RecordFile::<File>::create(&path, BUFFER_BYTES, RETRY_EVERY)?;
+        self.spawn_with(file, path)
+    }
+
+    /// [`spawn`](Self::spawn) into any [`RecordTarget`] (tests inject a failing one).
+    #[cfg(test)]
+    pub(crate) fn spawn_into<T: RecordTarget + Send + 'static>(
+        self,
+        target: T,
+        path: PathBuf,
+        retry_every: Duration,
+    ) -> io::Result<LogWriterHandle> {
+        let file = RecordFile::new(
+            target,
+            path.display().to_string(),
+            BUFFER_BYTES,
+            retry_every,
+        );
+        self.spawn_with(file, path)
+    }
+
+    fn spawn_with<T: RecordTarget + Send + 'static>(
+        self,
+        file: RecordFile<T>,
+        path: PathBuf,
+    ) -> io::Result<LogWriterHandle> {
+        let mut sink = CsvSink::new(file, self.layout);
         sink.write_header()?;
-        sink.out.flush()?;
         let stop = Arc::new(AtomicBool::new(false));
         let thread_stop = Arc::clone(&stop);
+        let thread_counters = Arc::clone(&self.counters);
         let mut rx = self.rx;
         let thread = thread::Builder::new()
             .name("log-writer".to_owned())
             .spawn(move || {
                 drop_realtime_priority();
-                run(&mut rx, &mut sink, &thread_stop)
+                run(&mut rx, &mut sink, &thread_stop, &thread_counters);
+                let health = sink.out.finish();
+                thread_counters
+                    .lost_to_disk
+                    .store(health.records_lost, Ordering::Relaxed);
+                health
+            })
+            .map_err(|e| {
+                io::Error::new(
+                    e.kind(),
+                    format!("starting the writer thread of {}: {e}", path.display()),
+                )
             })?;
         Ok(LogWriterHandle {
             stop,
@@ -101,35 +165,41 @@ impl LogWriter {
 }
 
 /// The writer loop: drain, and when empty either stop (if asked) or sleep.
-fn run(rx: &mut Consumer<LogRecord>, sink: &mut CsvSink, stop: &AtomicBool) -> io::Result<u64> {
+fn run<T: RecordTarget>(
+    rx: &mut Consumer<LogRecord>,
+    sink: &mut CsvSink<T>,
+    stop: &AtomicBool,
+    counters: &Counters,
+) {
     let mut last_flush = Instant::now();
     loop {
         // Read the flag *before* draining: everything pushed before `finish` raised it is
         // then visible to the drain below, which is the last one.
         let stopping = stop.load(Ordering::Acquire);
-        let n = drain(rx, sink)?;
+        let n = drain(rx, sink);
+        counters
+            .lost_to_disk
+            .store(sink.out.health().records_lost, Ordering::Relaxed);
         if stopping {
             break;
         }
         if n == 0 {
             if last_flush.elapsed() >= IDLE_FLUSH_EVERY {
-                sink.out.flush()?;
+                sink.out.flush();
                 last_flush = Instant::now();
             }
             thread::sleep(IDLE_SLEEP);
         }
     }
-    sink.out.flush()?;
-    Ok(sink.written)
 }
 
-fn drain(rx: &mut Consumer<LogRecord>, sink: &mut CsvSink) -> io::Result<u64> {
+fn drain<T: RecordTarget>(rx: &mut Consumer<LogRecord>, sink: &mut CsvSink<T>) -> u64 {
     let mut n = 0;
     while let Ok(rec) = rx.pop() {
-        sink.write_row(&rec)?;
+        sink.write_row(&rec);
         n += 1;
     }
-    Ok(n)
+    n
 }
 
 /// Puts the calling thread under the default time-sharing policy (a no-op unless it
@@ -154,27 +224,35 @@ impl LogWriterHandle {
         LogCounters(Arc::clone(&self.counters))
     }
 
-    /// Stops the writer: everything pushed before this call is written, the file is
-    /// flushed and the thread joined. Returns the counts, or the first I/O error the
-    /// thread met.
+    /// Stops the writer: everything pushed before this call is written (or counted as
+    /// lost to the disk), the file is flushed and synced and the thread joined. Returns
+    /// the counts, write failures included. A failing disk is *not* an error here (see
+    /// [`LogStats::first_error`]); the only error is a writer thread that panicked.
     pub fn finish(mut self) -> io::Result<LogStats> {
-        let written = self.stop_and_join()?;
+        let health = self.stop_and_join()?;
         Ok(LogStats {
-            written,
+            written: health.records_written,
             pushed: self.counters.pushed.load(Ordering::Relaxed),
             dropped: self.counters.dropped.load(Ordering::Relaxed),
             decimated: self.counters.decimated.load(Ordering::Relaxed),
+            lost_to_disk: health.records_lost,
+            write_failures: health.failures,
+            first_error: health.first_error,
+            intact: health.intact,
             path: self.path.clone(),
         })
     }
 
-    fn stop_and_join(&mut self) -> io::Result<u64> {
+    fn stop_and_join(&mut self) -> io::Result<WriteHealth> {
         self.stop.store(true, Ordering::Release);
         match self.thread.take() {
-            Some(t) => t
-                .join()
-                .unwrap_or_else(|_| Err(io::Error::other("log writer thread panicked"))),
-            None => Ok(0),
+            Some(t) => t.join().map_err(|_| {
+                io::Error::other(format!(
+                    "the writer thread of {} panicked",
+                    self.path.display()
+                ))
+            }),
+            None => Ok(WriteHealth::new(self.path.display().to_string())),
         }
     }
 }
@@ -185,25 +263,20 @@ impl Drop for LogWriterHandle {
     }
 }
 
-/// Formats records as CSV rows.
-struct CsvSink {
-    out: BufWriter<File>,
+/// Formats records as CSV rows into a [`RecordFile`].
+struct CsvSink<T: RecordTarget> {
+    out: RecordFile<T>,
     layout: LogLayout,
-    written: u64,
 }
 
-impl CsvSink {
-    fn new(file: File, layout: LogLayout) -> Self {
-        Self {
-            out: BufWriter::with_capacity(BUFFER_BYTES, file),
-            layout,
-            written: 0,
-        }
+impl<T: RecordTarget> CsvSink<T> {
+    fn new(out: RecordFile<T>, layout: LogLayout) -> Self {
+        Self { out, layout }
     }
 
     fn write_header(&mut self) -> io::Result<()> {
-        let w = &mut self.out;
-        w.write_all(b"seq,t_sample_ns,status,flags")?;
+        let mut w = Vec::new();
+        w.extend_from_slice(b"seq,t_sample_ns,status,flags");
         for i in 0..self.layout.n_y {
             write!(w, ",y{i}")?;
         }
@@ -214,29 +287,34 @@ impl CsvSink {
             write!(w, ",u{i}")?;
         }
         for name in &self.layout.internal_names {
-            w.write_all(b",")?;
-            write_csv_field(w, name)?;
+            w.extend_from_slice(b",");
+            write_csv_field(&mut w, name)?;
         }
-        w.write_all(b"\n")
+        w.extend_from_slice(b"\n");
+        self.out.write_preamble(&w)
     }
 
-    fn write_row(&mut self, r: &LogRecord) -> io::Result<()> {
-        let w = &mut self.out;
-        write!(w, "{},{},{},{}", r.seq, r.t_sample_ns, r.status, r.flags)?;
-        let n_internals = self.layout.internal_names.len();
-        for v in r.y[..self.layout.n_y]
-            .iter()
-            .chain(&r.z[..self.layout.n_z])
-            .chain(&r.u[..self.layout.n_u])
-            .chain(&r.internals[..n_internals])
-        {
-            w.write_all(b",")?;
-            write_f64(w, *v)?;
-        }
-        w.write_all(b"\n")?;
-        self.written += 1;
-        Ok(())
+    fn write_row(&mut self, r: &LogRecord) {
+        let layout = &self.layout;
+        self.out.push_with(|w| format_row(w, layout, r));
     }
+}
+
+/// Appends one CSV row (with its line end) to `w`.
+fn format_row(w: &mut Vec<u8>, layout: &LogLayout, r: &LogRecord) {
+    // Writing into a Vec cannot fail.
+    let _ = write!(w, "{},{},{},{}", r.seq, r.t_sample_ns, r.status, r.flags);
+    let n_internals = layout.internal_names.len();
+    for v in r.y[..layout.n_y]
+        .iter()
+        .chain(&r.z[..layout.n_z])
+        .chain(&r.u[..layout.n_u])
+        .chain(&r.internals[..n_internals])
+    {
+        w.push(b',');
+        let _ = write_f64(w, *v);
+    }
+    w.push(b'\n');
 }
 
 /// Writes `v` so that parsing it back gives the same bits: Rust's shortest round-trip

@@ -46,6 +46,14 @@
 //!   percentile-distribution text files (`<name>.hgrm`, values in microseconds) and
 //!   returns a [`TelemetrySummary`] (serde-serialisable for the run report, and
 //!   printable as a cyclictest-style table with [`TelemetrySummary::render_table`]).
+//! - **Full disk, I/O errors.** The interval logs are written in whole lines through a
+//!   [`crate::logging::RecordFile`]: a failed write cuts the log back to its last whole
+//!   line, is reported once on standard error, and the intervals that could not be
+//!   written are counted; the totals (and so the summary and the `.hgrm` files) lose
+//!   nothing. The `.hgrm` files are written atomically
+//!   ([`ipc_types::files::write_atomic_with`]): complete or absent. Neither
+//!   [`TelemetryReporter::poll`] nor [`TelemetryReporter::finish`] fails on a full disk;
+//!   the files that failed are listed in [`TelemetrySummary::file_errors`].
 //!
 //! ## Example
 //!
@@ -82,9 +90,12 @@
 //! ```
 
 mod histograms;
+mod interval_logs;
 mod report;
 mod swap;
 
+#[cfg(test)]
+mod disk_failure_tests;
 #[cfg(test)]
 mod tests;
 

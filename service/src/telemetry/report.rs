@@ -9,6 +9,7 @@ use hdrhistogram::Histogram;
 use serde::Serialize;
 
 use super::histograms::{HistogramKind, LoopHistograms};
+use crate::logging::WriteHealth;
 
 /// Percentile ticks per half distance to 100 % used in the `.hgrm` files (the value
 /// HdrHistogram's own tools use).
@@ -88,6 +89,10 @@ pub struct TelemetrySummary {
     pub unrecorded_cycles: u64,
     /// Number of non-empty intervals the reporter received.
     pub intervals: u64,
+    /// The output files (`.hlog`, `.hgrm`) whose writing failed, with the first error and
+    /// what was lost (for an interval log, intervals; for a percentile file, 1: the file
+    /// is absent). Empty on a healthy run and for a reporter without files.
+    pub file_errors: Vec<WriteHealth>,
 }
 
 impl TelemetrySummary {
@@ -113,6 +118,7 @@ impl TelemetrySummary {
             missed_swaps,
             unrecorded_cycles,
             intervals,
+            file_errors: Vec::new(),
         }
     }
 
@@ -123,7 +129,8 @@ impl TelemetrySummary {
 
     /// A cyclictest-style table in microseconds: one row per histogram (count, p50,
     /// p99, p99.9, p99.99, max, over budget), then the sequence numbers of the worst
-    /// cycles and the missed swaps.
+    /// cycles, the missed swaps, and one `FILE WRITE FAILED` line per output file whose
+    /// writing failed.
     ///
     /// ```text
     /// loop latency (us), response budget 125.000 us
@@ -178,6 +185,21 @@ impl TelemetrySummary {
         let _ = writeln!(out, "missed swaps: {}", self.missed_swaps);
         if self.unrecorded_cycles != 0 {
             let _ = writeln!(out, "unrecorded cycles: {}", self.unrecorded_cycles);
+        }
+        for f in &self.file_errors {
+            let _ = writeln!(
+                out,
+                "FILE WRITE FAILED: {} ({} written, {} lost{}): {}",
+                f.path,
+                f.records_written,
+                f.records_lost,
+                if f.intact {
+                    ""
+                } else {
+                    ", may end in a torn record"
+                },
+                f.first_error.as_deref().unwrap_or("unknown error")
+            );
         }
         out
     }

@@ -6,21 +6,22 @@
 //! hands during [`TelemetryReporter::poll`], or in the return queue. Both queues have
 //! room for all of them, so neither side ever fails a push for lack of room.
 
-use std::fs::{self, File};
-use std::io::{self, BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::io;
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, SystemTime};
 
-use hdrhistogram::serialization::V2DeflateSerializer;
-use hdrhistogram::serialization::interval_log::{IntervalLogWriterBuilder, Tag};
 use ipc_types::clock::monotonic_ns;
 use rtrb::{Consumer, Producer, RingBuffer};
 
 use super::CycleTiming;
-use super::histograms::{HistogramKind, LoopHistograms};
-use super::report::{TICKS_PER_HALF_DISTANCE, TelemetrySummary, write_percentile_distribution};
+use super::histograms::LoopHistograms;
+use super::interval_logs::IntervalLogs;
+#[cfg(test)]
+use super::interval_logs::LogTarget;
+use super::report::TelemetrySummary;
+use crate::logging::WriteHealth;
 
 /// Counters the RT side publishes for the reporter (single writer, relaxed stores).
 #[derive(Debug, Default)]
@@ -95,6 +96,7 @@ pub fn channel_in_memory(
         anchor_mono_ns: monotonic_ns(),
         anchor_wall: SystemTime::now(),
         logs: None,
+        closed_failures: Vec::new(),
     };
     (rt, reporter)
 }
@@ -226,13 +228,6 @@ impl TelemetryRt {
     }
 }
 
-/// The interval-log files of a reporter with an output folder.
-struct IntervalLogs {
-    dir: PathBuf,
-    files: [BufWriter<File>; 4],
-    serializer: V2DeflateSerializer,
-}
-
 /// The non-RT side: drains the boxes the RT thread hands over, writes interval logs,
 /// keeps cumulative totals and returns the boxes.
 pub struct TelemetryReporter {
@@ -246,53 +241,38 @@ pub struct TelemetryReporter {
     anchor_mono_ns: u64,
     anchor_wall: SystemTime,
     logs: Option<IntervalLogs>,
-}
-
-fn to_io<E: std::fmt::Debug>(e: E) -> io::Error {
-    io::Error::other(format!("{e:?}"))
+    /// Files that failed, once [`finish`](TelemetryReporter::finish) closed them.
+    closed_failures: Vec<WriteHealth>,
 }
 
 impl TelemetryReporter {
     /// Creates `dir` and the four interval logs with their headers.
     fn open_logs(&mut self, dir: &Path) -> io::Result<()> {
-        let dir = dir.to_path_buf();
-        fs::create_dir_all(&dir)?;
-        let open = |kind: HistogramKind| -> io::Result<BufWriter<File>> {
-            let mut w = BufWriter::new(File::create(dir.join(format!("{}.hlog", kind.name())))?);
-            let mut serializer = V2DeflateSerializer::new();
-            IntervalLogWriterBuilder::new()
-                .add_comment(&format!(
-                    "service telemetry: {} latency, values in ns, tag={}",
-                    kind.name(),
-                    kind.name()
-                ))
-                .add_comment("[Histogram log format version 1.3]")
-                .with_start_time(self.anchor_wall)
-                .with_base_time(self.anchor_wall)
-                .begin_log_with(&mut w, &mut serializer)?;
-            w.write_all(
-                b"\"StartTimestamp\",\"Interval_Length\",\"Interval_Max\",\"Interval_Compressed_Histogram\"\n",
-            )?;
-            w.flush()?;
-            Ok(w)
-        };
-        let files = [
-            open(HistogramKind::Wakeup)?,
-            open(HistogramKind::Compute)?,
-            open(HistogramKind::Response)?,
-            open(HistogramKind::Jitter)?,
-        ];
-        self.logs = Some(IntervalLogs {
+        self.logs = Some(IntervalLogs::open(dir, self.anchor_wall)?);
+        Ok(())
+    }
+
+    /// Like [`open_logs`](Self::open_logs), with the interval logs written into the
+    /// given targets (tests inject failing ones); `dir` receives the `.hgrm` files.
+    #[cfg(test)]
+    pub(crate) fn open_logs_into(
+        &mut self,
+        dir: &Path,
+        targets: [LogTarget; 4],
+        retry_every: Duration,
+    ) -> io::Result<()> {
+        self.logs = Some(IntervalLogs::with_targets(
             dir,
-            files,
-            serializer: V2DeflateSerializer::new(),
-        });
+            self.anchor_wall,
+            targets,
+            retry_every,
+        )?);
         Ok(())
     }
 
     /// The output folder, if one was given.
     pub fn output_dir(&self) -> Option<&Path> {
-        self.logs.as_ref().map(|l| l.dir.as_path())
+        self.logs.as_ref().map(IntervalLogs::dir)
     }
 
     /// Drains every box the RT side has handed over: writes each non-empty interval into
@@ -300,16 +280,19 @@ impl TelemetryReporter {
     /// the box and returns it to the RT side. Returns the number of boxes drained.
     ///
     /// Call it periodically (at least once per interval to avoid missed swaps) from a
-    /// non-RT thread. On an I/O error the box being processed is still returned to the
-    /// RT side and counted in the totals.
+    /// non-RT thread. A failing disk is not an error: the logs keep whole lines, report
+    /// the failure once on standard error and count the intervals they could not write
+    /// (see [`file_failures`](Self::file_failures)); every box is still added to the
+    /// totals and returned. The only error is an interval that could not be serialized.
     pub fn poll(&mut self) -> io::Result<usize> {
         let mut drained = 0;
         let mut result = Ok(());
         while let Ok(mut b) = self.full_rx.pop() {
             drained += 1;
             if b.cycles() > 0 {
+                let written = self.write_interval(&b);
                 if result.is_ok() {
-                    result = self.write_interval(&b);
+                    result = written;
                 }
                 self.totals.add(&b);
                 self.intervals += 1;
@@ -319,20 +302,12 @@ impl TelemetryReporter {
             // would simply be freed here, outside the RT thread.
             let _ = self.empty_tx.push(b);
         }
-        if result.is_ok() && drained > 0 {
-            result = self.flush_logs();
+        if drained > 0
+            && let Some(logs) = self.logs.as_mut()
+        {
+            logs.flush();
         }
         result.map(|()| drained)
-    }
-
-    /// Flushes the interval logs' buffers to the files.
-    fn flush_logs(&mut self) -> io::Result<()> {
-        if let Some(logs) = self.logs.as_mut() {
-            for f in &mut logs.files {
-                f.flush()?;
-            }
-        }
-        Ok(())
     }
 
     fn write_interval(&mut self, b: &LoopHistograms) -> io::Result<()> {
@@ -347,15 +322,18 @@ impl TelemetryReporter {
         };
         let start = Duration::from_nanos(start_ns.saturating_sub(self.anchor_mono_ns));
         let length = Duration::from_nanos(end_ns.saturating_sub(start_ns));
-        for kind in HistogramKind::ALL {
-            let file = &mut logs.files[kind.index()];
-            let mut writer =
-                IntervalLogWriterBuilder::new().begin_log_with(file, &mut logs.serializer)?;
-            writer
-                .write_histogram(b.histogram(kind), start, length, Tag::new(kind.name()))
-                .map_err(to_io)?;
+        logs.write_interval(b, start, length)
+    }
+
+    /// The output files that failed so far (interval logs; after
+    /// [`finish`](Self::finish) also the percentile files), with what was lost and the
+    /// first error. Empty on a healthy run.
+    pub fn file_failures(&self) -> Vec<WriteHealth> {
+        let mut failed = self.closed_failures.clone();
+        if let Some(logs) = self.logs.as_ref() {
+            failed.extend(logs.failures());
         }
-        Ok(())
+        failed
     }
 
     /// Cumulative totals of everything drained so far.
@@ -383,35 +361,36 @@ impl TelemetryReporter {
         self.shared.missed_swaps.load(Ordering::Relaxed)
     }
 
-    /// Summary of the totals drained so far (does not poll).
+    /// Summary of the totals drained so far (does not poll), with the
+    /// [`file_failures`](Self::file_failures) so far.
     pub fn summary(&self) -> TelemetrySummary {
-        TelemetrySummary::from_totals(
+        let mut summary = TelemetrySummary::from_totals(
             &self.totals,
             self.missed_swaps(),
             self.shared.unrecorded_cycles.load(Ordering::Relaxed),
             self.intervals,
-        )
+        );
+        summary.file_errors = self.file_failures();
+        summary
     }
 
     /// Ends the report: drains the remaining boxes (call [`TelemetryRt::flush`] first so
-    /// the RT side's last interval is included), flushes the interval logs, writes the
-    /// percentile distribution files `<name>.hgrm` (values in µs) if there is an output
-    /// folder, and returns the summary.
+    /// the RT side's last interval is included), writes and syncs the interval logs,
+    /// writes the percentile distribution files `<name>.hgrm` (values in µs, each
+    /// atomically: complete or absent) if there is an output folder, and returns the
+    /// summary.
+    ///
+    /// Never fails: a failing disk is reported on standard error and the files that
+    /// failed are listed in [`TelemetrySummary::file_errors`]; an interval that could not
+    /// be serialized (not seen in practice) is reported on standard error and missing
+    /// from its log. The `io::Result` is kept for compatibility.
     pub fn finish(mut self) -> io::Result<TelemetrySummary> {
-        self.poll()?;
-        self.flush_logs()?;
-        if let Some(logs) = self.logs.as_ref() {
-            for kind in HistogramKind::ALL {
-                let path = logs.dir.join(format!("{}.hgrm", kind.name()));
-                let mut w = BufWriter::new(File::create(path)?);
-                write_percentile_distribution(
-                    self.totals.histogram(kind),
-                    &mut w,
-                    TICKS_PER_HALF_DISTANCE,
-                    1_000.0,
-                )?;
-                w.flush()?;
-            }
+        if let Err(e) = self.poll() {
+            eprintln!("[service] {e}");
+        }
+        if let Some(logs) = self.logs.take() {
+            let failed = logs.finish(&self.totals);
+            self.closed_failures.extend(failed);
         }
         Ok(self.summary())
     }
