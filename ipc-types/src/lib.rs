@@ -30,6 +30,8 @@
 #![warn(missing_docs)]
 
 pub mod clock;
+pub mod files;
+pub mod peer;
 pub mod ports;
 pub mod rt;
 

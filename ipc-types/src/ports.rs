@@ -15,22 +15,41 @@
 //! that died leaves stale shared-memory resources behind; [`cleanup_dead_nodes`] removes
 //! them so that a restarted peer can connect again.
 //!
+//! ## Only the connected peers
+//!
+//! Every service admits **one port of each kind**: one publisher (the side that creates
+//! it), one subscriber (the peer), one notifier, one listener; [`connect`] creates them so
+//! and refuses a service of the same name that admits more. A second service (or plant) on
+//! a rig, or a foreign process that took a slot, is refused with a message naming the
+//! process that holds the slot ([`ConnectError::AlreadyRunning`],
+//! [`ConnectError::SlotTaken`]); a permission failure of iceoryx2 says so
+//! ([`ConnectError::PermissionDenied`]). At connect each side pins the peer's publisher
+//! ([`Ports::pin`], [`crate::peer`]); the receive path asks [`Ports::admit`] where each
+//! sample came from, so a sample of anything but the peer is refused and counted, and a
+//! restarted peer is recognized as a new one.
+//!
 //! Everything here allocates and may block: it is set-up code, run before a real-time loop
 //! starts or while it is idle, never inside a control step.
 
+mod liveness;
+mod slots;
+
+use crate::peer::{Origin, PeerPin};
 use crate::{Actuation, CONTRACT_VERSION, ChannelCounts, Measurement};
 use core::fmt;
 use core::time::Duration;
 use iceoryx2::node::NodeView;
-use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
-use iceoryx2::port::publisher::Publisher;
-use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::listener::{Listener, ListenerCreateError};
+use iceoryx2::port::notifier::{Notifier, NotifierCreateError};
+use iceoryx2::port::publisher::{Publisher, PublisherCreateError};
+use iceoryx2::port::subscriber::{Subscriber, SubscriberCreateError};
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::publish_subscribe::{
     PublishSubscribeCreateError, PublishSubscribeOpenError,
 };
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+use slots::Holder;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -215,6 +234,49 @@ pub enum ConnectError {
     },
     /// A shutdown was requested while waiting.
     Interrupted,
+    /// Another live process of the same side already holds this rig: it owns the one
+    /// publisher of this side's service (a second service on a served rig, or a second
+    /// plant).
+    AlreadyRunning {
+        /// The rig.
+        rig: String,
+        /// The side that was to be started.
+        side: Side,
+        /// This side's service, whose publisher slot is taken.
+        service: String,
+        /// The process that holds it ("pid 1234 (node 'adaptive-rig-service')").
+        holder: String,
+    },
+    /// A port slot that the contract reserves for one side is held by another process (a
+    /// second peer, or a foreign process).
+    SlotTaken {
+        /// The service concerned.
+        service: String,
+        /// Which port: "subscriber", "notifier" or "listener".
+        port: &'static str,
+        /// The side the slot is for.
+        reserved_for: Side,
+        /// The process that holds it.
+        holder: String,
+    },
+    /// A service of the contract's name admits more ports than the contract allows: it was
+    /// created by an older build or by a foreign process.
+    NotExclusive {
+        /// The service concerned.
+        service: String,
+        /// What it admits.
+        detail: String,
+    },
+    /// iceoryx2 was refused access to its shared-memory files or folders: they belong to
+    /// another user (see the deployment model in `docs/deployment.md`).
+    PermissionDenied {
+        /// What was being done.
+        what: String,
+        /// The service or item concerned.
+        item: String,
+        /// iceoryx2's error.
+        detail: String,
+    },
     /// Any other iceoryx2 failure.
     Ipc {
         /// What was being done.
@@ -226,12 +288,82 @@ pub enum ConnectError {
     },
 }
 
+/// An iceoryx2 failure. Every iceoryx2 error enum names an access failure
+/// `InsufficientPermissions` (nested ones too: `EventOpenError(InsufficientPermissions)`),
+/// and node creation reports a folder it may not write as `InternalError`; both become
+/// [`ConnectError::PermissionDenied`] (the latter only when the iceoryx2 folder is not
+/// writable by this process, see [`iceoryx2_folder_denied`]).
 fn ipc_err(what: &str, item: &str, e: impl fmt::Debug) -> ConnectError {
-    ConnectError::Ipc {
-        what: what.to_string(),
-        item: item.to_string(),
-        detail: format!("{e:?}"),
+    let detail = format!("{e:?}");
+    if detail.contains("InsufficientPermissions") || detail.contains("PermissionDenied") {
+        ConnectError::PermissionDenied {
+            what: what.to_string(),
+            item: item.to_string(),
+            detail,
+        }
+    } else {
+        ConnectError::Ipc {
+            what: what.to_string(),
+            item: item.to_string(),
+            detail,
+        }
     }
+}
+
+/// A node creation failure: `InternalError` is what iceoryx2 0.10 reports when it cannot
+/// create its files in a folder of another user, so it is checked against the folders.
+fn node_err(node_name: &str, e: impl fmt::Debug) -> ConnectError {
+    match (
+        ipc_err("creating the node", node_name, &e),
+        iceoryx2_folder_denied(),
+    ) {
+        (ConnectError::Ipc { what, item, detail }, Some(folder)) => {
+            ConnectError::PermissionDenied {
+                what,
+                item,
+                detail: format!("{detail}; {folder}"),
+            }
+        }
+        (other, _) => other,
+    }
+}
+
+/// The first iceoryx2 folder this process may not write into, described, if any.
+fn iceoryx2_folder_denied() -> Option<String> {
+    use std::os::unix::ffi::OsStrExt;
+    let root = Config::global_config()
+        .global
+        .root_path()
+        .as_string()
+        .to_string();
+    let root = std::path::PathBuf::from(root);
+    let mut folders = vec![root.clone()];
+    if let Ok(dir) = std::fs::read_dir(&root) {
+        folders.extend(dir.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+    }
+    folders.push("/dev/shm".into());
+    for f in folders {
+        let Ok(c) = std::ffi::CString::new(f.as_os_str().as_bytes()) else {
+            continue;
+        };
+        // SAFETY: access() only reads the NUL-terminated path.
+        if unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) } != 0
+            && std::io::Error::last_os_error().raw_os_error() == Some(libc::EACCES)
+        {
+            use std::os::unix::fs::MetadataExt;
+            let owner = std::fs::metadata(&f).map(|m| m.uid()).ok();
+            return Some(format!(
+                "{} is not writable by this user (uid {}){}",
+                f.display(),
+                // SAFETY: getuid has no preconditions.
+                unsafe { libc::getuid() },
+                owner
+                    .map(|o| format!(", it belongs to uid {o}"))
+                    .unwrap_or_default()
+            ));
+        }
+    }
+    None
 }
 
 impl fmt::Display for ConnectError {
@@ -274,6 +406,47 @@ impl fmt::Display for ConnectError {
                 waited.as_secs_f64()
             ),
             ConnectError::Interrupted => write!(f, "interrupted while connecting"),
+            ConnectError::AlreadyRunning {
+                rig,
+                side,
+                service,
+                holder,
+            } => {
+                let what = match side {
+                    Side::Service => format!("rig '{rig}' is already served by {holder}"),
+                    Side::Plant => format!("rig '{rig}' already has a plant: {holder}"),
+                };
+                write!(
+                    f,
+                    "{what}, which holds the one publisher of '{service}'; refusing to start a \
+                     second {}",
+                    side.name()
+                )
+            }
+            ConnectError::SlotTaken {
+                service,
+                port,
+                reserved_for,
+                holder,
+            } => write!(
+                f,
+                "'{service}' admits one {port}, the {}'s, and {holder} holds it: another {} runs \
+                 on this rig, or a foreign process occupies the slot; refusing to connect",
+                reserved_for.name(),
+                reserved_for.name()
+            ),
+            ConnectError::NotExclusive { service, detail } => write!(
+                f,
+                "'{service}' {detail}, the contract allows one of each: it was created by an \
+                 older build or by a foreign process; refusing to connect (stop the processes \
+                 that use it)"
+            ),
+            ConnectError::PermissionDenied { what, item, detail } => write!(
+                f,
+                "permission denied while {what} '{item}' ({detail}): the iceoryx2 files of this \
+                 machine belong to another user; run the service and the plant process as the \
+                 same dedicated user (docs/deployment.md, \"Trust and deployment model\")"
+            ),
             ConnectError::Ipc { what, item, detail } => {
                 write!(f, "iceoryx2 failure while {what} '{item}': {detail}")
             }
@@ -324,10 +497,8 @@ pub fn cleanup_dead_nodes() -> usize {
             // file exists, its lock is not taken yet) or being dropped. Removing it then
             // would take the services of a live peer away (seen under load as a peer whose
             // service never appears). Only a node whose process is gone is cleaned up.
-            let alive = view
-                .id()
-                .pid::<ipc::Service>()
-                .is_ok_and(|p| process_alive(p.value()));
+            // The pid must also not have been reused by a newer process (see liveness.rs).
+            let alive = liveness::node_alive(view.id());
             if !alive && view.try_remove_stale_resources().is_ok() {
                 n += 1;
             }
@@ -335,17 +506,6 @@ pub fn cleanup_dead_nodes() -> usize {
         CallbackProgression::Continue
     });
     n
-}
-
-/// Whether a process with this id exists (`kill(pid, 0)`: 0, or `EPERM` for another
-/// user's process).
-fn process_alive(pid: i32) -> bool {
-    if pid <= 0 {
-        return false;
-    }
-    // SAFETY: signal 0 performs the existence and permission check only.
-    let r = unsafe { libc::kill(pid, 0) };
-    r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
 /// The ports of one side: publishes `Out`, subscribes to `In`, notifies after each send and
@@ -363,6 +523,8 @@ pub struct Ports<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + Zero
     pub listener: Option<Listener<ipc::Service>>,
     /// What the peer stated when the connection was made.
     pub peer: ContractInfo,
+    /// The peer's publisher, pinned at connect; see [`Ports::admit`].
+    pub pin: PeerPin,
     _own_event: iceoryx2::service::port_factory::event::PortFactory<ipc::Service>,
     _peer_event: iceoryx2::service::port_factory::event::PortFactory<ipc::Service>,
     _own_service: PubSubFactory<ipc::Service, Out, ()>,
@@ -471,9 +633,29 @@ where
         )
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
-        .map_err(|e| ipc_err("creating the node", node_name, e))?;
+        .map_err(|e| node_err(node_name, e))?;
 
     let own_service = open_own::<Out>(&node, &own_name, &own, &opts)?;
+    // This side's publisher first, before waiting for the peer: the one publisher slot is
+    // what makes this process the rig's only plant (or service); a second one is refused
+    // here, naming the process that holds the slot.
+    let publisher = exclusive_port(
+        || {
+            own_service
+                .publisher_builder()
+                .max_loaned_samples(2)
+                .create()
+        },
+        |e| matches!(e, PublisherCreateError::ExceedsMaxSupportedPublishers),
+        || slots::holders(&own_service, &slots::publisher_nodes(&own_service)),
+        |holder| ConnectError::AlreadyRunning {
+            rig: rig.to_string(),
+            side: own.side,
+            service: own_name.clone(),
+            holder,
+        },
+        ("creating the publisher of", &own_name),
+    )?;
     if let Some(msg) = opts.waiting_message {
         eprintln!("{msg}");
     }
@@ -489,42 +671,91 @@ where
             {
                 std::thread::sleep(Duration::from_millis(10));
             }
+            drop(publisher);
             drop(own_service);
             return Err(e);
         }
         Err(e) => return Err(e),
     };
 
-    let publisher = own_service
-        .publisher_builder()
-        .max_loaned_samples(2)
-        .create()
-        .map_err(|e| ipc_err("creating the publisher of", &own_name, e))?;
     let own_event = open_event(&node, &own_name)?;
     let peer_event = open_event(&node, &peer_name)?;
-    let notifier = own_event
-        .notifier_builder()
-        .create()
-        .map_err(|e| ipc_err("creating the notifier of", &own_name, e))?;
+    let notifier = exclusive_port(
+        || own_event.notifier_builder().create(),
+        |e| matches!(e, NotifierCreateError::ExceedsMaxSupportedNotifiers),
+        || slots::holders(&own_event, &slots::notifier_nodes(&own_event)),
+        |holder| ConnectError::SlotTaken {
+            service: format!("{own_name} (event)"),
+            port: "notifier",
+            reserved_for: own.side,
+            holder,
+        },
+        ("creating the notifier of", &own_name),
+    )?;
     let listener = if opts.listen {
-        Some(
-            peer_event
-                .listener_builder()
-                .create()
-                .map_err(|e| ipc_err("creating the listener of", &peer_name, e))?,
-        )
+        Some(exclusive_port(
+            || peer_event.listener_builder().create(),
+            |e| matches!(e, ListenerCreateError::ExceedsMaxSupportedListeners),
+            || slots::holders(&peer_event, &slots::listener_nodes(&peer_event)),
+            |holder| ConnectError::SlotTaken {
+                service: format!("{peer_name} (event)"),
+                port: "listener",
+                reserved_for: own.side,
+                holder,
+            },
+            ("creating the listener of", &peer_name),
+        )?)
     } else {
         None
     };
     // The subscriber comes last: a peer that sees it knows this side's listener exists.
-    let subscriber = peer_service
-        .subscriber_builder()
-        .create()
-        .map_err(|e| ipc_err("creating the subscriber of", &peer_name, e))?;
-    // Wait until the peer subscribes to this side's samples, so that the first sample sent
-    // after connect() is not lost (lockstep runs depend on it).
+    let subscriber = exclusive_port(
+        || peer_service.subscriber_builder().create(),
+        |e| matches!(e, SubscriberCreateError::ExceedsMaxSupportedSubscribers),
+        || slots::holders(&peer_service, &slots::subscriber_nodes(&peer_service)),
+        |holder| ConnectError::SlotTaken {
+            service: peer_name.clone(),
+            port: "subscriber",
+            reserved_for: own.side,
+            holder,
+        },
+        ("creating the subscriber of", &peer_name),
+    )?;
+    // Pin the peer: the one publisher of its service.
     let start = Instant::now();
-    while own_service.dynamic_config().number_of_subscribers() == 0 {
+    let (peer_publisher, peer_node) = loop {
+        let mut found = None;
+        peer_service.dynamic_config().list_publishers(|d| {
+            found = Some((d.publisher_id, d.node_id));
+            CallbackProgression::Stop
+        });
+        if let Some(f) = found {
+            break f;
+        }
+        wait_a_little(start, &peer_name, &opts)?;
+    };
+    let peer_pid = peer_node
+        .pid::<ipc::Service>()
+        .ok()
+        .map(|p| p.value() as u32);
+    // Wait until the peer has subscribed to this side's samples, so that the first sample
+    // sent after connect() is not lost (lockstep runs depend on it). The subscriber must be
+    // the pinned peer's: a foreign process in the slot is refused by name.
+    let start = Instant::now();
+    loop {
+        let subscribers = slots::subscriber_nodes(&own_service);
+        if subscribers.contains(&peer_node) {
+            break;
+        }
+        if !subscribers.is_empty() && start.elapsed() >= opts.peer_timeout {
+            let holders = slots::holders(&own_service, &subscribers);
+            return Err(ConnectError::SlotTaken {
+                service: own_name.clone(),
+                port: "subscriber",
+                reserved_for: own.side.peer(),
+                holder: slots::describe(&holders),
+            });
+        }
         wait_a_little(start, &own_name, &opts)?;
     }
     let ports = Ports {
@@ -533,6 +764,7 @@ where
         notifier,
         listener,
         peer,
+        pin: PeerPin::new(peer_publisher.value(), peer_pid, true),
         _own_event: own_event,
         _peer_event: peer_event,
         _own_service: own_service,
@@ -541,6 +773,44 @@ where
     };
     ports.update_connections();
     Ok(ports)
+}
+
+/// How long [`exclusive_port`] keeps retrying a slot held by a dead process (whose stale
+/// port [`cleanup_dead_nodes`] removes).
+const STALE_SLOT_RETRY: Duration = Duration::from_secs(2);
+
+/// Creates a port whose slot is exclusive: when iceoryx2 says the slot is taken (`full`),
+/// asks who holds it (`holders`); a dead holder's stale port is cleaned up and the creation
+/// retried, a live holder is refused with `refuse(description)`.
+fn exclusive_port<P, E: fmt::Debug>(
+    mut create: impl FnMut() -> Result<P, E>,
+    full: impl Fn(&E) -> bool,
+    holders: impl Fn() -> Vec<Holder>,
+    refuse: impl Fn(String) -> ConnectError,
+    (what, item): (&str, &str),
+) -> Result<P, ConnectError> {
+    let start = Instant::now();
+    loop {
+        match create() {
+            Ok(p) => return Ok(p),
+            Err(e) if full(&e) => {
+                let h = holders();
+                if h.iter().any(|h| h.alive) {
+                    let live: Vec<Holder> = h.into_iter().filter(|h| h.alive).collect();
+                    return Err(refuse(slots::describe(&live)));
+                }
+                if start.elapsed() >= STALE_SLOT_RETRY {
+                    return Err(refuse(format!(
+                        "{} (its stale port could not be removed)",
+                        slots::describe(&h)
+                    )));
+                }
+                cleanup_dead_nodes();
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(e) => return Err(ipc_err(what, item, e)),
+        }
+    }
 }
 
 impl<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + 'static>
@@ -555,22 +825,143 @@ impl<Out: fmt::Debug + ZeroCopySend + 'static, In: fmt::Debug + ZeroCopySend + '
         let _ = self.subscriber.update_connections();
         let _ = self.notifier.update_connections();
     }
+
+    /// Where a received sample came from: the pinned peer, a new peer that replaced it (the
+    /// pin moves to it: start a new session), or a foreign publisher (refuse the sample; it
+    /// is counted in [`Ports::foreign_samples`]). Pass `sample.origin()`:
+    ///
+    /// ```ignore
+    /// while let Ok(Some(sample)) = ports.subscriber.receive() {
+    ///     match ports.admit(sample.origin()) {
+    ///         Origin::Peer => use_it(&*sample),
+    ///         Origin::NewPeer => { new_session(); use_it(&*sample) }
+    ///         Origin::Foreign => {} // refused and counted
+    ///     }
+    /// }
+    /// ```
+    ///
+    /// A few integer compares: no allocation, no lock, no system call, no panic; for the
+    /// real-time receive path. See [`crate::peer`] for why a publisher other than the pinned
+    /// one is the new peer (the slot admits one publisher).
+    #[inline]
+    pub fn admit(&self, origin: iceoryx2::identifiers::UniquePublisherId) -> Origin {
+        self.pin.admit(origin)
+    }
+
+    /// Samples refused as foreign so far.
+    pub fn foreign_samples(&self) -> u64 {
+        self.pin.foreign_samples()
+    }
+
+    /// The pid of the pinned peer's process, when known (after a re-pin, once
+    /// [`Ports::refresh_peer`] has run).
+    pub fn peer_pid(&self) -> Option<u32> {
+        self.pin.peer_pid()
+    }
+
+    /// Reads the peer service's publisher list (set-up or idle code: it allocates) and tells
+    /// whether the pinned peer is still there; records the pid of a pinned peer whose pid
+    /// was not known yet (after [`Origin::NewPeer`]), and establishes the connections to
+    /// a new publisher so that its first samples do not allocate in the receive path.
+    pub fn refresh_peer(&self) -> PeerPresence {
+        let mut pinned_there = None;
+        let mut other = None;
+        self._peer_service.dynamic_config().list_publishers(|d| {
+            let pid = d.node_id.pid::<ipc::Service>().ok().map(|p| p.value());
+            if d.publisher_id.value() == self.pin.pinned() {
+                pinned_there = Some((pid, liveness::node_alive(&d.node_id)));
+            } else {
+                other = Some(pid);
+            }
+            CallbackProgression::Continue
+        });
+        self.update_connections();
+        match (pinned_there, other) {
+            (Some((pid, alive)), _) => {
+                let pid = pid.map(|p| p as u32);
+                if let Some(p) = pid {
+                    self.pin.set_pid(p);
+                }
+                if alive {
+                    PeerPresence::Present { pid }
+                } else {
+                    PeerPresence::Gone
+                }
+            }
+            (None, Some(pid)) => PeerPresence::Replaced {
+                pid: pid.map(|p| p as u32),
+            },
+            (None, None) => PeerPresence::Gone,
+        }
+    }
+}
+
+/// What [`Ports::refresh_peer`] found on the peer's service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PeerPresence {
+    /// The pinned publisher is registered and its process lives.
+    Present {
+        /// Its pid, when known.
+        pid: Option<u32>,
+    },
+    /// The pinned publisher is gone (or its process died) and no other publisher is there.
+    Gone,
+    /// Another publisher holds the slot: its first sample will be [`Origin::NewPeer`].
+    Replaced {
+        /// Its pid, when known.
+        pid: Option<u32>,
+    },
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ConnectError> {
     ServiceName::new(name).map_err(|e| ipc_err("naming the service", name, e))
 }
 
+/// Opens (or creates) the event service `name`: one notifier (the side that publishes on
+/// `name`) and one listener (its peer, when it blocks). A service that admits more is
+/// refused.
 fn open_event(
     node: &Node<ipc::Service>,
     name: &str,
-) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, ConnectError> {
-    node.service_builder(&service_name(name)?)
+) -> Result<EventFactory<ipc::Service>, ConnectError> {
+    let f = node
+        .service_builder(&service_name(name)?)
         .event()
-        .max_notifiers(4)
-        .max_listeners(4)
+        .max_notifiers(1)
+        .max_listeners(1)
         .open_or_create()
-        .map_err(|e| ipc_err("opening the event service", name, e))
+        .map_err(|e| ipc_err("opening the event service", name, e))?;
+    let c = f.static_config();
+    if c.max_notifiers() != 1 || c.max_listeners() != 1 {
+        return Err(ConnectError::NotExclusive {
+            service: format!("{name} (event)"),
+            detail: format!(
+                "admits {} notifiers and {} listeners",
+                c.max_notifiers(),
+                c.max_listeners()
+            ),
+        });
+    }
+    Ok(f)
+}
+
+/// Refuses a publish-subscribe service that admits more than one publisher or subscriber.
+fn verify_exclusive<T: fmt::Debug + ZeroCopySend + 'static>(
+    f: &PubSubFactory<ipc::Service, T, ()>,
+    name: &str,
+) -> Result<(), ConnectError> {
+    let c = f.static_config();
+    if c.max_publishers() != 1 || c.max_subscribers() != 1 {
+        return Err(ConnectError::NotExclusive {
+            service: name.to_string(),
+            detail: format!(
+                "admits {} publishers and {} subscribers",
+                c.max_publishers(),
+                c.max_subscribers()
+            ),
+        });
+    }
+    Ok(())
 }
 
 fn pubsub_builder<T: fmt::Debug + ZeroCopySend + 'static>(
@@ -581,8 +972,8 @@ fn pubsub_builder<T: fmt::Debug + ZeroCopySend + 'static>(
     Ok(node
         .service_builder(&service_name(name)?)
         .publish_subscribe::<T>()
-        .max_publishers(2)
-        .max_subscribers(4)
+        .max_publishers(1)
+        .max_subscribers(1)
         .subscriber_max_buffer_size(4)
         .history_size(0)
         .enable_safe_overflow(true))
@@ -618,6 +1009,7 @@ fn open_own<T: fmt::Debug + ZeroCopySend + 'static>(
                     ..existing
                 };
                 verify(&existing, own, name)?;
+                verify_exclusive(&f, name)?;
                 return Ok(f);
             }
             Err(PublishSubscribeOpenError::DoesNotExist)
@@ -662,6 +1054,7 @@ fn open_peer<T: fmt::Debug + ZeroCopySend + 'static>(
                     });
                 }
                 verify(&peer, own, name)?;
+                verify_exclusive(&f, name)?;
                 return Ok((f, peer));
             }
             Err(PublishSubscribeOpenError::DoesNotExist)
@@ -801,6 +1194,80 @@ mod tests {
         assert!(
             t.join().unwrap().is_err(),
             "the service never gets a compatible plant"
+        );
+    }
+
+    #[test]
+    fn a_second_plant_is_refused_naming_the_first_and_a_restarted_plant_is_a_new_peer() {
+        use std::sync::Arc;
+        let rig = format!("unit-pin-{}", std::process::id());
+        let plant = info(Side::Plant, 1, 1, 1_000_000);
+        let service = info(Side::Service, 1, 1, 1_000_000);
+        let done = Arc::new(AtomicBool::new(false));
+        let (rig2, done2) = (rig.clone(), done.clone());
+        // The service: records where each sample came from until it saw seq 2.
+        let t = std::thread::spawn(move || {
+            let opts = ConnectOptions::new(Duration::from_secs(10));
+            let ports = connect::<Actuation, Measurement>(&rig2, service, "unit-pin-service", opts)
+                .unwrap();
+            let first_pid = ports.peer_pid();
+            let mut seen = Vec::new();
+            let start = Instant::now();
+            while !seen.contains(&(2, Origin::Peer)) {
+                while let Ok(Some(s)) = ports.subscriber.receive() {
+                    let origin = ports.admit(s.origin());
+                    if !seen.contains(&(s.seq, origin)) {
+                        seen.push((s.seq, origin));
+                    }
+                }
+                assert!(start.elapsed() < Duration::from_secs(20), "{seen:?}");
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            done2.store(true, Ordering::Relaxed);
+            let presence = ports.refresh_peer();
+            (first_pid, seen, ports.foreign_samples(), presence)
+        });
+        let send_until = |ports: &PlantPorts, seq: u64, stop: &dyn Fn() -> bool| {
+            let mut m = Measurement::zeroed(plant.counts);
+            m.seq = seq;
+            let start = Instant::now();
+            while !stop() {
+                ports.publisher.send_copy(m).unwrap();
+                std::thread::sleep(Duration::from_millis(2));
+                assert!(start.elapsed() < Duration::from_secs(20));
+            }
+        };
+        let opts = ConnectOptions::new(Duration::from_secs(10));
+        let p1 = connect::<Measurement, Actuation>(&rig, plant, "unit-pin-plant", opts).unwrap();
+        let err = connect::<Measurement, Actuation>(&rig, plant, "unit-pin-plant-2", opts)
+            .err()
+            .expect("a second plant must be refused");
+        let msg = err.to_string();
+        assert!(matches!(err, ConnectError::AlreadyRunning { .. }), "{msg}");
+        assert!(
+            msg.contains(&format!(
+                "rig '{rig}' already has a plant: pid {} (node 'unit-pin-plant')",
+                std::process::id()
+            )),
+            "{msg}"
+        );
+        let sent = Instant::now();
+        send_until(&p1, 1, &|| sent.elapsed() > Duration::from_millis(100));
+        drop(p1);
+        let p2 = connect::<Measurement, Actuation>(&rig, plant, "unit-pin-plant-3", opts).unwrap();
+        send_until(&p2, 2, &|| done.load(Ordering::Relaxed));
+        let (first_pid, seen, foreign, presence) = t.join().unwrap();
+        assert_eq!(first_pid, Some(std::process::id()));
+        assert_eq!(
+            seen,
+            [(1, Origin::Peer), (2, Origin::NewPeer), (2, Origin::Peer)]
+        );
+        assert_eq!(foreign, 0);
+        assert_eq!(
+            presence,
+            PeerPresence::Present {
+                pid: Some(std::process::id())
+            }
         );
     }
 

@@ -17,12 +17,21 @@
 //! A watchdog puts the plant into its safe output after `proxy.watchdog-periods`
 //! consecutive misses, says so, removes the stale resources of dead iceoryx2 nodes (so a
 //! restarted service can connect), and leaves the safe output on the next valid actuation.
+//! In lockstep mode the plant does not wait for ever: when no service has answered for
+//! `proxy.peer-timeout` after the watchdog tripped (the time a service is given to connect
+//! at start-up), it gives up with [`PlantError::GaveUp`] (a non-zero exit status).
+//!
+//! Only the service the plant connected to drives it: its publisher is pinned at connect
+//! (`ipc_types::peer`), an actuation from any other publisher is refused and counted
+//! ([`PlantReport::foreign_discarded`]), and a restarted service, which can only appear once
+//! the old one's publisher is gone, is recognized and counted ([`PlantReport::new_services`]).
 //! `[proxy.faults]` injects NaN, ±Inf and out-of-range measurements at given samples, for
 //! testing the service's input validation.
 
 use crate::scenario::Scenario;
 use crate::sim::PlantSim;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
+use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
 use ipc_types::rt::RtRequest;
 use ipc_types::{
@@ -196,12 +205,14 @@ impl ProxyConfig {
         if watchdog_periods == 0 {
             return Err(err("watchdog-periods", "must be at least 1".into()));
         }
+        const MAX_WAIT_S: f64 = 86_400.0;
         let secs = |v: Option<f64>, d: f64, f: &str| {
             let v = v.unwrap_or(d);
-            if v.is_finite() && v > 0.0 {
+            // A day at most: longer waits are a typo, and the conversion stays exact.
+            if v.is_finite() && v > 0.0 && v <= MAX_WAIT_S {
                 Ok(Duration::from_secs_f64(v))
             } else {
-                Err(err(f, format!("{v} s is not positive")))
+                Err(err(f, format!("{v} s is not in (0, {MAX_WAIT_S}] s")))
             }
         };
         let fifo_priority = ipc_types::rt::fifo_priority_from_config(raw.fifo_priority, 70)
@@ -254,6 +265,13 @@ pub struct PlantReport {
     pub late_discarded: u64,
     /// Actuations refused (other contract, counts, or non-finite u).
     pub invalid_discarded: u64,
+    /// Actuations refused because they did not come from the pinned service (a foreign
+    /// publisher, or a replaced service's leftovers).
+    pub foreign_discarded: u64,
+    /// Times a new service replaced the one the plant was connected to.
+    pub new_services: u64,
+    /// The pid of the service the plant is pinned to at the end of the run, when known.
+    pub service_pid: Option<u32>,
     /// Watchdog trips.
     pub watchdog_trips: u64,
     /// Recoveries from the safe output.
@@ -279,6 +297,14 @@ pub enum PlantError {
     Connect(ipc_types::ports::ConnectError),
     /// Writing the trace failed.
     Io(String),
+    /// Lockstep: no service answered for `proxy.peer-timeout` after the watchdog tripped;
+    /// the plant gave up. The report of the run so far comes with it.
+    GaveUp {
+        /// What happened, for the user.
+        message: String,
+        /// The counters up to the end.
+        report: Box<PlantReport>,
+    },
 }
 
 impl fmt::Display for PlantError {
@@ -286,6 +312,7 @@ impl fmt::Display for PlantError {
         match self {
             PlantError::Config(m) | PlantError::Io(m) => f.write_str(m),
             PlantError::Connect(e) => write!(f, "{e}"),
+            PlantError::GaveUp { message, .. } => f.write_str(message),
         }
     }
 }
@@ -397,8 +424,15 @@ pub fn run_plant(
         mode: format!("{:?}", proxy.mode),
         rt_setup,
         faults_injected: proxy.faults.total() as u64,
+        service_pid: ports.peer_pid(),
         ..Default::default()
     };
+    if opts.verbose {
+        eprintln!(
+            "[plant-proxy] pinned to the service {}; actuations from any other process are refused",
+            describe_pid(ports.peer_pid())
+        );
+    }
     let mut y = vec![0.0; n_y];
     let mut z = vec![0.0; n_z];
     let mut r = vec![0.0; n_r];
@@ -408,6 +442,8 @@ pub fn run_plant(
     let mut consecutive_misses = 0u64;
     let mut tripped = false;
     let mut previous_missed = false;
+    // Lockstep: when the watchdog tripped, and since when no valid actuation came.
+    let mut tripped_at: Option<Instant> = None;
     let wall = Instant::now();
     let t0 = monotonic_ns() + 2 * period_ns.max(1_000_000);
 
@@ -462,6 +498,7 @@ pub fn run_plant(
         let _ = ports.publisher.send_copy(m);
         let _ = ports.notifier.notify();
         report.samples += 1;
+        let new_services_before = report.new_services;
 
         // Collect the answer to sample k.
         let answer = match proxy.mode {
@@ -480,12 +517,25 @@ pub fn run_plant(
                         break None;
                     }
                     if let Some(l) = &ports.listener {
-                        let _ =
-                            l.timed_wait(|_| {}, (deadline - now).min(Duration::from_millis(10)));
+                        // At least 1 ms: iceoryx2 waits on a socket receive timeout, and a
+                        // timeout that rounds down to 0 µs means "wait for ever" there (seen
+                        // as a lockstep plant that never woke up once its service had died).
+                        let wait = (deadline - now)
+                            .clamp(Duration::from_millis(1), Duration::from_millis(10));
+                        let _ = l.timed_wait(|_| {}, wait);
                     }
                 }
             }
         };
+        if report.new_services != new_services_before {
+            // A restarted service took over (rare: outside the per-sample path proper).
+            let presence = ports.refresh_peer();
+            report.service_pid = ports.peer_pid();
+            eprintln!(
+                "[plant-proxy] a new service ({}) answers at seq {k}: the plant is pinned to it now ({presence:?})",
+                describe_pid(ports.peer_pid())
+            );
+        }
         if answer.is_none() && shutdown.load(Ordering::Relaxed) {
             // Stopped while waiting: this sample was never answered nor applied.
             break;
@@ -493,6 +543,7 @@ pub fn run_plant(
         let status = match answer {
             Some(a) => {
                 report.actuations_applied += 1;
+                tripped_at = None;
                 consecutive_misses = 0;
                 previous_missed = false;
                 if tripped {
@@ -525,6 +576,19 @@ pub fn run_plant(
                             "[plant-proxy] removed stale resources of {n} dead iceoryx2 node(s)"
                         );
                     }
+                    if proxy.mode == Mode::Lockstep {
+                        tripped_at = Some(Instant::now());
+                        eprintln!(
+                            "[plant-proxy] lockstep: waiting up to {:.1} s (proxy.peer-timeout) for a service to answer, then giving up",
+                            proxy.peer_timeout.as_secs_f64()
+                        );
+                    }
+                }
+                if let Some(t) = tripped_at
+                    && t.elapsed() >= proxy.peer_timeout
+                {
+                    report.service_pid = ports.peer_pid();
+                    return Err(give_up(report, k, consecutive_misses, proxy, &ports, wall));
                 }
                 u32::MAX
             }
@@ -555,11 +619,68 @@ pub fn run_plant(
         .map(|s| (s / report.samples.max(1) as f64).sqrt())
         .collect();
     report.wall_time_s = wall.elapsed().as_secs_f64();
+    report.service_pid = ports.peer_pid();
+    if opts.verbose || report.foreign_discarded > 0 || report.new_services > 0 {
+        eprintln!("[plant-proxy] {}", trust_line(&report));
+    }
     Ok(report)
 }
 
+/// "pid 1234" or "of unknown pid".
+fn describe_pid(pid: Option<u32>) -> String {
+    match pid {
+        Some(p) => format!("pid {p}"),
+        None => "of unknown pid".into(),
+    }
+}
+
+/// The trust counters of a report, one line.
+pub fn trust_line(r: &PlantReport) -> String {
+    format!(
+        "service {}: {} foreign actuation(s) refused, {} new service(s) during the run",
+        describe_pid(r.service_pid),
+        r.foreign_discarded,
+        r.new_services
+    )
+}
+
+/// The lockstep plant's end when no service answers after its watchdog tripped.
+fn give_up(
+    mut report: PlantReport,
+    k: u64,
+    misses: u64,
+    proxy: &ProxyConfig,
+    ports: &PlantPorts,
+    wall: Instant,
+) -> PlantError {
+    report.wall_time_s = wall.elapsed().as_secs_f64();
+    let presence = match ports.refresh_peer() {
+        ipc_types::ports::PeerPresence::Present { pid } => {
+            format!(
+                "the service ({}) is still registered but silent",
+                describe_pid(pid)
+            )
+        }
+        ipc_types::ports::PeerPresence::Gone => "the service is gone".to_string(),
+        ipc_types::ports::PeerPresence::Replaced { pid } => format!(
+            "another service ({}) holds the actuation service but did not answer",
+            describe_pid(pid)
+        ),
+    };
+    let message = format!(
+        "WATCHDOG: giving up in lockstep at seq {k}: no valid actuation for {misses} samples, and none for {:.1} s (proxy.peer-timeout) since the watchdog tripped; {presence}. {}",
+        proxy.peer_timeout.as_secs_f64(),
+        trust_line(&report)
+    );
+    eprintln!("[plant-proxy] {message}");
+    PlantError::GaveUp {
+        message,
+        report: Box::new(report),
+    }
+}
+
 /// Drains the actuation subscriber; returns the valid actuation for sample `k`, counting
-/// late and invalid ones.
+/// foreign (not from the pinned service), late and invalid ones.
 fn drain_for(
     ports: &PlantPorts,
     k: u64,
@@ -568,6 +689,14 @@ fn drain_for(
 ) -> Option<Actuation> {
     let mut found = None;
     while let Ok(Some(sample)) = ports.subscriber.receive() {
+        match ports.admit(sample.origin()) {
+            Origin::Peer => {}
+            Origin::NewPeer => report.new_services += 1,
+            Origin::Foreign => {
+                report.foreign_discarded += 1;
+                continue;
+            }
+        }
         let a: Actuation = *sample;
         let n_u = counts.n_u as usize;
         let valid = a.contract_version == CONTRACT_VERSION
