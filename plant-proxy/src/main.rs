@@ -1,12 +1,18 @@
 //! `plant-proxy`: the simulated plant process.
 //!
 //! ```text
-//! plant-proxy run <scenario.toml> [--mode lockstep|real-time] [--steps N] [--trace out.csv] [--report out.json]
+//! plant-proxy run <scenario.toml> [--mode lockstep|real-time] [--steps N | --duration S] [--trace out.csv] [--report out.json]
 //! plant-proxy describe <scenario.toml>
+//! plant-proxy check <scenario.toml>
 //! ```
+//!
+//! A refused scenario or command-line value exits with code 2, naming the file and the
+//! field; `--steps` and `--duration` are checked as `rig.duration` is.
 
 use clap::{Parser, Subcommand};
 use plant_proxy::runtime::{Mode, PlantRunOptions, ProxyConfig, run_plant};
+use plant_proxy::scenario::Scenario;
+use plant_proxy::sim::PlantSim;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -33,8 +39,11 @@ enum Command {
         #[arg(long, value_parser = parse_mode)]
         mode: Option<Mode>,
         /// Number of samples (default: rig.duration / sample period).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "duration")]
         steps: Option<u64>,
+        /// Seconds of plant time (overrides rig.duration, with the same bounds).
+        #[arg(long, allow_negative_numbers = true)]
+        duration: Option<f64>,
         /// Write a CSV trace of y, z and the applied u.
         #[arg(long)]
         trace: Option<PathBuf>,
@@ -50,6 +59,32 @@ enum Command {
         /// Scenario TOML file.
         scenario: PathBuf,
     },
+    /// Validate the plant half of a scenario ([rig], [plant], [proxy]) without starting
+    /// anything; print `ok` and a summary.
+    Check {
+        /// Scenario TOML file.
+        scenario: PathBuf,
+    },
+}
+
+/// The plant half of a scenario, validated as `run` would use it: the scenario, its
+/// discretization and the `[proxy]` table; the message of a refusal otherwise.
+fn load_plant_half(
+    scenario: &std::path::Path,
+) -> Result<(Scenario, PlantSim, ProxyConfig), String> {
+    let sc = plant_proxy::scenario::load(scenario).map_err(|e| e.to_string())?;
+    let sim = PlantSim::new(&sc.plant, sc.rig.sample_period)
+        .map_err(|e| format!("{}: field 'plant': {e}", scenario.display()))?;
+    let text = std::fs::read_to_string(scenario).unwrap_or_default();
+    let proxy = ProxyConfig::parse(&text, &scenario.display().to_string(), sc.plant.n_u())
+        .map_err(|e| e.to_string())?;
+    Ok((sc, sim, proxy))
+}
+
+/// Prints a refusal and gives exit code 2.
+fn refused(message: impl std::fmt::Display) -> ExitCode {
+    eprintln!("plant-proxy: {message}");
+    ExitCode::from(2)
 }
 
 fn parse_mode(s: &str) -> Result<Mode, String> {
@@ -66,12 +101,9 @@ fn main() -> ExitCode {
         Command::Describe { scenario } => {
             let sc = match plant_proxy::scenario::load(&scenario) {
                 Ok(s) => s,
-                Err(e) => {
-                    eprintln!("plant-proxy: {e}");
-                    return ExitCode::from(2);
-                }
+                Err(e) => return refused(e),
             };
-            match plant_proxy::sim::PlantSim::new(&sc.plant, sc.rig.sample_period) {
+            match PlantSim::new(&sc.plant, sc.rig.sample_period) {
                 Ok(sim) => {
                     println!(
                         "{}",
@@ -79,35 +111,58 @@ fn main() -> ExitCode {
                     );
                     ExitCode::SUCCESS
                 }
-                Err(e) => {
-                    eprintln!("plant-proxy: {}: {e}", scenario.display());
-                    ExitCode::from(2)
-                }
+                Err(e) => refused(format!("{}: {e}", scenario.display())),
             }
         }
+        Command::Check { scenario } => match load_plant_half(&scenario) {
+            Ok((sc, _, proxy)) => {
+                let p = &sc.plant;
+                println!(
+                    "{}: ok (rig '{}', {} Hz, {} s, plant {} with {} states, channels y={} z={} r={} u={} w={}, proxy {:?})",
+                    scenario.display(),
+                    sc.rig.name,
+                    1.0 / sc.rig.sample_period,
+                    sc.rig.duration,
+                    p.kind.name(),
+                    p.n_x(),
+                    p.n_y(),
+                    p.n_z(),
+                    p.n_r(),
+                    p.n_u(),
+                    p.n_w(),
+                    proxy.mode
+                );
+                ExitCode::SUCCESS
+            }
+            Err(m) => refused(m),
+        },
         Command::Run {
             scenario,
             mode,
             steps,
+            duration,
             trace,
             report,
             quiet,
         } => {
             let sc = match plant_proxy::scenario::load(&scenario) {
                 Ok(s) => s,
-                Err(e) => {
-                    eprintln!("plant-proxy: {e}");
-                    return ExitCode::from(2);
-                }
+                Err(e) => return refused(e),
+            };
+            let sc = match duration.map(|d| sc.clone().with_duration(d)) {
+                None => sc,
+                Some(Ok(s)) => s,
+                Some(Err(e)) => return refused(e),
+            };
+            let steps = match sc.run_steps(steps) {
+                Ok(n) => n,
+                Err(e) => return refused(e),
             };
             let text = std::fs::read_to_string(&scenario).unwrap_or_default();
             let n_u = sc.plant.n_u();
             let mut proxy = match ProxyConfig::parse(&text, &scenario.display().to_string(), n_u) {
                 Ok(p) => p,
-                Err(e) => {
-                    eprintln!("plant-proxy: {e}");
-                    return ExitCode::from(2);
-                }
+                Err(e) => return refused(e),
             };
             if let Some(m) = mode {
                 proxy.mode = m;
@@ -117,7 +172,7 @@ fn main() -> ExitCode {
                 let _ = signal_hook::flag::register(sig, shutdown.clone());
             }
             let opts = PlantRunOptions {
-                steps,
+                steps: Some(steps),
                 trace,
                 verbose: !quiet,
             };
@@ -136,8 +191,9 @@ fn main() -> ExitCode {
                     );
                     if let Some(p) = report {
                         let text = serde_json::to_string_pretty(&r).expect("JSON");
-                        if let Err(e) = std::fs::write(&p, text) {
-                            eprintln!("plant-proxy: writing {}: {e}", p.display());
+                        // Atomically: the file is the whole report or absent.
+                        if let Err(e) = ipc_types::files::write_atomic(&p, text.as_bytes()) {
+                            eprintln!("plant-proxy: {e}");
                             return ExitCode::FAILURE;
                         }
                     }

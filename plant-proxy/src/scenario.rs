@@ -80,6 +80,38 @@ use std::path::Path;
 /// The largest accepted input delay, in samples (the ring buffers are allocated up front).
 pub const MAX_INPUT_DELAY: usize = 1 << 20;
 
+/// The longest run, s (7 days): the bound of `rig.duration`, of `--duration` and
+/// `--steps` (times the period), and of the service's durations within a run.
+pub const MAX_DURATION_S: f64 = 7.0 * 86_400.0;
+
+/// The shortest accepted sample period, s (10 MHz); the period must exceed it.
+pub const MIN_SAMPLE_PERIOD_S: f64 = 1e-7;
+
+/// The longest accepted sample period, s; the period must be below it.
+pub const MAX_SAMPLE_PERIOD_S: f64 = 100.0;
+
+/// The largest number of disturbance inputs `w` (`plant.disturbances`).
+pub const MAX_DISTURBANCES: usize = 64;
+
+/// The largest number of continuous states of the plant (its matrices are dense and
+/// discretized by a matrix exponential at load time).
+pub const MAX_STATES: usize = 1000;
+
+/// The largest number of disturbance tones (each adds two exosystem states).
+pub const MAX_TONES: usize = 128;
+
+/// The largest number of band-limited disturbances (each adds up to
+/// [`MAX_BAND_LIMITED_ORDER`] states).
+pub const MAX_BAND_LIMITED: usize = 64;
+
+/// The largest angular frequency, rad/s, of a mode, a tone or a band-limited cutoff: far
+/// beyond any rig, and small enough that `ω²` and the filters' powers of `ω` stay finite.
+pub const MAX_FREQUENCY_RAD_S: f64 = 1e12;
+
+/// The largest standard deviation of a white disturbance or measurement noise: beyond it
+/// the samples and their squares stop being meaningful numbers.
+pub const MAX_NOISE_STD: f64 = 1e9;
+
 /// Why a scenario file was refused.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ScenarioError {
@@ -340,6 +372,7 @@ pub fn parse(text: &str, origin: &str) -> Result<Scenario, ScenarioError> {
         .plant
         .ok_or_else(|| cx.err("plant", "the [plant] table is missing"))?;
     let plant = validate_plant(&cx, plant)?;
+    check_discretizable(&cx, &plant, rig.sample_period)?;
     Ok(Scenario {
         origin: origin.to_string(),
         rig,
@@ -520,8 +553,11 @@ impl Cx<'_> {
             }
         };
         match (hz, rad_s) {
-            (Some(hz), None) => Ok(2.0 * PI * check(hz, "frequency-hz")?),
-            (None, Some(w)) => check(w, "frequency-rad-s"),
+            (Some(hz), None) => self
+                .at_most_max_frequency(2.0 * PI * check(hz, "frequency-hz")?, &f("frequency-hz")),
+            (None, Some(w)) => {
+                self.at_most_max_frequency(check(w, "frequency-rad-s")?, &f("frequency-rad-s"))
+            }
             (Some(_), Some(_)) => Err(self.err(
                 f("frequency-hz"),
                 "give frequency-hz or frequency-rad-s, not both",
@@ -529,6 +565,34 @@ impl Cx<'_> {
             (None, None) => {
                 Err(self.err(f("frequency-hz"), "is missing (or give frequency-rad-s)"))
             }
+        }
+    }
+
+    /// A list length `n` (of `what`) between `min` and `max`.
+    fn count(
+        &self,
+        n: usize,
+        min: usize,
+        max: usize,
+        field: &str,
+        what: &str,
+    ) -> Result<(), ScenarioError> {
+        if (min..=max).contains(&n) {
+            Ok(())
+        } else {
+            Err(self.err(field, format!("has {n} {what}, expected {min} to {max}")))
+        }
+    }
+
+    /// An angular frequency `w` (rad/s) of at most [`MAX_FREQUENCY_RAD_S`].
+    fn at_most_max_frequency(&self, w: f64, field: &str) -> Result<f64, ScenarioError> {
+        if w <= MAX_FREQUENCY_RAD_S {
+            Ok(w)
+        } else {
+            Err(self.err(
+                field,
+                format!("{w} rad/s is above the bound {MAX_FREQUENCY_RAD_S} rad/s"),
+            ))
         }
     }
 
@@ -615,7 +679,10 @@ impl Cx<'_> {
             },
         };
         for (i, x) in out.iter().enumerate() {
-            self.non_negative(*x, &format!("{field}[{i}]"))?;
+            let f = format!("{field}[{i}]");
+            if self.non_negative(*x, &f)? > MAX_NOISE_STD {
+                return Err(self.err(f, format!("{x} is above the bound {MAX_NOISE_STD}")));
+            }
         }
         Ok(out)
     }
@@ -651,12 +718,118 @@ fn validate_rig(cx: &Cx<'_>, raw: RawRig) -> Result<RigParams, ScenarioError> {
             ));
         }
     };
-    let duration = cx.positive(cx.required(raw.duration, "rig.duration")?, "rig.duration")?;
+    if !(sample_period > MIN_SAMPLE_PERIOD_S && sample_period < MAX_SAMPLE_PERIOD_S) {
+        let field = match raw.sample_rate_hz {
+            Some(_) => "rig.sample-rate-hz",
+            None => "rig.sample-period",
+        };
+        return Err(cx.err(
+            field,
+            format!(
+                "a period of {sample_period} s is not between {MIN_SAMPLE_PERIOD_S} s and \
+                 {MAX_SAMPLE_PERIOD_S} s"
+            ),
+        ));
+    }
+    let duration = check_duration(cx, cx.required(raw.duration, "rig.duration")?, "")?;
     Ok(RigParams {
         name,
         sample_period,
         duration,
     })
+}
+
+/// The largest `n_x max|[A B]| T` of the continuous model, and `ω T` of a tone or a cutoff:
+/// the matrix exponential of the discretization scales the matrix down by `2^s` with
+/// `s ≈ log₂` of this and squares back `s` times, so the bound keeps `s` near 330 and every
+/// power finite. Realizations of high-order transfer functions have large entries (the
+/// acoustic rig's MISO model reaches 1.4e14), so the bound is on the exponent, not on the
+/// entries' size.
+pub const MAX_NORM_TIMES_PERIOD: f64 = 1e100;
+
+/// Refuses a plant whose dynamics, scaled by the period `ts`, are beyond what the exact
+/// discretization can evaluate ([`MAX_NORM_TIMES_PERIOD`]).
+fn check_discretizable(cx: &Cx<'_>, p: &PlantParams, ts: f64) -> Result<(), ScenarioError> {
+    let m = &p.model;
+    let norm = |x: &DMatrix<f64>| x.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    let scaled = norm(&m.a).max(norm(&m.b_u)).max(norm(&m.b_w)) * ts * (m.n_x().max(1) as f64);
+    let field = format!(
+        "plant.{}",
+        p.kind
+            .name()
+            .replace("transfer-function", "tf")
+            .replace("state-space", "ss")
+    );
+    if scaled > MAX_NORM_TIMES_PERIOD {
+        return Err(cx.err(
+            field,
+            format!(
+                "the model's entries times the period ({scaled:.3e}) exceed {MAX_NORM_TIMES_PERIOD:e}: \
+                 it cannot be discretized at this sample period"
+            ),
+        ));
+    }
+    let d = &p.disturbance;
+    let mut fast = d
+        .tones
+        .iter()
+        .map(|t| t.omega)
+        .chain(d.band_limited.iter().map(|b| b.omega_c));
+    if let Some(w) = fast.find(|w| w * ts > MAX_NORM_TIMES_PERIOD) {
+        return Err(cx.err(
+            "plant.disturbance",
+            format!("{w} rad/s times the period exceeds {MAX_NORM_TIMES_PERIOD:e}"),
+        ));
+    }
+    Ok(())
+}
+
+/// A run duration: positive, finite and at most [`MAX_DURATION_S`]; `how` says where a
+/// value that did not come from the file came from.
+fn check_duration(cx: &Cx<'_>, d: f64, how: &str) -> Result<f64, ScenarioError> {
+    if d.is_finite() && d > 0.0 && d <= MAX_DURATION_S {
+        Ok(d)
+    } else {
+        Err(cx.err(
+            "rig.duration",
+            format!("{d} s{how} is not a duration in (0, {MAX_DURATION_S}] s (7 days)"),
+        ))
+    }
+}
+
+impl Scenario {
+    /// The scenario with `rig.duration` replaced by `duration` (the `--duration` option),
+    /// checked as the file's value is.
+    ///
+    /// # Errors
+    ///
+    /// A duration that is not positive, finite and at most [`MAX_DURATION_S`], naming
+    /// `rig.duration`.
+    pub fn with_duration(mut self, duration: f64) -> Result<Self, ScenarioError> {
+        let cx = Cx {
+            origin: &self.origin,
+        };
+        self.rig.duration = check_duration(&cx, duration, " (--duration)")?;
+        Ok(self)
+    }
+
+    /// The number of samples of a run: `steps` (the `--steps` option) when given, else
+    /// `rig.duration` over the sample period; at most [`MAX_DURATION_S`] of samples.
+    ///
+    /// # Errors
+    ///
+    /// `steps = 0`, or more samples than [`MAX_DURATION_S`] holds, naming `rig.duration`.
+    pub fn run_steps(&self, steps: Option<u64>) -> Result<u64, ScenarioError> {
+        let ts = self.rig.sample_period;
+        let Some(n) = steps else {
+            return Ok((self.rig.duration / ts).round() as u64);
+        };
+        let cx = Cx {
+            origin: &self.origin,
+        };
+        check_duration(&cx, n as f64 * ts, &format!(" (--steps {n} × {ts} s)"))?;
+        Ok(n)
+    }
 }
 
 fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioError> {
@@ -678,16 +851,17 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         |v: Option<usize>, field: &str, max: Option<usize>| -> Result<usize, ScenarioError> {
             let n = cx.required(v, field)?;
             match max {
-                Some(max) if n > max => Err(cx.err(
-                    field,
-                    format!("{n} channels, the contract carries at most {max}"),
-                )),
+                Some(max) if n > max => Err(cx.err(field, format!("{n} channels, at most {max}"))),
                 _ => Ok(n),
             }
         };
     let dims = ChannelDims {
         n_u: count(raw.inputs, "plant.inputs", Some(ipc_types::MAX_U))?,
-        n_w: count(raw.disturbances, "plant.disturbances", None)?,
+        n_w: count(
+            raw.disturbances,
+            "plant.disturbances",
+            Some(MAX_DISTURBANCES),
+        )?,
         n_y: count(raw.outputs_y, "plant.outputs-y", Some(ipc_types::MAX_Y))?,
         n_z: count(raw.outputs_z, "plant.outputs-z", Some(ipc_types::MAX_Z))?,
     };
@@ -742,6 +916,29 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         }
     };
     let n_x = model.n_x();
+    if n_x > MAX_STATES {
+        return Err(cx.err(
+            format!("plant.{wanted}"),
+            format!("the plant has {n_x} states, at most {MAX_STATES}"),
+        ));
+    }
+    let matrices = [
+        &model.a,
+        &model.b_u,
+        &model.b_w,
+        &model.c_y,
+        &model.c_z,
+        &model.d_yu,
+        &model.d_yw,
+        &model.d_zu,
+        &model.d_zw,
+    ];
+    if matrices.iter().any(|m| m.iter().any(|x| !x.is_finite())) {
+        return Err(cx.err(
+            format!("plant.{wanted}"),
+            "the continuous model has entries beyond the range of f64 (a value too large)",
+        ));
+    }
 
     let input_delays = raw.input_delays.unwrap_or_else(|| vec![0; dims.n_u]);
     if input_delays.len() != dims.n_u {
@@ -893,6 +1090,16 @@ fn tf_entry(cx: &Cx<'_>, e: &toml::Value, field: &str) -> Result<Option<Tf>, Sce
             .ok_or_else(|| cx.err(&f, "must be an array of numbers"))?;
         let xs: Option<Vec<f64>> = a.iter().map(number).collect();
         let xs = xs.ok_or_else(|| cx.err(&f, "must be an array of numbers"))?;
+        if xs.len() > MAX_STATES + 1 {
+            return Err(cx.err(
+                &f,
+                format!(
+                    "has {} coefficients, at most {} (the plant has at most {MAX_STATES} states)",
+                    xs.len(),
+                    MAX_STATES + 1
+                ),
+            ));
+        }
         for (i, x) in xs.iter().enumerate() {
             cx.finite(*x, &format!("{f}[{i}]"))?;
         }
@@ -960,6 +1167,13 @@ fn modal_model(
     d: ChannelDims,
 ) -> Result<GeneralizedPlant, ScenarioError> {
     let raw_modes = cx.required(m.modes, "plant.modal.modes")?;
+    cx.count(
+        raw_modes.len(),
+        1,
+        MAX_STATES / 2,
+        "plant.modal.modes",
+        "modes",
+    )?;
     let mut modes = Vec::with_capacity(raw_modes.len());
     for (r, rm) in raw_modes.into_iter().enumerate() {
         let f = |k: &str| format!("plant.modal.modes[{r}].{k}");
@@ -993,8 +1207,16 @@ fn disturbance(
     d: RawDisturbance,
     n_w: usize,
 ) -> Result<DisturbanceParams, ScenarioError> {
+    let raw_tones = d.tones.unwrap_or_default();
+    cx.count(
+        raw_tones.len(),
+        0,
+        MAX_TONES,
+        "plant.disturbance.tones",
+        "tones",
+    )?;
     let mut tones = Vec::new();
-    for (i, t) in d.tones.unwrap_or_default().into_iter().enumerate() {
+    for (i, t) in raw_tones.into_iter().enumerate() {
         let f = |k: &str| format!("plant.disturbance.tones[{i}].{k}");
         let input = cx.required(t.input, &f("input"))?;
         if input >= n_w {
@@ -1021,8 +1243,11 @@ fn disturbance(
         "plant.disturbance.white-std",
         "disturbance input",
     )?;
+    let raw_band = d.band_limited.unwrap_or_default();
+    let field = "plant.disturbance.band-limited";
+    cx.count(raw_band.len(), 0, MAX_BAND_LIMITED, field, "entries")?;
     let mut band_limited = Vec::new();
-    for (i, b) in d.band_limited.unwrap_or_default().into_iter().enumerate() {
+    for (i, b) in raw_band.into_iter().enumerate() {
         let f = |k: &str| format!("plant.disturbance.band-limited[{i}].{k}");
         let input = cx.required(b.input, &f("input"))?;
         if input >= n_w {
@@ -1033,8 +1258,13 @@ fn disturbance(
         }
         let rms = cx.non_negative(cx.required(b.rms, &f("rms"))?, &f("rms"))?;
         let omega_c = match (b.cutoff_hz, b.cutoff_rad_s) {
-            (Some(hz), None) => 2.0 * PI * cx.positive(hz, &f("cutoff-hz"))?,
-            (None, Some(w)) => cx.positive(w, &f("cutoff-rad-s"))?,
+            (Some(hz), None) => cx.at_most_max_frequency(
+                2.0 * PI * cx.positive(hz, &f("cutoff-hz"))?,
+                &f("cutoff-hz"),
+            )?,
+            (None, Some(w)) => {
+                cx.at_most_max_frequency(cx.positive(w, &f("cutoff-rad-s"))?, &f("cutoff-rad-s"))?
+            }
             (Some(_), Some(_)) => {
                 return Err(cx.err(f("cutoff-hz"), "give cutoff-hz or cutoff-rad-s, not both"));
             }

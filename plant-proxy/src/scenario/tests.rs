@@ -39,6 +39,21 @@ fn refused(text: &str) -> ScenarioError {
     parse(text, "bad.toml").expect_err("must be refused")
 }
 
+/// For each `(from, to, field)`: `from` occurs in `base`; with its first occurrence
+/// replaced by `to` the file is refused naming `field`, as `bad.toml: field '<field>': …`.
+fn assert_refused_naming(base: &str, cases: &[(&str, &str, &str)]) {
+    for (from, to, field) in cases {
+        assert!(base.contains(from), "{from}");
+        let e = refused(&base.replacen(from, to, 1));
+        assert_eq!(e.field(), Some(*field), "{from} → {to}: {e}");
+        let m = e.to_string();
+        assert!(
+            m.starts_with(&format!("bad.toml: field '{field}': ")),
+            "{m}"
+        );
+    }
+}
+
 fn scenario_file(name: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../scenarios")
@@ -158,16 +173,7 @@ fn bad_values_are_refused_naming_the_file_and_the_field() {
         ("inputs = 2", "inputs = 9", "plant.inputs"),
         ("outputs-z = 1", "", "plant.outputs-z"),
     ];
-    for (from, to, field) in cases {
-        assert!(GOOD.contains(from), "{from}");
-        let e = refused(&GOOD.replacen(from, to, 1));
-        assert_eq!(e.field(), Some(*field), "{from} → {to}: {e}");
-        let m = e.to_string();
-        assert!(
-            m.starts_with(&format!("bad.toml: field '{field}': ")),
-            "{m}"
-        );
-    }
+    assert_refused_naming(GOOD, cases);
 }
 
 #[test]
@@ -211,12 +217,14 @@ d-yu = [[0.5]]
     let s = parse(ss, "ss.toml").unwrap();
     assert_eq!(s.plant.model.d_yu[(0, 0)], 0.5);
     assert_eq!(s.plant.command, vec![1.0, -1.0]);
-    let e = refused(&ss.replace("b-u = [[0.0], [1.0]]", "b-u = [[0.0]]"));
-    assert_eq!(e.field(), Some("plant.ss.b-u"));
-    let e = refused(&ss.replace("c-y = [[1.0, 0.0]]", "c-y = [[1.0]]"));
-    assert_eq!(e.field(), Some("plant.ss.c-y[0]"));
-    let e = refused(&ss.replace("c-y = [[1.0, 0.0]]\n", ""));
-    assert_eq!(e.field(), Some("plant.ss.c-y"));
+    assert_refused_naming(
+        ss,
+        &[
+            ("b-u = [[0.0], [1.0]]", "b-u = [[0.0]]", "plant.ss.b-u"),
+            ("c-y = [[1.0, 0.0]]", "c-y = [[1.0]]", "plant.ss.c-y[0]"),
+            ("c-y = [[1.0, 0.0]]\n", "", "plant.ss.c-y"),
+        ],
+    );
 
     let modal = r#"
 [rig]
@@ -237,10 +245,22 @@ modes = [ { frequency-hz = 50.0, damping = 0.02, b-u = [1.0], c-y = [2.0], c-z-v
     assert_eq!(m.n_x(), 2);
     assert!((m.a[(1, 0)] + (2.0 * std::f64::consts::PI * 50.0).powi(2)).abs() < 1e-9);
     assert_eq!((m.c_y[(0, 0)], m.c_z[(0, 1)]), (2.0, 0.5));
-    let e = refused(&modal.replace("b-u = [1.0]", "b-u = [1.0, 2.0]"));
-    assert_eq!(e.field(), Some("plant.modal.modes[0].b-u"));
-    let e = refused(&modal.replace("damping = 0.02", "damping = -0.02"));
-    assert_eq!(e.field(), Some("plant.modal.modes[0].damping"));
+    assert_refused_naming(
+        modal,
+        &[
+            (
+                "b-u = [1.0]",
+                "b-u = [1.0, 2.0]",
+                "plant.modal.modes[0].b-u",
+            ),
+            (
+                "damping = 0.02",
+                "damping = -0.02",
+                "plant.modal.modes[0].damping",
+            ),
+            ("modes = [ {", "modes = [] #", "plant.modal.modes"),
+        ],
+    );
 }
 
 #[test]
@@ -512,9 +532,5 @@ fn bad_band_limited_entries_are_refused() {
             "plant.disturbance.band-limited[0].cutoff-hz",
         ),
     ];
-    for (from, to, field) in cases {
-        assert!(good.contains(from), "{from}");
-        let e = refused(&good.replacen(from, to, 1));
-        assert_eq!(e.field(), Some(field), "{e}");
-    }
+    assert_refused_naming(&good, &cases);
 }

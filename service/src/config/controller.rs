@@ -57,6 +57,16 @@ pub enum ControllerConfig {
 }
 
 impl ControllerConfig {
+    /// The `kind` of the `[controller]` table.
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            ControllerConfig::Lti { .. } => "lti",
+            ControllerConfig::Excitation { .. } => "excitation",
+            ControllerConfig::Rcac { .. } => "rcac",
+            ControllerConfig::Pcac { .. } => "pcac",
+        }
+    }
+
     /// Checks the parameters for the rig's channels without building the controller.
     ///
     /// # Errors
@@ -117,20 +127,31 @@ pub(super) fn param_error(e: ParamError, err: &ErrFn<'_>) -> ConfigError {
 /// The kinds [`parse`] knows, for the error messages.
 const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac";
 
+/// What a kind's `parse` reads besides its own table.
+pub(super) struct Rig<'a> {
+    /// The rig's channels.
+    pub counts: ChannelCounts,
+    /// The sampling period, s.
+    pub period: f64,
+    /// The folder relative file names of the table are found from.
+    pub base_dir: &'a Path,
+}
+
+/// A kind's `parse`: its raw table, the rig, the file's errors.
+type KindParse<R> = fn(R, &Rig<'_>, &ErrFn<'_>) -> Result<ControllerConfig, ConfigError>;
+
 /// Reads the `[controller]` table of the kind it names.
 pub(super) fn parse(
     value: toml::Value,
-    counts: ChannelCounts,
-    period: f64,
-    base_dir: &Path,
+    rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
     let kind = value.get("kind").and_then(|v| v.as_str()).unwrap_or("");
     match kind {
-        "lti" => lti::parse(value, counts, err),
-        "excitation" => excitation::parse(value, counts, err),
-        "rcac" => rcac::parse(value, counts, period, base_dir, err),
-        "pcac" => pcac::parse(value, counts, err),
+        "lti" => read(value, rig, err, lti::parse),
+        "excitation" => read(value, rig, err, excitation::parse),
+        "rcac" => read(value, rig, err, rcac::parse),
+        "pcac" => read(value, rig, err, pcac::parse),
         "" => Err(err(
             "controller.kind",
             format!("missing; known kinds: {CONTROLLER_KINDS}"),
@@ -140,6 +161,20 @@ pub(super) fn parse(
             format!("unknown controller '{other}'; known kinds: {CONTROLLER_KINDS}"),
         )),
     }
+}
+
+/// Deserializes the table into the kind's raw form (naming the table on an unknown or
+/// mistyped field) and reads it with the kind's `parse`.
+fn read<R: serde::de::DeserializeOwned>(
+    value: toml::Value,
+    rig: &Rig<'_>,
+    err: &ErrFn<'_>,
+    parse: KindParse<R>,
+) -> Result<ControllerConfig, ConfigError> {
+    let raw = value
+        .try_into()
+        .map_err(|e: toml::de::Error| err("controller", e.to_string()))?;
+    parse(raw, rig, err)
 }
 
 /// The optional `u-min`/`u-max` pair of a controller table (scalar or one per input).
@@ -156,15 +191,4 @@ pub(super) fn output_limits(
         min: per_channel(lo, n_u, f64::NEG_INFINITY, "controller.u-min", err)?,
         max: per_channel(hi, n_u, f64::INFINITY, "controller.u-max", err)?,
     }))
-}
-
-/// Deserializes a controller table into its raw form, naming the table on an unknown or
-/// mistyped field.
-pub(super) fn raw<T: serde::de::DeserializeOwned>(
-    value: toml::Value,
-    err: &ErrFn<'_>,
-) -> Result<T, ConfigError> {
-    value
-        .try_into()
-        .map_err(|e: toml::de::Error| err("controller", e.to_string()))
 }

@@ -10,16 +10,15 @@
 //! u-max = 5.0
 //! ```
 
-use super::controller::{ControllerConfig, output_limits, param_error, raw};
+use super::controller::{ControllerConfig, Rig, output_limits, param_error};
 use super::values::ScalarOrVec;
 use super::{ConfigError, ErrFn};
 use control::excitation::ExcitationParams;
-use ipc_types::ChannelCounts;
 use serde::Deserialize;
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawExcitation {
+pub(super) struct RawExcitation {
     #[allow(dead_code)]
     kind: String,
     std: ScalarOrVec,
@@ -30,11 +29,11 @@ struct RawExcitation {
 
 /// Reads the table.
 pub(super) fn parse(
-    value: toml::Value,
-    counts: ChannelCounts,
+    raw: RawExcitation,
+    rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
-    let raw: RawExcitation = raw(value, err)?;
+    let counts = rig.counts;
     let n_u = counts.n_u as usize;
     let std = match raw.std {
         ScalarOrVec::Scalar(x) => vec![x; n_u],

@@ -15,8 +15,12 @@
 //! # rule = "constant"             # lambda
 //! ```
 //!
-//! `lambda` and `[controller.forgetting]` exclude each other.
+//! `lambda` and `[controller.forgetting]` exclude each other; a field of the table that its
+//! rule does not read is refused (for example `lambda` under `rule = "f-test"`), and the
+//! windows are at most 10⁶ samples.
 
+use super::bounds::MAX_FORGETTING_WINDOW;
+use super::values::{count, refuse_given};
 use super::{ConfigError, ErrFn};
 use control::ParamError;
 use control::forgetting::ForgettingRule;
@@ -93,33 +97,56 @@ pub(super) fn forgetting_rule(
     }
 }
 
-/// The `[controller.forgetting]` table: the rule and the fields it needs.
+/// The `[controller.forgetting]` table: the rule and the fields it needs; a field the
+/// rule does not read is refused, and the windows are at most [`MAX_FORGETTING_WINDOW`].
 fn parse_table(f: &RawForgetting, err: &ErrFn<'_>) -> Result<ForgettingRule, ConfigError> {
+    const TABLE: &str = "controller.forgetting";
     let missing = |name: &str| {
         err(
-            &format!("controller.forgetting.{name}"),
+            &format!("{TABLE}.{name}"),
             format!("missing for rule = \"{}\"", f.rule),
         )
     };
     let need = |v: Option<f64>, name: &str| v.ok_or_else(|| missing(name));
-    let need_n = |v: Option<usize>, name: &str| v.ok_or_else(|| missing(name));
+    let need_n = |v: Option<usize>, name: &str| -> Result<usize, ConfigError> {
+        let n = v.ok_or_else(|| missing(name))?;
+        let field = format!("{TABLE}.{name}");
+        Ok(count(n as u64, 0, MAX_FORGETTING_WINDOW, &field, err)? as usize)
+    };
+    let not_read = |fields: &[(bool, &str)]| {
+        let why = format!("not read by rule = \"{}\"", f.rule);
+        refuse_given(fields, TABLE, &why, err)
+    };
+    let lambda = (f.lambda.is_some(), "lambda");
+    let windows = [(f.tau_n.is_some(), "tau-n"), (f.tau_d.is_some(), "tau-d")];
+    let eta = (f.eta.is_some(), "eta");
+    let alpha = (f.alpha.is_some(), "alpha");
     match f.rule.as_str() {
-        "constant" => Ok(ForgettingRule::Constant {
-            lambda: need(f.lambda, "lambda")?,
-        }),
-        "f-test" => Ok(ForgettingRule::FTest {
-            tau_n: need_n(f.tau_n, "tau-n")?,
-            tau_d: need_n(f.tau_d, "tau-d")?,
-            eta: need(f.eta, "eta")?,
-            alpha: need(f.alpha, "alpha")?,
-        }),
-        "rms-ratio" => Ok(ForgettingRule::RmsRatio {
-            tau_n: need_n(f.tau_n, "tau-n")?,
-            tau_d: need_n(f.tau_d, "tau-d")?,
-            eta: need(f.eta, "eta")?,
-        }),
+        "constant" => {
+            not_read(&[windows[0], windows[1], eta, alpha])?;
+            Ok(ForgettingRule::Constant {
+                lambda: need(f.lambda, "lambda")?,
+            })
+        }
+        "f-test" => {
+            not_read(&[lambda])?;
+            Ok(ForgettingRule::FTest {
+                tau_n: need_n(f.tau_n, "tau-n")?,
+                tau_d: need_n(f.tau_d, "tau-d")?,
+                eta: need(f.eta, "eta")?,
+                alpha: need(f.alpha, "alpha")?,
+            })
+        }
+        "rms-ratio" => {
+            not_read(&[lambda, alpha])?;
+            Ok(ForgettingRule::RmsRatio {
+                tau_n: need_n(f.tau_n, "tau-n")?,
+                tau_d: need_n(f.tau_d, "tau-d")?,
+                eta: need(f.eta, "eta")?,
+            })
+        }
         other => Err(err(
-            "controller.forgetting.rule",
+            &format!("{TABLE}.rule"),
             format!("'{other}' is not one of constant, f-test, rms-ratio"),
         )),
     }

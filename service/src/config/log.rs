@@ -3,10 +3,13 @@
 //! ```toml
 //! [log]
 //! enabled = true                  # default true
-//! decimation = 1                  # keep every N-th sample (0 is read as 1)
-//! queue-capacity = 65536          # records in the lock-free queue out of the RT thread (≥ 16)
+//! decimation = 1                  # keep every N-th sample (1 to 10⁶)
+//! queue-capacity = 65536          # records in the lock-free queue out of the RT thread
+//!                                 # (16 to 2¹⁹)
 //! ```
 
+use super::bounds::{MAX_LOG_DECIMATION, MAX_LOG_QUEUE_CAPACITY, MIN_LOG_QUEUE_CAPACITY};
+use super::values::count;
 use super::{ConfigError, ErrFn};
 use serde::Deserialize;
 
@@ -25,19 +28,29 @@ pub struct LogConfig {
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub(super) struct RawLog {
     enabled: Option<bool>,
-    decimation: Option<u32>,
-    queue_capacity: Option<usize>,
+    decimation: Option<u64>,
+    queue_capacity: Option<u64>,
 }
 
-/// The table with its defaults filled in.
+/// The table with its defaults filled in, each count within its bound.
 pub(super) fn parse(raw: RawLog, err: &ErrFn<'_>) -> Result<LogConfig, ConfigError> {
-    let log = LogConfig {
+    let decimation = count(
+        raw.decimation.unwrap_or(1),
+        1,
+        MAX_LOG_DECIMATION,
+        "log.decimation",
+        err,
+    )?;
+    let queue_capacity = count(
+        raw.queue_capacity.unwrap_or(65536),
+        MIN_LOG_QUEUE_CAPACITY,
+        MAX_LOG_QUEUE_CAPACITY,
+        "log.queue-capacity",
+        err,
+    )?;
+    Ok(LogConfig {
         enabled: raw.enabled.unwrap_or(true),
-        decimation: raw.decimation.unwrap_or(1).max(1),
-        queue_capacity: raw.queue_capacity.unwrap_or(65536),
-    };
-    if log.queue_capacity < 16 {
-        return Err(err("log.queue-capacity", "must be at least 16".into()));
-    }
-    Ok(log)
+        decimation: decimation as u32,
+        queue_capacity: queue_capacity as usize,
+    })
 }

@@ -17,20 +17,21 @@
 //! # entries = [[{ num = [0.1], den = [1.0, -0.9] }, 0]]   # 0: no path
 //! ```
 //!
-//! `n_e` is the number of controller inputs: `n_y`, or `n_y + n_r` for `"y-and-r"`.
+//! `n_e` is the number of controller inputs: `n_y`, or `n_y + n_r` for `"y-and-r"`. The
+//! controller has at most 1000 states.
 
-use super::controller::{ControllerConfig, output_limits, param_error, raw};
+use super::bounds::MAX_LTI_STATES;
+use super::controller::{ControllerConfig, Rig, output_limits, param_error};
 use super::values::{ScalarOrVec, matrix, one_of};
 use super::{ConfigError, ErrFn};
 use control::ControllerInput;
 use control::lti::LtiParams;
-use ipc_types::ChannelCounts;
 use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawLti {
+pub(super) struct RawLti {
     #[allow(dead_code)]
     kind: String,
     input: Option<String>,
@@ -68,11 +69,11 @@ type Abcd = (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>);
 
 /// Reads the table.
 pub(super) fn parse(
-    value: toml::Value,
-    counts: ChannelCounts,
+    raw: RawLti,
+    rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
-    let raw: RawLti = raw(value, err)?;
+    let counts = rig.counts;
     let input = one_of(
         raw.input.as_deref(),
         ControllerInput::Y,
@@ -118,6 +119,12 @@ pub(super) fn parse(
             ));
         }
     };
+    if a.nrows() > MAX_LTI_STATES {
+        return Err(err(
+            "controller",
+            format!("{} states, at most {MAX_LTI_STATES}", a.nrows()),
+        ));
+    }
     let params = LtiParams {
         a,
         b,
@@ -164,6 +171,13 @@ fn realize_tf_entries(entries: &[Vec<RawTfEntry>], n_u: usize, n_e: usize) -> Re
                 RawTfEntry::Zero(0) => None,
                 RawTfEntry::Zero(v) => {
                     return Err(format!("[{i}][{j}] = {v}: an entry is 0 or {{ num, den }}"));
+                }
+                RawTfEntry::Tf { num, den } if num.len().max(den.len()) > MAX_LTI_STATES + 1 => {
+                    return Err(format!(
+                        "[{i}][{j}]: more than {} coefficients (the controller has at most \
+                         {MAX_LTI_STATES} states)",
+                        MAX_LTI_STATES + 1
+                    ));
                 }
                 RawTfEntry::Tf { num, den } => Some(
                     Tf::new(num.clone(), den.clone()).map_err(|e| format!("[{i}][{j}]: {e}"))?,

@@ -23,7 +23,9 @@
 //! | `kind = "pcac"` | [`pcac`], [`forgetting`] | [`ControllerConfig::Pcac`] |
 //!
 //! The shared value shapes (a scalar or one value per channel, a scalar or a matrix,
-//! positive durations, "one of" names) are in `values`.
+//! bounded durations and counts, "one of" names) are in `values`; the bound of every size,
+//! count and duration is in [`bounds`]. [`ScenarioCheck`] validates both halves of a
+//! scenario (this one and plant-proxy's), as `service check` does.
 //!
 //! A minimal file:
 //!
@@ -47,6 +49,7 @@
 //! [`ServiceConfig::load_with_controller`] replaces the `[controller]` (and `[log]`)
 //! tables of a scenario by those of another file.
 
+pub mod bounds;
 pub mod controller;
 pub mod excitation;
 pub mod forgetting;
@@ -57,6 +60,7 @@ pub mod rcac;
 #[cfg(test)]
 mod refusal_cases;
 pub mod rig;
+pub mod scenario_check;
 pub mod service_table;
 pub mod target_model_file;
 pub mod tone_report;
@@ -64,6 +68,7 @@ mod values;
 
 pub use controller::ControllerConfig;
 pub use log::LogConfig;
+pub use scenario_check::ScenarioCheck;
 pub use service_table::{DeadlinePolicy, MeasurementLimits, MissSource, WaitMode};
 pub use target_model_file::TargetModelFile;
 pub use tone_report::ToneReportConfig;
@@ -158,15 +163,23 @@ struct RawFile {
     plant: Option<toml::Value>,
 }
 
+/// The text of the scenario file at `path` and its name as errors give it.
+pub(crate) fn read_scenario(path: &Path) -> Result<(String, String), ConfigError> {
+    let origin = path.display().to_string();
+    match std::fs::read_to_string(path) {
+        Ok(text) => Ok((text, origin)),
+        Err(e) => Err(ConfigError {
+            file: origin,
+            field: String::new(),
+            message: format!("cannot read the file: {e}"),
+        }),
+    }
+}
+
 impl ServiceConfig {
     /// Reads and validates a scenario file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
-            file: origin.clone(),
-            field: String::new(),
-            message: format!("cannot read the file: {e}"),
-        })?;
+        let (text, origin) = read_scenario(path)?;
         Self::parse(&text, &origin)
     }
 
@@ -234,6 +247,32 @@ impl ServiceConfig {
         Self::parse_in(&text, &origin, &base_dir)
     }
 
+    /// Checks the command-line overrides of `service run` as the file's values are
+    /// checked: `--core` as `service.core`, `--max-cycles` from 1 to the cycles of the
+    /// longest run ([`bounds::MAX_DURATION_S`]).
+    ///
+    /// # Errors
+    ///
+    /// The refused value, naming the field (`service.core`) or the option
+    /// (`--max-cycles`).
+    pub fn check_run_options(
+        &self,
+        core: Option<usize>,
+        max_cycles: Option<u64>,
+    ) -> Result<(), ConfigError> {
+        let err = |field: &str, message: String| ConfigError {
+            file: self.origin.clone(),
+            field: field.to_string(),
+            message,
+        };
+        service_table::check_core(core, "service.core", " (--core)", &err)?;
+        if let Some(n) = max_cycles {
+            let max = bounds::max_cycles(self.sample_period_ns as f64 * 1e-9);
+            values::count(n, 1, max, "--max-cycles", &err)?;
+        }
+        Ok(())
+    }
+
     /// Validates the text of a scenario file; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
         let base_dir = Path::new(origin)
@@ -285,7 +324,12 @@ impl ServiceConfig {
         let controller_value = raw
             .controller
             .ok_or_else(|| err("controller", "the [controller] table is missing".into()))?;
-        let controller = controller::parse(controller_value, s.counts, period, base_dir, &err)?;
+        let rig_of_controller = controller::Rig {
+            counts: s.counts,
+            period,
+            base_dir,
+        };
+        let controller = controller::parse(controller_value, &rig_of_controller, &err)?;
 
         Ok(ServiceConfig {
             origin: origin.to_string(),
@@ -313,6 +357,7 @@ impl ServiceConfig {
 
 #[cfg(test)]
 mod tests {
+    use super::refusal_cases::assert_refused_naming_fields;
     use super::*;
 
     const GOOD: &str = include_str!("../../../tests/fixtures/config/lti-static-gain.toml");
@@ -342,26 +387,27 @@ mod tests {
 
     #[test]
     fn bad_values_are_refused_naming_file_and_field() {
-        let m = refused(&GOOD.replace("y-max = 5.0", "y-max = -6.0"));
-        assert!(m.starts_with("bad.toml: field 'service.y-min'"), "{m}");
+        let cases: &[(&str, &str, &str)] = &[
+            ("y-max = 5.0", "y-max = -6.0", "service.y-min"),
+            ("d = [[-2.0]]", "d = [[-2.0, 1.0]]", "controller"),
+            ("kind = \"lti\"", "kind = \"pid\"", "controller.kind"),
+            ("[rig]", "[rigg]\n[rig]", "rigg"),
+            (
+                "sample-period = 0.001",
+                "sample-period = -1.0",
+                "rig.sample-period",
+            ),
+            ("name = \"unit\"", "name = \"a/b\"", "rig.name"),
+        ];
+        assert_refused_naming_fields(GOOD, "bad.toml", cases);
         let m = refused(&GOOD.replace("d = [[-2.0]]", "d = [[-2.0, 1.0]]"));
-        assert!(
-            m.contains("field 'controller'") && m.contains("d is 1×2, expected 1×1"),
-            "{m}"
-        );
+        assert!(m.contains("d is 1×2, expected 1×1"), "{m}");
         let m = refused(&GOOD.replace("kind = \"lti\"", "kind = \"pid\""));
-        assert!(m.contains("controller.kind") && m.contains("pid"), "{m}");
+        assert!(m.contains("pid"), "{m}");
+        let m = refused(&GOOD.replace("[rig]", "[rigg]\n[rig]"));
+        assert!(m.contains("unknown table"), "{m}");
         let m = refused(&GOOD.replace("[service]", "[service]\nwiat = \"block\""));
         assert!(m.contains("wiat"), "{m}");
-        let m = refused(&GOOD.replace("[rig]", "[rigg]\n[rig]"));
-        assert!(
-            m.contains("field 'rigg'") && m.contains("unknown table"),
-            "{m}"
-        );
-        let m = refused(&GOOD.replace("sample-period = 0.001", "sample-period = -1.0"));
-        assert!(m.contains("rig.sample-period"), "{m}");
-        let m = refused(&GOOD.replace("name = \"unit\"", "name = \"a/b\""));
-        assert!(m.contains("rig.name"), "{m}");
         let m = refused("[rig\nname=");
         assert!(m.starts_with("bad.toml: not valid TOML"), "{m}");
     }

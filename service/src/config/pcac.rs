@@ -5,11 +5,12 @@
 //! ```toml
 //! [controller]
 //! kind = "pcac"
-//! n-hat = 25                      # model order n̂ (2.24)
+//! n-hat = 25                      # model order n̂ (2.24), 1 to 200
 //! p0 = 1.0                        # P_0 = p0 I (2.30), required
-//! theta0 = 1e-10                  # θ_0: one value for every entry, or n̂ p (p+m) values
+//! theta0 = 1e-10                  # θ_0: one value for every entry, or n̂ p (p+m) values,
+//!                                 # each within ±10⁶
 //! trace-limit = 1e12              # tr P beyond this resets θ, P (default 10⁶ tr P_0)
-//! horizon = 40                    # ℓ (2.43)
+//! horizon = 40                    # ℓ (2.43), 2 to 200
 //! tracking = [[0.0, 0.0, 0.0, 1.0]]   # C_t (p_t × p); default I_p
 //! q = 1e6                         # Q: scalar or one per tracked output (≥ 0)
 //! r = 1.0                         # R on the moves: scalar or one per input (> 0)
@@ -19,7 +20,7 @@
 //! du-max = 2.0
 //! timing = "same-step"            # or "next-step" (the dissertation's u_{1|k} at k+1)
 //! warm-start = true
-//! qp-max-iterations = 500         # the solver's cap on active-set changes per step
+//! qp-max-iterations = 500         # the solver's cap on active-set changes per step (≤ 10⁶)
 //! lambda = 1.0                    # constant forgetting, or:
 //! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
 //! rule = "f-test"
@@ -32,12 +33,12 @@
 //! d = [-0.5]                      # 𝓓 (n_c)
 //! ```
 
-use ipc_types::ChannelCounts;
 use serde::Deserialize;
 
-use super::controller::{ControllerConfig, param_error, raw};
+use super::bounds::{MAX_PCAC_HORIZON, MAX_PCAC_N_HAT, MAX_QP_ITERATIONS, MAX_THETA0};
+use super::controller::{ControllerConfig, Rig, param_error};
 use super::forgetting::{RawForgetting, forgetting_rule, required_p0};
-use super::values::{ScalarOrVec, matrix, one_of, per_channel, row_major};
+use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
 use control::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
 use control::mpc::qp::QpSettings;
@@ -45,7 +46,7 @@ use control::pcac::{IdKernel, IoModelParams, PcacParams, PcacTiming};
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawPcac {
+pub(super) struct RawPcac {
     #[allow(dead_code)]
     kind: String,
     n_hat: Option<usize>,
@@ -78,22 +79,24 @@ struct RawOutputConstraints {
 /// Reads the table into [`PcacParams`] and validates them (the controller is built
 /// later, once, by the runtime).
 pub(super) fn parse(
-    value: toml::Value,
-    counts: ChannelCounts,
+    raw: RawPcac,
+    rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
-    let raw: RawPcac = raw(value, err)?;
+    let counts = rig.counts;
     let dims = crate::wire::dimensions(counts);
     let (p, m) = (dims.n_y, dims.n_u);
     let n_hat = raw
         .n_hat
         .ok_or_else(|| err("controller.n-hat", "missing (the model order n̂)".into()))?;
+    let n_hat = count(n_hat as u64, 0, MAX_PCAC_N_HAT, "controller.n-hat", err)? as usize;
     let p0 = required_p0(raw.p0, "for kind = \"pcac\"", err)?;
     let theta0 = match &raw.theta0 {
         None => Vec::new(),
         Some(ScalarOrVec::Scalar(x)) => vec![*x; PcacParams::theta_len(n_hat, p, m)],
         Some(ScalarOrVec::Vec(v)) => v.clone(),
     };
+    magnitudes(&theta0, MAX_THETA0, "controller.theta0", err)?;
     let trace_limit = raw
         .trace_limit
         .unwrap_or_else(|| PcacParams::default_trace_limit(n_hat, p, m, p0));
@@ -101,6 +104,13 @@ pub(super) fn parse(
     let horizon = raw
         .horizon
         .ok_or_else(|| err("controller.horizon", "missing (the horizon ℓ)".into()))?;
+    let horizon = count(
+        horizon as u64,
+        0,
+        MAX_PCAC_HORIZON,
+        "controller.horizon",
+        err,
+    )? as usize;
     let tracking = match &raw.tracking {
         None => nalgebra::DMatrix::identity(p, p),
         Some(rows) => {
@@ -159,7 +169,8 @@ pub(super) fn parse(
     )?;
     let mut qp = QpSettings::default();
     if let Some(n) = raw.qp_max_iterations {
-        qp.max_iterations = n;
+        let field = "controller.qp-max-iterations";
+        qp.max_iterations = count(n as u64, 0, MAX_QP_ITERATIONS, field, err)? as usize;
     }
     let params = PcacParams {
         model: IoModelParams {

@@ -6,12 +6,14 @@
 //! kind = "rcac"
 //! update = "rls"                  # or "gradient"
 //! input = "y"                     # the only input RCAC takes
-//! nc = 50                         # controller order n_c (≥ 1)
+//! nc = 50                         # controller order n_c (1 to 1000; with update = "rls",
+//!                                 # l_θ = l_u nc (l_u + l_y) at most 4096)
 //! kw = 100                        # u = 0, no update for the first kw steps (default: nc plus
 //!                                 # the largest lag of G_f)
 //! rz = 1.0                        # R_z: scalar (times I) or l_z×l_z matrix, positive definite
 //! ru = 0.0                        # R_u: scalar or l_u×l_u matrix, ≥ 0 (default 0)
-//! theta0 = [0.0, 0.0]             # optional, l_θ = l_u nc (l_u + l_y) values (default 0)
+//! theta0 = [0.0, 0.0]             # optional, l_θ = l_u nc (l_u + l_y) values (default 0),
+//!                                 # each within ±10⁶
 //! u-min = -1.0                    # optional saturation, scalar or per input
 //! u-max = 1.0
 //! target-model-file = "target-model.toml"   # relative to this file's folder, or inline:
@@ -30,20 +32,20 @@
 //!
 //! The target model must have `l_z` outputs and `l_u` inputs and the rig's sample period.
 
-use super::controller::{ControllerConfig, output_limits, param_error, raw};
+use super::bounds::{MAX_RCAC_NC, MAX_RCAC_RLS_THETA, MAX_THETA0, max_cycles};
+use super::controller::{ControllerConfig, Rig, output_limits, param_error};
 use super::forgetting::{RawForgetting, forgetting_rule, required_p0};
 use super::target_model_file::read_table;
-use super::values::{ScalarOrMatrix, ScalarOrVec, one_of, weight};
+use super::values::{ScalarOrMatrix, ScalarOrVec, count, magnitudes, one_of, refuse_given, weight};
 use super::{ConfigError, ErrFn, TargetModelFile};
 use control::target::TargetModel;
 use control::{RcacParams, RcacUpdate, StepSize};
-use ipc_types::ChannelCounts;
 use serde::Deserialize;
 use std::path::Path;
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawRcac {
+pub(super) struct RawRcac {
     #[allow(dead_code)]
     kind: String,
     update: Option<String>,
@@ -69,13 +71,13 @@ struct RawRcac {
 /// Reads the table into [`RcacParams`] and validates them (the controller is built later,
 /// once, by the runtime).
 pub(super) fn parse(
-    value: toml::Value,
-    counts: ChannelCounts,
-    period: f64,
-    base_dir: &Path,
+    raw: RawRcac,
+    rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
-    let raw: RawRcac = raw(value, err)?;
+    let counts = rig.counts;
+    let period = rig.period;
+    let base_dir = rig.base_dir;
     let dims = crate::wire::dimensions(counts);
     let (n_z, n_u) = (dims.n_z, dims.n_u);
     match raw.input.as_deref().unwrap_or("y") {
@@ -90,6 +92,13 @@ pub(super) fn parse(
     let nc = raw
         .nc
         .ok_or_else(|| err("controller.nc", "missing (the controller order n_c)".into()))?;
+    let nc = count(nc as u64, 0, MAX_RCAC_NC, "controller.nc", err)? as usize;
+    if let Some(kw) = raw.kw {
+        count(kw as u64, 0, max_cycles(period), "controller.kw", err)?;
+    }
+    if let Some(theta0) = &raw.theta0 {
+        magnitudes(theta0, MAX_THETA0, "controller.theta0", err)?;
+    }
     let target = target_model(raw.target_model, raw.target_model_file, base_dir, err)?;
     let rz = weight(&raw.rz, n_z, RcacParams::DEFAULT_RZ, "controller.rz", err)?;
     let ru = weight(&raw.ru, n_u, RcacParams::DEFAULT_RU, "controller.ru", err)?;
@@ -112,6 +121,17 @@ pub(super) fn parse(
                 "gradient",
                 err,
             )?;
+            let ltheta = RcacParams::theta_len(nc, dims);
+            if ltheta > MAX_RCAC_RLS_THETA {
+                return Err(err(
+                    "controller.nc",
+                    format!(
+                        "{nc} gives l_θ = l_u n_c (l_u + l_y) = {ltheta} coefficients; with \
+                         update = \"rls\" (an l_θ × l_θ covariance) at most \
+                         {MAX_RCAC_RLS_THETA}"
+                    ),
+                ));
+            }
             let p0 = required_p0(raw.p0, "for update = \"rls\"", err)?;
             let read = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
             let update = RcacUpdate::Rls {
@@ -190,13 +210,12 @@ enum Update {
 
 /// Refuses the fields of the other update law (`(given, name)` pairs) that are given.
 fn only_for(fields: &[(bool, &str)], law: &str, err: &ErrFn<'_>) -> Result<(), ConfigError> {
-    match fields.iter().find(|(given, _)| *given) {
-        Some((_, name)) => Err(err(
-            &format!("controller.{name}"),
-            format!("only for update = \"{law}\""),
-        )),
-        None => Ok(()),
-    }
+    refuse_given(
+        fields,
+        "controller",
+        &format!("only for update = \"{law}\""),
+        err,
+    )
 }
 
 /// The target model: inline (`[controller.target-model]`) or from `target-model-file`

@@ -9,6 +9,7 @@
 //!
 //! The period must be finite and between 0.1 µs and 100 s.
 
+use super::bounds::{MAX_SAMPLE_PERIOD_S, MIN_SAMPLE_PERIOD_S};
 use super::{ConfigError, ErrFn};
 use serde::Deserialize;
 
@@ -49,7 +50,7 @@ pub(super) fn parse(raw: RawRig, err: &ErrFn<'_>) -> Result<Rig, ConfigError> {
         }
         (None, None) => return Err(err("rig.sample-period", "missing".into())),
     };
-    if !(period.is_finite() && period > 1e-7 && period < 100.0) {
+    if !(period.is_finite() && period > MIN_SAMPLE_PERIOD_S && period < MAX_SAMPLE_PERIOD_S) {
         return Err(err(
             "rig.sample-period",
             format!("{period} s is not a usable period"),

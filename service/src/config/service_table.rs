@@ -11,7 +11,9 @@
 //! grace-periods = 100             # start-up cycles whose misses do not count toward the limit
 //! max-consecutive-misses = 10     # then go to the safe state (≥ 1)
 //! miss-source = "plant"           # misses the plant reports, or "response-time" (measured here)
-//! recover-after = 0               # 0: the safe state latches; N: leave it after N good cycles
+//! recover-after = 0               # 0: the safe state is kept for the rest of the plant
+//!                                 # session; N: leave it when the last N answers in it
+//! recover-tolerance = 0           # held at most this many misses (0: N good in a row)
 //! silent-periods = 400            # no sample for this many periods: the plant is silent (≥ 1)
 //! reset-on-resume = true          # reset the controller when a new plant session starts
 //!                                 # (its sequence number restarts or goes back)
@@ -19,6 +21,11 @@
 //!                                 # resumes do to the controller: "keep-learned" (default:
 //!                                 # a timing fault is not the controller's) or
 //!                                 # "reset-controller" (back to its initial state)
+//! max-safe-state-share = 0.1      # a run with more of its closed-loop cycles in the safe
+//!                                 # state fails its verdict (exit status 1)
+//! u-applied-tolerance = 1e-6      # |u_applied − u_sent| above this raises the foreign-
+//!                                 # actuation alarm (a DAQ reading back quantized outputs
+//!                                 # needs about one DAC step)
 //! peer-timeout = 30.0             # s to wait for the plant at start
 //! safe-input = [0.0, 0.0]         # scalar or one per input u (default 0)
 //! y-min = -10.0                   # scalar or one per channel; measurements outside are rejected
@@ -39,7 +46,8 @@
 //! Without `[service.channels]` the counts come from the plant proxy's `[plant]` table
 //! (`outputs-y`, `outputs-z`, `commands` (default 0), `inputs`).
 
-use super::values::{ScalarOrVec, per_channel, positive, positive_seconds};
+use super::bounds::{self, MAX_CORES, MAX_DURATION_S, MAX_WAIT_S};
+use super::values::{ScalarOrVec, count, per_channel, seconds};
 use super::{ConfigError, ErrFn};
 use crate::runtime::TimingFaultReset;
 use ipc_types::ChannelCounts;
@@ -77,8 +85,11 @@ pub struct DeadlinePolicy {
     pub grace_cycles: u64,
     /// Consecutive misses that send the service to its safe state.
     pub max_consecutive_misses: u64,
-    /// Good cycles after which the safe state is left; `None` latches it.
+    /// The recovery window: the safe state is left when the last `recover_after` answers
+    /// in it held at most `recover_tolerance` misses; `None` keeps it for the session.
     pub recover_after: Option<u64>,
+    /// Misses allowed in the recovery window (0: `recover_after` good answers in a row).
+    pub recover_tolerance: u64,
     /// Periods without a sample after which the plant is declared silent.
     pub silent_periods: u64,
     /// Reset the controller when a new plant session starts (the sequence number
@@ -89,6 +100,12 @@ pub struct DeadlinePolicy {
     pub on_timing_fault: TimingFaultReset,
     /// Which misses count toward `max_consecutive_misses`.
     pub miss_source: MissSource,
+    /// Largest `|u_applied − u_sent|` the plant may report for an actuation it says it
+    /// applied on time before the service raises the foreign-actuation alarm.
+    pub u_applied_tolerance: f64,
+    /// Largest share of the closed-loop cycles a run may spend in the safe state and still
+    /// pass its verdict.
+    pub max_safe_state_share: f64,
 }
 
 /// Accepted range of each measurement channel.
@@ -125,10 +142,13 @@ pub(super) struct RawService {
     grace_periods: Option<u64>,
     max_consecutive_misses: Option<u64>,
     recover_after: Option<u64>,
+    recover_tolerance: Option<u64>,
     silent_periods: Option<u64>,
     reset_on_resume: Option<bool>,
     on_timing_fault: Option<TimingFaultReset>,
     miss_source: Option<MissSource>,
+    u_applied_tolerance: Option<f64>,
+    max_safe_state_share: Option<f64>,
     peer_timeout: Option<f64>,
     safe_input: Option<ScalarOrVec>,
     y_min: Option<ScalarOrVec>,
@@ -187,28 +207,70 @@ pub(super) fn parse(
     let fifo_priority = ipc_types::rt::fifo_priority_from_config(s.fifo_priority, 80)
         .map_err(|m| err("service.fifo-priority", m))?;
     let rt = RtRequest {
-        core: s.core,
+        core: check_core(s.core, "service.core", "", err)?,
         fifo_priority,
         mlockall: s.mlockall.unwrap_or(true),
         prefault_stack_bytes: 256 * 1024,
     };
+    let max_cycles = bounds::max_cycles(period);
+    let cycles = |v: Option<u64>, default: u64, min: u64, field: &str| {
+        count(v.unwrap_or(default), min, max_cycles, field, err)
+    };
     let policy = DeadlinePolicy {
-        grace_cycles: s.grace_periods.unwrap_or(100),
-        max_consecutive_misses: positive(
-            s.max_consecutive_misses.unwrap_or(10),
+        grace_cycles: cycles(s.grace_periods, 100, 0, "service.grace-periods")?,
+        max_consecutive_misses: cycles(
+            s.max_consecutive_misses,
+            10,
+            1,
             "service.max-consecutive-misses",
-            err,
         )?,
-        recover_after: s.recover_after.filter(|n| *n > 0),
-        silent_periods: positive(
-            s.silent_periods.unwrap_or(400),
-            "service.silent-periods",
-            err,
-        )?,
+        recover_after: Some(cycles(s.recover_after, 0, 0, "service.recover-after")?)
+            .filter(|n| *n > 0),
+        recover_tolerance: cycles(s.recover_tolerance, 0, 0, "service.recover-tolerance")?,
+        silent_periods: cycles(s.silent_periods, 400, 1, "service.silent-periods")?,
         reset_on_resume: s.reset_on_resume.unwrap_or(true),
         on_timing_fault: s.on_timing_fault.unwrap_or_default(),
         miss_source: s.miss_source.unwrap_or(MissSource::Plant),
+        max_safe_state_share: match s.max_safe_state_share.unwrap_or(0.1) {
+            x if (0.0..=1.0).contains(&x) => x,
+            _ => {
+                return Err(err(
+                    "service.max-safe-state-share",
+                    "must lie in [0, 1]".into(),
+                ));
+            }
+        },
+        u_applied_tolerance: match s.u_applied_tolerance.unwrap_or(1e-6) {
+            t if t >= 0.0 && t.is_finite() => t,
+            _ => {
+                return Err(err(
+                    "service.u-applied-tolerance",
+                    "must be finite and ≥ 0".into(),
+                ));
+            }
+        },
     };
+    match policy.recover_after {
+        Some(m) if policy.recover_tolerance >= m => {
+            return Err(err(
+                "service.recover-tolerance",
+                format!(
+                    "{} misses allowed in a recovery window of {m} answers would leave the \
+                     safe state whatever happens; it must be less than service.recover-after",
+                    policy.recover_tolerance
+                ),
+            ));
+        }
+        None if policy.recover_tolerance > 0 => {
+            return Err(err(
+                "service.recover-tolerance",
+                "has no effect without service.recover-after (the safe state is kept for \
+                 the session)"
+                    .into(),
+            ));
+        }
+        _ => {}
+    }
     let limits = MeasurementLimits {
         y_min: per_channel(&s.y_min, n_y, f64::NEG_INFINITY, "service.y-min", err)?,
         y_max: per_channel(&s.y_max, n_y, f64::INFINITY, "service.y-max", err)?,
@@ -217,24 +279,22 @@ pub(super) fn parse(
     };
     check_range(&limits.y_min, &limits.y_max, "y", "service.y-min", err)?;
     check_range(&limits.z_min, &limits.z_max, "z", "service.z-min", err)?;
+    check_noise(plant, &limits, err)?;
     let safe_input = per_channel(&s.safe_input, n_u, 0.0, "service.safe-input", err)?;
     if safe_input.iter().any(|v| !v.is_finite()) {
         return Err(err("service.safe-input", "must be finite".into()));
     }
-    let peer_timeout =
-        positive_seconds(s.peer_timeout.unwrap_or(30.0), "service.peer-timeout", err)?;
-    let interval = positive_seconds(
-        s.histogram_interval.unwrap_or(1.0),
-        "service.histogram-interval",
-        err,
-    )?;
-    let open_loop = s.open_loop.unwrap_or(0.0);
-    if !(open_loop.is_finite() && open_loop >= 0.0) {
-        return Err(err(
-            "service.open-loop",
-            format!("{open_loop} s is not a duration ≥ 0"),
-        ));
-    }
+    let wait_s = |v: Option<f64>, default: f64, field: &str| {
+        seconds(v.unwrap_or(default), false, MAX_WAIT_S, field, err)
+    };
+    let peer_timeout = wait_s(s.peer_timeout, 30.0, "service.peer-timeout")?;
+    let peer_timeout = Duration::try_from_secs_f64(peer_timeout)
+        .map_err(|e| err("service.peer-timeout", e.to_string()))?;
+    let interval = wait_s(s.histogram_interval, 1.0, "service.histogram-interval")?;
+    let run_s = |v: Option<f64>, field: &str| -> Result<u64, ConfigError> {
+        let v = seconds(v.unwrap_or(0.0), true, MAX_DURATION_S, field, err)?;
+        Ok(bounds::cycles(v, period))
+    };
     Ok(ServiceTable {
         counts,
         rt,
@@ -243,12 +303,29 @@ pub(super) fn parse(
         policy,
         limits,
         safe_input,
-        peer_timeout: Duration::from_secs_f64(peer_timeout),
-        histogram_interval_cycles: ((interval / period).round() as u64).max(1),
+        peer_timeout,
+        histogram_interval_cycles: bounds::cycles(interval, period).max(1),
         run_dir: s.run_dir.clone().unwrap_or_else(|| PathBuf::from("runs")),
-        rms_settle_cycles: (s.rms_settle.unwrap_or(0.0).max(0.0) / period).round() as u64,
-        open_loop_cycles: (open_loop / period).round() as u64,
+        rms_settle_cycles: run_s(s.rms_settle, "service.rms-settle")?,
+        open_loop_cycles: run_s(s.open_loop, "service.open-loop")?,
     })
+}
+
+/// A core to pin the RT thread to (`service.core`, or the `--core` option: `how` says
+/// which), below [`MAX_CORES`].
+pub(super) fn check_core(
+    core: Option<usize>,
+    field: &str,
+    how: &str,
+    err: &ErrFn<'_>,
+) -> Result<Option<usize>, ConfigError> {
+    match core {
+        Some(c) if c >= MAX_CORES => Err(err(
+            field,
+            format!("core {c}{how} is not below {MAX_CORES} (CPU_SETSIZE)"),
+        )),
+        c => Ok(c),
+    }
 }
 
 /// Every channel's `min < max` (`signal` is `y` or `z`; `field` names the lower bound).
@@ -265,6 +342,44 @@ fn check_range(
                 field,
                 format!("channel {i}: {signal}-min {lo} must be below {signal}-max {hi}"),
             ));
+        }
+    }
+    Ok(())
+}
+
+/// The measurement noise of the plant proxy's `[plant.noise]` table (when it gives it as
+/// numbers) against the accepted ranges: a standard deviation wider than a channel's
+/// range would have most samples rejected, and is refused naming the noise.
+fn check_noise(
+    plant: Option<&toml::Value>,
+    limits: &MeasurementLimits,
+    err: &ErrFn<'_>,
+) -> Result<(), ConfigError> {
+    let noise = plant.and_then(|p| p.get("noise"));
+    let ranges = [
+        ("y", &limits.y_min, &limits.y_max),
+        ("z", &limits.z_min, &limits.z_max),
+    ];
+    for (signal, min, max) in ranges {
+        let key = format!("{signal}-std");
+        let std = |i: usize| -> Option<f64> {
+            let v = noise?.get(&key)?;
+            let v = v.as_array().map_or(Some(v), |a| a.get(i))?;
+            v.as_float().or(v.as_integer().map(|n| n as f64))
+        };
+        for (i, (lo, hi)) in min.iter().zip(max.iter()).enumerate() {
+            if let Some(sigma) = std(i)
+                && sigma > hi - lo
+            {
+                return Err(err(
+                    &format!("plant.noise.{key}"),
+                    format!(
+                        "channel {i}: a noise of standard deviation {sigma} is wider than the \
+                         accepted range [{lo}, {hi}] (service.{signal}-min, \
+                         service.{signal}-max): most samples would be rejected"
+                    ),
+                ));
+            }
         }
     }
     Ok(())

@@ -2,8 +2,10 @@
 //! RCAC's configuration reads (the format is documented in `control::target`).
 //!
 //! [`TargetModelFile`] adds reading and writing to [`TargetModel`]; the values are checked
-//! by [`TargetModel::validate`], and errors name the file and the field.
+//! by [`TargetModel::validate`], and errors name the file and the field. A Markov model
+//! has at most 4096 parameters, a transfer-function channel an order of at most 64.
 
+use super::bounds::{MAX_TARGET_MARKOV, MAX_TARGET_TF_ORDER};
 use control::target::{TargetChannel, TargetForm, TargetModel};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -148,6 +150,24 @@ pub(super) fn read_table(value: toml::Value) -> Result<TargetModel, TableError> 
         field: format!("target-model.{field}"),
         message: m.to_string(),
     };
+    if raw.markov.len() > MAX_TARGET_MARKOV {
+        let m = format!(
+            "has {} Markov parameters, at most {MAX_TARGET_MARKOV}",
+            raw.markov.len()
+        );
+        return Err(err("markov", &m));
+    }
+    for (i, c) in raw.channel.iter().enumerate() {
+        for (key, len) in [("num", c.num.len()), ("den", c.den.len())] {
+            if len > MAX_TARGET_TF_ORDER + 1 {
+                let m = format!(
+                    "has {len} coefficients, at most {} (order {MAX_TARGET_TF_ORDER})",
+                    MAX_TARGET_TF_ORDER + 1
+                );
+                return Err(err(&format!("channel[{i}].{key}"), &m));
+            }
+        }
+    }
     let form = match raw.form.as_str() {
         "transfer-function" => {
             if !raw.markov.is_empty() {

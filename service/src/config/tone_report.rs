@@ -6,11 +6,13 @@
 //! window = 0.5                    # s: the end of the open-loop phase against the end of the run
 //! ```
 //!
-//! Every tone must lie strictly between 0 and the Nyquist frequency. When the session
+//! Every tone must lie strictly between 0 and the Nyquist frequency; at most 64 tones, and
+//! at most 2²⁰ samples in a window. When the session
 //! starts open loop (`service.open-loop`), the open-loop window is at most the second half
 //! of that phase, so that the start's transient is not measured.
 
-use super::values::positive_seconds;
+use super::bounds::{self, MAX_DURATION_S, MAX_REPORT_TONES, MAX_REPORT_WINDOW_CYCLES};
+use super::values::seconds;
 use super::{ConfigError, ErrFn};
 use serde::Deserialize;
 
@@ -47,6 +49,12 @@ pub(super) fn parse(
         Some(t) => (t, "service.report.tones-hz".to_string()),
         None => (plant_tones(plant), "plant.disturbance".to_string()),
     };
+    if tones_hz.len() > MAX_REPORT_TONES {
+        return Err(err(
+            "service.report.tones-hz",
+            format!("{} tones, at most {MAX_REPORT_TONES}", tones_hz.len()),
+        ));
+    }
     for f in &tones_hz {
         if !(f.is_finite() && *f > 0.0 && *f < nyquist) {
             return Err(err(
@@ -55,8 +63,15 @@ pub(super) fn parse(
             ));
         }
     }
-    let window = positive_seconds(raw.window.unwrap_or(0.5), "service.report.window", err)?;
-    let mut window_cycles = ((window / period).round() as u64).max(1);
+    let field = "service.report.window";
+    let window = seconds(raw.window.unwrap_or(0.5), false, MAX_DURATION_S, field, err)?;
+    let mut window_cycles = bounds::cycles(window, period).max(1);
+    if window_cycles > MAX_REPORT_WINDOW_CYCLES {
+        return Err(err(
+            field,
+            format!("{window} s is {window_cycles} samples, at most {MAX_REPORT_WINDOW_CYCLES}"),
+        ));
+    }
     if open_loop_cycles > 0 {
         window_cycles = window_cycles.min(open_loop_cycles / 2).max(1);
     }

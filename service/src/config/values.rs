@@ -5,8 +5,9 @@
 //! - a scalar times the identity or a square matrix ([`ScalarOrMatrix`], [`weight`]):
 //!   `rz = 1.0` or `rz = [[1.0, 0.0], [0.0, 2.0]]`;
 //! - a matrix written as a list of rows ([`matrix`]);
-//! - durations in seconds that must be positive ([`positive_seconds`]), counts that must
-//!   be at least 1 ([`positive`]);
+//! - durations in seconds within bounds ([`seconds`]), counts within bounds ([`count`]),
+//!   magnitudes within a bound ([`magnitudes`]), fields not read by a setting
+//!   ([`refuse_given`]);
 //! - a string field that must be one of a few names ([`one_of`]).
 //!
 //! Every check names the field it refuses through the `ErrFn` of the file being read.
@@ -55,21 +56,73 @@ pub(super) fn per_channel(
     }
 }
 
-/// A duration in seconds that must be finite and positive.
-pub(super) fn positive_seconds(v: f64, field: &str, err: &ErrFn<'_>) -> Result<f64, ConfigError> {
-    if v.is_finite() && v > 0.0 {
+/// A duration in seconds that must be finite, positive (or, with `zero_ok`, ≥ 0) and at
+/// most `max` s.
+pub(super) fn seconds(
+    v: f64,
+    zero_ok: bool,
+    max: f64,
+    field: &str,
+    err: &ErrFn<'_>,
+) -> Result<f64, ConfigError> {
+    let low_ok = if zero_ok { v >= 0.0 } else { v > 0.0 };
+    if low_ok && v <= max {
         Ok(v)
     } else {
-        Err(err(field, format!("{v} s is not positive")))
+        let low = if zero_ok { "[0" } else { "(0" };
+        Err(err(
+            field,
+            format!("{v} s is not a duration in {low}, {max}] s"),
+        ))
     }
 }
 
-/// A count that must be at least 1.
-pub(super) fn positive(v: u64, field: &str, err: &ErrFn<'_>) -> Result<u64, ConfigError> {
-    if v == 0 {
-        Err(err(field, "must be at least 1".into()))
-    } else {
+/// A count that must lie in `min..=max`.
+pub(super) fn count(
+    v: u64,
+    min: u64,
+    max: u64,
+    field: &str,
+    err: &ErrFn<'_>,
+) -> Result<u64, ConfigError> {
+    if (min..=max).contains(&v) {
         Ok(v)
+    } else if v < min {
+        Err(err(field, format!("{v}: must be at least {min}")))
+    } else {
+        Err(err(field, format!("{v} is above the bound {max}")))
+    }
+}
+
+/// Refuses the first of the `(given, name)` fields that is given: they are not read
+/// `why` (for example `only for update = "rls"`); `table` is the dotted path of their
+/// table.
+pub(super) fn refuse_given(
+    fields: &[(bool, &str)],
+    table: &str,
+    why: &str,
+    err: &ErrFn<'_>,
+) -> Result<(), ConfigError> {
+    match fields.iter().find(|(given, _)| *given) {
+        Some((_, name)) => Err(err(&format!("{table}.{name}"), why.to_string())),
+        None => Ok(()),
+    }
+}
+
+/// Values whose magnitude must not exceed `max` (an initial estimate: beyond it the
+/// products of a step overflow).
+pub(super) fn magnitudes(
+    v: &[f64],
+    max: f64,
+    field: &str,
+    err: &ErrFn<'_>,
+) -> Result<(), ConfigError> {
+    match v.iter().position(|x| x.abs() > max) {
+        Some(i) => Err(err(
+            field,
+            format!("entry {i} = {} exceeds the bound ±{max}", v[i]),
+        )),
+        None => Ok(()),
     }
 }
 
