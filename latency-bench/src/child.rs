@@ -191,7 +191,13 @@ pub fn run_service_child(config: &Path, wait: WaitMode, core: usize, run_folder:
     match result {
         Ok(report) => {
             println!("{}", report.render());
-            0
+            match report.write_json() {
+                Ok(()) => 0,
+                Err(e) => {
+                    eprintln!("[bench child] {e}");
+                    1
+                }
+            }
         }
         Err(e) => {
             eprintln!("[bench child] service failed: {e}");

@@ -2,17 +2,18 @@
 //!
 //! ```text
 //! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N]
-//! service check <scenario.toml>
+//! service check <scenario.toml> [--controller FILE]
 //! ```
 //!
 //! `run` is the service alone, against whatever plant process serves the rig (plant-proxy or
 //! a DAQ I/O process); it prints the run report and leaves the run folder. `check`
-//! validates a configuration and exits. The main job (plant-proxy and the service started
+//! validates the whole scenario, both halves, and exits; a refused configuration or
+//! command-line value exits with code 2, naming the file and the field. The main job (plant-proxy and the service started
 //! together, then the figure) is `rig launch` of the offline tools: this binary runs next
 //! to the hardware and links no plotting.
 
 use clap::{Parser, Subcommand};
-use service::config::{ServiceConfig, WaitMode};
+use service::config::{ConfigError, ScenarioCheck, ServiceConfig, WaitMode};
 use service::rt_alloc::RtAwareAllocator;
 use service::runtime::{RunOptions, run};
 use std::path::{Path, PathBuf};
@@ -66,10 +67,14 @@ enum Command {
         #[arg(long)]
         max_cycles: Option<u64>,
     },
-    /// Validate the configuration and exit.
+    /// Validate the whole scenario, both halves (the service's tables and plant-proxy's
+    /// [rig], [plant] and [proxy], when the file has a [plant] table), and exit.
     Check {
         /// Scenario / configuration TOML file.
         config: PathBuf,
+        /// Replace the scenario's [controller] (and [log]) table by this file's.
+        #[arg(long)]
+        controller: Option<PathBuf>,
     },
 }
 
@@ -81,11 +86,14 @@ fn parse_wait(s: &str) -> Result<WaitMode, String> {
     }
 }
 
+/// Prints a refused configuration and gives exit code 2.
+fn refused(e: ConfigError) -> ExitCode {
+    eprintln!("service: configuration refused: {e}");
+    ExitCode::from(2)
+}
+
 fn load(path: &Path, controller: Option<&Path>) -> Result<ServiceConfig, ExitCode> {
-    ServiceConfig::load_scenario(path, controller).map_err(|e| {
-        eprintln!("service: configuration refused: {e}");
-        ExitCode::from(2)
-    })
+    ServiceConfig::load_scenario(path, controller).map_err(refused)
 }
 
 fn shutdown_flag() -> Arc<AtomicBool> {
@@ -99,22 +107,15 @@ fn shutdown_flag() -> Arc<AtomicBool> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Check { config } => match load(&config, None) {
-            Ok(c) => {
-                println!(
-                    "{}: ok (rig '{}', {} Hz, channels y={} z={} r={} u={})",
-                    config.display(),
-                    c.rig,
-                    1e9 / c.sample_period_ns as f64,
-                    c.counts.n_y,
-                    c.counts.n_z,
-                    c.counts.n_r,
-                    c.counts.n_u
-                );
-                ExitCode::SUCCESS
+        Command::Check { config, controller } => {
+            match ScenarioCheck::load(&config, controller.as_deref()) {
+                Ok(c) => {
+                    println!("{}: ok ({})", config.display(), c.summary());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => refused(e),
             }
-            Err(code) => code,
-        },
+        }
         Command::Run {
             common,
             exit_with_plant,
@@ -124,6 +125,9 @@ fn main() -> ExitCode {
                 Ok(c) => c,
                 Err(code) => return code,
             };
+            if let Err(e) = cfg.check_run_options(common.core, max_cycles) {
+                return refused(e);
+            }
             let opts = RunOptions {
                 run_folder: common.run_folder,
                 exit_with_plant,
@@ -133,8 +137,18 @@ fn main() -> ExitCode {
             };
             match run(&cfg, &opts, shutdown_flag()) {
                 Ok(report) => {
+                    // The report reaches stdout before any file is written: a full disk
+                    // cannot take it away.
                     println!("{}", report.render());
-                    ExitCode::SUCCESS
+                    if let Err(e) = report.write_json() {
+                        eprintln!("service: {e}");
+                        return ExitCode::FAILURE;
+                    }
+                    if report.verdict.ok {
+                        ExitCode::SUCCESS
+                    } else {
+                        ExitCode::FAILURE
+                    }
                 }
                 Err(e) => {
                     eprintln!("service: {e}");

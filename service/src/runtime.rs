@@ -41,6 +41,7 @@ pub mod gate;
 pub mod reset;
 pub mod session;
 mod tones;
+pub mod verdict;
 pub use reset::TimingFaultReset;
 pub use tones::{ToneLine, ToneMeter, ToneReport};
 
@@ -51,6 +52,7 @@ use control::controller::{Controller, MAX_INTERNALS, StepInput};
 use deadline::{Answer, DeadlineMonitor, SafeStateChange};
 use gate::MeasurementGate;
 use ipc_types::clock::monotonic_ns;
+use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
 use ipc_types::rt::RtSetup;
 use ipc_types::{
@@ -59,7 +61,7 @@ use ipc_types::{
 };
 use reset::{ControllerResetPolicy, ResetCause};
 use serde::Serialize;
-use session::{Arrival, Idle, SessionTracker};
+use session::{Arrival, Idle, NewSessionCause, SessionTracker};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -67,7 +69,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 /// Something the RT loop reports; carried out of it through a lock-free queue.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "event", rename_all = "kebab-case")]
 pub enum LoopEvent {
     /// The first sample of a plant session arrived.
@@ -83,18 +85,32 @@ pub enum LoopEvent {
         periods: u64,
     },
     /// Samples came back after silence (a stall resumed, or a new plant session, which is
-    /// then also reported as [`LoopEvent::SequenceRestarted`]).
+    /// then also reported as [`LoopEvent::NewPlantSession`]).
     PlantResumed {
         /// The first sequence number received again.
         seq: u64,
     },
-    /// The sequence number did not advance (a restarted plant, after silence or not): a
-    /// new plant session begins.
-    SequenceRestarted {
-        /// The last sequence number before.
+    /// A new plant session begins: another publisher, a sequence restarted after silence,
+    /// or a consistent new numbering (see [`session`]).
+    NewPlantSession {
+        /// The last sequence number of the previous session.
         from: u64,
-        /// The new one.
+        /// The first of the new one.
         to: u64,
+        /// Why.
+        cause: NewSessionCause,
+        /// The safe state of the previous session was cleared.
+        left_safe_state: bool,
+    },
+    /// The plant reported applying an input the service did not send (beyond
+    /// `service.u-applied-tolerance`) for an actuation it says came in time: another
+    /// process drives the actuators, or the plant alters the inputs. Reported at the first
+    /// mismatch of a run of them.
+    ForeignActuation {
+        /// The sample that carried the report.
+        seq: u64,
+        /// The largest `|u_applied − u_sent|`.
+        difference: f64,
     },
     /// Too many consecutive deadline misses: the safe input is applied.
     SafeStateEntered {
@@ -129,9 +145,27 @@ impl fmt::Display for LoopEvent {
                 "PLANT SILENT: no sample for {periods} periods after seq {last_seq}; waiting for it to come back"
             ),
             LoopEvent::PlantResumed { seq } => write!(f, "plant resumed at seq {seq}"),
-            LoopEvent::SequenceRestarted { from, to } => {
-                write!(f, "plant sequence restarted: {from} -> {to}")
-            }
+            LoopEvent::NewPlantSession {
+                from,
+                to,
+                cause,
+                left_safe_state,
+            } => write!(
+                f,
+                "NEW PLANT SESSION ({}): sequence {from} -> {to}{}",
+                cause.name(),
+                if *left_safe_state {
+                    "; the safe state of the previous session is cleared"
+                } else {
+                    ""
+                }
+            ),
+            LoopEvent::ForeignActuation { seq, difference } => write!(
+                f,
+                "FOREIGN ACTUATION at seq {seq}: the plant applied an input the service did not \
+                 send (|u_applied − u_sent| = {difference:.3e}); is another process publishing \
+                 on this rig?"
+            ),
             LoopEvent::SafeStateEntered { seq, misses } => write!(
                 f,
                 "SAFE STATE at seq {seq}: {misses} consecutive deadline misses; applying the safe input"
@@ -163,6 +197,21 @@ pub struct LoopStats {
     pub rejected_non_finite: u64,
     /// Samples rejected for a value outside the configured range.
     pub rejected_out_of_range: u64,
+    /// Samples refused as duplicates of the last sequence number (never answered).
+    pub rejected_duplicate: u64,
+    /// Samples refused for a backward sequence number (never answered).
+    pub rejected_backward: u64,
+    /// Samples refused for a forward jump the plant's clock cannot explain (never answered).
+    pub rejected_jump: u64,
+    /// New plant sessions after the first.
+    pub new_sessions: u64,
+    /// Answered samples whose sample time was impossible (0, after the receipt, or before
+    /// the previous sample's): left out of the latency figures and the late count.
+    pub impossible_timestamps: u64,
+    /// Samples whose reported `u_applied` differs from what the service sent.
+    pub foreign_actuations: u64,
+    /// Samples refused because another publisher than the pinned plant sent them.
+    pub foreign_samples: u64,
     /// Samples never seen (gaps in the sequence).
     pub skipped: u64,
     /// Samples received too late to answer (a newer one was waiting); the controller
@@ -170,6 +219,8 @@ pub struct LoopStats {
     pub caught_up: u64,
     /// Cycles whose response came after the plant's deadline.
     pub deadline_misses: u64,
+    /// Misses in protected cycles (grace period, open-loop phase): counted, not acted on.
+    pub protected_misses: u64,
     /// Misses the plant reported (its view: the actuation was late or absent).
     pub plant_reported_misses: u64,
     /// Longest run of consecutive misses.
@@ -244,6 +295,20 @@ pub struct LoopCore {
     record: LogRecord,
     internals: [f64; MAX_INTERNALS],
     pending_jitter: Option<u64>,
+    /// The next sample comes from another publisher than the previous one.
+    new_peer_pending: bool,
+    /// The sample being answered has a possible sample time.
+    timestamp_ok: bool,
+    /// The last actuation published: its sequence number and inputs.
+    sent_seq: Option<u64>,
+    sent_u: [f64; MAX_U],
+    u_applied_tolerance: f64,
+    /// The previous sample's `u_applied` report was a mismatch.
+    foreign_run: bool,
+    /// Sequence number at the last entry into the safe state.
+    safe_since_seq: u64,
+    recover_after: Option<u64>,
+    recover_tolerance: u64,
     /// Allocations made on the RT thread during the loop (filled in when it ends).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
 }
@@ -255,6 +320,9 @@ pub struct CycleDecision {
     pub compute_ns: u64,
     /// The plant says this was its last sample.
     pub last_sample: bool,
+    /// The sample is answered: publish `act`, then call [`LoopCore::finish_cycle`]. A
+    /// refused sample (a duplicate, a backward number, an unexplained jump) is not.
+    pub answer: bool,
 }
 
 impl LoopCore {
@@ -279,7 +347,11 @@ impl LoopCore {
             events,
             counts: cfg.counts,
             gate: MeasurementGate::new(cfg.counts, &cfg.limits),
-            session: SessionTracker::new(cfg.policy.silent_periods, cfg.sample_period_ns),
+            session: SessionTracker::new(
+                cfg.policy.silent_periods,
+                cfg.sample_period_ns,
+                cfg.policy.silent_periods,
+            ),
             deadline: DeadlineMonitor::new(&cfg.policy),
             resets: ControllerResetPolicy {
                 on_timing_fault,
@@ -306,6 +378,15 @@ impl LoopCore {
             record: LogRecord::zeroed(),
             internals: [0.0; MAX_INTERNALS],
             pending_jitter: None,
+            new_peer_pending: false,
+            timestamp_ok: false,
+            sent_seq: None,
+            sent_u: [0.0; MAX_U],
+            u_applied_tolerance: cfg.policy.u_applied_tolerance,
+            foreign_run: false,
+            safe_since_seq: 0,
+            recover_after: cfg.policy.recover_after,
+            recover_tolerance: cfg.policy.recover_tolerance,
             rt_allocations: Default::default(),
         }
     }
@@ -334,6 +415,10 @@ impl LoopCore {
         let session = self.session.counts();
         s.received = session.received;
         s.skipped = session.lost;
+        s.rejected_duplicate = session.duplicates;
+        s.rejected_backward = session.backward;
+        s.rejected_jump = session.implausible_jumps;
+        s.new_sessions = session.new_sessions;
         s.plant_silent_events = session.silences;
         s.plant_resumes = session.resumes;
         let rejected = self.gate.rejected();
@@ -342,6 +427,7 @@ impl LoopCore {
         s.rejected_out_of_range = rejected.out_of_range;
         let deadline = self.deadline.counts();
         s.deadline_misses = deadline.late;
+        s.protected_misses = deadline.protected_misses;
         s.plant_reported_misses = deadline.plant_reported;
         s.max_consecutive_misses = deadline.max_consecutive;
         s.safe_state_entries = deadline.safe_state_entries;
@@ -360,40 +446,89 @@ impl LoopCore {
         ok
     }
 
+    /// The next sample comes from another publisher than the previous one (a restarted or
+    /// replaced plant): it begins a new plant session. Called by the IPC glue, which pins
+    /// the peer's identity.
+    pub fn note_new_peer(&mut self) {
+        self.new_peer_pending = true;
+    }
+
     /// Session bookkeeping of a received sample (first sample, resume after silence, new
-    /// plant session, gaps); returns the number of samples lost just before it.
-    fn admit(&mut self, m: &Measurement) -> u64 {
-        let arrival = self.session.arrive(m.seq);
+    /// plant session, gaps); returns the number of samples lost just before it, or `None`
+    /// when the sample is refused ([`session`]) and must neither reach the controller nor
+    /// be answered.
+    fn admit(&mut self, m: &Measurement) -> Option<u64> {
+        let new_peer = core::mem::take(&mut self.new_peer_pending);
+        let was_silent = self.session.is_silent();
+        let arrival = self.session.arrive(m.seq, m.t_sample_ns, new_peer);
         match arrival {
             Arrival::First => self.event(LoopEvent::FirstSample { seq: m.seq }),
-            Arrival::Next { .. } => {}
+            Arrival::Next { .. } | Arrival::Refused(_) => {}
             Arrival::Resumed { .. } => {
                 self.event(LoopEvent::PlantResumed { seq: m.seq });
                 self.deadline.new_connection();
                 self.reset_controller_if(ResetCause::StallResumed);
             }
-            Arrival::NewSession {
-                from,
-                after_silence,
-            } => {
-                if after_silence {
+            Arrival::NewSession { from, cause } => {
+                if was_silent {
                     self.event(LoopEvent::PlantResumed { seq: m.seq });
                 }
-                self.event(LoopEvent::SequenceRestarted { from, to: m.seq });
-                self.deadline.new_connection();
+                let left_safe_state = self.deadline.new_session();
+                self.event(LoopEvent::NewPlantSession {
+                    from,
+                    to: m.seq,
+                    cause,
+                    left_safe_state,
+                });
                 self.reset_controller_if(ResetCause::NewPlantSession);
                 self.tones.new_session();
+                self.sent_seq = None;
+                self.foreign_run = false;
             }
         }
         self.sync_stats();
-        arrival.lost()
+        arrival.accepted().then(|| arrival.lost())
+    }
+
+    /// Compares the plant's report of the input it applied after sample `k − 1` with what
+    /// the service sent for it; raises [`LoopEvent::ForeignActuation`] at the first
+    /// mismatch of a run.
+    fn check_u_applied(&mut self, m: &Measurement) {
+        let on_time = m.flags
+            & (measurement_flags::PREVIOUS_ACTUATION_MISSED | measurement_flags::PLANT_SAFE_OUTPUT)
+            == 0;
+        let (Some(applied), Some(sent_seq)) = (m.u_applied(), self.sent_seq) else {
+            return;
+        };
+        if !on_time || sent_seq.wrapping_add(1) != m.seq {
+            return;
+        }
+        let difference = applied
+            .iter()
+            .zip(&self.sent_u)
+            .map(|(a, s)| (a - s).abs())
+            .fold(0.0, |m: f64, d| if d.is_nan() || d > m { d } else { m });
+        // A NaN report counts as a mismatch.
+        let mismatch = difference.is_nan() || difference > self.u_applied_tolerance;
+        if mismatch {
+            self.stats.foreign_actuations += 1;
+            if !self.foreign_run {
+                self.event(LoopEvent::ForeignActuation {
+                    seq: m.seq,
+                    difference,
+                });
+            }
+        }
+        self.foreign_run = mismatch;
     }
 
     /// Takes in a measurement that was received too late to be answered, because a newer
     /// one was already waiting: the controller records it ([`Controller::observe`]) so that
     /// its memory keeps every sample, but no actuation is computed for the plant.
     pub fn observe(&mut self, m: &Measurement) {
-        let lost = self.admit(m);
+        let Some(lost) = self.admit(m) else {
+            return;
+        };
         self.stats.caught_up += 1;
         if !self.admissible(m) {
             return;
@@ -412,7 +547,20 @@ impl LoopCore {
         t_recv_ns: u64,
         act: &mut Actuation,
     ) -> CycleDecision {
-        let lost = self.admit(m);
+        let previous_t_sample = self.session.last_sample_time_ns();
+        let Some(lost) = self.admit(m) else {
+            return CycleDecision {
+                compute_ns: 0,
+                last_sample: false,
+                answer: false,
+            };
+        };
+        self.timestamp_ok =
+            m.t_sample_ns != 0 && m.t_sample_ns <= t_recv_ns && m.t_sample_ns >= previous_t_sample;
+        if !self.timestamp_ok {
+            self.stats.impossible_timestamps += 1;
+        }
+        self.check_u_applied(m);
         let cycle = self.session.connection_cycle();
         let flagged = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0;
         self.deadline.on_sample(flagged, cycle);
@@ -485,6 +633,7 @@ impl LoopCore {
         CycleDecision {
             compute_ns,
             last_sample: m.flags & measurement_flags::LAST_SAMPLE != 0,
+            answer: true,
         }
     }
 
@@ -515,6 +664,8 @@ impl LoopCore {
     ) {
         if published {
             self.stats.published += 1;
+            self.sent_seq = Some(m.seq);
+            self.sent_u = act.u;
         } else {
             self.stats.publish_failures += 1;
         }
@@ -522,7 +673,9 @@ impl LoopCore {
         let cycle = self.session.connection_cycle();
         let verdict = self.deadline.on_answer(Answer {
             cycle,
+            open_loop: self.session.session_cycle() <= self.open_loop_cycles,
             published,
+            timestamp_ok: self.timestamp_ok,
             response_ns,
             deadline_ns: m.deadline_ns,
         });
@@ -530,6 +683,7 @@ impl LoopCore {
         match verdict.change {
             SafeStateChange::Unchanged => {}
             SafeStateChange::Entered { misses } => {
+                self.safe_since_seq = m.seq;
                 self.event(LoopEvent::SafeStateEntered { seq: m.seq, misses });
             }
             SafeStateChange::Left => {
@@ -539,8 +693,8 @@ impl LoopCore {
         }
         let jitter = self.pending_jitter.take();
         // The first sample of a connection waited for the connection, not for the loop: it
-        // would only pollute the latency figures.
-        if cycle > 1 {
+        // would only pollute the latency figures; so would an impossible sample time.
+        if cycle > 1 && self.timestamp_ok {
             self.record_timing(m, act, t_recv_ns, response_ns, jitter);
         }
         if let Some(log) = self.log.as_mut() {
@@ -623,6 +777,18 @@ impl LoopCore {
         )
     }
 
+    /// Where the safe state stands now, when the loop is in it (for the verdict).
+    pub fn safe_state_at_end(&self) -> Option<verdict::SafeStateAtEnd> {
+        self.deadline
+            .in_safe_state()
+            .then(|| verdict::SafeStateAtEnd {
+                since_s: self.safe_since_seq as f64 * self.period_ns as f64 * 1e-9,
+                recover_after: self.recover_after,
+                tolerance: self.recover_tolerance,
+                longest_clean_run: self.deadline.longest_clean_run(),
+            })
+    }
+
     /// Hands the histogram box back at the end of a run.
     pub fn flush_telemetry(&mut self) {
         self.telemetry.flush();
@@ -698,8 +864,11 @@ pub struct RunReport {
     pub rt_setup: String,
     /// True when any RT set-up step was refused.
     pub rt_degraded: bool,
-    /// Conditions that make the latency figures worse than the set-up could give.
+    /// Conditions that qualify the figures: an incomplete real-time set-up, and every
+    /// anomaly the loop counted ([`verdict`]).
     pub warnings: Vec<String>,
+    /// Whether the run did what it was started for ([`verdict`]); the exit status follows.
+    pub verdict: verdict::RunVerdict,
     /// Why the loop stopped.
     pub stop_reason: StopReason,
     /// Counters.
@@ -716,6 +885,10 @@ pub struct RunReport {
     pub log_written: u64,
     /// Signal log records dropped because the queue was full.
     pub log_dropped: u64,
+    /// Signal log records the writer could not write (full disk, I/O error).
+    pub log_lost_to_disk: u64,
+    /// The first write failure of the signal log, naming the file; `None` when there was none.
+    pub log_first_error: Option<String>,
     /// Response-time budget used for "over budget" (the sample period), ns.
     pub budget_ns: u64,
     /// Sample period, s.
@@ -799,8 +972,14 @@ impl RunReport {
             s.safe_state_cycles
         );
         out += &format!(
-            "rejected measurements: {} non-finite, {} out of range, {} contract\n",
-            s.rejected_non_finite, s.rejected_out_of_range, s.rejected_contract
+            "rejected measurements: {} non-finite, {} out of range, {} contract; refused \
+             sequence numbers: {} duplicate, {} backward, {} unexplained jump\n",
+            s.rejected_non_finite,
+            s.rejected_out_of_range,
+            s.rejected_contract,
+            s.rejected_duplicate,
+            s.rejected_backward,
+            s.rejected_jump
         );
         out += &format!(
             "plant silent {}×, resumed {}×; controller faults {}, saturated cycles {}, fallback cycles {}\n",
@@ -831,8 +1010,14 @@ impl RunReport {
             fmt_v(&self.z_rms_settled)
         );
         out += &format!(
-            "signal log: {} records written, {} dropped\n",
-            self.log_written, self.log_dropped
+            "signal log: {} records written, {} dropped (queue full), {} lost to the disk{}\n",
+            self.log_written,
+            self.log_dropped,
+            self.log_lost_to_disk,
+            self.log_first_error
+                .as_deref()
+                .map(|e| format!(" ({e})"))
+                .unwrap_or_default()
         );
         let a = &self.rt_allocations;
         if a.installed && !a.counted {
@@ -847,13 +1032,16 @@ impl RunReport {
             out += &t.render();
         }
         out += &self.latency.render_table(self.budget_ns);
+        out += &self.verdict.headline();
+        out.push('\n');
         out
     }
 }
 
 /// Runs the service with `cfg` until a signal sets `shutdown`, the plant ends (with
 /// `exit_with_plant`), or `max_cycles` samples have been received. Prints events as they
-/// happen; returns the report (also written to `report.json` in the run folder).
+/// happen; returns the report, which the caller prints and then writes
+/// ([`RunReport::write_json`]).
 pub fn run(
     cfg: &ServiceConfig,
     opts: &RunOptions,
@@ -977,24 +1165,62 @@ pub fn run(
         what: "writing histogram files".into(),
         error,
     })?;
-    let (log_written, log_dropped) = match log_handle {
-        Some(h) => {
-            let st = h.finish().map_err(|error| ServiceError::Io {
-                what: "writing signals.csv".into(),
-                error,
-            })?;
-            (st.written, st.dropped)
-        }
-        None => (0, 0),
-    };
-    let (z_rms, z_rms_settled) = core.z_rms();
     let mut warnings = Vec::new();
+    let log = match log_handle.map(|h| h.finish()) {
+        Some(Ok(st)) => LogOutcome {
+            written: st.written,
+            dropped: st.dropped,
+            lost_to_disk: st.lost_to_disk,
+            first_error: st.first_error,
+            intact: st.intact,
+        },
+        Some(Err(e)) => {
+            warnings.push(format!("the signal log writer failed: {e}"));
+            LogOutcome {
+                intact: false,
+                first_error: Some(e.to_string()),
+                ..LogOutcome::default()
+            }
+        }
+        None => LogOutcome::default(),
+    };
+    if let Some(e) = &log.first_error {
+        warnings.push(format!(
+            "signals.csv: {} records lost to the disk{}: {e}",
+            log.lost_to_disk,
+            if log.intact {
+                ""
+            } else {
+                " and the file may end in a torn row"
+            }
+        ));
+    }
+    for f in &latency.file_errors {
+        warnings.push(format!(
+            "{}: {} records lost{}",
+            f.path,
+            f.records_lost,
+            f.first_error
+                .as_deref()
+                .map(|e| format!(": {e}"))
+                .unwrap_or_default()
+        ));
+    }
+    let (z_rms, z_rms_settled) = core.z_rms();
     if setup.any_refused() {
         warnings.push(format!("real-time set-up incomplete: {}", setup.describe()));
     }
     if cfg.wait == WaitMode::BusyPoll && setup.fifo == ipc_types::rt::StepOutcome::Done {
         warnings.extend(ipc_types::rt::busy_poll_throttling_warning());
     }
+    let verdict = verdict::judge(&verdict::VerdictInputs {
+        stats: core.stats,
+        safe_state_at_end: core.safe_state_at_end(),
+        max_safe_state_share: cfg.policy.max_safe_state_share,
+        open_loop_cycles: cfg.open_loop_cycles,
+        log_dropped: log.dropped + log.lost_to_disk,
+    });
+    warnings.extend(verdict.warnings.iter().cloned());
     let report = RunReport {
         rig: cfg.rig.clone(),
         config: cfg.origin.clone(),
@@ -1004,14 +1230,17 @@ pub fn run(
         rt_setup: setup.describe(),
         rt_degraded: setup.any_refused(),
         warnings,
+        verdict,
         stop_reason,
         stats: core.stats,
         events,
         z_rms,
         z_rms_settled,
         latency,
-        log_written,
-        log_dropped,
+        log_written: log.written,
+        log_dropped: log.dropped,
+        log_lost_to_disk: log.lost_to_disk,
+        log_first_error: log.first_error,
         budget_ns: cfg.budget_ns,
         sample_period_s: cfg.sample_period_ns as f64 * 1e-9,
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
@@ -1024,16 +1253,34 @@ pub fn run(
             .map(|(k, v)| (k.to_string(), v))
             .collect(),
     };
-    write_json(&folder.join("report.json"), &report)?;
     Ok(report)
 }
 
-fn write_json(path: &Path, report: &RunReport) -> Result<(), ServiceError> {
-    let text = serde_json::to_string_pretty(report).expect("the report serializes");
-    std::fs::write(path, text).map_err(|error| ServiceError::Io {
-        what: format!("writing {}", path.display()),
-        error,
-    })
+/// What the signal-log writer reported at the end.
+#[derive(Debug, Default)]
+struct LogOutcome {
+    written: u64,
+    dropped: u64,
+    lost_to_disk: u64,
+    first_error: Option<String>,
+    intact: bool,
+}
+
+impl RunReport {
+    /// Writes the report as `report.json` into its run folder, atomically (a temporary file
+    /// renamed over it): the file is the whole report or absent. Print the report first
+    /// ([`RunReport::render`]), so that a full disk cannot take it from the user.
+    pub fn write_json(&self) -> Result<(), ServiceError> {
+        let path = Path::new(&self.run_folder).join("report.json");
+        let text = serde_json::to_string_pretty(self).map_err(|e| ServiceError::Io {
+            what: "serializing the run report".into(),
+            error: std::io::Error::other(e),
+        })?;
+        ipc_types::files::write_atomic(&path, text.as_bytes()).map_err(|e| ServiceError::Io {
+            what: "the run report".into(),
+            error: e.into(),
+        })
+    }
 }
 
 fn timestamp() -> String {
@@ -1125,13 +1372,26 @@ fn step_input(m: &Measurement, lost: u64) -> StepInput<'_> {
 /// (`ipc_types::ports`), so none is dropped here.
 const PENDING: usize = 8;
 
-/// Takes every pending measurement, oldest first, into the ring `pending`; returns how
-/// many arrived (only the newest `PENDING` are kept when more did).
+/// Takes every pending measurement of the pinned plant, oldest first, into the ring
+/// `pending` (with `new_peer[i]` true for the first sample of a plant that replaced the
+/// pinned one); returns how many were taken (only the newest `PENDING` are kept when more
+/// arrived). Samples of any other publisher are refused and counted by the pin
+/// ([`ipc_types::peer`]).
 #[inline]
-fn take_pending(ports: &ServicePorts, pending: &mut [Measurement; PENDING]) -> usize {
+fn take_pending(
+    ports: &ServicePorts,
+    pending: &mut [Measurement; PENDING],
+    new_peer: &mut [bool; PENDING],
+) -> usize {
     let mut n = 0;
     while let Ok(Some(sample)) = ports.subscriber.receive() {
+        let first_of_new_peer = match ports.admit(sample.origin()) {
+            Origin::Peer => false,
+            Origin::NewPeer => true,
+            Origin::Foreign => continue,
+        };
         pending[n % PENDING] = *sample;
+        new_peer[n % PENDING] = first_of_new_peer;
         n += 1;
     }
     n
@@ -1165,6 +1425,7 @@ pub fn rt_loop(
     exit_with_plant: bool,
 ) -> StopReason {
     let mut pending = [Measurement::zeroed(ChannelCounts::default()); PENDING];
+    let mut new_peer = [false; PENDING];
     let mut act = Actuation::zeroed(ChannelCounts::default());
     let mut spins: u32 = 0;
     let mut last_cleanup_ns = 0u64;
@@ -1173,18 +1434,27 @@ pub fn rt_loop(
         if shutdown.load(Ordering::Relaxed) {
             return StopReason::Signal;
         }
-        let n = take_pending(ports, &mut pending);
+        let n = take_pending(ports, &mut pending, &mut new_peer);
+        core.stats.foreign_samples = ports.foreign_samples();
         if n > 0 {
             let t_recv = monotonic_ns();
             // Late samples first (a newer one is waiting): observed, not answered.
             let first = n.saturating_sub(PENDING);
             for i in first..n - 1 {
+                if new_peer[i % PENDING] {
+                    core.note_new_peer();
+                }
                 core.observe(&pending[i % PENDING]);
+            }
+            if new_peer[(n - 1) % PENDING] {
+                core.note_new_peer();
             }
             let m = &pending[(n - 1) % PENDING];
             let d = core.process(m, t_recv, &mut act);
-            let (ok, t_pub) = publish(ports, &mut act);
-            core.finish_cycle(m, &act, t_recv, t_pub, ok);
+            if d.answer {
+                let (ok, t_pub) = publish(ports, &mut act);
+                core.finish_cycle(m, &act, t_recv, t_pub, ok);
+            }
             if d.last_sample && exit_with_plant {
                 return StopReason::PlantEnded;
             }
@@ -1205,7 +1475,13 @@ pub fn rt_loop(
                 }
             }
         }
+        // The time first, then the look for waiting samples: had this thread itself been
+        // stopped in between, the samples that came meanwhile are found and it does not
+        // take its own stall for a silent plant.
         let now = monotonic_ns();
+        if ports.subscriber.has_samples().unwrap_or(true) {
+            continue;
+        }
         if core.on_idle(now) && now.saturating_sub(last_cleanup_ns) > 100_000_000 {
             // Silent plant: not controlling anything now, so housekeeping is allowed here.
             last_cleanup_ns = now;

@@ -11,7 +11,7 @@ use control::StepInput;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, ServicePorts, Side};
 use ipc_types::{Actuation, Measurement, measurement_flags};
 use service::config::{ServiceConfig, WaitMode};
-use service::rt_alloc::{RtAwareAllocator, enter_rt_thread, thread_stats};
+use service::rt_alloc::{RtAllocStats, RtAwareAllocator, enter_rt_thread, thread_stats};
 use service::runtime::{LoopCore, StopReason, rt_loop};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -26,21 +26,20 @@ fn config(rig: &str) -> ServiceConfig {
 
 /// [`config`] with extra lines at the end of the `[service]` table.
 fn config_with(rig: &str, service_extra: &str) -> ServiceConfig {
-    let text = format!(
-        r#"
-[rig]
-name = "{rig}"
-sample-period = 0.001
-[service]
-channels = {{ y = 2, z = 1, u = 2 }}
-fifo-priority = 0
+    parse_config(
+        rig,
+        "sample-period = 0.001",
+        "y = 2, z = 1, u = 2",
+        &format!(
+            r#"fifo-priority = 0
 mlockall = false
 wait = "busy-poll"
 histogram-interval = 0.25
 y-min = -100.0
 y-max = 100.0
-{service_extra}
-[controller]
+{service_extra}"#
+        ),
+        r#"[controller]
 kind = "lti"
 u-min = -5.0
 u-max = 5.0
@@ -51,9 +50,38 @@ c = [[0.1, 0.2, 0.3], [0.3, 0.2, 0.1]]
 d = [[0.01, 0.0], [0.0, 0.01]]
 [log]
 queue-capacity = 1024
-"#
+"#,
+    )
+}
+
+/// The configuration of a scenario text made of a `[rig]` table named `rig` with the line
+/// `rate` (its sample period or rate), a `[service]` table with `channels = { <channels> }`
+/// and the lines `service`, then `tables` (the controller's and any others).
+fn parse_config(
+    rig: &str,
+    rate: &str,
+    channels: &str,
+    service: &str,
+    tables: &str,
+) -> ServiceConfig {
+    let text = format!(
+        "\n[rig]\nname = \"{rig}\"\n{rate}\n[service]\nchannels = {{ {channels} }}\n{service}\n{tables}"
     );
-    ServiceConfig::parse(&text, "no_alloc").unwrap()
+    ServiceConfig::parse(&text, rig).unwrap()
+}
+
+/// Asserts that this thread is counted by the allocator and allocated nothing since
+/// `before`, neither from the RT pool nor from the system allocator; `what` says which run
+/// (called only on failure, so that building the message is not counted).
+fn assert_nothing_allocated_since(before: &RtAllocStats, what: impl Fn() -> String) {
+    let d = thread_stats().since(before);
+    assert!(d.installed && d.counted, "{}: {d:?}", what());
+    assert_eq!(
+        (d.pool_served, d.system_on_rt_thread),
+        (0, 0),
+        "{}: {d:?}",
+        what()
+    );
 }
 
 #[test]
@@ -88,9 +116,7 @@ fn a_controller_step_does_not_allocate() {
             &mut u,
         );
     }
-    let d = thread_stats().since(&before);
-    assert!(d.installed && d.counted, "{d:?}");
-    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+    assert_nothing_allocated_since(&before, String::new);
 }
 
 #[test]
@@ -289,8 +315,7 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
     for k in 1000..50_000 {
         cycle(&mut core, k);
     }
-    let d = thread_stats().since(&before);
-    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+    assert_nothing_allocated_since(&before, String::new);
     assert_eq!(core.stats.rejected_non_finite, 50);
     assert!(core.stats.controller_steps > 45_000);
     assert_eq!(core.stats.caught_up, 500);
@@ -347,12 +372,7 @@ fn an_rls_update_with_each_forgetting_rule_does_not_allocate() {
                 }
                 rls.update(&phi, &y);
             }
-            let d = thread_stats().since(&before);
-            assert_eq!(
-                (d.pool_served, d.system_on_rt_thread),
-                (0, 0),
-                "({n}, {p}) {cfg:?}: {d:?}"
-            );
+            assert_nothing_allocated_since(&before, || format!("({n}, {p}) {cfg:?}"));
         }
     }
 }
@@ -360,14 +380,13 @@ fn an_rls_update_with_each_forgetting_rule_does_not_allocate() {
 /// An RCAC scenario of the acoustic rig's shape (`l_u = 2`, `l_y = l_z = 1`, 8 kHz) with a
 /// dereverberated target model with delays 9 and 16; `update` holds the update-law keys.
 fn rcac_config(update: &str) -> ServiceConfig {
-    let text = format!(
-        r#"
-[rig]
-name = "unit-noalloc-rcac"
-sample-rate-hz = 8000
-[service]
-channels = {{ y = 1, z = 1, u = 2 }}
-[controller]
+    parse_config(
+        "unit-noalloc-rcac",
+        "sample-rate-hz = 8000",
+        "y = 1, z = 1, u = 2",
+        "",
+        &format!(
+            r#"[controller]
 kind = "rcac"
 nc = 50
 kw = 100
@@ -393,8 +412,8 @@ delay = 16
 num = [-0.008]
 den = [1.0, -0.5]
 "#
-    );
-    ServiceConfig::parse(&text, "no_alloc_rcac").unwrap()
+        ),
+    )
 }
 
 /// Steady-state RCAC steps (l_θ = 300) under the counting allocator: past `k_w`, with
@@ -450,13 +469,7 @@ fn rcac_steps_do_not_allocate(update: &str) {
         ctl.internals(&mut internals);
         assert!(u.iter().all(|v| v.is_finite()));
     }
-    let d = thread_stats().since(&before);
-    assert!(d.installed && d.counted, "{d:?}");
-    assert_eq!(
-        (d.pool_served, d.system_on_rt_thread),
-        (0, 0),
-        "{update}: {d:?}"
-    );
+    assert_nothing_allocated_since(&before, || update.to_string());
 }
 
 #[test]
@@ -484,16 +497,13 @@ fn truss_size_pcac(infeasible: bool) -> Box<dyn control::Controller> {
     } else {
         ""
     };
-    let text = format!(
-        r#"
-[rig]
-name = "pcac-no-alloc"
-sample-period = 0.02
-[service]
-channels = {{ y = 4, z = 4, u = 2 }}
-fifo-priority = 0
-mlockall = false
-[controller]
+    let cfg = parse_config(
+        "pcac-no-alloc",
+        "sample-period = 0.02",
+        "y = 4, z = 4, u = 2",
+        "fifo-priority = 0\nmlockall = false",
+        &format!(
+            r#"[controller]
 kind = "pcac"
 n-hat = 25
 p0 = 1.0
@@ -513,8 +523,8 @@ tau-d = 200
 eta = 0.1
 alpha = 0.001
 {constraints}"#
+        ),
     );
-    let cfg = ServiceConfig::parse(&text, "no_alloc_pcac").unwrap();
     cfg.controller.build(cfg.counts).unwrap()
 }
 
@@ -588,9 +598,7 @@ fn the_pcac_step_does_not_allocate() {
     for k in 0..100 {
         run(&mut stuck, k, &mut solved, &mut fallbacks);
     }
-    let d = thread_stats().since(&before);
-    assert!(d.installed && d.counted, "{d:?}");
-    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+    assert_nothing_allocated_since(&before, String::new);
     assert!(solved_before > 700, "only {solved_before} QPs solved");
     assert!(fallbacks_before < 20, "{fallbacks_before} fallbacks");
     // The infeasible controller fell back at every answered step.
@@ -610,7 +618,7 @@ fn the_pcac_step_does_not_allocate() {
 #[test]
 fn the_first_pcac_steps_on_a_new_thread_do_not_allocate() {
     let mut ctl = service::rt_alloc::outside_rt(|| truss_size_pcac(false));
-    let d = std::thread::spawn(move || {
+    std::thread::spawn(move || {
         ctl.prepare_thread();
         enter_rt_thread(16);
         let before = thread_stats();
@@ -632,12 +640,10 @@ fn the_first_pcac_steps_on_a_new_thread_do_not_allocate() {
                 &mut u,
             );
         }
-        thread_stats().since(&before)
+        assert_nothing_allocated_since(&before, String::new);
     })
     .join()
     .unwrap();
-    assert!(d.installed && d.counted, "{d:?}");
-    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
 }
 
 /// The dense QP's warm starts with fixed bounds, right and wrong (bounds freed at the start
@@ -713,9 +719,7 @@ fn qp_solves_with_fixed_and_freed_bounds_do_not_allocate() {
             infeasible += 1;
         }
     }
-    let d = thread_stats().since(&before);
-    assert!(d.installed && d.counted, "{d:?}");
-    assert_eq!((d.pool_served, d.system_on_rt_thread), (0, 0), "{d:?}");
+    assert_nothing_allocated_since(&before, String::new);
     assert_eq!((solved, infeasible), (90, 30));
     assert!(fixed > 1000 && freed > 100, "{fixed} fixed, {freed} freed");
 }

@@ -2,7 +2,8 @@
 //!
 //! Per answered sample `k` (cycle `c ≥ 1` of its connection, see [`super::session`]):
 //!
-//! - **Late** (service-measured): the plant gave a deadline `D_k > 0` and the response time
+//! - **Late** (service-measured): the plant gave a deadline `D_k > 0`, the sample time is
+//!   possible (see [`Answer::timestamp_ok`]) and the response time
 //!   `t_publish − t_sample,k > D_k`. Every late answer is counted.
 //! - **Plant-reported**: sample `k` carries `PREVIOUS_ACTUATION_MISSED` (the plant's verdict
 //!   on actuation `k − 1`) and `c > 1`; on the first sample of a connection the flag speaks
@@ -11,22 +12,29 @@
 //!   by `service.miss-source`, the plant reported a miss (`plant`, the default) or the
 //!   answer was late (`response-time`).
 //!
-//! With `m` the number of consecutive misses (reset to 0 by a non-miss and by a new
-//! connection), `N = service.max-consecutive-misses`, `G = service.grace-periods`:
+//! **Protected cycles** are the grace period of a connection (`c ≤ G`,
+//! `G = service.grace-periods`) and the open-loop phase of a plant session
+//! (`service.open-loop`): a miss there is counted but neither extends the run of
+//! consecutive misses nor enters the safe state (start-up costs — page faults, cold caches,
+//! a plant warming up — are not a controller out of time).
 //!
-//! - **entered**: at a miss with `c > G` and `m ≥ N`. Misses during the grace period
-//!   (`c ≤ G`) still extend `m`, they only cannot trigger the entry; so with `m ≥ N` at the
-//!   end of the grace period the first miss after it enters the safe state.
-//! - **left**: after `M = service.recover-after` non-miss answers in a row in the safe state
-//!   (a miss starts the count again); with no `M` the safe state is latched for the rest of
-//!   the run. `M = 0` behaves as `M = 1`: one good answer is needed (the configuration
-//!   maps `recover-after = 0` to a latched safe state).
+//! With `m` the number of consecutive misses outside protected cycles (reset to 0 by a
+//! non-miss, a protected cycle and a new connection) and `N = service.max-consecutive-misses`:
 //!
-//! A new connection (a stall resumed, a new plant session) resets `m` but neither the safe
-//! state nor the good answers counted in it. In the safe state the loop sends the safe
-//! input and the controller only observes; what happens to its learned state on leaving
-//! is the business of [`super::reset`]. The monitor reads no clock: times come in as
-//! arguments.
+//! - **entered**: at an unprotected miss with `m ≥ N`.
+//! - **left**: with `M = service.recover-after` and `K = service.recover-tolerance`, when
+//!   the last `M` answers given in the safe state hold at most `K` misses (`K = 0`: `M` good
+//!   answers in a row). Without `M` (`recover-after` absent or 0) the safe state is kept
+//!   for the rest of the plant session.
+//! - **a new plant session** re-evaluates it: the safe state, the run of misses and the
+//!   recovery window start afresh, as for a plant never seen before
+//!   ([`DeadlineMonitor::new_session`]).
+//!
+//! A new connection of the same session (a stall resumed) resets `m` but neither the safe
+//! state nor its recovery window. In the safe state the loop sends the safe input and the
+//! controller only observes; what happens to its learned state on leaving is the business
+//! of [`super::reset`]. The monitor reads no clock: times come in as arguments. Its only
+//! buffer, the recovery window (`M` bits), is allocated by [`DeadlineMonitor::new`].
 
 use crate::config::{DeadlinePolicy, MissSource};
 
@@ -49,8 +57,13 @@ pub enum SafeStateChange {
 pub struct Answer {
     /// The sample's cycle in its connection, from 1.
     pub cycle: u64,
+    /// The sample lies in the open-loop phase of its plant session.
+    pub open_loop: bool,
     /// The actuation was published.
     pub published: bool,
+    /// The sample time is possible (not 0, not after its receipt, not before the previous
+    /// sample's), so `response_ns` means something.
+    pub timestamp_ok: bool,
     /// Publish time minus sample time, ns.
     pub response_ns: u64,
     /// The plant's deadline for it, ns after the sample time; 0 when it gave none.
@@ -75,10 +88,58 @@ pub struct DeadlineCounts {
     pub late: u64,
     /// Misses the plant reported.
     pub plant_reported: u64,
-    /// The longest run of consecutive misses.
+    /// Misses in protected cycles (grace period, open-loop phase).
+    pub protected_misses: u64,
+    /// The longest run of consecutive (unprotected) misses.
     pub max_consecutive: u64,
     /// Entries into the safe state.
     pub safe_state_entries: u64,
+}
+
+/// The last `M` verdicts given in the safe state, one bit each (1: a miss).
+#[derive(Debug, Clone)]
+struct RecoveryWindow {
+    bits: Box<[u64]>,
+    len: u64,
+    filled: u64,
+    misses: u64,
+}
+
+impl RecoveryWindow {
+    fn new(len: u64) -> Self {
+        Self {
+            bits: vec![0; len.div_ceil(64) as usize].into_boxed_slice(),
+            len,
+            filled: 0,
+            misses: 0,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.bits.iter_mut().for_each(|w| *w = 0);
+        self.filled = 0;
+        self.misses = 0;
+    }
+
+    /// Adds a verdict; returns the misses among the last `len` once `len` are there.
+    fn push(&mut self, missed: bool) -> Option<u64> {
+        if self.len == 0 {
+            return None;
+        }
+        let i = self.filled % self.len;
+        let (word, bit) = ((i / 64) as usize, 1u64 << (i % 64));
+        if self.filled >= self.len && self.bits[word] & bit != 0 {
+            self.misses -= 1;
+        }
+        if missed {
+            self.bits[word] |= bit;
+            self.misses += 1;
+        } else {
+            self.bits[word] &= !bit;
+        }
+        self.filled += 1;
+        (self.filled >= self.len).then_some(self.misses)
+    }
 }
 
 /// The policy of the module docs; plain data, O(1) per call.
@@ -86,11 +147,14 @@ pub struct DeadlineCounts {
 pub struct DeadlineMonitor {
     grace_cycles: u64,
     max_consecutive_misses: u64,
-    recover_after: Option<u64>,
+    recover_tolerance: u64,
     source: MissSource,
     in_safe_state: bool,
     consecutive: u64,
-    good_in_safe_state: u64,
+    window: Option<RecoveryWindow>,
+    /// On-time answers in a row in the safe state, and the longest such run since entry.
+    clean_run: u64,
+    longest_clean_run: u64,
     plant_reported: bool,
     counts: DeadlineCounts,
 }
@@ -101,11 +165,13 @@ impl DeadlineMonitor {
         Self {
             grace_cycles: policy.grace_cycles,
             max_consecutive_misses: policy.max_consecutive_misses,
-            recover_after: policy.recover_after,
+            recover_tolerance: policy.recover_tolerance,
             source: policy.miss_source,
             in_safe_state: false,
             consecutive: 0,
-            good_in_safe_state: 0,
+            window: policy.recover_after.map(RecoveryWindow::new),
+            clean_run: 0,
+            longest_clean_run: 0,
             plant_reported: false,
             counts: DeadlineCounts::default(),
         }
@@ -135,7 +201,7 @@ impl DeadlineMonitor {
 
     /// Judges the answer to the sample last given to [`DeadlineMonitor::on_sample`].
     pub fn on_answer(&mut self, a: Answer) -> Verdict {
-        let late = a.deadline_ns > 0 && a.response_ns > a.deadline_ns;
+        let late = a.timestamp_ok && a.deadline_ns > 0 && a.response_ns > a.deadline_ns;
         if late {
             self.counts.late += 1;
         }
@@ -145,33 +211,44 @@ impl DeadlineMonitor {
                 MissSource::ResponseTime => late,
             };
         let mut change = SafeStateChange::Unchanged;
-        if missed {
+        if a.open_loop || self.in_grace(a.cycle) {
+            self.consecutive = 0;
+            if missed {
+                self.counts.protected_misses += 1;
+            }
+        } else if missed {
             self.consecutive += 1;
             self.counts.max_consecutive = self.counts.max_consecutive.max(self.consecutive);
-            self.good_in_safe_state = 0;
-            if !self.in_grace(a.cycle)
-                && !self.in_safe_state
-                && self.consecutive >= self.max_consecutive_misses
-            {
+            if !self.in_safe_state && self.consecutive >= self.max_consecutive_misses {
                 self.in_safe_state = true;
                 self.counts.safe_state_entries += 1;
+                self.clean_run = 0;
+                self.longest_clean_run = 0;
+                if let Some(w) = self.window.as_mut() {
+                    w.clear();
+                }
                 change = SafeStateChange::Entered {
                     misses: self.consecutive,
+                };
+                return Verdict {
+                    late,
+                    missed,
+                    change,
                 };
             }
         } else {
             self.consecutive = 0;
-            if self.in_safe_state {
-                self.good_in_safe_state += 1;
-                if self
-                    .recover_after
-                    .is_some_and(|n| self.good_in_safe_state >= n)
-                {
-                    self.in_safe_state = false;
-                    self.good_in_safe_state = 0;
-                    change = SafeStateChange::Left;
-                }
-            }
+        }
+        if self.in_safe_state {
+            self.clean_run = if missed { 0 } else { self.clean_run + 1 };
+            self.longest_clean_run = self.longest_clean_run.max(self.clean_run);
+        }
+        if self.in_safe_state
+            && let Some(w) = self.window.as_mut()
+            && w.push(missed).is_some_and(|m| m <= self.recover_tolerance)
+        {
+            self.in_safe_state = false;
+            change = SafeStateChange::Left;
         }
         Verdict {
             late,
@@ -183,6 +260,23 @@ impl DeadlineMonitor {
     /// A new connection began: the run of consecutive misses starts again.
     pub fn new_connection(&mut self) {
         self.consecutive = 0;
+    }
+
+    /// A new plant session began: everything but the counters starts afresh. Returns true
+    /// when this left the safe state.
+    pub fn new_session(&mut self) -> bool {
+        let was = self.in_safe_state;
+        self.in_safe_state = false;
+        self.consecutive = 0;
+        if let Some(w) = self.window.as_mut() {
+            w.clear();
+        }
+        was
+    }
+
+    /// The longest run of on-time answers since the safe state was last entered.
+    pub fn longest_clean_run(&self) -> u64 {
+        self.longest_clean_run
     }
 
     /// The current run of consecutive misses.
@@ -202,11 +296,23 @@ mod tests {
 
     const D: u64 = 500_000;
 
-    /// The fixture's policy (`tests/loop-core.toml`) with the fields under test replaced.
+    /// The fixture's policy (`tests/loop-core.toml`) with the fields under test replaced;
+    /// no misses tolerated in the recovery window.
     fn policy(
         grace: u64,
         n: u64,
         recover_after: Option<u64>,
+        source: MissSource,
+    ) -> DeadlinePolicy {
+        tolerant(grace, n, recover_after, 0, source)
+    }
+
+    /// [`policy`] with `tolerance` misses allowed in the recovery window.
+    fn tolerant(
+        grace: u64,
+        n: u64,
+        recover_after: Option<u64>,
+        tolerance: u64,
         source: MissSource,
     ) -> DeadlinePolicy {
         let cfg = crate::config::ServiceConfig::parse(
@@ -218,28 +324,38 @@ mod tests {
             grace_cycles: grace,
             max_consecutive_misses: n,
             recover_after,
+            recover_tolerance: tolerance,
             miss_source: source,
             ..cfg.policy
         }
     }
 
     /// One answered cycle: `P` the plant reported a miss, `L` the answer was late, `U` it
-    /// could not be published, `.` on time; `|` a new connection (not a cycle).
+    /// could not be published, `.` on time, `o`/`O` on time/plant-reported miss in the
+    /// open-loop phase; `|` a new connection and `#` a new plant session (not cycles).
     fn run(p: &DeadlinePolicy, script: &str) -> (Vec<SafeStateChange>, DeadlineMonitor) {
         let mut m = DeadlineMonitor::new(p);
         let mut cycle = 0;
         let mut changes = Vec::new();
         for c in script.chars() {
-            if c == '|' {
-                m.new_connection();
+            match c {
+                '|' => m.new_connection(),
+                '#' => {
+                    m.new_session();
+                }
+                _ => {}
+            }
+            if c == '|' || c == '#' {
                 cycle = 0;
                 continue;
             }
             cycle += 1;
-            m.on_sample(c == 'P', cycle);
+            m.on_sample(c == 'P' || c == 'O', cycle);
             let v = m.on_answer(Answer {
                 cycle,
+                open_loop: c == 'o' || c == 'O',
                 published: c != 'U',
+                timestamp_ok: true,
                 response_ns: if c == 'L' { D + 1 } else { D },
                 deadline_ns: D,
             });
@@ -286,8 +402,10 @@ mod tests {
                 policy(0, 3, None, Plant), "PP.PP.PPP", &[(9, '+')]),
             ("misses in the grace period cannot enter",
                 policy(4, 2, None, Plant), "PPPP....", &[]),
-            ("but extend the streak that the first miss after grace completes",
-                policy(4, 2, None, Plant), "PPPPP", &[(5, '+')]),
+            ("nor extend the streak: N misses after the grace period are needed",
+                policy(4, 2, None, Plant), "PPPPPP", &[(6, '+')]),
+            ("misses in the open-loop phase neither enter nor extend the streak",
+                policy(0, 2, None, Plant), "OOOOOP.PP", &[(9, '+')]),
             ("the flag on the first sample of a connection is ignored",
                 policy(0, 2, None, Plant), "P.|PPP", &[(5, '+')]),
             ("a new connection resets the streak",
@@ -298,12 +416,22 @@ mod tests {
                 policy(0, 2, Some(3), Plant), ".PP...", &[(3, '+'), (6, '-')]),
             ("a miss in the safe state restarts the good count",
                 policy(0, 2, Some(3), Plant), ".PP..P...", &[(3, '+'), (9, '-')]),
-            ("recover-after = 0 leaves at the first good answer",
-                policy(0, 2, Some(0), Plant), ".PPP.", &[(3, '+'), (5, '-')]),
+            ("an empty recovery window keeps the safe state",
+                policy(0, 2, Some(0), Plant), ".PPP.....", &[(3, '+')]),
+            ("a recovery window may hold up to K misses",
+                tolerant(0, 2, Some(4), 1, Plant), ".PP.P..", &[(3, '+'), (7, '-')]),
+            ("with K = 0 the window must be clean",
+                tolerant(0, 2, Some(4), 0, Plant), ".PP.P....", &[(3, '+'), (9, '-')]),
+            ("more than K misses in the window keep the safe state",
+                tolerant(0, 2, Some(4), 1, Plant), ".PP.P.P.P.P", &[(3, '+')]),
             ("the safe state can be entered again",
                 policy(0, 2, Some(1), Plant), ".PP.PP", &[(3, '+'), (4, '-'), (6, '+')]),
             ("the safe state survives a new connection",
                 policy(0, 2, Some(2), Plant), ".PP|..", &[(3, '+'), (5, '-')]),
+            ("a latched safe state survives a new connection",
+                policy(0, 2, None, Plant), ".PP|.....", &[(3, '+')]),
+            ("a new plant session starts out of the safe state, grace and streak afresh",
+                policy(0, 2, None, Plant), ".PP#..PP", &[(3, '+'), (7, '+')]),
             ("plant source ignores late answers",
                 policy(0, 2, None, Plant), ".LLLL", &[]),
             ("response-time source counts late answers",
@@ -330,6 +458,7 @@ mod tests {
             DeadlineCounts {
                 late: 3,
                 plant_reported: 3,
+                protected_misses: 0,
                 max_consecutive: 1,
                 safe_state_entries: 0,
             }
@@ -338,12 +467,37 @@ mod tests {
 
     #[test]
     fn the_entry_reports_the_streak_length_and_the_longest_streak_is_kept() {
-        let (changes, m) = run(&policy(3, 2, None, MissSource::Plant), ".PPPPP...");
-        assert_eq!(changes[3], SafeStateChange::Entered { misses: 3 });
+        let (changes, m) = run(&policy(3, 2, None, MissSource::Plant), ".PPPPPP...");
+        assert_eq!(changes[4], SafeStateChange::Entered { misses: 2 });
         assert!(m.in_safe_state());
         assert_eq!(m.consecutive_misses(), 0);
-        assert_eq!(m.counts().max_consecutive, 5);
+        assert_eq!(m.counts().max_consecutive, 4);
+        assert_eq!(m.counts().protected_misses, 2);
         assert_eq!(m.counts().safe_state_entries, 1);
+    }
+
+    #[test]
+    fn a_new_session_reports_whether_it_left_the_safe_state() {
+        let (_, mut m) = run(&policy(0, 1, None, MissSource::Plant), ".P");
+        assert!(m.in_safe_state());
+        assert!(m.new_session());
+        assert!(!m.in_safe_state());
+        assert!(!m.new_session());
+    }
+
+    #[test]
+    fn an_impossible_sample_time_is_never_late() {
+        let mut m = DeadlineMonitor::new(&policy(0, 1, None, MissSource::ResponseTime));
+        m.on_sample(false, 2);
+        let v = m.on_answer(Answer {
+            cycle: 2,
+            open_loop: false,
+            published: true,
+            timestamp_ok: false,
+            response_ns: u64::MAX,
+            deadline_ns: 1,
+        });
+        assert_eq!((v.late, v.missed, m.counts().late), (false, false, 0));
     }
 
     #[test]
@@ -352,7 +506,9 @@ mod tests {
         m.on_sample(false, 1);
         let v = m.on_answer(Answer {
             cycle: 1,
+            open_loop: false,
             published: true,
+            timestamp_ok: true,
             response_ns: u64::MAX,
             deadline_ns: 0,
         });

@@ -15,11 +15,13 @@
 //! [`TimingFaultReset::KeepLearned`] the controller keeps its parameters, covariance and
 //! regressor across them (it observed the plant during the safe state, and after a stall
 //! it is told how many samples were lost). [`TimingFaultReset::ResetController`] resets
-//! it on leaving the safe state and, with `service.reset-on-resume`, on a resumed stall. A genuinely new plant session (the
-//! sequence number did not advance: a restarted plant) is not a timing fault: it resets
-//! the controller exactly when `service.reset-on-resume` is true (the default), whatever
-//! `on_timing_fault` says. Controller faults (the `CONTROLLER_FAULT` status bit) are
-//! counted and reset nothing here.
+//! it on leaving the safe state and, with `service.reset-on-resume`, on a resumed stall.
+//! A new plant session (another publisher, a sequence restarted after silence, a
+//! consistent new numbering: a restarted or replaced plant) is not a timing fault: it
+//! resets the controller exactly when `service.reset-on-resume` is true (the default),
+//! whatever `on_timing_fault` says. A refused sample (a duplicate, a backward number, an
+//! unexplained jump) never reaches the controller and resets nothing; nor does a
+//! controller fault (the `CONTROLLER_FAULT` status bit), which is counted.
 
 use serde::{Deserialize, Serialize};
 

@@ -1,42 +1,91 @@
 //! The session tracker: what a sequence number says about the plant on the other side.
 //!
-//! The plant is the clock master and numbers its samples `k = 0, 1, 2, …`. From the
-//! sequence numbers and the receive times alone (no wall-clock guesses, no clock read here:
-//! times come in as arguments), the tracker classifies every received sample `k` against
-//! the last one received, `k_last`:
+//! The plant is the clock master and numbers its samples `k = 0, 1, 2, …`, stamping each
+//! with its sample time `t_k` (CLOCK_MONOTONIC, ns). From the sequence numbers, the sample
+//! times, the receive times and the peer's identity alone (no clock is read here: times
+//! come in as arguments), the tracker classifies every received sample `k` against the last
+//! accepted one, `k_last` at `t_last`. With `g = k − k_last − 1` the samples skipped and
+//! `ĝ = 2 ⌊(t_k − t_last) / T⌋ + 8` the most the elapsed plant time can explain (`ĝ = 8` when
+//! `t_k ≤ t_last`):
 //!
-//! | condition                         | [`Arrival`]               | samples lost          |
-//! | --------------------------------- | ------------------------- | --------------------- |
-//! | no sample before                  | `First`                   | 0                     |
-//! | not silent, `k > k_last`          | `Next`                    | `k − k_last − 1`      |
-//! | silent, `k > k_last`              | `Resumed` (a stall)       | `k − k_last − 1`      |
-//! | `k ≤ k_last`, silent or not       | `NewSession`              | 0                     |
+//! | condition (first that holds)                      | [`Arrival`]                              | lost |
+//! | ------------------------------------------------- | ---------------------------------------- | ---- |
+//! | no sample accepted before                         | `First`                                  | 0    |
+//! | the peer's identity changed (a new publisher)     | `NewSession { cause: NewPeer }`          | 0    |
+//! | silent, and `k ≤ k_last` or `g > ĝ`               | `NewSession { cause: RestartAfterSilence }` | 0 |
+//! | silent, `k > k_last`, `g ≤ ĝ`                     | `Resumed` (a stall)                      | `g`  |
+//! | not silent, `k > k_last`, `g ≤ ĝ`                 | `Next`                                   | `g`  |
+//! | not silent, `k = k_last`                          | `Refused(Duplicate)`                     | —    |
+//! | not silent, `k < k_last`                          | `Refused(Backward)`                      | —    |
+//! | not silent, `g > ĝ`                               | `Refused(ImplausibleJump)`               | —    |
 //!
-//! **Silence.** The plant is declared silent when, while idle at time `t`, the last
-//! answered sample was received at `t_last` with `t − t_last > silent_periods · T`
-//! ([`SessionTracker::idle`]); it stays silent until the next sample arrives.
+//! **Refused samples** are counted and never reach the controller; `k_last` stays. A
+//! duplicate, a backward number or a jump that the plant's own clock cannot explain, from
+//! the same peer while it is talking, is a fault of the stream, not a new plant.
 //!
-//! **Stall or new plant.** A sequence that continues after silence (`k > k_last`) is the
-//! same plant whose samples stopped for a while (the plant process or the path to it
-//! stalled): a timing fault, not a new plant. Its session goes on: the samples between
+//! **Resynchronisation.** A plant that really restarted its numbering without going silent
+//! would otherwise be refused for ever. When `R = resync_after` refused samples in a row
+//! form a run `k, k + 1, …, k + R − 1`, the last of them begins a new session
+//! (`NewSession { cause: Resynchronized }`). A single stray number never does.
+//!
+//! **Silence.** The plant is declared silent when, while idle at time `t` with no sample
+//! waiting, the last answered sample was received at `t_recv,last` with
+//! `t − t_recv,last > silent_periods · T` ([`SessionTracker::idle`]); it stays silent until
+//! the next sample arrives. The caller must look for waiting samples *after* reading `t`,
+//! so that a service that was itself stopped never takes its own stall for a silent plant.
+//!
+//! **Stall or new plant.** A sequence that continues after silence is the same plant whose
+//! samples stopped for a while: a timing fault. Its session goes on: the samples between
 //! are counted as lost and handed to the controller as a gap, the session's cycle count
-//! (open-loop phase, tone windows) continues. A sequence number that does not advance
-//! (`k ≤ k_last`: a plant restarted from 0, with or without silence before) is a genuinely
-//! new plant session: the session's cycle count starts again at 1. A duplicate (`k =
-//! k_last`) falls in that case too.
+//! (open-loop phase, tone windows) continues. A new session (a new peer, a restart after
+//! silence, a resynchronisation) starts the session's cycle count again at 1.
 //!
-//! **Connection.** Both a resume and a new session start a new *connection*: its cycle
-//! count starts again at 1, and the receive-time history used for the period jitter and
-//! the silence timeout is forgotten. The deadline policy's grace period is counted in
+//! **Connection.** A resume and a new session start a new *connection*: its cycle count
+//! starts again at 1, and the receive-time history used for the period jitter and the
+//! silence timeout is forgotten. The deadline policy's grace period is counted in
 //! connection cycles.
 //!
 //! Whether the controller keeps what it learned is not decided here (see
 //! [`super::reset`]). Every method is O(1) and plain arithmetic.
 
+/// Why a sample was refused (see the table in the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SequenceFault {
+    /// `k = k_last`.
+    Duplicate,
+    /// `k < k_last`.
+    Backward,
+    /// `k > k_last`, by more than the elapsed plant time explains.
+    ImplausibleJump,
+}
+
+/// Why a new plant session began.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NewSessionCause {
+    /// Another publisher (a restarted or replaced plant process) sends the samples.
+    NewPeer,
+    /// After silence the sequence did not continue: the plant restarted.
+    RestartAfterSilence,
+    /// The same peer's refused numbers formed a consistent run of `resync_after` samples.
+    Resynchronized,
+}
+
+impl NewSessionCause {
+    /// Kebab-case name, for events and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            NewSessionCause::NewPeer => "new-peer",
+            NewSessionCause::RestartAfterSilence => "restart-after-silence",
+            NewSessionCause::Resynchronized => "resynchronized",
+        }
+    }
+}
+
 /// What a received sample means for the session (see the table in the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Arrival {
-    /// The first sample the service has received.
+    /// The first sample the service has accepted.
     First,
     /// The next sample of the running session, `lost` samples after the previous one.
     Next {
@@ -49,13 +98,15 @@ pub enum Arrival {
         /// Samples never received between the last one before the silence and this one.
         lost: u64,
     },
-    /// A sequence number that did not advance: a new plant session begins.
+    /// A new plant session begins with this sample.
     NewSession {
-        /// The last sequence number of the previous session.
+        /// The last accepted sequence number of the previous session.
         from: u64,
-        /// The plant had been declared silent before.
-        after_silence: bool,
+        /// Why.
+        cause: NewSessionCause,
     },
+    /// The sample is refused: it must not reach the controller.
+    Refused(SequenceFault),
 }
 
 impl Arrival {
@@ -64,8 +115,13 @@ impl Arrival {
     pub fn lost(&self) -> u64 {
         match *self {
             Arrival::Next { lost } | Arrival::Resumed { lost } => lost,
-            Arrival::First | Arrival::NewSession { .. } => 0,
+            Arrival::First | Arrival::NewSession { .. } | Arrival::Refused(_) => 0,
         }
+    }
+
+    /// True unless the sample was refused.
+    pub fn accepted(&self) -> bool {
+        !matches!(self, Arrival::Refused(_))
     }
 }
 
@@ -76,7 +132,7 @@ pub enum Idle {
     Active,
     /// The plant has just been declared silent.
     WentSilent {
-        /// The last sequence number received.
+        /// The last sequence number accepted.
         last_seq: u64,
     },
     /// The plant was already silent.
@@ -86,7 +142,7 @@ pub enum Idle {
 /// Session counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SessionCounts {
-    /// Samples received (answered or not).
+    /// Samples received (accepted or refused, answered or not).
     pub received: u64,
     /// Samples never received: the gaps in the sequence within a session.
     pub lost: u64,
@@ -94,68 +150,141 @@ pub struct SessionCounts {
     pub silences: u64,
     /// Times a sample arrived after silence (a stall resumed or a new session after it).
     pub resumes: u64,
+    /// New plant sessions after the first.
+    pub new_sessions: u64,
+    /// Samples refused as duplicates.
+    pub duplicates: u64,
+    /// Samples refused for a backward sequence number.
+    pub backward: u64,
+    /// Samples refused for a forward jump the plant's clock cannot explain.
+    pub implausible_jumps: u64,
 }
 
 /// Tracks sequence numbers, silence and the cycle counts of the session and connection.
 #[derive(Debug, Clone)]
 pub struct SessionTracker {
     silent_ns: u64,
+    period_ns: u64,
+    resync_after: u64,
     last_seq: Option<u64>,
+    last_t_sample_ns: u64,
     last_answer_ns: Option<u64>,
     silent: bool,
+    /// The next number of the current run of refused samples and its length.
+    refused_run: Option<(u64, u64)>,
     session_cycles: u64,
     connection_cycles: u64,
     counts: SessionCounts,
 }
 
+/// Skipped samples allowed beyond twice the elapsed periods (`ĝ` of the module docs).
+const JUMP_SLACK: u64 = 8;
+
 impl SessionTracker {
     /// A tracker that declares the plant silent after `silent_periods` periods of
-    /// `period_ns` without a sample.
-    pub fn new(silent_periods: u64, period_ns: u64) -> Self {
+    /// `period_ns` without a sample, and resynchronises after `resync_after` (at least 1)
+    /// consistently numbered refused samples.
+    pub fn new(silent_periods: u64, period_ns: u64, resync_after: u64) -> Self {
         Self {
             silent_ns: silent_periods.saturating_mul(period_ns),
+            period_ns: period_ns.max(1),
+            resync_after: resync_after.max(1),
             last_seq: None,
+            last_t_sample_ns: 0,
             last_answer_ns: None,
             silent: false,
+            refused_run: None,
             session_cycles: 0,
             connection_cycles: 0,
             counts: SessionCounts::default(),
         }
     }
 
-    /// Takes in received sample `seq` (answered or only observed) and classifies it.
-    pub fn arrive(&mut self, seq: u64) -> Arrival {
+    /// `ĝ` of the module docs for a sample stamped `t_sample_ns`.
+    fn plausible_gap(&self, t_sample_ns: u64) -> u64 {
+        let elapsed = t_sample_ns.saturating_sub(self.last_t_sample_ns) / self.period_ns;
+        elapsed.saturating_mul(2).saturating_add(JUMP_SLACK)
+    }
+
+    /// Takes in received sample `seq` stamped `t_sample_ns` (answered or only observed);
+    /// `new_peer` is true when it is the first sample of another publisher than the
+    /// previous sample's. Classifies it (module docs).
+    pub fn arrive(&mut self, seq: u64, t_sample_ns: u64, new_peer: bool) -> Arrival {
         self.counts.received += 1;
         let arrival = match self.last_seq {
             None => Arrival::First,
-            Some(last) if seq <= last => Arrival::NewSession {
-                from: last,
-                after_silence: self.silent,
+            Some(from) if new_peer => Arrival::NewSession {
+                from,
+                cause: NewSessionCause::NewPeer,
             },
-            Some(last) if self.silent => Arrival::Resumed {
-                lost: seq - last - 1,
-            },
-            Some(last) => Arrival::Next {
-                lost: seq - last - 1,
-            },
+            Some(last) => {
+                let forward = seq > last && seq - last - 1 <= self.plausible_gap(t_sample_ns);
+                match (forward, self.silent) {
+                    (true, true) => Arrival::Resumed {
+                        lost: seq - last - 1,
+                    },
+                    (true, false) => Arrival::Next {
+                        lost: seq - last - 1,
+                    },
+                    (false, true) => Arrival::NewSession {
+                        from: last,
+                        cause: NewSessionCause::RestartAfterSilence,
+                    },
+                    (false, false) => self.refuse_or_resync(seq, last),
+                }
+            }
         };
+        if let Arrival::Refused(fault) = arrival {
+            match fault {
+                SequenceFault::Duplicate => self.counts.duplicates += 1,
+                SequenceFault::Backward => self.counts.backward += 1,
+                SequenceFault::ImplausibleJump => self.counts.implausible_jumps += 1,
+            }
+            return arrival;
+        }
+        self.refused_run = None;
         if self.silent {
             self.silent = false;
             self.counts.resumes += 1;
         }
         self.counts.lost += arrival.lost();
         match arrival {
-            Arrival::First | Arrival::Next { .. } => {}
+            Arrival::First | Arrival::Next { .. } | Arrival::Refused(_) => {}
             Arrival::Resumed { .. } => self.new_connection(),
             Arrival::NewSession { .. } => {
+                self.counts.new_sessions += 1;
                 self.new_connection();
                 self.session_cycles = 0;
             }
         }
         self.last_seq = Some(seq);
+        self.last_t_sample_ns = t_sample_ns;
         self.session_cycles += 1;
         self.connection_cycles += 1;
         arrival
+    }
+
+    /// A sample of the talking peer that does not follow `last`: refused, unless it
+    /// completes a consistent run of `resync_after` refused samples.
+    fn refuse_or_resync(&mut self, seq: u64, last: u64) -> Arrival {
+        let run = match self.refused_run {
+            Some((next, len)) if next == seq => len + 1,
+            _ => 1,
+        };
+        if run >= self.resync_after {
+            return Arrival::NewSession {
+                from: last,
+                cause: NewSessionCause::Resynchronized,
+            };
+        }
+        self.refused_run = Some((seq.wrapping_add(1), run));
+        Arrival::Refused(if seq == last {
+            SequenceFault::Duplicate
+        } else if seq < last {
+            SequenceFault::Backward
+        } else {
+            SequenceFault::ImplausibleJump
+        })
     }
 
     fn new_connection(&mut self) {
@@ -173,8 +302,9 @@ impl SessionTracker {
         since
     }
 
-    /// Called while no sample is pending at time `now_ns`: declares the plant silent when
-    /// the last answered sample is more than `silent_periods` periods old.
+    /// Called at time `now_ns` after finding no sample waiting (looked for after reading
+    /// `now_ns`): declares the plant silent when the last answered sample is more than
+    /// `silent_periods` periods old.
     pub fn idle(&mut self, now_ns: u64) -> Idle {
         if self.silent {
             return Idle::Silent;
@@ -205,6 +335,11 @@ impl SessionTracker {
         self.silent
     }
 
+    /// The sample time of the last accepted sample, ns (0 before any).
+    pub fn last_sample_time_ns(&self) -> u64 {
+        self.last_t_sample_ns
+    }
+
     /// The counters.
     pub fn counts(&self) -> SessionCounts {
         self.counts
@@ -217,11 +352,12 @@ mod tests {
 
     const T: u64 = 1_000_000;
 
-    /// One step of a scripted plant: a sample arrives (and is answered at `t`), or the
-    /// service is idle at `t`.
+    /// One step of a scripted plant: a sample `seq` stamped `t` arrives (from another
+    /// publisher for `FromNewPeer`) and is answered at `t`, or the service is idle at `t`.
     #[derive(Clone, Copy)]
     enum Step {
         Sample { seq: u64, t: u64 },
+        FromNewPeer { seq: u64, t: u64 },
         Idle { t: u64 },
     }
 
@@ -233,23 +369,40 @@ mod tests {
         Idle(Idle),
     }
 
-    fn run(silent_periods: u64, steps: &[Step]) -> (Vec<Said>, SessionTracker) {
-        let mut s = SessionTracker::new(silent_periods, T);
+    fn run_with(
+        silent_periods: u64,
+        resync_after: u64,
+        steps: &[Step],
+    ) -> (Vec<Said>, SessionTracker) {
+        let mut s = SessionTracker::new(silent_periods, T, resync_after);
         let said = steps
             .iter()
-            .map(|step| match *step {
-                Step::Sample { seq, t } => {
-                    let a = s.arrive(seq);
+            .map(|step| {
+                let (seq, t, new_peer) = match *step {
+                    Step::Sample { seq, t } => (seq, t, false),
+                    Step::FromNewPeer { seq, t } => (seq, t, true),
+                    Step::Idle { t } => return Said::Idle(s.idle(t)),
+                };
+                let a = s.arrive(seq, t, new_peer);
+                if a.accepted() {
                     s.answered(t);
-                    Said::Arrived(a, s.session_cycle(), s.connection_cycle())
                 }
-                Step::Idle { t } => Said::Idle(s.idle(t)),
+                Said::Arrived(a, s.session_cycle(), s.connection_cycle())
             })
             .collect();
         (said, s)
     }
 
-    use Step::{Idle as Wait, Sample};
+    fn run(silent_periods: u64, steps: &[Step]) -> (Vec<Said>, SessionTracker) {
+        run_with(silent_periods, 1000, steps)
+    }
+
+    /// Samples `from..to`, each answered at its own sample time.
+    fn samples(from: u64, to: u64) -> impl Iterator<Item = Step> {
+        (from..to).map(|seq| Sample { seq, t: seq * T })
+    }
+
+    use Step::{FromNewPeer, Idle as Wait, Sample};
 
     #[test]
     fn consecutive_samples_continue_the_session_and_gaps_count_as_lost() {
@@ -276,10 +429,26 @@ mod tests {
             SessionCounts {
                 received: 4,
                 lost: 2,
-                silences: 0,
-                resumes: 0
+                ..SessionCounts::default()
             }
         );
+    }
+
+    #[test]
+    fn a_gap_the_plant_clock_explains_is_lost_samples_not_a_fault() {
+        // The service was stopped for 6400 periods while the plant went on.
+        let (said, s) = run(
+            20,
+            &[
+                Sample { seq: 10, t: 10 * T },
+                Sample {
+                    seq: 6411,
+                    t: 6411 * T,
+                },
+            ],
+        );
+        assert_eq!(said[1], Said::Arrived(Arrival::Next { lost: 6400 }, 2, 2));
+        assert_eq!(s.counts().lost, 6400);
     }
 
     #[test]
@@ -310,17 +479,10 @@ mod tests {
 
     #[test]
     fn a_sequence_continuing_after_silence_is_a_stall_of_the_same_session() {
-        let (said, s) = run(
-            2,
-            &[
-                Sample { seq: 0, t: 0 },
-                Sample { seq: 1, t: T },
-                Sample { seq: 2, t: 2 * T },
-                Wait { t: 10 * T },
-                Sample { seq: 12, t: 12 * T },
-                Sample { seq: 13, t: 13 * T },
-            ],
-        );
+        let mut steps: Vec<Step> = samples(0, 3).collect();
+        steps.push(Wait { t: 10 * T });
+        steps.extend(samples(12, 14));
+        let (said, s) = run(2, &steps);
         assert_eq!(
             said[3..],
             [
@@ -331,6 +493,7 @@ mod tests {
         );
         assert!(!s.is_silent());
         assert_eq!((s.counts().resumes, s.counts().lost), (1, 9));
+        assert_eq!(s.counts().new_sessions, 0);
     }
 
     #[test]
@@ -352,7 +515,7 @@ mod tests {
                 Said::Arrived(
                     Arrival::NewSession {
                         from: 41,
-                        after_silence: true
+                        cause: NewSessionCause::RestartAfterSilence
                     },
                     1,
                     1
@@ -360,56 +523,133 @@ mod tests {
                 Said::Arrived(Arrival::Next { lost: 0 }, 2, 2),
             ]
         );
-        assert_eq!((s.counts().resumes, s.counts().lost), (1, 0));
+        assert_eq!(
+            (s.counts().resumes, s.counts().new_sessions, s.counts().lost),
+            (1, 1, 0)
+        );
     }
 
     #[test]
-    fn duplicate_backward_and_restarted_sequence_numbers_start_a_new_session_without_silence() {
-        let cases: [(&str, u64, u64); 3] = [
-            ("duplicate", 5, 5),
-            ("backward jump", 5, 3),
-            ("restart from 0", 5, 0),
+    fn duplicate_backward_and_unexplained_numbers_of_a_talking_peer_are_refused_and_counted() {
+        let cases: [(&str, u64, SequenceFault); 4] = [
+            ("duplicate", 5, SequenceFault::Duplicate),
+            ("backward jump", 3, SequenceFault::Backward),
+            ("restart from 0", 0, SequenceFault::Backward),
+            ("jump far ahead", 1 << 40, SequenceFault::ImplausibleJump),
         ];
-        for (what, last, next) in cases {
+        for (what, stray, fault) in cases {
             let (said, s) = run(
                 100,
                 &[
+                    Sample { seq: 4, t: 4 * T },
+                    Sample { seq: 5, t: 5 * T },
                     Sample {
-                        seq: last - 1,
-                        t: 0,
+                        seq: stray,
+                        t: 6 * T,
                     },
-                    Sample { seq: last, t: T },
-                    Sample {
-                        seq: next,
-                        t: 2 * T,
-                    },
+                    Sample { seq: 6, t: 6 * T },
                 ],
             );
             assert_eq!(
                 said[2],
-                Said::Arrived(
-                    Arrival::NewSession {
-                        from: last,
-                        after_silence: false
-                    },
-                    1,
-                    1
-                ),
+                Said::Arrived(Arrival::Refused(fault), 2, 2),
                 "{what}"
             );
-            assert_eq!(s.counts().resumes, 0, "{what}");
+            // The stream goes on from the last accepted number, nothing lost or reset.
+            assert_eq!(
+                said[3],
+                Said::Arrived(Arrival::Next { lost: 0 }, 3, 3),
+                "{what}"
+            );
+            let c = s.counts();
+            assert_eq!(
+                (
+                    c.duplicates + c.backward + c.implausible_jumps,
+                    c.new_sessions,
+                    c.lost
+                ),
+                (1, 0, 0),
+                "{what}"
+            );
         }
     }
 
     #[test]
+    fn a_restarted_numbering_without_silence_is_taken_after_a_consistent_run() {
+        let mut steps: Vec<Step> = samples(100, 103).collect();
+        steps.extend(samples(0, 4));
+        let (said, s) = run_with(100, 3, &steps);
+        assert_eq!(
+            said[3],
+            Said::Arrived(Arrival::Refused(SequenceFault::Backward), 3, 3)
+        );
+        assert_eq!(
+            said[4],
+            Said::Arrived(Arrival::Refused(SequenceFault::Backward), 3, 3)
+        );
+        assert_eq!(
+            said[5],
+            Said::Arrived(
+                Arrival::NewSession {
+                    from: 102,
+                    cause: NewSessionCause::Resynchronized
+                },
+                1,
+                1
+            )
+        );
+        assert_eq!(said[6], Said::Arrived(Arrival::Next { lost: 0 }, 2, 2));
+        assert_eq!((s.counts().backward, s.counts().new_sessions), (2, 1));
+    }
+
+    #[test]
+    fn stray_numbers_between_good_samples_never_resynchronise() {
+        let mut steps = Vec::new();
+        for k in 10..40 {
+            steps.push(Sample { seq: k, t: k * T });
+            steps.push(Sample { seq: 0, t: k * T });
+        }
+        let (said, s) = run_with(100, 2, &steps);
+        assert!(
+            said.iter()
+                .all(|x| !matches!(x, Said::Arrived(Arrival::NewSession { .. }, ..)))
+        );
+        assert_eq!((s.counts().backward, s.counts().new_sessions), (30, 0));
+    }
+
+    #[test]
+    fn a_new_publisher_begins_a_new_session_even_when_its_numbers_continue() {
+        let (said, s) = run(
+            100,
+            &[
+                Sample { seq: 0, t: 0 },
+                Sample { seq: 1, t: T },
+                FromNewPeer { seq: 2, t: 2 * T },
+            ],
+        );
+        assert_eq!(
+            said[2],
+            Said::Arrived(
+                Arrival::NewSession {
+                    from: 1,
+                    cause: NewSessionCause::NewPeer
+                },
+                1,
+                1
+            )
+        );
+        assert_eq!(s.counts().new_sessions, 1);
+    }
+
+    #[test]
     fn a_new_connection_forgets_the_receive_time_of_the_previous_one() {
-        let mut s = SessionTracker::new(2, T);
-        s.arrive(0);
+        let mut s = SessionTracker::new(2, T, 10);
+        s.arrive(0, 0, false);
         assert_eq!(s.answered(0), None);
-        s.arrive(1);
+        s.arrive(1, T, false);
         assert_eq!(s.answered(T + 5), Some(T + 5));
         assert_eq!(s.idle(10 * T), Idle::WentSilent { last_seq: 1 });
-        s.arrive(2);
+        s.arrive(2, 2 * T, false);
         // Neither a jitter across the silence nor a second silence before an answer.
         assert_eq!(s.idle(100 * T), Idle::Active);
         assert_eq!(s.answered(100 * T), None);
@@ -417,19 +657,12 @@ mod tests {
 
     #[test]
     fn the_largest_sequence_number_does_not_overflow_the_gap() {
-        let (said, _) = run(
-            10,
-            &[
-                Sample {
-                    seq: u64::MAX - 1,
-                    t: 0,
-                },
-                Sample {
-                    seq: u64::MAX,
-                    t: T,
-                },
-            ],
+        let mut s = SessionTracker::new(10, T, 10);
+        assert_eq!(s.arrive(u64::MAX - 1, 5 * T, false), Arrival::First);
+        assert_eq!(s.arrive(u64::MAX, 6 * T, false), Arrival::Next { lost: 0 });
+        assert_eq!(
+            s.arrive(u64::MAX, 7 * T, false),
+            Arrival::Refused(SequenceFault::Duplicate)
         );
-        assert_eq!(said[1], Said::Arrived(Arrival::Next { lost: 0 }, 2, 2));
     }
 }

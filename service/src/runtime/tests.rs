@@ -51,12 +51,20 @@ struct Harness {
     events: rtrb::Consumer<LoopEvent>,
     seen: Arc<Seen>,
     counts: ChannelCounts,
+    /// Added to every sample time: sample `seq` is stamped `t0 + seq · T`.
+    t0: u64,
     _reporter: telemetry::TelemetryReporter,
 }
 
 impl Harness {
     fn new(on_timing_fault: TimingFaultReset) -> Self {
-        let cfg = fixture();
+        Self::with(on_timing_fault, |_| {})
+    }
+
+    /// A harness on the fixture changed by `edit`.
+    fn with(on_timing_fault: TimingFaultReset, edit: impl FnOnce(&mut ServiceConfig)) -> Self {
+        let mut cfg = fixture();
+        edit(&mut cfg);
         let seen = Arc::new(Seen::default());
         let probe = Probe {
             learned: 0.0,
@@ -71,22 +79,44 @@ impl Harness {
             events,
             seen,
             counts: cfg.counts,
+            t0: 1,
             _reporter: reporter,
         }
     }
 
-    /// Sample `seq` arrives at `seq · T` with `y = y0` and `flags`; returns the actuation.
-    fn answer_with(&mut self, seq: u64, y0: f64, flags: u32) -> Actuation {
+    /// The sample time of `seq`.
+    fn at(&self, seq: u64) -> u64 {
+        self.t0 + seq * T
+    }
+
+    /// Sample `seq`, received at its sample time, with `y = y0` and `flags`.
+    fn sample(&self, seq: u64, y0: f64, flags: u32) -> Measurement {
         let mut m = Measurement::zeroed(self.counts);
         m.seq = seq;
-        m.t_sample_ns = seq * T;
+        m.t_sample_ns = self.at(seq);
         m.y[0] = y0;
         m.flags = flags;
+        m
+    }
+
+    /// Processes `m` received at its sample time and, when the loop answers it, publishes
+    /// 1 µs later; returns the actuation, or `None` when the sample is not answered.
+    fn deliver(&mut self, m: &Measurement) -> Option<Actuation> {
         let mut act = Actuation::zeroed(self.counts);
-        self.core.process(&m, m.t_sample_ns, &mut act);
+        let d = self.core.process(m, m.t_sample_ns, &mut act);
+        if !d.answer {
+            return None;
+        }
         self.core
-            .finish_cycle(&m, &act, m.t_sample_ns, m.t_sample_ns + 1000, true);
-        act
+            .finish_cycle(m, &act, m.t_sample_ns, m.t_sample_ns + 1000, true);
+        Some(act)
+    }
+
+    /// Sample `seq` arrives at its sample time with `y = y0` and `flags`; returns the
+    /// actuation.
+    fn answer_with(&mut self, seq: u64, y0: f64, flags: u32) -> Actuation {
+        let m = self.sample(seq, y0, flags);
+        self.deliver(&m).expect("the sample is answered")
     }
 
     /// Sample `seq`, on time (`'.'`) or reporting that the previous actuation missed
@@ -180,8 +210,8 @@ fn a_stalled_plant_resumes_its_session_and_the_controller_hears_of_the_gap() {
         for k in 0..5 {
             h.answer(k, '.');
         }
-        assert!(!h.core.on_idle(4 * T + 5 * T), "{policy:?}");
-        assert!(h.core.on_idle(4 * T + 5 * T + 1), "{policy:?}");
+        assert!(!h.core.on_idle(h.at(4) + 5 * T), "{policy:?}");
+        assert!(h.core.on_idle(h.at(4) + 5 * T + 1), "{policy:?}");
         // The plant's watchdog flagged the missing actuation: no miss on a new connection.
         let (status, u) = h.answer(20, 'P');
         assert_eq!((status, u), (STARTING, u_after), "{policy:?}");
@@ -216,6 +246,7 @@ fn a_plant_restarted_from_zero_after_silence_is_a_new_session_that_resets_the_co
             h.answer(k, '.');
         }
         assert!(h.core.on_idle(100 * T), "{policy:?}");
+        h.t0 = 200 * T;
         assert_eq!(h.answer(0, '.'), (STARTING, 1.0), "{policy:?}");
         assert_eq!(h.seen.last_lost.load(Ordering::Relaxed), 0, "{policy:?}");
         assert_eq!(h.resets(), 1, "{policy:?}");
@@ -223,7 +254,12 @@ fn a_plant_restarted_from_zero_after_silence_is_a_new_session_that_resets_the_co
             h.events()[2..],
             [
                 LoopEvent::PlantResumed { seq: 0 },
-                LoopEvent::SequenceRestarted { from: 4, to: 0 },
+                LoopEvent::NewPlantSession {
+                    from: 4,
+                    to: 0,
+                    cause: NewSessionCause::RestartAfterSilence,
+                    left_safe_state: false
+                },
             ],
             "{policy:?}"
         );
@@ -260,4 +296,119 @@ fn a_rejected_measurement_holds_the_last_input_and_never_reaches_the_controller(
         ),
         (1, 1, 2)
     );
+}
+
+#[test]
+fn duplicate_and_backward_numbers_of_a_talking_plant_are_refused_unanswered_and_reset_nothing() {
+    let mut h = Harness::new(KeepLearned);
+    for k in 0..5 {
+        h.answer(k, '.');
+    }
+    for stray in [4, 2, 0] {
+        let m = h.sample(stray, 0.0, 0);
+        assert!(h.deliver(&m).is_none(), "seq {stray} is not answered");
+    }
+    // The stream goes on: the controller took in 5 samples and now its sixth.
+    assert_eq!(h.answer(5, '.'), (0, 6.0));
+    assert_eq!(h.resets(), 0);
+    let s = h.core.stats;
+    assert_eq!(
+        (
+            s.rejected_duplicate,
+            s.rejected_backward,
+            s.new_sessions,
+            s.published
+        ),
+        (1, 2, 0, 6)
+    );
+    assert_eq!(h.events(), [LoopEvent::FirstSample { seq: 0 }]);
+}
+
+#[test]
+fn a_new_publisher_begins_a_new_session_out_of_the_safe_state() {
+    let mut h = Harness::new(KeepLearned);
+    for (k, c) in "...PP".chars().enumerate() {
+        h.answer(k as u64, c);
+    }
+    assert!(h.answer(5, '.').0 & SAFE_STATE != 0);
+    h.core.note_new_peer();
+    let (status, u) = h.answer(6, '.');
+    assert_eq!(
+        (status, u),
+        (STARTING, 1.0),
+        "a fresh session, a reset controller"
+    );
+    assert_eq!(
+        h.events()[2..],
+        [LoopEvent::NewPlantSession {
+            from: 5,
+            to: 6,
+            cause: NewSessionCause::NewPeer,
+            left_safe_state: true
+        }]
+    );
+    assert_eq!((h.core.stats.new_sessions, h.resets()), (1, 1));
+}
+
+#[test]
+fn misses_in_the_open_loop_phase_do_not_send_the_loop_to_the_safe_state() {
+    let mut h = Harness::with(KeepLearned, |cfg| cfg.open_loop_cycles = 7);
+    let statuses: Vec<u32> = "..PPPPP.."
+        .chars()
+        .enumerate()
+        .map(|(k, c)| h.answer(k as u64, c).0)
+        .collect();
+    assert!(statuses.iter().all(|s| s & SAFE_STATE == 0), "{statuses:?}");
+    let s = h.core.stats;
+    assert_eq!(
+        (
+            s.safe_state_entries,
+            s.protected_misses,
+            s.plant_reported_misses
+        ),
+        (0, 5, 5)
+    );
+}
+
+#[test]
+fn a_u_applied_the_service_did_not_send_raises_the_alarm_once_per_run() {
+    let mut h = Harness::new(KeepLearned);
+    let flags = measurement_flags::U_APPLIED;
+    let with_applied = |h: &mut Harness, seq: u64, applied: f64| {
+        let mut m = h.sample(seq, 0.0, flags);
+        m.u_applied[0] = applied;
+        h.deliver(&m).expect("answered").u[0]
+    };
+    // The probe sends u_k = k + 1; the plant reports what it applied after sample k − 1.
+    assert_eq!(with_applied(&mut h, 0, 0.0), 1.0);
+    assert_eq!(with_applied(&mut h, 1, 1.0), 2.0);
+    with_applied(&mut h, 2, 50.0);
+    with_applied(&mut h, 3, 50.0);
+    with_applied(&mut h, 4, 4.0);
+    assert_eq!(h.core.stats.foreign_actuations, 2);
+    assert_eq!(
+        h.events()[1..],
+        [LoopEvent::ForeignActuation {
+            seq: 2,
+            difference: 48.0
+        }]
+    );
+}
+
+#[test]
+fn an_impossible_sample_time_is_counted_and_kept_out_of_the_late_count() {
+    let mut h = Harness::with(KeepLearned, |cfg| {
+        cfg.policy.miss_source = crate::config::MissSource::ResponseTime;
+    });
+    for k in 0..4 {
+        h.answer(k, '.');
+    }
+    let mut m = h.sample(4, 0.0, 0);
+    m.t_sample_ns = 0;
+    m.deadline_ns = 1;
+    let mut act = Actuation::zeroed(h.counts);
+    assert!(h.core.process(&m, h.at(4), &mut act).answer);
+    h.core.finish_cycle(&m, &act, h.at(4), h.at(4) + 1000, true);
+    let s = h.core.stats;
+    assert_eq!((s.impossible_timestamps, s.deadline_misses), (1, 0));
 }

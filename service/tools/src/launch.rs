@@ -145,8 +145,8 @@ pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicBool>) -> Result<Launched, L
         .arg(folder.join("plant-report.json"))
         .stdin(Stdio::null());
     if let Some(d) = opts.duration {
-        let steps = (d * 1e9 / cfg.sample_period_ns as f64).round() as u64;
-        plant.args(["--steps", &steps.to_string()]);
+        // plant-proxy validates it like `rig.duration` and refuses a bad value by name.
+        plant.args(["--duration", &d.to_string()]);
     }
     let mut service = Command::new(&service_bin);
     service
