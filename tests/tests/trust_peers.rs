@@ -4,7 +4,7 @@
 //! lockstep plant whose service is gone gives up instead of waiting for hours.
 //!
 //! Every test runs real processes (service, plant-proxy, and `trust-probe`, the foreign
-//! process built from `ipc-types/src/bin/trust-probe.rs`) in lockstep, with generous
+//! process built from `tests/src/bin/trust-probe.rs`) in lockstep, with generous
 //! timeouts; none asserts a timing.
 
 use rig_tests::*;
