@@ -1479,7 +1479,9 @@ pub fn rt_loop(
         // stopped in between, the samples that came meanwhile are found and it does not
         // take its own stall for a silent plant.
         let now = monotonic_ns();
-        if ports.subscriber.has_samples().unwrap_or(true) {
+        // A failing look counts as "none waiting": the silence check must stay reachable,
+        // or a dead plant would never be declared silent and never cleaned up after.
+        if matches!(ports.subscriber.has_samples(), Ok(true)) {
             continue;
         }
         if core.on_idle(now) && now.saturating_sub(last_cleanup_ns) > 100_000_000 {
