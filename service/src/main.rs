@@ -1,7 +1,7 @@
 //! `service`: the adaptive real-time control service.
 //!
 //! ```text
-//! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N]
+//! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N] [--warm-start checkpoint.json]
 //! service check <scenario.toml> [--controller FILE]
 //! ```
 //!
@@ -66,6 +66,10 @@ enum Command {
         /// Stop after this many samples.
         #[arg(long)]
         max_cycles: Option<u64>,
+        /// Start the controller from what an earlier run learned: its checkpoint.json
+        /// (same rig, controller kind and dimensions; checked before the loop starts).
+        #[arg(long)]
+        warm_start: Option<PathBuf>,
     },
     /// Validate the whole scenario, both halves (the service's tables and plant-proxy's
     /// [rig], [plant] and [proxy], when the file has a [plant] table), and exit.
@@ -120,6 +124,7 @@ fn main() -> ExitCode {
             common,
             exit_with_plant,
             max_cycles,
+            warm_start,
         } => {
             let cfg = match load(&common.config, common.controller.as_deref()) {
                 Ok(c) => c,
@@ -134,6 +139,7 @@ fn main() -> ExitCode {
                 max_cycles,
                 wait: common.wait,
                 core: common.core,
+                warm_start,
             };
             match run(&cfg, &opts, shutdown_flag()) {
                 Ok(report) => {

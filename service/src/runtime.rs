@@ -26,8 +26,11 @@
 //! - [`deadline`]: what counts as a miss, when the safe state is entered and left;
 //! - [`reset`]: what a fault does to what the controller learned. By default
 //!   ([`TimingFaultReset::KeepLearned`]) a timing fault — leaving the safe state, a stalled
-//!   plant that resumes its sequence — keeps it; a new plant session (the sequence number
-//!   did not advance) resets it when `service.reset-on-resume` is true.
+//!   plant that resumes its sequence — keeps it; a new plant session keeps it too and
+//!   restarts only the controller's data history, unless `service.reset-on-resume` is true;
+//! - [`checkpoint`]: what the controller learned, copied every `service.checkpoint-every`
+//!   through a [`checkpoint_slot::CheckpointSlot`] (no allocation) and written to
+//!   `checkpoint.json` off the RT thread; `--warm-start` starts a later run from it.
 //!
 //! Nothing in that path allocates, locks, does I/O or panics (a counting-allocator test in
 //! `service/tests/no_alloc.rs` runs it). Events (plant silent, resumed, safe state) leave the
@@ -36,6 +39,8 @@
 //! and only then, the loop cleans up stale iceoryx2 resources of dead processes every 100 ms
 //! so that a restarted plant can connect, and it resumes on the next sample.
 
+pub mod checkpoint;
+pub mod checkpoint_slot;
 pub mod deadline;
 pub mod gate;
 pub mod reset;
@@ -48,6 +53,8 @@ pub use tones::{ToneLine, ToneMeter, ToneReport};
 use crate::config::{ServiceConfig, WaitMode};
 use crate::logging::{self, LogLayout, LogProducer, LogRecord};
 use crate::telemetry::{self, CycleTiming, TelemetryRt, TelemetrySummary};
+use checkpoint::{Checkpoint, WarmStart};
+use checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use control::controller::{Controller, MAX_INTERNALS, StepInput};
 use deadline::{Answer, DeadlineMonitor, SafeStateChange};
 use gate::MeasurementGate;
@@ -244,6 +251,12 @@ pub struct LoopStats {
     pub publish_failures: u64,
     /// Events dropped because the event queue was full.
     pub events_dropped: u64,
+    /// Checkpoints of what the controller learned handed to the writer.
+    pub checkpoints_taken: u64,
+    /// Checkpoints skipped because the writer still held both buffers.
+    pub checkpoints_skipped: u64,
+    /// Checkpoints not taken because a learned value was not finite.
+    pub checkpoints_not_finite: u64,
 }
 
 /// Why the loop stopped.
@@ -311,6 +324,10 @@ pub struct LoopCore {
     recover_tolerance: u64,
     /// Allocations made on the RT thread during the loop (filled in when it ends).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
+    /// Where checkpoints go to the writer (`None`: none are taken during the run).
+    checkpoints: Option<Arc<CheckpointSlot>>,
+    checkpoint_every: u64,
+    cycles_since_checkpoint: u64,
 }
 
 /// What [`LoopCore::process`] decided for one sample.
@@ -388,6 +405,49 @@ impl LoopCore {
             recover_after: cfg.policy.recover_after,
             recover_tolerance: cfg.policy.recover_tolerance,
             rt_allocations: Default::default(),
+            checkpoints: None,
+            checkpoint_every: cfg.checkpoint_every_cycles,
+            cycles_since_checkpoint: 0,
+        }
+    }
+
+    /// Hands a checkpoint of what the controller learned to `slot` every
+    /// `service.checkpoint-every` of answered samples ([`checkpoint`]); without a slot, or
+    /// with `checkpoint-every = 0`, none is taken during the run.
+    pub fn with_checkpoints(mut self, slot: Arc<CheckpointSlot>) -> Self {
+        self.checkpoints = (!slot.is_empty() && self.checkpoint_every > 0).then_some(slot);
+        self
+    }
+
+    /// The sequence number of the last accepted sample (`None` before any).
+    pub fn last_seq(&self) -> Option<u64> {
+        self.session.last_seq()
+    }
+
+    /// The controller (read-only: for the final checkpoint and the report).
+    pub fn controller(&self) -> &dyn Controller {
+        &*self.controller
+    }
+
+    /// Every `checkpoint_every` answered samples, copies what the controller learned into
+    /// a free buffer of the slot (a `memcpy`; skipped and counted when none is free).
+    fn maybe_checkpoint(&mut self, seq: u64) {
+        let Some(slot) = &self.checkpoints else {
+            return;
+        };
+        self.cycles_since_checkpoint += 1;
+        if self.cycles_since_checkpoint < self.checkpoint_every {
+            return;
+        }
+        self.cycles_since_checkpoint = 0;
+        let mark = CheckpointMark {
+            seq,
+            plant_session: self.stats.new_sessions + 1,
+        };
+        match slot.offer(&*self.controller, mark) {
+            Offered::Copied => self.stats.checkpoints_taken += 1,
+            Offered::Busy => self.stats.checkpoints_skipped += 1,
+            Offered::NotFinite => self.stats.checkpoints_not_finite += 1,
         }
     }
 
@@ -480,7 +540,11 @@ impl LoopCore {
                     cause,
                     left_safe_state,
                 });
-                self.reset_controller_if(ResetCause::NewPlantSession);
+                if self.resets.resets(ResetCause::NewPlantSession) {
+                    self.controller.reset();
+                } else {
+                    self.controller.restart_data();
+                }
                 self.tones.new_session();
                 self.sent_seq = None;
                 self.foreign_run = false;
@@ -710,6 +774,7 @@ impl LoopCore {
             r.internals[..n].copy_from_slice(&self.internals[..n]);
             log.push(r);
         }
+        self.maybe_checkpoint(m.seq);
         if m.flags & measurement_flags::LAST_SAMPLE != 0 {
             self.event(LoopEvent::PlantEnded { seq: m.seq });
         }
@@ -808,6 +873,8 @@ pub struct RunOptions {
     pub wait: Option<WaitMode>,
     /// Overrides `service.core`.
     pub core: Option<usize>,
+    /// Start the controller from this checkpoint ([`checkpoint`]).
+    pub warm_start: Option<PathBuf>,
 }
 
 /// Why the service could not run.
@@ -828,6 +895,8 @@ pub enum ServiceError {
     Connect(ipc_types::ports::ConnectError),
     /// The RT thread ended abnormally.
     RtThread(String),
+    /// The warm-start checkpoint was refused (the message names the file and the block).
+    Checkpoint(String),
 }
 
 impl fmt::Display for ServiceError {
@@ -841,6 +910,7 @@ impl fmt::Display for ServiceError {
             ),
             ServiceError::Connect(e) => write!(f, "{e}"),
             ServiceError::RtThread(m) => write!(f, "RT thread: {m}"),
+            ServiceError::Checkpoint(m) => write!(f, "warm start refused: {m}"),
         }
     }
 }
@@ -901,9 +971,70 @@ pub struct RunReport {
     /// Per-tone amplitudes of `z` at the end of the open-loop phase and at the end of the
     /// run (`[service.report]`), when tones are known.
     pub tones: Option<ToneReport>,
+    /// Checkpoints of what the controller learned ([`checkpoint`]); `None` for a
+    /// controller that learns nothing.
+    pub checkpoint: Option<CheckpointReport>,
     /// What the controller counted over the run ([`Controller::counters`]), e.g. PCAC's
     /// solved, infeasible and unsolved QPs.
     pub controller_counters: Vec<(String, u64)>,
+}
+
+/// The checkpoints of a run, for its report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CheckpointReport {
+    /// The file (`checkpoint.json` in the run folder).
+    pub path: String,
+    /// Checkpoints written (the periodic ones and the final one).
+    pub written: u64,
+    /// Writes that failed.
+    pub failures: u64,
+    /// The first failure, naming the file.
+    pub first_error: Option<String>,
+    /// Sample of the last checkpoint written.
+    pub last_seq: Option<u64>,
+    /// The checkpoint this run started from, if any.
+    pub warm_start: Option<WarmStart>,
+}
+
+/// Writes the checkpoints the loop hands over and counts what happened.
+struct CheckpointWriter {
+    path: PathBuf,
+    written: u64,
+    failures: u64,
+    first_error: Option<String>,
+    last_seq: Option<u64>,
+}
+
+impl CheckpointWriter {
+    fn new(path: PathBuf) -> Self {
+        Self {
+            path,
+            written: 0,
+            failures: 0,
+            first_error: None,
+            last_seq: None,
+        }
+    }
+
+    fn write(&mut self, c: &Checkpoint) {
+        match c.write(&self.path) {
+            Ok(()) => {
+                self.written += 1;
+                self.last_seq = Some(c.seq);
+            }
+            Err(e) => {
+                if self.first_error.is_none() {
+                    eprintln!("[service] checkpoint: {e}");
+                }
+                self.note_failure(e);
+            }
+        }
+    }
+
+    fn note_failure(&mut self, e: String) {
+        self.failures += 1;
+        self.first_error.get_or_insert(e);
+    }
 }
 
 impl ToneReport {
@@ -998,6 +1129,24 @@ impl RunReport {
                 .join(", ");
             out += &format!("{}: {list}\n", self.controller);
         }
+        if let Some(c) = &self.checkpoint {
+            if let Some(w) = &c.warm_start {
+                out += &format!("warm start: {} (taken at sample {})\n", w.path, w.seq);
+            }
+            out += &format!(
+                "checkpoints: {} written to {}{}{}\n",
+                c.written,
+                c.path,
+                c.last_seq
+                    .map(|s| format!(", the last at sample {s}"))
+                    .unwrap_or_default(),
+                if c.failures > 0 {
+                    format!(", {} failed", c.failures)
+                } else {
+                    String::new()
+                }
+            );
+        }
         let fmt_v = |v: &[f64]| {
             v.iter()
                 .map(|x| format!("{x:.4e}"))
@@ -1062,10 +1211,19 @@ pub fn run(
         what: format!("creating run folder {}", folder.display()),
         error,
     })?;
-    let controller = cfg
+    let mut controller = cfg
         .controller
         .build(cfg.counts)
         .map_err(ServiceError::Controller)?;
+    let warm_start = match &opts.warm_start {
+        Some(path) => Some(
+            checkpoint::warm_start(path, &cfg, &mut *controller)
+                .map_err(ServiceError::Checkpoint)?,
+        ),
+        None => None,
+    };
+    let checkpoint_slot = Arc::new(CheckpointSlot::new(&*controller));
+    let mut checkpoints = CheckpointWriter::new(folder.join("checkpoint.json"));
     let controller_kind = controller.kind();
     let internal_names = controller.internal_names();
 
@@ -1126,7 +1284,8 @@ pub fn run(
             })?
     };
 
-    let core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx);
+    let core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx)
+        .with_checkpoints(checkpoint_slot.clone());
     let rt_cfg = cfg.clone();
     let rt_shutdown = shutdown.clone();
     let max_cycles = opts.max_cycles;
@@ -1149,6 +1308,9 @@ pub fn run(
     };
     while !rt_thread.is_finished() {
         drain(&mut events);
+        if let Some((mark, blocks)) = checkpoint_slot.take() {
+            checkpoints.write(&Checkpoint::new(&cfg, controller_kind, mark, blocks));
+        }
         std::thread::sleep(Duration::from_millis(20));
     }
     let rt_result = rt_thread
@@ -1161,6 +1323,19 @@ pub fn run(
         .map_err(|_| ServiceError::RtThread("histogram thread panicked".into()))?;
     let (mut core, setup, stop_reason) = rt_result?;
     core.flush_telemetry();
+    if !checkpoint_slot.is_empty() {
+        // The final state, whatever the periodic ones were.
+        let mark = CheckpointMark {
+            seq: core.last_seq().unwrap_or(0),
+            plant_session: core.stats.new_sessions + 1,
+        };
+        let blocks = checkpoint_slot.snapshot(core.controller());
+        if blocks.iter().all(|(_, v)| v.iter().all(|x| x.is_finite())) {
+            checkpoints.write(&Checkpoint::new(&cfg, controller_kind, mark, blocks));
+        } else {
+            checkpoints.note_failure("the final learned state is not finite; not written".into());
+        }
+    }
     let latency = reporter.finish().map_err(|error| ServiceError::Io {
         what: "writing histogram files".into(),
         error,
@@ -1221,6 +1396,20 @@ pub fn run(
         log_dropped: log.dropped + log.lost_to_disk,
     });
     warnings.extend(verdict.warnings.iter().cloned());
+    if let Some(e) = &checkpoints.first_error {
+        warnings.push(format!(
+            "checkpoint: {} of {} writes failed: {e}",
+            checkpoints.failures,
+            checkpoints.failures + checkpoints.written
+        ));
+    }
+    if let Some(w) = warm_start.as_ref().filter(|w| !w.same_controller_table) {
+        warnings.push(format!(
+            "warm start from {}: its [controller] table differs from this run's (the shapes \
+             match, a value changed)",
+            w.path
+        ));
+    }
     let report = RunReport {
         rig: cfg.rig.clone(),
         config: cfg.origin.clone(),
@@ -1246,6 +1435,14 @@ pub fn run(
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
         tones: core.tones.report(),
+        checkpoint: (!checkpoint_slot.is_empty()).then(|| CheckpointReport {
+            path: checkpoints.path.display().to_string(),
+            written: checkpoints.written,
+            failures: checkpoints.failures,
+            first_error: checkpoints.first_error.clone(),
+            last_seq: checkpoints.last_seq,
+            warm_start: warm_start.clone(),
+        }),
         controller_counters: core
             .controller
             .counters()

@@ -12,6 +12,7 @@ use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, ServicePorts, S
 use ipc_types::{Actuation, Measurement, measurement_flags};
 use service::config::{ServiceConfig, WaitMode};
 use service::rt_alloc::{RtAllocStats, RtAwareAllocator, enter_rt_thread, thread_stats};
+use service::runtime::checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use service::runtime::{LoopCore, StopReason, rt_loop};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -418,7 +419,8 @@ den = [1.0, -0.5]
 
 /// Steady-state RCAC steps (l_θ = 300) under the counting allocator: past `k_w`, with
 /// saturation, a non-finite sample, the applied-input correction, bridged gaps, observed
-/// samples and, for RLS, the R_u rows and a windowed forgetting rule.
+/// samples, checkpoint copies ([`CheckpointSlot::offer`]), a data restart and, for RLS,
+/// the R_u rows and a windowed forgetting rule.
 fn rcac_steps_do_not_allocate(update: &str) {
     // Built outside the counted region (the gradient test runs several on one thread).
     let mut ctl = service::rt_alloc::outside_rt(|| {
@@ -445,10 +447,27 @@ fn rcac_steps_do_not_allocate(update: &str) {
             &mut u,
         );
     }
+    let slot = service::rt_alloc::outside_rt(|| CheckpointSlot::new(&*ctl));
+    assert!(!slot.is_empty());
     enter_rt_thread(16);
     let before = thread_stats();
     let mut scratch = [0.0; 2];
+    let mut offered = 0;
     for k in 300..5_300u64 {
+        // A checkpoint copied every 1000 samples (the writer takes them off the RT
+        // thread), and a new data stream (a new plant session) once.
+        if k % 1000 == 0 {
+            let mark = CheckpointMark {
+                seq: k,
+                plant_session: 1,
+            };
+            offered += u64::from(slot.offer(&*ctl, mark) == Offered::Copied);
+            let taken = service::rt_alloc::outside_rt(|| slot.take().map(|(m, _)| m.seq));
+            assert_eq!(taken, Some(k));
+        }
+        if k == 3000 {
+            ctl.restart_data();
+        }
         let z = if k == 1000 { f64::NAN } else { signal(k, &u) };
         // The imperfect-loop paths too: the applied input reported, samples lost (a gap
         // bridged) and samples only observed.
@@ -470,6 +489,7 @@ fn rcac_steps_do_not_allocate(update: &str) {
         assert!(u.iter().all(|v| v.is_finite()));
     }
     assert_nothing_allocated_since(&before, || update.to_string());
+    assert_eq!(offered, 5, "{update}");
 }
 
 #[test]

@@ -6,6 +6,8 @@
 //! The tests run the two processes in lockstep where the result must not depend on timing,
 //! and give every test its own rig name so that they can run in parallel.
 
+pub mod full_disk;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -335,18 +337,29 @@ pub fn run_lockstep_pair(
     steps: u64,
     plant_extra: &[&str],
 ) -> PathBuf {
-    let run_folder = dir.path.join("service-run");
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            scenario.to_str().expect("UTF-8 path"),
-            "--exit-with-plant",
-            "--run-folder",
-            run_folder.to_str().expect("UTF-8 path"),
-        ],
-    );
+    run_lockstep_pair_into(dir, "service-run", scenario, steps, plant_extra, &[])
+}
+
+/// [`run_lockstep_pair`] into the run folder `<dir>/<folder>`, the service getting
+/// `service_extra` arguments too.
+pub fn run_lockstep_pair_into(
+    dir: &TestDir,
+    folder: &str,
+    scenario: &Path,
+    steps: u64,
+    plant_extra: &[&str],
+    service_extra: &[&str],
+) -> PathBuf {
+    let run_folder = dir.path.join(folder);
+    let mut args = vec![
+        "run",
+        scenario.to_str().expect("UTF-8 path"),
+        "--exit-with-plant",
+        "--run-folder",
+        run_folder.to_str().expect("UTF-8 path"),
+    ];
+    args.extend_from_slice(service_extra);
+    let mut service = Proc::start("service", &bin("service"), &args);
     let mut plant = start_lockstep_plant("plant", scenario, steps, plant_extra);
     plant.wait_success(Duration::from_secs(300));
     service.wait_success(Duration::from_secs(60));

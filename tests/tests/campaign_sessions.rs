@@ -1,7 +1,9 @@
 //! The fault campaign of issue 14, new plant sessions (docs/faults.md): a plant killed and
 //! restarted is a genuinely new plant. The service says so (`NEW PLANT SESSION`), starts
-//! the session afresh — the controller reset (`service.reset-on-resume`, the default), the
-//! safe state of the previous session cleared — and controls the new plant.
+//! the session afresh — the controller's data history restarted (an LTI controller learns
+//! nothing, so its state starts again; what an adaptive one learned is kept, see
+//! `rcac_loop.rs`), the safe state of the previous session cleared — and controls the new
+//! plant.
 //!
 //! The controller is an integrator that does not act (`x⁺ = x + y`, `u = −2 y`): its state
 //! `x0` in `signals.csv` is the sum of the `y` it has seen since its last reset. Every run
@@ -85,8 +87,8 @@ fn a_plant_killed_and_restarted_begins_a_new_plant_session_and_the_new_plant_is_
     let report = read_json(&run_folder.join("report.json"));
     assert_eq!(stat(&report, "new_sessions"), 1, "{report}");
     assert!(stat(&report, "plant_silent_events") >= 1, "{report}");
-    // The new session reset the controller (service.reset-on-resume = true, the default):
-    // its state starts again from the new plant's first y = 1.
+    // The new session restarted the controller's data history (its state x belongs to the
+    // old stream): it starts again from the new plant's first y = 1.
     let (header, rows) = read_csv(&run_folder.join("signals.csv"));
     let (seq, x0) = (column(&header, "seq"), column(&header, "x0"));
     let restart = rows

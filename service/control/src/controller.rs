@@ -97,8 +97,36 @@ pub trait Controller: Send {
     fn observe(&mut self, input: &StepInput<'_>, u: &mut [f64]) {
         let _ = self.step(input, u);
     }
-    /// Returns to the initial state (used when a plant comes back after silence).
+    /// Returns to the initial state: what was learned and the data history (the
+    /// configuration can ask for it when a new plant session begins).
     fn reset(&mut self);
+    /// A new data stream begins (a new plant session: a restarted or replaced plant
+    /// process): forget the data history (regressors, filter states, the held input, the
+    /// forgetting windows) and keep what was learned ([`crate::learned`]). The default is
+    /// [`Controller::reset`], which is right for a controller that learns nothing.
+    /// Same real-time rules as `step`.
+    fn restart_data(&mut self) {
+        self.reset();
+    }
+    /// Visits what the controller learned, as named blocks whose names, order and lengths
+    /// depend only on the configuration ([`crate::learned`]); the service copies them into
+    /// a checkpoint from the real-time loop. Must not allocate. The default visits nothing.
+    fn learned(&self, _visit: &mut dyn FnMut(&'static str, &[f64])) {}
+    /// Takes what a checkpoint saved from [`Controller::learned`] into a controller just
+    /// built from the same configuration, checking the values first (finite, a positive
+    /// definite covariance within the guard); on an error the controller is left in its
+    /// initial state. Called before the real-time loop; may allocate.
+    ///
+    /// # Errors
+    ///
+    /// What is wrong with which block.
+    fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        if saved.is_empty() {
+            Ok(())
+        } else {
+            Err(format!("the {} controller learns nothing", self.kind()))
+        }
+    }
     /// Called once on the real-time thread before its loop starts (before allocations are
     /// counted there): a controller whose libraries keep lazily created per-thread state
     /// (e.g. the matrix-multiply scratch of PCAC's QP solver) creates it here, so that the

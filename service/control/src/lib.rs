@@ -9,6 +9,8 @@
 //!   [`status`] bits and [`OutputLimits`].
 //! - [`rls`]: recursive least squares with variable-rate forgetting (2.12)–(2.14), an
 //!   allocation-free kernel and a textbook oracle.
+//! - [`learned`]: what a controller learned (θ, P) apart from its data history: the
+//!   blocks of a checkpoint, kept across a new plant session.
 //! - [`forgetting`]: forgetting factors for RLS: constant, F-test (Algorithm 1,
 //!   (5.1)–(5.7)) and RMS ratio (Proposition 5.2.1).
 //! - [`target`]: the RCAC target model `G_f` (3.39), (3.49).
@@ -33,6 +35,7 @@ pub mod controller;
 #[cfg(feature = "excitation")]
 pub mod excitation;
 pub mod forgetting;
+pub mod learned;
 pub mod linalg;
 pub mod lti;
 pub mod mpc;

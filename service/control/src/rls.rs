@@ -418,6 +418,55 @@ impl Rls {
         self.resets
     }
 
+    /// Visits what the estimator learned as the blocks of a checkpoint
+    /// ([`crate::learned`]): `theta` (θ_k), `Q` (the packed triangle), `W` (the deferred
+    /// update) and `beta-trace` (`[β, tr P_k]`), with `P_k = β Q − W Wᵀ`. Does not allocate.
+    pub fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        visit("theta", &self.theta);
+        visit("Q", &self.cov);
+        visit("W", &self.w_pend);
+        visit("beta-trace", &[self.beta_pend, self.trace]);
+    }
+
+    /// Takes back the blocks of [`Rls::learned`] and empties the forgetting windows (they
+    /// belong to the data history); the estimator then continues exactly as the saved one
+    /// would have. Allocates (it checks that `P_k` is positive definite).
+    ///
+    /// # Errors
+    ///
+    /// A missing, mis-sized or non-finite block, a covariance that is not positive
+    /// definite or whose trace the guard would refuse; the estimator is then at `θ_0`, `P_0`.
+    pub fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        let n = self.n;
+        let theta = saved.block("theta", n)?;
+        let q = saved.block("Q", n * (n + 1) / 2)?;
+        let w = saved.block("W", n * self.p)?;
+        let bt = saved.block("beta-trace", 2)?;
+        self.theta.copy_from_slice(theta);
+        self.cov.copy_from_slice(q);
+        self.w_pend.copy_from_slice(w);
+        self.beta_pend = bt[0];
+        self.trace = bt[1];
+        self.forgetting.reset();
+        self.err.fill(0.0);
+        let checked = if bt[0] > 0.0 {
+            crate::learned::check_covariance(&self.covariance(), self.trace, self.trace_limit)
+        } else {
+            Err(format!("β = {:e} is not positive", bt[0]))
+        };
+        if checked.is_err() {
+            self.reset();
+        }
+        checked
+    }
+
+    /// Empties the forgetting windows (the data history) and keeps `θ_k` and `P_k`, for a
+    /// new data stream ([`crate::learned`]). Does not allocate.
+    pub fn restart_data(&mut self) {
+        self.forgetting.reset();
+        self.err.fill(0.0);
+    }
+
     /// Resets `θ = θ_0`, `P = P_0` and empties the forgetting windows. Does not allocate.
     pub fn reset(&mut self) {
         self.theta.copy_from_slice(&self.theta0);

@@ -151,6 +151,9 @@ pub struct ServiceConfig {
     pub open_loop_cycles: u64,
     /// The per-tone suppression report.
     pub tone_report: ToneReportConfig,
+    /// Cycles between checkpoints of what the controller learned (`service.checkpoint-every`;
+    /// 0: only at the end of the run).
+    pub checkpoint_every_cycles: u64,
 }
 
 #[derive(Deserialize)]
@@ -351,6 +354,7 @@ impl ServiceConfig {
             rms_settle_cycles: s.rms_settle_cycles,
             open_loop_cycles: s.open_loop_cycles,
             tone_report,
+            checkpoint_every_cycles: s.checkpoint_every_cycles,
         })
     }
 }

@@ -15,8 +15,11 @@
 //!                                 # session; N: leave it when the last N answers in it
 //! recover-tolerance = 0           # held at most this many misses (0: N good in a row)
 //! silent-periods = 400            # no sample for this many periods: the plant is silent (≥ 1)
-//! reset-on-resume = true          # reset the controller when a new plant session starts
-//!                                 # (its sequence number restarts or goes back)
+//! reset-on-resume = false         # true: a new plant session (a restarted or replaced
+//!                                 # plant process) resets the controller; false: it keeps
+//!                                 # what it learned and only restarts its data history
+//! checkpoint-every = 1.0          # s of samples between checkpoints of what the controller
+//!                                 # learned (checkpoint.json; 0: only at the end of the run)
 //! on-timing-fault = "keep-learned" # what leaving the safe state and a stalled plant that
 //!                                 # resumes do to the controller: "keep-learned" (default:
 //!                                 # a timing fault is not the controller's) or
@@ -92,8 +95,9 @@ pub struct DeadlinePolicy {
     pub recover_tolerance: u64,
     /// Periods without a sample after which the plant is declared silent.
     pub silent_periods: u64,
-    /// Reset the controller when a new plant session starts (the sequence number
-    /// restarts or goes back).
+    /// Reset the controller when a new plant session starts; false (the default): it keeps
+    /// what it learned and restarts its data history
+    /// ([`control::Controller::restart_data`]).
     pub reset_on_resume: bool,
     /// What a timing fault (leaving the safe state, a stalled plant that resumes) does to
     /// the controller's learned state.
@@ -145,6 +149,7 @@ pub(super) struct RawService {
     recover_tolerance: Option<u64>,
     silent_periods: Option<u64>,
     reset_on_resume: Option<bool>,
+    checkpoint_every: Option<f64>,
     on_timing_fault: Option<TimingFaultReset>,
     miss_source: Option<MissSource>,
     u_applied_tolerance: Option<f64>,
@@ -178,6 +183,7 @@ pub(super) struct ServiceTable {
     pub run_dir: PathBuf,
     pub rms_settle_cycles: u64,
     pub open_loop_cycles: u64,
+    pub checkpoint_every_cycles: u64,
 }
 
 /// Validates the table; `plant` gives the channel counts when `[service.channels]` is
@@ -228,7 +234,7 @@ pub(super) fn parse(
             .filter(|n| *n > 0),
         recover_tolerance: cycles(s.recover_tolerance, 0, 0, "service.recover-tolerance")?,
         silent_periods: cycles(s.silent_periods, 400, 1, "service.silent-periods")?,
-        reset_on_resume: s.reset_on_resume.unwrap_or(true),
+        reset_on_resume: s.reset_on_resume.unwrap_or(false),
         on_timing_fault: s.on_timing_fault.unwrap_or_default(),
         miss_source: s.miss_source.unwrap_or(MissSource::Plant),
         max_safe_state_share: match s.max_safe_state_share.unwrap_or(0.1) {
@@ -308,6 +314,22 @@ pub(super) fn parse(
         run_dir: s.run_dir.clone().unwrap_or_else(|| PathBuf::from("runs")),
         rms_settle_cycles: run_s(s.rms_settle, "service.rms-settle")?,
         open_loop_cycles: run_s(s.open_loop, "service.open-loop")?,
+        checkpoint_every_cycles: {
+            let every = seconds(
+                s.checkpoint_every.unwrap_or(1.0),
+                true,
+                MAX_DURATION_S,
+                "service.checkpoint-every",
+                err,
+            )?;
+            if every > 0.0 && every < 0.1 {
+                return Err(err(
+                    "service.checkpoint-every",
+                    format!("{every} s is below 0.1 s (0 writes a checkpoint only at the end)"),
+                ));
+            }
+            bounds::cycles(every, period)
+        },
     })
 }
 

@@ -6,8 +6,8 @@
 //! | cause                                    | kind of fault | reset when                       |
 //! | ---------------------------------------- | ------------- | -------------------------------- |
 //! | [`ResetCause::LeftSafeState`]            | timing        | `on_timing_fault = ResetController` |
-//! | [`ResetCause::StallResumed`]             | timing        | `on_timing_fault = ResetController` and `reset_on_resume` |
-//! | [`ResetCause::NewPlantSession`]          | new plant     | `reset_on_resume`                |
+//! | [`ResetCause::StallResumed`]             | timing        | `on_timing_fault = ResetController` |
+//! | [`ResetCause::NewPlantSession`]          | new plant     | `reset_on_resume` (else only the data history) |
 //!
 //! The safe state is entered only by deadline misses (see [`super::deadline`]) and a stall
 //! is a silence after which the plant's sequence continues (see [`super::session`]):
@@ -15,13 +15,18 @@
 //! [`TimingFaultReset::KeepLearned`] the controller keeps its parameters, covariance and
 //! regressor across them (it observed the plant during the safe state, and after a stall
 //! it is told how many samples were lost). [`TimingFaultReset::ResetController`] resets
-//! it on leaving the safe state and, with `service.reset-on-resume`, on a resumed stall.
+//! it on leaving the safe state and on a resumed stall.
+//!
 //! A new plant session (another publisher, a sequence restarted after silence, a
-//! consistent new numbering: a restarted or replaced plant) is not a timing fault: it
-//! resets the controller exactly when `service.reset-on-resume` is true (the default),
-//! whatever `on_timing_fault` says. A refused sample (a duplicate, a backward number, an
-//! unexplained jump) never reaches the controller and resets nothing; nor does a
-//! controller fault (the `CONTROLLER_FAULT` status bit), which is counted.
+//! consistent new numbering: a restarted or replaced plant process) is not the
+//! controller's fault either, and the structure it controls is normally the same one: by
+//! default (`reset-on-resume = false`) the controller keeps what it learned (θ, P) and
+//! forgets only its data history (`Controller::restart_data`: regressor, filters, held
+//! input), which belonged to the old stream. `reset-on-resume = true` resets it instead,
+//! for a rig where a new session may mean another structure. A refused sample (a
+//! duplicate, a backward number, an unexplained jump) never reaches the controller and
+//! resets nothing; nor does a controller fault (the `CONTROLLER_FAULT` status bit), which
+//! is counted.
 
 use serde::{Deserialize, Serialize};
 
@@ -34,8 +39,8 @@ pub enum TimingFaultReset {
     /// The controller keeps what it learned (the default): a timing fault is not its fault.
     #[default]
     KeepLearned,
-    /// The controller returns to its initial state on leaving the safe state and (with
-    /// `service.reset-on-resume`) after a stall.
+    /// The controller returns to its initial state on leaving the safe state and after a
+    /// stall.
     ResetController,
 }
 
@@ -55,8 +60,8 @@ pub enum ResetCause {
 pub struct ControllerResetPolicy {
     /// What a timing fault does.
     pub on_timing_fault: TimingFaultReset,
-    /// `service.reset-on-resume`: reset when a plant comes back (a new session always, a
-    /// stall only with [`TimingFaultReset::ResetController`]).
+    /// `service.reset-on-resume`: reset at a new plant session; otherwise a new session
+    /// only restarts the controller's data history.
     pub reset_on_resume: bool,
 }
 
@@ -66,7 +71,7 @@ impl ControllerResetPolicy {
         let timing = self.on_timing_fault == TimingFaultReset::ResetController;
         match cause {
             ResetCause::LeftSafeState => timing,
-            ResetCause::StallResumed => timing && self.reset_on_resume,
+            ResetCause::StallResumed => timing,
             ResetCause::NewPlantSession => self.reset_on_resume,
         }
     }
@@ -79,14 +84,14 @@ mod tests {
     use TimingFaultReset::*;
 
     #[test]
-    fn only_a_new_plant_session_resets_the_controller_by_default() {
+    fn nothing_resets_the_controller_by_default() {
         let p = ControllerResetPolicy {
             on_timing_fault: TimingFaultReset::default(),
-            reset_on_resume: true,
+            reset_on_resume: false,
         };
         assert_eq!(
             [LeftSafeState, StallResumed, NewPlantSession].map(|c| p.resets(c)),
-            [false, false, true]
+            [false, false, false]
         );
     }
 
@@ -98,7 +103,7 @@ mod tests {
             (KeepLearned,     true,  [false, false, true]),
             (KeepLearned,     false, [false, false, false]),
             (ResetController, true,  [true,  true,  true]),
-            (ResetController, false, [true,  false, false]),
+            (ResetController, false, [true,  true,  false]),
         ];
         for (on_timing_fault, reset_on_resume, expected) in table {
             let p = ControllerResetPolicy {

@@ -335,6 +335,11 @@ impl SessionTracker {
         self.silent
     }
 
+    /// The sequence number of the last accepted sample (`None` before any).
+    pub fn last_seq(&self) -> Option<u64> {
+        self.last_seq
+    }
+
     /// The sample time of the last accepted sample, ns (0 before any).
     pub fn last_sample_time_ns(&self) -> u64 {
         self.last_t_sample_ns

@@ -12,6 +12,7 @@ const T: u64 = 1_000_000;
 #[derive(Default)]
 struct Seen {
     resets: AtomicU64,
+    restarts: AtomicU64,
     last_lost: AtomicU64,
 }
 
@@ -38,6 +39,12 @@ impl Controller for Probe {
     fn reset(&mut self) {
         self.learned = 0.0;
         self.seen.resets.fetch_add(1, Ordering::Relaxed);
+    }
+    fn restart_data(&mut self) {
+        self.seen.restarts.fetch_add(1, Ordering::Relaxed);
+    }
+    fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        visit("count", &[self.learned]);
     }
 }
 
@@ -137,6 +144,10 @@ impl Harness {
     fn resets(&self) -> u64 {
         self.seen.resets.load(Ordering::Relaxed)
     }
+
+    fn restarts(&self) -> u64 {
+        self.seen.restarts.load(Ordering::Relaxed)
+    }
 }
 
 use TimingFaultReset::{KeepLearned, ResetController};
@@ -155,7 +166,7 @@ fn a_core_built_from_the_configuration_keeps_what_the_controller_learned_through
         core.reset_policy(),
         ControllerResetPolicy {
             on_timing_fault: KeepLearned,
-            reset_on_resume: true,
+            reset_on_resume: false,
         }
     );
 }
@@ -239,17 +250,24 @@ fn a_stalled_plant_resumes_its_session_and_the_controller_hears_of_the_gap() {
 }
 
 #[test]
-fn a_plant_restarted_from_zero_after_silence_is_a_new_session_that_resets_the_controller() {
-    for policy in [KeepLearned, ResetController] {
-        let mut h = Harness::new(policy);
+fn a_plant_restarted_from_zero_after_silence_is_a_new_session_that_keeps_what_was_learned() {
+    // (timing-fault policy, reset-on-resume, input of the first answer, resets, data
+    // restarts): by default the controller keeps its 5 samples and restarts its history.
+    let table = [
+        (KeepLearned, false, 6.0, 0, 1),
+        (ResetController, false, 6.0, 0, 1),
+        (KeepLearned, true, 1.0, 1, 0),
+    ];
+    for (policy, reset_on_resume, u, resets, restarts) in table {
+        let mut h = Harness::with(policy, |c| c.policy.reset_on_resume = reset_on_resume);
         for k in 0..5 {
             h.answer(k, '.');
         }
         assert!(h.core.on_idle(100 * T), "{policy:?}");
         h.t0 = 200 * T;
-        assert_eq!(h.answer(0, '.'), (STARTING, 1.0), "{policy:?}");
+        assert_eq!(h.answer(0, '.'), (STARTING, u), "{policy:?}");
         assert_eq!(h.seen.last_lost.load(Ordering::Relaxed), 0, "{policy:?}");
-        assert_eq!(h.resets(), 1, "{policy:?}");
+        assert_eq!((h.resets(), h.restarts()), (resets, restarts), "{policy:?}");
         assert_eq!(
             h.events()[2..],
             [
@@ -335,8 +353,8 @@ fn a_new_publisher_begins_a_new_session_out_of_the_safe_state() {
     let (status, u) = h.answer(6, '.');
     assert_eq!(
         (status, u),
-        (STARTING, 1.0),
-        "a fresh session, a reset controller"
+        (STARTING, 7.0),
+        "a fresh session; the controller keeps its 6 samples"
     );
     assert_eq!(
         h.events()[2..],
@@ -347,7 +365,35 @@ fn a_new_publisher_begins_a_new_session_out_of_the_safe_state() {
             left_safe_state: true
         }]
     );
-    assert_eq!((h.core.stats.new_sessions, h.resets()), (1, 1));
+    assert_eq!(
+        (h.core.stats.new_sessions, h.resets(), h.restarts()),
+        (1, 0, 1)
+    );
+}
+
+#[test]
+fn every_checkpoint_interval_the_learned_state_goes_to_the_slot_and_a_busy_slot_skips() {
+    let mut h = Harness::with(KeepLearned, |c| c.checkpoint_every_cycles = 3);
+    let probe = Probe {
+        learned: 0.0,
+        seen: Arc::new(Seen::default()),
+    };
+    let slot = Arc::new(CheckpointSlot::new(&probe));
+    h.core = h.core.with_checkpoints(slot.clone());
+    for k in 0..7 {
+        h.answer(k, '.');
+    }
+    // Offered after answers 3 and 6 (seq 2 and 5): the newest is taken.
+    let (mark, blocks) = slot.take().expect("a checkpoint");
+    assert_eq!((mark.seq, mark.plant_session), (5, 1));
+    assert_eq!(blocks, [("count".to_string(), vec![6.0])]);
+    for k in 7..16 {
+        h.answer(k, '.');
+    }
+    // Offers at seq 8, 11, 14: two buffers, the third offer is skipped.
+    let s = h.core.stats;
+    assert_eq!((s.checkpoints_taken, s.checkpoints_skipped), (4, 1));
+    assert_eq!(slot.take().unwrap().0.seq, 11);
 }
 
 #[test]

@@ -446,6 +446,16 @@ impl Pcac {
         self.u_next.copy_from_slice(&self.u_last);
     }
 
+    /// The planned and held inputs back to their initial values and the gap bookkeeping
+    /// cleared (a reset or a new data stream).
+    fn restart_plan(&mut self) {
+        self.initial_inputs();
+        self.n_shifted = 0;
+        self.suspend = 0;
+        self.last_status = None;
+        self.tracked_prediction = 0.0;
+    }
+
     /// The identified model (coefficients `θ_{k+1}`, covariance, prior error).
     pub fn model(&self) -> &IoModel {
         &self.model
@@ -682,11 +692,22 @@ impl Controller for Pcac {
 
     fn reset(&mut self) {
         self.model.reset();
-        self.initial_inputs();
-        self.n_shifted = 0;
-        self.suspend = 0;
-        self.last_status = None;
-        self.tracked_prediction = 0.0;
+        self.restart_plan();
+    }
+
+    /// Forgets the identification's histories and the planned inputs; keeps the
+    /// identified model's `θ` and `P`.
+    fn restart_data(&mut self) {
+        self.model.restart_data();
+        self.restart_plan();
+    }
+
+    fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        self.model.learned(visit);
+    }
+
+    fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        self.model.restore_learned(saved)
     }
 
     fn prepare_thread(&mut self) {

@@ -411,14 +411,20 @@ impl IoModel {
     /// Returns to `θ_0`, `P_0`, zero histories and the forgetting rule's initial state,
     /// without allocating (the reset counter is kept).
     pub fn reset(&mut self) {
-        let (p, nr) = (self.p, self.nr);
         match &mut self.kernel {
-            Kernel::Shared(k) => {
-                k.reset();
-                self.coef.copy_from_slice(k.theta());
-            }
+            Kernel::Shared(k) => k.reset(),
+            Kernel::Full { rls, .. } => rls.reset(),
+        }
+        self.take_coefficients();
+        self.restart_data();
+    }
+
+    /// Copies the estimator's `θ` into `Θ̃` (p×N row-major).
+    fn take_coefficients(&mut self) {
+        let (p, nr) = (self.p, self.nr);
+        match &self.kernel {
+            Kernel::Shared(k) => self.coef.copy_from_slice(k.theta()),
             Kernel::Full { rls, .. } => {
-                rls.reset();
                 let th = rls.theta();
                 for c in 0..nr {
                     for r in 0..p {
@@ -426,6 +432,38 @@ impl IoModel {
                     }
                 }
             }
+        }
+    }
+
+    /// Visits the identification's learned blocks ([`crate::learned`]): those of
+    /// [`SharedRls::learned`] or of [`Rls::learned`]. Does not allocate.
+    pub fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        match &self.kernel {
+            Kernel::Shared(k) => k.learned(visit),
+            Kernel::Full { rls, .. } => rls.learned(visit),
+        }
+    }
+
+    /// Takes back the blocks of [`IoModel::learned`] (the histories stay as they are).
+    ///
+    /// # Errors
+    ///
+    /// As the estimator's `restore_learned`; the model is then back at `θ_0`, `P_0`.
+    pub fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        let restored = match &mut self.kernel {
+            Kernel::Shared(k) => k.restore_learned(saved),
+            Kernel::Full { rls, .. } => rls.restore_learned(saved),
+        };
+        self.take_coefficients();
+        restored
+    }
+
+    /// Zero histories `y`, `u`, `ψ`, the prior error and the forgetting windows, keeping
+    /// `θ` and `P` (a new data stream, [`crate::learned`]). Does not allocate.
+    pub fn restart_data(&mut self) {
+        match &mut self.kernel {
+            Kernel::Shared(k) => k.restart_data(),
+            Kernel::Full { rls, .. } => rls.restart_data(),
         }
         self.ys.data.fill(0.0);
         self.us.data.fill(0.0);

@@ -1021,7 +1021,6 @@ impl Controller for Rcac {
     }
 
     fn reset(&mut self) {
-        self.filter.reset();
         match &mut self.law {
             Law::Rls(r) => {
                 r.reset();
@@ -1032,16 +1031,58 @@ impl Controller for Rcac {
                 self.trace_or_mu = 0.0;
             }
         }
+        self.theta_norm = self.theta0.iter().map(|v| v * v).sum::<f64>().sqrt();
+        self.restart_data();
+    }
+
+    /// Forgets `Φ_f`, `u_f`, the target filter's state, the held `u` and `y`, the sample
+    /// counter (the first `k_w` steps of (2.16) wait again while the regressor fills with
+    /// the new stream) and the forgetting windows; keeps `θ_k` and `P_k`.
+    fn restart_data(&mut self) {
+        self.filter.reset();
+        if let Law::Rls(r) = &mut self.law {
+            r.restart_data();
+        }
         self.phi_f.fill(0.0);
         self.u_f.fill(0.0);
         self.u_last.fill(0.0);
         self.y_hold.fill(0.0);
         self.k = 0;
         self.update_from = 0;
-        self.theta_norm = self.theta0.iter().map(|v| v * v).sum::<f64>().sqrt();
         self.z0 = 0.0;
         self.zhat0 = 0.0;
         self.lambda = 1.0;
+    }
+
+    /// `theta` (θ_k) and, with RLS, its covariance blocks ([`Rls::learned`]).
+    fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        match &self.law {
+            Law::Rls(r) => r.learned(visit),
+            Law::Gradient { theta, .. } => visit("theta", theta),
+        }
+    }
+
+    fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        let restored = match &mut self.law {
+            Law::Rls(r) => r.restore_learned(saved).map(|()| {
+                self.trace_or_mu = r.trace_p();
+                r.theta()
+            }),
+            Law::Gradient { theta, .. } => saved.block("theta", theta.len()).map(|t| {
+                theta.copy_from_slice(t);
+                &theta[..]
+            }),
+        };
+        match restored {
+            Ok(theta) => {
+                self.theta_norm = theta.iter().map(|v| v * v).sum::<f64>().sqrt();
+                Ok(())
+            }
+            Err(e) => {
+                self.reset();
+                Err(e)
+            }
+        }
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

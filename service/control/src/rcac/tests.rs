@@ -782,3 +782,96 @@ fn the_defaults_are_those_the_constructor_uses() {
     let c = Rcac::new(&p, dims).unwrap();
     assert_eq!(c.theta_len(), RcacParams::theta_len(4, dims));
 }
+
+/// Runs `c` for `steps` samples of a new data stream on a fresh plant (the tone and noise
+/// of [`run_loop`], seed 29) and returns every input and the tone's amplitude in `z` over
+/// samples `[from, steps)`.
+fn new_stream(c: &mut Rcac, steps: usize, from: usize) -> (Vec<f64>, f64) {
+    let mut plant = Plant::new(vec![([B1, B2], 0)]);
+    let mut g = Gauss::new(29);
+    let (mut inputs, mut zs) = (Vec::new(), Vec::new());
+    let mut u = [0.0];
+    for k in 0..steps {
+        let z = plant.output() + (W_D * k as f64).sin() + 1e-3 * g.normal();
+        let input = StepInput {
+            seq: k as u64,
+            y: &[z],
+            z: &[z],
+            r: &[],
+            ..Default::default()
+        };
+        c.step(&input, &mut u);
+        plant.apply(&u);
+        inputs.push(u[0]);
+        if k >= from {
+            zs.push(z);
+        }
+    }
+    (inputs, tone_amplitude(&zs, from, W_D))
+}
+
+/// What RCAC learned (θ and the RLS covariance, [`crate::learned`]) survives a checkpoint
+/// and a new data stream. After 1000 samples on the SISO loop the blocks are copied into
+/// a controller built afresh; the original restarts its data history. Fed the same new
+/// stream, the two give the same inputs bit for bit, and both reject the tone over
+/// samples 40–540 of it (the first `k_w` = 22 wait again while the regressor fills) far
+/// better than a controller that starts from θ = 0 (measured: 68.6 dB against 30.4 dB;
+/// required: 10 dB more). Bad blocks are refused by name and leave the controller at its
+/// initial state.
+#[test]
+fn what_rcac_learned_survives_a_checkpoint_and_a_new_data_stream() {
+    let build = || Rcac::new(&params(siso_target(), 20, rls(100.0, 1.0)), counts(1, 1, 1)).unwrap();
+    let (_, _, mut learned) = run_loop(Plant::new(vec![([B1, B2], 0)]), build(), W_D, 1000, 500);
+    let mut blocks = Vec::new();
+    learned.learned(&mut |n, v| blocks.push((n.to_string(), v.to_vec())));
+    let names: Vec<&str> = blocks.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["theta", "Q", "W", "beta-trace"]);
+    let theta = learned.theta().to_vec();
+    assert!(theta.iter().any(|v| *v != 0.0));
+
+    let mut restored = build();
+    restored
+        .restore_learned(&crate::learned::Learned::new(&blocks))
+        .unwrap();
+    assert_eq!(restored.theta(), &theta[..]);
+    learned.restart_data();
+    assert_eq!(learned.theta(), &theta[..], "restart_data keeps θ");
+
+    let (u_learned, _) = new_stream(&mut learned, 540, 40);
+    let (u_restored, amp_restored) = new_stream(&mut restored, 540, 40);
+    assert_eq!(u_learned, u_restored, "bit for bit");
+    assert!(u_learned[..22].iter().all(|u| *u == 0.0), "k_w waits again");
+    let (_, amp_fresh) = new_stream(&mut build(), 540, 40);
+    let (kept, fresh) = (db(1.0, amp_restored), db(1.0, amp_fresh));
+    eprintln!("samples 40–540 of a new stream: kept θ {kept:.1} dB, from θ = 0 {fresh:.1} dB");
+    assert!(
+        kept > fresh + 10.0,
+        "kept {kept:.1} dB, fresh {fresh:.1} dB"
+    );
+
+    let refused = |edit: &dyn Fn(&mut Vec<(String, Vec<f64>)>), says: &str| {
+        let mut bad = blocks.clone();
+        edit(&mut bad);
+        let mut c = build();
+        let e = c
+            .restore_learned(&crate::learned::Learned::new(&bad))
+            .unwrap_err();
+        assert!(e.contains(says), "{e}");
+        assert!(
+            c.theta().iter().all(|v| *v == 0.0),
+            "left at θ_0 after: {e}"
+        );
+    };
+    refused(
+        &|b| {
+            b[0].1.pop();
+        },
+        "block 'theta' has 39 values",
+    );
+    refused(
+        &|b| b[1].1[0] = f64::NAN,
+        "block 'Q': value 0 is not finite",
+    );
+    refused(&|b| b[1].1[0] = -1.0, "not positive definite");
+    refused(&|b| b.retain(|(n, _)| n != "W"), "block 'W' is missing");
+}

@@ -72,6 +72,13 @@ impl SharedRls {
         Ok(s)
     }
 
+    /// Empties the forgetting windows (the data history) and keeps `Θ̃_k` and `P̃_k`, for a
+    /// new data stream ([`crate::learned`]). Does not allocate.
+    pub fn restart_data(&mut self) {
+        self.forgetting.reset();
+        self.err.fill(0.0);
+    }
+
     /// Back to `Θ̃_0`, `P̃_0` and the forgetting rule's initial state.
     pub fn reset(&mut self) {
         self.theta.copy_from_slice(&self.theta0);
@@ -184,6 +191,40 @@ impl SharedRls {
     /// `P̃_k`, upper triangle row-packed (row `i` has `n − i` entries, diagonal first).
     pub fn packed_covariance(&self) -> &[f64] {
         &self.cov
+    }
+
+    /// Visits what the estimator learned as the blocks of a checkpoint
+    /// ([`crate::learned`]): `theta` (Θ̃_k, row-major), `P-tilde` (the packed triangle of
+    /// P̃_k) and `trace` (`[tr P̃_k]`). Does not allocate.
+    pub fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        visit("theta", &self.theta);
+        visit("P-tilde", &self.cov);
+        visit("trace", &[self.trace]);
+    }
+
+    /// Takes back the blocks of [`SharedRls::learned`] and restarts the forgetting rule.
+    /// Allocates (it checks that P̃_k is positive definite).
+    ///
+    /// # Errors
+    ///
+    /// A missing, mis-sized or non-finite block, a covariance that is not positive
+    /// definite or whose trace the guard would refuse; the estimator is then at `Θ̃_0`, `P̃_0`.
+    pub fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        let n = self.n;
+        let theta = saved.block("theta", n * self.p)?;
+        let cov = saved.block("P-tilde", n * (n + 1) / 2)?;
+        self.trace = saved.scalar("trace")?;
+        self.theta.copy_from_slice(theta);
+        self.cov.copy_from_slice(cov);
+        self.forgetting.reset();
+        self.err.fill(0.0);
+        let p = crate::learned::unpack_symmetric(&self.cov, n);
+        let checked =
+            crate::learned::check_covariance(&p, self.p as f64 * self.trace, self.trace_limit);
+        if checked.is_err() {
+            self.reset();
+        }
+        checked
     }
 
     /// Guard resets so far.

@@ -434,3 +434,50 @@ fn refused_parameters_name_the_field_of_the_configuration_table() {
     // What validate accepts, the constructor builds.
     assert!(Pcac::new(&good, counts(0)).is_ok());
 }
+
+/// What PCAC identified ([`crate::learned`]: `Θ̃` and `P̃` of the shared-covariance RLS)
+/// survives a checkpoint and a new data stream: after 1500 samples of the closed loop the
+/// blocks go into a controller built afresh and the original restarts its data history;
+/// on the same new stream both plan the same inputs bit for bit, with the identified
+/// coefficients, not `θ_0`. A covariance that is not positive definite is refused.
+#[test]
+fn what_pcac_identified_survives_a_checkpoint_and_a_new_data_stream() {
+    let build = || Pcac::new(&params(PcacTiming::NextStep), counts(1)).unwrap();
+    let mut learned = build();
+    let none = Command {
+        step_at: usize::MAX,
+        to: 0.0,
+    };
+    drive(&mut learned, 0.5, 0.0, 1500, none, |_, _, _, _, _| {});
+    let mut blocks = Vec::new();
+    learned.learned(&mut |n, v| blocks.push((n.to_string(), v.to_vec())));
+    let names: Vec<&str> = blocks.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["theta", "P-tilde", "trace"]);
+    let coefficients = learned.model().coefficients().to_vec();
+    assert!(coefficients.iter().any(|v| (v - 1e-10).abs() > 1e-3));
+
+    let mut restored = build();
+    restored
+        .restore_learned(&crate::learned::Learned::new(&blocks))
+        .unwrap();
+    assert_eq!(restored.model().coefficients(), &coefficients[..]);
+    learned.restart_data();
+    assert_eq!(learned.model().coefficients(), &coefficients[..]);
+    assert_eq!(learned.model().samples(), 0, "the histories restart");
+
+    let inputs = |c: &mut Pcac| {
+        let mut u = Vec::new();
+        drive(c, 0.5, 0.0, 400, none, |_, _, _, uk, _| u.push(uk));
+        u
+    };
+    assert_eq!(inputs(&mut learned), inputs(&mut restored), "bit for bit");
+
+    let mut bad = blocks.clone();
+    bad[1].1[0] = -1.0;
+    let mut c = build();
+    let e = c
+        .restore_learned(&crate::learned::Learned::new(&bad))
+        .unwrap_err();
+    assert!(e.contains("not positive definite"), "{e}");
+    assert!(c.model().coefficients().iter().all(|v| *v == 1e-10));
+}
