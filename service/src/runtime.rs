@@ -1626,6 +1626,8 @@ pub fn rt_loop(
     let mut act = Actuation::zeroed(ChannelCounts::default());
     let mut spins: u32 = 0;
     let mut last_cleanup_ns = 0u64;
+    let mut last_rx_ns = 0u64;
+    let late_ns = period_ns.saturating_add(period_ns / 2);
     let block_timeout = Duration::from_nanos(period_ns.clamp(50_000, 100_000_000));
     loop {
         if shutdown.load(Ordering::Relaxed) {
@@ -1635,6 +1637,7 @@ pub fn rt_loop(
         core.stats.foreign_samples = ports.foreign_samples();
         if n > 0 {
             let t_recv = monotonic_ns();
+            last_rx_ns = t_recv;
             // Late samples first (a newer one is waiting): observed, not answered.
             let first = n.saturating_sub(PENDING);
             for i in first..n - 1 {
@@ -1676,6 +1679,14 @@ pub fn rt_loop(
         // stopped in between, the samples that came meanwhile are found and it does not
         // take its own stall for a silent plant.
         let now = monotonic_ns();
+        if now.saturating_sub(last_rx_ns) > late_ns {
+            // The plant is late by half a period: there is nothing to answer now. A plant
+            // that replaces the last one connects while the old one is gone, and iceoryx2
+            // allocates when it takes in the new ports; take them in here, outside the
+            // counted real-time work, rather than in the receive or publish of the new
+            // plant's first sample. Without a change this allocates nothing.
+            crate::rt_alloc::outside_rt(|| ports.update_connections());
+        }
         // A failing look counts as "none waiting": the silence check must stay reachable,
         // or a dead plant would never be declared silent and never cleaned up after.
         if matches!(ports.subscriber.has_samples(), Ok(true)) {
