@@ -1,6 +1,6 @@
 //! Figures of adaptive-control runs, in the manner of Figures 3.7, 3.10, 3.14 and 3.17 of
-//! the dissertation, from [`Trace`]s of [`crate::simulate`] (or of a real-time run read
-//! back into a `Trace`).
+//! the dissertation, from [`Trace`]s of [`crate::simulate`], and `run.png` of a run of the
+//! service ([`run_folder_figure`], see [`run`]).
 //!
 //! [`adaptive_run_figure`] draws four panels:
 //!
@@ -12,22 +12,26 @@
 //! - (d) the Welch PSD ([`crate::analysis::psd`]) of `z`, open and closed loop, on a
 //!   logarithmic axis, over the part of each run after a given time (the settled part).
 //!
-//! [`run_folder_figure`] draws the same figure for a run of the service from its run folder
-//! (`signals.csv` and `report.json`): the open loop is the run's open-loop phase
-//! (`service.open-loop`, samples with the `OPEN_LOOP` status), the PSDs compare the windows
-//! of the run report's tone table (the end of the open-loop phase against the end of the
-//! run), and panel (c) shows the logged `‖θ‖`.
+//! [`run_folder_figure`] draws `run.png` of a service run from its run folder
+//! (`signals.csv` and `report.json`): the data preparation is the pure
+//! [`run::prepare`] (plant time by sequence number, the open-loop phase and the controller
+//! start, PSD windows of equal length, the shaded safe-state, silence and watchdog
+//! intervals, the verdict), the drawing [`run::draw`].
 //!
 //! Long traces are reduced to at most [`MAX_LINE_POINTS`] points per series by keeping
-//! the minimum and the maximum of each bucket of samples ([`envelope`]), so a tone keeps
-//! its envelope instead of aliasing.
+//! the minimum and the maximum of each bucket of samples ([`envelope`], [`envelope_xy`]),
+//! so a tone keeps its envelope instead of aliasing.
+
+pub mod report;
+pub mod run;
+pub mod timeline;
 
 use std::path::Path;
 
 use plotters::style::RGBColor;
 
 use crate::analysis;
-use crate::plot::{Mark, PALETTE, Panel, Series, figure};
+use crate::plot::{Mark, PALETTE, Panel, Series, VLine, figure};
 use crate::simulate::Trace;
 
 /// Largest number of points a time series is drawn with.
@@ -74,13 +78,21 @@ pub struct AdaptiveRun<'a> {
 /// `(t, x)` of `x` sampled every `dt` s from `t0`, reduced to at most `max_points` points:
 /// each bucket of samples contributes its minimum and its maximum, in time order.
 pub fn envelope(x: &[f64], t0: f64, dt: f64, max_points: usize) -> Vec<(f64, f64)> {
+    envelope_by(x, |k| t0 + k as f64 * dt, max_points)
+}
+
+/// `(t[k], x[k])` reduced to at most `max_points` points as [`envelope`] does, for samples
+/// at any times `t` (increasing; the shorter of `t` and `x` sets the length).
+pub fn envelope_xy(t: &[f64], x: &[f64], max_points: usize) -> Vec<(f64, f64)> {
+    let n = t.len().min(x.len());
+    envelope_by(&x[..n], |k| t[k], max_points)
+}
+
+/// The envelope of `x` with the time of sample `k` given by `time`.
+fn envelope_by(x: &[f64], time: impl Fn(usize) -> f64, max_points: usize) -> Vec<(f64, f64)> {
     let n = x.len();
     if n <= max_points.max(2) {
-        return x
-            .iter()
-            .enumerate()
-            .map(|(k, v)| (t0 + k as f64 * dt, *v))
-            .collect();
+        return x.iter().enumerate().map(|(k, v)| (time(k), *v)).collect();
     }
     let buckets = (max_points / 2).max(1);
     let size = n.div_ceil(buckets);
@@ -89,17 +101,18 @@ pub fn envelope(x: &[f64], t0: f64, dt: f64, max_points: usize) -> Vec<(f64, f64
         let end = (start + size).min(n);
         let (mut kmin, mut kmax) = (start, start);
         for k in start..end {
-            if x[k] < x[kmin] {
+            // A non-finite sample never wins over a finite one.
+            if x[k] < x[kmin] || !x[kmin].is_finite() {
                 kmin = k;
             }
-            if x[k] > x[kmax] {
+            if x[k] > x[kmax] || !x[kmax].is_finite() {
                 kmax = k;
             }
         }
         let (a, b) = (kmin.min(kmax), kmin.max(kmax));
-        out.push((t0 + a as f64 * dt, x[a]));
+        out.push((time(a), x[a]));
         if b != a {
-            out.push((t0 + b as f64 * dt, x[b]));
+            out.push((time(b), x[b]));
         }
     }
     out
@@ -148,23 +161,6 @@ fn line(label: &str, x: &[f64], dt: f64, color: RGBColor) -> Series {
         color,
         mark: Mark::Line,
     }
-}
-
-/// A vertical dashed line at `t` spanning the values of `series`.
-fn start_line(t: f64, series: &[Series]) -> Option<Series> {
-    let (lo, hi) = series
-        .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.1))
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
-    lo.is_finite().then(|| Series {
-        label: String::new(),
-        points: vec![(t, lo), (t, hi)],
-        color: RGBColor(0, 0, 0),
-        mark: Mark::Dashed,
-    })
 }
 
 /// PSD series of every `z` channel of `t` from time `from` on (an error when fewer than 8
@@ -219,19 +215,20 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
         za.push(line(&format!("closed loop z{i}"), z, dt, closed_color(i)));
     }
     // (b) u.
-    let mut ub: Vec<Series> =
+    let ub: Vec<Series> =
         c.u.iter()
             .enumerate()
             .map(|(i, u)| line(&format!("u{i}"), u, dt, closed_color(i)))
             .collect();
-    if let Some(t) = run.start {
-        if let Some(s) = start_line(t, &za) {
-            za.push(s);
-        }
-        if let Some(s) = start_line(t, &ub) {
-            ub.push(s);
-        }
-    }
+    let start: Vec<VLine> = run
+        .start
+        .map(|x| VLine {
+            label: format!("controller starts, {x:.2} s"),
+            x,
+            color: RGBColor(0, 0, 0),
+        })
+        .into_iter()
+        .collect();
     // (d) PSDs.
     let mut pd = Vec::new();
     if let Some(o) = run.open {
@@ -253,21 +250,23 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
     let panels = [
         Panel {
             title: "(a) performance z".into(),
-            x_label: "time, s".into(),
-            y_label: "z".into(),
+            x_label: "time (s)".into(),
+            y_label: "z (plant units)".into(),
             series: za,
+            vlines: start.clone(),
             ..Default::default()
         },
         Panel {
             title: "(b) control input u".into(),
-            x_label: "time, s".into(),
-            y_label: "u".into(),
+            x_label: "time (s)".into(),
+            y_label: "u (plant units)".into(),
             series: ub,
+            vlines: start,
             ..Default::default()
         },
         Panel {
             title: format!("(c) {}", run.coefficients.title),
-            x_label: "time, s".into(),
+            x_label: "time (s)".into(),
             y_label: run.coefficients.y_label.clone(),
             series: run.coefficients.series.clone(),
             ..Default::default()
@@ -280,8 +279,8 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
                 ),
                 _ => format!("(d) PSD of z from {:.1} s on", run.psd_from),
             },
-            x_label: "frequency, Hz".into(),
-            y_label: "PSD, units²/Hz".into(),
+            x_label: "frequency (Hz)".into(),
+            y_label: "PSD ((plant units)²/Hz)".into(),
             y_log: true,
             series: pd,
             ..Default::default()
@@ -290,83 +289,12 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
     figure(path, &run.title, (2, 2), (1500, 1000), &panels)
 }
 
-/// Writes `run.png` into the run folder `folder` of a service run (see the module docs)
-/// and returns its path. Errors name the file at fault: no `signals.csv` (logging off), a
-/// log without `z`, a run too short for the PSD windows.
+/// Writes `run.png` into the run folder `folder` of a service run (see [`run`]) and
+/// returns its path. Errors name the file at fault: no `report.json` or `signals.csv`
+/// (logging off), a report without a sample period, a log without `seq` or `z`, a bad
+/// sequence number.
 pub fn run_folder_figure(folder: &Path) -> Result<std::path::PathBuf, String> {
-    let report_path = folder.join("report.json");
-    let text = std::fs::read_to_string(&report_path)
-        .map_err(|e| format!("{}: {e}", report_path.display()))?;
-    let report: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| format!("{}: not JSON: {e}", report_path.display()))?;
-    let num = |key: &str| report.get(key).and_then(serde_json::Value::as_f64);
-    let ts = num("sample_period_s")
-        .or_else(|| num("budget_ns").map(|b| b * 1e-9))
-        .filter(|t| *t > 0.0)
-        .ok_or_else(|| format!("{}: no sample period", report_path.display()))?;
-    let log = crate::design::csvlog::read(&folder.join("signals.csv"))?;
-    let (trace, _, status) = Trace::from_signal_log(&log, ts)?;
-    if trace.z.is_empty() || trace.len() < 16 {
-        return Err(format!("{}: no z or too few samples to plot", log.origin));
-    }
-    let n = trace.len();
-    let open_end = status
-        .iter()
-        .position(|s| s & ipc_types::actuation_status::OPEN_LOOP == 0)
-        .unwrap_or(n);
-    let window = report
-        .pointer("/tones/window_s")
-        .and_then(serde_json::Value::as_f64)
-        .unwrap_or(0.5);
-    let end = n as f64 * ts;
-    let open = (open_end >= 16).then(|| trace.slice(0..open_end));
-    let psd_segment = ((window / ts / 4.0) as usize).clamp(64, 8192);
-    let mut title = format!(
-        "{}: {}",
-        report.get("rig").and_then(|v| v.as_str()).unwrap_or("run"),
-        report
-            .get("controller")
-            .and_then(|v| v.as_str())
-            .unwrap_or("")
-    );
-    if let Some(tones) = report.pointer("/tones/tones").and_then(|t| t.as_array()) {
-        let db: Vec<f64> = tones
-            .iter()
-            .filter_map(|t| t.get("suppression_db").and_then(serde_json::Value::as_f64))
-            .collect();
-        if !db.is_empty() {
-            let lo = db.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = db.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            title += &format!(", {} tones suppressed by {lo:.1}–{hi:.1} dB", db.len());
-        }
-    }
-    let mut coefficients = Coefficients {
-        title: "controller coefficients ‖θ‖".into(),
-        y_label: "‖θ‖".into(),
-        series: Vec::new(),
-    };
-    if let Some(s) = internal_series(&trace, "theta_norm", "‖θ‖", PALETTE[0]) {
-        coefficients.series.push(s);
-    } else {
-        coefficients.title = "controller coefficients (not logged by this controller)".into();
-    }
-    let path = folder.join("run.png");
-    adaptive_run_figure(
-        &path,
-        &AdaptiveRun {
-            title,
-            open: open.as_ref(),
-            closed: &trace,
-            coefficients,
-            psd_from: (end - window).max(0.0),
-            open_psd_from: open
-                .as_ref()
-                .map(|o| (o.len() as f64 * ts - window).max(o.len() as f64 * ts / 2.0)),
-            psd_segment,
-            start: (open_end > 0 && open_end < n).then_some(open_end as f64 * ts),
-        },
-    )?;
-    Ok(path)
+    run::write(folder)
 }
 
 #[cfg(test)]

@@ -2,9 +2,11 @@
 //! and pole–zero maps, drawn with plotters' bitmap backend and the DejaVu Sans font
 //! embedded from the `dejavu` crate, so no system font is needed.
 //!
-//! A figure is a grid of [`Panel`]s; each panel holds [`Series`] (lines, or markers for a
-//! pole–zero map) and optionally the unit circle. Non-finite points are skipped, and
-//! values are clipped to the panel's range so a stray spike does not flatten the rest.
+//! A figure is a grid of [`Panel`]s ([`figure`]), or columns of stacked panels under a
+//! title and lines of text ([`column_figure`]); each panel holds [`Series`] (lines, or
+//! markers for a pole–zero map), optionally shaded x intervals ([`Band`]), vertical
+//! markers ([`VLine`]) and the unit circle. Non-finite points are skipped, and values are
+//! clipped to the panel's range so a stray spike does not flatten the rest.
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -68,6 +70,42 @@ impl Series {
     }
 }
 
+/// A shaded interval `[from, to]` of the x axis spanning the panel's height (a state of the
+/// run such as the safe state), drawn under the series.
+#[derive(Debug, Clone)]
+pub struct Band {
+    /// Legend text (empty: no legend entry, e.g. for the second interval of a kind).
+    pub label: String,
+    /// Start, in x units.
+    pub from: f64,
+    /// End, in x units (an interval narrower than 1/400 of the axis is drawn that wide,
+    /// darker).
+    pub to: f64,
+    /// Color (drawn translucent).
+    pub color: RGBColor,
+}
+
+/// A dashed vertical line at `x` spanning the panel's height (an event such as the
+/// controller start).
+#[derive(Debug, Clone)]
+pub struct VLine {
+    /// Legend text (empty: no legend entry).
+    pub label: String,
+    /// Position, in x units.
+    pub x: f64,
+    /// Color.
+    pub color: RGBColor,
+}
+
+/// One line of text under a figure's title.
+#[derive(Debug, Clone)]
+pub struct Note {
+    /// The text.
+    pub text: String,
+    /// Its color.
+    pub color: RGBColor,
+}
+
 /// One panel of a figure.
 #[derive(Debug, Clone, Default)]
 pub struct Panel {
@@ -89,6 +127,10 @@ pub struct Panel {
     pub unit_circle: bool,
     /// The series.
     pub series: Vec<Series>,
+    /// Shaded x intervals, drawn first.
+    pub bands: Vec<Band>,
+    /// Vertical markers, drawn over the series.
+    pub vlines: Vec<VLine>,
 }
 
 fn register_font() -> Result<(), String> {
@@ -155,6 +197,16 @@ fn tick_label(v: &f64) -> String {
     }
 }
 
+/// `v`, or 0 when it is float noise around 0 on the linear axis `[lo, hi]` (a tick such
+/// as `1.11e-16` on an axis from −0.5 to 0.5); ticks of a logarithmic axis are kept.
+fn snap(v: f64, lo: f64, hi: f64, log: bool) -> f64 {
+    if !log && v.abs() < 1e-9 * (hi - lo).abs() {
+        0.0
+    } else {
+        v
+    }
+}
+
 fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result<(), String> {
     let pts = || p.series.iter().flat_map(|s| s.points.iter());
     let (mut x0, mut x1) = p
@@ -184,8 +236,8 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                 .x_desc(p.x_label.as_str())
                 .y_desc(p.y_label.as_str())
                 .label_style((FONT, 12))
-                .x_label_formatter(&tick_label)
-                .y_label_formatter(&tick_label)
+                .x_label_formatter(&|v: &f64| tick_label(&snap(*v, x0, x1, p.x_log)))
+                .y_label_formatter(&|v: &f64| tick_label(&snap(*v, y0, y1, p.y_log)))
                 .draw()
                 .map_err(|e| e.to_string())?;
             if p.unit_circle {
@@ -203,6 +255,25 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                         ShapeStyle::from(&BLACK.mix(0.5)),
                     ))
                     .map_err(|e| e.to_string())?;
+            }
+            for band in &p.bands {
+                let (lo, hi) = (band.from.min(band.to), band.from.max(band.to));
+                if !(lo.is_finite() && hi.is_finite()) || hi < x0 || lo > x1 {
+                    continue;
+                }
+                // At least a few pixels wide, inside the panel; a narrow one darker so that
+                // a short event stays visible.
+                let min_width = (x1 - x0) / 400.0;
+                let alpha = if hi - lo < min_width { 0.6 } else { 0.22 };
+                let (lo, hi) = (lo.max(x0), hi.max(lo + min_width).min(x1));
+                let fill = band.color.mix(alpha).filled();
+                let anno = chart
+                    .draw_series(std::iter::once(Rectangle::new([(lo, y0), (hi, y1)], fill)))
+                    .map_err(|e| e.to_string())?;
+                if !band.label.is_empty() {
+                    anno.label(band.label.as_str())
+                        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], fill));
+                }
             }
             for s in &p.series {
                 let ok = |&&(x, y): &&(f64, f64)| {
@@ -245,7 +316,28 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                     });
                 }
             }
-            if p.series.iter().any(|s| !s.label.is_empty()) {
+            for v in &p.vlines {
+                if !v.x.is_finite() || v.x < x0 || v.x > x1 {
+                    continue;
+                }
+                let style = ShapeStyle::from(&v.color).stroke_width(2);
+                let anno = chart
+                    .draw_series(DashedLineSeries::new(
+                        vec![(v.x, y0), (v.x, y1)],
+                        6,
+                        4,
+                        style,
+                    ))
+                    .map_err(|e| e.to_string())?;
+                if !v.label.is_empty() {
+                    anno.label(v.label.as_str())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], style));
+                }
+            }
+            let labelled = p.series.iter().any(|s| !s.label.is_empty())
+                || p.bands.iter().any(|b| !b.label.is_empty())
+                || p.vlines.iter().any(|v| !v.label.is_empty());
+            if labelled {
                 chart
                     .configure_series_labels()
                     .background_style(WHITE.mix(0.85))
@@ -286,6 +378,45 @@ pub fn figure(
     root.present().map_err(|e| fail(&e))
 }
 
+/// Height in pixels of one line of [`Note`] text.
+const NOTE_HEIGHT: u32 = 22;
+
+/// Draws `columns` of panels side by side (each column's panels stacked, of equal
+/// height) into the PNG `path` (`width × height` pixels) under `title`, with `notes`, one
+/// line each, between the title and the panels.
+pub fn column_figure(
+    path: &Path,
+    title: &str,
+    notes: &[Note],
+    columns: &[Vec<Panel>],
+    (width, height): (u32, u32),
+) -> Result<(), String> {
+    register_font()?;
+    let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
+    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let root = root.titled(title, (FONT, 22)).map_err(|e| fail(&e))?;
+    let notes_height = (NOTE_HEIGHT * notes.len() as u32 + 6).min(height / 3);
+    let (top, body) = root.split_vertically(notes_height);
+    for (i, n) in notes.iter().enumerate() {
+        let style = TextStyle::from((FONT, 15).into_font()).color(&n.color);
+        top.draw_text(&n.text, &style, (12, 2 + NOTE_HEIGHT as i32 * i as i32))
+            .map_err(|e| fail(&e))?;
+    }
+    if columns.is_empty() {
+        return root.present().map_err(|e| fail(&e));
+    }
+    for (area, column) in body.split_evenly((1, columns.len())).iter().zip(columns) {
+        if column.is_empty() {
+            continue;
+        }
+        for (cell, p) in area.split_evenly((column.len(), 1)).iter().zip(column) {
+            draw_panel(cell, p).map_err(|e| fail(&e))?;
+        }
+    }
+    root.present().map_err(|e| fail(&e))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -299,6 +430,14 @@ mod tests {
         assert_eq!(tick_label(&-0.25), "-0.25");
         assert_eq!(tick_label(&120.0), "120");
         assert_eq!(tick_label(&0.0), "0");
+    }
+
+    #[test]
+    fn ticks_of_float_noise_around_zero_read_zero() {
+        assert_eq!(tick_label(&snap(1.11e-16, -0.5, 0.5, false)), "0");
+        assert_eq!(tick_label(&snap(1e-16, -1e-15, 1e-15, false)), "1e-16");
+        assert_eq!(snap(0.25, -0.5, 0.5, false), 0.25);
+        assert_eq!(tick_label(&snap(1e-10, 1e-12, 0.1, true)), "1e-10");
     }
 
     #[test]
@@ -331,6 +470,56 @@ mod tests {
         });
         let path = dir.join("f.png");
         figure(&path, "test", (3, 2), (900, 900), &panels).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        assert!(bytes.len() > 10_000, "a non-trivial image");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_column_figure_with_bands_markers_and_notes_is_written() {
+        let dir = std::env::temp_dir().join(format!("plot-columns-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let x: Vec<f64> = (0..500).map(|i| i as f64 * 0.01).collect();
+        let y: Vec<f64> = x.iter().map(|v| v.sin()).collect();
+        let panel = |title: &str| Panel {
+            title: title.into(),
+            x_label: "time (s)".into(),
+            y_label: "y (plant units)".into(),
+            series: vec![Series::line("y", &x, &y, PALETTE[0])],
+            bands: vec![
+                Band {
+                    label: "safe state".into(),
+                    from: 1.0,
+                    to: 2.0,
+                    color: PALETTE[1],
+                },
+                Band {
+                    label: String::new(),
+                    from: 4.0,
+                    to: 4.0,
+                    color: PALETTE[1],
+                },
+            ],
+            vlines: vec![VLine {
+                label: "start".into(),
+                x: 0.5,
+                color: BLACK,
+            }],
+            ..Default::default()
+        };
+        let path = dir.join("c.png");
+        column_figure(
+            &path,
+            "columns",
+            &[Note {
+                text: "verdict: FAILED".into(),
+                color: PALETTE[1],
+            }],
+            &[vec![panel("a"), panel("b")], vec![panel("c")]],
+            (900, 700),
+        )
+        .unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         assert!(bytes.len() > 10_000, "a non-trivial image");
