@@ -7,8 +7,13 @@
 //! starts with default scheduling and all cores and does its own real-time set-up, exactly
 //! as a deployed service does. Its standard output and error go to a log file next to its
 //! results. [`ChildProc`] terminates the child (SIGTERM, then SIGKILL) if it is still
-//! running when the parent gives up on it, and [`drive`] runs the parent's measuring
-//! thread while watching the child. [`repin_rt_thread`] checks, inside the service child,
+//! running when the parent gives up on it, and the child gets SIGTERM when the bench dies
+//! (`PR_SET_PDEATHSIG`): a service child busy-polls at `SCHED_FIFO` on the RT core and
+//! never ends by itself without its plant, so one left behind by a killed bench would keep
+//! that core from every later bench's service child, which then never connects (see
+//! [`crate::machine::rt_threads_on_core`]). [`drive`] runs the parent's measuring thread
+//! while watching the child; its errors say whether the child still ran or how it ended,
+//! with the end of its log. [`repin_rt_thread`] checks, inside the service child,
 //! that the service's RT thread really runs on its core. On the parent side,
 //! [`spawn_service`] writes a service configuration and starts the service child on it,
 //! and [`read_report`] reads the run report it leaves.
@@ -19,6 +24,7 @@ use serde_json::Value;
 use service::config::{ServiceConfig, WaitMode};
 use service::runtime::{RunOptions, run};
 use std::fs::File;
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::Arc;
@@ -32,30 +38,64 @@ pub struct ChildProc {
     pub log: PathBuf,
     /// What it is, for messages.
     pub what: String,
+    /// The core its real-time thread is pinned to, when it has one: a failure then also
+    /// names the real-time threads of other processes running there.
+    pub rt_core: Option<usize>,
     exited: Option<ExitStatus>,
+    /// Set when it did not end even after SIGKILL.
+    unkillable: bool,
 }
 
+/// How long [`ChildProc::terminate`] waits after SIGTERM, then after SIGKILL.
+const TERM_GRACE: Duration = Duration::from_secs(2);
+const KILL_GRACE: Duration = Duration::from_secs(5);
+
 impl ChildProc {
-    /// Starts this executable again with `args`, output to `log`.
-    pub fn spawn(args: &[String], log: &Path, what: &str) -> Result<Self, String> {
-        let exe = std::env::current_exe()
-            .map_err(|e| format!("cannot find the bench executable: {e}"))?;
+    /// Starts `program` (`None`: this executable again) with `args`, output to `log`.
+    pub fn spawn(
+        program: Option<&Path>,
+        args: &[String],
+        log: &Path,
+        what: &str,
+    ) -> Result<Self, String> {
+        let exe = match program {
+            Some(p) => p.to_path_buf(),
+            None => std::env::current_exe()
+                .map_err(|e| format!("cannot find the bench executable: {e}"))?,
+        };
         let out = File::create(log).map_err(|e| format!("creating {}: {e}", log.display()))?;
         let err = out
             .try_clone()
             .map_err(|e| format!("{}: {e}", log.display()))?;
-        let child = Command::new(exe)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(out)
-            .stderr(err)
+        let mut cmd = Command::new(&exe);
+        cmd.args(args).stdin(Stdio::null()).stdout(out).stderr(err);
+        let parent = std::process::id() as libc::pid_t;
+        // SAFETY: the closure runs in the child between fork and exec and only calls prctl,
+        // getppid and _exit, which are async-signal-safe, with valid arguments.
+        unsafe {
+            cmd.pre_exec(move || {
+                // SIGTERM when the thread that started it (the bench's main thread) dies: a
+                // service child stops its loop on it and removes its iceoryx2 resources.
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                // The bench died before the setting took effect: no signal will come.
+                if libc::getppid() != parent {
+                    libc::_exit(1);
+                }
+                Ok(())
+            });
+        }
+        let child = cmd
             .spawn()
-            .map_err(|e| format!("starting the {what} child: {e}"))?;
+            .map_err(|e| format!("starting the {what} child ({}): {e}", exe.display()))?;
         Ok(Self {
             child,
             log: log.to_path_buf(),
             what: what.to_string(),
+            rt_core: None,
             exited: None,
+            unkillable: false,
         })
     }
 
@@ -71,7 +111,45 @@ impl ChildProc {
         Ok(())
     }
 
-    fn poll(&mut self) -> Option<ExitStatus> {
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// How it stands, for messages: `exited (exit status: 3)`, `is still running (pid 12)`,
+    /// `is still running (pid 12) even after SIGKILL: …`.
+    pub fn state(&mut self) -> String {
+        match self.poll() {
+            Some(st) => format!("exited ({st})"),
+            None if self.unkillable => format!(
+                "is still running (pid {}) even after SIGKILL: one of its threads cannot be \
+                 scheduled",
+                self.pid()
+            ),
+            None => format!("is still running (pid {})", self.pid()),
+        }
+    }
+
+    /// What a failure message says about the child: its state, what runs on its RT core
+    /// when something else does, and the end of its log.
+    pub fn diagnosis(&mut self) -> String {
+        let state = self.state();
+        let pid = self.pid();
+        let core = self
+            .rt_core
+            .map(|c| crate::machine::core_occupancy_note(c, &[pid]))
+            .filter(|n| !n.is_empty())
+            .map(|n| format!("; {n}"))
+            .unwrap_or_default();
+        format!(
+            "the {} child {state}{core}: {}",
+            self.what,
+            self.log_tail(1500)
+        )
+    }
+
+    /// Its exit status, once it has exited.
+    pub fn poll(&mut self) -> Option<ExitStatus> {
         if self.exited.is_none() {
             self.exited = self.child.try_wait().ok().flatten();
         }
@@ -97,34 +175,35 @@ impl ChildProc {
             if start.elapsed() > timeout {
                 self.terminate();
                 return Err(format!(
-                    "the {} child did not exit within {:.0} s and was terminated: {}",
-                    self.what,
+                    "did not exit within {:.0} s and was terminated; {}",
                     timeout.as_secs_f64(),
-                    self.log_tail(1500)
+                    self.diagnosis()
                 ));
             }
             std::thread::sleep(Duration::from_millis(10));
         }
     }
 
-    /// SIGTERM, up to 2 s of grace, then SIGKILL.
+    /// SIGTERM, up to 2 s of grace, then SIGKILL and up to 5 s more. Never waits longer:
+    /// a child one of whose threads cannot be scheduled (a real-time thread pinned to a
+    /// core another real-time thread holds) does not end even on SIGKILL, and is then
+    /// reported as such ([`ChildProc::state`]).
     pub fn terminate(&mut self) {
         if self.poll().is_some() {
             return;
         }
-        // SAFETY: kill only sends a signal to our own child's pid.
-        unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(2) {
-            if self.poll().is_some() {
-                return;
+        for (sig, grace) in [(libc::SIGTERM, TERM_GRACE), (libc::SIGKILL, KILL_GRACE)] {
+            // SAFETY: kill only sends a signal to our own child's pid (not reaped yet).
+            unsafe { libc::kill(self.child.id() as libc::pid_t, sig) };
+            let start = Instant::now();
+            while start.elapsed() < grace {
+                if self.poll().is_some() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(10));
             }
-            std::thread::sleep(Duration::from_millis(10));
         }
-        let _ = self.child.kill();
-        if let Ok(st) = self.child.wait() {
-            self.exited = Some(st);
-        }
+        self.unkillable = true;
     }
 
     /// The last `n` bytes of the child's log.
@@ -256,17 +335,13 @@ pub fn drive<T: Send>(
     match result {
         Ok(v) => Ok((v, setup)),
         Err(e) if timed_out => Err(format!(
-            "{e}; the measurement did not finish within {:.0} s, the {} child was terminated: {}",
+            "{e}; the measurement did not finish within {:.0} s and the child was terminated; {}",
             limit.as_secs_f64(),
-            child.what,
-            child.log_tail(1500)
+            child.diagnosis()
         )),
-        Err(e) if abort.load(Ordering::Relaxed) => Err(format!(
-            "{e}; the {} child exited: {}",
-            child.what,
-            child.log_tail(1500)
-        )),
-        Err(e) => Err(e),
+        // The child exited early (the flag was raised for it), or the measurement failed
+        // while it still ran (a connection that timed out): say which, with its log.
+        Err(e) => Err(format!("{e}; {}", child.diagnosis())),
     }
 }
 
@@ -378,7 +453,14 @@ pub fn spawn_service(s: &Settings, dir: &Path, rig: &str, wait: &str) -> Result<
         "--run-folder".into(),
         dir.display().to_string(),
     ];
-    ChildProc::spawn(&args, &dir.join("child.log"), &format!("service ({wait})"))
+    let mut child = ChildProc::spawn(
+        s.child_exe.as_deref(),
+        &args,
+        &dir.join("child.log"),
+        &format!("service ({wait})"),
+    )?;
+    child.rt_core = Some(s.rt_core);
+    Ok(child)
 }
 
 /// The service's run report (`dir/report.json`), with the note of [`REPIN_NOTE`] added as

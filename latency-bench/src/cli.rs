@@ -188,6 +188,9 @@ pub struct Settings {
     pub pcac_steps: Option<u64>,
     /// The results file this run writes its section into.
     pub results: PathBuf,
+    /// The executable started as the child process (`None`: this executable, which is
+    /// what the bench does; tests name the built `latency-bench` binary).
+    pub child_exe: Option<PathBuf>,
 }
 
 impl Settings {
@@ -231,6 +234,7 @@ impl Settings {
                     .max(1)
             }),
             results: o.run.results_file(),
+            child_exe: None,
         }
     }
 

@@ -139,7 +139,43 @@ pub fn timed_on_rt_core<T: Send + 'static>(
     })
 }
 
+/// The base of the rig names of one bench run, `bench-<pid>-<start in ms since the Unix
+/// epoch>`; each two-process round appends its own suffix (`-rtt0`, `-raw1`, `-block`).
+///
+/// The pid alone is not enough: pids repeat across runs (they wrap at `pid_max`, and a
+/// container or a machine booted from the same image hands out the same pids in the same
+/// order), and a rig name under which an earlier bench that was killed left iceoryx2
+/// resources may be unusable: a service whose static configuration (under `/tmp`)
+/// outlived its dynamic one (in `/dev/shm`, gone with a reboot) is refused with
+/// `HangsInCreation` by every later open, and no dead node refers to it any more for
+/// `ipc_types::ports::cleanup_dead_nodes` to remove it.
+pub fn rig_base() -> String {
+    let ms = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map(|d| d.as_millis())
+        .unwrap_or(0);
+    format!("bench-{}-{ms}", std::process::id())
+}
+
 /// A progress line on standard error (the table goes to standard output).
 pub fn progress(msg: &str) {
     eprintln!("[latency-bench] {msg}");
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn rig_bases_differ_between_runs_of_the_same_pid_and_make_valid_rig_names() {
+        let a = super::rig_base();
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        let b = super::rig_base();
+        assert_ne!(a, b, "two runs of one pid get different rig names");
+        assert!(
+            a.starts_with(&format!("bench-{}-", std::process::id())),
+            "{a}"
+        );
+        for suffix in ["-rtt10", "-raw10", "-busy-poll"] {
+            ipc_types::ports::service_names(&format!("{a}{suffix}")).expect("a valid rig name");
+        }
+    }
 }

@@ -160,3 +160,146 @@ impl MachineFacts {
         )
     }
 }
+
+/// A real-time thread of another process that was running on a core.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RtThread {
+    /// Its process.
+    pub pid: u32,
+    /// The process's command name.
+    pub process: String,
+    /// The thread id.
+    pub tid: u32,
+    /// The thread's name.
+    pub thread: String,
+    /// `SCHED_FIFO` or `SCHED_RR`.
+    pub policy: &'static str,
+    /// Its real-time priority.
+    pub priority: u32,
+}
+
+impl std::fmt::Display for RtThread {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "pid {} ({}), thread {} '{}', {} {}",
+            self.pid, self.process, self.tid, self.thread, self.policy, self.priority
+        )
+    }
+}
+
+/// The command name and the fields after it of a `/proc/…/stat` line.
+fn stat_fields(text: &str) -> Option<(String, Vec<&str>)> {
+    let open = text.find('(')?;
+    let close = text.rfind(')')?;
+    let comm = text.get(open + 1..close)?.to_string();
+    Some((comm, text[close + 1..].split_whitespace().collect()))
+}
+
+/// The runnable `SCHED_FIFO` / `SCHED_RR` threads of user processes other than this one
+/// whose last core was `core` (`/proc/<pid>/task/<tid>/stat`: state, processor, priority
+/// and policy). A thread of the bench's real-time set-up cannot run on a core where such a
+/// thread of equal or higher priority spins: a service child left running by an earlier
+/// bench that was killed is one (it busy-polls at `SCHED_FIFO` 80 and would never end by
+/// itself), and every later service child pinned there then never connects.
+pub fn rt_threads_on_core(core: usize) -> Vec<RtThread> {
+    let me = std::process::id();
+    let mut found = Vec::new();
+    let Ok(procs) = std::fs::read_dir("/proc") else {
+        return found;
+    };
+    for p in procs.flatten() {
+        let Some(pid) = p.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else {
+            continue;
+        };
+        // Kernel threads (per-core migration and interrupt threads) have no command line.
+        if pid == me || std::fs::read(p.path().join("cmdline")).map_or(true, |c| c.is_empty()) {
+            continue;
+        }
+        let process = std::fs::read_to_string(p.path().join("stat"))
+            .ok()
+            .and_then(|t| stat_fields(&t).map(|(c, _)| c))
+            .unwrap_or_default();
+        let Ok(tasks) = std::fs::read_dir(p.path().join("task")) else {
+            continue;
+        };
+        for t in tasks.flatten() {
+            let Some(tid) = t.file_name().to_str().and_then(|s| s.parse::<u32>().ok()) else {
+                continue;
+            };
+            let Ok(text) = std::fs::read_to_string(t.path().join("stat")) else {
+                continue;
+            };
+            let Some((thread, f)) = stat_fields(&text) else {
+                continue;
+            };
+            // Fields 3 (state), 39 (processor), 40 (rt_priority), 41 (policy).
+            let (Some(state), Some(cpu), Some(prio), Some(policy)) =
+                (f.first(), f.get(36), f.get(37), f.get(38))
+            else {
+                continue;
+            };
+            let policy = match *policy {
+                "1" => "SCHED_FIFO",
+                "2" => "SCHED_RR",
+                _ => continue,
+            };
+            if *state == "R" && cpu.parse::<usize>().ok() == Some(core) {
+                found.push(RtThread {
+                    pid,
+                    process: process.clone(),
+                    tid,
+                    thread,
+                    policy,
+                    priority: prio.parse().unwrap_or(0),
+                });
+            }
+        }
+    }
+    found
+}
+
+/// `""`, or a sentence naming the real-time threads of other processes running on `core`
+/// ([`rt_threads_on_core`]) but those of the processes `except` (the bench's own child), for
+/// error messages and warnings.
+pub fn core_occupancy_note(core: usize, except: &[u32]) -> String {
+    let mut found = rt_threads_on_core(core);
+    found.retain(|t| !except.contains(&t.pid));
+    if found.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = found.iter().map(ToString::to_string).collect();
+    let pids: Vec<String> = {
+        let mut p: Vec<u32> = found.iter().map(|t| t.pid).collect();
+        p.dedup();
+        p.iter().map(u32::to_string).collect()
+    };
+    format!(
+        "core {core} is taken by real-time thread(s) of other processes: {}; a bench thread of \
+         the same or a lower priority cannot run there (a service child left running by an \
+         earlier bench that was killed looks like this: stop it, e.g. kill {}, and run again)",
+        list.join("; "),
+        pids.join(" ")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stat_line_is_split_after_the_command_name_even_with_spaces_in_it() {
+        let (comm, f) = stat_fields("42 (rt loop) R 1 42 42 0 -1").unwrap();
+        assert_eq!(comm, "rt loop");
+        assert_eq!(f[0], "R");
+        assert_eq!(f[1], "1");
+    }
+
+    #[test]
+    fn this_process_is_never_reported() {
+        let me = std::process::id();
+        for core in 0..4 {
+            assert!(rt_threads_on_core(core).iter().all(|t| t.pid != me));
+        }
+    }
+}

@@ -118,15 +118,24 @@ fn bench(o: &Options) -> i32 {
     .expect("probe thread");
     let facts = machine_facts(&probe);
     progress(&format!("writing to {}", out.display()));
+    // A real-time thread already spinning on one of the bench's cores (a service child of
+    // an earlier bench that was killed) would starve this run's threads there.
+    for core in [s.plant_core, s.rt_core] {
+        let note = machine::core_occupancy_note(core, &[]);
+        if !note.is_empty() {
+            progress(&format!("WARNING: {note}"));
+        }
+    }
 
-    let pid = std::process::id();
+    // Rig names unique to this run (see latency_bench::rig_base).
+    let rig_base = latency_bench::rig_base();
     let counts = ChannelCounts::new(1, 1, 0, 1).expect("within capacity");
     let mut col = Collected::default();
 
     // 1. Contract round trip and raw ping-pong, interleaved.
-    let contract_ratio = roundtrip::round_trip_phase(&s, &out, pid, counts, &mut col);
+    let contract_ratio = roundtrip::round_trip_phase(&s, &out, &rig_base, counts, &mut col);
     // 2. Wake-up latency at 8 kHz, against cyclictest on the RT core.
-    let plant_rows = paced::wakeup_phase(&s, &out, pid, counts, &mut col);
+    let plant_rows = paced::wakeup_phase(&s, &out, &rig_base, counts, &mut col);
     let (ct, wake_ratios) = cyclictest::cyclictest_phase(&s, &out.join("cyclictest"), &mut col);
     col.measured.extend(plant_rows);
     col.measured.push(ct);

@@ -178,7 +178,7 @@ pub fn paced_plant(
 pub fn wakeup_phase(
     s: &Settings,
     out: &Path,
-    pid: u32,
+    rig_base: &str,
     counts: ChannelCounts,
     col: &mut Collected,
 ) -> Vec<Measured> {
@@ -193,7 +193,7 @@ pub fn wakeup_phase(
             s.seconds
         ));
         let dir = out.join(format!("wakeup-{mode}"));
-        let rig = format!("bench-{pid}-{mode}");
+        let rig = format!("{rig_base}-{mode}");
         let label = format!("service wake-up 8 kHz {mode}");
         match paced_phase(s, &dir, &rig, wait, counts) {
             Ok((p, setup, report)) => {

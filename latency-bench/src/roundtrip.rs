@@ -480,7 +480,13 @@ pub fn raw_round(s: &Settings, dir: &Path, rig: &str) -> RoundOutcome {
         "--core".into(),
         s.rt_core.to_string(),
     ];
-    let mut child = ChildProc::spawn(&args, &dir.join("child.log"), "raw echo")?;
+    let mut child = ChildProc::spawn(
+        s.child_exe.as_deref(),
+        &args,
+        &dir.join("child.log"),
+        "raw echo",
+    )?;
+    child.rt_core = Some(s.rt_core);
     let plan = s.plan;
     let (h, setup) = child::drive(&mut child, s.plant_rt(), s.rtt_limit(), |abort| {
         raw_round_trips(rig, &plan, abort)
@@ -507,12 +513,13 @@ fn range(values: &[f64], unit: &str) -> String {
 /// The contract and raw round trips, in `s.rounds` rounds of fresh child processes in ABBA
 /// order (contract, raw, raw, contract, …), so that slow changes of the machine's load
 /// weigh on both variants alike. Each round records `s.plan.samples` round trips after
-/// `s.plan.warmup`; the rows are the merged histograms. Returns the ratio block of
+/// `s.plan.warmup`, on the rig `<rig_base>-rtt<r>` or `<rig_base>-raw<r>`
+/// ([`crate::rig_base`]); the rows are the merged histograms. Returns the ratio block of
 /// `summary.json`; the rows, details and service reports go into `col`.
 pub fn round_trip_phase(
     s: &Settings,
     out: &Path,
-    pid: u32,
+    rig_base: &str,
     counts: ChannelCounts,
     col: &mut Collected,
 ) -> Value {
@@ -548,9 +555,9 @@ pub fn round_trip_phase(
             ));
             let dir = out.join(IDS[v]).join(format!("round-{r}"));
             let outcome = if v == 0 {
-                contract_round(s, &dir, &format!("bench-{pid}-rtt{r}"), counts)
+                contract_round(s, &dir, &format!("{rig_base}-rtt{r}"), counts)
             } else {
-                raw_round(s, &dir, &format!("bench-{pid}-raw{r}"))
+                raw_round(s, &dir, &format!("{rig_base}-raw{r}"))
             };
             match outcome {
                 Ok((h, setup, report)) => {

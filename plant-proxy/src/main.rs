@@ -7,10 +7,15 @@
 //! ```
 //!
 //! A refused scenario or command-line value exits with code 2, naming the file and the
-//! field; `--steps` and `--duration` are checked as `rig.duration` is.
+//! field; `--steps` and `--duration` are checked as `rig.duration` is. A run that fails
+//! exits with code 1; a lockstep plant that gave up (no service answered after its
+//! watchdog tripped) still prints its counters and writes its report (`--report`), whose
+//! `gave_up` says why.
 
 use clap::{Parser, Subcommand};
-use plant_proxy::runtime::{Mode, PlantRunOptions, ProxyConfig, run_plant};
+use plant_proxy::runtime::{
+    Mode, PlantError, PlantReport, PlantRunOptions, ProxyConfig, run_plant,
+};
 use plant_proxy::scenario::Scenario;
 use plant_proxy::sim::PlantSim;
 use std::path::PathBuf;
@@ -85,6 +90,31 @@ fn load_plant_half(
 fn refused(message: impl std::fmt::Display) -> ExitCode {
     eprintln!("plant-proxy: {message}");
     ExitCode::from(2)
+}
+
+/// The counters of a run, one line (after `done: ` or `gave up: `).
+fn summary_line(r: &PlantReport) -> String {
+    format!(
+        "{} samples, {} actuations applied, {} misses ({} late, {} invalid), watchdog trips {}, recoveries {}, z RMS {:?}",
+        r.samples,
+        r.actuations_applied,
+        r.misses,
+        r.late_discarded,
+        r.invalid_discarded,
+        r.watchdog_trips,
+        r.watchdog_recoveries,
+        r.z_rms
+    )
+}
+
+/// Writes the run report `r` to `path` as JSON, atomically (the file is the whole report
+/// or absent); a failure is printed, naming the file.
+fn write_report(path: Option<&std::path::Path>, r: &PlantReport) -> Result<(), ()> {
+    let Some(p) = path else {
+        return Ok(());
+    };
+    let text = serde_json::to_string_pretty(r).expect("a plant report is plain data");
+    ipc_types::files::write_atomic(p, text.as_bytes()).map_err(|e| eprintln!("plant-proxy: {e}"))
 }
 
 fn parse_mode(s: &str) -> Result<Mode, String> {
@@ -178,26 +208,19 @@ fn main() -> ExitCode {
             };
             match run_plant(&sc, &proxy, &opts, &shutdown) {
                 Ok(r) => {
-                    eprintln!(
-                        "[plant-proxy] done: {} samples, {} actuations applied, {} misses ({} late, {} invalid), watchdog trips {}, recoveries {}, z RMS {:?}",
-                        r.samples,
-                        r.actuations_applied,
-                        r.misses,
-                        r.late_discarded,
-                        r.invalid_discarded,
-                        r.watchdog_trips,
-                        r.watchdog_recoveries,
-                        r.z_rms
-                    );
-                    if let Some(p) = report {
-                        let text = serde_json::to_string_pretty(&r).expect("JSON");
-                        // Atomically: the file is the whole report or absent.
-                        if let Err(e) = ipc_types::files::write_atomic(&p, text.as_bytes()) {
-                            eprintln!("plant-proxy: {e}");
-                            return ExitCode::FAILURE;
-                        }
+                    eprintln!("[plant-proxy] done: {}", summary_line(&r));
+                    match write_report(report.as_deref(), &r) {
+                        Ok(()) => ExitCode::SUCCESS,
+                        Err(()) => ExitCode::FAILURE,
                     }
-                    ExitCode::SUCCESS
+                }
+                Err(PlantError::GaveUp { message, report: r }) => {
+                    // The counters and the report still say what the run did, and that it
+                    // gave up; the reason (with the trust counters) comes last.
+                    eprintln!("[plant-proxy] gave up: {}", summary_line(&r));
+                    let _ = write_report(report.as_deref(), &r);
+                    eprintln!("plant-proxy: {message}");
+                    ExitCode::FAILURE
                 }
                 Err(e) => {
                     eprintln!("plant-proxy: {e}");

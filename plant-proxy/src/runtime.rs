@@ -286,6 +286,9 @@ pub struct PlantReport {
     pub z_rms: Vec<f64>,
     /// Wall time of the run, s.
     pub wall_time_s: f64,
+    /// Set when the lockstep plant gave up ([`PlantError::GaveUp`]): why. `None` for a run
+    /// that ended at its last sample or on a signal.
+    pub gave_up: Option<String>,
 }
 
 /// Why a plant run failed.
@@ -588,6 +591,10 @@ pub fn run_plant(
                     && t.elapsed() >= proxy.peer_timeout
                 {
                     report.service_pid = ports.peer_pid();
+                    report.z_rms = z_sum_sq
+                        .iter()
+                        .map(|s| (s / report.samples.max(1) as f64).sqrt())
+                        .collect();
                     return Err(give_up(report, k, consecutive_misses, proxy, &ports, wall));
                 }
                 u32::MAX
@@ -673,6 +680,7 @@ fn give_up(
         trust_line(&report)
     );
     eprintln!("[plant-proxy] {message}");
+    report.gave_up = Some(message.clone());
     PlantError::GaveUp {
         message,
         report: Box::new(report),

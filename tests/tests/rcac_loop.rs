@@ -276,14 +276,20 @@ fn a_restarted_service_starts_from_what_the_last_one_learned() {
     let (header, rows) = read_csv(&first.join("signals.csv"));
     let last_theta = rows.last().unwrap()[column(&header, "theta_norm")];
     let saved = checkpoint_theta_norm(&checkpoint);
-    assert!((saved - last_theta).abs() <= 1e-9 * saved, "{saved} vs {last_theta}");
+    assert!(
+        (saved - last_theta).abs() <= 1e-9 * saved,
+        "{saved} vs {last_theta}"
+    );
     let (_, fresh) = session_window(&header, &rows, KW);
 
     let warm = ["--warm-start", checkpoint_path.to_str().unwrap()];
     let second = run_lockstep_pair_into(&dir, "second", &scenario, 1500, &[], &warm);
     let (header, rows) = read_csv(&second.join("signals.csv"));
     let (theta0, kept) = session_window(&header, &rows, KW);
-    assert!((theta0 - saved).abs() <= 1e-9 * saved, "{theta0} vs {saved}");
+    assert!(
+        (theta0 - saved).abs() <= 1e-9 * saved,
+        "{theta0} vs {saved}"
+    );
     let report = read_json(&second.join("report.json"));
     let taken = &report["checkpoint"]["warm_start"];
     assert_eq!(taken["seq"], 1499, "{report}");
@@ -325,7 +331,10 @@ fn a_checkpoint_that_does_not_fit_is_refused_naming_the_file() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{err}");
         assert!(err.contains("warm start refused"), "{err}");
-        assert!(err.contains("checkpoint.json") && err.contains(says), "{err}");
+        assert!(
+            err.contains("checkpoint.json") && err.contains(says),
+            "{err}"
+        );
     }
 }
 
@@ -367,7 +376,10 @@ fn a_restarted_plant_keeps_what_rcac_learned() {
     let (first_db, second_db) = (db(open, first), db(open, second));
     eprintln!("samples 600–900: second session {second_db:.1} dB, first {first_db:.1} dB");
     assert!(second_db >= REQUIRED_DB, "only {second_db:.1} dB");
-    assert!(second_db >= first_db + 10.0, "{second_db:.1} vs {first_db:.1} dB");
+    assert!(
+        second_db >= first_db + 10.0,
+        "{second_db:.1} vs {first_db:.1} dB"
+    );
     let report = read_json(&run_folder.join("report.json"));
     assert_eq!(report["stats"]["new_sessions"], 1, "{report}");
 }

@@ -849,7 +849,7 @@ fn what_rcac_learned_survives_a_checkpoint_and_a_new_data_stream() {
         "kept {kept:.1} dB, fresh {fresh:.1} dB"
     );
 
-    let refused = |edit: &dyn Fn(&mut Vec<(String, Vec<f64>)>), says: &str| {
+    let refused = |edit: &dyn Fn(&mut crate::learned::Blocks), says: &str| {
         let mut bad = blocks.clone();
         edit(&mut bad);
         let mut c = build();

@@ -2,21 +2,25 @@
 //!
 //! ```text
 //! rig launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--run-folder DIR]
-//!            [--wait busy-poll|block] [--core N] [--controller FILE]
+//!            [--wait busy-poll|block] [--core N] [--controller FILE] [--warm-start FILE]
 //! rig plot <run-folder>
 //! ```
 //!
 //! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
 //! the same scenario, as two processes over shared memory; the service prints its run
-//! report; then `run.png` is drawn in the run folder (see `rig_tools::launch`). `plot`
-//! draws `run.png` from a run folder (signals.csv and report.json) of any earlier run.
+//! report; then `run.png` is drawn in the run folder (see `rig_tools::launch`). How each
+//! child ended is printed (`[launch] service: exit 0`) and written into `launch.json` in
+//! the run folder. Exit status: 0 when both ended cleanly; 1 when the service did not (it
+//! died, or its run verdict failed), or the plant did not and the launcher was not asked
+//! to stop; 2 when the configuration was refused before anything started. `plot` draws
+//! `run.png` from a run folder (signals.csv and report.json) of any earlier run.
 
 use clap::{Parser, Subcommand};
 use rig_tools::launch::{LaunchError, LaunchOptions, launch};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::AtomicUsize;
 
 #[derive(Parser)]
 #[command(
@@ -53,8 +57,12 @@ enum Command {
         /// Replace the scenario's `[controller]` (and `[log]`) table by this file's.
         #[arg(long)]
         controller: Option<PathBuf>,
+        /// Start the controller from what an earlier run learned (its checkpoint.json).
+        #[arg(long)]
+        warm_start: Option<PathBuf>,
     },
-    /// Draw run.png (z open and closed loop, u, ‖θ‖, PSDs) from a run folder.
+    /// Draw run.png (the verdict, z open and closed loop, u, ‖θ‖, shaded safe-state and
+    /// watchdog intervals, PSDs over equal windows) from a run folder.
     Plot {
         /// A run folder (holds signals.csv and report.json).
         run_folder: PathBuf,
@@ -71,10 +79,12 @@ fn main() -> ExitCode {
             wait,
             core,
             controller,
+            warm_start,
         } => {
-            let stop = Arc::new(AtomicBool::new(false));
+            // The number of the signal that asks the launch to stop (0: none).
+            let stop = Arc::new(AtomicUsize::new(0));
             for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-                let _ = signal_hook::flag::register(sig, stop.clone());
+                let _ = signal_hook::flag::register_usize(sig, stop.clone(), sig as usize);
             }
             let opts = LaunchOptions {
                 config,
@@ -84,6 +94,7 @@ fn main() -> ExitCode {
                 wait,
                 core,
                 controller,
+                warm_start,
             };
             match launch(&opts, stop) {
                 Ok(done) => {
