@@ -16,6 +16,8 @@
 //! - [`logging`]: the bounded lock-free queue that carries signal logs out of the RT thread
 //!   and the CSV writer behind it.
 //! - [`wire`]: controller dimensions and status bits to and from the contract.
+//! - [`system_check`]: what the box does to a real-time loop (PREEMPT_RT, isolated
+//!   cores, throttling, governor, SMT, IRQs, swap, huge pages, privileges), with fixes.
 //! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
 //!   counts every allocation made on it.
 
@@ -25,5 +27,6 @@ pub mod config;
 pub mod logging;
 pub mod rt_alloc;
 pub mod runtime;
+pub mod system_check;
 pub mod telemetry;
 pub mod wire;

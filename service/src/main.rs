@@ -3,6 +3,7 @@
 //! ```text
 //! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N] [--warm-start checkpoint.json]
 //! service check <scenario.toml> [--controller FILE]
+//! service check-system [scenario.toml] [--core N]
 //! ```
 //!
 //! `run` is the service alone, against whatever plant process serves the rig (plant-proxy or
@@ -71,6 +72,16 @@ enum Command {
         #[arg(long)]
         warm_start: Option<PathBuf>,
     },
+    /// Check what this box does to a real-time loop (PREEMPT_RT, the RT core's isolation,
+    /// RT throttling, governor, SMT sibling, IRQs, swap, huge pages, privileges) and print
+    /// the fix for each finding; exits 0 (the findings are advice).
+    CheckSystem {
+        /// A scenario whose `service.core` is the RT core (else --core, else none).
+        config: Option<PathBuf>,
+        /// The RT core to check.
+        #[arg(long)]
+        core: Option<usize>,
+    },
     /// Validate the whole scenario, both halves (the service's tables and plant-proxy's
     /// [rig], [plant] and [proxy], when the file has a [plant] table), and exit.
     Check {
@@ -111,6 +122,24 @@ fn shutdown_flag() -> Arc<AtomicBool> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::CheckSystem { config, core } => {
+            let core = match (core, config) {
+                (Some(c), _) => Some(c),
+                (None, Some(path)) => match load(&path, None) {
+                    Ok(cfg) => cfg.rt.core,
+                    Err(code) => return code,
+                },
+                (None, None) => None,
+            };
+            let findings = service::system_check::check_system(
+                &service::system_check::SystemRoot::live(),
+                core,
+            );
+            for f in &findings {
+                println!("{}", f.render());
+            }
+            ExitCode::SUCCESS
+        }
         Command::Check { config, controller } => {
             match ScenarioCheck::load(&config, controller.as_deref()) {
                 Ok(c) => {

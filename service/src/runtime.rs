@@ -971,6 +971,9 @@ pub struct RunReport {
     /// Per-tone amplitudes of `z` at the end of the open-loop phase and at the end of the
     /// run (`[service.report]`), when tones are known.
     pub tones: Option<ToneReport>,
+    /// What the box does to a real-time loop, for the RT core of this run
+    /// ([`crate::system_check`]).
+    pub system: Vec<crate::system_check::Finding>,
     /// Checkpoints of what the controller learned ([`checkpoint`]); `None` for a
     /// controller that learns nothing.
     pub checkpoint: Option<CheckpointReport>,
@@ -1128,6 +1131,20 @@ impl RunReport {
                 .collect::<Vec<_>>()
                 .join(", ");
             out += &format!("{}: {list}\n", self.controller);
+        }
+        let to_fix: Vec<&str> = self
+            .system
+            .iter()
+            .filter(|f| f.verdict == crate::system_check::Verdict::Fix)
+            .map(|f| f.check)
+            .collect();
+        if !to_fix.is_empty() {
+            out += &format!(
+                "system: {} of {} checks to fix ({}); `service check-system` gives the fixes\n",
+                to_fix.len(),
+                self.system.len(),
+                to_fix.join(", ")
+            );
         }
         if let Some(c) = &self.checkpoint {
             if let Some(w) = &c.warm_start {
@@ -1435,6 +1452,10 @@ pub fn run(
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
         tones: core.tones.report(),
+        system: crate::system_check::check_system(
+            &crate::system_check::SystemRoot::live(),
+            cfg.rt.core,
+        ),
         checkpoint: (!checkpoint_slot.is_empty()).then(|| CheckpointReport {
             path: checkpoints.path.display().to_string(),
             written: checkpoints.written,

@@ -114,3 +114,42 @@ fn config_run_checks_command_line_values_before_starting() {
         assert!(err.contains(&format!("field '{field}'")), "{args:?}: {err}");
     }
 }
+
+/// `service check-system` prints one line per check for the RT core of a scenario (or
+/// `--core`), each naming its check and marked ok, FIX (with its fix) or ?? (unreadable),
+/// and exits 0; a refused scenario is refused as `check` refuses it.
+#[test]
+fn check_system_prints_one_line_per_check_and_its_fix() {
+    let acoustic = scenario_path("acoustic-rig.toml");
+    for args in [
+        vec!["check-system", acoustic.to_str().unwrap()],
+        vec!["check-system", "--core", "0"],
+    ] {
+        let (code, out, err) = service(&args);
+        assert_eq!(code, Some(0), "{args:?}: {err}");
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines.len(), 9, "{out}");
+        for (line, check) in lines.iter().zip([
+            "preemption",
+            "isolated core",
+            "rt throttling",
+            "cpu governor",
+            "smt sibling",
+            "irq affinity",
+            "swap",
+            "transparent huge pages",
+            "privileges",
+        ]) {
+            assert!(line.contains(&format!("{check}: ")), "{line}");
+            let fix = line.starts_with("FIX ");
+            assert!(
+                fix || line.starts_with("ok ") || line.starts_with("?? "),
+                "{line}"
+            );
+            assert_eq!(fix, line.contains(" — fix: "), "{line}");
+        }
+    }
+    let (code, _, err) = service(&["check-system", "/no/such/scenario.toml"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("/no/such/scenario.toml"), "{err}");
+}
