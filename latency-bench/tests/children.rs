@@ -68,20 +68,23 @@ fn plan(connect_timeout: Duration) -> RoundTripPlan {
     }
 }
 
-#[test]
-fn a_child_that_exits_early_yields_an_error_naming_its_exit_status_and_the_end_of_its_log() {
-    let dir = test_dir("early-exit");
-    let args = [
-        "-c".to_string(),
-        "echo 'cannot pin to core 7' >&2; exit 3".into(),
-    ];
-    let mut child = ChildProc::spawn(
+/// `/bin/sh -c script` started as the bench starts its service child, logging into
+/// `<dir>/child.log`.
+fn shell_child(dir: &Path, script: &str) -> ChildProc {
+    let args = ["-c".to_string(), script.to_string()];
+    ChildProc::spawn(
         Some(Path::new("/bin/sh")),
         &args,
         &dir.join("child.log"),
         "service (busy-poll)",
     )
-    .expect("starting /bin/sh");
+    .expect("starting /bin/sh")
+}
+
+#[test]
+fn a_child_that_exits_early_yields_an_error_naming_its_exit_status_and_the_end_of_its_log() {
+    let dir = test_dir("early-exit");
+    let mut child = shell_child(&dir, "echo 'cannot pin to core 7' >&2; exit 3");
     let rig = rig("early");
     let plan = plan(Duration::from_secs(600));
     let err = drive(&mut child, no_rt(), Duration::from_secs(600), |abort| {
@@ -100,17 +103,7 @@ fn a_child_that_exits_early_yields_an_error_naming_its_exit_status_and_the_end_o
 #[test]
 fn a_child_that_runs_but_never_connects_is_named_as_still_running_in_the_connection_error() {
     let dir = test_dir("no-connect");
-    let args = [
-        "-c".to_string(),
-        "echo 'still setting up'; exec sleep 600".into(),
-    ];
-    let mut child = ChildProc::spawn(
-        Some(Path::new("/bin/sh")),
-        &args,
-        &dir.join("child.log"),
-        "service (busy-poll)",
-    )
-    .expect("starting /bin/sh");
+    let mut child = shell_child(&dir, "echo 'still setting up'; exec sleep 600");
     let pid = child.pid();
     let watched = Watched::new_or_gone(pid);
     let rig = rig("noconn");
