@@ -154,6 +154,87 @@ fn a_service_stopped_for_0_8_s_against_a_real_time_plant_counts_the_samples_it_m
     );
 }
 
+/// Spins for `how_long` on `core` at `SCHED_FIFO` priority 99 on a thread of this test:
+/// a CPU hog that takes the core from every normal-priority thread pinned there (with RT
+/// throttling on, they get its 5 % remainder). Panics when the OS refuses the priority.
+fn hog(core: usize, how_long: Duration) {
+    std::thread::spawn(move || {
+        // SAFETY: plain libc calls on this thread, with valid arguments.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            libc::CPU_SET(core, &mut set);
+            assert_eq!(
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set),
+                0,
+                "pinning the hog to core {core}"
+            );
+            let param = libc::sched_param { sched_priority: 99 };
+            assert_eq!(
+                libc::sched_setscheduler(0, libc::SCHED_FIFO, &param),
+                0,
+                "SCHED_FIFO 99 for the hog (the test needs root)"
+            );
+        }
+        let until = Instant::now() + how_long;
+        while Instant::now() < until {
+            std::hint::spin_loop();
+        }
+    })
+    .join()
+    .expect("the hog thread");
+}
+
+/// A CPU hog on the service's RT core (`SCHED_FIFO` 99 for 0.8 s on core 1, where the
+/// service runs pinned at normal priority) against a real-time plant on the other core:
+/// for the loop it is a stopped service, so the same rules hold whatever the hog's timing —
+/// no `PLANT SILENT` (samples were waiting), no new session, the controller never reset.
+/// How many samples were lost or late depends on the machine and is not asserted.
+#[test]
+fn a_cpu_hog_on_the_rt_core_is_a_stall_of_the_service_and_neither_silences_the_plant_nor_resets_the_controller()
+ {
+    let dir = TestDir::new("campaign-hog");
+    let sc = scenario(
+        &dir,
+        "hog",
+        "silent-periods = 300\ncore = 1",
+        "\n[proxy]\nfifo-priority = 0\nmlockall = false\ncore = 0\n",
+    );
+    let run_folder = dir.path.join("service-run");
+    let mut svc = service(&sc, &run_folder, true);
+    svc.wait_for_line("waiting for the plant", Duration::from_secs(30));
+    let mut plant = Proc::start(
+        "plant",
+        &bin("plant-proxy"),
+        &["run", sc.to_str().unwrap(), "--steps", "3000"],
+    );
+    svc.wait_for_line("plant connected", Duration::from_secs(30));
+    std::thread::sleep(Duration::from_millis(500));
+    hog(1, Duration::from_millis(800));
+    plant.wait_success(Duration::from_secs(60));
+    let st = exit_or_term(&mut svc, Duration::from_secs(30));
+
+    let out = svc.output();
+    assert!(
+        !out.contains("PLANT SILENT"),
+        "a hog taken for silence:\n{out}"
+    );
+    assert!(!out.contains("NEW PLANT SESSION"), "{out}");
+    let report = read_json(&run_folder.join("report.json"));
+    assert_eq!(stat(&report, "plant_silent_events"), 0, "{report}");
+    assert_eq!(stat(&report, "new_sessions"), 0, "{report}");
+    assert_integrator_never_reset(&run_folder);
+    eprintln!(
+        "hog: {} lost, {} caught up, {} misses reported by the plant",
+        stat(&report, "skipped"),
+        stat(&report, "caught_up"),
+        stat(&report, "plant_reported_misses")
+    );
+    assert!(
+        st.success() || st.code() == Some(1),
+        "service: {st:?}\n{out}"
+    );
+}
+
 #[test]
 fn a_plant_stopped_until_it_falls_silent_resumes_as_a_stall_of_the_same_session_without_a_controller_reset()
  {
