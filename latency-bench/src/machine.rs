@@ -1,6 +1,7 @@
-//! Facts about the machine that the figures depend on: cores, CPU model, kernel and its
-//! preemption model, RT throttling, boot parameters that isolate cores, and what the OS
-//! granted the bench's real-time threads.
+//! Facts about the machine that the figures depend on: cores, CPU model, kernel, the
+//! service's system check for the RT core ([`service::system_check`]: preemption model,
+//! isolation, RT throttling, governor, SMT, IRQs, swap, huge pages, privileges), the load,
+//! and what the OS granted the bench's real-time threads.
 
 use serde::Serialize;
 
@@ -13,13 +14,8 @@ pub struct MachineFacts {
     pub cpu_model: String,
     /// `uname`: system, release, version, machine.
     pub kernel: String,
-    /// `PREEMPT_RT`, `PREEMPT_DYNAMIC`, `PREEMPT` or unknown, from `uname -v` and
-    /// `/sys/kernel/realtime`.
-    pub preemption: String,
-    /// `/proc/sys/kernel/sched_rt_runtime_us` / `sched_rt_period_us`.
-    pub rt_throttling: String,
-    /// Kernel command-line parameters that affect latency (`isolcpus`, `nohz_full`, …).
-    pub latency_boot_params: Vec<String>,
+    /// The system check for the RT core: what moves the wake-up latency, with fixes.
+    pub system: Vec<service::system_check::Finding>,
     /// `/proc/loadavg` when the facts were collected: other work on the machine moves
     /// every figure.
     pub load_average: String,
@@ -68,8 +64,9 @@ pub fn uname() -> String {
     )
 }
 
-/// Collects the facts; `plant_rt` is the outcome of the parent's RT set-up.
-pub fn collect(plant_rt: &ipc_types::rt::RtSetup) -> MachineFacts {
+/// Collects the facts; `plant_rt` is the outcome of the parent's RT set-up, `rt_core` the
+/// core the system check looks at.
+pub fn collect(plant_rt: &ipc_types::rt::RtSetup, rt_core: usize) -> MachineFacts {
     // SAFETY: sysconf only reads a system parameter.
     let cores = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) }.max(1) as usize;
     let cpu_model = read("/proc/cpuinfo")
@@ -80,59 +77,14 @@ pub fn collect(plant_rt: &ipc_types::rt::RtSetup) -> MachineFacts {
                 .map(|(_, v)| v.trim().to_string())
         })
         .unwrap_or_else(|| "unknown".into());
-    let kernel = uname();
-    let preemption =
-        if read("/sys/kernel/realtime").as_deref() == Some("1") || kernel.contains("PREEMPT_RT") {
-            "PREEMPT_RT".to_string()
-        } else if kernel.contains("PREEMPT_DYNAMIC") {
-            let mode = read("/sys/kernel/debug/sched/preempt").unwrap_or_default();
-            if mode.is_empty() {
-                "PREEMPT_DYNAMIC (no PREEMPT_RT)".into()
-            } else {
-                format!("PREEMPT_DYNAMIC, mode {mode} (no PREEMPT_RT)")
-            }
-        } else if kernel.contains("PREEMPT") {
-            "PREEMPT (no PREEMPT_RT)".into()
-        } else {
-            "unknown (no PREEMPT_RT)".into()
-        };
-    let rt_throttling = match (
-        read("/proc/sys/kernel/sched_rt_runtime_us"),
-        read("/proc/sys/kernel/sched_rt_period_us"),
-    ) {
-        (Some(r), Some(p)) if r == "-1" => format!("off (runtime -1 of {p} µs)"),
-        (Some(r), Some(p)) => format!("RT tasks may use {r} of every {p} µs"),
-        _ => "unknown".into(),
-    };
-    let latency_boot_params = read("/proc/cmdline")
-        .map(|c| {
-            c.split_whitespace()
-                .filter(|p| {
-                    [
-                        "isolcpus",
-                        "nohz_full",
-                        "rcu_nocbs",
-                        "irqaffinity",
-                        "idle=",
-                        "processor.max_cstate",
-                        "intel_idle",
-                        "threadirqs",
-                        "preempt=",
-                    ]
-                    .iter()
-                    .any(|k| p.starts_with(k))
-                })
-                .map(str::to_string)
-                .collect()
-        })
-        .unwrap_or_default();
     MachineFacts {
         cores,
         cpu_model,
-        kernel,
-        preemption,
-        rt_throttling,
-        latency_boot_params,
+        kernel: uname(),
+        system: service::system_check::check_system(
+            &service::system_check::SystemRoot::live(),
+            Some(rt_core),
+        ),
         load_average: load_average(),
         plant_rt_setup: plant_rt.describe(),
         plant_rt_granted: !plant_rt.any_refused(),
@@ -142,22 +94,15 @@ pub fn collect(plant_rt: &ipc_types::rt::RtSetup) -> MachineFacts {
 impl MachineFacts {
     /// The lines printed above the table.
     pub fn render(&self) -> String {
-        let boot = if self.latency_boot_params.is_empty() {
-            "none".to_string()
-        } else {
-            self.latency_boot_params.join(" ")
-        };
-        format!(
-            "machine: {} cores, {}; load average {}\nkernel:  {}\npreemption: {}; RT throttling: {}; latency boot parameters: {}\nplant thread (parent): {}\n",
-            self.cores,
-            self.cpu_model,
-            self.load_average,
-            self.kernel,
-            self.preemption,
-            self.rt_throttling,
-            boot,
-            self.plant_rt_setup
-        )
+        let mut out = format!(
+            "machine: {} cores, {}; load average {}\nkernel:  {}\n",
+            self.cores, self.cpu_model, self.load_average, self.kernel
+        );
+        for f in &self.system {
+            out += &format!("system: {}\n", f.render());
+        }
+        out += &format!("plant thread (parent): {}\n", self.plant_rt_setup);
+        out
     }
 }
 

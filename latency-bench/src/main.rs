@@ -89,9 +89,10 @@ fn summary(
     m
 }
 
-/// Collects and prints the machine facts for the RT set-up `probe` of the measuring thread.
-fn machine_facts(probe: &RtSetup) -> MachineFacts {
-    let facts = machine::collect(probe);
+/// Collects and prints the machine facts for the RT set-up `probe` of the measuring thread
+/// and the RT core `rt_core`.
+fn machine_facts(probe: &RtSetup, rt_core: usize) -> MachineFacts {
+    let facts = machine::collect(probe, rt_core);
     println!("{}", facts.render());
     if probe.any_refused() {
         println!(
@@ -116,7 +117,7 @@ fn bench(o: &Options) -> i32 {
     })
     .join()
     .expect("probe thread");
-    let facts = machine_facts(&probe);
+    let facts = machine_facts(&probe, s.rt_core);
     progress(&format!("writing to {}", out.display()));
     // A real-time thread already spinning on one of the bench's cores (a service child of
     // an earlier bench that was killed) would starve this run's threads there.
@@ -221,7 +222,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
             return 2;
         }
     };
-    let facts = machine_facts(&probe);
+    let facts = machine_facts(&probe, a.rt_core);
     let load_start = machine::load_average();
     progress(&format!(
         "PCAC step cost, {steps} steps per workload, writing to {}",

@@ -456,7 +456,7 @@ mod tests {
             fifo: ipc_types::rt::StepOutcome::Skipped,
             mlockall: ipc_types::rt::StepOutcome::Skipped,
         };
-        let facts = crate::machine::collect(&setup);
+        let facts = crate::machine::collect(&setup, 0);
         let record = RunRecord {
             kind: RunKind::Pcac,
             started_unix: 0,
