@@ -96,18 +96,26 @@ fn stat(report: &serde_json::Value, name: &str) -> u64 {
         .unwrap_or_else(|| panic!("no stats.{name} in the report"))
 }
 
-#[test]
-fn a_service_stopped_for_0_8_s_against_a_real_time_plant_counts_the_samples_it_missed_as_lost_and_neither_calls_the_plant_silent_nor_resets_the_controller()
- {
-    let dir = TestDir::new("campaign-stop-service");
-    // A real-time plant (proxy.mode defaults to real-time; no --mode lockstep) at 1 kHz
-    // for 4 s, without RT privileges. Silence would take 300 periods (0.3 s): the 0.8 s
-    // stop is well beyond, so a service that took its own stall for silence would say so.
+/// A stall of the service against a real-time plant (proxy.mode defaults to real-time)
+/// at 1 kHz for `steps` samples, without RT privileges: `stall` runs 0.5 s after the plant
+/// connected. Silence would take 300 periods (0.3 s), so a service that took its own
+/// stall of 0.8 s for silence would say so. Asserts the rules that hold whatever the
+/// stall's timing — no `PLANT SILENT`, no new session, the controller never reset, the
+/// service ends with the plant (or fails its verdict on the misses) — and returns the
+/// report.
+fn stall_the_service(
+    test: &str,
+    service_extra: &str,
+    proxy_extra: &str,
+    steps: &str,
+    stall: impl FnOnce(&Proc),
+) -> serde_json::Value {
+    let dir = TestDir::new(&format!("campaign-{test}"));
     let sc = scenario(
         &dir,
-        "stop-svc",
-        "silent-periods = 300",
-        "\n[proxy]\nfifo-priority = 0\nmlockall = false\n",
+        test,
+        &format!("silent-periods = 300\n{service_extra}"),
+        &format!("\n[proxy]\nfifo-priority = 0\nmlockall = false\n{proxy_extra}\n"),
     );
     let run_folder = dir.path.join("service-run");
     let mut svc = service(&sc, &run_folder, true);
@@ -115,13 +123,11 @@ fn a_service_stopped_for_0_8_s_against_a_real_time_plant_counts_the_samples_it_m
     let mut plant = Proc::start(
         "plant",
         &bin("plant-proxy"),
-        &["run", sc.to_str().unwrap(), "--steps", "4000"],
+        &["run", sc.to_str().unwrap(), "--steps", steps],
     );
     svc.wait_for_line("plant connected", Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(500));
-    svc.signal(libc::SIGSTOP);
-    std::thread::sleep(Duration::from_millis(800));
-    svc.signal(libc::SIGCONT);
+    stall(&svc);
     plant.wait_success(Duration::from_secs(60));
     let st = exit_or_term(&mut svc, Duration::from_secs(30));
 
@@ -134,12 +140,6 @@ fn a_service_stopped_for_0_8_s_against_a_real_time_plant_counts_the_samples_it_m
     let report = read_json(&run_folder.join("report.json"));
     assert_eq!(stat(&report, "plant_silent_events"), 0, "{report}");
     assert_eq!(stat(&report, "new_sessions"), 0, "{report}");
-    // About 800 samples came while the service was stopped; the subscriber buffer kept a
-    // few, the rest were never seen and are counted as lost.
-    assert!(
-        stat(&report, "skipped") > 0,
-        "no sample counted as lost: {report}"
-    );
     let events = event_names(&report);
     assert!(
         !events
@@ -151,6 +151,23 @@ fn a_service_stopped_for_0_8_s_against_a_real_time_plant_counts_the_samples_it_m
     assert!(
         st.success() || st.code() == Some(1),
         "service: {st:?}\n{out}"
+    );
+    report
+}
+
+#[test]
+fn a_service_stopped_for_0_8_s_against_a_real_time_plant_counts_the_samples_it_missed_as_lost_and_neither_calls_the_plant_silent_nor_resets_the_controller()
+ {
+    let report = stall_the_service("stop-svc", "", "", "4000", |svc| {
+        svc.signal(libc::SIGSTOP);
+        std::thread::sleep(Duration::from_millis(800));
+        svc.signal(libc::SIGCONT);
+    });
+    // About 800 samples came while the service was stopped; the subscriber buffer kept a
+    // few, the rest were never seen and are counted as lost.
+    assert!(
+        stat(&report, "skipped") > 0,
+        "no sample counted as lost: {report}"
     );
 }
 
@@ -186,52 +203,20 @@ fn hog(core: usize, how_long: Duration) {
 
 /// A CPU hog on the service's RT core (`SCHED_FIFO` 99 for 0.8 s on core 1, where the
 /// service runs pinned at normal priority) against a real-time plant on the other core:
-/// for the loop it is a stopped service, so the same rules hold whatever the hog's timing —
-/// no `PLANT SILENT` (samples were waiting), no new session, the controller never reset.
-/// How many samples were lost or late depends on the machine and is not asserted.
+/// for the loop it is a stopped service, so the rules of [`stall_the_service`] hold
+/// whatever the hog's timing. How many samples were lost or late depends on the machine
+/// and is not asserted.
 #[test]
 fn a_cpu_hog_on_the_rt_core_is_a_stall_of_the_service_and_neither_silences_the_plant_nor_resets_the_controller()
  {
-    let dir = TestDir::new("campaign-hog");
-    let sc = scenario(
-        &dir,
-        "hog",
-        "silent-periods = 300\ncore = 1",
-        "\n[proxy]\nfifo-priority = 0\nmlockall = false\ncore = 0\n",
-    );
-    let run_folder = dir.path.join("service-run");
-    let mut svc = service(&sc, &run_folder, true);
-    svc.wait_for_line("waiting for the plant", Duration::from_secs(30));
-    let mut plant = Proc::start(
-        "plant",
-        &bin("plant-proxy"),
-        &["run", sc.to_str().unwrap(), "--steps", "3000"],
-    );
-    svc.wait_for_line("plant connected", Duration::from_secs(30));
-    std::thread::sleep(Duration::from_millis(500));
-    hog(1, Duration::from_millis(800));
-    plant.wait_success(Duration::from_secs(60));
-    let st = exit_or_term(&mut svc, Duration::from_secs(30));
-
-    let out = svc.output();
-    assert!(
-        !out.contains("PLANT SILENT"),
-        "a hog taken for silence:\n{out}"
-    );
-    assert!(!out.contains("NEW PLANT SESSION"), "{out}");
-    let report = read_json(&run_folder.join("report.json"));
-    assert_eq!(stat(&report, "plant_silent_events"), 0, "{report}");
-    assert_eq!(stat(&report, "new_sessions"), 0, "{report}");
-    assert_integrator_never_reset(&run_folder);
+    let report = stall_the_service("hog", "core = 1", "core = 0", "3000", |_| {
+        hog(1, Duration::from_millis(800));
+    });
     eprintln!(
         "hog: {} lost, {} caught up, {} misses reported by the plant",
         stat(&report, "skipped"),
         stat(&report, "caught_up"),
         stat(&report, "plant_reported_misses")
-    );
-    assert!(
-        st.success() || st.code() == Some(1),
-        "service: {st:?}\n{out}"
     );
 }
 
