@@ -16,7 +16,10 @@
  *   "adaptive-rig/N/actuation"    event, notified by the service after each actuation
  * The creator of each publish-subscribe service defines the attributes
  *   "contract-version", "n-y", "n-z", "n-r", "n-u", "period-ns", "role"
- * as decimal strings ("role" is "plant" or "service"); the opener compares them with its own.
+ * as decimal strings ("role" is "plant" or "service"), and "timing": the service's timing
+ * ("compute-first", "answer-first" or "send-ahead") or, for the plant, when it applies an
+ * input ("at-sample", "at-deadline" or "lockstep"); the opener compares them with its own.
+ * A plant that applies at the sample instant needs a service that sends ahead.
  * Timestamps are CLOCK_MONOTONIC in nanoseconds.
  */
 #ifndef ADAPTIVE_RIG_CONTRACT_H
@@ -25,14 +28,15 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define AR_CONTRACT_VERSION 2
+#define AR_CONTRACT_VERSION 3
 #define AR_MAX_Y 16
 #define AR_MAX_Z 16
 #define AR_MAX_R 16
 #define AR_MAX_U 8
+#define AR_MAX_PLAN 64
 
-#define AR_MEASUREMENT_TYPE_NAME "adaptive_rig::Measurement.v2"
-#define AR_ACTUATION_TYPE_NAME "adaptive_rig::Actuation.v2"
+#define AR_MEASUREMENT_TYPE_NAME "adaptive_rig::Measurement.v3"
+#define AR_ACTUATION_TYPE_NAME "adaptive_rig::Actuation.v3"
 
 /* Measurement flags */
 #define AR_MEAS_LOCKSTEP 0x1u
@@ -41,6 +45,10 @@
 #define AR_MEAS_LAST_SAMPLE 0x8u
 /* u_applied holds the input applied after sample k-1 */
 #define AR_MEAS_U_APPLIED 0x10u
+/* the previous actuation missed its deadline; the plant applied the entry of the latest plan */
+#define AR_MEAS_PLAN_APPLIED 0x20u
+/* lockstep only: an injected stall of the service; it observes the sample and acknowledges it */
+#define AR_MEAS_INJECTED_STALL 0x40u
 
 /* Actuation status bits */
 #define AR_ACT_OK 0x0u
@@ -52,6 +60,16 @@
 #define AR_ACT_OPEN_LOOP 0x20u
 /* the controller could not compute its law (e.g. an infeasible MPC problem); u is its fallback */
 #define AR_ACT_FALLBACK 0x40u
+/* acknowledges a sample flagged AR_MEAS_INJECTED_STALL; u and the plan are not inputs */
+#define AR_ACT_STALL_ACK 0x80u
+
+/* ar_actuation_t.timing: when the service answers.
+ * compute-first: u_k computed from y_k, then published as seq k;
+ * answer-first: u_k prepared from the data up to k-1, published on receipt of sample k;
+ * send-ahead: u_{k+1} published as seq k+1 as soon as y_k is taken in. */
+#define AR_TIMING_COMPUTE_FIRST 0x0u
+#define AR_TIMING_ANSWER_FIRST 0x1u
+#define AR_TIMING_SEND_AHEAD 0x2u
 
 typedef struct ar_channel_counts {
     uint16_t n_y;
@@ -72,7 +90,7 @@ typedef struct ar_measurement {
     uint64_t seq;
     uint64_t t_sample_ns;
     uint64_t period_ns;
-    uint64_t deadline_ns;
+    uint64_t deadline_ns; /* the input for seq is applied at t_sample_ns + deadline_ns (0: at the sample) */
     ar_channel_counts_t counts;
     double y[AR_MAX_Y];
     double z[AR_MAX_Z];
@@ -97,24 +115,32 @@ typedef struct ar_measurement {
 typedef struct ar_actuation {
     uint32_t contract_version;
     uint32_t status;
-    uint64_t seq;
-    uint64_t t_sample_ns;
+    uint64_t seq;         /* the sample whose period u is for */
+    uint64_t reply_to;    /* the measurement whose receipt this answers (seq, or seq-1 sent ahead) */
+    uint64_t t_sample_ns; /* t_sample_ns of reply_to, echoed */
     uint64_t t_publish_ns;
     uint64_t compute_ns;
     ar_channel_counts_t counts;
+    uint32_t timing;      /* AR_TIMING_* */
+    uint32_t plan_len;    /* valid entries of plan */
     double u[AR_MAX_U];
+    double plan[AR_MAX_PLAN][AR_MAX_U]; /* plan[j]: the expected input for sample seq+1+j */
 } ar_actuation_t;
 
-#define AR_ACTUATION_SIZE 112
+#define AR_ACTUATION_SIZE 4224
 #define AR_ACTUATION_ALIGN 8
 #define AR_ACTUATION_OFFSET_CONTRACT_VERSION 0
 #define AR_ACTUATION_OFFSET_STATUS 4
 #define AR_ACTUATION_OFFSET_SEQ 8
-#define AR_ACTUATION_OFFSET_T_SAMPLE_NS 16
-#define AR_ACTUATION_OFFSET_T_PUBLISH_NS 24
-#define AR_ACTUATION_OFFSET_COMPUTE_NS 32
-#define AR_ACTUATION_OFFSET_COUNTS 40
-#define AR_ACTUATION_OFFSET_U 48
+#define AR_ACTUATION_OFFSET_REPLY_TO 16
+#define AR_ACTUATION_OFFSET_T_SAMPLE_NS 24
+#define AR_ACTUATION_OFFSET_T_PUBLISH_NS 32
+#define AR_ACTUATION_OFFSET_COMPUTE_NS 40
+#define AR_ACTUATION_OFFSET_COUNTS 48
+#define AR_ACTUATION_OFFSET_TIMING 56
+#define AR_ACTUATION_OFFSET_PLAN_LEN 60
+#define AR_ACTUATION_OFFSET_U 64
+#define AR_ACTUATION_OFFSET_PLAN 128
 
 #if defined(__STDC_VERSION__) && __STDC_VERSION__ >= 201112L
 _Static_assert(sizeof(ar_channel_counts_t) == AR_CHANNEL_COUNTS_SIZE, "ar_channel_counts_t size");
@@ -129,7 +155,10 @@ _Static_assert(offsetof(ar_measurement_t, u_applied) == AR_MEASUREMENT_OFFSET_U_
 _Static_assert(sizeof(ar_actuation_t) == AR_ACTUATION_SIZE, "ar_actuation_t size");
 _Static_assert(_Alignof(ar_actuation_t) == AR_ACTUATION_ALIGN, "ar_actuation_t align");
 _Static_assert(offsetof(ar_actuation_t, compute_ns) == AR_ACTUATION_OFFSET_COMPUTE_NS, "compute_ns offset");
+_Static_assert(offsetof(ar_actuation_t, reply_to) == AR_ACTUATION_OFFSET_REPLY_TO, "reply_to offset");
+_Static_assert(offsetof(ar_actuation_t, timing) == AR_ACTUATION_OFFSET_TIMING, "timing offset");
 _Static_assert(offsetof(ar_actuation_t, u) == AR_ACTUATION_OFFSET_U, "u offset");
+_Static_assert(offsetof(ar_actuation_t, plan) == AR_ACTUATION_OFFSET_PLAN, "plan offset");
 #endif
 
 #endif /* ADAPTIVE_RIG_CONTRACT_H */

@@ -12,8 +12,17 @@
 //! At sample `k` the plant publishes a [`Measurement`] carrying the measurement `y_k`, the
 //! performance variable `z_k` and the command `r_k` (the notation of Figure 3.1 and (2.15) of
 //! the dissertation), stamped with the sample time on `CLOCK_MONOTONIC`. The service answers
-//! with an [`Actuation`] carrying `u_k` and the same sequence number. The plant applies `u_k`
-//! at its deadline offset inside the period; a reply that arrives later is discarded.
+//! with an [`Actuation`] carrying an input and the sequence number of the sample whose
+//! period it is for. The plant applies the input for sample `k` at its deadline offset
+//! ([`Measurement::deadline_ns`]; 0 is the sample instant itself); a reply that arrives
+//! later is discarded.
+//!
+//! How the answer relates to the sample is the service's [`Timing`]: it computes `u_k` from
+//! `y_k` and answers (compute-first), answers with `u_k` prepared from the data up to
+//! `k − 1` and then computes (answer-first), or sends `u_{k+1}` as soon as it has taken in
+//! `y_k`, so that the plant holds it before sample `k + 1` (send-ahead). An actuation may
+//! carry a short **plan**, the inputs the controller expects to give for the samples after
+//! its own ([`Actuation::plan`]), which a plant applies when an answer is late.
 //!
 //! Every payload is `#[repr(C)]`, `Copy` and [`ZeroCopySend`] with an explicit, versioned
 //! type name, so that a DAQ process written against iceoryx2's C or C++ API with the header
@@ -38,7 +47,7 @@ pub mod rt;
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Version of this contract. Bumped on every change of layout or meaning.
-pub const CONTRACT_VERSION: u32 = 2;
+pub const CONTRACT_VERSION: u32 = 3;
 /// Capacity of the measurement vector `y`.
 pub const MAX_Y: usize = 16;
 /// Capacity of the performance vector `z`.
@@ -47,6 +56,8 @@ pub const MAX_Z: usize = 16;
 pub const MAX_R: usize = 16;
 /// Capacity of the actuation vector `u`.
 pub const MAX_U: usize = 8;
+/// Capacity of an actuation's plan: the inputs for the samples after its own.
+pub const MAX_PLAN: usize = 64;
 
 /// Flags a plant sets in [`Measurement::flags`].
 pub mod measurement_flags {
@@ -62,6 +73,17 @@ pub mod measurement_flags {
     /// really applied after the previous sample (a DAQ process that cannot read its outputs
     /// back leaves this bit clear).
     pub const U_APPLIED: u32 = 1 << 4;
+    /// The actuation for the previous sample missed its deadline and the plant applied the
+    /// entry of the service's latest plan for that sample instead
+    /// ([`Actuation::plan`](crate::Actuation::plan)); set together with
+    /// [`PREVIOUS_ACTUATION_MISSED`].
+    pub const PLAN_APPLIED: u32 = 1 << 5;
+    /// Lockstep only (with [`LOCKSTEP`]): the plant injects a stall of the service. The
+    /// service takes this sample in as one that reached it after a newer one (it observes
+    /// it and does not answer it) and acknowledges it with
+    /// [`actuation_status::STALL_ACK`](crate::actuation_status::STALL_ACK); the plant
+    /// applies its late policy for the sample's period.
+    pub const INJECTED_STALL: u32 = 1 << 6;
 }
 
 /// Status bits the service sets in [`Actuation::status`].
@@ -85,6 +107,75 @@ pub mod actuation_status {
     /// receding-horizon problem was infeasible or not solved within its iteration cap)
     /// and `u` is its fallback input (hold the last input within its bounds).
     pub const FALLBACK: u32 = 1 << 6;
+    /// The acknowledgement of a sample flagged
+    /// [`measurement_flags::INJECTED_STALL`](crate::measurement_flags::INJECTED_STALL): the
+    /// service took it in without answering it. `u` and the plan are not inputs; the
+    /// plant never applies them.
+    pub const STALL_ACK: u32 = 1 << 7;
+}
+
+/// When the service answers a sample, stated in every [`Actuation::timing`] and in the
+/// service's connect attributes.
+///
+/// A controller whose input `u_k` depends only on the data up to `k − 1` (RCAC (2.15)–(2.16),
+/// an LTI controller without feedthrough, PCAC in the dissertation's timing) can work
+/// ahead; one that needs `y_k` for `u_k` answers compute-first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum Timing {
+    /// At sample `k` the service computes `u_k` from `y_k` and then publishes
+    /// `Actuation{seq k}`: the response time contains the controller's cost.
+    ComputeFirst = 0,
+    /// At sample `k` the service publishes `Actuation{seq k}` with the input it prepared
+    /// from the data up to `k − 1`, then takes `y_k` in and prepares `u_{k+1}`.
+    AnswerFirst = 1,
+    /// At sample `k` the service takes `y_k` in, prepares `u_{k+1}` and publishes
+    /// `Actuation{seq k + 1}` at once, so that the plant holds it before sample `k + 1`
+    /// (it also answers sample `k` itself when no input was sent ahead for it).
+    SendAhead = 2,
+}
+
+impl Timing {
+    /// Every timing, in wire order.
+    pub const ALL: [Timing; 3] = [Timing::ComputeFirst, Timing::AnswerFirst, Timing::SendAhead];
+
+    /// The value carried in [`Actuation::timing`].
+    pub const fn wire(self) -> u32 {
+        self as u32
+    }
+
+    /// The timing of a wire value; `None` for an unknown one.
+    pub const fn from_wire(v: u32) -> Option<Self> {
+        match v {
+            0 => Some(Timing::ComputeFirst),
+            1 => Some(Timing::AnswerFirst),
+            2 => Some(Timing::SendAhead),
+            _ => None,
+        }
+    }
+
+    /// The name used in configuration files, attributes and reports (`"send-ahead"`, …).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Timing::ComputeFirst => "compute-first",
+            Timing::AnswerFirst => "answer-first",
+            Timing::SendAhead => "send-ahead",
+        }
+    }
+
+    /// The timing of a name given by [`Timing::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// How many samples ahead of the measurement it answers the published input is:
+    /// 1 for [`Timing::SendAhead`], else 0.
+    pub const fn lead(self) -> u64 {
+        match self {
+            Timing::SendAhead => 1,
+            Timing::ComputeFirst | Timing::AnswerFirst => 0,
+        }
+    }
 }
 
 /// Channel counts used by one side of the contract.
@@ -157,7 +248,7 @@ impl ChannelCounts {
 /// One sample of the plant, published at the start of period `seq`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, ZeroCopySend)]
-#[type_name("adaptive_rig::Measurement.v2")]
+#[type_name("adaptive_rig::Measurement.v3")]
 pub struct Measurement {
     /// Must equal [`CONTRACT_VERSION`].
     pub contract_version: u32,
@@ -169,8 +260,11 @@ pub struct Measurement {
     pub t_sample_ns: u64,
     /// The plant's sampling period `T` in nanoseconds.
     pub period_ns: u64,
-    /// Deadline offset in nanoseconds after `t_sample_ns` by which the actuation must arrive;
-    /// 0 when there is none (lockstep).
+    /// The plant's deadline for the input of this sample, in nanoseconds after
+    /// `t_sample_ns`: the plant applies the actuation with this `seq` then, so it must have
+    /// arrived by then. 0 in real time is the sample instant itself (a DAC latched on the
+    /// sample clock; only a service that sends ahead can meet it). Not a deadline in
+    /// lockstep ([`measurement_flags::LOCKSTEP`]): the plant waits for every answer.
     pub deadline_ns: u64,
     /// Channel counts actually used in this sample.
     pub counts: ChannelCounts,
@@ -226,27 +320,45 @@ impl Measurement {
     }
 }
 
-/// The service's answer to the measurement with the same `seq`.
+/// The service's answer: the input for the period that starts at sample `seq`, and its plan
+/// for the samples after it.
+///
+/// With [`Timing::ComputeFirst`] and [`Timing::AnswerFirst`] it answers the measurement with
+/// the same `seq`; with [`Timing::SendAhead`] it answers measurement `seq − 1` (or `seq`
+/// itself when no input was sent ahead for it); [`Actuation::reply_to`] says which.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, ZeroCopySend)]
-#[type_name("adaptive_rig::Actuation.v2")]
+#[type_name("adaptive_rig::Actuation.v3")]
 pub struct Actuation {
     /// Must equal [`CONTRACT_VERSION`].
     pub contract_version: u32,
     /// Bits of [`actuation_status`].
     pub status: u32,
-    /// The [`Measurement::seq`] this actuation answers.
+    /// The sample whose period `u` is for: the plant applies `u` at that sample's deadline.
     pub seq: u64,
-    /// The [`Measurement::t_sample_ns`] it answers, echoed.
+    /// The [`Measurement::seq`] whose receipt this actuation answers (`seq` or `seq − 1`,
+    /// see [`Timing`]).
+    pub reply_to: u64,
+    /// The [`Measurement::t_sample_ns`] of `reply_to`, echoed.
     pub t_sample_ns: u64,
     /// `CLOCK_MONOTONIC` time at which the service published it, in nanoseconds.
     pub t_publish_ns: u64,
-    /// Time the controller step took, in nanoseconds.
+    /// Time the controller took for it, in nanoseconds (with [`Timing::AnswerFirst`], the
+    /// computation that prepared `u`, done after the previous answer).
     pub compute_ns: u64,
     /// Channel counts actually used; only `n_u` is meaningful for the payload.
     pub counts: ChannelCounts,
-    /// Control input `u_k`; entries past `counts.n_u` are zero.
+    /// The service's [`Timing`] ([`Timing::wire`]).
+    pub timing: u32,
+    /// How many entries of `plan` are valid (at most [`MAX_PLAN`]).
+    pub plan_len: u32,
+    /// Control input for sample `seq`; entries past `counts.n_u` are zero.
     pub u: [f64; MAX_U],
+    /// The plan: `plan[j]` is the input the controller expects to give for sample
+    /// `seq + 1 + j`, for `j < plan_len`. A plant whose answer for a sample is late may
+    /// apply the entry of the latest plan for it (`proxy.late-policy = "plan"`). Entries
+    /// past `plan_len` and past `counts.n_u` are zero.
+    pub plan: [[f64; MAX_U]; MAX_PLAN],
 }
 
 impl Actuation {
@@ -256,17 +368,46 @@ impl Actuation {
             contract_version: CONTRACT_VERSION,
             status: 0,
             seq: 0,
+            reply_to: 0,
             t_sample_ns: 0,
             t_publish_ns: 0,
             compute_ns: 0,
             counts,
+            timing: Timing::ComputeFirst.wire(),
+            plan_len: 0,
             u: [0.0; MAX_U],
+            plan: [[0.0; MAX_U]; MAX_PLAN],
         }
     }
 
     /// The used part of `u`, clamped to the capacity.
     pub fn u(&self) -> &[f64] {
         &self.u[..(self.counts.n_u as usize).min(MAX_U)]
+    }
+
+    /// The used part of the plan entry for sample `seq + 1 + j`; `None` past `plan_len`.
+    pub fn plan_entry(&self, j: usize) -> Option<&[f64]> {
+        let len = (self.plan_len as usize).min(MAX_PLAN);
+        (j < len).then(|| &self.plan[j][..(self.counts.n_u as usize).min(MAX_U)])
+    }
+
+    /// The input this actuation carries for sample `k`: `u` for `k = seq`, the plan's entry
+    /// for a later sample it covers; `None` otherwise.
+    pub fn input_for(&self, k: u64) -> Option<&[f64]> {
+        if k == self.seq {
+            Some(self.u())
+        } else if k > self.seq {
+            usize::try_from(k - self.seq - 1)
+                .ok()
+                .and_then(|j| self.plan_entry(j))
+        } else {
+            None
+        }
+    }
+
+    /// The service's [`Timing`]; `None` for an unknown wire value.
+    pub fn timing(&self) -> Option<Timing> {
+        Timing::from_wire(self.timing)
     }
 }
 
@@ -303,6 +444,7 @@ mod layout_tests {
         assert_eq!(header_value("AR_MAX_Z"), MAX_Z);
         assert_eq!(header_value("AR_MAX_R"), MAX_R);
         assert_eq!(header_value("AR_MAX_U"), MAX_U);
+        assert_eq!(header_value("AR_MAX_PLAN"), MAX_PLAN);
     }
 
     #[test]
@@ -317,6 +459,8 @@ mod layout_tests {
             ),
             ("AR_MEAS_LAST_SAMPLE", m::LAST_SAMPLE),
             ("AR_MEAS_U_APPLIED", m::U_APPLIED),
+            ("AR_MEAS_PLAN_APPLIED", m::PLAN_APPLIED),
+            ("AR_MEAS_INJECTED_STALL", m::INJECTED_STALL),
             ("AR_ACT_OK", a::OK),
             ("AR_ACT_SAFE_STATE", a::SAFE_STATE),
             ("AR_ACT_MEASUREMENT_REJECTED", a::MEASUREMENT_REJECTED),
@@ -325,6 +469,10 @@ mod layout_tests {
             ("AR_ACT_CONTROLLER_FAULT", a::CONTROLLER_FAULT),
             ("AR_ACT_OPEN_LOOP", a::OPEN_LOOP),
             ("AR_ACT_FALLBACK", a::FALLBACK),
+            ("AR_ACT_STALL_ACK", a::STALL_ACK),
+            ("AR_TIMING_COMPUTE_FIRST", Timing::ComputeFirst.wire()),
+            ("AR_TIMING_ANSWER_FIRST", Timing::AnswerFirst.wire()),
+            ("AR_TIMING_SEND_AHEAD", Timing::SendAhead.wire()),
         ];
         for (name, value) in pairs {
             let text = C_HEADER
@@ -401,6 +549,10 @@ mod layout_tests {
             ("AR_ACTUATION_OFFSET_STATUS", offset_of!(Actuation, status)),
             ("AR_ACTUATION_OFFSET_SEQ", offset_of!(Actuation, seq)),
             (
+                "AR_ACTUATION_OFFSET_REPLY_TO",
+                offset_of!(Actuation, reply_to),
+            ),
+            (
                 "AR_ACTUATION_OFFSET_T_SAMPLE_NS",
                 offset_of!(Actuation, t_sample_ns),
             ),
@@ -413,7 +565,13 @@ mod layout_tests {
                 offset_of!(Actuation, compute_ns),
             ),
             ("AR_ACTUATION_OFFSET_COUNTS", offset_of!(Actuation, counts)),
+            ("AR_ACTUATION_OFFSET_TIMING", offset_of!(Actuation, timing)),
+            (
+                "AR_ACTUATION_OFFSET_PLAN_LEN",
+                offset_of!(Actuation, plan_len),
+            ),
             ("AR_ACTUATION_OFFSET_U", offset_of!(Actuation, u)),
+            ("AR_ACTUATION_OFFSET_PLAN", offset_of!(Actuation, plan)),
         ];
         for (name, off) in offsets {
             assert_eq!(off, header_value(name), "{name}");
@@ -455,6 +613,42 @@ mod layout_tests {
                 "header lacks {name}"
             );
         }
+    }
+
+    #[test]
+    fn an_actuation_gives_its_input_and_its_plan_entries_by_sample() {
+        let mut a = Actuation::zeroed(ChannelCounts::new(1, 1, 0, 2).unwrap());
+        a.seq = 10;
+        a.u[..2].copy_from_slice(&[1.0, 2.0]);
+        a.plan_len = 2;
+        a.plan[0][..2].copy_from_slice(&[3.0, 4.0]);
+        a.plan[1][..2].copy_from_slice(&[5.0, 6.0]);
+        a.plan[2][..2].copy_from_slice(&[7.0, 8.0]);
+        assert_eq!(a.input_for(9), None);
+        assert_eq!(a.input_for(10), Some(&[1.0, 2.0][..]));
+        assert_eq!(a.input_for(11), Some(&[3.0, 4.0][..]));
+        assert_eq!(a.input_for(12), Some(&[5.0, 6.0][..]));
+        // Past plan_len: not covered, whatever the buffer holds.
+        assert_eq!(a.input_for(13), None);
+        assert_eq!(a.input_for(u64::MAX), None);
+        a.plan_len = u32::MAX;
+        assert_eq!(
+            a.plan_entry(MAX_PLAN),
+            None,
+            "plan_len is clamped to the capacity"
+        );
+    }
+
+    #[test]
+    fn timings_round_trip_through_their_wire_values_and_names() {
+        for t in Timing::ALL {
+            assert_eq!(Timing::from_wire(t.wire()), Some(t));
+            assert_eq!(Timing::from_name(t.name()), Some(t));
+        }
+        assert_eq!(Timing::from_wire(3), None);
+        assert_eq!(Timing::from_name("ahead"), None);
+        assert_eq!(Timing::SendAhead.lead(), 1);
+        assert_eq!(Timing::AnswerFirst.lead(), 0);
     }
 
     /// Compiles the header with the machine's C compiler, so its own `_Static_assert`s on

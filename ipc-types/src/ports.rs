@@ -35,7 +35,7 @@ mod liveness;
 mod slots;
 
 use crate::peer::{Origin, PeerPin};
-use crate::{Actuation, CONTRACT_VERSION, ChannelCounts, Measurement};
+use crate::{Actuation, CONTRACT_VERSION, ChannelCounts, Measurement, Timing};
 use core::fmt;
 use core::time::Duration;
 use iceoryx2::node::NodeView;
@@ -81,6 +81,35 @@ impl Side {
     }
 }
 
+/// When a plant applies the input of sample `k`, stated in its `timing` attribute.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Applies {
+    /// At the sample instant `kT` (deadline 0): the input must be there before the sample is
+    /// taken, which only a service that sends ahead ([`Timing::SendAhead`]) can meet.
+    AtSample,
+    /// At `kT + dT`, a deadline offset inside the period.
+    AtDeadline,
+    /// In lockstep: the plant waits for each answer.
+    Lockstep,
+}
+
+impl Applies {
+    /// The attribute value (`"at-sample"`, `"at-deadline"`, `"lockstep"`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Applies::AtSample => "at-sample",
+            Applies::AtDeadline => "at-deadline",
+            Applies::Lockstep => "lockstep",
+        }
+    }
+
+    fn from_name(name: &str) -> Option<Self> {
+        [Applies::AtSample, Applies::AtDeadline, Applies::Lockstep]
+            .into_iter()
+            .find(|a| a.name() == name)
+    }
+}
+
 /// What one side states about itself when it connects.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ContractInfo {
@@ -92,17 +121,35 @@ pub struct ContractInfo {
     pub counts: ChannelCounts,
     /// The sampling period it runs at (the plant) or was designed for (the service), in ns.
     pub period_ns: u64,
+    /// The service's timing (its `timing` attribute); `None` when unstated.
+    pub timing: Option<Timing>,
+    /// When the plant applies an input (its `timing` attribute); `None` when unstated.
+    pub applies: Option<Applies>,
 }
 
 impl ContractInfo {
-    /// Info of this build's contract version.
+    /// Info of this build's contract version, with no timing stated.
     pub fn new(side: Side, counts: ChannelCounts, period_ns: u64) -> Self {
         Self {
             side,
             version: CONTRACT_VERSION,
             counts,
             period_ns,
+            timing: None,
+            applies: None,
         }
+    }
+
+    /// States the service's timing (the `timing` attribute of a service).
+    pub fn with_timing(mut self, timing: Timing) -> Self {
+        self.timing = Some(timing);
+        self
+    }
+
+    /// States when the plant applies an input (the `timing` attribute of a plant).
+    pub fn with_applies(mut self, applies: Applies) -> Self {
+        self.applies = Some(applies);
+        self
     }
 
     fn specifier(&self) -> Result<AttributeSpecifier, ConnectError> {
@@ -115,8 +162,13 @@ impl ContractInfo {
             ("period-ns", self.period_ns.to_string()),
             ("role", self.side.name().to_string()),
         ];
+        let timing = match (self.side, self.timing, self.applies) {
+            (Side::Service, Some(t), _) => Some(("timing", t.name().to_string())),
+            (Side::Plant, _, Some(a)) => Some(("timing", a.name().to_string())),
+            _ => None,
+        };
         let mut spec = AttributeSpecifier::new();
-        for (k, v) in kv {
+        for (k, v) in kv.into_iter().chain(timing) {
             let key = k.try_into().map_err(|e| ipc_err("attribute key", k, e))?;
             let value = v
                 .as_str()
@@ -156,7 +208,24 @@ impl ContractInfo {
                 });
             }
         };
+        // Optional: a peer of an older contract has none, and is refused for its version.
+        let (mut timing, mut applies) = (None, None);
+        if let Ok(v) = get("timing") {
+            let unknown = || ConnectError::NotAContractService {
+                service: service.to_string(),
+                detail: format!(
+                    "attribute 'timing' = '{v}' is not a timing of a {}",
+                    side.name()
+                ),
+            };
+            match side {
+                Side::Service => timing = Some(Timing::from_name(&v).ok_or_else(unknown)?),
+                Side::Plant => applies = Some(Applies::from_name(&v).ok_or_else(unknown)?),
+            }
+        }
         Ok(Self {
+            timing,
+            applies,
             side,
             version: num("contract-version")? as u32,
             counts: ChannelCounts {
@@ -188,6 +257,23 @@ impl ContractInfo {
                 1e9 / other.period_ns.max(1) as f64,
                 self.period_ns,
                 1e9 / self.period_ns.max(1) as f64
+            ));
+        }
+        let (plant, service) = match self.side {
+            Side::Plant => (self, other),
+            Side::Service => (other, self),
+        };
+        if plant.side != service.side
+            && plant.applies == Some(Applies::AtSample)
+            && let Some(t) = service.timing
+            && t != Timing::SendAhead
+        {
+            out.push(format!(
+                "timing: the plant applies each input at its sample instant (its deadline is 0), \
+                 which only a service that sends ahead can meet; the service answers {} \
+                 (set service.timing = \"send-ahead\", or give the plant a deadline inside the \
+                 period)",
+                t.name()
             ));
         }
         out
@@ -1195,6 +1281,59 @@ mod tests {
             t.join().unwrap().is_err(),
             "the service never gets a compatible plant"
         );
+    }
+
+    #[test]
+    fn a_plant_that_applies_at_the_sample_refuses_a_service_that_does_not_send_ahead() {
+        let plant = info(Side::Plant, 1, 1, 125_000).with_applies(Applies::AtSample);
+        for t in [Timing::ComputeFirst, Timing::AnswerFirst] {
+            let service = info(Side::Service, 1, 1, 125_000).with_timing(t);
+            let d = plant.differences(&service);
+            assert_eq!(d.len(), 1, "{d:?}");
+            assert!(d[0].contains("only a service that sends ahead"), "{}", d[0]);
+            assert!(d[0].contains(t.name()), "{}", d[0]);
+            assert_eq!(service.differences(&plant), d, "the same from either side");
+        }
+        let ahead = info(Side::Service, 1, 1, 125_000).with_timing(Timing::SendAhead);
+        assert!(plant.differences(&ahead).is_empty());
+        for applies in [Applies::AtDeadline, Applies::Lockstep] {
+            let p = info(Side::Plant, 1, 1, 125_000).with_applies(applies);
+            for t in Timing::ALL {
+                let s = info(Side::Service, 1, 1, 125_000).with_timing(t);
+                assert!(p.differences(&s).is_empty(), "{applies:?} {t:?}");
+            }
+        }
+        // Unstated timings are not compared (the versions are).
+        assert!(
+            plant
+                .differences(&info(Side::Service, 1, 1, 125_000))
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn the_timing_attributes_are_read_back_as_written_and_a_mismatch_is_refused_at_connect() {
+        let rig = format!("unit-timing-{}", std::process::id());
+        let plant = info(Side::Plant, 1, 1, 1_000_000).with_applies(Applies::AtSample);
+        let service = info(Side::Service, 1, 1, 1_000_000).with_timing(Timing::ComputeFirst);
+        let rig2 = rig.clone();
+        let t = std::thread::spawn(move || {
+            let opts = ConnectOptions::new(Duration::from_secs(2));
+            connect::<Actuation, Measurement>(&rig2, service, "unit-timing-service", opts)
+                .map(|_| ())
+        });
+        std::thread::sleep(Duration::from_millis(300));
+        let opts = ConnectOptions::new(Duration::from_secs(5));
+        let err = connect::<Measurement, Actuation>(&rig, plant, "unit-timing-plant", opts)
+            .err()
+            .expect("the timing mismatch must be refused");
+        let msg = err.to_string();
+        assert!(msg.contains("contract mismatch"), "{msg}");
+        assert!(
+            msg.contains("the service answers compute-first"),
+            "the service's attribute was read back: {msg}"
+        );
+        assert!(t.join().unwrap().is_err());
     }
 
     #[test]

@@ -127,6 +127,14 @@ pub trait Controller: Send {
             Err(format!("the {} controller learns nothing", self.kind()))
         }
     }
+    /// The ahead form of this controller ([`crate::ahead`]): `Some` when its input for
+    /// sample `k` depends only on the data up to `k − 1`, so that the loop can publish it
+    /// before computing (answer-first) or as soon as sample `k − 1` is in (send-ahead).
+    /// Whether it is `Some` depends only on the configuration. The default is `None`:
+    /// the controller runs compute-first through [`Controller::step`].
+    fn ahead(&mut self) -> Option<&mut dyn crate::ahead::Ahead> {
+        None
+    }
     /// Called once on the real-time thread before its loop starts (before allocations are
     /// counted there): a controller whose libraries keep lazily created per-thread state
     /// (e.g. the matrix-multiply scratch of PCAC's QP solver) creates it here, so that the

@@ -7,6 +7,8 @@
 //!
 //! - [`controller`]: the [`Controller`] trait, [`StepInput`], [`Dimensions`], the
 //!   [`status`] bits and [`OutputLimits`].
+//! - [`ahead`]: the [`Ahead`] form of a controller whose input for sample `k` is ready
+//!   before the sample (answer-first, send-ahead) and its plan for the samples after it.
 //! - [`rls`]: recursive least squares with variable-rate forgetting (2.12)–(2.14), an
 //!   allocation-free kernel and a textbook oracle.
 //! - [`learned`]: what a controller learned (θ, P) apart from its data history: the
@@ -30,6 +32,7 @@
 
 #![warn(missing_docs)]
 
+pub mod ahead;
 pub mod bocf;
 pub mod controller;
 #[cfg(feature = "excitation")]
@@ -48,6 +51,7 @@ pub mod target;
 mod test_support;
 pub mod tones;
 
+pub use ahead::Ahead;
 pub use controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
 #[cfg(feature = "excitation")]
 pub use excitation::ExcitationSource;
