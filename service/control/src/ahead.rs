@@ -22,19 +22,22 @@
 //! # The ahead cycle
 //!
 //! ```text
-//!  ready()    → u_k            (prepared from the data up to k − 1; publish it)
-//!  advance(k) → takes y_k, z_k in, adapts (θ_k → θ_{k+1}), prepares u_{k+1}
-//!  ready()    → u_{k+1}
-//!  plan()     → û_{k+2}, …, û_{k+H}
+//!  ready()                    → u_k    (prepared from the data up to k − 1; publish it)
+//!  advance(k, applied, adapt) → takes y_k, z_k in with the input applied for sample k,
+//!                               adapts when asked (θ_k → θ_{k+1}), prepares u_{k+1}
+//!  ready()                    → u_{k+1}
+//!  plan()                     → û_{k+2}, …, û_{k+1+H}
 //! ```
 //!
-//! The input the plant applies for sample `k` is taken to be the one [`Ahead::ready`] gave
-//! before [`Ahead::advance`] of sample `k`; when the plant reports another
-//! ([`StepInput::u_applied`] of sample `k + 1`, e.g. a plan entry or a held input after a
-//! late answer), the controller replaces it in its history, as in the compute-first step.
-//! After [`Controller::observe`](crate::Controller::observe) of sample `k` (a sample the
-//! loop took in too late to answer) and after a reset or a new data stream,
-//! [`Ahead::ready`] gives the input for the next sample too.
+//! `applied` is the input the plant applies for sample `k` as far as the loop knows: what
+//! it published for `k` (the ready input, or the safe input in the safe state), or, when it
+//! published nothing for `k`, the plan entry or held input the plant falls back to. When
+//! the plant reports another ([`StepInput::u_applied`] of sample `k + 1`), the controller
+//! replaces it in its history, as in the compute-first step. `adapt = false` takes a sample
+//! in without adaptation (a sample the loop took in too late to answer, or one of the safe
+//! state or the open-loop phase, as [`Controller::observe`](crate::Controller::observe)
+//! does in compute-first) and still prepares the next input. After a reset or a new data
+//! stream [`Ahead::ready`] gives the start-up input.
 //!
 //! # Plans
 //!
@@ -54,10 +57,10 @@ pub trait Ahead {
     /// returns its [`status`](crate::status) bits.
     fn ready(&self, u: &mut [f64]) -> u32;
 
-    /// Takes sample `k` in (the input applied for it being the last [`Ahead::ready`]),
-    /// adapts, and prepares the input for sample `k + 1`; returns the [`status`](crate::status)
-    /// bits of that input (what [`Ahead::ready`] then returns).
-    fn advance(&mut self, input: &StepInput<'_>) -> u32;
+    /// Takes sample `k` in with `applied` (length `n_u`), the input the plant applies for
+    /// it, adapts when `adapt`, and prepares the input for sample `k + 1`; returns the
+    /// [`status`](crate::status) bits of that input (what [`Ahead::ready`] then returns).
+    fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32;
 
     /// Writes up to `out.len() / n_u` plan entries, row `j` (`out[j n_u .. (j+1) n_u]`)
     /// being the input expected for the `(j + 2)`-th sample after the last one taken in
