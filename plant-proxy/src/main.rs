@@ -92,21 +92,6 @@ fn refused(message: impl std::fmt::Display) -> ExitCode {
     ExitCode::from(2)
 }
 
-/// The counters of a run, one line (after `done: ` or `gave up: `).
-fn summary_line(r: &PlantReport) -> String {
-    format!(
-        "{} samples, {} actuations applied, {} misses ({} late, {} invalid), watchdog trips {}, recoveries {}, z RMS {:?}",
-        r.samples,
-        r.actuations_applied,
-        r.misses,
-        r.late_discarded,
-        r.invalid_discarded,
-        r.watchdog_trips,
-        r.watchdog_recoveries,
-        r.z_rms
-    )
-}
-
 /// Writes the run report `r` to `path` as JSON, atomically (the file is the whole report
 /// or absent); a failure is printed, naming the file.
 fn write_report(path: Option<&std::path::Path>, r: &PlantReport) -> Result<(), ()> {
@@ -148,7 +133,7 @@ fn main() -> ExitCode {
             Ok((sc, _, proxy)) => {
                 let p = &sc.plant;
                 println!(
-                    "{}: ok (rig '{}', {} Hz, {} s, plant {} with {} states, channels y={} z={} r={} u={} w={}, proxy {:?})",
+                    "{}: ok (rig '{}', {} Hz, {} s, plant {} with {} states, channels y={} z={} r={} u={} w={}, proxy {:?}, inputs applied {}, late policy {}, overrun {}, {} stall(s) injected)",
                     scenario.display(),
                     sc.rig.name,
                     1.0 / sc.rig.sample_period,
@@ -160,7 +145,11 @@ fn main() -> ExitCode {
                     p.n_r(),
                     p.n_u(),
                     p.n_w(),
-                    proxy.mode
+                    proxy.mode,
+                    proxy.applies().name(),
+                    proxy.describe_late_policy(),
+                    proxy.overrun.name(),
+                    proxy.faults.stalls.len()
                 );
                 ExitCode::SUCCESS
             }
@@ -190,13 +179,12 @@ fn main() -> ExitCode {
             };
             let text = std::fs::read_to_string(&scenario).unwrap_or_default();
             let n_u = sc.plant.n_u();
-            let mut proxy = match ProxyConfig::parse(&text, &scenario.display().to_string(), n_u) {
+            // --mode before the checks that depend on the mode (stalls only in lockstep).
+            let origin = scenario.display().to_string();
+            let proxy = match ProxyConfig::parse_with_mode(&text, &origin, n_u, mode) {
                 Ok(p) => p,
                 Err(e) => return refused(e),
             };
-            if let Some(m) = mode {
-                proxy.mode = m;
-            }
             let shutdown = Arc::new(AtomicBool::new(false));
             for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
                 let _ = signal_hook::flag::register(sig, shutdown.clone());
@@ -208,7 +196,7 @@ fn main() -> ExitCode {
             };
             match run_plant(&sc, &proxy, &opts, &shutdown) {
                 Ok(r) => {
-                    eprintln!("[plant-proxy] done: {}", summary_line(&r));
+                    eprintln!("[plant-proxy] done: {}", r.summary_line());
                     match write_report(report.as_deref(), &r) {
                         Ok(()) => ExitCode::SUCCESS,
                         Err(()) => ExitCode::FAILURE,
@@ -217,7 +205,7 @@ fn main() -> ExitCode {
                 Err(PlantError::GaveUp { message, report: r }) => {
                     // The counters and the report still say what the run did, and that it
                     // gave up; the reason (with the trust counters) comes last.
-                    eprintln!("[plant-proxy] gave up: {}", summary_line(&r));
+                    eprintln!("[plant-proxy] gave up: {}", r.summary_line());
                     let _ = write_report(report.as_deref(), &r);
                     eprintln!("plant-proxy: {message}");
                     ExitCode::FAILURE

@@ -1,241 +1,73 @@
 //! The plant process: the clock master of the contract.
 //!
-//! At sample `k` the plant publishes `y_k`, `z_k`, `r_k` stamped with the sample time, then
-//! takes the service's actuation `u_k` and advances the simulation to `k+1`:
+//! At sample `k` the plant publishes `y_k`, `z_k`, `r_k` stamped with the sample time, and
+//! applies an input for the period that starts at `k`: the service's actuation with
+//! `seq = k` if it holds it at the application instant, else a **miss** resolved by
+//! `proxy.late-policy` ([`crate::late_policy`]). Which input that is, is decided by the
+//! plant's [`ActuationBook`], which keeps the actuations received ahead of their sample (a
+//! service that sends ahead publishes the input for `k + 1` as soon as it has taken `y_k`
+//! in), refuses late and invalid ones, and holds the newest plan.
 //!
-//! - **real-time mode**: samples are paced on `CLOCK_MONOTONIC` at `t_k = t_0 + kT`. The
-//!   actuation must arrive by the deadline `t_k + dT` (`proxy.deadline = d`, a fraction of
-//!   the period); the plant sleeps until then and takes the actuation with sequence number
-//!   `k`. One that is absent or late (it answers an older sample) is a miss: the plant holds
-//!   the last input or applies the safe input (`proxy.late-policy`). The simulation applies
-//!   `u_k` over `[kT, (k+1)T)` as in the dissertation (`proxy.intersample = "ideal"`), or
-//!   from `kT + dT` on, as the real hold would (`"at-deadline"`).
-//! - **lockstep mode**: the plant waits (on the service's event) until actuation `k` has
-//!   arrived, then advances; as fast as possible and bit-for-bit deterministic for a seed.
-//!   An actuation that does not come within `proxy.lockstep-timeout` counts as a miss.
+//! - **real-time mode**: samples are paced on `CLOCK_MONOTONIC` at `t_k = t_0 + kT`
+//!   ([`SampleClock`]; `proxy.overrun` says what happens when the plant itself wakes more
+//!   than a period late). The input for sample `k` is applied at `t_k + dT`
+//!   (`proxy.deadline = d`, a fraction of the period, carried in the sample as
+//!   `deadline_ns`). With `d > 0` the plant publishes at `t_k`, sleeps until the deadline and
+//!   decides. With `d = 0` the input is latched at the sample clock, as a DAC driven by the
+//!   ADC clock does: at `t_k` the plant decides the input for `k` from what it holds,
+//!   then samples and publishes `M_k` (only a service that sends ahead can meet that). The
+//!   simulation applies `u_k` over `[kT, (k+1)T)` as in the dissertation
+//!   (`proxy.intersample = "ideal"`), or from `kT + dT` on, as the real hold would
+//!   (`"at-deadline"`; the same for `d = 0`).
+//! - **lockstep mode**: after publishing `M_k` the plant waits (on the service's event, up to
+//!   `proxy.lockstep-timeout`) until the service has answered `M_k`: it holds a valid
+//!   actuation with `reply_to ≥ k`, or, for an injected stall, the acknowledgement of `k`
+//!   ([`ActuationBook::answers`]). Then the input for `k` is the actuation with `seq = k` if
+//!   the plant holds it (sent ahead during the previous step, or the answer itself), else a
+//!   miss. The plant never publishes `M_{k+1}` before the service has answered (or
+//!   acknowledged) `M_k`, so a run is as fast as possible and bit-for-bit deterministic for a
+//!   seed, with compute-first and send-ahead services alike. `[proxy.faults] stalls` flags
+//!   samples with `INJECTED_STALL` ([`crate::faults`]).
+//!
+//! Every measurement reports the period that ends at it: the input applied for sample
+//! `k − 1` (`u_applied`), `PREVIOUS_ACTUATION_MISSED` when that was a miss, with
+//! `PLAN_APPLIED` when a plan covered it, and `PLANT_SAFE_OUTPUT` while the watchdog holds the
+//! safe output.
 //!
 //! A watchdog puts the plant into its safe output after `proxy.watchdog-periods`
-//! consecutive misses, says so, removes the stale resources of dead iceoryx2 nodes (so a
-//! restarted service can connect), and leaves the safe output on the next valid actuation.
-//! In lockstep mode the plant does not wait for ever: when no service has answered for
-//! `proxy.peer-timeout` after the watchdog tripped (the time a service is given to connect
-//! at start-up), it gives up with [`PlantError::GaveUp`] (a non-zero exit status).
+//! consecutive misses (plan-covered or not), says so, removes the stale resources of dead
+//! iceoryx2 nodes (so a restarted service can connect), and leaves the safe output on the
+//! next valid actuation. In lockstep mode the plant does not wait for ever: when no service
+//! has answered for `proxy.peer-timeout` after the watchdog tripped (the time a service is
+//! given to connect at start-up), it gives up with [`PlantError::GaveUp`] (a non-zero exit
+//! status).
 //!
 //! Only the service the plant connected to drives it: its publisher is pinned at connect
 //! (`ipc_types::peer`), an actuation from any other publisher is refused and counted
 //! ([`PlantReport::foreign_discarded`]), and a restarted service, which can only appear once
-//! the old one's publisher is gone, is recognized and counted ([`PlantReport::new_services`]).
-//! `[proxy.faults]` injects NaN, ±Inf and out-of-range measurements at given samples, for
-//! testing the service's input validation.
+//! the old one's publisher is gone, is recognized and counted ([`PlantReport::new_services`]);
+//! what the old one had sent is forgotten. `[proxy.faults]` also injects NaN, ±Inf and
+//! out-of-range measurements at given samples, for testing the service's input validation.
 
+pub use crate::faults::{Faults, Stall};
+pub use crate::late_policy::{LatePolicy, PlanFallback};
+pub use crate::plant_report::PlantReport;
+pub use crate::proxy_config::{Intersample, Mode, ProxyConfig, ProxyConfigError};
+pub use crate::sample_clock::Overrun;
+
+use crate::actuation_book::{AHEAD_CAPACITY, ActuationBook, Decision, Offer};
+use crate::sample_clock::SampleClock;
 use crate::scenario::Scenario;
 use crate::sim::PlantSim;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
 use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
-use ipc_types::rt::RtRequest;
-use ipc_types::{
-    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, Measurement, measurement_flags,
-};
-use serde::{Deserialize, Serialize};
+use ipc_types::{ChannelCounts, MAX_U, Measurement, Timing, measurement_flags};
 use std::fmt;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
-
-/// How the plant paces itself.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Mode {
-    /// Paced on `CLOCK_MONOTONIC` at the sample period.
-    RealTime,
-    /// Advance when actuation `k` has arrived.
-    Lockstep,
-}
-
-/// What the plant applies when an actuation is missing or late.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum LatePolicy {
-    /// Keep the last applied input.
-    Hold,
-    /// Apply the safe input.
-    Safe,
-}
-
-/// When a new input takes effect inside the period.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Intersample {
-    /// `u_k` over `[kT, (k+1)T)`: the dissertation's sampled-data assumption.
-    Ideal,
-    /// `u_{k-1}` until `kT + dT`, then `u_k`: what the real hold does with a deadline offset.
-    AtDeadline,
-}
-
-/// Measurement faults to inject (by sample index).
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
-pub struct Faults {
-    /// Samples whose first measurement channel is NaN.
-    #[serde(default)]
-    pub nan_at: Vec<u64>,
-    /// Samples whose first measurement channel is +Inf.
-    #[serde(default)]
-    pub inf_at: Vec<u64>,
-    /// Samples whose first measurement channel is -Inf.
-    #[serde(default)]
-    pub neg_inf_at: Vec<u64>,
-    /// Samples whose first measurement channel is `out-of-range-value`.
-    #[serde(default)]
-    pub out_of_range_at: Vec<u64>,
-    /// The value used for `out-of-range-at`.
-    #[serde(default = "default_oor")]
-    pub out_of_range_value: f64,
-}
-
-fn default_oor() -> f64 {
-    1e6
-}
-
-impl Faults {
-    fn total(&self) -> usize {
-        self.nan_at.len() + self.inf_at.len() + self.neg_inf_at.len() + self.out_of_range_at.len()
-    }
-    /// The injected value at sample `k`, if any.
-    fn at(&self, k: u64) -> Option<f64> {
-        if self.nan_at.contains(&k) {
-            Some(f64::NAN)
-        } else if self.inf_at.contains(&k) {
-            Some(f64::INFINITY)
-        } else if self.neg_inf_at.contains(&k) {
-            Some(f64::NEG_INFINITY)
-        } else if self.out_of_range_at.contains(&k) {
-            Some(self.out_of_range_value)
-        } else {
-            None
-        }
-    }
-}
-
-#[derive(Debug, Clone, Default, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawProxy {
-    mode: Option<Mode>,
-    deadline: Option<f64>,
-    late_policy: Option<LatePolicy>,
-    intersample: Option<Intersample>,
-    safe_input: Option<Vec<f64>>,
-    watchdog_periods: Option<u64>,
-    lockstep_timeout: Option<f64>,
-    peer_timeout: Option<f64>,
-    core: Option<usize>,
-    fifo_priority: Option<i32>,
-    mlockall: Option<bool>,
-    faults: Option<Faults>,
-}
-
-/// The `[proxy]` table of a scenario: how plant-proxy runs the plant.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ProxyConfig {
-    /// Pacing.
-    pub mode: Mode,
-    /// Deadline offset as a fraction of the period, in (0, 1].
-    pub deadline: f64,
-    /// Input on a miss.
-    pub late_policy: LatePolicy,
-    /// When a new input takes effect in the simulation.
-    pub intersample: Intersample,
-    /// The safe input, one per control input.
-    pub safe_input: Vec<f64>,
-    /// Consecutive misses that trip the watchdog.
-    pub watchdog_periods: u64,
-    /// Lockstep: how long to wait for an actuation before counting a miss.
-    pub lockstep_timeout: Duration,
-    /// How long to wait for the service at start.
-    pub peer_timeout: Duration,
-    /// Real-time set-up of the plant thread (real-time mode only).
-    pub rt: RtRequest,
-    /// Faults to inject.
-    pub faults: Faults,
-}
-
-/// A refused `[proxy]` table.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ProxyConfigError(pub String);
-
-impl fmt::Display for ProxyConfigError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for ProxyConfigError {}
-
-impl ProxyConfig {
-    /// Reads the `[proxy]` table from the scenario text (defaults when absent).
-    pub fn parse(text: &str, origin: &str, n_u: usize) -> Result<Self, ProxyConfigError> {
-        let err = |field: &str, m: String| {
-            ProxyConfigError(format!("{origin}: field 'proxy.{field}': {m}"))
-        };
-        let table: toml::Table = toml::from_str(text)
-            .map_err(|e| ProxyConfigError(format!("{origin}: not valid TOML: {e}")))?;
-        let raw: RawProxy = match table.get("proxy") {
-            None => RawProxy::default(),
-            Some(v) => v.clone().try_into().map_err(|e: toml::de::Error| {
-                ProxyConfigError(format!("{origin}: table 'proxy': {e}"))
-            })?,
-        };
-        let deadline = raw.deadline.unwrap_or(0.5);
-        if !(deadline > 0.0 && deadline <= 1.0) {
-            return Err(err(
-                "deadline",
-                format!("{deadline} is not a fraction of the period in (0, 1]"),
-            ));
-        }
-        let safe_input = raw.safe_input.unwrap_or_else(|| vec![0.0; n_u]);
-        if safe_input.len() != n_u || safe_input.iter().any(|v| !v.is_finite()) {
-            return Err(err(
-                "safe-input",
-                format!("needs {n_u} finite values (one per control input)"),
-            ));
-        }
-        let watchdog_periods = raw.watchdog_periods.unwrap_or(100);
-        if watchdog_periods == 0 {
-            return Err(err("watchdog-periods", "must be at least 1".into()));
-        }
-        const MAX_WAIT_S: f64 = 86_400.0;
-        let secs = |v: Option<f64>, d: f64, f: &str| {
-            let v = v.unwrap_or(d);
-            // A day at most: longer waits are a typo, and the conversion stays exact.
-            if v.is_finite() && v > 0.0 && v <= MAX_WAIT_S {
-                Ok(Duration::from_secs_f64(v))
-            } else {
-                Err(err(f, format!("{v} s is not in (0, {MAX_WAIT_S}] s")))
-            }
-        };
-        let fifo_priority = ipc_types::rt::fifo_priority_from_config(raw.fifo_priority, 70)
-            .map_err(|m| err("fifo-priority", m))?;
-        Ok(Self {
-            mode: raw.mode.unwrap_or(Mode::RealTime),
-            deadline,
-            late_policy: raw.late_policy.unwrap_or(LatePolicy::Hold),
-            intersample: raw.intersample.unwrap_or(Intersample::Ideal),
-            safe_input,
-            watchdog_periods,
-            lockstep_timeout: secs(raw.lockstep_timeout, 1.0, "lockstep-timeout")?,
-            peer_timeout: secs(raw.peer_timeout, 30.0, "peer-timeout")?,
-            rt: RtRequest {
-                core: raw.core,
-                fifo_priority,
-                mlockall: raw.mlockall.unwrap_or(true),
-                prefault_stack_bytes: 256 * 1024,
-            },
-            faults: raw.faults.unwrap_or_default(),
-        })
-    }
-}
 
 /// Options of one plant run that do not belong in the scenario.
 #[derive(Debug, Clone, Default)]
@@ -246,49 +78,6 @@ pub struct PlantRunOptions {
     pub trace: Option<PathBuf>,
     /// Print progress and events.
     pub verbose: bool,
-}
-
-/// Counters and results of a plant run.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct PlantReport {
-    /// Rig name.
-    pub rig: String,
-    /// Mode used.
-    pub mode: String,
-    /// Samples published.
-    pub samples: u64,
-    /// Valid actuations applied.
-    pub actuations_applied: u64,
-    /// Samples without a valid actuation by the deadline (or timeout).
-    pub misses: u64,
-    /// Actuations that arrived after their deadline (answering an older sample).
-    pub late_discarded: u64,
-    /// Actuations refused (other contract, counts, or non-finite u).
-    pub invalid_discarded: u64,
-    /// Actuations refused because they did not come from the pinned service (a foreign
-    /// publisher, or a replaced service's leftovers).
-    pub foreign_discarded: u64,
-    /// Times a new service replaced the one the plant was connected to.
-    pub new_services: u64,
-    /// The pid of the service the plant is pinned to at the end of the run, when known.
-    pub service_pid: Option<u32>,
-    /// Watchdog trips.
-    pub watchdog_trips: u64,
-    /// Recoveries from the safe output.
-    pub watchdog_recoveries: u64,
-    /// Samples spent in the safe output.
-    pub safe_output_samples: u64,
-    /// Faults injected.
-    pub faults_injected: u64,
-    /// Real-time set-up outcome.
-    pub rt_setup: String,
-    /// RMS of each performance channel (noise included).
-    pub z_rms: Vec<f64>,
-    /// Wall time of the run, s.
-    pub wall_time_s: f64,
-    /// Set when the lockstep plant gave up ([`PlantError::GaveUp`]): why. `None` for a run
-    /// that ended at its last sample or on a signal.
-    pub gave_up: Option<String>,
 }
 
 /// Why a plant run failed.
@@ -365,11 +154,16 @@ pub fn run_plant(
     opts: &PlantRunOptions,
     shutdown: &AtomicBool,
 ) -> Result<PlantReport, PlantError> {
+    proxy
+        .check_mode(&format!("rig '{}'", scenario.rig.name))
+        .map_err(|e| PlantError::Config(e.0))?;
     let ts = scenario.rig.sample_period;
     let period_ns = (ts * 1e9).round() as u64;
     let mut sim =
         PlantSim::new(&scenario.plant, ts).map_err(|e| PlantError::Config(e.to_string()))?;
-    if proxy.intersample == Intersample::AtDeadline && proxy.deadline < 1.0 {
+    // At deadline 0 (or 1) the real hold and the ideal one are the same.
+    if proxy.intersample == Intersample::AtDeadline && proxy.deadline > 0.0 && proxy.deadline < 1.0
+    {
         sim.set_apply_offset(Some(proxy.deadline))
             .map_err(|e| PlantError::Config(e.to_string()))?;
     }
@@ -401,7 +195,8 @@ pub fn run_plant(
         "lockstep: none requested".to_string()
     };
 
-    let own = ContractInfo::new(Side::Plant, counts, period_ns);
+    let applies = proxy.applies();
+    let own = ContractInfo::new(Side::Plant, counts, period_ns).with_applies(applies);
     let waiting = format!(
         "[plant-proxy] rig '{}': waiting for the service ...",
         scenario.rig.name
@@ -415,16 +210,19 @@ pub fn run_plant(
             .map_err(PlantError::Connect)?;
     if opts.verbose {
         eprintln!(
-            "[plant-proxy] connected; {} steps at {:.1} Hz in {:?} mode",
+            "[plant-proxy] connected; {} steps at {:.1} Hz in {:?} mode, inputs applied {}, late policy {}",
             steps,
             1.0 / ts,
-            proxy.mode
+            proxy.mode,
+            applies.name(),
+            proxy.describe_late_policy()
         );
     }
 
     let mut report = PlantReport {
         rig: scenario.rig.name.clone(),
         mode: format!("{:?}", proxy.mode),
+        applies: applies.name().to_string(),
         rt_setup,
         faults_injected: proxy.faults.total() as u64,
         service_pid: ports.peer_pid(),
@@ -436,6 +234,10 @@ pub fn run_plant(
             describe_pid(ports.peer_pid())
         );
     }
+    let mut book = Box::new(ActuationBook::<AHEAD_CAPACITY>::new(
+        n_u,
+        proxy.miss_policy(),
+    ));
     let mut y = vec![0.0; n_y];
     let mut z = vec![0.0; n_z];
     let mut r = vec![0.0; n_r];
@@ -444,20 +246,63 @@ pub fn run_plant(
     let mut z_sum_sq = vec![0.0; n_z];
     let mut consecutive_misses = 0u64;
     let mut tripped = false;
+    // What the next measurement says of the input applied for the previous sample.
     let mut previous_missed = false;
+    let mut previous_plan = false;
+    // The timing of the last actuation applied (wire value).
+    let mut last_timing: Option<u32> = None;
     // Lockstep: when the watchdog tripped, and since when no valid actuation came.
     let mut tripped_at: Option<Instant> = None;
     let wall = Instant::now();
-    let t0 = monotonic_ns() + 2 * period_ns.max(1_000_000);
+    let mut clock = SampleClock::new(
+        monotonic_ns() + 2 * period_ns.max(1_000_000),
+        period_ns,
+        proxy.overrun,
+    );
+    // Real time at deadline 0: the input is latched at the sample clock, before the sample.
+    let latch_at_sample = applies == ipc_types::ports::Applies::AtSample;
+    let deadline_ns = match proxy.mode {
+        Mode::RealTime => (proxy.deadline * period_ns as f64) as u64,
+        Mode::Lockstep => 0,
+    };
 
     for k in 0..steps {
         if shutdown.load(Ordering::Relaxed) {
             break;
         }
+        // The flags of the period that ends at sample k.
+        let mut flags = match proxy.mode {
+            Mode::Lockstep => measurement_flags::LOCKSTEP,
+            Mode::RealTime => 0,
+        };
+        if tripped {
+            flags |= measurement_flags::PLANT_SAFE_OUTPUT;
+        }
+        if previous_missed {
+            flags |= measurement_flags::PREVIOUS_ACTUATION_MISSED;
+        }
+        if previous_plan {
+            flags |= measurement_flags::PLAN_APPLIED;
+        }
+        if k + 1 == steps {
+            flags |= measurement_flags::LAST_SAMPLE;
+        }
+        let stalled = proxy.mode == Mode::Lockstep && proxy.faults.stalled(k);
+        if stalled {
+            flags |= measurement_flags::INJECTED_STALL;
+        }
+        // The input applied for sample k − 1, which this measurement reports.
+        let u_reported = u_applied;
+        let new_services_before = report.new_services;
+
+        let mut decided = None;
         let t_k = match proxy.mode {
             Mode::RealTime => {
-                let t = t0 + k * period_ns;
-                sleep_until_ns(t);
+                let t = clock.wait(k);
+                if latch_at_sample {
+                    drain(&ports, &mut book, k, &mut report);
+                    decided = Some(book.decide(k));
+                }
                 t
             }
             Mode::Lockstep => monotonic_ns(),
@@ -468,28 +313,12 @@ pub fn run_plant(
         m.seq = k;
         m.t_sample_ns = t_k;
         m.period_ns = period_ns;
-        m.deadline_ns = match proxy.mode {
-            Mode::RealTime => (proxy.deadline * period_ns as f64) as u64,
-            Mode::Lockstep => 0,
-        };
-        m.flags = match proxy.mode {
-            Mode::Lockstep => measurement_flags::LOCKSTEP,
-            Mode::RealTime => 0,
-        };
-        if tripped {
-            m.flags |= measurement_flags::PLANT_SAFE_OUTPUT;
-        }
-        if previous_missed {
-            m.flags |= measurement_flags::PREVIOUS_ACTUATION_MISSED;
-        }
-        if k + 1 == steps {
-            m.flags |= measurement_flags::LAST_SAMPLE;
-        }
+        m.deadline_ns = deadline_ns;
+        m.flags = flags | measurement_flags::U_APPLIED;
         m.y[..n_y].copy_from_slice(&y);
         m.z[..n_z].copy_from_slice(&z);
         m.r[..n_r].copy_from_slice(&r);
-        m.u_applied[..n_u].copy_from_slice(&u_applied[..n_u]);
-        m.flags |= measurement_flags::U_APPLIED;
+        m.u_applied[..n_u].copy_from_slice(&u_reported[..n_u]);
         if let Some(v) = proxy.faults.at(k)
             && n_y > 0
         {
@@ -501,23 +330,26 @@ pub fn run_plant(
         let _ = ports.publisher.send_copy(m);
         let _ = ports.notifier.notify();
         report.samples += 1;
-        let new_services_before = report.new_services;
+        report.stalls_injected += u64::from(stalled);
 
-        // Collect the answer to sample k.
-        let answer = match proxy.mode {
-            Mode::RealTime => {
-                sleep_until_ns(t_k + m.deadline_ns);
-                drain_for(&ports, k, counts, &mut report)
+        // The input for sample k.
+        let decision = match (decided, proxy.mode) {
+            (Some(d), _) => d,
+            (None, Mode::RealTime) => {
+                sleep_until_ns(t_k + deadline_ns);
+                drain(&ports, &mut book, k, &mut report);
+                book.decide(k)
             }
-            Mode::Lockstep => {
+            (None, Mode::Lockstep) => {
                 let deadline = Instant::now() + proxy.lockstep_timeout;
                 loop {
-                    if let Some(a) = drain_for(&ports, k, counts, &mut report) {
-                        break Some(a);
+                    drain(&ports, &mut book, k, &mut report);
+                    if book.answers(k) {
+                        break;
                     }
                     let now = Instant::now();
                     if now >= deadline || shutdown.load(Ordering::Relaxed) {
-                        break None;
+                        break;
                     }
                     if let Some(l) = &ports.listener {
                         // At least 1 ms: iceoryx2 waits on a socket receive timeout, and a
@@ -528,6 +360,7 @@ pub fn run_plant(
                         let _ = l.timed_wait(|_| {}, wait);
                     }
                 }
+                book.decide(k)
             }
         };
         if report.new_services != new_services_before {
@@ -539,16 +372,17 @@ pub fn run_plant(
                 describe_pid(ports.peer_pid())
             );
         }
-        if answer.is_none() && shutdown.load(Ordering::Relaxed) {
+        if decision.is_miss() && shutdown.load(Ordering::Relaxed) {
             // Stopped while waiting: this sample was never answered nor applied.
             break;
         }
-        let status = match answer {
-            Some(a) => {
+        let status = match decision {
+            Decision::Answered { u, status, timing } => {
                 report.actuations_applied += 1;
                 tripped_at = None;
                 consecutive_misses = 0;
                 previous_missed = false;
+                previous_plan = false;
                 if tripped {
                     tripped = false;
                     report.watchdog_recoveries += 1;
@@ -556,16 +390,14 @@ pub fn run_plant(
                         "[plant-proxy] valid actuation again at seq {k}: leaving the safe output"
                     );
                 }
-                u_applied[..n_u].copy_from_slice(&a.u[..n_u]);
-                a.status
+                u_applied[..n_u].copy_from_slice(&u[..n_u]);
+                last_timing = Some(timing);
+                status
             }
-            None => {
+            miss => {
                 report.misses += 1;
                 consecutive_misses += 1;
                 previous_missed = true;
-                if proxy.late_policy == LatePolicy::Safe {
-                    u_applied[..n_u].copy_from_slice(&proxy.safe_input);
-                }
                 if !tripped && consecutive_misses >= proxy.watchdog_periods {
                     tripped = true;
                     report.watchdog_trips += 1;
@@ -587,14 +419,24 @@ pub fn run_plant(
                         );
                     }
                 }
+                // The watchdog's safe output overrides a plan as it overrides the rest.
+                previous_plan = false;
+                match (miss, tripped) {
+                    (Decision::Plan { u, .. }, false) => {
+                        u_applied[..n_u].copy_from_slice(&u[..n_u]);
+                        previous_plan = true;
+                        report.plan_entries_applied += 1;
+                    }
+                    (Decision::Safe, _) => {
+                        u_applied[..n_u].copy_from_slice(&proxy.safe_input);
+                        report.misses_held_or_safe += 1;
+                    }
+                    _ => report.misses_held_or_safe += 1,
+                }
                 if let Some(t) = tripped_at
                     && t.elapsed() >= proxy.peer_timeout
                 {
-                    report.service_pid = ports.peer_pid();
-                    report.z_rms = z_sum_sq
-                        .iter()
-                        .map(|s| (s / report.samples.max(1) as f64).sqrt())
-                        .collect();
+                    finish(&mut report, &z_sum_sq, last_timing, &clock, &ports);
                     return Err(give_up(report, k, consecutive_misses, proxy, &ports, wall));
                 }
                 u32::MAX
@@ -621,16 +463,34 @@ pub fn run_plant(
             .flush()
             .map_err(|e| PlantError::Io(format!("writing the trace: {e}")))?;
     }
-    report.z_rms = z_sum_sq
-        .iter()
-        .map(|s| (s / report.samples.max(1) as f64).sqrt())
-        .collect();
+    finish(&mut report, &z_sum_sq, last_timing, &clock, &ports);
     report.wall_time_s = wall.elapsed().as_secs_f64();
-    report.service_pid = ports.peer_pid();
     if opts.verbose || report.foreign_discarded > 0 || report.new_services > 0 {
         eprintln!("[plant-proxy] {}", trust_line(&report));
     }
     Ok(report)
+}
+
+/// Fills the report's end-of-run figures: RMS of `z`, the service's pid and timing, the
+/// clock's slips.
+fn finish(
+    report: &mut PlantReport,
+    z_sum_sq: &[f64],
+    last_timing: Option<u32>,
+    clock: &SampleClock,
+    ports: &PlantPorts,
+) {
+    report.z_rms = z_sum_sq
+        .iter()
+        .map(|s| (s / report.samples.max(1) as f64).sqrt())
+        .collect();
+    report.service_pid = ports.peer_pid();
+    report.timing = last_timing.map(|w| match Timing::from_wire(w) {
+        Some(t) => t.name().to_string(),
+        None => format!("unknown ({w})"),
+    });
+    report.clock_slips = clock.slips();
+    report.slipped_s = clock.slipped_ns() as f64 * 1e-9;
 }
 
 /// "pid 1234" or "of unknown pid".
@@ -687,36 +547,33 @@ fn give_up(
     }
 }
 
-/// Drains the actuation subscriber; returns the valid actuation for sample `k`, counting
-/// foreign (not from the pinned service), late and invalid ones.
-fn drain_for(
+/// Offers every pending actuation to the book while the plant is at sample `k`, counting
+/// foreign (not from the pinned service), late, invalid, dropped ones and stall
+/// acknowledgements. A new service (the pinned one was replaced) starts a fresh book.
+fn drain<const N: usize>(
     ports: &PlantPorts,
+    book: &mut ActuationBook<N>,
     k: u64,
-    counts: ChannelCounts,
     report: &mut PlantReport,
-) -> Option<Actuation> {
-    let mut found = None;
+) {
     while let Ok(Some(sample)) = ports.subscriber.receive() {
         match ports.admit(sample.origin()) {
             Origin::Peer => {}
-            Origin::NewPeer => report.new_services += 1,
+            Origin::NewPeer => {
+                report.new_services += 1;
+                book.clear();
+            }
             Origin::Foreign => {
                 report.foreign_discarded += 1;
                 continue;
             }
         }
-        let a: Actuation = *sample;
-        let n_u = counts.n_u as usize;
-        let valid = a.contract_version == CONTRACT_VERSION
-            && a.counts.n_u == counts.n_u
-            && a.u[..n_u].iter().all(|v| v.is_finite());
-        if !valid {
-            report.invalid_discarded += 1;
-        } else if a.seq == k {
-            found = Some(a);
-        } else if a.seq < k {
-            report.late_discarded += 1;
+        match book.offer(&sample, k) {
+            Offer::Kept => {}
+            Offer::KeptDropping { .. } => report.ahead_dropped += 1,
+            Offer::Late => report.late_discarded += 1,
+            Offer::Invalid => report.invalid_discarded += 1,
+            Offer::StallAck => report.stall_acks += 1,
         }
     }
-    found
 }
