@@ -10,13 +10,27 @@
 //!  wait for measurement k (busy-poll or blocking on the plant's event)
 //!  session: first sample, next (gaps counted as lost), stall resumed, or new plant session
 //!  gate: contract version and counts, finite, in range — else hold u, count
-//!  u_k = controller.step(y_k, z_k, r_k)   (or the safe input in the safe state and the
-//!                                          open-loop phase, while the controller observes)
-//!  publish actuation k; record wake-up, compute, response time and period jitter
+//!  answer, by service.timing (the safe input instead in the safe state and the open-loop
+//!  phase, while the controller takes the sample in without adapting):
+//!    compute-first  u_k = controller.step(y_k, …); publish Actuation{seq k}
+//!    answer-first   publish Actuation{seq k} = the prepared u_k (and plan);
+//!                   then advance(k) prepares u_{k+1} and its plan
+//!    send-ahead     (publish Actuation{seq k} = the prepared u_k if none went ahead for k);
+//!                   advance(k) prepares u_{k+1}; publish Actuation{seq k+1} at once
+//!  record wake-up, compute, response time and period jitter
 //!  push the signals to the log queue (drop and count when full)
 //!  deadline policy: count misses; N consecutive after the grace period ⇒ safe state
 //!  (latched, or left after M good answers)
 //! ```
+//!
+//! With answer-first the response time no longer contains the controller's cost; with
+//! send-ahead the plant holds `u_{k+1}` before sample `k + 1` is taken, so a stall of the
+//! service shorter than a period costs nothing and a plant may latch its inputs on the
+//! sample clock (`proxy.deadline = 0`). Its deadline for the answer to sample `k` is then
+//! `T + D` after `t_k`. The ahead timings need a controller with an ahead form
+//! ([`control::ahead`]); each of their answers may carry the controller's plan for the
+//! next `service.plan-length` samples, which a plant applies when an answer is late.
+//! Which inputs were sent for which sample is kept in a [`sent::SentLog`].
 //!
 //! The policies are plain-data types with no I/O and no clock of their own, each with its
 //! rules stated in its module:
@@ -44,6 +58,7 @@ pub mod checkpoint_slot;
 pub mod deadline;
 pub mod gate;
 pub mod reset;
+pub mod sent;
 pub mod session;
 mod tones;
 pub mod verdict;
@@ -63,10 +78,11 @@ use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
 use ipc_types::rt::RtSetup;
 use ipc_types::{
-    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_U, MAX_Z, Measurement, actuation_status,
-    measurement_flags,
+    Actuation, CONTRACT_VERSION, ChannelCounts, MAX_PLAN, MAX_U, MAX_Z, Measurement, Timing,
+    actuation_status, measurement_flags,
 };
 use reset::{ControllerResetPolicy, ResetCause};
+use sent::SentLog;
 use serde::Serialize;
 use session::{Arrival, Idle, NewSessionCause, SessionTracker};
 use std::fmt;
@@ -194,8 +210,13 @@ impl fmt::Display for LoopEvent {
 pub struct LoopStats {
     /// Measurements received.
     pub received: u64,
-    /// Actuations published.
+    /// Answers published: one per answered sample (with send-ahead, the input for the
+    /// next sample).
     pub published: u64,
+    /// Actuations published besides those answers: with send-ahead, the input for a
+    /// sample itself when none had gone ahead for it (a session's first sample, after a
+    /// stall); the acknowledgements of injected stalls.
+    pub published_extra: u64,
     /// Controller steps run.
     pub controller_steps: u64,
     /// Samples rejected for another contract version or other channel counts.
@@ -230,6 +251,11 @@ pub struct LoopStats {
     pub protected_misses: u64,
     /// Misses the plant reported (its view: the actuation was late or absent).
     pub plant_reported_misses: u64,
+    /// Of those, the ones the plant covered with an entry of the service's plan
+    /// (`PLAN_APPLIED`); the others reached the plant as a held or safe input.
+    pub plan_covered_misses: u64,
+    /// Samples of an injected stall (lockstep): taken in without an answer, acknowledged.
+    pub stalls_acknowledged: u64,
     /// Longest run of consecutive misses.
     pub max_consecutive_misses: u64,
     /// Entries into the safe state.
@@ -291,8 +317,21 @@ pub struct LoopCore {
     deadline: DeadlineMonitor,
     resets: ControllerResetPolicy,
     safe_input: [f64; MAX_U],
+    /// The last input published (held when a measurement is rejected).
     last_u: [f64; MAX_U],
     scratch_u: [f64; MAX_U],
+    /// The timing the loop runs ([`Timing::ComputeFirst`] when the controller has no ahead
+    /// form) and the plan entries per answer.
+    timing: Timing,
+    plan_length: usize,
+    /// The ahead answer prepared by the last `advance`: `u`, plan, status, compute time.
+    prepared: Actuation,
+    /// The actuation being composed.
+    outgoing: Actuation,
+    /// The controller's plan rows (`MAX_PLAN × n_u`).
+    plan_rows: Vec<f64>,
+    /// What was published for the last samples.
+    sent: SentLog,
     open_loop_cycles: u64,
     /// Windows of `z` for the per-tone report.
     pub tones: ToneMeter,
@@ -312,9 +351,6 @@ pub struct LoopCore {
     new_peer_pending: bool,
     /// The sample being answered has a possible sample time.
     timestamp_ok: bool,
-    /// The last actuation published: its sequence number and inputs.
-    sent_seq: Option<u64>,
-    sent_u: [f64; MAX_U],
     u_applied_tolerance: f64,
     /// The previous sample's `u_applied` report was a mismatch.
     foreign_run: bool,
@@ -330,16 +366,65 @@ pub struct LoopCore {
     cycles_since_checkpoint: u64,
 }
 
-/// What [`LoopCore::process`] decided for one sample.
+/// What [`LoopCore::handle`] did with one sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CycleDecision {
-    /// Compute time of the controller step (0 when it did not run).
+    /// Compute time of the controller in this cycle (0 when it did not run).
     pub compute_ns: u64,
     /// The plant says this was its last sample.
     pub last_sample: bool,
-    /// The sample is answered: publish `act`, then call [`LoopCore::finish_cycle`]. A
-    /// refused sample (a duplicate, a backward number, an unexplained jump) is not.
+    /// The sample was answered. A refused sample (a duplicate, a backward number, an
+    /// unexplained jump) and a sample of an injected stall are not.
     pub answer: bool,
+}
+
+/// Where the loop's actuations go: the iceoryx2 publisher of the service
+/// ([`rt_loop`]), a recorder in tests.
+pub trait Outbox {
+    /// Publishes `act`, stamping its `t_publish_ns`; returns whether it was sent and the
+    /// time just after. Must not allocate, block or panic.
+    fn publish(&mut self, act: &mut Actuation) -> (bool, u64);
+}
+
+/// What a sample's answer is made of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    /// The measurement was rejected by the gate: the last input is held.
+    Rejected,
+    /// The safe input, with this status bit (`SAFE_STATE` or `OPEN_LOOP`); the controller
+    /// takes the sample in without adapting.
+    Safe(u32),
+    /// The controller's input.
+    Control,
+}
+
+/// The main answer of a cycle, once published.
+#[derive(Debug, Clone, Copy)]
+struct Published {
+    ok: bool,
+    t_pub: u64,
+    /// The controller's time in this cycle.
+    compute_ns: u64,
+    status: u32,
+}
+
+/// The header of an actuation for sample `seq` answering measurement `m`.
+fn header(a: &mut Actuation, seq: u64, m: &Measurement, counts: ChannelCounts, timing: Timing) {
+    a.contract_version = CONTRACT_VERSION;
+    a.seq = seq;
+    a.reply_to = m.seq;
+    a.t_sample_ns = m.t_sample_ns;
+    a.counts = counts;
+    a.timing = timing.wire();
+}
+
+/// Replaces non-finite inputs by the safe input: the runtime never sends a NaN.
+fn sanitize(u: &mut [f64], safe: &[f64]) {
+    for (v, s) in u.iter_mut().zip(safe) {
+        if !v.is_finite() {
+            *v = *s;
+        }
+    }
 }
 
 impl LoopCore {
@@ -357,7 +442,12 @@ impl LoopCore {
         let on_timing_fault = cfg.policy.on_timing_fault;
         let mut safe_input = [0.0; MAX_U];
         safe_input[..cfg.safe_input.len()].copy_from_slice(&cfg.safe_input);
-        Self {
+        let mut controller = controller;
+        let timing = match controller.ahead() {
+            Some(_) => cfg.answer.timing,
+            None => Timing::ComputeFirst,
+        };
+        let mut core = Self {
             controller,
             telemetry,
             log,
@@ -377,6 +467,16 @@ impl LoopCore {
             safe_input,
             last_u: safe_input,
             scratch_u: [0.0; MAX_U],
+            timing,
+            plan_length: if timing == Timing::ComputeFirst {
+                0
+            } else {
+                cfg.answer.plan_length.min(MAX_PLAN)
+            },
+            prepared: Actuation::zeroed(cfg.counts),
+            outgoing: Actuation::zeroed(cfg.counts),
+            plan_rows: vec![0.0; MAX_PLAN * cfg.counts.n_u as usize],
+            sent: SentLog::default(),
             open_loop_cycles: cfg.open_loop_cycles,
             tones: ToneMeter::new(
                 &cfg.tone_report,
@@ -397,8 +497,6 @@ impl LoopCore {
             pending_jitter: None,
             new_peer_pending: false,
             timestamp_ok: false,
-            sent_seq: None,
-            sent_u: [0.0; MAX_U],
             u_applied_tolerance: cfg.policy.u_applied_tolerance,
             foreign_run: false,
             safe_since_seq: 0,
@@ -408,7 +506,42 @@ impl LoopCore {
             checkpoints: None,
             checkpoint_every: cfg.checkpoint_every_cycles,
             cycles_since_checkpoint: 0,
+        };
+        core.refresh_prepared();
+        core
+    }
+
+    /// The timing the loop runs: the configured one, or compute-first for a controller
+    /// without an ahead form.
+    pub fn timing(&self) -> Timing {
+        self.timing
+    }
+
+    /// Plan entries per answer (0 with compute-first).
+    pub fn plan_length(&self) -> usize {
+        self.plan_length
+    }
+
+    /// What the controller's plans hold, when it sends any.
+    pub fn plan_source(&mut self) -> Option<&'static str> {
+        if self.plan_length == 0 {
+            return None;
         }
+        self.controller.ahead().map(|a| a.plan_source())
+    }
+
+    /// The prepared answer from the controller's ready input, without a plan (at the start,
+    /// and after a reset or a new data stream).
+    fn refresh_prepared(&mut self) {
+        let n_u = self.counts.n_u as usize;
+        let Some(ahead) = self.controller.ahead() else {
+            return;
+        };
+        let s = ahead.ready(&mut self.prepared.u[..n_u]);
+        self.prepared.status = crate::wire::actuation_status(s);
+        self.prepared.plan_len = 0;
+        self.prepared.compute_ns = 0;
+        sanitize(&mut self.prepared.u[..n_u], &self.safe_input);
     }
 
     /// Hands a checkpoint of what the controller learned to `slot` every
@@ -489,6 +622,7 @@ impl LoopCore {
         s.deadline_misses = deadline.late;
         s.protected_misses = deadline.protected_misses;
         s.plant_reported_misses = deadline.plant_reported;
+        s.plan_covered_misses = deadline.plan_covered;
         s.max_consecutive_misses = deadline.max_consecutive;
         s.safe_state_entries = deadline.safe_state_entries;
     }
@@ -496,6 +630,7 @@ impl LoopCore {
     fn reset_controller_if(&mut self, cause: ResetCause) {
         if self.resets.resets(cause) {
             self.controller.reset();
+            self.refresh_prepared();
         }
     }
 
@@ -545,8 +680,9 @@ impl LoopCore {
                 } else {
                     self.controller.restart_data();
                 }
+                self.refresh_prepared();
                 self.tones.new_session();
-                self.sent_seq = None;
+                self.sent.clear();
                 self.foreign_run = false;
             }
         }
@@ -561,15 +697,18 @@ impl LoopCore {
         let on_time = m.flags
             & (measurement_flags::PREVIOUS_ACTUATION_MISSED | measurement_flags::PLANT_SAFE_OUTPUT)
             == 0;
-        let (Some(applied), Some(sent_seq)) = (m.u_applied(), self.sent_seq) else {
+        let Some(applied) = m.u_applied() else {
             return;
         };
-        if !on_time || sent_seq.wrapping_add(1) != m.seq {
+        let Some((sent_u, _)) = m.seq.checked_sub(1).and_then(|k| self.sent.input_for(k)) else {
+            return;
+        };
+        if !on_time {
             return;
         }
         let difference = applied
             .iter()
-            .zip(&self.sent_u)
+            .zip(sent_u)
             .map(|(a, s)| (a - s).abs())
             .fold(0.0, |m: f64, d| if d.is_nan() || d > m { d } else { m });
         // A NaN report counts as a mismatch.
@@ -586,10 +725,28 @@ impl LoopCore {
         self.foreign_run = mismatch;
     }
 
+    /// True for a sample of an injected stall: `INJECTED_STALL` with `LOCKSTEP` (the flag
+    /// means nothing in real time).
+    fn injected_stall(m: &Measurement) -> bool {
+        let both = measurement_flags::INJECTED_STALL | measurement_flags::LOCKSTEP;
+        m.flags & both == both
+    }
+
     /// Takes in a measurement that was received too late to be answered, because a newer
-    /// one was already waiting: the controller records it ([`Controller::observe`]) so that
-    /// its memory keeps every sample, but no actuation is computed for the plant.
-    pub fn observe(&mut self, m: &Measurement) {
+    /// one was already waiting: the controller records it ([`Controller::observe`], or an
+    /// ahead controller's `advance` without adaptation, with the input the plant applies
+    /// for it as far as the loop knows) so that its memory keeps every sample, but no
+    /// actuation is computed for the plant. A sample of an injected stall is acknowledged
+    /// through `out`.
+    pub fn observe(&mut self, m: &Measurement, out: &mut dyn Outbox) {
+        if Self::injected_stall(m) {
+            self.take_in_stalled(m, out);
+        } else {
+            self.take_in_late(m);
+        }
+    }
+
+    fn take_in_late(&mut self, m: &Measurement) {
         let Some(lost) = self.admit(m) else {
             return;
         };
@@ -599,18 +756,161 @@ impl LoopCore {
         }
         let n_u = self.counts.n_u as usize;
         let input = step_input(m, lost);
-        self.controller.observe(&input, &mut self.scratch_u[..n_u]);
+        if self.timing == Timing::ComputeFirst {
+            self.controller.observe(&input, &mut self.scratch_u[..n_u]);
+        } else {
+            let mut applied = [0.0; MAX_U];
+            self.sent
+                .expected_input(m.seq, &self.safe_input[..n_u], &mut applied[..n_u]);
+            self.advance(&input, &applied[..n_u], false);
+        }
         self.accumulate_z(m);
     }
 
-    /// Handles measurement `m` received at `t_recv_ns` and writes the answer into `act`
-    /// (all fields but `t_publish_ns`).
-    pub fn process(
+    /// A sample of an injected stall: taken in as one that arrived too late, then
+    /// acknowledged (`STALL_ACK`, not an input).
+    fn take_in_stalled(&mut self, m: &Measurement, out: &mut dyn Outbox) {
+        self.take_in_late(m);
+        self.stats.stalls_acknowledged += 1;
+        let a = &mut self.outgoing;
+        header(a, m.seq, m, self.counts, self.timing);
+        a.status = actuation_status::STALL_ACK;
+        a.u = [0.0; MAX_U];
+        a.plan_len = 0;
+        a.compute_ns = 0;
+        let (ok, _) = out.publish(a);
+        self.count_extra(ok);
+    }
+
+    fn count_extra(&mut self, ok: bool) {
+        if ok {
+            self.stats.published_extra += 1;
+        } else {
+            self.stats.publish_failures += 1;
+        }
+    }
+
+    /// An ahead controller takes sample `k` in with `applied`, adapting when `adapt`, and
+    /// the prepared answer becomes its ready input and, after an adapting step, its plan.
+    /// Returns the time it took.
+    fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u64 {
+        let n_u = self.counts.n_u as usize;
+        let t0 = monotonic_ns();
+        let Some(ahead) = self.controller.ahead() else {
+            return 0;
+        };
+        let s = ahead.advance(input, applied, adapt);
+        let _ = ahead.ready(&mut self.prepared.u[..n_u]);
+        let rows = if adapt && self.plan_length > 0 {
+            let len = (self.plan_length * n_u).min(self.plan_rows.len());
+            ahead.plan(&mut self.plan_rows[..len])
+        } else {
+            0
+        };
+        let compute_ns = monotonic_ns().saturating_sub(t0);
+        let wire = crate::wire::actuation_status(s);
+        self.prepared.status = wire;
+        self.prepared.compute_ns = compute_ns;
+        sanitize(&mut self.prepared.u[..n_u], &self.safe_input);
+        // The plan up to its first non-finite entry (the runtime never sends a NaN).
+        let mut len = 0;
+        for (j, row) in self
+            .plan_rows
+            .chunks_exact(n_u.max(1))
+            .take(rows)
+            .enumerate()
+        {
+            if n_u == 0 || !row.iter().all(|v| v.is_finite()) {
+                break;
+            }
+            if let Some(dst) = self.prepared.plan.get_mut(j) {
+                dst[..n_u].copy_from_slice(row);
+                len = j + 1;
+            }
+        }
+        self.prepared.plan_len = len as u32;
+        if adapt {
+            self.count_status(wire);
+        }
+        compute_ns
+    }
+
+    /// Counts a controller step and its status bits.
+    fn count_status(&mut self, wire: u32) {
+        self.stats.controller_steps += 1;
+        if wire & actuation_status::SATURATED != 0 {
+            self.stats.saturated_cycles += 1;
+        }
+        if wire & actuation_status::CONTROLLER_FAULT != 0 {
+            self.stats.controller_faults += 1;
+        }
+        if wire & actuation_status::FALLBACK != 0 {
+            self.stats.fallback_cycles += 1;
+        }
+    }
+
+    /// Publishes the outgoing actuation as an input: counted, remembered, held.
+    fn send(&mut self, out: &mut dyn Outbox, main: bool) -> (bool, u64) {
+        let (ok, t_pub) = out.publish(&mut self.outgoing);
+        if ok {
+            self.sent.record(&self.outgoing);
+            self.last_u = self.outgoing.u;
+            if main {
+                self.stats.published += 1;
+            } else {
+                self.stats.published_extra += 1;
+            }
+        } else {
+            self.stats.publish_failures += 1;
+        }
+        (ok, t_pub)
+    }
+
+    /// Writes the input of `mode` for a sample into the outgoing actuation: the held input
+    /// (rejected measurement), the safe input, or the prepared answer (its plan too).
+    fn fill(&mut self, mode: Mode, status: u32) {
+        let a = &mut self.outgoing;
+        a.plan_len = 0;
+        a.compute_ns = 0;
+        match mode {
+            Mode::Rejected => {
+                a.u = self.last_u;
+                a.status = status | actuation_status::MEASUREMENT_REJECTED;
+            }
+            Mode::Safe(bit) => {
+                a.u = self.safe_input;
+                a.status = status | bit;
+            }
+            Mode::Control => {
+                let p = &self.prepared;
+                a.u = p.u;
+                a.status = status | p.status;
+                a.compute_ns = p.compute_ns;
+                let len = (p.plan_len as usize).min(MAX_PLAN);
+                a.plan[..len].copy_from_slice(&p.plan[..len]);
+                a.plan_len = len as u32;
+            }
+        }
+    }
+
+    /// Handles measurement `m` received at `t_recv_ns`: the session and gate, the answer by
+    /// the loop's timing (published through `out`), then the deadline policy, histograms,
+    /// log and checkpoint of the cycle.
+    pub fn handle(
         &mut self,
         m: &Measurement,
         t_recv_ns: u64,
-        act: &mut Actuation,
+        out: &mut dyn Outbox,
     ) -> CycleDecision {
+        let last_sample = m.flags & measurement_flags::LAST_SAMPLE != 0;
+        if Self::injected_stall(m) {
+            self.take_in_stalled(m, out);
+            return CycleDecision {
+                compute_ns: 0,
+                last_sample,
+                answer: false,
+            };
+        }
         let previous_t_sample = self.session.last_sample_time_ns();
         let Some(lost) = self.admit(m) else {
             return CycleDecision {
@@ -627,77 +927,160 @@ impl LoopCore {
         self.check_u_applied(m);
         let cycle = self.session.connection_cycle();
         let flagged = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0;
-        self.deadline.on_sample(flagged, cycle);
+        let covered = m.flags & measurement_flags::PLAN_APPLIED != 0;
+        self.deadline.on_sample(flagged, covered, cycle);
         self.sync_stats();
         let jitter = self
             .session
             .answered(t_recv_ns)
             .map(|dt| dt.abs_diff(self.period_ns));
 
-        let n_u = self.counts.n_u as usize;
-        act.contract_version = CONTRACT_VERSION;
-        act.seq = m.seq;
-        act.t_sample_ns = m.t_sample_ns;
-        act.counts = self.counts;
-        act.u = [0.0; MAX_U];
-        let mut status = actuation_status::OK;
-        let mut compute_ns = 0;
-        if self.deadline.in_grace(cycle) {
-            status |= actuation_status::STARTING;
-        }
-        let input = step_input(m, lost);
-        let in_safe_state = self.deadline.in_safe_state();
-        if !self.admissible(m) {
-            status |= actuation_status::MEASUREMENT_REJECTED;
-            act.u[..n_u].copy_from_slice(&self.last_u[..n_u]);
-        } else if in_safe_state || self.session.session_cycle() <= self.open_loop_cycles {
-            // Safe state, or the open-loop phase: the safe input goes out and the
-            // controller only observes, so that its memory follows the plant (the plant
-            // reports the safe input it applied) and it resumes from the present.
-            if in_safe_state {
-                status |= actuation_status::SAFE_STATE;
-                self.stats.safe_state_cycles += 1;
-            } else {
-                status |= actuation_status::OPEN_LOOP;
-            }
-            act.u[..n_u].copy_from_slice(&self.safe_input[..n_u]);
-            let t0 = monotonic_ns();
-            self.controller.observe(&input, &mut self.scratch_u[..n_u]);
-            compute_ns = monotonic_ns().saturating_sub(t0);
-            self.last_u[..n_u].copy_from_slice(&act.u[..n_u]);
-            self.accumulate_z(m);
+        let status = if self.deadline.in_grace(cycle) {
+            actuation_status::STARTING
         } else {
-            let t0 = monotonic_ns();
-            let s = self.controller.step(&input, &mut act.u[..n_u]);
-            compute_ns = monotonic_ns().saturating_sub(t0);
-            let s = crate::wire::actuation_status(s);
-            self.stats.controller_steps += 1;
-            if s & actuation_status::SATURATED != 0 {
-                self.stats.saturated_cycles += 1;
-            }
-            if s & actuation_status::CONTROLLER_FAULT != 0 {
-                self.stats.controller_faults += 1;
-            }
-            if s & actuation_status::FALLBACK != 0 {
-                self.stats.fallback_cycles += 1;
-            }
-            // The controller promises finite output; the runtime still never sends a NaN.
-            for (v, safe) in act.u[..n_u].iter_mut().zip(&self.safe_input) {
-                if !v.is_finite() {
-                    *v = *safe;
+            actuation_status::OK
+        };
+        let input = step_input(m, lost);
+        let mode = if !self.admissible(m) {
+            Mode::Rejected
+        } else if self.deadline.in_safe_state() {
+            self.stats.safe_state_cycles += 1;
+            Mode::Safe(actuation_status::SAFE_STATE)
+        } else if self.session.session_cycle() <= self.open_loop_cycles {
+            Mode::Safe(actuation_status::OPEN_LOOP)
+        } else {
+            Mode::Control
+        };
+        let answer = match self.timing {
+            Timing::ComputeFirst => self.compute_first(m, &input, mode, status, out),
+            Timing::AnswerFirst => self.answer_first(m, &input, mode, status, out),
+            Timing::SendAhead => self.send_ahead(m, &input, mode, status, out),
+        };
+        if mode != Mode::Rejected {
+            self.accumulate_z(m);
+        }
+        self.pending_jitter = jitter;
+        self.finish_cycle(m, t_recv_ns, answer);
+        CycleDecision {
+            compute_ns: answer.compute_ns,
+            last_sample,
+            answer: true,
+        }
+    }
+
+    /// Compute-first: `u_k` from the step on `y_k` (or held, or safe), then published.
+    fn compute_first(
+        &mut self,
+        m: &Measurement,
+        input: &StepInput<'_>,
+        mode: Mode,
+        status: u32,
+        out: &mut dyn Outbox,
+    ) -> Published {
+        let n_u = self.counts.n_u as usize;
+        header(&mut self.outgoing, m.seq, m, self.counts, self.timing);
+        let mut compute_ns = 0;
+        match mode {
+            Mode::Rejected | Mode::Safe(_) => {
+                self.fill(mode, status);
+                if mode != Mode::Rejected {
+                    let t0 = monotonic_ns();
+                    self.controller.observe(input, &mut self.scratch_u[..n_u]);
+                    compute_ns = monotonic_ns().saturating_sub(t0);
                 }
             }
-            status |= s;
-            self.last_u[..n_u].copy_from_slice(&act.u[..n_u]);
-            self.accumulate_z(m);
+            Mode::Control => {
+                let a = &mut self.outgoing;
+                a.u = [0.0; MAX_U];
+                a.plan_len = 0;
+                let t0 = monotonic_ns();
+                let s = self.controller.step(input, &mut a.u[..n_u]);
+                compute_ns = monotonic_ns().saturating_sub(t0);
+                let wire = crate::wire::actuation_status(s);
+                // The controller promises finite output; the runtime still never sends a NaN.
+                sanitize(&mut a.u[..n_u], &self.safe_input);
+                a.status = status | wire;
+                self.count_status(wire);
+            }
         }
-        act.status = status;
-        act.compute_ns = compute_ns;
-        self.pending_jitter = jitter;
-        CycleDecision {
+        self.outgoing.compute_ns = compute_ns;
+        let (ok, t_pub) = self.send(out, true);
+        Published {
+            ok,
+            t_pub,
             compute_ns,
-            last_sample: m.flags & measurement_flags::LAST_SAMPLE != 0,
-            answer: true,
+            status: self.outgoing.status,
+        }
+    }
+
+    /// Answer-first: the prepared `u_k` published at once, then `advance(k)` prepares
+    /// `u_{k+1}`.
+    fn answer_first(
+        &mut self,
+        m: &Measurement,
+        input: &StepInput<'_>,
+        mode: Mode,
+        status: u32,
+        out: &mut dyn Outbox,
+    ) -> Published {
+        let n_u = self.counts.n_u as usize;
+        header(&mut self.outgoing, m.seq, m, self.counts, self.timing);
+        self.fill(mode, status);
+        let (ok, t_pub) = self.send(out, true);
+        let answered = self.outgoing.status;
+        let applied = self.outgoing.u;
+        let compute_ns = match mode {
+            Mode::Rejected => 0,
+            Mode::Safe(_) => self.advance(input, &applied[..n_u], false),
+            Mode::Control => self.advance(input, &applied[..n_u], true),
+        };
+        Published {
+            ok,
+            t_pub,
+            compute_ns,
+            status: answered,
+        }
+    }
+
+    /// Send-ahead: sample `k` answered at once when nothing went ahead for it, then
+    /// `advance(k)` and the answer for `k + 1` published.
+    fn send_ahead(
+        &mut self,
+        m: &Measurement,
+        input: &StepInput<'_>,
+        mode: Mode,
+        status: u32,
+        out: &mut dyn Outbox,
+    ) -> Published {
+        let n_u = self.counts.n_u as usize;
+        if !self.sent.contains(m.seq) {
+            header(&mut self.outgoing, m.seq, m, self.counts, self.timing);
+            self.fill(mode, status);
+            let _ = self.send(out, false);
+        }
+        let mut applied = [0.0; MAX_U];
+        self.sent
+            .expected_input(m.seq, &self.safe_input[..n_u], &mut applied[..n_u]);
+        let compute_ns = match mode {
+            Mode::Rejected => 0,
+            Mode::Safe(_) => self.advance(input, &applied[..n_u], false),
+            Mode::Control => self.advance(input, &applied[..n_u], true),
+        };
+        header(
+            &mut self.outgoing,
+            m.seq.wrapping_add(1),
+            m,
+            self.counts,
+            self.timing,
+        );
+        self.fill(mode, status);
+        self.outgoing.compute_ns = compute_ns;
+        let (ok, t_pub) = self.send(out, true);
+        Published {
+            ok,
+            t_pub,
+            compute_ns,
+            status: self.outgoing.status,
         }
     }
 
@@ -717,31 +1100,24 @@ impl LoopCore {
         }
     }
 
-    /// Completes the cycle after publishing at `t_pub_ns`: deadline policy, histograms, log.
-    pub fn finish_cycle(
-        &mut self,
-        m: &Measurement,
-        act: &Actuation,
-        t_recv_ns: u64,
-        t_pub_ns: u64,
-        published: bool,
-    ) {
-        if published {
-            self.stats.published += 1;
-            self.sent_seq = Some(m.seq);
-            self.sent_u = act.u;
-        } else {
-            self.stats.publish_failures += 1;
-        }
-        let response_ns = t_pub_ns.saturating_sub(m.t_sample_ns);
+    /// Completes the cycle of sample `m` after its answer: deadline policy, histograms, log.
+    fn finish_cycle(&mut self, m: &Measurement, t_recv_ns: u64, answer: Published) {
+        let response_ns = answer.t_pub.saturating_sub(m.t_sample_ns);
         let cycle = self.session.connection_cycle();
+        // The plant's deadline for this answer: with send-ahead it is the next sample's.
+        let deadline_ns = if m.flags & measurement_flags::LOCKSTEP != 0 {
+            0
+        } else {
+            m.deadline_ns
+                .saturating_add(self.timing.lead().saturating_mul(m.period_ns))
+        };
         let verdict = self.deadline.on_answer(Answer {
             cycle,
             open_loop: self.session.session_cycle() <= self.open_loop_cycles,
-            published,
+            published: answer.ok,
             timestamp_ok: self.timestamp_ok,
             response_ns,
-            deadline_ns: m.deadline_ns,
+            deadline_ns,
         });
         self.sync_stats();
         match verdict.change {
@@ -759,17 +1135,28 @@ impl LoopCore {
         // The first sample of a connection waited for the connection, not for the loop: it
         // would only pollute the latency figures; so would an impossible sample time.
         if cycle > 1 && self.timestamp_ok {
-            self.record_timing(m, act, t_recv_ns, response_ns, jitter);
+            self.telemetry.record(&CycleTiming {
+                seq: m.seq,
+                wakeup_ns: t_recv_ns.saturating_sub(m.t_sample_ns),
+                compute_ns: answer.compute_ns,
+                response_ns,
+                period_jitter_ns: jitter,
+            });
         }
         if let Some(log) = self.log.as_mut() {
+            // The row of sample k holds the input the service gave for sample k.
+            let (u, status) = match self.sent.input_for(m.seq) {
+                Some((u, status)) => (*u, status),
+                None => (self.last_u, answer.status),
+            };
             let r = &mut self.record;
             r.seq = m.seq;
             r.t_sample_ns = m.t_sample_ns;
-            r.status = act.status;
+            r.status = status;
             r.flags = m.flags;
             r.y = m.y;
             r.z = m.z;
-            r.u = act.u;
+            r.u = u;
             let n = self.controller.internals(&mut self.internals);
             r.internals[..n].copy_from_slice(&self.internals[..n]);
             log.push(r);
@@ -778,23 +1165,6 @@ impl LoopCore {
         if m.flags & measurement_flags::LAST_SAMPLE != 0 {
             self.event(LoopEvent::PlantEnded { seq: m.seq });
         }
-    }
-
-    fn record_timing(
-        &mut self,
-        m: &Measurement,
-        act: &Actuation,
-        t_recv_ns: u64,
-        response_ns: u64,
-        jitter: Option<u64>,
-    ) {
-        self.telemetry.record(&CycleTiming {
-            seq: m.seq,
-            wakeup_ns: t_recv_ns.saturating_sub(m.t_sample_ns),
-            compute_ns: act.compute_ns,
-            response_ns,
-            period_jitter_ns: jitter,
-        });
     }
 
     /// Called while no sample is pending; returns true when the plant has just been declared
@@ -930,6 +1300,12 @@ pub struct RunReport {
     pub controller: String,
     /// Wait mode used.
     pub wait: String,
+    /// The timing that ran (`compute-first`, `answer-first`, `send-ahead`).
+    pub timing: String,
+    /// Plan entries per answer (0: none).
+    pub plan_length: usize,
+    /// What the plans held, when the controller sent any.
+    pub plan_source: Option<String>,
     /// Outcome of the real-time set-up, one line.
     pub rt_setup: String,
     /// True when any RT set-up step was refused.
@@ -1080,6 +1456,14 @@ impl RunReport {
         );
         out += &format!("run folder: {}\n", self.run_folder);
         out += &format!(
+            "timing: {}{}\n",
+            self.timing,
+            match &self.plan_source {
+                Some(src) => format!(", plans of {} inputs ({src})", self.plan_length),
+                None => ", no plans".to_string(),
+            }
+        );
+        out += &format!(
             "real-time set-up: {}{}\n",
             self.rt_setup,
             if self.rt_degraded {
@@ -1093,14 +1477,26 @@ impl RunReport {
         }
         out += &format!("stopped: {:?}\n", self.stop_reason);
         out += &format!(
-            "samples: {} received, {} published, {} controller steps, {} caught up, {} lost\n",
-            s.received, s.published, s.controller_steps, s.caught_up, s.skipped
+            "samples: {} received, {} answered, {} controller steps, {} caught up, {} lost{}\n",
+            s.received,
+            s.published,
+            s.controller_steps,
+            s.caught_up,
+            s.skipped,
+            if s.stalls_acknowledged > 0 {
+                format!(", {} of injected stalls", s.stalls_acknowledged)
+            } else {
+                String::new()
+            }
         );
         out += &format!(
-            "deadline: {} misses (service-measured), {} reported by the plant, longest run {}, \
-             safe state entered {}× ({} cycles)\n",
+            "deadline: {} misses (service-measured), {} reported by the plant ({} covered by \
+             the plan, {} held or safe), longest run {}, safe state entered {}× ({} cycles)\n",
             s.deadline_misses,
             s.plant_reported_misses,
+            s.plan_covered_misses,
+            s.plant_reported_misses
+                .saturating_sub(s.plan_covered_misses),
             s.max_consecutive_misses,
             s.safe_state_entries,
             s.safe_state_cycles
@@ -1433,6 +1829,9 @@ pub fn run(
         run_folder: folder.display().to_string(),
         controller: controller_kind.to_string(),
         wait: format!("{:?}", cfg.wait),
+        timing: core.timing().name().to_string(),
+        plan_length: core.plan_length(),
+        plan_source: core.plan_source().map(str::to_string),
         rt_setup: setup.describe(),
         rt_degraded: setup.any_refused(),
         warnings,
@@ -1543,7 +1942,8 @@ fn rt_thread_main(
             return Err(ServiceError::RtRefused(w));
         }
     }
-    let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns);
+    let own = ContractInfo::new(Side::Service, cfg.counts, cfg.sample_period_ns)
+        .with_timing(core.timing());
     let waiting = format!("[service] waiting for the plant on rig '{}' ...", cfg.rig);
     let opts = ConnectOptions::new(cfg.peer_timeout)
         .with_shutdown(&shutdown)
@@ -1557,7 +1957,11 @@ fn rt_thread_main(
             }
             Err(e) => return Err(ServiceError::Connect(e)),
         };
-    eprintln!("[service] connected to the plant; running ({:?})", cfg.wait);
+    eprintln!(
+        "[service] connected to the plant; running ({:?}, {})",
+        cfg.wait,
+        core.timing().name()
+    );
     core.controller.prepare_thread();
     crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let before = crate::rt_alloc::thread_stats();
@@ -1615,20 +2019,25 @@ fn take_pending(
     n
 }
 
-/// Publishes `act` with its publish time stamped; returns (published, t_pub).
-#[inline]
-fn publish(ports: &ServicePorts, act: &mut Actuation) -> (bool, u64) {
-    let ok = match ports.publisher.loan_uninit() {
-        Ok(sample) => {
-            act.t_publish_ns = monotonic_ns();
-            let sample = sample.write_payload(*act);
-            sample.send().is_ok()
-        }
-        Err(_) => false,
-    };
-    let t_pub = monotonic_ns();
-    let _ = ports.notifier.notify();
-    (ok, t_pub)
+/// The service's [`Outbox`]: its iceoryx2 publisher and notifier.
+pub struct PortsOutbox<'a>(pub &'a ServicePorts);
+
+impl Outbox for PortsOutbox<'_> {
+    #[inline]
+    fn publish(&mut self, act: &mut Actuation) -> (bool, u64) {
+        let ports = self.0;
+        let ok = match ports.publisher.loan_uninit() {
+            Ok(sample) => {
+                act.t_publish_ns = monotonic_ns();
+                let sample = sample.write_payload(*act);
+                sample.send().is_ok()
+            }
+            Err(_) => false,
+        };
+        let t_pub = monotonic_ns();
+        let _ = ports.notifier.notify();
+        (ok, t_pub)
+    }
 }
 
 /// One pass of the RT loop: wait, process, publish. Public so that the allocation test and
@@ -1644,7 +2053,7 @@ pub fn rt_loop(
 ) -> StopReason {
     let mut pending = [Measurement::zeroed(ChannelCounts::default()); PENDING];
     let mut new_peer = [false; PENDING];
-    let mut act = Actuation::zeroed(ChannelCounts::default());
+    let mut out = PortsOutbox(ports);
     let mut spins: u32 = 0;
     let mut last_cleanup_ns = 0u64;
     let mut last_rx_ns = 0u64;
@@ -1665,17 +2074,13 @@ pub fn rt_loop(
                 if new_peer[i % PENDING] {
                     core.note_new_peer();
                 }
-                core.observe(&pending[i % PENDING]);
+                core.observe(&pending[i % PENDING], &mut out);
             }
             if new_peer[(n - 1) % PENDING] {
                 core.note_new_peer();
             }
             let m = &pending[(n - 1) % PENDING];
-            let d = core.process(m, t_recv, &mut act);
-            if d.answer {
-                let (ok, t_pub) = publish(ports, &mut act);
-                core.finish_cycle(m, &act, t_recv, t_pub, ok);
-            }
+            let d = core.handle(m, t_recv, &mut out);
             if d.last_sample && exit_with_plant {
                 return StopReason::PlantEnded;
             }

@@ -67,6 +67,36 @@ impl ControllerConfig {
         }
     }
 
+    /// True when the controller has an ahead form ([`control::ahead`]): its input for
+    /// sample `k` depends only on the data up to `k − 1`, so it can answer ahead. Each
+    /// kernel's parameters say so; the built controller's `Controller::ahead` agrees.
+    pub fn answers_ahead(&self) -> bool {
+        match self {
+            ControllerConfig::Lti { params } => params.d.iter().all(|v| *v == 0.0),
+            ControllerConfig::Excitation { .. } => false,
+            ControllerConfig::Rcac { .. } => true,
+            ControllerConfig::Pcac { params } => {
+                params.timing == control::pcac::PcacTiming::NextStep
+            }
+        }
+    }
+
+    /// Why the controller has no ahead form, for a refusal (empty when it has one).
+    pub fn why_not_ahead(&self) -> &'static str {
+        match self {
+            _ if self.answers_ahead() => "",
+            ControllerConfig::Lti { .. } => "its feedthrough D is not zero",
+            ControllerConfig::Excitation { .. } => {
+                "an excitation source draws each input as it goes"
+            }
+            ControllerConfig::Pcac { .. } => {
+                "controller.timing = \"same-step\" chooses u_k from y_k; \"next-step\", the \
+                 dissertation's timing, answers ahead"
+            }
+            ControllerConfig::Rcac { .. } => "",
+        }
+    }
+
     /// Checks the parameters for the rig's channels without building the controller.
     ///
     /// # Errors

@@ -14,6 +14,7 @@
 //! |---|---|---|
 //! | `[rig]` | [`rig`] | [`ServiceConfig::rig`], [`ServiceConfig::sample_period_ns`] |
 //! | `[service]`, `[service.channels]` | [`service_table`] | [`RtRequest`], [`WaitMode`], [`DeadlinePolicy`], [`MeasurementLimits`], … |
+//! | `service.timing`, `service.plan-length` | [`answer_timing`] | [`AnswerTiming`] |
 //! | `[service.report]` | [`tone_report`] | [`ToneReportConfig`] |
 //! | `[log]` | [`log`] | [`LogConfig`] |
 //! | `[controller]` | [`controller`] (the `kind` dispatch) | [`ControllerConfig`] |
@@ -49,6 +50,7 @@
 //! [`ServiceConfig::load_with_controller`] replaces the `[controller]` (and `[log]`)
 //! tables of a scenario by those of another file.
 
+pub mod answer_timing;
 pub mod bounds;
 pub mod controller;
 pub mod excitation;
@@ -66,6 +68,7 @@ pub mod target_model_file;
 pub mod tone_report;
 mod values;
 
+pub use answer_timing::AnswerTiming;
 pub use controller::ControllerConfig;
 pub use log::LogConfig;
 pub use scenario_check::ScenarioCheck;
@@ -154,6 +157,9 @@ pub struct ServiceConfig {
     /// Cycles between checkpoints of what the controller learned (`service.checkpoint-every`;
     /// 0: only at the end of the run).
     pub checkpoint_every_cycles: u64,
+    /// When the service answers and how long its plans are (`service.timing`,
+    /// `service.plan-length`).
+    pub answer: AnswerTiming,
 }
 
 #[derive(Deserialize)]
@@ -333,6 +339,12 @@ impl ServiceConfig {
             base_dir,
         };
         let controller = controller::parse(controller_value, &rig_of_controller, &err)?;
+        let answer = answer_timing::parse(
+            raw_service.timing.as_deref(),
+            raw_service.plan_length,
+            &controller,
+            &err,
+        )?;
 
         Ok(ServiceConfig {
             origin: origin.to_string(),
@@ -355,6 +367,7 @@ impl ServiceConfig {
             open_loop_cycles: s.open_loop_cycles,
             tone_report,
             checkpoint_every_cycles: s.checkpoint_every_cycles,
+            answer,
         })
     }
 }

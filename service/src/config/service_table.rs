@@ -38,6 +38,8 @@
 //! rms-settle = 2.0                # s after which the "settled" RMS of z starts
 //! open-loop = 1.0                 # s of each session run open loop (u = safe-input) before
 //!                                 # the controller acts; it observes those samples
+//! timing = "auto"                 # when the service answers; see the answer_timing module
+//! plan-length = 0                 # inputs ahead per answer; see the answer_timing module
 //! [service.report]                # see the tone_report module
 //! [service.channels]              # optional; default from [plant]
 //! y = 1
@@ -164,6 +166,10 @@ pub(super) struct RawService {
     run_dir: Option<PathBuf>,
     rms_settle: Option<f64>,
     open_loop: Option<f64>,
+    /// `service.timing`, read by the answer_timing module (it needs the controller).
+    pub timing: Option<String>,
+    /// `service.plan-length`, read by the answer_timing module.
+    pub plan_length: Option<u64>,
     /// `[service.report]`, read by the tone_report module.
     pub report: Option<super::tone_report::RawReport>,
     channels: Option<RawChannels>,

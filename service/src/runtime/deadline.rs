@@ -8,9 +8,14 @@
 //! - **Plant-reported**: sample `k` carries `PREVIOUS_ACTUATION_MISSED` (the plant's verdict
 //!   on actuation `k − 1`) and `c > 1`; on the first sample of a connection the flag speaks
 //!   of an actuation of before the connection and is ignored. Every report is counted.
+//! - **Plan-covered**: a plant-reported miss that also carries `PLAN_APPLIED`: the plant
+//!   applied the entry of the service's latest plan for that sample, the input the
+//!   controller had planned for it, rather than a held or safe input. Counted.
 //! - **Miss** (what the safe state listens to): the actuation could not be published, or,
-//!   by `service.miss-source`, the plant reported a miss (`plant`, the default) or the
-//!   answer was late (`response-time`).
+//!   by `service.miss-source`, the plant reported a miss that no plan covered (`plant`, the
+//!   default) or the answer was late (`response-time`). A plan-covered report neither
+//!   extends nor ends a run of misses: the plan carries the loop through a stall, and only
+//!   when it runs out do the held or safe inputs count toward the safe state.
 //!
 //! **Protected cycles** are the grace period of a connection (`c ≤ G`,
 //! `G = service.grace-periods`) and the open-loop phase of a plant session
@@ -88,6 +93,8 @@ pub struct DeadlineCounts {
     pub late: u64,
     /// Misses the plant reported.
     pub plant_reported: u64,
+    /// Of those, the ones the plant covered with an entry of the service's plan.
+    pub plan_covered: u64,
     /// Misses in protected cycles (grace period, open-loop phase).
     pub protected_misses: u64,
     /// The longest run of consecutive (unprotected) misses.
@@ -156,6 +163,8 @@ pub struct DeadlineMonitor {
     clean_run: u64,
     longest_clean_run: u64,
     plant_reported: bool,
+    /// The plant's report was a miss covered by a plan entry.
+    covered: bool,
     counts: DeadlineCounts,
 }
 
@@ -173,6 +182,7 @@ impl DeadlineMonitor {
             clean_run: 0,
             longest_clean_run: 0,
             plant_reported: false,
+            covered: false,
             counts: DeadlineCounts::default(),
         }
     }
@@ -188,13 +198,17 @@ impl DeadlineMonitor {
     }
 
     /// Takes in the plant's report carried by the sample about to be answered, cycle
-    /// `cycle` of its connection; `previous_missed` is its `PREVIOUS_ACTUATION_MISSED` flag.
-    /// Returns whether it counts as a plant-reported miss (it is then used by the next
-    /// [`DeadlineMonitor::on_answer`]).
-    pub fn on_sample(&mut self, previous_missed: bool, cycle: u64) -> bool {
+    /// `cycle` of its connection; `previous_missed` is its `PREVIOUS_ACTUATION_MISSED` flag
+    /// and `plan_applied` its `PLAN_APPLIED` flag. Returns whether it counts as a
+    /// plant-reported miss (it is then used by the next [`DeadlineMonitor::on_answer`]).
+    pub fn on_sample(&mut self, previous_missed: bool, plan_applied: bool, cycle: u64) -> bool {
         self.plant_reported = previous_missed && cycle > 1;
+        self.covered = self.plant_reported && plan_applied;
         if self.plant_reported {
             self.counts.plant_reported += 1;
+        }
+        if self.covered {
+            self.counts.plan_covered += 1;
         }
         self.plant_reported
     }
@@ -207,9 +221,11 @@ impl DeadlineMonitor {
         }
         let missed = !a.published
             || match self.source {
-                MissSource::Plant => self.plant_reported,
+                MissSource::Plant => self.plant_reported && !self.covered,
                 MissSource::ResponseTime => late,
             };
+        // A miss the plan covered neither extends nor ends a run of misses.
+        let covered_only = !missed && self.source == MissSource::Plant && self.covered;
         let mut change = SafeStateChange::Unchanged;
         if a.open_loop || self.in_grace(a.cycle) {
             self.consecutive = 0;
@@ -236,7 +252,7 @@ impl DeadlineMonitor {
                     change,
                 };
             }
-        } else {
+        } else if !covered_only {
             self.consecutive = 0;
         }
         if self.in_safe_state {
@@ -330,7 +346,8 @@ mod tests {
         }
     }
 
-    /// One answered cycle: `P` the plant reported a miss, `L` the answer was late, `U` it
+    /// One answered cycle: `P` the plant reported a miss, `C` one it covered with a plan
+    /// entry, `L` the answer was late, `U` it
     /// could not be published, `.` on time, `o`/`O` on time/plant-reported miss in the
     /// open-loop phase; `|` a new connection and `#` a new plant session (not cycles).
     fn run(p: &DeadlinePolicy, script: &str) -> (Vec<SafeStateChange>, DeadlineMonitor) {
@@ -350,7 +367,7 @@ mod tests {
                 continue;
             }
             cycle += 1;
-            m.on_sample(c == 'P' || c == 'O', cycle);
+            m.on_sample(c == 'P' || c == 'O' || c == 'C', c == 'C', cycle);
             let v = m.on_answer(Answer {
                 cycle,
                 open_loop: c == 'o' || c == 'O',
@@ -400,6 +417,12 @@ mod tests {
                 policy(0, 2, None, Plant), "PPP", &[(3, '+')]),
             ("a streak broken by one on-time answer starts again",
                 policy(0, 3, None, Plant), "PP.PP.PPP", &[(9, '+')]),
+            ("misses a plan covered never enter",
+                policy(0, 2, None, Plant), "..CCCCCC..", &[]),
+            ("a plan-covered miss neither extends nor ends a streak",
+                policy(0, 3, None, Plant), ".PCPCP", &[(6, '+')]),
+            ("an uncovered miss after the plan ran out counts",
+                policy(0, 2, None, Plant), ".CCCCPP", &[(7, '+')]),
             ("misses in the grace period cannot enter",
                 policy(4, 2, None, Plant), "PPPP....", &[]),
             ("nor extend the streak: N misses after the grace period are needed",
@@ -451,13 +474,14 @@ mod tests {
 
     #[test]
     fn every_miss_is_counted_whatever_the_source() {
-        let (changes, m) = run(&policy(0, 3, None, MissSource::Plant), ".PLP.LLP|P");
+        let (changes, m) = run(&policy(0, 3, None, MissSource::Plant), ".PLPC.LLP|P");
         assert!(changes.iter().all(|c| *c == SafeStateChange::Unchanged));
         assert_eq!(
             m.counts(),
             DeadlineCounts {
                 late: 3,
-                plant_reported: 3,
+                plant_reported: 4,
+                plan_covered: 1,
                 protected_misses: 0,
                 max_consecutive: 1,
                 safe_state_entries: 0,
@@ -488,7 +512,7 @@ mod tests {
     #[test]
     fn an_impossible_sample_time_is_never_late() {
         let mut m = DeadlineMonitor::new(&policy(0, 1, None, MissSource::ResponseTime));
-        m.on_sample(false, 2);
+        m.on_sample(false, false, 2);
         let v = m.on_answer(Answer {
             cycle: 2,
             open_loop: false,
@@ -503,7 +527,7 @@ mod tests {
     #[test]
     fn a_missing_deadline_is_never_late() {
         let mut m = DeadlineMonitor::new(&policy(0, 1, None, MissSource::ResponseTime));
-        m.on_sample(false, 1);
+        m.on_sample(false, false, 1);
         let v = m.on_answer(Answer {
             cycle: 1,
             open_loop: false,

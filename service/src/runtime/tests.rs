@@ -48,6 +48,37 @@ impl Controller for Probe {
     }
 }
 
+/// An [`Outbox`] that keeps what is published, stamped at a fixed time.
+struct Recorder {
+    sent: Vec<Actuation>,
+    at: u64,
+    /// Read at each publication (e.g. how far the controller had got).
+    probe: Option<Arc<AtomicU64>>,
+    seen_at_publish: Vec<u64>,
+}
+
+impl Recorder {
+    fn at(at: u64) -> Self {
+        Self {
+            sent: Vec::new(),
+            at,
+            probe: None,
+            seen_at_publish: Vec::new(),
+        }
+    }
+}
+
+impl Outbox for Recorder {
+    fn publish(&mut self, act: &mut Actuation) -> (bool, u64) {
+        act.t_publish_ns = self.at;
+        self.sent.push(*act);
+        if let Some(p) = &self.probe {
+            self.seen_at_publish.push(p.load(Ordering::Relaxed));
+        }
+        (true, self.at)
+    }
+}
+
 fn fixture() -> ServiceConfig {
     ServiceConfig::parse(include_str!("tests/loop-core.toml"), "loop-core.toml")
         .expect("the fixture is valid")
@@ -106,17 +137,13 @@ impl Harness {
         m
     }
 
-    /// Processes `m` received at its sample time and, when the loop answers it, publishes
-    /// 1 µs later; returns the actuation, or `None` when the sample is not answered.
+    /// Processes `m` received at its sample time, publishing 1 µs later; returns the main
+    /// answer (published last), or `None` when the sample is not answered.
     fn deliver(&mut self, m: &Measurement) -> Option<Actuation> {
-        let mut act = Actuation::zeroed(self.counts);
-        let d = self.core.process(m, m.t_sample_ns, &mut act);
-        if !d.answer {
-            return None;
-        }
-        self.core
-            .finish_cycle(m, &act, m.t_sample_ns, m.t_sample_ns + 1000, true);
-        Some(act)
+        let mut out = Recorder::at(m.t_sample_ns + 1000);
+        let d = self.core.handle(m, m.t_sample_ns, &mut out);
+        d.answer
+            .then(|| *out.sent.last().expect("an answered sample publishes"))
     }
 
     /// Sample `seq` arrives at its sample time with `y = y0` and `flags`; returns the
@@ -452,9 +479,340 @@ fn an_impossible_sample_time_is_counted_and_kept_out_of_the_late_count() {
     let mut m = h.sample(4, 0.0, 0);
     m.t_sample_ns = 0;
     m.deadline_ns = 1;
-    let mut act = Actuation::zeroed(h.counts);
-    assert!(h.core.process(&m, h.at(4), &mut act).answer);
-    h.core.finish_cycle(&m, &act, h.at(4), h.at(4) + 1000, true);
+    let mut out = Recorder::at(h.at(4) + 1000);
+    assert!(h.core.handle(&m, h.at(4), &mut out).answer);
     let s = h.core.stats;
     assert_eq!((s.impossible_timestamps, s.deadline_misses), (1, 0));
+}
+
+// ---------------------------------------------------------------------------------------
+// The ahead timings (answer-first, send-ahead) and plans, with a probe that has an ahead
+// form.
+
+/// What the ahead probe lets the test see.
+#[derive(Default)]
+struct AheadSeen {
+    /// `advance` calls so far, and those that adapted.
+    advances: Arc<AtomicU64>,
+    adapted: AtomicU64,
+    /// The `applied` input of the last `advance`, as bits.
+    last_applied: AtomicU64,
+}
+
+/// A controller with an ahead form: its ready input is `100 + adaptations`, its plan row
+/// `j` is `1000 + 10 · adaptations + j`, `rows` of them (row `nan_row` not finite).
+struct AheadProbe {
+    adapted: u64,
+    rows: usize,
+    nan_row: Option<usize>,
+    seen: Arc<AheadSeen>,
+}
+
+impl Controller for AheadProbe {
+    fn kind(&self) -> &'static str {
+        "ahead-probe"
+    }
+    fn counts(&self) -> Dimensions {
+        Dimensions::new(1, 1, 0, 1)
+    }
+    fn step(&mut self, _input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        u[0] = -1.0;
+        0
+    }
+    fn reset(&mut self) {
+        self.adapted = 0;
+    }
+    fn ahead(&mut self) -> Option<&mut dyn control::Ahead> {
+        Some(self)
+    }
+}
+
+impl control::Ahead for AheadProbe {
+    fn ready(&self, u: &mut [f64]) -> u32 {
+        u[0] = 100.0 + self.adapted as f64;
+        0
+    }
+    fn advance(&mut self, _input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32 {
+        self.seen.advances.fetch_add(1, Ordering::Relaxed);
+        self.seen
+            .last_applied
+            .store(applied[0].to_bits(), Ordering::Relaxed);
+        if adapt {
+            self.adapted += 1;
+            self.seen.adapted.fetch_add(1, Ordering::Relaxed);
+        }
+        0
+    }
+    fn plan(&mut self, out: &mut [f64]) -> usize {
+        let n = self.rows.min(out.len());
+        for (j, v) in out.iter_mut().take(n).enumerate() {
+            *v = if Some(j) == self.nan_row {
+                f64::NAN
+            } else {
+                1000.0 + 10.0 * self.adapted as f64 + j as f64
+            };
+        }
+        n
+    }
+    fn plan_source(&self) -> &'static str {
+        "the probe's rows"
+    }
+}
+
+/// A loop core on the fixture running `timing` with plans of `plan_length`, its controller
+/// an [`AheadProbe`] with `rows` plan rows.
+fn ahead_core(
+    timing: Timing,
+    plan_length: usize,
+    rows: usize,
+    nan_row: Option<usize>,
+) -> (LoopCore, Arc<AheadSeen>, ChannelCounts) {
+    let mut cfg = fixture();
+    cfg.answer = crate::config::AnswerTiming {
+        timing,
+        plan_length,
+    };
+    let seen = Arc::new(AheadSeen::default());
+    let probe = AheadProbe {
+        adapted: 0,
+        rows,
+        nan_row,
+        seen: seen.clone(),
+    };
+    let (tele, _reporter) = telemetry::channel_in_memory(cfg.budget_ns, 1000, 1);
+    let core = LoopCore::new(
+        &cfg,
+        Box::new(probe),
+        tele,
+        None,
+        rtrb::RingBuffer::new(64).0,
+    );
+    (core, seen, cfg.counts)
+}
+
+/// Sample `seq` at `seq · T` with `flags`, reporting `u_applied` when given.
+fn sample_at(counts: ChannelCounts, seq: u64, flags: u32) -> Measurement {
+    let mut m = Measurement::zeroed(counts);
+    m.seq = seq;
+    m.t_sample_ns = 1 + seq * T;
+    m.period_ns = T;
+    m.flags = flags;
+    m
+}
+
+/// Handles sample `seq`; returns what was published for it, in order.
+fn publish_for(core: &mut LoopCore, counts: ChannelCounts, seq: u64, flags: u32) -> Recorder {
+    let m = sample_at(counts, seq, flags);
+    let mut out = Recorder::at(m.t_sample_ns + 1000);
+    core.handle(&m, m.t_sample_ns, &mut out);
+    out
+}
+
+#[test]
+fn answer_first_publishes_the_prepared_input_before_the_controller_takes_the_sample_in() {
+    let (mut core, seen, counts) = ahead_core(Timing::AnswerFirst, 0, 0, None);
+    assert_eq!(core.timing(), Timing::AnswerFirst);
+    for k in 0..5u64 {
+        let m = sample_at(counts, k, 0);
+        let mut out = Recorder::at(m.t_sample_ns + 1000);
+        out.probe = Some(seen.advances.clone());
+        core.handle(&m, m.t_sample_ns, &mut out);
+        assert_eq!(out.sent.len(), 1, "one answer per sample");
+        let a = out.sent[0];
+        assert_eq!((a.seq, a.reply_to), (k, k));
+        assert_eq!(a.timing, Timing::AnswerFirst.wire());
+        // Published while the controller had taken in only the samples before k …
+        assert_eq!(out.seen_at_publish, [k], "sample {k}");
+        // … and its input is the one prepared by them.
+        assert_eq!(a.u[0], 100.0 + k as f64);
+    }
+    // The controller took every sample in, and was told the input it had given.
+    assert_eq!(seen.adapted.load(Ordering::Relaxed), 5);
+    assert_eq!(
+        f64::from_bits(seen.last_applied.load(Ordering::Relaxed)),
+        104.0
+    );
+    assert_eq!(core.stats.controller_steps, 5);
+}
+
+#[test]
+fn compute_first_runs_the_step_before_it_publishes() {
+    // The probe's step answers −1: compute-first never uses its ahead form.
+    let (mut core, seen, counts) = ahead_core(Timing::ComputeFirst, 0, 0, None);
+    let out = publish_for(&mut core, counts, 0, 0);
+    assert_eq!(out.sent.len(), 1);
+    assert_eq!(out.sent[0].u[0], -1.0);
+    assert_eq!(seen.advances.load(Ordering::Relaxed), 0);
+}
+
+#[test]
+fn send_ahead_publishes_the_next_input_at_once_and_answers_a_sample_nothing_went_ahead_for() {
+    let (mut core, seen, counts) = ahead_core(Timing::SendAhead, 0, 0, None);
+    // The first sample of the session: nothing went ahead for it, so it is answered with
+    // the prepared input, then the input for sample 1 goes out.
+    let out = publish_for(&mut core, counts, 0, 0);
+    let got: Vec<(u64, u64, f64)> = out
+        .sent
+        .iter()
+        .map(|a| (a.seq, a.reply_to, a.u[0]))
+        .collect();
+    assert_eq!(got, [(0, 0, 100.0), (1, 0, 101.0)]);
+    assert_eq!(
+        f64::from_bits(seen.last_applied.load(Ordering::Relaxed)),
+        100.0,
+        "the controller is told the input sent for sample 0"
+    );
+    // Then one publication per sample: the input for the next.
+    for k in 1..4u64 {
+        let out = publish_for(&mut core, counts, k, 0);
+        let got: Vec<(u64, u64)> = out.sent.iter().map(|a| (a.seq, a.reply_to)).collect();
+        assert_eq!(got, [(k + 1, k)]);
+    }
+    assert_eq!((core.stats.published, core.stats.published_extra), (4, 1));
+    // A stall: sample 4 reaches the loop late (5 waits), so nothing went ahead for 5.
+    let late = sample_at(counts, 4, 0);
+    let mut out = Recorder::at(0);
+    core.observe(&late, &mut out);
+    assert!(out.sent.is_empty(), "a late sample is not answered");
+    assert_eq!(
+        f64::from_bits(seen.last_applied.load(Ordering::Relaxed)),
+        104.0,
+        "the input sent ahead for 4 is what the plant applied"
+    );
+    let out = publish_for(&mut core, counts, 5, 0);
+    let got: Vec<(u64, u64)> = out.sent.iter().map(|a| (a.seq, a.reply_to)).collect();
+    assert_eq!(got, [(5, 5), (6, 5)]);
+    assert_eq!(core.stats.caught_up, 1);
+}
+
+#[test]
+fn a_send_ahead_answer_is_late_only_after_the_next_samples_deadline() {
+    let (mut core, _, counts) = ahead_core(Timing::SendAhead, 0, 0, None);
+    // ResponseTime: the service's own measurement decides; deadline 0 = at the sample.
+    core.deadline = DeadlineMonitor::new(&crate::config::DeadlinePolicy {
+        miss_source: crate::config::MissSource::ResponseTime,
+        ..fixture().policy
+    });
+    for (k, response) in [(0u64, 0.5), (1, 0.9), (2, 1.1), (3, 0.2)] {
+        let m = sample_at(counts, k, 0);
+        let mut out = Recorder::at(m.t_sample_ns + (response * T as f64) as u64);
+        core.handle(&m, m.t_sample_ns, &mut out);
+    }
+    assert_eq!(
+        core.stats.deadline_misses, 1,
+        "only the answer 1.1 T after its sample"
+    );
+}
+
+#[test]
+fn an_answer_carries_the_controllers_plan_up_to_the_configured_length_and_its_first_non_finite_row()
+{
+    let (mut core, _, counts) = ahead_core(Timing::SendAhead, 4, 10, None);
+    let out = publish_for(&mut core, counts, 0, 0);
+    // The answer for sample 0 itself went out before any plan was made.
+    assert_eq!(out.sent[0].plan_len, 0);
+    let a = out.sent[1];
+    assert_eq!(
+        a.plan_len, 4,
+        "the configured length, not the 10 rows the probe has"
+    );
+    let rows: Vec<f64> = (0..4).map(|j| a.plan[j][0]).collect();
+    assert_eq!(rows, [1010.0, 1011.0, 1012.0, 1013.0]);
+    assert_eq!(a.input_for(3), Some(&[1011.0][..]));
+
+    let (mut core, _, counts) = ahead_core(Timing::SendAhead, 8, 8, Some(2));
+    let out = publish_for(&mut core, counts, 0, 0);
+    assert_eq!(out.sent[1].plan_len, 2, "cut before the NaN row");
+    assert!(out.sent[1].plan.iter().flatten().all(|v| v.is_finite()));
+
+    let (mut core, _, counts) = ahead_core(Timing::AnswerFirst, 3, 10, None);
+    publish_for(&mut core, counts, 0, 0);
+    let out = publish_for(&mut core, counts, 1, 0);
+    let a = out.sent[0];
+    assert_eq!((a.seq, a.u[0], a.plan_len), (1, 101.0, 3));
+    assert_eq!(
+        a.plan[0][0], 1010.0,
+        "the plan made with the input, for samples 2, 3, 4"
+    );
+}
+
+#[test]
+fn a_sample_of_an_injected_stall_is_taken_in_and_acknowledged_never_answered() {
+    let (mut core, seen, counts) = ahead_core(Timing::SendAhead, 2, 2, None);
+    publish_for(&mut core, counts, 0, measurement_flags::LOCKSTEP);
+    let stalled = measurement_flags::LOCKSTEP | measurement_flags::INJECTED_STALL;
+    for k in 1..3u64 {
+        let m = sample_at(counts, k, stalled);
+        let mut out = Recorder::at(m.t_sample_ns + 1000);
+        let d = core.handle(&m, m.t_sample_ns, &mut out);
+        assert!(!d.answer);
+        let got: Vec<(u64, u32)> = out.sent.iter().map(|a| (a.reply_to, a.status)).collect();
+        assert_eq!(got, [(k, actuation_status::STALL_ACK)], "sample {k}");
+    }
+    // Taken in without adaptation: sample 1 with the input sent ahead for it, sample 2
+    // with the entry of the plan of the answer for 1.
+    assert_eq!(seen.advances.load(Ordering::Relaxed), 3);
+    assert_eq!(seen.adapted.load(Ordering::Relaxed), 1);
+    assert_eq!(
+        f64::from_bits(seen.last_applied.load(Ordering::Relaxed)),
+        1010.0
+    );
+    // The next sample: nothing went ahead for it, so it is answered at once.
+    let out = publish_for(&mut core, counts, 3, measurement_flags::LOCKSTEP);
+    let got: Vec<(u64, u64)> = out.sent.iter().map(|a| (a.seq, a.reply_to)).collect();
+    assert_eq!(got, [(3, 3), (4, 3)]);
+    assert_eq!(core.stats.stalls_acknowledged, 2);
+    // In real time the flag means nothing: such a sample is answered.
+    let out = publish_for(&mut core, counts, 4, measurement_flags::INJECTED_STALL);
+    assert_eq!(out.sent.len(), 1);
+    assert_eq!(out.sent[0].status & actuation_status::STALL_ACK, 0);
+}
+
+#[test]
+fn plan_covered_misses_are_counted_apart_and_do_not_send_the_service_to_its_safe_state() {
+    let (mut core, _, counts) = ahead_core(Timing::SendAhead, 4, 4, None);
+    let covered = measurement_flags::PREVIOUS_ACTUATION_MISSED | measurement_flags::PLAN_APPLIED;
+    for k in 0..3 {
+        publish_for(&mut core, counts, k, 0);
+    }
+    for k in 3..10 {
+        publish_for(&mut core, counts, k, covered);
+    }
+    let s = core.stats;
+    assert_eq!((s.plant_reported_misses, s.plan_covered_misses), (7, 7));
+    assert_eq!(
+        s.safe_state_entries, 0,
+        "the fixture enters it after 2 misses"
+    );
+    // Two uncovered ones do.
+    for k in 10..12 {
+        publish_for(
+            &mut core,
+            counts,
+            k,
+            measurement_flags::PREVIOUS_ACTUATION_MISSED,
+        );
+    }
+    assert_eq!(core.stats.safe_state_entries, 1);
+    // In the safe state the answers sent ahead are the safe input, without a plan.
+    let out = publish_for(&mut core, counts, 12, 0);
+    let a = out.sent[0];
+    assert_eq!((a.seq, a.u[0], a.plan_len), (13, 0.5, 0));
+    assert_ne!(a.status & SAFE_STATE, 0);
+}
+
+#[test]
+fn a_controller_without_an_ahead_form_runs_compute_first_whatever_the_configuration() {
+    let mut h = Harness::with(KeepLearned, |c| {
+        c.answer = crate::config::AnswerTiming {
+            timing: Timing::SendAhead,
+            plan_length: 8,
+        };
+    });
+    assert_eq!(
+        (h.core.timing(), h.core.plan_length()),
+        (Timing::ComputeFirst, 0)
+    );
+    let a = h.answer_with(0, 0.0, 0);
+    assert_eq!((a.seq, a.reply_to, a.plan_len), (0, 0, 0));
 }

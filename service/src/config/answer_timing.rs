@@ -1,0 +1,168 @@
+//! `service.timing` and `service.plan-length`: when the service answers a sample, and how
+//! many inputs ahead each answer carries as a plan.
+//!
+//! ```toml
+//! [service]
+//! timing = "auto"        # "compute-first", "answer-first", "send-ahead", or "auto": send
+//!                        # ahead when the controller can, else compute first
+//! plan-length = 32       # plan entries per actuation (0 … 64; 0: no plan)
+//! ```
+//!
+//! A controller whose input for sample `k` needs `y_k` (an LTI controller with `D ≠ 0`,
+//! PCAC's same-step timing) has no ahead form ([`control::ahead`]) and can only answer
+//! compute-first; asking it for another timing, or for a plan, is refused naming the
+//! field. Plans come with the ahead timings: compute-first sends none.
+
+use super::{ConfigError, ControllerConfig, ErrFn};
+use ipc_types::{MAX_PLAN, Timing};
+
+/// When the service answers and how long its plans are, validated against the controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AnswerTiming {
+    /// The timing the loop runs.
+    pub timing: Timing,
+    /// Plan entries per actuation (`≤ MAX_PLAN`; 0 with [`Timing::ComputeFirst`]).
+    pub plan_length: usize,
+}
+
+/// Resolves `service.timing` (`None`: `"auto"`) and `service.plan-length` (`None`: 0)
+/// for `controller`.
+pub(super) fn parse(
+    timing: Option<&str>,
+    plan_length: Option<u64>,
+    controller: &ControllerConfig,
+    err: &ErrFn<'_>,
+) -> Result<AnswerTiming, ConfigError> {
+    let ahead = controller.answers_ahead();
+    let timing = match timing.unwrap_or("auto") {
+        "auto" if ahead => Timing::SendAhead,
+        "auto" => Timing::ComputeFirst,
+        name => match Timing::from_name(name) {
+            Some(t) if t == Timing::ComputeFirst || ahead => t,
+            Some(t) => {
+                return Err(err(
+                    "service.timing",
+                    format!(
+                        "\"{}\" needs a controller whose input for sample k is ready before \
+                         sample k arrives; this {} controller needs y_k for u_k ({}), so it \
+                         answers \"compute-first\" (or use \"auto\")",
+                        t.name(),
+                        controller.kind_name(),
+                        controller.why_not_ahead()
+                    ),
+                ));
+            }
+            None => {
+                return Err(err(
+                    "service.timing",
+                    format!(
+                        "\"{name}\" is not a timing; use \"auto\", \"compute-first\", \
+                         \"answer-first\" or \"send-ahead\""
+                    ),
+                ));
+            }
+        },
+    };
+    let plan_length = plan_length.unwrap_or(0);
+    if plan_length > MAX_PLAN as u64 {
+        return Err(err(
+            "service.plan-length",
+            format!("{plan_length} entries: an actuation carries at most {MAX_PLAN}"),
+        ));
+    }
+    if plan_length > 0 && timing == Timing::ComputeFirst {
+        return Err(err(
+            "service.plan-length",
+            "plans come with the timings \"answer-first\" and \"send-ahead\"; this service \
+             answers \"compute-first\", so it sends none (set plan-length = 0)"
+                .into(),
+        ));
+    }
+    Ok(AnswerTiming {
+        timing,
+        plan_length: plan_length as usize,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::ServiceConfig;
+    use super::super::refusal_cases::assert_refused_naming_fields;
+    use super::*;
+
+    /// A static gain `u = −2y`: it needs `y_k` for `u_k`.
+    const FEEDTHROUGH: &str = include_str!("../../../tests/fixtures/config/lti-static-gain.toml");
+    /// PCAC in the dissertation's next-step timing: it answers ahead.
+    const NEXT_STEP: &str = include_str!("../../../tests/fixtures/config/pcac-chapter-6.toml");
+
+    fn parsed(text: &str) -> AnswerTiming {
+        ServiceConfig::parse(text, "t.toml").expect("valid").answer
+    }
+
+    fn with(text: &str, lines: &str) -> String {
+        text.replacen("[service]", &format!("[service]\n{lines}"), 1)
+    }
+
+    #[test]
+    fn auto_sends_ahead_when_the_controller_can_and_computes_first_when_it_cannot() {
+        let ahead = parsed(NEXT_STEP);
+        assert_eq!((ahead.timing, ahead.plan_length), (Timing::SendAhead, 0));
+        let same = parsed(FEEDTHROUGH);
+        assert_eq!((same.timing, same.plan_length), (Timing::ComputeFirst, 0));
+        let same_step = NEXT_STEP.replace("timing = \"next-step\"", "timing = \"same-step\"");
+        assert_eq!(parsed(&same_step).timing, Timing::ComputeFirst);
+        let no_d = FEEDTHROUGH.replace("d = [[-2.0]]", "d = [[0.0]]");
+        assert_eq!(parsed(&no_d).timing, Timing::SendAhead);
+    }
+
+    #[test]
+    fn a_timing_and_a_plan_length_are_taken_as_written() {
+        for t in Timing::ALL {
+            let text = with(NEXT_STEP, &format!("timing = \"{}\"", t.name()));
+            assert_eq!(parsed(&text).timing, t);
+        }
+        let text = with(NEXT_STEP, "timing = \"answer-first\"\nplan-length = 64");
+        assert_eq!(parsed(&text).plan_length, MAX_PLAN);
+    }
+
+    #[test]
+    fn timings_and_plans_the_controller_cannot_give_are_refused_naming_the_field() {
+        let cases = &[(
+            "[service]",
+            "[service]\ntiming = \"send-ahead\"",
+            "service.timing",
+        )];
+        assert_refused_naming_fields(FEEDTHROUGH, "t.toml", cases);
+        let cases = &[
+            (
+                "[service]",
+                "[service]\ntiming = \"ahead\"",
+                "service.timing",
+            ),
+            (
+                "[service]",
+                "[service]\nplan-length = 65",
+                "service.plan-length",
+            ),
+            (
+                "[service]",
+                "[service]\ntiming = \"compute-first\"\nplan-length = 4",
+                "service.plan-length",
+            ),
+        ];
+        assert_refused_naming_fields(NEXT_STEP, "t.toml", cases);
+        let m = ServiceConfig::parse(&with(FEEDTHROUGH, "timing = \"answer-first\""), "t.toml")
+            .expect_err("refused")
+            .to_string();
+        assert!(m.contains("feedthrough D is not zero"), "{m}");
+        let same_step = NEXT_STEP.replace("timing = \"next-step\"", "timing = \"same-step\"");
+        let m = ServiceConfig::parse(&with(&same_step, "timing = \"send-ahead\""), "t.toml")
+            .expect_err("refused")
+            .to_string();
+        assert!(m.contains("next-step"), "{m}");
+        let m = ServiceConfig::parse(&with(FEEDTHROUGH, "plan-length = 3"), "t.toml")
+            .expect_err("refused")
+            .to_string();
+        assert!(m.contains("compute-first"), "{m}");
+    }
+}
