@@ -259,14 +259,62 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     let _ = std::fs::remove_dir_all(&folder);
 }
 
+/// An [`Outbox`](service::runtime::Outbox) that keeps the last actuation published, in
+/// place.
+struct KeepLast(ipc_types::Actuation);
+
+impl service::runtime::Outbox for KeepLast {
+    fn publish(&mut self, act: &mut ipc_types::Actuation) -> (bool, u64) {
+        act.t_publish_ns = ipc_types::clock::monotonic_ns();
+        self.0 = *act;
+        (true, ipc_types::clock::monotonic_ns())
+    }
+}
+
 #[test]
-fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
-    use ipc_types::Actuation;
+fn the_loops_own_per_sample_work_does_not_allocate_at_all_in_any_timing() {
     // An open-loop phase that ends inside the counted region, and a tone report.
-    let cfg = config_with(
-        "unit-noalloc-core",
-        "open-loop = 2.0\nreport = { tones-hz = [50.0], window = 0.5 }",
-    );
+    let extra = "open-loop = 2.0\nreport = { tones-hz = [50.0], window = 0.5 }";
+    // The LTI controller has a feedthrough: compute-first. Without it, it answers ahead.
+    let runs = [
+        (
+            ipc_types::Timing::ComputeFirst,
+            config_with("unit-noalloc-core", extra),
+        ),
+        (
+            ipc_types::Timing::AnswerFirst,
+            ahead_lti(extra, ipc_types::Timing::AnswerFirst, 8),
+        ),
+        (
+            ipc_types::Timing::SendAhead,
+            ahead_lti(extra, ipc_types::Timing::SendAhead, 64),
+        ),
+    ];
+    for (timing, cfg) in runs {
+        // Each on a thread of its own, marked real-time afresh.
+        std::thread::spawn(move || loop_core_run(&cfg, timing))
+            .join()
+            .unwrap_or_else(|_| panic!("{timing:?}"));
+    }
+}
+
+/// [`config_with`]'s controller without its feedthrough `D`, answering by `timing` with
+/// plans of `plan_length`.
+fn ahead_lti(service_extra: &str, timing: ipc_types::Timing, plan_length: usize) -> ServiceConfig {
+    let mut cfg = config_with("unit-noalloc-core", service_extra);
+    if let service::config::ControllerConfig::Lti { params } = &mut cfg.controller {
+        params.d.fill(0.0);
+    }
+    cfg.answer = service::config::AnswerTiming {
+        timing,
+        plan_length,
+    };
+    cfg
+}
+
+/// 50,000 cycles of the loop core with `cfg`, counted past the first 1,000: samples lost,
+/// received late and rejected on the way.
+fn loop_core_run(cfg: &ServiceConfig, timing: ipc_types::Timing) {
     let folder = std::env::temp_dir().join(format!("noalloc-core-{}", std::process::id()));
     std::fs::create_dir_all(&folder).unwrap();
     let controller = cfg.controller.build(cfg.counts).unwrap();
@@ -281,9 +329,10 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
     };
     let (producer, writer) = service::logging::channel(64, layout);
     let (events_tx, _events_rx) = rtrb::RingBuffer::new(64);
-    let mut core = LoopCore::new(&cfg, controller, tele_rt, Some(producer), events_tx);
+    let mut core = LoopCore::new(cfg, controller, tele_rt, Some(producer), events_tx);
+    assert_eq!(core.timing(), timing);
     let mut m = Measurement::zeroed(cfg.counts);
-    let mut act = Actuation::zeroed(cfg.counts);
+    let mut out = KeepLast(Actuation::zeroed(cfg.counts));
     let mut cycle = |core: &mut LoopCore, k: u64| {
         if k % 500 == 250 {
             // A sample lost on the way: a gap in the sequence.
@@ -291,19 +340,23 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
         }
         m.seq = k;
         m.t_sample_ns = ipc_types::clock::monotonic_ns();
+        m.period_ns = 1_000_000;
         m.y[0] = (k as f64 * 0.1).sin();
         m.y[1] = if k % 1000 == 7 { f64::INFINITY } else { 0.5 };
         m.z[0] = (2.0 * std::f64::consts::PI * 50.0 * k as f64 * 1e-3).sin();
-        m.flags = ipc_types::measurement_flags::U_APPLIED;
-        m.u_applied[..2].copy_from_slice(&act.u[..2]);
+        m.flags = measurement_flags::U_APPLIED;
+        if k % 700 == 3 {
+            m.flags |=
+                measurement_flags::PREVIOUS_ACTUATION_MISSED | measurement_flags::PLAN_APPLIED;
+        }
+        m.u_applied[..2].copy_from_slice(&out.0.u[..2]);
         let t_recv = ipc_types::clock::monotonic_ns();
         if k % 100 == 30 {
             // Received too late: a newer sample was waiting.
-            core.observe(&m);
+            core.observe(&m, &mut out);
             return;
         }
-        core.process(&m, t_recv, &mut act);
-        core.finish_cycle(&m, &act, t_recv, ipc_types::clock::monotonic_ns(), true);
+        core.handle(&m, t_recv, &mut out);
     };
     for k in 0..1000 {
         cycle(&mut core, k);
@@ -316,11 +369,11 @@ fn the_loops_own_per_sample_work_does_not_allocate_at_all() {
     for k in 1000..50_000 {
         cycle(&mut core, k);
     }
-    assert_nothing_allocated_since(&before, String::new);
-    assert_eq!(core.stats.rejected_non_finite, 50);
-    assert!(core.stats.controller_steps > 45_000);
-    assert_eq!(core.stats.caught_up, 500);
-    assert_eq!(core.stats.skipped, 100);
+    assert_nothing_allocated_since(&before, || format!("{timing:?}"));
+    assert_eq!(core.stats.rejected_non_finite, 50, "{timing:?}");
+    assert!(core.stats.controller_steps > 45_000, "{timing:?}");
+    assert_eq!(core.stats.caught_up, 500, "{timing:?}");
+    assert_eq!(core.stats.skipped, 100, "{timing:?}");
     // The tone report saw both windows (the tone is the same in both: 0 dB).
     let r = core.tones.report().unwrap();
     assert!(r.error.is_none(), "{:?}", r.error);
