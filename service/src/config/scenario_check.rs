@@ -134,6 +134,28 @@ fn plant_half(
             None => err("proxy", m.to_string()),
         }
     })?;
+    if proxy.applies() == ipc_types::ports::Applies::AtSample
+        && service.answer.timing != ipc_types::Timing::SendAhead
+    {
+        return Err(err(
+            "proxy.deadline",
+            format!(
+                "0 applies each input at its sample instant, which only a service that sends \
+                 ahead can meet; this service answers {} (service.timing = \"send-ahead\", \
+                 or a deadline inside the period)",
+                service.answer.timing.name()
+            ),
+        ));
+    }
+    if proxy.late_policy == plant_proxy::runtime::LatePolicy::Plan && service.answer.plan_length == 0
+    {
+        return Err(err(
+            "proxy.late-policy",
+            "\"plan\" needs plans, and this service sends none (service.plan-length = 0): \
+             every miss would fall back to proxy.plan-fallback"
+                .into(),
+        ));
+    }
     Ok(Some(PlantHalf {
         states: sim.n_plant_states() + sim.n_exosystem_states(),
         scenario,

@@ -60,7 +60,16 @@ pub struct LaunchOptions {
     pub controller: Option<PathBuf>,
     /// A `checkpoint.json` the controller starts from (`service run --warm-start`).
     pub warm_start: Option<PathBuf>,
+    /// Have the plant write its per-sample trace (`plant-trace.csv` in the run folder:
+    /// `k`, `t`, `y`, `z`, the applied `u`, the measurement's flags and the status of the
+    /// actuation applied, `4294967295` for a miss).
+    pub plant_trace: bool,
+    /// Do not draw `run.png`.
+    pub skip_figure: bool,
 }
+
+/// The plant's per-sample trace in a run folder ([`LaunchOptions::plant_trace`]).
+pub const PLANT_TRACE_FILE: &str = "plant-trace.csv";
 
 /// Why a launch failed.
 #[derive(Debug)]
@@ -383,6 +392,9 @@ pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicUsize>) -> Result<Launched, 
         // plant-proxy validates it like `rig.duration` and refuses a bad value by name.
         plant.args(["--duration", &d.to_string()]);
     }
+    if opts.plant_trace {
+        plant.arg("--trace").arg(folder.join(PLANT_TRACE_FILE));
+    }
     let mut service = Command::new(&service_bin);
     service
         .arg("run")
@@ -508,7 +520,7 @@ pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicUsize>) -> Result<Launched, 
     r.failure = failure.clone();
     let written = finish_record(&r, &folder);
     // The figure of a service that ended cleanly, whatever the plant did.
-    let figure = if service_ok && cfg.log.enabled {
+    let figure = if service_ok && cfg.log.enabled && !opts.skip_figure {
         match crate::figures::run_folder_figure(&folder) {
             Ok(path) => Some(path),
             Err(e) => {

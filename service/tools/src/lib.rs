@@ -23,4 +23,5 @@ pub mod figures;
 pub mod launch;
 pub mod plot;
 pub mod simulate;
+pub mod stalls;
 pub mod study;

@@ -4,6 +4,7 @@
 //! rig launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--run-folder DIR]
 //!            [--wait busy-poll|block] [--core N] [--controller FILE] [--warm-start FILE]
 //! rig plot <run-folder>
+//! rig stalls <scenario.toml> [--plan-length H] [--runs DIR] [--results FILE] [--json FILE]
 //! ```
 //!
 //! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
@@ -13,7 +14,9 @@
 //! the run folder. Exit status: 0 when both ended cleanly; 1 when the service did not (it
 //! died, or its run verdict failed), or the plant did not and the launcher was not asked
 //! to stop; 2 when the configuration was refused before anything started. `plot` draws
-//! `run.png` from a run folder (signals.csv and report.json) of any earlier run.
+//! `run.png` from a run folder (signals.csv and report.json) of any earlier run. `stalls`
+//! runs the stall study of `rig_tools::stalls` (seven lockstep runs of the scenario) and
+//! writes its table.
 
 use clap::{Parser, Subcommand};
 use rig_tools::launch::{LaunchError, LaunchOptions, launch};
@@ -61,6 +64,24 @@ enum Command {
         #[arg(long)]
         warm_start: Option<PathBuf>,
     },
+    /// The stall study: what stalls of 1, 2, 4 and 16 periods cost under each timing and
+    /// late policy, in lockstep (seven runs of the scenario).
+    Stalls {
+        /// Scenario / configuration TOML file.
+        config: PathBuf,
+        /// Plan entries per answer in the plan case.
+        #[arg(long, default_value_t = 32)]
+        plan_length: usize,
+        /// Folder for the runs (default: `runs/stalls-<unix time>`).
+        #[arg(long)]
+        runs: Option<PathBuf>,
+        /// Write the table as Markdown into this file (e.g. docs/results/stall-policies.md).
+        #[arg(long)]
+        results: Option<PathBuf>,
+        /// Write the study as JSON into this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Draw run.png (the verdict, z open and closed loop, u, ‖θ‖, shaded safe-state and
     /// watchdog intervals, PSDs over equal windows) from a run folder.
     Plot {
@@ -95,6 +116,7 @@ fn main() -> ExitCode {
                 core,
                 controller,
                 warm_start,
+                ..Default::default()
             };
             match launch(&opts, stop) {
                 Ok(done) => {
@@ -111,6 +133,58 @@ fn main() -> ExitCode {
                     eprintln!("rig: {e}");
                     ExitCode::FAILURE
                 }
+            }
+        }
+        Command::Stalls {
+            config,
+            plan_length,
+            runs,
+            results,
+            json,
+        } => {
+            let runs = runs.unwrap_or_else(|| {
+                let secs = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_secs())
+                    .unwrap_or(0);
+                PathBuf::from(format!("runs/stalls-{secs}"))
+            });
+            let study = match rig_tools::stalls::run(&config, plan_length, &runs) {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("rig: stalls: {e}");
+                    return ExitCode::FAILURE;
+                }
+            };
+            let command = format!(
+                "rig stalls {} --plan-length {plan_length}",
+                config.display()
+            );
+            let table = rig_tools::stalls::render_markdown(&study, &command);
+            println!("{table}");
+            let mut ok = true;
+            if let Some(path) = results {
+                let text = format!(
+                    "# Stall study\n\nWritten by `rig stalls`: do not edit by hand. What it \
+                     runs and how to read it: `service/tools/src/stalls.rs` and \
+                     [timing-protocol.md](../timing-protocol.md#plans-and-the-late-policy).\n\n{table}"
+                );
+                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
+                    eprintln!("rig: stalls: {}: {e}", path.display());
+                    ok = false;
+                }
+            }
+            if let Some(path) = json {
+                let text = serde_json::to_string_pretty(&study).unwrap_or_default();
+                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
+                    eprintln!("rig: stalls: {}: {e}", path.display());
+                    ok = false;
+                }
+            }
+            if ok {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
             }
         }
         Command::Plot { run_folder } => match rig_tools::figures::run_folder_figure(&run_folder) {
