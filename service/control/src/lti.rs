@@ -7,8 +7,33 @@
 //! whose input `e_k` is `y_k`, the tracking error `r_k − y_k`, or the stack `[y_k; r_k]`
 //! ([`ControllerInput`]), given as a matrix of discrete transfer functions or in state space.
 //!
+//! # Ahead form (`D = 0`)
+//!
+//! With `D = 0` the input `u_k = sat(C x_k)` does not depend on `e_k`, so it is known as
+//! soon as sample `k − 1` is in, and [`Controller::ahead`] is `Some`
+//! ([`LtiParams::answers_ahead`]). [`Ahead::advance`] takes sample `k` in exactly as
+//! [`Controller::step`] does, `x_{k+1} = A x_k + B e_k` (a diverging state is reset to
+//! `x_0` with [`status::CONTROLLER_FAULT`]), and prepares the ready input
+//! `u_{k+1} = sat(C x_{k+1})`; the input the plant applied does not enter the state, and
+//! there is nothing to adapt. So the inputs of `ready; advance` per sample equal those of
+//! `step`, bit for bit up to the sign of an exact zero (`step` adds `D e_k = 0`). After a
+//! reset the ready input is `sat(C x_0)`.
+//!
+//! **The plan** ([`Ahead::plan`]) is the controller's response with its input predicted
+//! at its set point: `e = 0` for `input = "y"` (regulation: `y` predicted at 0) and for
+//! `"error"` (`y` predicted at `r`), and `e = [0; r_k]` for `"y-and-r"` (`y` predicted
+//! at 0, `r` held at `r_k`):
+//!
+//! ```text
+//! x̂_{k+2+j} = A x̂_{k+1+j} + B ê,   x̂_{k+1} = x_{k+1},   row j = sat(C x̂_{k+2+j})
+//! ```
+//!
+//! exact as far as the measurements stay at their set point; it ends early if the
+//! predicted state leaves the finite numbers.
+//!
 
 use crate::ParamError;
+use crate::ahead::Ahead;
 use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
 use nalgebra::{DMatrix, DVector};
 
@@ -37,6 +62,17 @@ pub struct LtiController {
     input: ControllerInput,
     counts: Dimensions,
     limits: Option<OutputLimits>,
+    /// [`LtiParams::answers_ahead`], computed once at construction.
+    ahead: bool,
+    /// The ahead form's ready input `sat(C x_{k+1})` and its status bits.
+    ready_u: Vec<f64>,
+    ready_status: u32,
+    /// Plan scratch: the predicted state, its successor, the predicted controller input
+    /// and output.
+    x_plan: DVector<f64>,
+    x_plan_next: DVector<f64>,
+    e_plan: DVector<f64>,
+    u_plan: DVector<f64>,
 }
 
 /// The parameters of an [`LtiController`]: its discrete state-space matrices, initial
@@ -60,6 +96,14 @@ pub struct LtiParams {
 }
 
 impl LtiParams {
+    /// Whether the controller answers ahead ([`Controller::ahead`] is `Some`, module docs
+    /// "Ahead form"): when `D` is all zeros, so that `u_k = C x_k` does not depend on
+    /// `e_k`. The service's configuration check calls this to decide whether the loop may
+    /// answer first or send ahead.
+    pub fn answers_ahead(&self) -> bool {
+        self.d.iter().all(|v| *v == 0.0)
+    }
+
     /// The number of controller inputs `n_e` for a rig with `counts`: `n_y`, or
     /// `n_y + n_r` for [`ControllerInput::YAndR`].
     pub fn input_len(input: ControllerInput, counts: Dimensions) -> usize {
@@ -169,7 +213,7 @@ impl LtiController {
         let n = params.a.nrows();
         let n_e = LtiParams::input_len(params.input, counts);
         let x0 = params.x0.clone().unwrap_or_else(|| DVector::zeros(n));
-        Ok(Self {
+        let mut c = Self {
             x: x0.clone(),
             x0,
             x_next: DVector::zeros(n),
@@ -182,25 +226,26 @@ impl LtiController {
             input: params.input,
             counts,
             limits: params.limits.clone(),
-        })
+            ahead: params.answers_ahead(),
+            ready_u: vec![0.0; counts.n_u],
+            ready_status: status::OK,
+            x_plan: DVector::zeros(n),
+            x_plan_next: DVector::zeros(n),
+            e_plan: DVector::zeros(n_e),
+            u_plan: DVector::zeros(counts.n_u),
+        };
+        c.reset();
+        Ok(c)
     }
 
     /// Number of controller states.
     pub fn order(&self) -> usize {
         self.x.len()
     }
-}
 
-impl Controller for LtiController {
-    fn kind(&self) -> &'static str {
-        "lti"
-    }
-
-    fn counts(&self) -> Dimensions {
-        self.counts
-    }
-
-    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+    /// The controller input `e_k` of sample `k` (module docs); entries whose signal is
+    /// missing keep their previous value.
+    fn take_e(&mut self, input: &StepInput<'_>) {
         let n_y = self.counts.n_y;
         match self.input {
             ControllerInput::Y => {
@@ -215,55 +260,164 @@ impl Controller for LtiController {
             }
             ControllerInput::YAndR => {
                 for (i, e) in self.e.iter_mut().enumerate() {
-                    *e = if i < n_y {
-                        input.y[i]
-                    } else {
-                        input.r[i - n_y]
+                    let v = match i.checked_sub(n_y) {
+                        None => input.y.get(i),
+                        Some(j) => input.r.get(j),
                     };
+                    if let Some(v) = v {
+                        *e = *v;
+                    }
                 }
             }
         }
+    }
+
+    /// `x_{k+1} = A x_k + B e_k`; a diverging state is reset to `x_0` and reported as
+    /// `CONTROLLER_FAULT`.
+    fn advance_state(&mut self) -> u32 {
+        self.x_next.gemv(1.0, &self.a, &self.x, 0.0);
+        self.x_next.gemv(1.0, &self.b, &self.e, 1.0);
+        if self.x_next.iter().all(|v| v.is_finite()) {
+            core::mem::swap(&mut self.x, &mut self.x_next);
+            status::OK
+        } else {
+            // A diverging controller state is reset rather than propagated.
+            self.x.copy_from(&self.x0);
+            status::CONTROLLER_FAULT
+        }
+    }
+
+    /// The ready input `sat(C x)` of the current state; returns its saturation bits.
+    fn prepare_ready(&mut self) -> u32 {
+        self.u.gemv(1.0, &self.c, &self.x, 0.0);
+        for (dst, src) in self.ready_u.iter_mut().zip(self.u.iter()) {
+            *dst = *src;
+        }
+        saturate(self.limits.as_ref(), &mut self.ready_u)
+    }
+}
+
+/// Saturates `u` to the limits (non-finite entries become 0 clipped into them: then
+/// `SATURATED`); without limits non-finite entries become 0 with `CONTROLLER_FAULT`.
+fn saturate(limits: Option<&OutputLimits>, u: &mut [f64]) -> u32 {
+    match limits {
+        Some(l) => {
+            if l.apply(u) {
+                status::SATURATED
+            } else {
+                status::OK
+            }
+        }
+        None => {
+            let mut bad = false;
+            for v in u.iter_mut() {
+                if !v.is_finite() {
+                    *v = 0.0;
+                    bad = true;
+                }
+            }
+            if bad {
+                status::CONTROLLER_FAULT
+            } else {
+                status::OK
+            }
+        }
+    }
+}
+
+/// The ahead form for `D = 0` (module docs).
+impl Ahead for LtiController {
+    /// `sat(C x_{k+1})` as prepared by the last [`Ahead::advance`] (`sat(C x_0)` after a
+    /// reset).
+    fn ready(&self, u: &mut [f64]) -> u32 {
+        for (d, s) in u.iter_mut().zip(&self.ready_u) {
+            *d = *s;
+        }
+        self.ready_status
+    }
+
+    /// `x_{k+1} = A x_k + B e_k` as in [`Controller::step`], then the ready input
+    /// `sat(C x_{k+1})`. `applied` and `adapt` are not used: the state holds no input and
+    /// nothing is learned.
+    fn advance(&mut self, input: &StepInput<'_>, _applied: &[f64], _adapt: bool) -> u32 {
+        self.take_e(input);
+        let status = self.advance_state();
+        self.ready_status = status | self.prepare_ready();
+        self.ready_status
+    }
+
+    /// The response with the controller input at its set point (module docs): `e = 0`,
+    /// or `[0; r_k]` for `"y-and-r"`.
+    fn plan(&mut self, out: &mut [f64]) -> usize {
+        let n_u = self.counts.n_u;
+        if n_u == 0 {
+            return 0;
+        }
+        let n_y = self.counts.n_y;
+        for (i, (d, s)) in self.e_plan.iter_mut().zip(self.e.iter()).enumerate() {
+            *d = if self.input == ControllerInput::YAndR && i >= n_y {
+                *s
+            } else {
+                0.0
+            };
+        }
+        self.x_plan.copy_from(&self.x);
+        let mut rows = 0;
+        for row in out.chunks_exact_mut(n_u) {
+            self.x_plan_next.gemv(1.0, &self.a, &self.x_plan, 0.0);
+            self.x_plan_next.gemv(1.0, &self.b, &self.e_plan, 1.0);
+            if !self.x_plan_next.iter().all(|v| v.is_finite()) {
+                break;
+            }
+            core::mem::swap(&mut self.x_plan, &mut self.x_plan_next);
+            self.u_plan.gemv(1.0, &self.c, &self.x_plan, 0.0);
+            for (dst, src) in row.iter_mut().zip(self.u_plan.iter()) {
+                *dst = *src;
+            }
+            let _ = saturate(self.limits.as_ref(), row);
+            rows += 1;
+        }
+        rows
+    }
+
+    fn plan_source(&self) -> &'static str {
+        "u_{k+1} = C x_{k+1} exact; beyond it the controller's response with y predicted at \
+         its set point (e = 0; r held for y-and-r)"
+    }
+}
+
+impl Controller for LtiController {
+    fn kind(&self) -> &'static str {
+        "lti"
+    }
+
+    fn counts(&self) -> Dimensions {
+        self.counts
+    }
+
+    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        self.take_e(input);
         // u = C x + D e
         self.u.gemv(1.0, &self.c, &self.x, 0.0);
         self.u.gemv(1.0, &self.d, &self.e, 1.0);
         // x+ = A x + B e
-        self.x_next.gemv(1.0, &self.a, &self.x, 0.0);
-        self.x_next.gemv(1.0, &self.b, &self.e, 1.0);
-        let mut status = status::OK;
-        if self.x_next.iter().all(|v| v.is_finite()) {
-            core::mem::swap(&mut self.x, &mut self.x_next);
-        } else {
-            // A diverging controller state is reset rather than propagated.
-            self.x.copy_from(&self.x0);
-            status |= status::CONTROLLER_FAULT;
-        }
+        let mut status = self.advance_state();
         for (dst, src) in u.iter_mut().zip(self.u.iter()) {
             *dst = *src;
         }
-        let clipped = match &self.limits {
-            Some(l) => l.apply(u),
-            None => {
-                let mut bad = false;
-                for v in u.iter_mut() {
-                    if !v.is_finite() {
-                        *v = 0.0;
-                        bad = true;
-                    }
-                }
-                if bad {
-                    status |= status::CONTROLLER_FAULT;
-                }
-                false
-            }
-        };
-        if clipped {
-            status |= status::SATURATED;
-        }
+        status |= saturate(self.limits.as_ref(), u);
         status
     }
 
+    /// Returns to `x_0`; the ready input is `sat(C x_0)`.
     fn reset(&mut self) {
         self.x.copy_from(&self.x0);
+        self.ready_status = self.prepare_ready();
+    }
+
+    /// `Some` when `D = 0` ([`LtiParams::answers_ahead`]).
+    fn ahead(&mut self) -> Option<&mut dyn Ahead> {
+        if self.ahead { Some(self) } else { None }
     }
 
     fn internal_names(&self) -> Vec<String> {
@@ -387,5 +541,147 @@ mod tests {
         let s = step(&mut c, &[f64::NAN], &[], &mut u);
         assert!(u[0].is_finite());
         assert_ne!(s & status::CONTROLLER_FAULT, 0);
+    }
+
+    /// A second-order controller with `D = 0`, saturated to ±1, fed by `input`.
+    fn strictly_proper(input: ControllerInput, counts: Dimensions) -> LtiController {
+        let n_e = LtiParams::input_len(input, counts);
+        let params = LtiParams {
+            a: DMatrix::from_row_slice(2, 2, &[0.9, 0.2, -0.1, 0.7]),
+            b: DMatrix::from_fn(2, n_e, |i, j| 0.5 - 0.3 * i as f64 + 0.2 * j as f64),
+            c: DMatrix::from_row_slice(1, 2, &[1.5, -0.8]),
+            d: DMatrix::zeros(1, n_e),
+            x0: Some(DVector::from_vec(vec![0.1, -0.2])),
+            input,
+            limits: Some(OutputLimits {
+                min: vec![-1.0],
+                max: vec![1.0],
+            }),
+        };
+        assert!(params.answers_ahead());
+        LtiController::from_params(&params, counts).unwrap()
+    }
+
+    /// A deterministic test signal.
+    fn wave(k: usize, f: f64) -> f64 {
+        (f * k as f64).sin() + 0.3 * (2.7 * f * k as f64).cos()
+    }
+
+    /// For `D = 0` the inputs of `ready; advance` per sample equal those of `step` bit for
+    /// bit, with the same status bits, for every kind of controller input, saturation
+    /// included.
+    #[test]
+    fn the_ahead_inputs_equal_the_step_inputs_for_a_strictly_proper_controller() {
+        for input in [
+            ControllerInput::Y,
+            ControllerInput::Error,
+            ControllerInput::YAndR,
+        ] {
+            let dims = counts(1, 1, 1);
+            let mut stepped = strictly_proper(input, dims);
+            let mut ahead = strictly_proper(input, dims);
+            let (mut u, mut v) = ([0.0], [0.0]);
+            let mut saturated = 0;
+            for k in 0..500 {
+                let (y, r) = ([wave(k, 0.11)], [0.5 * wave(k, 0.03)]);
+                let sample = StepInput {
+                    seq: k as u64,
+                    y: &y,
+                    z: &y,
+                    r: &r,
+                    ..Default::default()
+                };
+                let s = stepped.step(&sample, &mut u);
+                let a = ahead.ahead().expect("D = 0 answers ahead");
+                let t = a.ready(&mut v);
+                a.advance(&sample, &v, true);
+                assert_eq!(
+                    (u[0].to_bits(), s),
+                    (v[0].to_bits(), t),
+                    "{input:?}, sample {k}"
+                );
+                saturated += usize::from(s & status::SATURATED != 0);
+            }
+            assert!(saturated > 0, "{input:?}: saturation must be exercised");
+        }
+    }
+
+    #[test]
+    fn a_controller_with_a_feedthrough_does_not_answer_ahead() {
+        let mut c = static_gain(0.5, ControllerInput::Y, counts(1, 0, 1), None);
+        assert!(c.ahead().is_none());
+        let mut c = static_gain(0.0, ControllerInput::Y, counts(1, 0, 1), None);
+        assert!(c.ahead().is_some());
+    }
+
+    /// The plan is the response with the controller input at its set point: after 50
+    /// samples, its rows equal, bit for bit, the ready inputs of a second controller with
+    /// the same history fed `y = 0` (`"y"`, and `"y-and-r"` with `r` held) or `y = r`
+    /// (`"error"`); and they leave the ready input (the response is not trivial). A
+    /// predicted state that overflows ends the plan early.
+    #[test]
+    fn the_plan_is_the_response_with_the_controller_input_at_its_set_point() {
+        for input in [
+            ControllerInput::Y,
+            ControllerInput::Error,
+            ControllerInput::YAndR,
+        ] {
+            let dims = counts(1, 1, 1);
+            let mut planner = strictly_proper(input, dims);
+            let mut follower = strictly_proper(input, dims);
+            let mut u = [0.0];
+            let r_k = [0.4];
+            for k in 0..50 {
+                let (y, r) = ([wave(k, 0.11)], if k == 49 { r_k } else { [0.1] });
+                let sample = StepInput {
+                    seq: k as u64,
+                    y: &y,
+                    z: &y,
+                    r: &r,
+                    ..Default::default()
+                };
+                for c in [&mut planner, &mut follower] {
+                    c.ready(&mut u);
+                    c.advance(&sample, &u, true);
+                }
+            }
+            let mut plan = [f64::NAN; 30];
+            assert_eq!(planner.plan(&mut plan), 30);
+            let mut ready = [0.0];
+            planner.ready(&mut ready);
+            assert!(plan.iter().any(|v| *v != ready[0]), "{input:?}");
+            let y = if input == ControllerInput::Error {
+                r_k
+            } else {
+                [0.0]
+            };
+            for (j, row) in plan.iter().enumerate() {
+                let sample = StepInput {
+                    seq: 50 + j as u64,
+                    y: &y,
+                    z: &y,
+                    r: &r_k,
+                    ..Default::default()
+                };
+                follower.advance(&sample, &u, true);
+                follower.ready(&mut u);
+                assert_eq!(row.to_bits(), u[0].to_bits(), "{input:?}, row {j}");
+            }
+        }
+        let mut wild = LtiController::from_params(
+            &LtiParams {
+                a: DMatrix::from_element(1, 1, 1e100),
+                b: DMatrix::zeros(1, 1),
+                c: DMatrix::from_element(1, 1, 1.0),
+                d: DMatrix::zeros(1, 1),
+                x0: Some(DVector::from_element(1, 1.0)),
+                input: ControllerInput::Y,
+                limits: None,
+            },
+            counts(1, 0, 1),
+        )
+        .unwrap();
+        // x̂ = 1e100, 1e200, 1e300, then ∞: three rows.
+        assert_eq!(wild.plan(&mut [0.0; 8]), 3);
     }
 }

@@ -11,7 +11,7 @@
 //! of this file, next to its constructor:
 //!
 //! ```text
-//! rc_mrac: Kind { build: rc_mrac, limits: Some((&[-1.0], &[1.0])), observe: Observe::AsStep },
+//! rc_mrac: Kind { build: rc_mrac, limits: Some((&[-1.0], &[1.0])), observe: Observe::AsStep, ahead: true },
 //! ```
 //!
 //! The properties, on a closed loop with a small stable plant ([`Plant`]):
@@ -33,6 +33,21 @@
 //! - **No allocation**: after [`Controller::prepare_thread`] and a warm-up, 1,000 steps
 //!   (with an observed sample every 100 and the internals read every step) make no heap
 //!   allocation on the stepping thread, counted by this file's global allocator.
+//!
+//! And for the ahead form ([`control::Ahead`]), which a kind declares it answers
+//! (`ahead: true`; [`Controller::ahead`] must then be `Some`, else `None`), on the same
+//! loop run ahead (`ready` gives the input applied for sample `k`, `advance` takes the
+//! sample in with it):
+//!
+//! - **No allocation**: 1,000 cycles of `ready`, `advance` (with `adapt = false` every
+//!   100th), a plan of 64 rows and the internals allocate nothing after a warm-up.
+//! - **Bad measurements**: the values above leave the ready input and every plan row
+//!   finite and within the limits, and the controller goes on afterwards.
+//! - **Reset**: after [`Controller::reset`] or [`Controller::restart_data`] the ready
+//!   input is the start-up input of a freshly built controller, and after a reset a
+//!   replayed sequence gives its ready inputs, statuses and plans bit for bit.
+//!
+//! The properties of the ahead form pass trivially for a kind that does not answer ahead.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -134,6 +149,8 @@ struct Kind {
     limits: Option<(&'static [f64], &'static [f64])>,
     /// What its `observe` promises.
     observe: Observe,
+    /// Whether it answers ahead ([`Controller::ahead`] is `Some`).
+    ahead: bool,
 }
 
 /// What a kind's [`Controller::observe`] promises beyond the trait's minimum.
@@ -143,7 +160,9 @@ enum Observe {
     /// default; also PCAC, whose identification learns from the observed sample).
     AsStep,
     /// The sample enters the controller's data (regressor, history) but adaptation may
-    /// be skipped for it, so that a loop that is behind catches up sooner (RCAC).
+    /// be skipped for it, so that a loop that is behind catches up sooner (RCAC), or the
+    /// input it would plan from it is not planned (PCAC in the next-step timing, whose
+    /// `observe` holds the input).
     RecordsData,
 }
 
@@ -166,6 +185,21 @@ fn lti() -> Box<dyn Controller> {
         DMatrix::from_row_slice(2, 1, &[1.0, 0.5]),
         DMatrix::from_row_slice(1, 2, &[0.2, -0.1]),
         DMatrix::from_element(1, 1, 0.3),
+        ControllerInput::Error,
+        Dimensions::new(1, 1, 1, 1),
+        limits(),
+    )
+    .expect("valid LTI parameters");
+    Box::new(c)
+}
+
+/// The compensator of [`lti`] without its feedthrough (`D = 0`), which answers ahead.
+fn lti_strictly_proper() -> Box<dyn Controller> {
+    let c = LtiController::new(
+        DMatrix::from_row_slice(2, 2, &[0.5, 0.1, 0.0, 0.3]),
+        DMatrix::from_row_slice(2, 1, &[1.0, 0.5]),
+        DMatrix::from_row_slice(1, 2, &[0.2, -0.1]),
+        DMatrix::zeros(1, 1),
         ControllerInput::Error,
         Dimensions::new(1, 1, 1, 1),
         limits(),
@@ -235,8 +269,18 @@ fn rcac_gradient() -> Box<dyn Controller> {
 }
 
 /// SISO PCAC: `n̂ = 4`, F-test forgetting, horizon 10, input and move bounds, tracking
-/// the command.
+/// the command; same-step timing.
 fn pcac() -> Box<dyn Controller> {
+    pcac_timed(PcacTiming::SameStep)
+}
+
+/// [`pcac`] in the dissertation's next-step timing, which answers ahead.
+fn pcac_next_step() -> Box<dyn Controller> {
+    pcac_timed(PcacTiming::NextStep)
+}
+
+/// [`pcac`] with the given timing.
+fn pcac_timed(timing: PcacTiming) -> Box<dyn Controller> {
     let params = PcacParams {
         model: IoModelParams {
             n_hat: 4,
@@ -269,7 +313,7 @@ fn pcac() -> Box<dyn Controller> {
             }),
             output_constraints: None,
         },
-        timing: PcacTiming::SameStep,
+        timing,
         qp: QpSettings::default(),
         warm_start: true,
     };
@@ -630,6 +674,262 @@ fn steady_state_steps_do_not_allocate(kind: &Kind) {
     assert!(finite);
 }
 
+// ---------------------------------------------------------------------------------------
+// The ahead form.
+
+/// Plan rows asked for in every cycle (the contract's capacity).
+const PLAN_ROWS: usize = 64;
+
+/// One ahead cycle on sample `input`: the ready input `u` is what the plant applies for
+/// the sample, then the controller advances with it and plans; returns the status of the
+/// ready input, the status `advance` returned and the number of plan rows.
+fn ahead_cycle(
+    c: &mut dyn Controller,
+    input: &StepInput<'_>,
+    adapt: bool,
+    u: &mut [f64],
+    plan: &mut [f64],
+) -> (u32, u32, usize) {
+    let a = c.ahead().expect("the kind answers ahead");
+    let ready = a.ready(u);
+    let advanced = a.advance(input, u, adapt);
+    let rows = a.plan(plan);
+    (ready, advanced, rows)
+}
+
+/// `ahead()` is `Some` exactly when the kind declares that it answers ahead, and then the
+/// ready input of a fresh controller (the start-up input) is admissible and the plan's
+/// source is one line.
+fn ahead_is_given_exactly_when_the_kind_answers_ahead(kind: &Kind) {
+    let mut c = (kind.build)();
+    let n_u = c.counts().n_u;
+    let kind_name = c.kind();
+    match c.ahead() {
+        None => assert!(!kind.ahead, "{kind_name}: declared to answer ahead"),
+        Some(a) => {
+            assert!(kind.ahead, "{kind_name}: answers ahead, declared not to");
+            let mut u = vec![f64::NAN; n_u];
+            a.ready(&mut u);
+            assert_admissible(kind, &u, "the start-up input");
+            let source = a.plan_source();
+            assert!(!source.is_empty() && !source.contains('\n'), "{source:?}");
+        }
+    }
+}
+
+/// 1,000 ahead cycles (ready, advance with `adapt = false` every 100th, a plan of 64 rows,
+/// the internals) after a warm-up of 300 allocate nothing.
+fn ahead_cycles_do_not_allocate(kind: &Kind) {
+    let mut c = (kind.build)();
+    if c.ahead().is_none() {
+        return;
+    }
+    let counts = c.counts();
+    c.prepare_thread();
+    let mut plant = Plant::new(counts, 11);
+    let mut u = vec![0.0; counts.n_u];
+    let mut plan = vec![0.0; PLAN_ROWS * counts.n_u];
+    let mut internals = [0.0; MAX_INTERNALS];
+    for _ in 0..300 {
+        let input = plant.input();
+        ahead_cycle(c.as_mut(), &input, true, &mut u, &mut plan);
+        plant.advance(&u);
+    }
+    let mut finite = true;
+    let n = allocations_in(|| {
+        for i in 0..1000 {
+            let input = plant.input();
+            let (_, _, rows) = ahead_cycle(c.as_mut(), &input, i % 100 != 99, &mut u, &mut plan);
+            let _ = c.internals(&mut internals);
+            finite &= u.iter().all(|v| v.is_finite());
+            finite &= plan[..rows * counts.n_u].iter().all(|v| v.is_finite());
+            plant.advance(&u);
+        }
+    });
+    assert_eq!(
+        n,
+        0,
+        "{} allocated {n} times in 1,000 ahead cycles",
+        c.kind()
+    );
+    assert!(finite);
+}
+
+/// Non-finite and huge measurements leave the ready input and the plan finite and within
+/// the limits, and the controller goes on with admissible inputs on good data.
+fn bad_measurements_leave_the_ready_input_and_the_plan_finite(kind: &Kind) {
+    let mut c = (kind.build)();
+    if c.ahead().is_none() {
+        return;
+    }
+    let counts = c.counts();
+    let mut plant = Plant::new(counts, 1);
+    let mut u = vec![0.0; counts.n_u];
+    let mut plan = vec![0.0; PLAN_ROWS * counts.n_u];
+    for _ in 0..150 {
+        let input = plant.input();
+        ahead_cycle(c.as_mut(), &input, true, &mut u, &mut plan);
+        plant.advance(&u);
+    }
+    let check = |c: &mut dyn Controller, plan: &[f64], rows: usize, what: &str| {
+        let mut ready = vec![0.0; counts.n_u];
+        c.ahead().unwrap().ready(&mut ready);
+        assert_admissible(kind, &ready, &format!("ready after {what}"));
+        assert!(rows <= PLAN_ROWS);
+        for (j, row) in plan.chunks(counts.n_u).take(rows).enumerate() {
+            assert_admissible(kind, row, &format!("plan row {j} after {what}"));
+        }
+    };
+    let bad = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e300,
+        -1e300,
+        1e150,
+    ];
+    let mut seq = plant.k;
+    for (round, &v) in bad.iter().chain(&bad).enumerate() {
+        let (y, z, r) = (
+            vec![v; counts.n_y],
+            vec![v; counts.n_z],
+            vec![v; counts.n_r],
+        );
+        let (zz, rr) = (vec![0.1; counts.n_z], vec![0.0; counts.n_r]);
+        let input = if round < bad.len() {
+            on_time(seq, &y, &z, &r)
+        } else {
+            on_time(seq, &y, &zz, &rr)
+        };
+        let (_, _, rows) = ahead_cycle(c.as_mut(), &input, true, &mut u, &mut plan);
+        assert_admissible(kind, &u, &format!("the input applied with y = {v}"));
+        check(c.as_mut(), &plan, rows, &format!("y = {v}"));
+        seq += 1;
+    }
+    for i in 0..40 {
+        let v = if i < 20 {
+            f64::NAN
+        } else if i % 2 == 0 {
+            1e300
+        } else {
+            -1e300
+        };
+        let (y, z, r) = (
+            vec![v; counts.n_y],
+            vec![v; counts.n_z],
+            vec![0.0; counts.n_r],
+        );
+        let (_, _, rows) = ahead_cycle(
+            c.as_mut(),
+            &on_time(seq, &y, &z, &r),
+            i % 3 != 2,
+            &mut u,
+            &mut plan,
+        );
+        check(
+            c.as_mut(),
+            &plan,
+            rows,
+            &format!("burst sample {i} (y = {v})"),
+        );
+        seq += 1;
+    }
+    plant.k = seq;
+    for i in 0..300 {
+        let input = plant.input();
+        let (_, _, rows) = ahead_cycle(c.as_mut(), &input, true, &mut u, &mut plan);
+        assert_admissible(kind, &u, &format!("good sample {i} after the bad ones"));
+        check(c.as_mut(), &plan, rows, &format!("good sample {i}"));
+        plant.advance(&u);
+    }
+}
+
+/// After `reset` and after `restart_data` the ready input (and its status) is the start-up
+/// input of a freshly built controller, and after `reset` a replayed sequence gives the
+/// ready inputs, statuses and plans of a fresh controller, bit for bit.
+fn reset_makes_the_ahead_form_give_the_start_up_input(kind: &Kind) {
+    let mut fresh = (kind.build)();
+    if fresh.ahead().is_none() {
+        return;
+    }
+    let counts = fresh.counts();
+    let mut start = vec![0.0; counts.n_u];
+    let start_status = fresh.ahead().unwrap().ready(&mut start);
+    let samples = closed_loop(fresh.as_mut(), &mut Plant::new(counts, 3), 300);
+    let replay = |c: &mut dyn Controller| -> Vec<(Vec<u64>, u32, u32, Vec<u64>)> {
+        let mut u = vec![0.0; counts.n_u];
+        let mut plan = vec![0.0; 8 * counts.n_u];
+        samples
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let (ready, advanced, rows) =
+                    ahead_cycle(c, &s.input(), k % 50 != 49, &mut u, &mut plan);
+                (bits(&u), ready, advanced, bits(&plan[..rows * counts.n_u]))
+            })
+            .collect()
+    };
+    let want = replay((kind.build)().as_mut());
+
+    let mut used = (kind.build)();
+    let mut plant = Plant::new(counts, 5);
+    let mut u = vec![0.0; counts.n_u];
+    let mut plan = vec![0.0; 8 * counts.n_u];
+    let mut run = |c: &mut dyn Controller, plant: &mut Plant, steps: usize| {
+        for _ in 0..steps {
+            let input = plant.input();
+            ahead_cycle(c, &input, true, &mut u, &mut plan);
+            plant.advance(&u);
+        }
+    };
+    run(used.as_mut(), &mut plant, 200);
+    // A bad sample and a lost one with a reported input.
+    let (y, z, r) = (
+        vec![f64::NAN; counts.n_y],
+        vec![0.2; counts.n_z],
+        vec![0.5; counts.n_r],
+    );
+    let held = vec![0.7; counts.n_u];
+    let a = used.ahead().unwrap();
+    a.advance(&on_time(200, &y, &z, &r), &held, true);
+    let y = vec![0.3; counts.n_y];
+    a.advance(
+        &StepInput {
+            u_applied: Some(&held),
+            lost: 1,
+            ..on_time(202, &y, &z, &r)
+        },
+        &held,
+        true,
+    );
+    run(used.as_mut(), &mut plant, 100);
+
+    let mut ready = vec![0.0; counts.n_u];
+    used.restart_data();
+    let st = used.ahead().unwrap().ready(&mut ready);
+    assert_eq!(
+        (bits(&ready), st),
+        (bits(&start), start_status),
+        "the ready input after restart_data is not the start-up input"
+    );
+    run(used.as_mut(), &mut plant, 100);
+    used.reset();
+    let st = used.ahead().unwrap().ready(&mut ready);
+    assert_eq!(
+        (bits(&ready), st),
+        (bits(&start), start_status),
+        "the ready input after reset is not the start-up input"
+    );
+    let got = replay(used.as_mut());
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(
+            g, w,
+            "sample {k}: (u, ready status, advance status, plan) after reset differ from a \
+             fresh controller"
+        );
+    }
+}
+
 /// One module per kind with one test per property; `name: kind,` per line.
 macro_rules! conformance {
     ($($(#[$attr:meta])* $name:ident: $kind:expr,)*) => {
@@ -659,16 +959,38 @@ macro_rules! conformance {
                 fn steady_state_steps_do_not_allocate() {
                     super::steady_state_steps_do_not_allocate(&KIND);
                 }
+
+                #[test]
+                fn ahead_is_given_exactly_when_the_kind_answers_ahead() {
+                    super::ahead_is_given_exactly_when_the_kind_answers_ahead(&KIND);
+                }
+
+                #[test]
+                fn ahead_cycles_do_not_allocate() {
+                    super::ahead_cycles_do_not_allocate(&KIND);
+                }
+
+                #[test]
+                fn bad_measurements_leave_the_ready_input_and_the_plan_finite_and_within_the_limits() {
+                    bad_measurements_leave_the_ready_input_and_the_plan_finite(&KIND);
+                }
+
+                #[test]
+                fn reset_makes_the_ahead_form_give_the_start_up_input() {
+                    super::reset_makes_the_ahead_form_give_the_start_up_input(&KIND);
+                }
             }
         )*
     };
 }
 
 conformance! {
-    lti: Kind { build: lti, limits: LIMITS, observe: Observe::AsStep },
+    lti: Kind { build: lti, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    lti_strictly_proper: Kind { build: lti_strictly_proper, limits: LIMITS, observe: Observe::AsStep, ahead: true },
     #[cfg(feature = "excitation")]
-    excitation: Kind { build: excitation, limits: LIMITS, observe: Observe::AsStep },
-    rcac_rls: Kind { build: rcac_rls, limits: LIMITS, observe: Observe::RecordsData },
-    rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData },
-    pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep },
+    excitation: Kind { build: excitation, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    rcac_rls: Kind { build: rcac_rls, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
+    rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData, ahead: true },
+    pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    pcac_next_step: Kind { build: pcac_next_step, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
 }

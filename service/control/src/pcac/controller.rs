@@ -36,6 +36,31 @@
 //! so its term is a constant). Both use `ℓ` inputs and `ℓ − 1` outputs they influence,
 //! and the same QP size.
 //!
+//! # Ahead form
+//!
+//! In [`PcacTiming::NextStep`] the input for sample `k + 1` is `u_{1|k}`, decided at `k`
+//! (§2.3.2.2), so it is ready before sample `k + 1` arrives, and [`Controller::ahead`] is
+//! `Some` ([`PcacParams::answers_ahead`]; `None` for [`PcacTiming::SameStep`], whose
+//! `u_k` needs `y_k`). The [`Ahead`] form runs, for sample `k`:
+//!
+//! - [`Ahead::ready`] gives `u_{1|k−1}` (the input the last MPC step decided for `k`),
+//!   with that step's status bits; after a reset or a new data stream the start-up input
+//!   (0 clipped into the bounds).
+//! - [`Ahead::advance`]`(k, applied, adapt)` takes `y_k` in exactly as the step does
+//!   (steps 1–2: `u_applied` corrects `u_{k−1}`, lost samples bridged, identification),
+//!   takes `applied` as `u_k`, the input the plant applies for sample `k`, and, when
+//!   `adapt`, runs steps 3–5 with `u_k` in (2.36) and as the move reference of (2.47),
+//!   exactly as `step` does in [`PcacTiming::NextStep`]: so `ready; advance` with
+//!   `applied` = the ready input gives the inputs of `step`, bit for bit. Without
+//!   `adapt` it is [`Controller::observe`]: identification only, and the ready input is
+//!   `applied` held.
+//! - [`Ahead::plan`] gives the rest of the solution, `u_{2|k}, …, u_{ℓ|k}` (2.44), the
+//!   inputs the MPC expects for the samples after the ready one (clipped exactly into the
+//!   input bounds, as the first move is), up to `ℓ − 1` rows: the open-loop optimum of
+//!   (2.48) at `k`, what the controller would apply if the identified model's prediction
+//!   held exactly and it did not re-plan. After a fallback or a sample taken in
+//!   without adaptation there is no solution to give, and the plan is empty.
+//!
 //! # Commands
 //!
 //! The tracked outputs `C_t y` (2.48) follow `r_k` held over the horizon
@@ -46,6 +71,7 @@ use crate::controller::{Dimensions, status};
 
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
 use crate::ParamError;
+use crate::ahead::Ahead;
 use crate::controller::{Controller, MAX_INTERNALS, StepInput};
 use crate::mpc::condense::{Condenser, MpcSpec, Weight};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
@@ -149,9 +175,26 @@ pub struct Pcac {
     counters: PcacCounters,
     /// `C_t y_{1|k}`'s first tracked entry for the log (the prediction of the next output).
     tracked_prediction: f64,
+    /// [`PcacParams::answers_ahead`], computed once at construction.
+    ahead: bool,
+    /// The status bits of the MPC step that produced `u_next` (the ahead form's ready
+    /// input).
+    ready_status: u32,
+    /// The solver's `U` is the solution that produced `u_next` (its rows after the first
+    /// are the plan).
+    plan_valid: bool,
 }
 
 impl PcacParams {
+    /// Whether the controller answers ahead ([`Controller::ahead`] is `Some`, module docs
+    /// "Ahead form"): for [`PcacTiming::NextStep`], the dissertation's timing, where
+    /// `u_{1|k}` is computed at `k` and applied at `k + 1`; not for
+    /// [`PcacTiming::SameStep`], whose `u_k` needs `y_k`. The service's configuration
+    /// check calls this to decide whether the loop may answer first or send ahead.
+    pub fn answers_ahead(&self) -> bool {
+        self.timing == PcacTiming::NextStep
+    }
+
     /// The default trace limit is this many times `tr P_0 = n̂ p (p+m) p0`.
     pub const TRACE_LIMIT_FACTOR: f64 = 1e6;
     /// `Q` on every tracked output when a configuration gives none.
@@ -433,6 +476,9 @@ impl Pcac {
             last_active: 0,
             counters: PcacCounters::default(),
             tracked_prediction: 0.0,
+            ahead: params.answers_ahead(),
+            ready_status: status::OK,
+            plan_valid: false,
             cond,
         };
         c.initial_inputs();
@@ -454,6 +500,8 @@ impl Pcac {
         self.suspend = 0;
         self.last_status = None;
         self.tracked_prediction = 0.0;
+        self.ready_status = status::OK;
+        self.plan_valid = false;
     }
 
     /// The identified model (coefficients `θ_{k+1}`, covariance, prior error).
@@ -529,7 +577,7 @@ impl Pcac {
 
     /// Steps 3–5: the input for the period the MPC plans from, into `self.u_tmp`; returns
     /// the status bits.
-    fn plan(&mut self, input: &StepInput<'_>) -> u32 {
+    fn solve_mpc(&mut self, input: &StepInput<'_>) -> u32 {
         self.counters.steps += 1;
         // The move reference (2.47): u_{k−1} (same step) or u_k (next step).
         match self.timing {
@@ -587,6 +635,7 @@ impl Pcac {
                         .shift_active_set(&self.active[..na], &mut self.shifted);
                     // Within the input bounds up to round-off; clip it exactly.
                     self.cond.clip_to_input_bounds(&mut self.u_tmp);
+                    self.plan_valid = true;
                     if self.cond.at_input_bound(&self.u_tmp) {
                         status::SATURATED
                     } else {
@@ -644,6 +693,7 @@ impl Pcac {
     }
 
     fn fall_back(&mut self) -> u32 {
+        self.plan_valid = false;
         self.counters.fallbacks += 1;
         self.n_shifted = 0;
         self.cond.fallback_input(&self.u_ref, &mut self.u_tmp);
@@ -662,7 +712,7 @@ impl Controller for Pcac {
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
         self.take_in(input);
-        let status = self.plan(input);
+        let status = self.solve_mpc(input);
         let out = match self.timing {
             PcacTiming::SameStep => {
                 self.u_last.copy_from_slice(&self.u_tmp);
@@ -687,6 +737,7 @@ impl Controller for Pcac {
         self.take_in(input);
         self.counters.observed += 1;
         self.n_shifted = 0;
+        self.plan_valid = false;
         self.u_next.copy_from_slice(&self.u_last);
     }
 
@@ -708,6 +759,11 @@ impl Controller for Pcac {
 
     fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
         self.model.restore_learned(saved)
+    }
+
+    /// `Some` for [`PcacTiming::NextStep`] ([`PcacParams::answers_ahead`]).
+    fn ahead(&mut self) -> Option<&mut dyn Ahead> {
+        if self.ahead { Some(self) } else { None }
     }
 
     fn prepare_thread(&mut self) {
@@ -768,5 +824,69 @@ impl Controller for Pcac {
         let n = vals.len().min(out.len()).min(MAX_INTERNALS);
         out[..n].copy_from_slice(&vals[..n]);
         n
+    }
+}
+
+/// The ahead form of [`PcacTiming::NextStep`] (module docs, "Ahead form"); with
+/// [`PcacTiming::SameStep`] [`Controller::ahead`] is `None` and this form is not used.
+impl Ahead for Pcac {
+    /// `u_{1|k}`, the first move of the last solution (the fallback input after a
+    /// fallback, the applied input held after a sample taken in without adaptation, the
+    /// start-up input after a reset or a new data stream), with the status of the MPC step
+    /// that produced it.
+    fn ready(&self, u: &mut [f64]) -> u32 {
+        for (d, s) in u.iter_mut().zip(&self.u_next) {
+            *d = *s;
+        }
+        self.ready_status
+    }
+
+    /// Steps 1–2 with `y_k` as [`Controller::step`] does, `u_k = applied` (non-finite
+    /// entries keep the ready input), then, when `adapt`, steps 3–5 with `u_k` as the move
+    /// reference (2.47), exactly as `step` in [`PcacTiming::NextStep`]; without `adapt`
+    /// as [`Controller::observe`]: identification only, `applied` held.
+    fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32 {
+        self.take_in(input);
+        for (d, s) in self.u_next.iter_mut().zip(applied) {
+            if s.is_finite() {
+                *d = *s;
+            }
+        }
+        if adapt {
+            let status = self.solve_mpc(input);
+            self.u_last.copy_from_slice(&self.u_next);
+            self.u_next.copy_from_slice(&self.u_tmp);
+            self.ready_status = status;
+        } else {
+            self.counters.observed += 1;
+            self.n_shifted = 0;
+            self.plan_valid = false;
+            self.u_last.copy_from_slice(&self.u_next);
+            self.ready_status = status::OK;
+        }
+        self.ready_status
+    }
+
+    /// The rows `u_{2|k}, …, u_{ℓ|k}` of the last solution `U` (2.44), each clipped
+    /// exactly into the input bounds (2.50) as the first move is, as many as fit; none
+    /// after a fallback or a sample taken in without adaptation.
+    fn plan(&mut self, out: &mut [f64]) -> usize {
+        let m = self.u_next.len();
+        if !self.plan_valid || m == 0 {
+            return 0;
+        }
+        let later = self.solver.x().get(m..).unwrap_or(&[]);
+        let mut rows = 0;
+        for (row, planned) in out.chunks_exact_mut(m).zip(later.chunks_exact(m)) {
+            row.copy_from_slice(planned);
+            self.cond.clip_to_input_bounds(row);
+            rows += 1;
+        }
+        rows
+    }
+
+    fn plan_source(&self) -> &'static str {
+        "the MPC solution u_{2|k}, …, u_{ℓ|k} (2.43)–(2.51) of the identified model; \
+         none after a fallback"
     }
 }

@@ -55,6 +55,65 @@
 //! default `k_w` is `n_c` plus the largest lag of `G_f` (then every entry of `Φ_{f,k}`
 //! holds measured data).
 //!
+//! This is the compute-first timing of [`Controller::step`]: `u_k` waits for `z_k`. It
+//! departs from (2.16), `u_k = Φ_k θ_k`, by one update, and it needs the update's cost
+//! inside the period. The ahead form below is (2.16) itself.
+//!
+//! # Ahead form (2.16) and plans
+//!
+//! (2.16) is strictly causal: `u_k = Φ_k θ_k` with `Φ_k` holding `u_{k−1}, y_{k−1}` and
+//! older and `θ_k` updated with the cost term of index `k − 1`, so `u_{k+1}` is known as
+//! soon as sample `k` is in. [`Controller::ahead`] is therefore always `Some`
+//! ([`RcacParams::answers_ahead`]), and the [`Ahead`] form runs, for sample `k`,
+//!
+//! 1. `advance(k, applied, adapt)`: steps 1–2 above, exactly as `step` (the same code:
+//!    [`StepInput::u_applied`] corrects the stored `u_{k−1}`, lost samples are bridged,
+//!    `Φ_{f,k}` and `u_{f,k}` are formed, and `θ_k → θ_{k+1}` with the cost term of index
+//!    `k`), except that the update is skipped when `adapt` is false (the analogue of
+//!    [`Controller::observe`]); then `applied`, the input the plant applies for sample
+//!    `k` as far as the loop knows, is stored as `u_k` with `y_k` (they enter `φ_{k+1}`;
+//!    a non-finite entry of `applied` keeps the previous input), and the counter becomes
+//!    `k + 1`;
+//! 2. it prepares the ready input, which [`Ahead::ready`] returns until the next
+//!    `advance`, with its status bits (`SATURATED`; `CONTROLLER_FAULT` with `applied`
+//!    held when `y_k` or `z_k` was not finite, or when the guard reset `θ`):
+//!
+//! ```text
+//! u_{k+1} = sat(Φ_{k+1} θ_{k+1})    (0, saturated, while k + 1 < k_w)              (2.16)
+//! ```
+//!
+//! After [`Controller::reset`] or [`Controller::restart_data`] the ready input is the
+//! start-up input `sat(0)` (the counter is 0 < `k_w`). So, per (2.16), `u_k = 0` for
+//! `k < k_w` in both forms, and from `k_w` on the ahead form applies
+//! `Φ_k θ_k` where compute-first applies `Φ_k θ_{k+1}`: one sample of adaptation later,
+//! none of the update's cost in the response time. `theta_norm` and `zhat0` are those of
+//! `θ_{k+1}` in both forms.
+//!
+//! **A smaller gradient step.** Using each update one sample later is harmless for RLS,
+//! but a large normalized gradient step can overshoot with it: on the lightly damped
+//! SISO loop of the tests (`μ_Exp`), α = 0.25 gives the same rejection as compute-first
+//! (90.5 against 89.8 dB, largest `|z|` 5.0 against 4.1), while α = 0.5 gives a transient
+//! with `|z|` up to about 10⁵ before it converges (compute-first: 5), and α = 1 about
+//! 5·10⁹. Check α for the ahead form on the rig (the acoustic rig's scenario uses
+//! α = 0.05).
+//!
+//! **The plan** ([`Ahead::plan`]). Beyond the ready input nothing is exact: the inputs
+//! `u_{k+2}, …` depend on measurements not yet taken. The plan runs the controller (2.15)
+//! on with `θ_{k+1}` held and the coming measurements `y_{k+1}, y_{k+2}, …` predicted at
+//! their regulation target 0:
+//!
+//! ```text
+//! φ̂_{k+2} = [u_{k+1}; u_k; …; u_{k+2−n_c}; 0; y_k; …; y_{k+2−n_c}]
+//! û_{k+2+j} = sat(Θ φ̂_{k+2+j}),   φ̂_{k+3+j} = φ̂_{k+2+j} with û_{k+2+j} and 0 shifted in
+//! ```
+//!
+//! (0 while the counter would be below `k_w`), i.e. exactly the ready inputs a copy of
+//! the controller would prepare if it were fed `y = 0` and did not adapt. Row `j` of the
+//! plan is `û_{k+2+j}`; the cost is `O(H l_θ)` for `H` rows, in two pre-allocated
+//! copies of the regressor's parts. A plant applies a plan entry only when an answer is
+//! late; the prediction at 0 is the closed loop's goal (z → 0), and the controller's own
+//! dynamics carry the input on.
+//!
 //! # RLS update, (2.21)–(2.23)
 //!
 //! ```text
@@ -126,12 +185,13 @@
 //!
 //! # Real time
 //!
-//! [`Controller::step`] does not allocate (every buffer is sized in [`Rcac::new`]), does
-//! not index out of bounds (slices are taken with `get`), and its loops are bounded by
-//! the dimensions. A non-finite `y_k` or `z_k` skips the update, holds the last applied
-//! input and reports [`status::CONTROLLER_FAULT`] (the non-finite entries of
-//! `y_k` are replaced by the last finite ones in the history). A guard reset of `θ` also
-//! reports `CONTROLLER_FAULT`.
+//! [`Controller::step`] and the ahead form ([`Ahead::advance`], [`Ahead::ready`],
+//! [`Ahead::plan`]) do not allocate (every buffer is sized in [`Rcac::new`]), do not
+//! index out of bounds (slices are taken with `get`), and their loops are bounded by the
+//! dimensions (and the plan's length). A non-finite `y_k` or `z_k` skips the update,
+//! holds the last applied input and reports [`status::CONTROLLER_FAULT`] (the
+//! non-finite entries of `y_k` are replaced by the last finite ones in the history). A
+//! guard reset of `θ` also reports `CONTROLLER_FAULT`.
 //!
 //! Cost per step: the RLS update is dominated by the `O(l_θ² p)` covariance sweep of
 //! [`Rls`], the gradient update is `O(l_θ p)`; latency-bench measures both at the acoustic
@@ -151,6 +211,7 @@ mod tests;
 pub use filter::TargetFilter;
 
 use crate::ParamError;
+use crate::ahead::Ahead;
 use crate::controller::{Controller, OutputLimits, StepInput};
 use crate::controller::{Dimensions, status};
 use crate::forgetting::ForgettingRule;
@@ -270,6 +331,15 @@ pub struct Rcac {
     /// Gaps bridged (lost samples, counted once per gap).
     gaps: u64,
     limits: Option<OutputLimits>,
+    /// [`RcacParams::answers_ahead`], computed once at construction.
+    ahead: bool,
+    /// The ahead form's ready input `u_{k+1}` and its status bits.
+    ready_u: Vec<f64>,
+    ready_status: u32,
+    /// Plan scratch: the `u` and `y` parts of the predicted regressor `φ̂` (`n_c l_u`,
+    /// `n_c l_y`).
+    plan_u: Vec<f64>,
+    plan_y: Vec<f64>,
     // Internals.
     theta_norm: f64,
     trace_or_mu: f64,
@@ -378,6 +448,15 @@ impl RcacParams {
     pub const DEFAULT_STEP_SIZE: StepSize = StepSize::Exp;
     /// The gradient update's `R = r I` when a configuration gives none.
     pub const DEFAULT_GRADIENT_R: f64 = 0.0;
+
+    /// Whether the controller answers ahead ([`Controller::ahead`] is `Some`, module docs
+    /// "Ahead form (2.16) and plans"): always. The controller (2.15)–(2.16),
+    /// `u_k = Φ_k θ_k`, is strictly causal, `Φ_k` holding `u_{k−1}, y_{k−1}` and older, so
+    /// `u_{k+1}` is known as soon as sample `k` is in. The service's configuration check
+    /// calls this to decide whether the loop may answer first or send ahead.
+    pub fn answers_ahead(&self) -> bool {
+        true
+    }
 
     /// Parameters with the configuration's defaults for everything but the target model,
     /// the order and the update law: `R_z = DEFAULT_RZ · I`, `R_u = DEFAULT_RU · I`,
@@ -621,6 +700,11 @@ impl Rcac {
             update_from: 0,
             gaps: 0,
             limits: params.limits.clone(),
+            ahead: params.answers_ahead(),
+            ready_u: vec![0.0; lu],
+            ready_status: status::OK,
+            plan_u: vec![0.0; params.nc * lu],
+            plan_y: vec![0.0; params.nc * ly],
             theta_norm: 0.0,
             trace_or_mu: 0.0,
             z0: 0.0,
@@ -633,10 +717,7 @@ impl Rcac {
 
     /// The current coefficients `θ` (length `l_θ`, row-major `Θ`).
     pub fn theta(&self) -> &[f64] {
-        match &self.law {
-            Law::Rls(r) => r.theta(),
-            Law::Gradient { theta, .. } => theta,
-        }
+        law_theta(&self.law)
     }
 
     /// `l_θ = l_u n_c (l_u + l_y)`.
@@ -700,6 +781,124 @@ impl Rcac {
         }
     }
 
+    /// Steps (1)–(2) of the module docs ("Timing of the update") for sample `k`, shared by
+    /// [`Controller::step`] and [`Ahead::advance`]: brings the history in line with the
+    /// plant ([`Rcac::absorb`]), forms `Φ_{f,k}` and `u_{f,k}`, and updates `θ_k → θ_{k+1}`
+    /// when `adapt` (from `k_w` on, not while a bridged gap is in the windows); then the
+    /// internals. Returns whether `y_k`, `z_k` and the filtered quantities were finite
+    /// (`ok`) and the status bits so far (`CONTROLLER_FAULT` on a bad sample or a guard
+    /// reset of `θ`).
+    fn take_in(&mut self, input: &StepInput<'_>, adapt: bool) -> (bool, u32) {
+        let mut status = status::OK;
+        self.absorb(input);
+        let lz = self.lz;
+        let y_ok = input.y.len() >= self.ly && input.y.iter().all(|v| v.is_finite());
+        let z_ok = input.z.len() >= lz && input.z.iter().take(lz).all(|v| v.is_finite());
+        // (1) Filtered quantities of index k (past data only).
+        self.filter.filter(&mut self.phi_f, &mut self.u_f);
+        let filt_sq: f64 = self.phi_f.iter().chain(&self.u_f).map(|v| v * v).sum();
+        let filt_ok = filt_sq.is_finite();
+        if !filt_ok {
+            self.filter.reset();
+            self.phi_f.fill(0.0);
+            self.u_f.fill(0.0);
+        }
+        let ok = y_ok && z_ok && filt_ok;
+        let learn = self.k >= self.kw && self.k >= self.update_from;
+        self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
+        // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows).
+        if ok && learn && adapt {
+            if self.update_theta(input.z) {
+                status |= status::CONTROLLER_FAULT;
+            }
+        } else if !ok {
+            status |= status::CONTROLLER_FAULT;
+        }
+        self.note_internals(ok);
+        (ok, status)
+    }
+
+    /// `θ_k → θ_{k+1}` with the rows of step `k` (RLS (2.22)–(2.23) or the gradient step
+    /// (3.53)); returns true when the guard reset `θ`.
+    fn update_theta(&mut self, z: &[f64]) -> bool {
+        self.build_rows(z);
+        match &mut self.law {
+            Law::Rls(rls) => {
+                let st = rls.update(&self.a, &self.b);
+                self.lambda = st.lambda;
+                self.trace_or_mu = rls.trace_p();
+                st.reset
+            }
+            Law::Gradient {
+                step_size,
+                alpha,
+                r,
+                theta,
+                res,
+                grad,
+                gram,
+                resets,
+            } => {
+                let mu = *alpha
+                    * gradient_step(*step_size, &self.a, &self.b, theta, *r, res, grad, gram);
+                axpy(-mu, grad, theta);
+                self.trace_or_mu = mu;
+                self.lambda = 1.0;
+                if theta.iter().all(|v| v.is_finite()) {
+                    false
+                } else {
+                    theta.copy_from_slice(&self.theta0);
+                    *resets += 1;
+                    true
+                }
+            }
+        }
+    }
+
+    /// `theta_norm` (`‖θ_{k+1}‖`) and `zhat0` (`ẑ_{k,0}(θ_{k+1})`, NaN on a bad sample).
+    fn note_internals(&mut self, ok: bool) {
+        let lt = self.ltheta;
+        let theta = law_theta(&self.law);
+        let mut sq = 0.0;
+        for t in theta {
+            sq += t * t;
+        }
+        self.theta_norm = sq.sqrt();
+        self.zhat0 = if ok {
+            let row = self.phi_f.get(..lt).unwrap_or(&[]);
+            self.z0 - self.u_f.first().copied().unwrap_or(0.0) + dot(row, theta)
+        } else {
+            f64::NAN
+        };
+    }
+
+    /// The ahead form's ready input `u_{k+1}` after `store` of step `k` (the counter is
+    /// then `k + 1` and `φ_{k+1}` is `regressor(0)`): `sat(Φ_{k+1} θ_{k+1})` (2.16), `0`
+    /// while the counter is below `k_w`, the applied input held on a bad sample (`!ok`,
+    /// with `CONTROLLER_FAULT`). Returns the bits of the saturation (and of the hold).
+    fn prepare_ready(&mut self, ok: bool) -> u32 {
+        let mut st = status::OK;
+        if !ok {
+            for (d, s) in self.ready_u.iter_mut().zip(&self.u_last) {
+                *d = *s;
+            }
+            st |= status::CONTROLLER_FAULT;
+        } else if self.k < self.kw {
+            self.ready_u.fill(0.0);
+        } else {
+            let (pu, py) = self.filter.regressor(0);
+            controller_output(
+                law_theta(&self.law),
+                pu,
+                py,
+                self.nphi,
+                self.lu,
+                &mut self.ready_u,
+            );
+        }
+        st | saturate(self.limits.as_ref(), &mut self.ready_u)
+    }
+
     /// Stores `y_k` (non-finite entries held) with the applied `u_k` at the end of step
     /// `k`.
     fn store(&mut self, y: &[f64]) {
@@ -755,6 +954,55 @@ impl Rcac {
                 }
             }
         }
+    }
+}
+
+/// The coefficients `θ` of either update law.
+fn law_theta(law: &Law) -> &[f64] {
+    match law {
+        Law::Rls(r) => r.theta(),
+        Law::Gradient { theta, .. } => theta,
+    }
+}
+
+/// The controller (2.15), `u_j = θ_jᵀ φ` for `j < l_u` (`θ_j` the `j`-th block of `N`
+/// entries), with `φ = [pu; py]` given as its `u` and `y` parts. Writes the first `l_u`
+/// entries of `u`; does not allocate or panic.
+fn controller_output(theta: &[f64], pu: &[f64], py: &[f64], nphi: usize, lu: usize, u: &mut [f64]) {
+    let nu = pu.len();
+    for (j, d) in u.iter_mut().enumerate().take(lu) {
+        let blk = theta.get(j * nphi..(j + 1) * nphi).unwrap_or(&[]);
+        let (tu, ty) = blk.split_at(nu.min(blk.len()));
+        *d = dot(tu, pu) + dot(ty, py);
+    }
+}
+
+/// Saturates `u` to the limits (non-finite entries become 0 clipped into them, or 0
+/// without limits); returns `CONTROLLER_FAULT` when an entry was not finite, else
+/// `SATURATED` when one was clipped, else `OK`.
+fn saturate(limits: Option<&OutputLimits>, u: &mut [f64]) -> u32 {
+    let mut bad = false;
+    let clipped = match limits {
+        Some(l) => {
+            bad = u.iter().any(|v| !v.is_finite());
+            l.apply(u)
+        }
+        None => {
+            for v in u.iter_mut() {
+                if !v.is_finite() {
+                    *v = 0.0;
+                    bad = true;
+                }
+            }
+            false
+        }
+    };
+    if bad {
+        status::CONTROLLER_FAULT
+    } else if clipped {
+        status::SATURATED
+    } else {
+        status::OK
     }
 }
 
@@ -892,116 +1140,20 @@ impl Controller for Rcac {
     }
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
-        let mut status = status::OK;
-        self.absorb(input);
-        let (lz, lt) = (self.lz, self.ltheta);
-        let y_ok = input.y.len() >= self.ly && input.y.iter().all(|v| v.is_finite());
-        let z_ok = input.z.len() >= lz && input.z.iter().take(lz).all(|v| v.is_finite());
-        // (1) Filtered quantities of index k (past data only).
-        self.filter.filter(&mut self.phi_f, &mut self.u_f);
-        let filt_sq: f64 = self.phi_f.iter().chain(&self.u_f).map(|v| v * v).sum();
-        let filt_ok = filt_sq.is_finite();
-        if !filt_ok {
-            self.filter.reset();
-            self.phi_f.fill(0.0);
-            self.u_f.fill(0.0);
-        }
-        let ok = y_ok && z_ok && filt_ok;
-        let active = self.k >= self.kw;
-        let learn = active && self.k >= self.update_from;
-        self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
-        // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows).
-        if ok && learn {
-            self.build_rows(input.z);
-            let reset = match &mut self.law {
-                Law::Rls(rls) => {
-                    let st = rls.update(&self.a, &self.b);
-                    self.lambda = st.lambda;
-                    self.trace_or_mu = rls.trace_p();
-                    st.reset
-                }
-                Law::Gradient {
-                    step_size,
-                    alpha,
-                    r,
-                    theta,
-                    res,
-                    grad,
-                    gram,
-                    resets,
-                } => {
-                    let mu = *alpha
-                        * gradient_step(*step_size, &self.a, &self.b, theta, *r, res, grad, gram);
-                    axpy(-mu, grad, theta);
-                    self.trace_or_mu = mu;
-                    self.lambda = 1.0;
-                    if theta.iter().all(|v| v.is_finite()) {
-                        false
-                    } else {
-                        theta.copy_from_slice(&self.theta0);
-                        *resets += 1;
-                        true
-                    }
-                }
-            };
-            if reset {
-                status |= status::CONTROLLER_FAULT;
-            }
-        } else if !ok {
-            status |= status::CONTROLLER_FAULT;
-        }
+        // (1)–(2) Filtered quantities of index k and θ_k → θ_{k+1}.
+        let (ok, mut status) = self.take_in(input, true);
         // (3) u_k = sat(Φ_k θ_{k+1}), 0 before k_w; the last applied u on a bad input.
-        let theta: &[f64] = match &self.law {
-            Law::Rls(r) => r.theta(),
-            Law::Gradient { theta, .. } => theta,
-        };
-        let (pu, py) = self.filter.regressor(0);
-        let nu = pu.len();
-        let mut sq = 0.0;
-        for t in theta {
-            sq += t * t;
-        }
-        self.theta_norm = sq.sqrt();
-        self.zhat0 = if ok {
-            let row = self.phi_f.get(..lt).unwrap_or(&[]);
-            self.z0 - self.u_f.first().copied().unwrap_or(0.0) + dot(row, theta)
-        } else {
-            f64::NAN
-        };
         if !ok {
             for (d, s) in u.iter_mut().zip(&self.u_last) {
                 *d = *s;
             }
-        } else if !active {
+        } else if self.k < self.kw {
             u.fill(0.0);
         } else {
-            for (j, d) in u.iter_mut().enumerate().take(self.lu) {
-                let blk = theta.get(j * self.nphi..(j + 1) * self.nphi).unwrap_or(&[]);
-                let (tu, ty) = blk.split_at(nu.min(blk.len()));
-                *d = dot(tu, pu) + dot(ty, py);
-            }
+            let (pu, py) = self.filter.regressor(0);
+            controller_output(law_theta(&self.law), pu, py, self.nphi, self.lu, u);
         }
-        let mut bad = false;
-        let clipped = match &self.limits {
-            Some(l) => {
-                bad = u.iter().any(|v| !v.is_finite());
-                l.apply(u)
-            }
-            None => {
-                for v in u.iter_mut() {
-                    if !v.is_finite() {
-                        *v = 0.0;
-                        bad = true;
-                    }
-                }
-                false
-            }
-        };
-        if bad {
-            status |= status::CONTROLLER_FAULT;
-        } else if clipped {
-            status |= status::SATURATED;
-        }
+        status |= saturate(self.limits.as_ref(), u);
         // (4) Store the applied u_k and y_k (non-finite entries held).
         for (d, s) in self.u_last.iter_mut().zip(u.iter()) {
             *d = *s;
@@ -1052,6 +1204,7 @@ impl Controller for Rcac {
         self.z0 = 0.0;
         self.zhat0 = 0.0;
         self.lambda = 1.0;
+        self.ready_status = self.prepare_ready(true);
     }
 
     /// `theta` (θ_k) and, with RLS, its covariance blocks ([`Rls::learned`]).
@@ -1076,6 +1229,7 @@ impl Controller for Rcac {
         match restored {
             Ok(theta) => {
                 self.theta_norm = theta.iter().map(|v| v * v).sum::<f64>().sqrt();
+                self.ready_status = self.prepare_ready(true);
                 Ok(())
             }
             Err(e) => {
@@ -1083,6 +1237,11 @@ impl Controller for Rcac {
                 Err(e)
             }
         }
+    }
+
+    /// `Some` always ([`RcacParams::answers_ahead`]): (2.16) is strictly causal.
+    fn ahead(&mut self) -> Option<&mut dyn Ahead> {
+        if self.ahead { Some(self) } else { None }
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
@@ -1126,5 +1285,95 @@ impl Controller for Rcac {
             *d = v;
         }
         n
+    }
+}
+
+/// The ahead form (2.16) (module docs, "Ahead form (2.16) and plans").
+impl Ahead for Rcac {
+    /// `u_{k+1} = sat(Φ_{k+1} θ_{k+1})` as prepared by the last [`Ahead::advance`] (the
+    /// start-up input `sat(0)` after a reset or a new data stream).
+    fn ready(&self, u: &mut [f64]) -> u32 {
+        for (d, s) in u.iter_mut().zip(&self.ready_u) {
+            *d = *s;
+        }
+        self.ready_status
+    }
+
+    /// Takes sample `k` in as [`Controller::step`] does (the update only when `adapt`),
+    /// stores `applied` as `u_k` (non-finite entries keep the previous input) and `y_k`,
+    /// and prepares `u_{k+1} = sat(Φ_{k+1} θ_{k+1})`.
+    fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32 {
+        let (ok, status) = self.take_in(input, adapt);
+        for (d, s) in self.u_last.iter_mut().zip(applied) {
+            if s.is_finite() {
+                *d = *s;
+            }
+        }
+        self.store(input.y);
+        self.ready_status = status | self.prepare_ready(ok);
+        self.ready_status
+    }
+
+    /// (2.15) run on from `φ_{k+1}` with `θ_{k+1}` held and `y_{k+1}, y_{k+2}, …`
+    /// predicted at 0: row `j` is `sat(Θ φ̂_{k+2+j})`, `φ̂` shifting in the previous
+    /// (predicted) input and a zero measurement; `0` (saturated) while the counter would
+    /// be below `k_w`. `O(H l_θ)`.
+    fn plan(&mut self, out: &mut [f64]) -> usize {
+        let (lu, ly, nphi) = (self.lu, self.ly, self.nphi);
+        if lu == 0 {
+            return 0;
+        }
+        let (pu, py) = self.filter.regressor(0);
+        for (d, s) in self.plan_u.iter_mut().zip(pu) {
+            *d = *s;
+        }
+        for (d, s) in self.plan_y.iter_mut().zip(py) {
+            *d = *s;
+        }
+        let theta = law_theta(&self.law);
+        // φ̂_{k+2}: u_{k+1} (the ready input) and y_{k+1} = 0 shifted in.
+        shift_in(&mut self.plan_u, &self.ready_u, lu);
+        shift_in_zero(&mut self.plan_y, ly);
+        let mut rows = 0;
+        let mut sample = self.k.saturating_add(1);
+        for row in out.chunks_exact_mut(lu) {
+            if sample < self.kw {
+                row.fill(0.0);
+            } else {
+                controller_output(theta, &self.plan_u, &self.plan_y, nphi, lu, row);
+            }
+            let _ = saturate(self.limits.as_ref(), row);
+            shift_in(&mut self.plan_u, row, lu);
+            shift_in_zero(&mut self.plan_y, ly);
+            sample = sample.saturating_add(1);
+            rows += 1;
+        }
+        rows
+    }
+
+    fn plan_source(&self) -> &'static str {
+        "u_{k+1} exact (2.16); beyond it (2.15) run on with θ_{k+1} held and the \
+         measurements predicted at 0"
+    }
+}
+
+/// Shifts the newest-first history `h` (blocks of `n`) by one block and writes `v` (`n`
+/// entries) as its newest block; does not panic.
+fn shift_in(h: &mut [f64], v: &[f64], n: usize) {
+    if let Some(keep) = h.len().checked_sub(n) {
+        h.copy_within(..keep, n);
+        for (d, s) in h.iter_mut().zip(v).take(n) {
+            *d = *s;
+        }
+    }
+}
+
+/// [`shift_in`] of a zero block.
+fn shift_in_zero(h: &mut [f64], n: usize) {
+    if let Some(keep) = h.len().checked_sub(n) {
+        h.copy_within(..keep, n);
+        for d in h.iter_mut().take(n) {
+            *d = 0.0;
+        }
     }
 }

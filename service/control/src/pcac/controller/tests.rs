@@ -481,3 +481,124 @@ fn what_pcac_identified_survives_a_checkpoint_and_a_new_data_stream() {
     assert!(e.contains("not positive definite"), "{e}");
     assert!(c.model().coefficients().iter().all(|v| *v == 1e-10));
 }
+
+// ---------------------------------------------------------------------------------------
+// The ahead form (next-step timing).
+
+/// The inputs `u_k` of `steps` closed-loop samples of `c` (the plant of [`drive`], the
+/// command stepping to 1 at 1500), compute-first through `step` or in the ahead form
+/// (`ready`, then `advance` with `applied` = the ready input), with the status bits each
+/// call returned; `each(c)` sees the controller after every sample.
+fn inputs_of(
+    c: &mut Pcac,
+    ahead: bool,
+    steps: usize,
+    mut each: impl FnMut(&mut Pcac),
+) -> Vec<(u64, u32)> {
+    let mut plant = Plant::new(0.5);
+    let mut u_prev = 0.0;
+    let mut out = Vec::new();
+    for k in 0..steps {
+        let r = [if k >= 1500 { 1.0 } else { 0.0 }];
+        let y = [plant.measure()];
+        let ua = [u_prev];
+        let input = StepInput {
+            seq: k as u64,
+            y: &y,
+            z: &y,
+            r: &r,
+            u_applied: Some(&ua),
+            lost: 0,
+        };
+        let mut u = [f64::NAN];
+        let s = if ahead {
+            let a = c.ahead().expect("next-step timing answers ahead");
+            a.ready(&mut u);
+            a.advance(&input, &u, true)
+        } else {
+            c.step(&input, &mut u)
+        };
+        each(c);
+        out.push((u[0].to_bits(), s));
+        plant.advance(u[0]);
+        u_prev = u[0];
+    }
+    out
+}
+
+/// In the next-step timing, `ready; advance` with `applied` = the ready input gives the
+/// inputs of `step` bit for bit on the closed loop of regulation and tracking (3000
+/// samples), and `advance(k)` returns the status that `step(k)` returns (that of
+/// `u_{1|k}`).
+#[test]
+fn the_ahead_form_of_the_next_step_timing_gives_the_inputs_of_step_bit_for_bit() {
+    let p = params(PcacTiming::NextStep);
+    assert!(p.answers_ahead());
+    let stepped = inputs_of(&mut Pcac::new(&p, counts(1)).unwrap(), false, 3000, |_| {});
+    let ahead = inputs_of(&mut Pcac::new(&p, counts(1)).unwrap(), true, 3000, |_| {});
+    for (k, (a, b)) in stepped.iter().zip(&ahead).enumerate() {
+        assert_eq!(
+            a, b,
+            "sample {k}: (u bits, status) of step and of the ahead form"
+        );
+    }
+    assert!(stepped.iter().any(|(u, _)| f64::from_bits(*u).abs() > 0.1));
+}
+
+#[test]
+fn the_same_step_timing_does_not_answer_ahead() {
+    let p = params(PcacTiming::SameStep);
+    assert!(!p.answers_ahead());
+    assert!(Pcac::new(&p, counts(1)).unwrap().ahead().is_none());
+}
+
+/// After each solved step the plan is the rest of the MPC solution: its rows are those of
+/// [`Pcac::planned_inputs`] after the first (`u_{2|k}, …, u_{ℓ|k}`, clipped into the input
+/// bounds), as many as fit; it is empty after a sample taken in without adaptation (whose
+/// ready input is the applied one held) and after a fallback.
+#[test]
+fn the_plan_is_the_rest_of_the_mpc_solution() {
+    let p = params(PcacTiming::NextStep);
+    let ell = p.mpc.horizon;
+    let mut c = Pcac::new(&p, counts(1)).unwrap();
+    let mut checked = 0;
+    inputs_of(&mut c, true, 2000, |c| {
+        let mut plan = [f64::NAN; 64];
+        assert_eq!(c.plan(&mut plan), ell - 1, "ℓ − 1 rows fit");
+        let want: Vec<f64> = c.planned_inputs()[1..]
+            .iter()
+            .map(|v| v.clamp(-U_MAX, U_MAX))
+            .collect();
+        assert_eq!(&plan[..ell - 1], &want[..]);
+        let mut three = [0.0; 3];
+        assert_eq!(c.plan(&mut three), 3);
+        assert_eq!(&three[..], &want[..3]);
+        checked += 1;
+    });
+    assert_eq!(checked, 2000);
+    assert!(c.plan_source().contains("u_{2|k}"));
+
+    // A sample taken in without adaptation: the applied input is held, no plan.
+    let (y, ua) = ([0.1], [0.2]);
+    let input = StepInput {
+        y: &y,
+        z: &y,
+        r: &[0.0],
+        ..Default::default()
+    };
+    let s = c.advance(&input, &ua, false);
+    let mut u = [0.0];
+    assert_eq!((c.ready(&mut u), u[0]), (s, 0.2));
+    assert_eq!(c.plan(&mut [0.0; 8]), 0);
+
+    // A fallback (infeasible output constraints): no plan.
+    let mut p = params(PcacTiming::NextStep);
+    p.mpc.output_constraints = Some(OutputConstraints {
+        c: vec![1.0],
+        d: vec![1.0],
+    });
+    let mut c = Pcac::new(&p, counts(0)).unwrap();
+    let s = c.advance(&input, &[0.0], true);
+    assert_ne!(s & status::FALLBACK, 0);
+    assert_eq!(c.plan(&mut [0.0; 8]), 0);
+}
