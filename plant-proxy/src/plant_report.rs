@@ -34,6 +34,9 @@ pub struct PlantReport {
     /// Misses that reached the plant as a held or a safe output (the late policy, the plan's
     /// fallback, or the watchdog's safe output): the misses no plan covered.
     pub misses_held_or_safe: u64,
+    /// Of those, the ones before the first valid actuation of the run: the service had not
+    /// answered yet, so there was nothing to hold but the initial (safe) input and no plan.
+    pub misses_before_first_answer: u64,
     /// Actuations that arrived after their sample's input was decided (an answer to an older
     /// sample).
     pub late_discarded: u64,
@@ -84,7 +87,7 @@ impl PlantReport {
     /// The counters of a run, one line (printed after `done: ` or `gave up: `).
     pub fn summary_line(&self) -> String {
         format!(
-            "{} samples, {} actuations applied, {} misses ({} late, {} invalid; {} plan entries applied, {} held or safe), watchdog trips {}, recoveries {}, timing {}, applies {}, stalls injected {}, clock slips {} ({:.6} s), z RMS {:?}",
+            "{} samples, {} actuations applied, {} misses ({} late, {} invalid; {} plan entries applied, {} held or safe, {} of them before the first answer), watchdog trips {}, recoveries {}, timing {}, applies {}, stalls injected {}, clock slips {} ({:.6} s), z RMS {:?}",
             self.samples,
             self.actuations_applied,
             self.misses,
@@ -92,6 +95,7 @@ impl PlantReport {
             self.invalid_discarded,
             self.plan_entries_applied,
             self.misses_held_or_safe,
+            self.misses_before_first_answer,
             self.watchdog_trips,
             self.watchdog_recoveries,
             self.timing.as_deref().unwrap_or("none"),
@@ -116,6 +120,7 @@ mod tests {
             misses: 3,
             plan_entries_applied: 2,
             misses_held_or_safe: 1,
+            misses_before_first_answer: 1,
             timing: Some("send-ahead".into()),
             applies: "lockstep".into(),
             stalls_injected: 4,
@@ -126,7 +131,7 @@ mod tests {
         let line = r.summary_line();
         for part in [
             "10 samples, 7 actuations applied, 3 misses",
-            "2 plan entries applied, 1 held or safe",
+            "2 plan entries applied, 1 held or safe, 1 of them before the first answer",
             "timing send-ahead",
             "applies lockstep",
             "stalls injected 4",
@@ -139,6 +144,7 @@ mod tests {
             "timing",
             "plan_entries_applied",
             "misses_held_or_safe",
+            "misses_before_first_answer",
             "clock_slips",
             "slipped_s",
             "stalls_injected",

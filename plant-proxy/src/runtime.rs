@@ -433,6 +433,9 @@ pub fn run_plant(
                     }
                     _ => report.misses_held_or_safe += 1,
                 }
+                if report.actuations_applied == 0 && !previous_plan {
+                    report.misses_before_first_answer += 1;
+                }
                 if let Some(t) = tripped_at
                     && t.elapsed() >= proxy.peer_timeout
                 {

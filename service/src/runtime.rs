@@ -326,6 +326,8 @@ pub struct LoopCore {
     plan_length: usize,
     /// The ahead answer prepared by the last `advance`: `u`, plan, status, compute time.
     prepared: Actuation,
+    /// The prepared answer's plan is still to be made (its last `advance` did not adapt).
+    plan_pending: bool,
     /// The actuation being composed.
     outgoing: Actuation,
     /// The controller's plan rows (`MAX_PLAN × n_u`).
@@ -474,6 +476,7 @@ impl LoopCore {
                 cfg.answer.plan_length.min(MAX_PLAN)
             },
             prepared: Actuation::zeroed(cfg.counts),
+            plan_pending: false,
             outgoing: Actuation::zeroed(cfg.counts),
             plan_rows: vec![0.0; MAX_PLAN * cfg.counts.n_u as usize],
             sent: SentLog::default(),
@@ -541,6 +544,7 @@ impl LoopCore {
         self.prepared.status = crate::wire::actuation_status(s);
         self.prepared.plan_len = 0;
         self.prepared.compute_ns = 0;
+        self.plan_pending = true;
         sanitize(&mut self.prepared.u[..n_u], &self.safe_input);
     }
 
@@ -801,18 +805,35 @@ impl LoopCore {
         };
         let s = ahead.advance(input, applied, adapt);
         let _ = ahead.ready(&mut self.prepared.u[..n_u]);
-        let rows = if adapt && self.plan_length > 0 {
-            let len = (self.plan_length * n_u).min(self.plan_rows.len());
-            ahead.plan(&mut self.plan_rows[..len])
-        } else {
-            0
-        };
+        // A sample taken in without adaptation (catching up, the safe state) leaves the
+        // plan to be made when an answer goes out ([`LoopCore::fill`]).
+        self.plan_pending = true;
+        if adapt {
+            self.make_plan();
+        }
         let compute_ns = monotonic_ns().saturating_sub(t0);
         let wire = crate::wire::actuation_status(s);
         self.prepared.status = wire;
         self.prepared.compute_ns = compute_ns;
         sanitize(&mut self.prepared.u[..n_u], &self.safe_input);
-        // The plan up to its first non-finite entry (the runtime never sends a NaN).
+        if adapt {
+            self.count_status(wire);
+        }
+        compute_ns
+    }
+
+    /// The prepared answer's plan from the controller, up to its first non-finite entry
+    /// (the runtime never sends a NaN).
+    fn make_plan(&mut self) {
+        self.plan_pending = false;
+        let n_u = self.counts.n_u as usize;
+        let rows = match self.controller.ahead() {
+            Some(ahead) if self.plan_length > 0 => {
+                let len = (self.plan_length * n_u).min(self.plan_rows.len());
+                ahead.plan(&mut self.plan_rows[..len])
+            }
+            _ => 0,
+        };
         let mut len = 0;
         for (j, row) in self
             .plan_rows
@@ -829,10 +850,6 @@ impl LoopCore {
             }
         }
         self.prepared.plan_len = len as u32;
-        if adapt {
-            self.count_status(wire);
-        }
-        compute_ns
     }
 
     /// Counts a controller step and its status bits.
@@ -867,8 +884,12 @@ impl LoopCore {
     }
 
     /// Writes the input of `mode` for a sample into the outgoing actuation: the held input
-    /// (rejected measurement), the safe input, or the prepared answer (its plan too).
+    /// (rejected measurement), the safe input (its plan: the safe input again), or the
+    /// prepared answer (its plan too).
     fn fill(&mut self, mode: Mode, status: u32) {
+        if mode == Mode::Control && self.plan_pending {
+            self.make_plan();
+        }
         let a = &mut self.outgoing;
         a.plan_len = 0;
         a.compute_ns = 0;
@@ -880,6 +901,10 @@ impl LoopCore {
             Mode::Safe(bit) => {
                 a.u = self.safe_input;
                 a.status = status | bit;
+                for row in a.plan.iter_mut().take(self.plan_length) {
+                    *row = self.safe_input;
+                }
+                a.plan_len = self.plan_length.min(MAX_PLAN) as u32;
             }
             Mode::Control => {
                 let p = &self.prepared;

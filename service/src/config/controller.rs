@@ -72,12 +72,10 @@ impl ControllerConfig {
     /// kernel's parameters say so; the built controller's `Controller::ahead` agrees.
     pub fn answers_ahead(&self) -> bool {
         match self {
-            ControllerConfig::Lti { params } => params.d.iter().all(|v| *v == 0.0),
+            ControllerConfig::Lti { params } => params.answers_ahead(),
             ControllerConfig::Excitation { .. } => false,
-            ControllerConfig::Rcac { .. } => true,
-            ControllerConfig::Pcac { params } => {
-                params.timing == control::pcac::PcacTiming::NextStep
-            }
+            ControllerConfig::Rcac { params } => params.answers_ahead(),
+            ControllerConfig::Pcac { params } => params.answers_ahead(),
         }
     }
 

@@ -147,7 +147,8 @@ fn plant_half(
             ),
         ));
     }
-    if proxy.late_policy == plant_proxy::runtime::LatePolicy::Plan && service.answer.plan_length == 0
+    if proxy.late_policy == plant_proxy::runtime::LatePolicy::Plan
+        && service.answer.plan_length == 0
     {
         return Err(err(
             "proxy.late-policy",

@@ -709,8 +709,10 @@ fn an_answer_carries_the_controllers_plan_up_to_the_configured_length_and_its_fi
 {
     let (mut core, _, counts) = ahead_core(Timing::SendAhead, 4, 10, None);
     let out = publish_for(&mut core, counts, 0, 0);
-    // The answer for sample 0 itself went out before any plan was made.
-    assert_eq!(out.sent[0].plan_len, 0);
+    // The answer for sample 0 itself carries the plan of the start-up state.
+    let first = out.sent[0];
+    assert_eq!(first.plan_len, 4);
+    assert_eq!(first.plan[3][0], 1003.0);
     let a = out.sent[1];
     assert_eq!(
         a.plan_len, 4,
@@ -794,10 +796,11 @@ fn plan_covered_misses_are_counted_apart_and_do_not_send_the_service_to_its_safe
         );
     }
     assert_eq!(core.stats.safe_state_entries, 1);
-    // In the safe state the answers sent ahead are the safe input, without a plan.
+    // In the safe state the answers sent ahead are the safe input, and so is their plan.
     let out = publish_for(&mut core, counts, 12, 0);
     let a = out.sent[0];
-    assert_eq!((a.seq, a.u[0], a.plan_len), (13, 0.5, 0));
+    assert_eq!((a.seq, a.u[0], a.plan_len), (13, 0.5, 4));
+    assert!(a.plan[..4].iter().all(|row| row[0] == 0.5));
     assert_ne!(a.status & SAFE_STATE, 0);
 }
 

@@ -126,13 +126,18 @@ pub struct StallStudy {
 pub fn run(scenario: &Path, plan_length: usize, runs: &Path) -> Result<StallStudy, String> {
     let text = std::fs::read_to_string(scenario)
         .map_err(|e| format!("{}: cannot read the file: {e}", scenario.display()))?;
-    let base: toml::Table =
-        toml::from_str(&text).map_err(|e| format!("{}: not valid TOML: {e}", scenario.display()))?;
+    let base: toml::Table = toml::from_str(&text)
+        .map_err(|e| format!("{}: not valid TOML: {e}", scenario.display()))?;
     let period = base
         .get("rig")
         .and_then(|r| r.get("sample-period"))
         .and_then(|v| v.as_float())
-        .ok_or_else(|| format!("{}: field 'rig.sample-period' is missing", scenario.display()))?;
+        .ok_or_else(|| {
+            format!(
+                "{}: field 'rig.sample-period' is missing",
+                scenario.display()
+            )
+        })?;
     let stalls: Vec<(u64, u64)> = STALLS
         .iter()
         .map(|(t, n)| ((t / period).round() as u64, *n))
@@ -231,14 +236,22 @@ fn one_run(
     };
     let mut service = table(&mut t, "service");
     service.insert("timing".into(), case.timing.into());
-    let plans = if case.late_policy == "plan" { plan_length } else { 0 };
+    let plans = if case.late_policy == "plan" {
+        plan_length
+    } else {
+        0
+    };
     service.insert("plan-length".into(), (plans as i64).into());
     t.insert("service".into(), service.into());
     let mut proxy = table(&mut t, "proxy");
     proxy.insert("mode".into(), "lockstep".into());
     proxy.insert("late-policy".into(), case.late_policy.into());
     proxy.remove("plan-fallback");
-    let deadline = if case.timing == "send-ahead" { 0.0 } else { 0.8 };
+    let deadline = if case.timing == "send-ahead" {
+        0.0
+    } else {
+        0.8
+    };
     proxy.insert("deadline".into(), deadline.into());
     let mut faults = proxy
         .get("faults")
@@ -260,7 +273,11 @@ fn one_run(
     let slug = format!(
         "{what}-{}-{}",
         case.timing,
-        if stalls.is_empty() { "none" } else { case.late_policy }
+        if stalls.is_empty() {
+            "none"
+        } else {
+            case.late_policy
+        }
     );
     // The edited scenario lives next to the original, so that relative files resolve.
     let file = dir.join(format!(".stalls-{slug}-{}.toml", std::process::id()));

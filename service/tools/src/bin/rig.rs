@@ -3,6 +3,7 @@
 //! ```text
 //! rig launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--run-folder DIR]
 //!            [--wait busy-poll|block] [--core N] [--controller FILE] [--warm-start FILE]
+//!            [--plant-trace]
 //! rig plot <run-folder>
 //! rig stalls <scenario.toml> [--plan-length H] [--runs DIR] [--results FILE] [--json FILE]
 //! ```
@@ -63,6 +64,9 @@ enum Command {
         /// Start the controller from what an earlier run learned (its checkpoint.json).
         #[arg(long)]
         warm_start: Option<PathBuf>,
+        /// Have the plant write its per-sample trace (plant-trace.csv in the run folder).
+        #[arg(long)]
+        plant_trace: bool,
     },
     /// The stall study: what stalls of 1, 2, 4 and 16 periods cost under each timing and
     /// late policy, in lockstep (seven runs of the scenario).
@@ -101,6 +105,7 @@ fn main() -> ExitCode {
             core,
             controller,
             warm_start,
+            plant_trace,
         } => {
             // The number of the signal that asks the launch to stop (0: none).
             let stop = Arc::new(AtomicUsize::new(0));
@@ -116,6 +121,7 @@ fn main() -> ExitCode {
                 core,
                 controller,
                 warm_start,
+                plant_trace,
                 ..Default::default()
             };
             match launch(&opts, stop) {
