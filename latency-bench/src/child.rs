@@ -15,8 +15,8 @@
 //! while watching the child; its errors say whether the child still ran or how it ended,
 //! with the end of its log. [`repin_rt_thread`] checks, inside the service child,
 //! that the service's RT thread really runs on its core. On the parent side,
-//! [`spawn_service`] writes a service configuration and starts the service child on it,
-//! and [`read_report`] reads the run report it leaves.
+//! [`spawn_service`] ([`spawn_service_with`]) writes a service configuration and starts the
+//! service child on it, and [`read_report`] reads the run report it leaves.
 
 use crate::cli::Settings;
 use crate::configs::{self, Channels};
@@ -433,13 +433,25 @@ fn ensure_affinity(tid: libc::pid_t, core: usize) -> Result<bool, String> {
 /// [`configs::loop_controller`], one channel each) and starts the service child on it,
 /// waiting in mode `wait` (`busy-poll` or `block`) on the RT core.
 pub fn spawn_service(s: &Settings, dir: &Path, rig: &str, wait: &str) -> Result<ChildProc, String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
     let text = configs::service_toml(
         rig,
         Channels { y: 1, z: 1, u: 1 },
         &configs::loop_controller(),
         s.service_log,
     );
+    spawn_service_with(s, dir, &text, wait)
+}
+
+/// Writes the service configuration `text` into `dir/config.toml` and starts the service
+/// child on it, waiting in mode `wait` (`busy-poll` or `block`) on the RT core and writing
+/// its run folder into `dir`.
+pub fn spawn_service_with(
+    s: &Settings,
+    dir: &Path,
+    text: &str,
+    wait: &str,
+) -> Result<ChildProc, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
     let config = dir.join("config.toml");
     std::fs::write(&config, text).map_err(|e| format!("writing {}: {e}", config.display()))?;
     let args = vec![

@@ -43,15 +43,16 @@ pub struct Options {
     /// Round trips run before recording per variant, over all rounds (default samples / 10).
     #[arg(long)]
     pub warmup: Option<u64>,
-    /// Rounds of the round-trip comparison, each with fresh child processes, in ABBA order
-    /// (default 5; 2 with --quick).
+    /// Rounds of the round-trip comparison and of each timing comparison, each with fresh
+    /// child processes, in ABBA order (default 5; 2 with --quick).
     #[arg(long)]
     pub rounds: Option<u64>,
     /// Busy-wait between an answer and the next round trip, µs; the same for both variants
     /// (0: back-to-back).
     #[arg(long, default_value_t = 20.0)]
     pub gap_us: f64,
-    /// Seconds of 8 kHz pacing per wait mode, and of cyclictest (default 5; 1 with --quick).
+    /// Seconds of 8 kHz pacing per wait mode, of cyclictest, and per timing and controller
+    /// in the response-time phase, over its rounds (default 5; 1 with --quick).
     #[arg(long)]
     pub seconds: Option<f64>,
     /// Timed steps per controller configuration (default 200000; 20000 with --quick).
@@ -79,6 +80,9 @@ pub struct Options {
     /// Do not run the PCAC phase.
     #[arg(long)]
     pub skip_pcac: bool,
+    /// Do not run the response-time phase (compute-first against answer-first).
+    #[arg(long)]
+    pub skip_timing: bool,
 }
 
 /// The options of `latency-bench pcac`.
@@ -170,7 +174,8 @@ pub struct Settings {
     pub plan: RoundTripPlan,
     /// Rounds of the round-trip comparison.
     pub rounds: u64,
-    /// Seconds of 8 kHz pacing per wait mode, and of cyclictest.
+    /// Seconds of 8 kHz pacing per wait mode, of cyclictest, and per timing and controller
+    /// in the response-time phase (split over its rounds).
     pub seconds: f64,
     /// Timed steps per controller configuration.
     pub steps: u64,
@@ -186,6 +191,8 @@ pub struct Settings {
     pub cyclictest: bool,
     /// Timed PCAC steps per workload; `None`: the phase is skipped.
     pub pcac_steps: Option<u64>,
+    /// Run the response-time phase (compute-first against answer-first).
+    pub timing: bool,
     /// The results file this run writes its section into.
     pub results: PathBuf,
     /// The executable started as the child process (`None`: this executable, which is
@@ -233,6 +240,7 @@ impl Settings {
                     .unwrap_or(if o.run.quick { 300 } else { 2_000 })
                     .max(1)
             }),
+            timing: !o.skip_timing,
             results: o.run.results_file(),
             child_exe: None,
         }
@@ -272,6 +280,9 @@ impl Settings {
             "fifo_priority": RT_PRIORITY,
             "service_log": self.service_log,
             "pcac_steps": self.pcac_steps,
+            "timing_phase": self.timing,
+            "timing_rounds_per_timing": self.rounds,
+            "timing_seconds_per_round": self.seconds / self.rounds.max(1) as f64,
         })
     }
 }

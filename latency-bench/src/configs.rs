@@ -10,12 +10,16 @@
 //! - [`step_cases`]: the named controller configurations whose step cost is measured: LTI
 //!   controllers, and RCAC at the acoustic rig's size ([`acoustic_rcac_toml`]) run in the
 //!   closed loop of a [`LoopPlant`]. Later controllers (PCAC, …) add entries to that list.
+//! - [`timing_cases`]: the controllers whose response time the service measures with
+//!   `timing = "compute-first"` and with `timing = "answer-first"` (written by
+//!   [`service_toml_with`]), each with the loop its paced plant closes ([`PacedPlant`]).
 //!
 //! Test matrices are random with a fixed seed (ChaCha8 from `rand_chacha`); the state matrix of a
 //! dynamic controller is scaled to spectral radius 0.9 so the controller is stable and its
 //! state stays finite over hundreds of thousands of steps (a diverging state would make the
 //! controller take its reset path and time something else).
 
+use ipc_types::Timing;
 use nalgebra::DMatrix;
 pub use plant_proxy::lti::StateSpace;
 use rand::{Rng, SeedableRng};
@@ -116,20 +120,50 @@ pub fn loop_controller() -> StateSpace {
     }
 }
 
-/// A complete service configuration for rig `rig` at the 8 kHz period.
+/// A complete service configuration for rig `rig` at the 8 kHz period, with the LTI
+/// controller `controller`, answering compute-first; see [`service_toml_with`].
+///
+/// The timing is written out because the service's default (`"auto"`) sends ahead for a
+/// controller without feedthrough, such as [`loop_controller`]: it would then publish
+/// `Actuation{seq k+1}` at sample `k`, and the round trip and the wake-up phase, which
+/// wait for the answer carrying `k`, would find one that went ahead a sample earlier.
+pub fn service_toml(rig: &str, channels: Channels, controller: &StateSpace, log: bool) -> String {
+    service_toml_with(
+        rig,
+        crate::PERIOD_NS,
+        channels,
+        &controller_toml(controller),
+        Some(Timing::ComputeFirst),
+        log,
+    )
+}
+
+/// A complete service configuration for rig `rig` sampled every `period_ns` around the
+/// `[controller]` table `controller` (any kind, as text), answering with `timing`
+/// (`service.timing`; `None` leaves the key out, so the service takes `"auto"`).
 ///
 /// The wait mode and the RT core are not in the file: the bench passes them in
 /// `RunOptions`. `SCHED_FIFO` at [`crate::RT_PRIORITY`] and `mlockall` are requested but
 /// not required, so the bench also runs (and says so) where the OS refuses them.
-pub fn service_toml(rig: &str, channels: Channels, controller: &StateSpace, log: bool) -> String {
+pub fn service_toml_with(
+    rig: &str,
+    period_ns: u64,
+    channels: Channels,
+    controller: &str,
+    timing: Option<Timing>,
+    log: bool,
+) -> String {
+    let timing = timing
+        .map(|t| format!("timing = \"{}\"\n", t.name()))
+        .unwrap_or_default();
     format!(
         r#"# Written by latency-bench for one measurement.
 [rig]
 name = "{rig}"
-sample-period = 1.25e-4
+sample-period = {period:?}
 
 [service]
-fifo-priority = {prio}
+{timing}fifo-priority = {prio}
 mlockall = true
 require-rt = false
 grace-periods = 100
@@ -146,10 +180,10 @@ channels = {{ y = {y}, z = {z}, u = {u} }}
 enabled = {log}
 "#,
         prio = crate::RT_PRIORITY,
+        period = period_ns as f64 / 1e9,
         y = channels.y,
         z = channels.z,
         u = channels.u,
-        controller = controller_toml(controller),
     )
 }
 
@@ -348,6 +382,128 @@ pub fn step_cases() -> Vec<StepCase> {
     ]
 }
 
+/// What the paced plant of the response-time phase ([`crate::timing_phase`]) puts in its
+/// measurements, and what it does with the answers.
+#[derive(Debug, Clone)]
+pub enum PacedPlant {
+    /// `y_0` is the bench's test signal, every other channel 0; the answers are not fed
+    /// back (a fixed controller does the same work on any data).
+    Signal,
+    /// The closed loop of a [`LoopPlant`] (`y = z`), as in the step-cost phase: the input
+    /// answered for sample `k` enters the FIR for the next samples.
+    Fir(LoopPlant),
+    /// The closed loop of [`crate::pcac_cost::ArmPlant`] with this noise seed (`y = z = x + v`).
+    Arm(u64),
+}
+
+/// One controller of the response-time phase: the service runs it once with
+/// `timing = "compute-first"` and once with `timing = "answer-first"`.
+#[derive(Debug, Clone)]
+pub struct TimingCase {
+    /// Name in the table (`response: <name> — <timing>`).
+    pub name: String,
+    /// File-name form of the name (the folder `timing/<slug>-<timing>/`).
+    pub slug: String,
+    /// Channel counts.
+    pub channels: Channels,
+    /// The `[controller]` table (any kind, as text); the controller must have an ahead
+    /// form (`Controller::ahead()`), or the service refuses `answer-first`.
+    pub controller: String,
+    /// The loop the paced plant closes around it.
+    pub plant: PacedPlant,
+    /// The sample period of the paced loop, ns: [`crate::PERIOD_NS`] (8 kHz) but for a
+    /// controller whose step does not fit it.
+    pub period_ns: u64,
+}
+
+impl TimingCase {
+    /// The complete service configuration of this case for rig `rig`, answering with
+    /// `timing`.
+    pub fn service_toml(&self, rig: &str, timing: Timing, log: bool) -> String {
+        service_toml_with(
+            rig,
+            self.period_ns,
+            self.channels,
+            &self.controller,
+            Some(timing),
+            log,
+        )
+    }
+}
+
+/// The controllers of the response-time phase, in table order: those of
+/// [`step_cases`] that answer ahead, at the same sizes and on the same loops, and PCAC at
+/// the sampling arm's size in its next-step timing ([`crate::pcac_cost::Workload::Arm`],
+/// on its [`crate::pcac_cost::ArmPlant`]).
+///
+/// - the 50-state 2-in/1-out LTI controller of the step cost with `D = 0` (with `D ≠ 0`
+///   its `u_k` needs `y_k`, so it has no ahead form), 8 kHz;
+/// - RCAC gradient with the exp step size, and RCAC RLS with λ = 1, both `n_c = 50`, 2
+///   inputs, 1 output, in the loop of [`acoustic_plant`], 8 kHz;
+/// - PCAC arm, `timing = "next-step"`, at [`ARM_PERIOD_NS`] (2 kHz, the arm's rate): its
+///   step takes a large part of the 125 µs period, and at 8 kHz a step past the period
+///   makes the service skip samples, after which the loop did not recover (most samples
+///   skipped, steps far longer than in the step-cost phase), so that the comparison
+///   would time a broken loop.
+pub fn timing_cases() -> Vec<TimingCase> {
+    let two_in = Channels { y: 2, z: 2, u: 1 };
+    let acoustic = Channels { y: 1, z: 1, u: 2 };
+    let arm = Channels {
+        y: crate::pcac_cost::ARM_P,
+        z: crate::pcac_cost::ARM_P,
+        u: crate::pcac_cost::ARM_M,
+    };
+    let mut lti = random_controller(50, 2, 1, 0.9, 0.5, 50);
+    lti.d.fill(0.0);
+    let case = |name: &str, slug: &str, channels, controller: String, plant| TimingCase {
+        name: name.to_string(),
+        slug: slug.to_string(),
+        channels,
+        controller,
+        plant,
+        period_ns: crate::PERIOD_NS,
+    };
+    vec![
+        case(
+            "lti 50-state 2-in/1-out D=0",
+            "lti-50-state-2x1-d0",
+            two_in,
+            controller_toml(&lti),
+            PacedPlant::Signal,
+        ),
+        case(
+            "rcac gradient exp nc 50",
+            "rcac-gradient-exp-300",
+            acoustic,
+            acoustic_rcac_toml(
+                "update = \"gradient\"\nstep-size = \"exp\"\nalpha = 0.05\nr = 0.0",
+                "",
+            ),
+            PacedPlant::Fir(acoustic_plant()),
+        ),
+        case(
+            "rcac RLS λ=1 nc 50",
+            "rcac-rls-300x1",
+            acoustic,
+            acoustic_rcac_toml("update = \"rls\"\np0 = 1.0\nlambda = 1.0\nru = 0.0", ""),
+            PacedPlant::Fir(acoustic_plant()),
+        ),
+        TimingCase {
+            period_ns: ARM_PERIOD_NS,
+            ..case(
+                "pcac arm next-step 2 kHz",
+                "pcac-arm-next-step-2khz",
+                arm,
+                crate::pcac_cost::arm_controller_toml(),
+                PacedPlant::Arm(7),
+            )
+        },
+    ]
+}
+
+/// The sample period of the PCAC arm case of [`timing_cases`]: 500 µs (2 kHz, §7.3).
+pub const ARM_PERIOD_NS: u64 = 500_000;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -379,6 +535,32 @@ mod tests {
         assert_eq!(cfg.sample_period_ns, crate::PERIOD_NS);
         assert_eq!(cfg.rig, "bench-1");
         assert!(cfg.log.enabled);
+        // The round trip and the wake-up phase wait for the answer carrying k.
+        assert_eq!(cfg.answer.timing, Timing::ComputeFirst);
+    }
+
+    #[test]
+    fn every_timing_case_is_accepted_in_both_timings_and_answers_ahead() {
+        for case in timing_cases() {
+            for timing in [Timing::ComputeFirst, Timing::AnswerFirst] {
+                let text = case.service_toml("bench-t", timing, false);
+                let cfg = ServiceConfig::parse(&text, "bench")
+                    .unwrap_or_else(|e| panic!("{} {}: {e}\n{text}", case.name, timing.name()));
+                assert_eq!(cfg.answer.timing, timing, "{}", case.name);
+                assert_eq!(cfg.sample_period_ns, case.period_ns, "{}", case.name);
+                let mut c = cfg.controller.build(cfg.counts).unwrap();
+                assert!(c.ahead().is_some(), "{}", case.name);
+            }
+        }
+        // The LTI case is the step cost's 50-state controller with D zeroed.
+        let lti = random_controller(50, 2, 1, 0.9, 0.5, 50);
+        let case = &timing_cases()[0];
+        assert!(case.controller.contains(&toml_matrix(&lti.a)));
+        assert!(
+            case.controller.contains("d = [[0.0, 0.0]]"),
+            "{}",
+            case.controller
+        );
     }
 
     #[test]

@@ -13,7 +13,8 @@
 //!   bench and the service produce files of the same format;
 //! - `name.hlog`: an HdrHistogram interval log (V2 + deflate, values in ns) holding the
 //!   whole measurement as one interval, readable by `HistogramLogProcessor` and the
-//!   HdrHistogram plotters.
+//!   HdrHistogram plotters. [`read_interval_log`] reads such a log back, summing its
+//!   intervals (the service's own logs among them).
 
 use hdrhistogram::Histogram;
 use hdrhistogram::serialization::V2DeflateSerializer;
@@ -165,6 +166,60 @@ pub fn write_files(
     Ok(vec![hgrm, hlog])
 }
 
+/// The sum of every interval of the HdrHistogram interval log `path` (V2 or V2 +
+/// deflate, values in ns): the service's `<name>.hlog` files hold one interval per
+/// `service.histogram-interval`, whose sum is the distribution its run report
+/// summarises. Values are added into a histogram of the bench's shape
+/// ([`new_histogram`]).
+pub fn read_interval_log(path: &Path) -> Result<Histogram<u64>, String> {
+    use hdrhistogram::serialization::Deserializer;
+    use hdrhistogram::serialization::interval_log::{IntervalLogIterator, LogEntry};
+    let what = || path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| format!("reading {}: {e}", what()))?;
+    let mut sum = new_histogram();
+    let mut deserializer = Deserializer::new();
+    for entry in IntervalLogIterator::new(&bytes) {
+        let entry = entry.map_err(|e| format!("parsing {}: {e:?}", what()))?;
+        if let LogEntry::Interval(ilh) = entry {
+            let raw = base64_decode(ilh.encoded_histogram())
+                .ok_or_else(|| format!("{}: an interval is not base64", what()))?;
+            let h: Histogram<u64> = deserializer
+                .deserialize(&mut raw.as_slice())
+                .map_err(|e| format!("decoding an interval of {}: {e:?}", what()))?;
+            sum.add(&h)
+                .map_err(|e| format!("adding an interval of {}: {e:?}", what()))?;
+        }
+    }
+    Ok(sum)
+}
+
+/// Standard base64 (with or without `=` padding) to bytes; `None` for any other
+/// character.
+fn base64_decode(s: &str) -> Option<Vec<u8>> {
+    fn sextet(c: u8) -> Option<u32> {
+        Some(match c {
+            b'A'..=b'Z' => u32::from(c - b'A'),
+            b'a'..=b'z' => u32::from(c - b'a') + 26,
+            b'0'..=b'9' => u32::from(c - b'0') + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => return None,
+        })
+    }
+    let bytes: Vec<u8> = s.trim().bytes().filter(|&c| c != b'=').collect();
+    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
+    for chunk in bytes.chunks(4) {
+        let mut acc = 0u32;
+        for (i, &c) in chunk.iter().enumerate() {
+            acc |= sextet(c)? << (18 - 6 * i as u32);
+        }
+        for i in 0..chunk.len().saturating_sub(1) {
+            out.push((acc >> (16 - 8 * i as u32)) as u8);
+        }
+    }
+    Some(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -200,6 +255,14 @@ mod tests {
     }
 
     #[test]
+    fn base64_decodes_with_and_without_padding() {
+        assert_eq!(base64_decode("TWFu").unwrap(), b"Man");
+        assert_eq!(base64_decode("TWE=").unwrap(), b"Ma");
+        assert_eq!(base64_decode("TQ").unwrap(), b"M");
+        assert!(base64_decode("T*").is_none());
+    }
+
+    #[test]
     fn the_files_are_written_and_the_log_reads_back() {
         let dir = std::env::temp_dir().join(format!("lb-hist-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -222,6 +285,8 @@ mod tests {
             })
             .count();
         assert_eq!(n, 1);
+        let back = read_interval_log(&files[1]).unwrap();
+        assert_eq!((back.len(), back.max()), (h.len(), h.max()));
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

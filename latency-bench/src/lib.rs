@@ -1,6 +1,6 @@
 //! # latency-bench: does the service fit the 8 kHz budget on this machine?
 //!
-//! One run of `cargo run --release -p latency-bench` answers three questions, each against
+//! One run of `cargo run --release -p latency-bench` answers these questions, each against
 //! a reference measured in the same run on the same machine, so that a noisy machine
 //! moves both numbers of a comparison together:
 //!
@@ -29,7 +29,13 @@
 //!    configuration ([`configs::step_cases`]) is built through the service's configuration
 //!    path and stepped many times on the pinned RT core under `SCHED_FIFO`, timing each
 //!    step; the cost is also given as a share of the 125 µs period.
-//! 4. **What does a PCAC step cost, and how does it compare with clarabel?**
+//! 4. **How much of the response time does answer-first take out?** ([`timing_phase`])
+//!    In the same paced set-up, the service runs each controller of
+//!    [`configs::timing_cases`] with `timing = "compute-first"` and with
+//!    `timing = "answer-first"`, in ABBA rounds of fresh processes, the plant closing the
+//!    controller's loop; the rows are the service's own response time (sample time →
+//!    publication of the answer) and compute time, with answer-first ÷ compute-first.
+//! 5. **What does a PCAC step cost, and how does it compare with clarabel?**
 //!    ([`pcac_cost`]) `Pcac::step` at the truss size and at the sampling-arm size, each in a
 //!    closed loop, with clarabel timed on the same QPs and the step taken apart into its
 //!    kernels. `latency-bench pcac` runs this phase alone.
@@ -59,6 +65,7 @@ pub mod rls_cost;
 pub mod roundtrip;
 pub mod step_cost;
 pub mod table;
+pub mod timing_phase;
 
 use ipc_types::rt::{RtRequest, RtSetup};
 use report::Measured;

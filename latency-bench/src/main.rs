@@ -1,13 +1,14 @@
 //! `latency-bench`: checks the 8 kHz budget on this machine in one run.
 //!
 //! ```text
-//! cargo run --release -p latency-bench [-- --samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest]
+//! cargo run --release -p latency-bench [-- --samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest --skip-timing]
 //! cargo run --release -p latency-bench -- pcac [--steps N --workload truss|arm|all --out DIR --results FILE]
 //! ```
 //!
 //! Runs, in order: the contract round trip against the real service, the raw iceoryx2
 //! ping-pong, the service's wake-up latency at 8 kHz in busy-poll and blocking mode,
-//! cyclictest on the RT core (when installed), the step cost of each known controller
+//! cyclictest on the RT core (when installed), the service's response time with
+//! compute-first against answer-first per controller, the step cost of each known controller
 //! configuration, the RLS update cost and the PCAC step cost beside clarabel (the `pcac`
 //! subcommand runs the last alone). Prints the machine facts and one table, writes every
 //! distribution (`.hgrm`, `.hlog`), the service's run reports and a `summary.json` to the
@@ -23,7 +24,9 @@ use latency_bench::cli::{Cli, Options, PcacArgs, Role, Settings};
 use latency_bench::machine::{self, MachineFacts};
 use latency_bench::pcac_cost::Workload;
 use latency_bench::report::{self, Collected, RunKind, RunRecord};
-use latency_bench::{child, cyclictest, paced, pcac_phase, rls_cost, roundtrip, step_cost};
+use latency_bench::{
+    child, cyclictest, paced, pcac_phase, rls_cost, roundtrip, step_cost, timing_phase,
+};
 use latency_bench::{on_rt_core, progress};
 use serde_json::{Map, Value, json};
 use service::config::WaitMode;
@@ -140,6 +143,10 @@ fn bench(o: &Options) -> i32 {
     let (ct, wake_ratios) = cyclictest::cyclictest_phase(&s, &out.join("cyclictest"), &mut col);
     col.measured.extend(plant_rows);
     col.measured.push(ct);
+    // Response time with compute-first against answer-first, per controller.
+    if s.timing {
+        timing_phase::timing_phase(&s, &out.join("timing"), &rig_base, &mut col);
+    }
     // 3. Controller step cost, RLS update cost, PCAC step cost.
     progress("6/6 controller step cost");
     col.measured

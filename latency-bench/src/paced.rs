@@ -7,11 +7,18 @@
 //!
 //! ```text
 //!  t_k = t_0 + k·T                                  (T = 125 µs, CLOCK_MONOTONIC)
+//!  y_k, z_k from the model                          (before the sleep)
 //!  sleep_until_ns(t_k); t_wake = monotonic_ns()     pacing lateness = t_wake − t_k
-//!  publish Measurement{seq k, t_sample_ns = t_k, deadline_ns = T/2, real-time flags}
+//!  publish Measurement{seq k, t_sample_ns = t_k, deadline_ns = T/2, real-time flags,
+//!                      u_applied = u_{k−1} when the model reports it}
 //!  notify the measurement event                     (wakes a blocking service)
 //!  sleep_until_ns(t_k + T/2); drain the actuations  answer k there? in time : late/missing
+//!  the model applies u_k                            (the answer to k, else the last one held)
 //! ```
+//!
+//! The model ([`PacedModel`]) of the wake-up phase is [`TestSignal`]: a test signal in
+//! `y_0` and nothing fed back. The response-time phase ([`crate::timing_phase`]) closes a
+//! loop around an adaptive controller instead, through [`paced_service_run`].
 //!
 //! The service child stamps each receipt and records the wake-up latency
 //! `t_recv − t_sample_ns` in its own histograms (its run report, `report.json`, and
@@ -41,7 +48,7 @@ use hdrhistogram::Histogram;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, Side};
 use ipc_types::rt::RtSetup;
-use ipc_types::{ChannelCounts, Measurement, measurement_flags};
+use ipc_types::{ChannelCounts, MAX_U, Measurement, measurement_flags};
 use serde_json::{Value, json};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -73,8 +80,47 @@ impl PacedResult {
     }
 }
 
-/// Runs the plant of rig `rig` at 8 kHz for `seconds`, deadline half a period; see the
-/// module docs. `abort` ends it early (the child died).
+/// What the paced plant puts in each measurement, and what it does with each answer.
+///
+/// [`paced_plant_with`] calls [`PacedModel::sample`] for sample `k` before it sleeps until
+/// `t_k` (so that the model's arithmetic is not in the measured path), and
+/// [`PacedModel::apply`] after the deadline check of sample `k` with the input the plant
+/// applies for it: the answer to `k` when it was there, else the last one applied (a
+/// hold).
+pub trait PacedModel: Send {
+    /// Writes `y_k` and `z_k` (slices of the rig's counts; `z` may be empty).
+    fn sample(&mut self, k: u64, y: &mut [f64], z: &mut [f64]);
+    /// Takes the input applied for the sample just taken (`n_u` values).
+    fn apply(&mut self, u: &[f64]);
+    /// Whether each measurement reports the input applied after the previous sample
+    /// (`u_applied` with `U_APPLIED`, as plant-proxy does): a closed loop does, so that a
+    /// controller that identifies its plant (PCAC) learns from the input the plant really
+    /// held when an answer was late. Default: no.
+    fn reports_applied(&self) -> bool {
+        false
+    }
+}
+
+/// The measurements of the wake-up phase: `y_0` is [`test_signal`]`(k)`, every other
+/// channel 0, and the answers go nowhere.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TestSignal;
+
+impl PacedModel for TestSignal {
+    fn sample(&mut self, k: u64, y: &mut [f64], z: &mut [f64]) {
+        y.fill(0.0);
+        z.fill(0.0);
+        if let Some(y0) = y.first_mut() {
+            *y0 = test_signal(k);
+        }
+    }
+
+    fn apply(&mut self, _u: &[f64]) {}
+}
+
+/// Runs the plant of rig `rig` at 8 kHz for `seconds`, deadline half a period, with the
+/// measurements of [`TestSignal`]; see the module docs. `abort` ends it early (the child
+/// died).
 pub fn paced_plant(
     rig: &str,
     counts: ChannelCounts,
@@ -82,18 +128,50 @@ pub fn paced_plant(
     connect_timeout: Duration,
     abort: &AtomicBool,
 ) -> Result<PacedResult, String> {
-    let own = ContractInfo::new(Side::Plant, counts, PERIOD_NS);
+    paced_plant_with(
+        rig,
+        counts,
+        PERIOD_NS,
+        seconds,
+        connect_timeout,
+        abort,
+        &mut TestSignal,
+    )
+}
+
+/// [`paced_plant`] with the sample period `period_ns` (deadline half of it) and the
+/// measurements of `model`, which also takes the inputs applied ([`PacedModel`]): a
+/// closed loop around the service when the model feeds them back.
+pub fn paced_plant_with(
+    rig: &str,
+    counts: ChannelCounts,
+    period_ns: u64,
+    seconds: f64,
+    connect_timeout: Duration,
+    abort: &AtomicBool,
+    model: &mut dyn PacedModel,
+) -> Result<PacedResult, String> {
+    let own = ContractInfo::new(Side::Plant, counts, period_ns);
     let opts = ConnectOptions::new(connect_timeout).with_shutdown(abort);
     let ports: PlantPorts = ipc_types::ports::connect(rig, own, "bench-plant", opts)
         .map_err(|e| format!("connecting as the plant: {e}"))?;
-    let n = ((seconds * 1e9 / PERIOD_NS as f64).round() as u64).max(1);
-    let deadline = PERIOD_NS / 2;
+    let n = ((seconds * 1e9 / period_ns as f64).round() as u64).max(1);
+    let deadline = period_ns / 2;
     let mut pacing = new_histogram();
     let mut publish_to_answer = new_histogram();
     let (mut in_time, mut late) = (0u64, 0u64);
     let mut m = Measurement::zeroed(counts);
-    m.period_ns = PERIOD_NS;
+    m.period_ns = period_ns;
     m.deadline_ns = deadline;
+    let (n_y, n_z, n_u) = (
+        counts.n_y as usize,
+        counts.n_z as usize,
+        counts.n_u as usize,
+    );
+    // The input the plant applies: the answer of each sample, held when it is missing.
+    let mut applied = [0.0; MAX_U];
+    let report_applied = model.reports_applied();
+    model.sample(0, &mut m.y[..n_y], &mut m.z[..n_z]);
     let start = SystemTime::now();
     // Leave the service a few ms to enter its loop after the connection.
     let t0 = monotonic_ns() + 10_000_000;
@@ -103,7 +181,7 @@ pub fn paced_plant(
         if abort.load(Ordering::Relaxed) {
             return Err(format!("aborted at sample {k} of {n}"));
         }
-        let t_k = t0 + k * PERIOD_NS;
+        let t_k = t0 + k * period_ns;
         sleep_until_ns(t_k);
         let t_wake = monotonic_ns();
         pacing.saturating_record(t_wake.saturating_sub(t_k));
@@ -114,10 +192,13 @@ pub fn paced_plant(
         } else {
             0
         };
+        if report_applied && k > 0 {
+            m.flags |= measurement_flags::U_APPLIED;
+            m.u_applied[..n_u].copy_from_slice(&applied[..n_u]);
+        }
         if k + 1 == n {
             m.flags |= measurement_flags::LAST_SAMPLE;
         }
-        m.y[0] = test_signal(k);
         let t_pub = monotonic_ns();
         ports
             .publisher
@@ -132,6 +213,7 @@ pub fn paced_plant(
                 Ok(Some(a)) => {
                     if a.seq == k {
                         got = true;
+                        applied[..n_u].copy_from_slice(&a.u[..n_u]);
                         publish_to_answer.saturating_record(a.t_publish_ns.saturating_sub(t_pub));
                     } else if a.seq < k {
                         late += 1;
@@ -145,6 +227,10 @@ pub fn paced_plant(
             in_time += 1;
         }
         previous_missed = !got;
+        model.apply(&applied[..n_u]);
+        if k + 1 < n {
+            model.sample(k + 1, &mut m.y[..n_y], &mut m.z[..n_z]);
+        }
     }
     // An answer to the last sample that came after its check.
     let end = monotonic_ns() + 2_000_000;
@@ -288,13 +374,58 @@ pub fn paced_phase(
     wait: &str,
     counts: ChannelCounts,
 ) -> Result<(PacedResult, RtSetup, Value), String> {
-    let mut child = child::spawn_service(s, dir, rig, wait)?;
-    let seconds = s.seconds;
+    let child = child::spawn_service(s, dir, rig, wait)?;
+    let plant = PacedSpec {
+        counts,
+        period_ns: PERIOD_NS,
+        seconds: s.seconds,
+    };
+    paced_service_run(s, child, dir, rig, &plant, &mut TestSignal)
+}
+
+/// The paced plant of one run: the rig's channel counts, the sample period (the deadline
+/// is half of it) and how long it paces.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PacedSpec {
+    /// The rig's channel counts.
+    pub counts: ChannelCounts,
+    /// Sample period, ns.
+    pub period_ns: u64,
+    /// Seconds of pacing.
+    pub seconds: f64,
+}
+
+/// Paces the service child `child` (started on rig `rig` with its run folder `dir`) as
+/// `plant` says with the measurements of `model` ([`paced_plant_with`]), waits for it to
+/// exit and reads its run report: the paced plant's figures, its RT set-up and the report.
+pub fn paced_service_run(
+    s: &Settings,
+    mut child: child::ChildProc,
+    dir: &Path,
+    rig: &str,
+    plant: &PacedSpec,
+    model: &mut dyn PacedModel,
+) -> Result<(PacedResult, RtSetup, Value), String> {
+    let PacedSpec {
+        counts,
+        period_ns,
+        seconds,
+    } = *plant;
     let (p, setup) = child::drive(
         &mut child,
         s.plant_rt(),
         Duration::from_secs_f64(40.0 + 3.0 * seconds),
-        |abort| paced_plant(rig, counts, seconds, Duration::from_secs(20), abort),
+        |abort| {
+            paced_plant_with(
+                rig,
+                counts,
+                period_ns,
+                seconds,
+                Duration::from_secs(20),
+                abort,
+                model,
+            )
+        },
     )?;
     child.wait(Duration::from_secs(30))?;
     let report = child::read_report(dir)?;

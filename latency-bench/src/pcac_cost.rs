@@ -224,6 +224,24 @@ pub const ARM_U_MAX: f64 = 100.0;
 /// at 2 kHz (not in §7.3; the issue asks for move bounds at this size).
 pub const ARM_DU_MAX: f64 = 5.0;
 
+/// The `[controller]` table of [`Workload::Arm`]'s parameters, for a service run (the
+/// response-time phase, [`crate::timing_phase`]): the rig must have `n_y = 5`, `n_u = 2`
+/// and no command. A unit test checks that `ServiceConfig::parse` reads it into exactly
+/// `Workload::Arm.params()`.
+pub fn arm_controller_toml() -> String {
+    format!(
+        "[controller]\nkind = \"pcac\"\nn-hat = 1\np0 = 10.0\ntheta0 = 1e-10\nhorizon = 50\n\
+         tracking = [[0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]\n\
+         q = [1000.0, 100.0, 1.0]\nr = 1.0\nu-min = {umin:?}\nu-max = {umax:?}\n\
+         du-min = {dumin:?}\ndu-max = {dumax:?}\ntiming = \"next-step\"\n\
+         [controller.forgetting]\nrule = \"f-test\"\ntau-n = 40\ntau-d = 200\neta = 0.1\nalpha = 0.001\n",
+        umin = -ARM_U_MAX,
+        umax = ARM_U_MAX,
+        dumin = -ARM_DU_MAX,
+        dumax = ARM_DU_MAX,
+    )
+}
+
 /// A synthetic stand-in for the sampling arm at PCAC's chapter 7 size: 5 outputs, 2
 /// inputs, sampled at 2 kHz.
 ///
@@ -849,6 +867,34 @@ mod tests {
         assert!(r.saturated > 0, "the inputs never reach ±{ARM_U_MAX}");
         assert!(r.at_move_bound > 0, "the moves never reach ±{ARM_DU_MAX}");
         assert!(r.active.max() > 0);
+    }
+
+    /// The service reads the arm's `[controller]` table into exactly the parameters the
+    /// step-cost phase times (only the form of the scalar `R` differs).
+    #[test]
+    fn the_arm_controller_table_is_the_arm_workload() {
+        let text = crate::configs::service_toml_with(
+            "bench-arm",
+            crate::configs::ARM_PERIOD_NS,
+            crate::configs::Channels {
+                y: ARM_P,
+                z: ARM_P,
+                u: ARM_M,
+            },
+            &arm_controller_toml(),
+            None,
+            false,
+        );
+        let cfg = service::config::ServiceConfig::parse(&text, "bench").unwrap();
+        let service::config::ControllerConfig::Pcac { params } = cfg.controller else {
+            panic!("not pcac");
+        };
+        let mut parsed = *params;
+        let expected = Workload::Arm.params();
+        assert_eq!(parsed.mpc.r, Weight::PerChannel(vec![1.0; ARM_M]));
+        parsed.mpc.r = expected.mpc.r.clone();
+        assert_eq!(parsed, expected);
+        assert_eq!(cfg.counts, Workload::Arm.counts());
     }
 
     fn check_common(r: &PcacCost, steps: u64) {

@@ -48,8 +48,9 @@ const TABLE: usize = 1024;
 const NOISE_TABLE: usize = 1 << 15;
 
 /// The loop of a case with a [`LoopPlant`]: the applied inputs' history and the
-/// disturbance table.
-struct Loop {
+/// disturbance table. The response-time phase's paced plant closes the same loop around
+/// the service ([`crate::timing_phase`]).
+pub struct Loop {
     markov: Vec<DMatrix<f64>>,
     /// `d_k` per `z` channel, `NOISE_TABLE` rows of `n_z`.
     d: Vec<f64>,
@@ -60,7 +61,8 @@ struct Loop {
 }
 
 impl Loop {
-    fn new(plant: &LoopPlant, n_z: usize, n_u: usize) -> Self {
+    /// The loop of `plant` with `n_z` performance channels and `n_u` inputs, at rest.
+    pub fn new(plant: &LoopPlant, n_z: usize, n_u: usize) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(plant.seed);
         let mut d = vec![0.0; NOISE_TABLE * n_z];
         for (k, row) in d.chunks_mut(n_z.max(1)).enumerate() {
@@ -81,7 +83,7 @@ impl Loop {
     }
 
     /// `z_k` from the disturbance and the applied inputs `u_{k−1}, u_{k−2}, …`.
-    fn output(&self, k: u64, z: &mut [f64]) {
+    pub fn output(&self, k: u64, z: &mut [f64]) {
         let row = (k as usize) % NOISE_TABLE;
         for (o, zo) in z.iter_mut().enumerate().take(self.n_z) {
             let mut v = self.d[row * self.n_z + o];
@@ -95,8 +97,8 @@ impl Loop {
         }
     }
 
-    /// Records the applied `u_k`.
-    fn apply(&mut self, u: &[f64]) {
+    /// Records the applied `u_k` (`n_u` values).
+    pub fn apply(&mut self, u: &[f64]) {
         let n = self.n_u;
         self.hist.rotate_right(n);
         self.hist[..n].copy_from_slice(&u[..n]);

@@ -234,3 +234,53 @@ fn config_other_bounds_are_refused_naming_the_field() {
     remove(&mut t, "plant.kind");
     assert_refused(&t, "plant.kind");
 }
+
+#[test]
+fn timings_the_two_halves_cannot_meet_are_refused_naming_the_field() {
+    assert_each_refused(&[
+        // The acoustic plant latches its inputs at the sample instant: only a service
+        // that sends ahead meets it.
+        (
+            acoustic,
+            "service.timing",
+            Value::String("compute-first".into()),
+            "service.plan-length",
+        ),
+        (
+            acoustic,
+            "service.timing",
+            Value::String("answer-first".into()),
+            "proxy.deadline",
+        ),
+        // Plans without a plan length.
+        (
+            acoustic,
+            "service.plan-length",
+            Value::Integer(0),
+            "proxy.late-policy",
+        ),
+        (
+            acoustic,
+            "service.plan-length",
+            Value::Integer(65),
+            "service.plan-length",
+        ),
+    ]);
+    // Compute-first without plans against that plant: refused for its deadline.
+    let mut t = acoustic();
+    set(
+        &mut t,
+        "service.timing",
+        Value::String("compute-first".into()),
+    );
+    set(&mut t, "service.plan-length", Value::Integer(0));
+    set(&mut t, "proxy.late-policy", Value::String("hold".into()));
+    remove(&mut t, "proxy.plan-fallback");
+    let e = assert_refused(&t, "proxy.deadline");
+    assert!(e.message.contains("compute-first"), "{e}");
+    // … and accepted with a deadline inside the period.
+    set(&mut t, "proxy.deadline", Value::Float(0.8));
+    let origin = format!("{}/case.toml", scenarios_dir().display());
+    let c = check(&t, &origin).unwrap();
+    assert_eq!(c.service.answer.timing, ipc_types::Timing::ComputeFirst);
+}

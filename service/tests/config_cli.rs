@@ -91,10 +91,23 @@ fn config_check_refuses_the_plant_half_naming_the_field() {
         err.contains(bad.path()) && err.contains("field 'rig.duration'"),
         "{err}"
     );
-    let bad = Edited::new("acoustic-rig.toml", "deadline = 0.8", "deadline = 2.0");
+    let bad = Edited::new("acoustic-rig.toml", "deadline = 0.0", "deadline = 2.0");
     let (code, _, err) = service(&["check", bad.path()]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("field 'proxy.deadline'"), "{err}");
+    // The halves must meet: a plant that latches its inputs at the sample instant needs a
+    // service that sends them ahead.
+    let bad = Edited::new(
+        "acoustic-rig.toml",
+        "timing = \"send-ahead\"",
+        "timing = \"answer-first\"",
+    );
+    let (code, _, err) = service(&["check", bad.path()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("field 'proxy.deadline'") && err.contains("only a service that sends ahead"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -16,6 +16,12 @@
 //!
 //! The step draws `n_u` normal numbers (ziggurat sampling of `rand_distr`): no allocation,
 //! no lock, bounded work.
+//!
+//! The inputs do not depend on the measurements, so the source answers ahead
+//! ([`crate::ahead`]): its ready input is the next draw of the stream, prepared when the
+//! previous one was given, and its plan the draws that follow (from a copy of the
+//! generator), exactly what it will give. The ahead cycle gives the inputs of `step`, in
+//! the same order.
 
 use crate::ParamError;
 use crate::controller::{Controller, OutputLimits, StepInput};
@@ -32,6 +38,9 @@ pub struct ExcitationSource {
     seed: u64,
     rng: ChaCha8Rng,
     limits: Option<OutputLimits>,
+    /// The ahead form's ready input (the next draw) and its status.
+    ready: Vec<f64>,
+    ready_status: u32,
 }
 
 /// The parameters of an [`ExcitationSource`].
@@ -115,13 +124,48 @@ impl ExcitationSource {
     /// Those of [`ExcitationParams::validate`].
     pub fn from_params(params: &ExcitationParams, counts: Dimensions) -> Result<Self, ParamError> {
         params.validate(counts)?;
-        Ok(Self {
+        let mut s = Self {
             counts,
             std: params.std.clone(),
             seed: params.seed,
             rng: ChaCha8Rng::seed_from_u64(params.seed),
             limits: params.limits.clone(),
-        })
+            ready: vec![0.0; params.std.len()],
+            ready_status: status::OK,
+        };
+        s.prepare_ready();
+        Ok(s)
+    }
+
+    /// The next `u.len()` inputs of the stream `rng` (standard deviations `std`, clipped to
+    /// `limits`) into `u`; the status bits.
+    fn draw(
+        std: &[f64],
+        limits: &Option<OutputLimits>,
+        rng: &mut ChaCha8Rng,
+        u: &mut [f64],
+    ) -> u32 {
+        for (v, s) in u.iter_mut().zip(std) {
+            let n: f64 = StandardNormal.sample(rng);
+            *v = s * n;
+        }
+        match limits {
+            Some(l) if l.apply(u) => status::SATURATED,
+            _ => status::OK,
+        }
+    }
+
+    /// The ready input: the next draw, read from a copy of the generator.
+    fn prepare_ready(&mut self) {
+        let mut rng = self.rng.clone();
+        self.ready_status = Self::draw(&self.std, &self.limits, &mut rng, &mut self.ready);
+    }
+}
+
+impl ExcitationParams {
+    /// True: the inputs do not depend on the measurements (module docs).
+    pub fn answers_ahead(&self) -> bool {
+        true
     }
 }
 
@@ -135,18 +179,52 @@ impl Controller for ExcitationSource {
     }
 
     fn step(&mut self, _input: &StepInput<'_>, u: &mut [f64]) -> u32 {
-        for (v, s) in u.iter_mut().zip(&self.std) {
-            let n: f64 = StandardNormal.sample(&mut self.rng);
-            *v = s * n;
-        }
-        match &self.limits {
-            Some(l) if l.apply(u) => status::SATURATED,
-            _ => status::OK,
-        }
+        Self::draw(&self.std, &self.limits, &mut self.rng, u)
     }
 
     fn reset(&mut self) {
         self.rng = ChaCha8Rng::seed_from_u64(self.seed);
+        self.prepare_ready();
+    }
+
+    fn ahead(&mut self) -> Option<&mut dyn crate::ahead::Ahead> {
+        Some(self)
+    }
+}
+
+impl crate::ahead::Ahead for ExcitationSource {
+    fn ready(&self, u: &mut [f64]) -> u32 {
+        for (d, s) in u.iter_mut().zip(&self.ready) {
+            *d = *s;
+        }
+        self.ready_status
+    }
+
+    fn advance(&mut self, _input: &StepInput<'_>, _applied: &[f64], _adapt: bool) -> u32 {
+        // The ready input was given: the stream moves past it, and the next is prepared.
+        for _ in 0..self.std.len() {
+            let _: f64 = StandardNormal.sample(&mut self.rng);
+        }
+        self.prepare_ready();
+        self.ready_status
+    }
+
+    fn plan(&mut self, out: &mut [f64]) -> usize {
+        let n_u = self.std.len().max(1);
+        let mut rng = self.rng.clone();
+        for _ in 0..self.std.len() {
+            let _: f64 = StandardNormal.sample(&mut rng);
+        }
+        let mut rows = 0;
+        for row in out.chunks_exact_mut(n_u) {
+            let _ = Self::draw(&self.std, &self.limits, &mut rng, row);
+            rows += 1;
+        }
+        rows
+    }
+
+    fn plan_source(&self) -> &'static str {
+        "the next draws of the generator: exact"
     }
 }
 
@@ -175,6 +253,52 @@ mod tests {
             r: &[],
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn the_ahead_form_gives_the_inputs_of_step_and_its_plan_is_exact() {
+        let lim = OutputLimits {
+            min: vec![-1.0, -1.0],
+            max: vec![1.0, 1.0],
+        };
+        let mut a = source(vec![2.0, 0.5], 3, Some(lim.clone())).unwrap();
+        let mut b = source(vec![2.0, 0.5], 3, Some(lim)).unwrap();
+        let input = zero_input();
+        let mut plan = [0.0; 2 * 5];
+        let mut planned: Vec<f64> = Vec::new();
+        for k in 0..200 {
+            let (mut ua, mut ub) = ([0.0; 2], [0.0; 2]);
+            let sb = b.step(&input, &mut ub);
+            let ahead = a.ahead().unwrap();
+            let sa = ahead.ready(&mut ua);
+            assert_eq!(
+                (ua.map(f64::to_bits), sa),
+                (ub.map(f64::to_bits), sb),
+                "k = {k}"
+            );
+            if k % 50 == 10 {
+                planned = ua.iter().copied().collect();
+                ahead.advance(&input, &ua, true);
+                assert_eq!(ahead.plan(&mut plan), 5);
+                planned.extend_from_slice(&plan);
+            } else {
+                ahead.advance(&input, &ua, true);
+            }
+            // The plan made at k = 10 (inputs for 11 … 15) comes true.
+            if (11..=15).contains(&(k % 50)) && k >= 11 {
+                let j = (k % 50 - 10) as usize;
+                let mut next = [0.0; 2];
+                let _ = b.clone().step(&input, &mut next);
+                assert_eq!(next.to_vec(), planned[2 * j..2 * j + 2].to_vec(), "k = {k}");
+            }
+        }
+        a.reset();
+        let (mut ua, mut fresh) = ([0.0; 2], [0.0; 2]);
+        a.ahead().unwrap().ready(&mut ua);
+        source(vec![2.0, 0.5], 3, None)
+            .unwrap()
+            .step(&input, &mut fresh);
+        assert_eq!(ua[1], fresh[1], "after a reset the stream starts again");
     }
 
     #[test]

@@ -988,7 +988,7 @@ conformance! {
     lti: Kind { build: lti, limits: LIMITS, observe: Observe::AsStep, ahead: false },
     lti_strictly_proper: Kind { build: lti_strictly_proper, limits: LIMITS, observe: Observe::AsStep, ahead: true },
     #[cfg(feature = "excitation")]
-    excitation: Kind { build: excitation, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    excitation: Kind { build: excitation, limits: LIMITS, observe: Observe::AsStep, ahead: true },
     rcac_rls: Kind { build: rcac_rls, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
     rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData, ahead: true },
     pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep, ahead: false },

@@ -3,10 +3,17 @@
 //!
 //! ```toml
 //! [service]
-//! timing = "auto"        # "compute-first", "answer-first", "send-ahead", or "auto": send
-//!                        # ahead when the controller can, else compute first
+//! timing = "send-ahead"  # "compute-first" (the default), "answer-first", "send-ahead",
+//!                        # or "auto": send ahead when the controller can, else compute first
 //! plan-length = 32       # plan entries per actuation (0 … 64; 0: no plan)
 //! ```
+//!
+//! The default is compute-first because the timing is part of the control law: RCAC's
+//! ahead form is (2.16) as written, `u_k = Φ_k θ_k`, whose update reaches the input one
+//! sample later than the compute-first `u_k = Φ_k θ_{k+1}`, and a large gradient step that
+//! is stable one way need not be the other. A deployment chooses the ahead timings on
+//! purpose, with the plant's deadline (a plant that latches its inputs at the sample
+//! instant needs send-ahead), as the main job's scenario does.
 //!
 //! A controller whose input for sample `k` needs `y_k` (an LTI controller with `D ≠ 0`,
 //! PCAC's same-step timing) has no ahead form ([`control::ahead`]) and can only answer
@@ -25,8 +32,8 @@ pub struct AnswerTiming {
     pub plan_length: usize,
 }
 
-/// Resolves `service.timing` (`None`: `"auto"`) and `service.plan-length` (`None`: 0)
-/// for `controller`.
+/// Resolves `service.timing` (`None`: `"compute-first"`) and `service.plan-length`
+/// (`None`: 0) for `controller`.
 pub(super) fn parse(
     timing: Option<&str>,
     plan_length: Option<u64>,
@@ -34,7 +41,7 @@ pub(super) fn parse(
     err: &ErrFn<'_>,
 ) -> Result<AnswerTiming, ConfigError> {
     let ahead = controller.answers_ahead();
-    let timing = match timing.unwrap_or("auto") {
+    let timing = match timing.unwrap_or("compute-first") {
         "auto" if ahead => Timing::SendAhead,
         "auto" => Timing::ComputeFirst,
         name => match Timing::from_name(name) {
@@ -104,15 +111,18 @@ mod tests {
     }
 
     #[test]
-    fn auto_sends_ahead_when_the_controller_can_and_computes_first_when_it_cannot() {
-        let ahead = parsed(NEXT_STEP);
-        assert_eq!((ahead.timing, ahead.plan_length), (Timing::SendAhead, 0));
-        let same = parsed(FEEDTHROUGH);
-        assert_eq!((same.timing, same.plan_length), (Timing::ComputeFirst, 0));
+    fn the_default_computes_first_and_auto_sends_ahead_when_the_controller_can() {
+        for text in [NEXT_STEP, FEEDTHROUGH] {
+            let d = parsed(text);
+            assert_eq!((d.timing, d.plan_length), (Timing::ComputeFirst, 0));
+        }
+        let auto = |text: &str| parsed(&with(text, "timing = \"auto\"")).timing;
+        assert_eq!(auto(NEXT_STEP), Timing::SendAhead);
+        assert_eq!(auto(FEEDTHROUGH), Timing::ComputeFirst);
         let same_step = NEXT_STEP.replace("timing = \"next-step\"", "timing = \"same-step\"");
-        assert_eq!(parsed(&same_step).timing, Timing::ComputeFirst);
+        assert_eq!(auto(&same_step), Timing::ComputeFirst);
         let no_d = FEEDTHROUGH.replace("d = [[-2.0]]", "d = [[0.0]]");
-        assert_eq!(parsed(&no_d).timing, Timing::SendAhead);
+        assert_eq!(auto(&no_d), Timing::SendAhead);
     }
 
     #[test]

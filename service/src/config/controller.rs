@@ -73,7 +73,7 @@ impl ControllerConfig {
     pub fn answers_ahead(&self) -> bool {
         match self {
             ControllerConfig::Lti { params } => params.answers_ahead(),
-            ControllerConfig::Excitation { .. } => false,
+            ControllerConfig::Excitation { params } => params.answers_ahead(),
             ControllerConfig::Rcac { params } => params.answers_ahead(),
             ControllerConfig::Pcac { params } => params.answers_ahead(),
         }
@@ -84,14 +84,11 @@ impl ControllerConfig {
         match self {
             _ if self.answers_ahead() => "",
             ControllerConfig::Lti { .. } => "its feedthrough D is not zero",
-            ControllerConfig::Excitation { .. } => {
-                "an excitation source draws each input as it goes"
-            }
             ControllerConfig::Pcac { .. } => {
                 "controller.timing = \"same-step\" chooses u_k from y_k; \"next-step\", the \
                  dissertation's timing, answers ahead"
             }
-            ControllerConfig::Rcac { .. } => "",
+            ControllerConfig::Rcac { .. } | ControllerConfig::Excitation { .. } => "",
         }
     }
 

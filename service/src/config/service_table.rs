@@ -38,7 +38,7 @@
 //! rms-settle = 2.0                # s after which the "settled" RMS of z starts
 //! open-loop = 1.0                 # s of each session run open loop (u = safe-input) before
 //!                                 # the controller acts; it observes those samples
-//! timing = "auto"                 # when the service answers; see the answer_timing module
+//! timing = "compute-first"        # when the service answers; see the answer_timing module
 //! plan-length = 0                 # inputs ahead per answer; see the answer_timing module
 //! [service.report]                # see the tone_report module
 //! [service.channels]              # optional; default from [plant]

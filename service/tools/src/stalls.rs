@@ -228,13 +228,19 @@ fn one_run(
     what: &str,
 ) -> Result<PathBuf, String> {
     let mut t = base.clone();
-    let table = |t: &mut toml::Table, name: &str| -> toml::Table {
+    let table = |t: &toml::Table, name: &str| -> toml::Table {
         t.get(name)
             .and_then(|v| v.as_table())
             .cloned()
             .unwrap_or_default()
     };
-    let mut service = table(&mut t, "service");
+    // A rig name of its own, so that the study runs beside a main job of the same rig.
+    let mut rig = table(&t, "rig");
+    let name = rig.get("name").and_then(|v| v.as_str()).unwrap_or("rig");
+    let name = format!("{name}-stalls-{}", std::process::id());
+    rig.insert("name".into(), name.into());
+    t.insert("rig".into(), rig.into());
+    let mut service = table(&t, "service");
     service.insert("timing".into(), case.timing.into());
     let plans = if case.late_policy == "plan" {
         plan_length
@@ -243,7 +249,7 @@ fn one_run(
     };
     service.insert("plan-length".into(), (plans as i64).into());
     t.insert("service".into(), service.into());
-    let mut proxy = table(&mut t, "proxy");
+    let mut proxy = table(&t, "proxy");
     proxy.insert("mode".into(), "lockstep".into());
     proxy.insert("late-policy".into(), case.late_policy.into());
     proxy.remove("plan-fallback");
