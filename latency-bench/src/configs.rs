@@ -123,10 +123,10 @@ pub fn loop_controller() -> StateSpace {
 /// A complete service configuration for rig `rig` at the 8 kHz period, with the LTI
 /// controller `controller`, answering compute-first; see [`service_toml_with`].
 ///
-/// The timing is written out because the service's default (`"auto"`) sends ahead for a
-/// controller without feedthrough, such as [`loop_controller`]: it would then publish
-/// `Actuation{seq k+1}` at sample `k`, and the round trip and the wake-up phase, which
-/// wait for the answer carrying `k`, would find one that went ahead a sample earlier.
+/// The timing is written out, not left to the service's default: the round trip and the
+/// wake-up phase wait for the answer carrying `k`, and a service that sent ahead (which
+/// [`loop_controller`], without feedthrough, can) would have published it a sample
+/// earlier, at sample `k − 1`.
 pub fn service_toml(rig: &str, channels: Channels, controller: &StateSpace, log: bool) -> String {
     service_toml_with(
         rig,
@@ -140,7 +140,7 @@ pub fn service_toml(rig: &str, channels: Channels, controller: &StateSpace, log:
 
 /// A complete service configuration for rig `rig` sampled every `period_ns` around the
 /// `[controller]` table `controller` (any kind, as text), answering with `timing`
-/// (`service.timing`; `None` leaves the key out, so the service takes `"auto"`).
+/// (`service.timing`; `None` leaves the key out, so the service takes its default).
 ///
 /// The wait mode and the RT core are not in the file: the bench passes them in
 /// `RunOptions`. `SCHED_FIFO` at [`crate::RT_PRIORITY`] and `mlockall` are requested but
