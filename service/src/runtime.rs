@@ -298,8 +298,8 @@ pub enum StopReason {
 }
 
 /// The pure per-sample logic of the RT loop, all buffers pre-allocated. The IPC glue
-/// around it only receives, calls [`LoopCore::process`] and [`LoopCore::finish_cycle`],
-/// and publishes.
+/// around it only receives and calls [`LoopCore::handle`] (or [`LoopCore::observe`] for a
+/// sample taken in too late), which publish through an [`Outbox`].
 ///
 /// It composes the policies, each a plain-data type with no I/O and no clock of its own:
 /// the [`MeasurementGate`] (which samples may reach the controller), the

@@ -277,7 +277,7 @@ mod tests {
                 "k = {k}"
             );
             if k % 50 == 10 {
-                planned = ua.iter().copied().collect();
+                planned = ua.to_vec();
                 ahead.advance(&input, &ua, true);
                 assert_eq!(ahead.plan(&mut plan), 5);
                 planned.extend_from_slice(&plan);

@@ -22,7 +22,7 @@ struct Slot {
     u: [f64; MAX_U],
 }
 
-/// The last [`SLOTS`] inputs the service published and the newest actuation whole (for its
+/// The last eight inputs the service published and the newest actuation whole (for its
 /// plan); see the module docs.
 #[derive(Debug, Clone)]
 pub struct SentLog {
