@@ -852,6 +852,17 @@ impl LoopCore {
         self.prepared.plan_len = len as u32;
     }
 
+    /// An ahead controller takes the sample of an answer of `mode` in: not a rejected one
+    /// (the controller never sees it), without adaptation in the safe state and the
+    /// open-loop phase. Returns the time it took.
+    fn take_in(&mut self, mode: Mode, input: &StepInput<'_>, applied: &[f64]) -> u64 {
+        match mode {
+            Mode::Rejected => 0,
+            Mode::Safe(_) => self.advance(input, applied, false),
+            Mode::Control => self.advance(input, applied, true),
+        }
+    }
+
     /// Counts a controller step and its status bits.
     fn count_status(&mut self, wire: u32) {
         self.stats.controller_steps += 1;
@@ -1054,11 +1065,7 @@ impl LoopCore {
         let (ok, t_pub) = self.send(out, true);
         let answered = self.outgoing.status;
         let applied = self.outgoing.u;
-        let compute_ns = match mode {
-            Mode::Rejected => 0,
-            Mode::Safe(_) => self.advance(input, &applied[..n_u], false),
-            Mode::Control => self.advance(input, &applied[..n_u], true),
-        };
+        let compute_ns = self.take_in(mode, input, &applied[..n_u]);
         Published {
             ok,
             t_pub,
@@ -1086,11 +1093,7 @@ impl LoopCore {
         let mut applied = [0.0; MAX_U];
         self.sent
             .expected_input(m.seq, &self.safe_input[..n_u], &mut applied[..n_u]);
-        let compute_ns = match mode {
-            Mode::Rejected => 0,
-            Mode::Safe(_) => self.advance(input, &applied[..n_u], false),
-            Mode::Control => self.advance(input, &applied[..n_u], true),
-        };
+        let compute_ns = self.take_in(mode, input, &applied[..n_u]);
         header(
             &mut self.outgoing,
             m.seq.wrapping_add(1),
