@@ -8,6 +8,8 @@
 //! The two-process tests run the built `latency-bench` binary; they take the bench's cores
 //! one at a time (a lock), and none asserts a timing.
 
+mod common;
+use common::test_dir;
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
 use latency_bench::child::{ChildProc, drive};
@@ -25,22 +27,6 @@ const BENCH: &str = env!("CARGO_BIN_EXE_latency-bench");
 
 fn counts() -> ChannelCounts {
     ChannelCounts::new(1, 1, 0, 1).expect("within capacity")
-}
-
-/// A fresh folder for one test under the target directory.
-fn test_dir(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable");
-    let target = exe
-        .ancestors()
-        .nth(3)
-        .expect("target/<profile>/deps/<test>")
-        .to_path_buf();
-    let dir = target
-        .join("test-runs")
-        .join(format!("bench-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("creating the test folder");
-    dir
 }
 
 /// A unique rig name for one test.

@@ -4,6 +4,8 @@
 //! the rounds' own histograms, and the answer-first row carries its ratio to compute-first.
 //! No timing is asserted.
 
+mod common;
+use common::test_dir;
 use latency_bench::cli::{Cli, Settings};
 use latency_bench::configs::timing_cases;
 use latency_bench::timing_phase::{TIMINGS, case_rows, run_case};
@@ -11,22 +13,6 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 const BENCH: &str = env!("CARGO_BIN_EXE_latency-bench");
-
-/// A fresh folder for one test under the target directory.
-fn test_dir(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable");
-    let target = exe
-        .ancestors()
-        .nth(3)
-        .expect("target/<profile>/deps/<test>")
-        .to_path_buf();
-    let dir = target
-        .join("test-runs")
-        .join(format!("bench-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("creating the test folder");
-    dir
-}
 
 #[test]
 fn a_controller_runs_with_both_timings_and_each_service_reports_its_own() {

@@ -418,6 +418,34 @@ fn closed_loop(c: &mut dyn Controller, plant: &mut Plant, steps: usize) -> Vec<S
     samples
 }
 
+/// The bad measurement values the properties feed a controller.
+const BAD_VALUES: [f64; 6] = [
+    f64::NAN,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    1e300,
+    -1e300,
+    1e150,
+];
+
+/// `(y, z, r)` with the bad value `v` in every signal (`everywhere`), or in `y` only with
+/// good `z` and `r`.
+fn bad_signals(counts: Dimensions, v: f64, everywhere: bool) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    if everywhere {
+        (
+            vec![v; counts.n_y],
+            vec![v; counts.n_z],
+            vec![v; counts.n_r],
+        )
+    } else {
+        (
+            vec![v; counts.n_y],
+            vec![0.1; counts.n_z],
+            vec![0.0; counts.n_r],
+        )
+    }
+}
+
 /// The signals of sample `seq`, answered on time: no sample lost, no applied input
 /// reported.
 fn on_time<'a>(seq: u64, y: &'a [f64], z: &'a [f64], r: &'a [f64]) -> StepInput<'a> {
@@ -465,28 +493,12 @@ fn bad_measurements_leave_u_finite(kind: &Kind) {
     let mut plant = Plant::new(counts, 1);
     closed_loop(c.as_mut(), &mut plant, 150);
     let mut u = vec![0.0; counts.n_u];
-    let bad = [
-        f64::NAN,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        1e300,
-        -1e300,
-        1e150,
-    ];
+    let bad = BAD_VALUES;
     let mut seq = plant.k;
     // Each bad value alone, in every signal at once, then in `y` only with good `z` and `r`.
     for (round, &v) in bad.iter().chain(&bad).enumerate() {
-        let (y, z, r) = (
-            vec![v; counts.n_y],
-            vec![v; counts.n_z],
-            vec![v; counts.n_r],
-        );
-        let (zz, rr) = (vec![0.1; counts.n_z], vec![0.0; counts.n_r]);
-        let input = if round < bad.len() {
-            on_time(seq, &y, &z, &r)
-        } else {
-            on_time(seq, &y, &zz, &rr)
-        };
+        let (y, z, r) = bad_signals(counts, v, round < bad.len());
+        let input = on_time(seq, &y, &z, &r);
         c.step(&input, &mut u);
         assert_admissible(kind, &u, &format!("after y = {v}"));
         seq += 1;
@@ -780,27 +792,11 @@ fn bad_measurements_leave_the_ready_input_and_the_plan_finite(kind: &Kind) {
             assert_admissible(kind, row, &format!("plan row {j} after {what}"));
         }
     };
-    let bad = [
-        f64::NAN,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        1e300,
-        -1e300,
-        1e150,
-    ];
+    let bad = BAD_VALUES;
     let mut seq = plant.k;
     for (round, &v) in bad.iter().chain(&bad).enumerate() {
-        let (y, z, r) = (
-            vec![v; counts.n_y],
-            vec![v; counts.n_z],
-            vec![v; counts.n_r],
-        );
-        let (zz, rr) = (vec![0.1; counts.n_z], vec![0.0; counts.n_r]);
-        let input = if round < bad.len() {
-            on_time(seq, &y, &z, &r)
-        } else {
-            on_time(seq, &y, &zz, &rr)
-        };
+        let (y, z, r) = bad_signals(counts, v, round < bad.len());
+        let input = on_time(seq, &y, &z, &r);
         let (_, _, rows) = ahead_cycle(c.as_mut(), &input, true, &mut u, &mut plan);
         assert_admissible(kind, &u, &format!("the input applied with y = {v}"));
         check(c.as_mut(), &plan, rows, &format!("y = {v}"));
