@@ -12,28 +12,22 @@
 //! - [`scenario`]: the plant part of a scenario TOML file, validated into typed parameters.
 //! - [`truss`]: the planar truss of chapter 6 (pinned members, (6.2)), assembled into a
 //!   modal plant at load time (`kind = "truss"`).
-//! - [`runtime`]: the plant process: real-time (paced on `CLOCK_MONOTONIC`) and lockstep modes,
-//!   deadline handling, watchdog, fault injection.
+//! - [`runtime`]: the plant process: the simulation as the I/O device of the plant side.
 //! - [`proxy_config`]: the `[proxy]` table, validated into [`proxy_config::ProxyConfig`].
-//! - [`actuation_book`]: which input the plant applies for each sample: the actuations
-//!   received ahead of their sample, late and invalid ones refused, the newest plan; pure and
-//!   allocation-free, for any plant side (a DAQ process as well as this one).
-//! - [`late_policy`]: what a miss applies (`hold`, `safe`, or the newest plan's entry).
-//! - [`sample_clock`]: the real-time sample clock, and what it does when the plant itself
-//!   wakes more than a period late (`slip` or `catch-up`).
 //! - [`faults`]: the faults the plant injects on purpose (bad measurements, stalls).
-//! - [`plant_report`]: the run's counters (`plant-report.json`, the `done:` line).
+//!
+//! The plant side of the contract itself (clock, deadlines, the actuation book, the late
+//! policy, the watchdog, the report) is the `plant-side` crate, which a DAQ process uses
+//! the same way; its modules are re-exported here under their old names.
 
 #![warn(missing_docs)]
 
-pub mod actuation_book;
 pub mod faults;
-pub mod late_policy;
 pub mod lti;
-pub mod plant_report;
 pub mod proxy_config;
 pub mod runtime;
-pub mod sample_clock;
 pub mod scenario;
 pub mod sim;
 pub mod truss;
+
+pub use plant_side::{actuation_book, late_policy, plant_report, sample_clock};

@@ -26,33 +26,13 @@
 //! plant will run in: [`ProxyConfig::parse_with_mode`] takes the command line's `--mode`.
 
 use crate::faults::Faults;
-use crate::late_policy::{LatePolicy, MissPolicy, PlanFallback};
-use crate::sample_clock::Overrun;
 use ipc_types::ports::Applies;
 use ipc_types::rt::RtRequest;
+pub use plant_side::policy::Mode;
+use plant_side::{LatePolicy, Overrun, PlanFallback, PlantPolicy, late_policy::MissPolicy};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::time::Duration;
-
-/// How the plant paces itself.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Mode {
-    /// Paced on `CLOCK_MONOTONIC` at the sample period.
-    RealTime,
-    /// Advance when the service has answered each measurement.
-    Lockstep,
-}
-
-impl Mode {
-    /// The name used in the configuration (`"real-time"`, `"lockstep"`).
-    pub const fn name(self) -> &'static str {
-        match self {
-            Mode::RealTime => "real-time",
-            Mode::Lockstep => "lockstep",
-        }
-    }
-}
 
 /// When a new input takes effect inside the period.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -238,28 +218,36 @@ impl ProxyConfig {
         Ok(())
     }
 
+    /// The plant side's policy: everything of the table but the simulation's own
+    /// (`intersample`, `faults`).
+    pub fn policy(&self) -> PlantPolicy {
+        PlantPolicy {
+            mode: self.mode,
+            deadline: self.deadline,
+            late_policy: self.late_policy,
+            plan_fallback: self.plan_fallback,
+            overrun: self.overrun,
+            safe_input: self.safe_input.clone(),
+            watchdog_periods: self.watchdog_periods,
+            lockstep_timeout: self.lockstep_timeout,
+            peer_timeout: self.peer_timeout,
+            rt: self.rt,
+        }
+    }
+
     /// The policy of a miss.
     pub const fn miss_policy(&self) -> MissPolicy {
         MissPolicy::new(self.late_policy, self.plan_fallback)
     }
 
-    /// When the plant applies an input, as it states at connect: at the sample instant (real
-    /// time, deadline 0), at a deadline inside the period (real time, deadline > 0), or in
-    /// lockstep.
+    /// When the plant applies an input, as it states at connect ([`PlantPolicy::applies`]).
     pub fn applies(&self) -> Applies {
-        match self.mode {
-            Mode::Lockstep => Applies::Lockstep,
-            Mode::RealTime if self.deadline == 0.0 => Applies::AtSample,
-            Mode::RealTime => Applies::AtDeadline,
-        }
+        self.policy().applies()
     }
 
-    /// The late policy in words: `"hold"`, `"safe"`, or `"plan (else hold)"`.
+    /// The late policy in words ([`PlantPolicy::describe_late_policy`]).
     pub fn describe_late_policy(&self) -> String {
-        match self.late_policy {
-            LatePolicy::Plan => format!("plan (else {})", self.plan_fallback.name()),
-            p => p.name().to_string(),
-        }
+        self.policy().describe_late_policy()
     }
 }
 

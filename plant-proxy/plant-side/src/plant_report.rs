@@ -78,7 +78,7 @@ pub struct PlantReport {
     /// Wall time of the run, s.
     pub wall_time_s: f64,
     /// Set when the lockstep plant gave up
-    /// ([`PlantError::GaveUp`](crate::runtime::PlantError::GaveUp)): why. `None` for a run
+    /// ([`PlantError::GaveUp`](crate::PlantError::GaveUp)): why. `None` for a run
     /// that ended at its last sample or on a signal.
     pub gave_up: Option<String>,
 }

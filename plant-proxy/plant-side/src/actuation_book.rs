@@ -29,8 +29,8 @@
 //!
 //! ```
 //! use ipc_types::{Actuation, ChannelCounts, Timing};
-//! use plant_proxy::actuation_book::{ActuationBook, Decision, Offer};
-//! use plant_proxy::late_policy::{MissPolicy, PlanFallback};
+//! use plant_side::actuation_book::{ActuationBook, Decision, Offer};
+//! use plant_side::late_policy::{MissPolicy, PlanFallback};
 //!
 //! let counts = ChannelCounts::new(1, 1, 0, 1).unwrap();
 //! let mut book = ActuationBook::<4>::new(1, MissPolicy::Plan(PlanFallback::Hold));
