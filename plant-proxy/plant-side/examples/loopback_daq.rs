@@ -2,11 +2,12 @@
 //! as a plant of the contract.
 //!
 //! ```text
-//! cargo run --release -p plant-side --example loopback_daq -- RIG [STEPS] [lockstep|real-time] [PERIOD_US]
+//! cargo run --release -p plant-side --example loopback_daq -- RIG [STEPS] [lockstep|real-time] [PERIOD_US] [INITIAL]
 //! ```
 //!
 //! The device has one input and one output: `y_k = z_k = u_{k−1}`, the value its DAC held
-//! over the previous period, read back by its ADC at the sample instant. A real driver puts
+//! over the previous period, read back by its ADC at the sample instant; the DAC starts at
+//! `INITIAL` (default 0). A real driver puts
 //! its own calls where this one reads and writes `dac`: read the ADC channels in
 //! [`PlantIo::read`], write the DAC in [`PlantIo::apply`], engage a hardware safe state in
 //! [`PlantIo::apply_safe`]. Everything else (the clock, the contract, deadlines, late
@@ -41,7 +42,7 @@ impl PlantIo for Loopback {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(rig) = args.first() else {
-        eprintln!("usage: loopback_daq RIG [STEPS] [lockstep|real-time] [PERIOD_US]");
+        eprintln!("usage: loopback_daq RIG [STEPS] [lockstep|real-time] [PERIOD_US] [INITIAL]");
         return ExitCode::from(2);
     };
     let parse = |i: usize, default: u64, what: &str| -> Result<u64, String> {
@@ -61,6 +62,17 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let initial = match args.get(4).map(|s| s.parse::<f64>()) {
+        None => 0.0,
+        Some(Ok(v)) if v.is_finite() => v,
+        Some(_) => {
+            eprintln!(
+                "loopback_daq: INITIAL: '{}' is not a finite number",
+                args[4]
+            );
+            return ExitCode::from(2);
+        }
+    };
     let mut policy = PlantPolicy::new(1);
     policy.mode = match args.get(2).map(String::as_str) {
         None | Some("lockstep") => Mode::Lockstep,
@@ -75,7 +87,7 @@ fn main() -> ExitCode {
     opts.verbose = true;
     let result =
         PlantSide::connect(rig, counts, period_us * 1000, policy, opts).and_then(|mut side| {
-            plant_side::run(&mut side, &mut Loopback { dac: 0.0 }, steps, None)?;
+            plant_side::run(&mut side, &mut Loopback { dac: initial }, steps, None)?;
             Ok(side.finish())
         });
     match result {
