@@ -17,6 +17,9 @@ const STEPS: u64 = 2000;
 /// The largest difference allowed between a Python loop and the all-Rust loop.
 const TOL: f64 = 1e-12;
 
+/// A CSV file read by `read_csv`: its header and rows.
+type Csv = (Vec<String>, Vec<Vec<f64>>);
+
 /// `scenarios/first-order-lockstep.toml` on rig `rig`, with the test service tables and the
 /// static-gain controller u = −2 y, written into `dir` as `file`.
 fn first_order_scenario(dir: &TestDir, rig: &str, file: &str) -> PathBuf {
@@ -27,10 +30,7 @@ fn first_order_scenario(dir: &TestDir, rig: &str, file: &str) -> PathBuf {
 
 /// The all-Rust loop: plant-proxy (lockstep, `--trace`) against the service; returns the
 /// plant's trace and the service's signals.csv, as (header, rows) each.
-fn all_rust_loop(
-    dir: &TestDir,
-    rig: &str,
-) -> ((Vec<String>, Vec<Vec<f64>>), (Vec<String>, Vec<Vec<f64>>)) {
+fn all_rust_loop(dir: &TestDir, rig: &str) -> (Csv, Csv) {
     let sc = first_order_scenario(dir, rig, "rust-scenario.toml");
     let trace = dir.path.join("rust-trace.csv");
     let run = run_lockstep_pair_into(
@@ -48,12 +48,7 @@ fn all_rust_loop(
 
 /// Compares column `name` of two CSV tables row by row to `TOL` (`exact`: bit for bit),
 /// naming the files, the column and the first row that differs.
-fn compare_column(
-    (what_a, a): (&str, &(Vec<String>, Vec<Vec<f64>>)),
-    (what_b, b): (&str, &(Vec<String>, Vec<Vec<f64>>)),
-    name: &str,
-    exact: bool,
-) {
+fn compare_column((what_a, a): (&str, &Csv), (what_b, b): (&str, &Csv), name: &str, exact: bool) {
     let (ca, cb) = (column(&a.0, name), column(&b.0, name));
     assert_eq!(a.1.len(), b.1.len(), "rows of {what_a} and {what_b}");
     for (i, (ra, rb)) in a.1.iter().zip(&b.1).enumerate() {

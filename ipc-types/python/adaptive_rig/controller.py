@@ -58,6 +58,8 @@ class Controller:
         self.answered = 0
         self.stall_acks = 0
         self.new_plants = 0
+        #: Response time of every answer, ns: its publish time minus the sample time.
+        self.responses_ns = []
 
     def answer(self, m, u, status: int = actuation_status.OK, compute_ns: int = 0) -> None:
         """Publishes the actuation answering measurement ``m`` with input ``u`` and notifies."""
@@ -72,6 +74,14 @@ class Controller:
         a.u[:n_u] = [float(v) for v in u[:n_u]]
         a.t_publish_ns = _now_ns()
         self.ports.send(a)
+        self.responses_ns.append(a.t_publish_ns - m.t_sample_ns)
+
+    def response_percentiles(self, *ps) -> list:
+        """The given percentiles (0-100) of the response times so far, ns (nearest rank)."""
+        r = sorted(self.responses_ns)
+        if not r:
+            return [None for _ in ps]
+        return [r[min(len(r) - 1, max(0, -(-p * len(r) // 100) - 1))] for p in ps]
 
     def acknowledge_stall(self, m) -> None:
         """Acknowledges a sample flagged ``INJECTED_STALL`` without answering it."""

@@ -43,9 +43,11 @@ def main() -> int:
         return 1
     print("[python controller] connected", file=sys.stderr, flush=True)
     n = ctl.serve(lambda m: [d * m.y[0]] * counts.n_u)
+    p50, p99 = ctl.response_percentiles(50, 99)
     print(
         f"[python controller] done: {n} answered, {ctl.stall_acks} stall(s) acknowledged, "
-        f"{ctl.ports.foreign_samples} foreign sample(s) refused",
+        f"{ctl.ports.foreign_samples} foreign sample(s) refused; response time "
+        f"(publish - sample) p50 {p50} ns, p99 {p99} ns",
         file=sys.stderr,
         flush=True,
     )
