@@ -430,6 +430,116 @@ fn a_plant_with_another_measurement_count_is_refused_with_the_texts_of_plant_pro
 }
 
 #[test]
+fn a_plant_differing_in_every_respect_is_refused_with_every_difference_as_a_rust_plant() {
+    let dir = TestDir::new("py-every");
+    let (py_rig, rust_rig) = (rig_name("py-every"), rig_name("rust-every"));
+    // Version 2, two measurement channels, a 2 ms period, inputs applied at the sample
+    // instant (real time, deadline 0) against a compute-first service of 1 ms.
+    let (py_plant, py_service) = refused_by_the_service(
+        &dir,
+        &py_rig,
+        &first_order_scenario(&dir, &py_rig, "py.toml"),
+        || {
+            start_example(
+                "python plant",
+                "first_order_plant.py",
+                &[
+                    "--rig",
+                    &py_rig,
+                    "--contract-version",
+                    "2",
+                    "--n-y",
+                    "2",
+                    "--period",
+                    "0.002",
+                    "--mode",
+                    "real-time",
+                    "--deadline",
+                    "0",
+                ],
+            )
+        },
+        "python plant: ",
+    );
+    let (rust_plant, rust_service) = refused_by_the_service(
+        &dir,
+        &rust_rig,
+        &first_order_scenario(&dir, &rust_rig, "rust.toml"),
+        || {
+            Proc::start(
+                "rust plant",
+                &bin("contract_plant"),
+                &[
+                    &rust_rig,
+                    "--contract-version",
+                    "2",
+                    "--n-y",
+                    "2",
+                    "--period-ns",
+                    "2000000",
+                    "--at-sample",
+                ],
+            )
+        },
+        "contract_plant: ",
+    );
+    assert_eq!(
+        py_plant,
+        "contract mismatch on 'adaptive-rig/<rig>/actuation' (defined by the service), \
+         refusing to connect:\n  - contract version: service has 3, plant has 2\n  - \
+         measurement channels (y): service uses 1, plant uses 2\n  - sample period: service \
+         runs at 1000000 ns (1000.000 Hz), plant at 2000000 ns (500.000 Hz)\n  - timing: the \
+         plant applies each input at its sample instant (its deadline is 0), which only a \
+         service that sends ahead can meet; the service answers compute-first (set \
+         service.timing = \"send-ahead\", or give the plant a deadline inside the period)"
+    );
+    assert_eq!(py_plant, rust_plant, "the plant's refusal, Python vs Rust");
+    assert_eq!(
+        py_service, rust_service,
+        "the service's refusal of a Python vs a Rust plant"
+    );
+    assert_eq!(py_service.lines().count(), 5, "{py_service}");
+}
+
+/// `text` with the number of seconds after "within " replaced by `<s>`.
+fn without_seconds(text: &str) -> String {
+    match (text.find("within "), text.find(" s (")) {
+        (Some(a), Some(b)) if a < b => format!("{}<s>{}", &text[..a + 7], &text[b..]),
+        _ => text.to_string(),
+    }
+}
+
+#[test]
+fn a_plant_without_a_service_times_out_with_the_text_of_a_rust_plant() {
+    let (py_rig, rust_rig) = (rig_name("py-alone"), rig_name("rust-alone"));
+    let py = start_example(
+        "python plant",
+        "first_order_plant.py",
+        &["--rig", &py_rig, "--peer-timeout", "0.3"],
+    )
+    .wait_failure(Duration::from_secs(60));
+    let rust = Proc::start(
+        "rust plant",
+        &bin("contract_plant"),
+        &[&rust_rig, "--peer-timeout", "0.3"],
+    )
+    .wait_failure(Duration::from_secs(60));
+    let py = without_seconds(&message("the Python plant", &py, "python plant: ", &py_rig));
+    let rust = without_seconds(&message(
+        "the Rust plant",
+        &rust,
+        "contract_plant: ",
+        &rust_rig,
+    ));
+    assert_eq!(
+        py,
+        "no peer: 'adaptive-rig/<rig>/actuation' did not appear within <s> s (is the other \
+         process running with the same rig name?)"
+    );
+    assert_eq!(py, rust, "the timeout, Python vs Rust");
+}
+
+#[test]
 fn a_second_plant_is_refused_naming_the_first_in_python_as_in_rust() {
     let dir = TestDir::new("py-second");
     let rig = rig_name("py-second");

@@ -35,6 +35,7 @@ def main() -> int:
     ap.add_argument("--n-r", type=int, default=0)
     ap.add_argument("--n-u", type=int, default=1)
     ap.add_argument("--mode", default="lockstep", choices=["lockstep", "real-time"])
+    ap.add_argument("--deadline", type=float, default=0.5, help="real time: input applied at t_k + dT")
     ap.add_argument("--peer-timeout", type=float, default=30.0, help="s")
     ap.add_argument("--contract-version", type=int, default=None, help="state another version (tests)")
     ap.add_argument("--trace", default=None)
@@ -52,6 +53,7 @@ def main() -> int:
             counts,
             period_ns,
             mode=args.mode,
+            deadline=args.deadline,
             peer_timeout_s=args.peer_timeout,
             contract_version=args.contract_version,
         )

@@ -2,15 +2,16 @@
 //! cross-language refusal tests (`tests/tests/python_peers.rs`).
 //!
 //! ```text
-//! contract_plant <rig> [--contract-version V] [--n-y N] [--peer-timeout S]
+//! contract_plant <rig> [--contract-version V] [--n-y N] [--period-ns P] [--at-sample] [--peer-timeout S]
 //! ```
 //!
 //! It connects to rig `<rig>` as the plant with `ipc_types::ports::connect` (the code path
-//! of plant-proxy, node name `adaptive-rig-plant`), in lockstep, one `z`, no `r`, one `u`,
-//! `N` measurement channels (1 by default), a period of 1 ms, stating contract version `V`
-//! (this build's by default). A refused connection prints `contract_plant: <the
-//! ConnectError>` and exits with 1; a connection made prints `contract_plant: connected`
-//! and exits with 0. Exit status 2: bad arguments.
+//! of plant-proxy, node name `adaptive-rig-plant`), one `z`, no `r`, one `u`, `N`
+//! measurement channels (1 by default), a period of `P` ns (1 ms by default), stating
+//! contract version `V` (this build's by default) and inputs applied in lockstep (with
+//! `--at-sample`: at the sample instant, as a real-time plant with deadline 0). A refused
+//! connection prints `contract_plant: <the ConnectError>` and exits with 1; a connection
+//! made prints `contract_plant: connected` and exits with 0. Exit status 2: bad arguments.
 
 use ipc_types::ports::{Applies, ConnectOptions, ContractInfo, PlantPorts, Side};
 use ipc_types::{CONTRACT_VERSION, ChannelCounts};
@@ -32,7 +33,8 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(rig) = args.first().cloned() else {
         eprintln!(
-            "usage: contract_plant <rig> [--contract-version V] [--n-y N] [--peer-timeout S]"
+            "usage: contract_plant <rig> [--contract-version V] [--n-y N] [--period-ns P] \
+             [--at-sample] [--peer-timeout S]"
         );
         return ExitCode::from(2);
     };
@@ -40,10 +42,11 @@ fn main() -> ExitCode {
         Ok::<_, String>((
             option(&args, "--contract-version", CONTRACT_VERSION)?,
             option(&args, "--n-y", 1usize)?,
+            option(&args, "--period-ns", 1_000_000u64)?,
             option(&args, "--peer-timeout", 30.0f64)?,
         ))
     })();
-    let (version, n_y, timeout) = match parsed {
+    let (version, n_y, period_ns, timeout) = match parsed {
         Ok(p) => p,
         Err(e) => {
             eprintln!("contract_plant: {e}");
@@ -57,7 +60,12 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let mut own = ContractInfo::new(Side::Plant, counts, 1_000_000).with_applies(Applies::Lockstep);
+    let applies = if args.iter().any(|a| a == "--at-sample") {
+        Applies::AtSample
+    } else {
+        Applies::Lockstep
+    };
+    let mut own = ContractInfo::new(Side::Plant, counts, period_ns).with_applies(applies);
     own.version = version;
     let opts = ConnectOptions::new(Duration::from_secs_f64(timeout))
         .with_listener(true)
