@@ -163,6 +163,28 @@ fn the_python_payloads_have_the_layout_and_type_names_of_the_rust_structs() {
 }
 
 #[test]
+fn the_python_unit_tests_pass() {
+    // ipc-types/python/tests: the peer pin, the actuation book, counts and refusal texts.
+    let dir = rig_tests::python::package_dir().join("tests");
+    let out = command(&[
+        "-m",
+        "unittest",
+        "discover",
+        "-v",
+        "-s",
+        dir.to_str().unwrap(),
+    ])
+    .output()
+    .expect("running python -m unittest");
+    assert!(
+        out.status.success(),
+        "python -m unittest discover -s {}:\n{}",
+        dir.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
 fn a_python_plant_against_the_service_matches_the_all_rust_loop() {
     let dir = TestDir::new("py-plant");
     let (rust_trace, rust_signals) = all_rust_loop(&dir, &rig_name("py-plant-rust"));
