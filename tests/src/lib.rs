@@ -7,6 +7,7 @@
 //! and give every test its own rig name so that they can run in parallel.
 
 pub mod full_disk;
+pub mod python;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -120,13 +121,25 @@ pub struct Proc {
 impl Proc {
     /// Starts `program args…` with stdout and stderr captured.
     pub fn start(name: &str, program: &Path, args: &[&str]) -> Self {
-        let mut child = Command::new(program)
-            .args(args)
+        let mut command = Command::new(program);
+        command.args(args);
+        Self::spawn(name, command)
+    }
+
+    /// Starts `command` (its program, arguments and environment as set) with stdin empty
+    /// and stdout and stderr captured.
+    pub fn spawn(name: &str, mut command: Command) -> Self {
+        let mut child = command
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .unwrap_or_else(|e| panic!("starting {}: {e}", program.display()));
+            .unwrap_or_else(|e| {
+                panic!(
+                    "starting {} ({name}): {e}",
+                    command.get_program().to_string_lossy()
+                )
+            });
         let lines = Arc::new(Mutex::new(Vec::new()));
         let (tx, rx) = channel();
         for stream in [

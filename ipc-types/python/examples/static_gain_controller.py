@@ -1,0 +1,58 @@
+"""The static-gain controller of ``tests/fixtures/static-gain-controller.toml`` on the service
+side of the contract: ``u_k = -K y_k`` with K = 2 (an LTI controller with no state and
+D = [[-K]]: u = D y), answered compute-first.
+
+    python static_gain_controller.py --rig first-order-lockstep
+
+A refused connection prints ``python controller: <reason>`` and exits with 1. It stops
+after the plant's last sample and prints how many samples it answered.
+"""
+
+import argparse
+import sys
+
+from adaptive_rig import ChannelCounts, ConnectError
+from adaptive_rig.controller import Controller
+
+
+def main() -> int:
+    """Runs the controller; returns the exit status."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rig", required=True)
+    ap.add_argument("--gain", type=float, default=2.0, help="K of u = -K y")
+    ap.add_argument("--period", type=float, default=0.001, help="sample period T, s")
+    ap.add_argument("--n-y", type=int, default=1)
+    ap.add_argument("--n-z", type=int, default=1)
+    ap.add_argument("--n-r", type=int, default=0)
+    ap.add_argument("--n-u", type=int, default=1)
+    ap.add_argument("--peer-timeout", type=float, default=30.0, help="s")
+    ap.add_argument("--contract-version", type=int, default=None, help="state another version (tests)")
+    args = ap.parse_args()
+    d = -args.gain
+    try:
+        counts = ChannelCounts.new(args.n_y, args.n_z, args.n_r, args.n_u)
+        ctl = Controller(
+            args.rig,
+            counts,
+            round(args.period * 1e9),
+            peer_timeout_s=args.peer_timeout,
+            contract_version=args.contract_version,
+        )
+    except (ConnectError, ValueError) as e:
+        print(f"python controller: {e}", file=sys.stderr, flush=True)
+        return 1
+    print("[python controller] connected", file=sys.stderr, flush=True)
+    n = ctl.serve(lambda m: [d * m.y[0]] * counts.n_u)
+    p50, p99 = ctl.response_percentiles(50, 99)
+    print(
+        f"[python controller] done: {n} answered, {ctl.stall_acks} stall(s) acknowledged, "
+        f"{ctl.ports.foreign_samples} foreign sample(s) refused; response time "
+        f"(publish - sample) p50 {p50} ns, p99 {p99} ns",
+        file=sys.stderr,
+        flush=True,
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
