@@ -308,6 +308,85 @@ fn plant_proxy_against_the_python_controller_matches_the_all_rust_loop() {
     assert_eq!(r["foreign_discarded"], 0, "{r}");
 }
 
+#[test]
+fn plant_proxy_against_a_send_ahead_python_controller_matches_the_send_ahead_service() {
+    // The delayed gain u_{k+1} = −2 y_k, sent ahead: by the service (an LTI controller with
+    // D = 0, service.timing = "send-ahead") and by the Python controller (--send-ahead).
+    let dir = TestDir::new("py-send-ahead");
+    let scenario = |rig: &str, file: &str| {
+        let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), rig)
+            + &test_service_tables(
+                "timing = \"send-ahead\"\n",
+                &fixture("delayed-gain-controller.toml"),
+            );
+        dir.write(file, &text)
+    };
+    let rust_trace = dir.path.join("rust-trace.csv");
+    run_lockstep_pair_into(
+        &dir,
+        "rust-run",
+        &scenario(&rig_name("py-sa-rust"), "rust-scenario.toml"),
+        STEPS,
+        &["--trace", rust_trace.to_str().unwrap()],
+        &[],
+    );
+
+    let rig = rig_name("py-sa");
+    let sc = scenario(&rig, "py-scenario.toml");
+    let (trace, report) = (dir.path.join("trace.csv"), dir.path.join("report.json"));
+    let mut controller = start_example(
+        "python controller",
+        "static_gain_controller.py",
+        &["--rig", &rig, "--send-ahead"],
+    );
+    let mut plant = start_lockstep_plant(
+        "plant",
+        &sc,
+        STEPS,
+        &[
+            "--trace",
+            trace.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    plant.wait_success(Duration::from_secs(300));
+    controller.wait_success(Duration::from_secs(60));
+
+    let py = read_csv(&trace);
+    let rust = read_csv(&rust_trace);
+    let a = (
+        "plant-proxy's trace with the send-ahead Python controller",
+        &py,
+    );
+    let b = ("plant-proxy's trace with the send-ahead service", &rust);
+    for (c, exact) in [
+        ("k", true),
+        ("t", true),
+        ("flags", true),
+        ("y0", false),
+        ("z0", false),
+        ("u0", false),
+    ] {
+        compare_column(a, b, c, exact);
+    }
+    // The loop really ran ahead: u_k = −2 y_{k−1} was applied at every sample but the first
+    // (answered with the initial input 0, as the service answers it from x_0 = 0).
+    let (iy, iu) = (column(&py.0, "y0"), column(&py.0, "u0"));
+    assert_eq!(py.1[0][iu], 0.0);
+    for k in 1..py.1.len() {
+        assert!(
+            (py.1[k][iu] + 2.0 * py.1[k - 1][iy]).abs() <= TOL,
+            "u at k = {k} is not −2 y_(k−1)"
+        );
+    }
+    let r = read_json(&report);
+    assert_eq!(r["timing"], "send-ahead", "{r}");
+    assert_eq!(r["actuations_applied"], STEPS, "{r}");
+    assert_eq!(r["misses"], 0, "{r}");
+    assert_eq!(r["foreign_discarded"], 0, "{r}");
+}
+
 /// The message after `prefix` in `output` with its "  - " lines, the rig name replaced by
 /// `<rig>`; panics naming `who` when there is none.
 fn message(who: &str, output: &str, prefix: &str, rig: &str) -> String {

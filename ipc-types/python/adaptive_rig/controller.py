@@ -1,10 +1,22 @@
-"""The controller side of the contract: answers each measurement (compute-first).
+"""The controller side of the contract: answers each measurement, compute-first or
+send-ahead.
 
-The controller connects as the service of a rig (``role = service``, ``timing =
-compute-first``), waits for measurement ``k`` of the pinned plant, computes ``u_k`` from it
-with a law ``law(measurement) -> list of n_u inputs`` and publishes
-``Actuation{seq k, reply_to k}`` with the echoed sample time, its publish time and the
-time the law took, then notifies the plant. A sample flagged ``INJECTED_STALL`` is
+The controller connects as the service of a rig (``role = service``, ``timing`` stated),
+waits for measurement ``k`` of the pinned plant and calls its law
+``law(measurement) -> list of n_u inputs``:
+
+- ``Timing.COMPUTE_FIRST`` (the default): the law gives ``u_k`` from ``y_k``, published as
+  ``Actuation{seq k, reply_to k}``;
+- ``Timing.SEND_AHEAD``: the law gives ``u_{k+1}`` from the data up to ``y_k`` (a law with
+  a delay of one sample, as RCAC's (2.16) is), published as
+  ``Actuation{seq k + 1, reply_to k}`` as soon as ``M_k`` is in; this is the timing a plant
+  that latches its DAC at the sample clock (``deadline = 0``, ``at-sample``) requires. A
+  sample that nothing was sent ahead for (the first one) is first answered with
+  ``initial_input`` (zeros by default) as ``Actuation{seq k, reply_to k}``, as the Rust
+  service answers it from its controller's initial state.
+
+Each answer carries the echoed sample time, its publish time and the time the law took,
+then the controller notifies the plant. A sample flagged ``INJECTED_STALL`` is
 acknowledged (``STALL_ACK``) and not answered. It stops after the sample flagged
 ``LAST_SAMPLE``.
 
@@ -28,7 +40,7 @@ def _now_ns() -> int:
 
 
 class Controller:
-    """The service side of one rig, compute-first; see the module docs."""
+    """The service side of one rig, compute-first or send-ahead; see the module docs."""
 
     def __init__(
         self,
@@ -39,10 +51,18 @@ class Controller:
         node_name: str = "adaptive-rig-service",
         contract_version: "int | None" = None,
         verbose: bool = True,
+        timing: int = Timing.COMPUTE_FIRST,
+        initial_input=None,
     ):
-        """Connects as the service of rig ``rig`` (raises ``ConnectError``)."""
+        """Connects as the service of rig ``rig`` (raises ``ConnectError``) with ``timing``
+        (``Timing.COMPUTE_FIRST`` or ``Timing.SEND_AHEAD``)."""
+        if timing not in (Timing.COMPUTE_FIRST, Timing.SEND_AHEAD):
+            raise ValueError(f"timing {timing}: the Python controller answers compute-first or send-ahead")
         self.counts = counts
-        self.timing = Timing.COMPUTE_FIRST
+        self.timing = timing
+        self.initial_input = list(initial_input) if initial_input is not None else [0.0] * counts.n_u
+        #: Send-ahead: the sample the latest answer was sent ahead for.
+        self._sent_ahead_for = None
         own = ContractInfo(Side.SERVICE, counts, int(period_ns), timing=self.timing)
         if contract_version is not None:
             own.version = contract_version
@@ -65,7 +85,7 @@ class Controller:
         """Publishes the actuation answering measurement ``m`` with input ``u`` and notifies."""
         n_u = self.counts.n_u
         a = Actuation.zeroed(self.counts)
-        a.seq = m.seq
+        a.seq = m.seq + 1 if self.timing == Timing.SEND_AHEAD else m.seq
         a.reply_to = m.seq
         a.t_sample_ns = m.t_sample_ns
         a.compute_ns = compute_ns
@@ -75,6 +95,17 @@ class Controller:
         a.t_publish_ns = _now_ns()
         self.ports.send(a)
         self.responses_ns.append(a.t_publish_ns - m.t_sample_ns)
+
+    def _answer_now(self, m, u) -> None:
+        """Send-ahead: answers sample ``m`` itself (nothing was sent ahead for it)."""
+        a = Actuation.zeroed(self.counts)
+        a.seq = m.seq
+        a.reply_to = m.seq
+        a.t_sample_ns = m.t_sample_ns
+        a.timing = int(self.timing)
+        a.u[: self.counts.n_u] = [float(v) for v in u[: self.counts.n_u]]
+        a.t_publish_ns = _now_ns()
+        self.ports.send(a)
 
     def response_percentiles(self, *ps) -> list:
         """The given percentiles (0-100) of the response times so far, ns (nearest rank)."""
@@ -120,6 +151,8 @@ class Controller:
                 self.acknowledge_stall(m)
                 self.stall_acks += 1
                 continue
+            if self.timing == Timing.SEND_AHEAD and self._sent_ahead_for != m.seq:
+                self._answer_now(m, self.initial_input)
             t0 = _now_ns()
             u = list(law(m))
             dt = _now_ns() - t0
@@ -127,6 +160,8 @@ class Controller:
                 print(f"[python controller] seq {m.seq}: law gave {u}, not sent", file=sys.stderr)
                 continue
             self.answer(m, u, compute_ns=dt)
+            if self.timing == Timing.SEND_AHEAD:
+                self._sent_ahead_for = m.seq + 1
             self.answered += 1
         return self.answered
 

@@ -30,7 +30,9 @@ Use::
 
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
 
 from . import book as bk
 from .contract import Measurement, measurement_flags
@@ -57,10 +59,28 @@ class PlantReport:
     watchdog_recoveries: int = 0
     safe_output_samples: int = 0
     wall_time_s: float = 0.0
+    round_trips_ns: list = field(default_factory=list, repr=False)
+
+    def round_trip(self) -> "dict | None":
+        """Percentiles (µs) of the round trip from publishing ``M_k`` to holding the
+        service's answer to it, over the lockstep samples; ``None`` when none was timed.
+        The same figures as the Rust plant side's ``round_trip``."""
+        if not self.round_trips_ns:
+            return None
+        us = np.asarray(self.round_trips_ns, dtype=float) * 1e-3
+        return {
+            "samples": int(us.size),
+            "p50_us": float(np.percentile(us, 50)),
+            "p99_us": float(np.percentile(us, 99)),
+            "max_us": float(us.max()),
+        }
 
     def as_dict(self) -> dict:
-        """The counters as a dict (for JSON)."""
-        return asdict(self)
+        """The counters as a dict (for JSON), with ``round_trip``."""
+        d = asdict(self)
+        del d["round_trips_ns"]
+        d["round_trip"] = self.round_trip()
+        return d
 
 
 class PlantGaveUp(Exception):
@@ -199,6 +219,7 @@ class Plant:
         m.r[:n_r] = [float(v) for v in r]
         m.u_applied[:n_u] = self.u_applied[:n_u]
         self.ports.send(m)
+        t_sent = _now_ns()
         self.report.samples += 1
 
         if decision is None and self.mode == "real-time":
@@ -212,6 +233,7 @@ class Plant:
             while True:
                 self._drain(k)
                 if self.book.answers(k):
+                    self.report.round_trips_ns.append(_now_ns() - t_sent)
                     break
                 left = until - time.monotonic()
                 if left <= 0:

@@ -1,8 +1,10 @@
 """The static-gain controller of ``tests/fixtures/static-gain-controller.toml`` on the service
 side of the contract: ``u_k = -K y_k`` with K = 2 (an LTI controller with no state and
-D = [[-K]]: u = D y), answered compute-first.
+D = [[-K]]: u = D y), answered compute-first; with ``--send-ahead`` the delayed gain
+``u_{k+1} = -K y_k`` (the LTI controller A = [[0]], B = [[1]], C = [[-K]], D = [[0]]),
+published ahead as the input of sample k + 1.
 
-    python static_gain_controller.py --rig first-order-lockstep
+    python static_gain_controller.py --rig first-order-lockstep [--send-ahead]
 
 A refused connection prints ``python controller: <reason>`` and exits with 1. It stops
 after the plant's last sample and prints how many samples it answered.
@@ -11,7 +13,7 @@ after the plant's last sample and prints how many samples it answered.
 import argparse
 import sys
 
-from adaptive_rig import ChannelCounts, ConnectError
+from adaptive_rig import ChannelCounts, ConnectError, Timing
 from adaptive_rig.controller import Controller
 
 
@@ -26,6 +28,7 @@ def main() -> int:
     ap.add_argument("--n-r", type=int, default=0)
     ap.add_argument("--n-u", type=int, default=1)
     ap.add_argument("--peer-timeout", type=float, default=30.0, help="s")
+    ap.add_argument("--send-ahead", action="store_true", help="u_{k+1} = -K y_k, sent ahead")
     ap.add_argument("--contract-version", type=int, default=None, help="state another version (tests)")
     args = ap.parse_args()
     d = -args.gain
@@ -37,6 +40,7 @@ def main() -> int:
             round(args.period * 1e9),
             peer_timeout_s=args.peer_timeout,
             contract_version=args.contract_version,
+            timing=Timing.SEND_AHEAD if args.send_ahead else Timing.COMPUTE_FIRST,
         )
     except (ConnectError, ValueError) as e:
         print(f"python controller: {e}", file=sys.stderr, flush=True)

@@ -77,10 +77,27 @@ pub struct PlantReport {
     pub z_rms: Vec<f64>,
     /// Wall time of the run, s.
     pub wall_time_s: f64,
+    /// The round trip of the samples whose answer the plant waited for (lockstep, or
+    /// [`Wait::Until`](crate::Wait::Until)): from publishing `M_k` to holding the service's
+    /// answer to it; `None` when no sample was timed.
+    pub round_trip: Option<RoundTrip>,
     /// Set when the lockstep plant gave up
     /// ([`PlantError::GaveUp`](crate::PlantError::GaveUp)): why. `None` for a run
     /// that ended at its last sample or on a signal.
     pub gave_up: Option<String>,
+}
+
+/// Percentiles of the round trip from a measurement to the service's answer, µs.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct RoundTrip {
+    /// Samples timed.
+    pub samples: u64,
+    /// Median, µs.
+    pub p50_us: f64,
+    /// 99th percentile, µs.
+    pub p99_us: f64,
+    /// Largest, µs.
+    pub max_us: f64,
 }
 
 impl PlantReport {

@@ -36,8 +36,9 @@
 //! per-sample path proper). Connect and [`PlantSide::finish`] allocate.
 
 use crate::actuation_book::{AHEAD_CAPACITY, ActuationBook, Decision, Offer};
-use crate::plant_report::PlantReport;
+use crate::plant_report::{PlantReport, RoundTrip};
 use crate::policy::{Mode, PlantPolicy};
+use hdrhistogram::Histogram;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
 use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectError, ConnectOptions, ContractInfo, PlantPorts, Side};
@@ -185,8 +186,11 @@ pub struct PlantSide<'a> {
     tripped_at: Option<Instant>,
     /// A new service appeared while draining: refresh the pin after the decision.
     repinned: bool,
-    /// The flags of the latest measurement published, and its sample.
+    /// The flags of the latest measurement published, its sample and when it was sent.
     published: Option<(u64, u32)>,
+    published_at_ns: u64,
+    /// Round trips publish → answer, ns (allocated at connect; recording does not allocate).
+    round_trip: Histogram<u64>,
     z_sum_sq: [f64; MAX_Z],
     wall: Instant,
 }
@@ -259,6 +263,9 @@ impl<'a> PlantSide<'a> {
             tripped_at: None,
             repinned: false,
             published: None,
+            published_at_ns: 0,
+            round_trip: Histogram::new_with_bounds(1, ROUND_TRIP_MAX_NS, 3)
+                .map_err(|e| PlantError::Config(format!("round-trip histogram: {e}")))?,
             z_sum_sq: [0.0; MAX_Z],
             wall: Instant::now(),
             policy,
@@ -382,6 +389,7 @@ impl<'a> PlantSide<'a> {
         self.report.samples += 1;
         self.report.stalls_injected += u64::from(stalled);
         self.published = Some((k, m.flags));
+        self.published_at_ns = monotonic_ns();
         Ok(m.flags)
     }
 
@@ -403,7 +411,11 @@ impl<'a> PlantSide<'a> {
             Wait::Until(t) => {
                 loop {
                     self.drain(k);
-                    if self.book.holds(k) || monotonic_ns() >= t || self.stopping() {
+                    if self.book.holds(k) {
+                        self.time_round_trip(k);
+                        break;
+                    }
+                    if monotonic_ns() >= t || self.stopping() {
                         break;
                     }
                     sleep_until_ns(t.min(monotonic_ns() + POLL_NS));
@@ -415,6 +427,7 @@ impl<'a> PlantSide<'a> {
                 loop {
                     self.drain(k);
                     if self.book.answers(k) {
+                        self.time_round_trip(k);
                         break;
                     }
                     let now = Instant::now();
@@ -567,6 +580,14 @@ impl<'a> PlantSide<'a> {
         }
     }
 
+    /// Records the round trip of `M_k` when it was the latest measurement published.
+    fn time_round_trip(&mut self, k: u64) {
+        if matches!(self.published, Some((p, _)) if p == k) {
+            let dt = monotonic_ns().saturating_sub(self.published_at_ns);
+            self.round_trip.saturating_record(dt.max(1));
+        }
+    }
+
     fn stopping(&self) -> bool {
         self.shutdown.is_some_and(|s| s.load(Ordering::Relaxed))
     }
@@ -613,6 +634,13 @@ impl<'a> PlantSide<'a> {
             None => format!("unknown ({w})"),
         });
         self.report.wall_time_s = self.wall.elapsed().as_secs_f64();
+        let h = &self.round_trip;
+        self.report.round_trip = (h.len() > 0).then(|| RoundTrip {
+            samples: h.len(),
+            p50_us: h.value_at_quantile(0.5) as f64 * 1e-3,
+            p99_us: h.value_at_quantile(0.99) as f64 * 1e-3,
+            max_us: h.max() as f64 * 1e-3,
+        });
     }
 
     /// Ends the run: the report with its end-of-run figures. Printed trust counters when
@@ -653,6 +681,9 @@ impl<'a> PlantSide<'a> {
         }
     }
 }
+
+/// The largest round trip the histogram tells apart, ns (longer ones count as this).
+const ROUND_TRIP_MAX_NS: u64 = 10_000_000_000;
 
 /// How often [`Wait::Until`] (and a lockstep wait without a listener) looks for the answer.
 const POLL_NS: u64 = 20_000;
