@@ -218,8 +218,8 @@ class Plant:
         m.z[:n_z] = [float(v) for v in z]
         m.r[:n_r] = [float(v) for v in r]
         m.u_applied[:n_u] = self.u_applied[:n_u]
-        self.ports.send(m)
         t_sent = _now_ns()
+        self.ports.send(m)
         self.report.samples += 1
 
         if decision is None and self.mode == "real-time":

@@ -384,12 +384,12 @@ impl<'a> PlantSide<'a> {
         for (s, v) in self.z_sum_sq.iter_mut().zip(z) {
             *s += v * v;
         }
+        self.published_at_ns = monotonic_ns();
         let _ = self.ports.publisher.send_copy(m);
         let _ = self.ports.notifier.notify();
         self.report.samples += 1;
         self.report.stalls_injected += u64::from(stalled);
         self.published = Some((k, m.flags));
-        self.published_at_ns = monotonic_ns();
         Ok(m.flags)
     }
 
