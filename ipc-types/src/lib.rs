@@ -43,6 +43,7 @@ pub mod files;
 pub mod peer;
 pub mod ports;
 pub mod rt;
+pub mod rt_alloc;
 
 use iceoryx2::prelude::ZeroCopySend;
 

@@ -23,6 +23,11 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
+/// The RT-aware allocator: the loop thread's allocations (iceoryx2's per-sample loan state)
+/// come from a private pool, with no lock and no system call.
+#[global_allocator]
+static ALLOCATOR: ipc_types::rt_alloc::RtAwareAllocator = ipc_types::rt_alloc::RtAwareAllocator;
+
 #[derive(Parser)]
 #[command(
     name = "plant-proxy",

@@ -25,7 +25,7 @@
 
 pub mod config;
 pub mod logging;
-pub mod rt_alloc;
+pub use ipc_types::rt_alloc;
 pub mod runtime;
 pub mod system_check;
 pub mod telemetry;

@@ -19,6 +19,11 @@ use ipc_types::ChannelCounts;
 use plant_side::{Input, Mode, PlantIo, PlantPolicy, PlantSide, PlantSideOptions, Sensors};
 use std::process::ExitCode;
 
+/// The RT-aware allocator: the loop thread's allocations (iceoryx2's per-sample loan state)
+/// come from a private pool, with no lock and no system call.
+#[global_allocator]
+static ALLOCATOR: ipc_types::rt_alloc::RtAwareAllocator = ipc_types::rt_alloc::RtAwareAllocator;
+
 /// The loopback device: what its DAC holds.
 struct Loopback {
     dac: f64,

@@ -59,6 +59,9 @@ use ipc_types::{MAX_R, MAX_Y, MAX_Z, measurement_flags};
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Blocks of the loop thread's allocation pool (iceoryx2 holds one or two at once).
+const RT_POOL_BLOCKS: usize = 64;
+
 /// The sensor values of one sample, to be filled by [`PlantIo::read`]: exactly the
 /// connected counts of `y`, `z` and `r`.
 #[derive(Debug)]
@@ -100,7 +103,10 @@ pub trait PlantIo {
 /// Runs `steps` samples of `io` on the connected `side` (see the [module
 /// documentation](self)), until the last or until `shutdown` is set. In real time the
 /// thread is first set up as `side.policy().rt` asks (pinning, `SCHED_FIFO`, `mlockall`),
-/// and the outcome is put in the report. The clock's slips go into the report too.
+/// and the outcome is put in the report. The thread then gets its allocation pool
+/// ([`ipc_types::rt_alloc`]; install `RtAwareAllocator` as the process's global allocator
+/// for it to serve), and its allocations during the loop go into the report
+/// (`rt_allocations`), as do the clock's slips.
 pub fn run<Io: PlantIo>(
     side: &mut PlantSide<'_>,
     io: &mut Io,
@@ -135,6 +141,10 @@ pub fn run<Io: PlantIo>(
     let io_err = |what: &str, k: u64, e: &dyn fmt::Display| {
         PlantError::Io(format!("{what} at sample {k}: {e}"))
     };
+    // iceoryx2 allocates a small state per published sample: from a private pool when the
+    // process installed `ipc_types::rt_alloc::RtAwareAllocator`, counted either way.
+    ipc_types::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
+    let allocations_before = ipc_types::rt_alloc::thread_stats();
     let result = (|| {
         for k in 0..steps {
             if shutdown.is_some_and(|s| s.load(Ordering::Relaxed)) {
@@ -188,6 +198,7 @@ pub fn run<Io: PlantIo>(
         Ok(())
     })();
     let report = side.report_mut();
+    report.rt_allocations = ipc_types::rt_alloc::thread_stats().since(&allocations_before);
     report.clock_slips = clock.slips();
     report.slipped_s = clock.slipped_ns() as f64 * 1e-9;
     match result {

@@ -81,6 +81,11 @@ pub struct PlantReport {
     /// [`Wait::Until`](crate::Wait::Until)): from publishing `M_k` to holding the service's
     /// answer to it; `None` when no sample was timed.
     pub round_trip: Option<RoundTrip>,
+    /// Allocations on the thread of [`run`](crate::run)'s loop
+    /// ([`ipc_types::rt_alloc`]): none from the system allocator, and one pool block per
+    /// published sample (iceoryx2's loan state) when the process installs
+    /// `RtAwareAllocator`; zeros and `installed = false` otherwise.
+    pub rt_allocations: ipc_types::rt_alloc::RtAllocStats,
     /// Set when the lockstep plant gave up
     /// ([`PlantError::GaveUp`](crate::PlantError::GaveUp)): why. `None` for a run
     /// that ended at its last sample or on a signal.

@@ -635,7 +635,7 @@ impl<'a> PlantSide<'a> {
         });
         self.report.wall_time_s = self.wall.elapsed().as_secs_f64();
         let h = &self.round_trip;
-        self.report.round_trip = (h.len() > 0).then(|| RoundTrip {
+        self.report.round_trip = (!h.is_empty()).then(|| RoundTrip {
             samples: h.len(),
             p50_us: h.value_at_quantile(0.5) as f64 * 1e-3,
             p99_us: h.value_at_quantile(0.99) as f64 * 1e-3,

@@ -1,5 +1,8 @@
 //! A global allocator that watches the real-time thread.
 //!
+//! Both sides of the contract use it: the service's RT thread, and the loop of a plant side
+//! (`plant_side::run`, plant-proxy, a DAQ process that installs it).
+//!
 //! The service's own real-time path does not allocate. One dependency does: iceoryx2 0.10
 //! allocates a small reference-counted state (an `Rc` of 48 bytes) for every sample it
 //! loans to a publisher (`ChunkMutSharedState::new`, called from `Publisher::loan_uninit`
@@ -7,7 +10,8 @@
 //! allocator puts an unbounded call (locks on a miss of the thread cache, `brk`/`mmap`) in
 //! the loop once per sample.
 //!
-//! [`RtAwareAllocator`] is installed as the global allocator of the service binary. A thread
+//! [`RtAwareAllocator`] is installed as the global allocator of the service binary (and of
+//! plant-proxy). A thread
 //! that calls [`enter_rt_thread`] gets a private pool of fixed-size blocks, allocated once;
 //! from then on, every allocation on that thread that fits a block is served from the pool
 //! in O(1) (pop from a free list) and freed back to it (push), with no lock and no system
