@@ -150,10 +150,10 @@ fn main() -> ExitCode {
                     p.n_r(),
                     p.n_u(),
                     p.n_w(),
-                    proxy.mode,
+                    proxy.plant.mode,
                     proxy.applies().name(),
                     proxy.describe_late_policy(),
-                    proxy.overrun.name(),
+                    proxy.plant.overrun.name(),
                     proxy.faults.stalls.len()
                 );
                 ExitCode::SUCCESS

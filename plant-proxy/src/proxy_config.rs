@@ -63,34 +63,15 @@ struct RawProxy {
     faults: Option<Faults>,
 }
 
-/// The `[proxy]` table of a scenario: how plant-proxy runs the plant.
+/// The `[proxy]` table of a scenario: how plant-proxy runs the plant. Everything but the
+/// simulation's own fields is the plant side's policy.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProxyConfig {
-    /// Pacing.
-    pub mode: Mode,
-    /// The application instant of the input for sample `k`, `t_k + dT`, as the fraction
-    /// `d` of the period, in [0, 1]. 0 in real time: the input is latched at the sample
-    /// instant, before the measurement is published (only a service that sends ahead meets
-    /// it). Not used in lockstep.
-    pub deadline: f64,
-    /// Input on a miss.
-    pub late_policy: LatePolicy,
-    /// Input on a miss no plan covers, with [`LatePolicy::Plan`] (`Hold` otherwise).
-    pub plan_fallback: PlanFallback,
+    /// The plant side's policy: pacing, deadline, late policy, overrun, safe input,
+    /// watchdog, time-outs, real-time set-up.
+    pub plant: PlantPolicy,
     /// When a new input takes effect in the simulation.
     pub intersample: Intersample,
-    /// What the real-time plant does when it wakes more than a period late.
-    pub overrun: Overrun,
-    /// The safe input, one per control input.
-    pub safe_input: Vec<f64>,
-    /// Consecutive misses that trip the watchdog.
-    pub watchdog_periods: u64,
-    /// Lockstep: how long to wait for the service's answer before counting a miss.
-    pub lockstep_timeout: Duration,
-    /// How long to wait for the service at start.
-    pub peer_timeout: Duration,
-    /// Real-time set-up of the plant thread (real-time mode only).
-    pub rt: RtRequest,
     /// Faults to inject.
     pub faults: Faults,
 }
@@ -180,32 +161,35 @@ impl ProxyConfig {
             err(field, e.problem)
         })?;
         let config = Self {
-            mode: mode.or(raw.mode).unwrap_or(Mode::RealTime),
-            deadline,
-            late_policy,
-            plan_fallback: raw.plan_fallback.unwrap_or_default(),
-            intersample: raw.intersample.unwrap_or(Intersample::Ideal),
-            overrun: raw.overrun.unwrap_or_default(),
-            safe_input,
-            watchdog_periods,
-            lockstep_timeout: secs(raw.lockstep_timeout, 1.0, "lockstep-timeout")?,
-            peer_timeout: secs(raw.peer_timeout, 30.0, "peer-timeout")?,
-            rt: RtRequest {
-                core: raw.core,
-                fifo_priority,
-                mlockall: raw.mlockall.unwrap_or(true),
-                prefault_stack_bytes: 256 * 1024,
+            plant: PlantPolicy {
+                mode: mode.or(raw.mode).unwrap_or(Mode::RealTime),
+                deadline,
+                late_policy,
+                plan_fallback: raw.plan_fallback.unwrap_or_default(),
+                overrun: raw.overrun.unwrap_or_default(),
+                safe_input,
+                watchdog_periods,
+                lockstep_timeout: secs(raw.lockstep_timeout, 1.0, "lockstep-timeout")?,
+                peer_timeout: secs(raw.peer_timeout, 30.0, "peer-timeout")?,
+                rt: RtRequest {
+                    core: raw.core,
+                    fifo_priority,
+                    mlockall: raw.mlockall.unwrap_or(true),
+                    prefault_stack_bytes: 256 * 1024,
+                },
             },
+            intersample: raw.intersample.unwrap_or(Intersample::Ideal),
             faults,
         };
         config.check_mode(origin)?;
         Ok(config)
     }
 
-    /// The checks that depend on [`ProxyConfig::mode`]: injected stalls only in lockstep.
+    /// The checks that depend on the mode ([`PlantPolicy::mode`]): injected stalls only in
+    /// lockstep.
     /// `origin` names the file in the message.
     pub fn check_mode(&self, origin: &str) -> Result<(), ProxyConfigError> {
-        if self.mode == Mode::RealTime && !self.faults.stalls.is_empty() {
+        if self.plant.mode == Mode::RealTime && !self.faults.stalls.is_empty() {
             return Err(field_error(
                 origin,
                 "faults.stalls",
@@ -218,36 +202,19 @@ impl ProxyConfig {
         Ok(())
     }
 
-    /// The plant side's policy: everything of the table but the simulation's own
-    /// (`intersample`, `faults`).
-    pub fn policy(&self) -> PlantPolicy {
-        PlantPolicy {
-            mode: self.mode,
-            deadline: self.deadline,
-            late_policy: self.late_policy,
-            plan_fallback: self.plan_fallback,
-            overrun: self.overrun,
-            safe_input: self.safe_input.clone(),
-            watchdog_periods: self.watchdog_periods,
-            lockstep_timeout: self.lockstep_timeout,
-            peer_timeout: self.peer_timeout,
-            rt: self.rt,
-        }
-    }
-
     /// The policy of a miss.
     pub const fn miss_policy(&self) -> MissPolicy {
-        MissPolicy::new(self.late_policy, self.plan_fallback)
+        self.plant.miss_policy()
     }
 
     /// When the plant applies an input, as it states at connect ([`PlantPolicy::applies`]).
     pub fn applies(&self) -> Applies {
-        self.policy().applies()
+        self.plant.applies()
     }
 
     /// The late policy in words ([`PlantPolicy::describe_late_policy`]).
     pub fn describe_late_policy(&self) -> String {
-        self.policy().describe_late_policy()
+        self.plant.describe_late_policy()
     }
 }
 

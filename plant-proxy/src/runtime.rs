@@ -210,14 +210,16 @@ pub fn run_plant(
     let mut sim =
         PlantSim::new(&scenario.plant, ts).map_err(|e| PlantError::Config(e.to_string()))?;
     // At deadline 0 (or 1) the real hold and the ideal one are the same.
-    if proxy.intersample == Intersample::AtDeadline && proxy.deadline > 0.0 && proxy.deadline < 1.0
+    if proxy.intersample == Intersample::AtDeadline
+        && proxy.plant.deadline > 0.0
+        && proxy.plant.deadline < 1.0
     {
-        sim.set_apply_offset(Some(proxy.deadline))
+        sim.set_apply_offset(Some(proxy.plant.deadline))
             .map_err(|e| PlantError::Config(e.to_string()))?;
     }
     let (n_y, n_z, n_r, n_u) = (sim.n_y(), sim.n_z(), sim.n_r(), sim.n_u());
     let counts = ChannelCounts::new(n_y, n_z, n_r, n_u).map_err(PlantError::Config)?;
-    if proxy.safe_input.len() != n_u {
+    if proxy.plant.safe_input.len() != n_u {
         return Err(PlantError::Config(format!(
             "proxy.safe-input needs {n_u} values"
         )));
@@ -226,7 +228,7 @@ pub fn run_plant(
         .steps
         .unwrap_or_else(|| (scenario.rig.duration / ts).round() as u64);
     let mut io = SimIo::new(sim, &proxy.faults, opts.trace.as_deref())?;
-    let policy = proxy.policy();
+    let policy = proxy.plant.clone();
     let side_opts = PlantSideOptions {
         label: "plant-proxy",
         node_name: "adaptive-rig-plant",
@@ -240,7 +242,7 @@ pub fn run_plant(
             "[plant-proxy] connected; {} steps at {:.1} Hz in {:?} mode, inputs applied {}, late policy {}",
             steps,
             1.0 / ts,
-            proxy.mode,
+            proxy.plant.mode,
             proxy.applies().name(),
             proxy.describe_late_policy()
         );

@@ -36,7 +36,7 @@ fn assert_refused(result: Result<ProxyConfig, String>, field: &str, words: &str)
 #[test]
 fn a_deadline_of_zero_is_accepted_and_applies_at_the_sample_in_real_time() {
     let c = parse("[proxy]\ndeadline = 0.0").unwrap();
-    assert_eq!(c.deadline, 0.0);
+    assert_eq!(c.plant.deadline, 0.0);
     assert_eq!(c.applies(), Applies::AtSample);
     let c = parse("[proxy]\nmode = \"lockstep\"\ndeadline = 0.0").unwrap();
     assert_eq!(c.applies(), Applies::Lockstep);
@@ -65,7 +65,7 @@ fn a_deadline_outside_zero_to_one_is_refused() {
 #[test]
 fn the_plan_policy_takes_a_fallback_that_defaults_to_hold() {
     let c = parse("[proxy]\nlate-policy = \"plan\"").unwrap();
-    assert_eq!(c.late_policy, LatePolicy::Plan);
+    assert_eq!(c.plant.late_policy, LatePolicy::Plan);
     assert_eq!(c.miss_policy(), MissPolicy::Plan(PlanFallback::Hold));
     let c = parse("[proxy]\nlate-policy = \"plan\"\nplan-fallback = \"safe\"").unwrap();
     assert_eq!(c.miss_policy(), MissPolicy::Plan(PlanFallback::Safe));
@@ -86,13 +86,16 @@ fn a_plan_fallback_without_the_plan_policy_is_refused() {
 
 #[test]
 fn overrun_is_slip_by_default_or_catch_up() {
-    assert_eq!(parse("").unwrap().overrun, Overrun::Slip);
+    assert_eq!(parse("").unwrap().plant.overrun, Overrun::Slip);
     assert_eq!(
-        parse("[proxy]\noverrun = \"slip\"").unwrap().overrun,
+        parse("[proxy]\noverrun = \"slip\"").unwrap().plant.overrun,
         Overrun::Slip
     );
     assert_eq!(
-        parse("[proxy]\noverrun = \"catch-up\"").unwrap().overrun,
+        parse("[proxy]\noverrun = \"catch-up\"")
+            .unwrap()
+            .plant
+            .overrun,
         Overrun::CatchUp
     );
     let e = parse("[proxy]\noverrun = \"skip\"").unwrap_err();

@@ -253,19 +253,39 @@ fn a_python_plant_against_the_service_matches_the_all_rust_loop() {
     assert_eq!(r["foreign_discarded"], 0, "{r}");
 }
 
-#[test]
-fn plant_proxy_against_the_python_controller_matches_the_all_rust_loop() {
-    let dir = TestDir::new("py-controller");
-    let (rust_trace, _) = all_rust_loop(&dir, &rig_name("py-ctl-rust"));
-
-    let rig = rig_name("py-ctl");
-    let sc = first_order_scenario(&dir, &rig, "py-scenario.toml");
-    let (trace, report) = (dir.path.join("trace.csv"), dir.path.join("report.json"));
-    let mut controller = start_example(
-        "python controller",
-        "static_gain_controller.py",
-        &["--rig", &rig],
+/// plant-proxy (lockstep, `STEPS` samples) against the real service and against the
+/// Python controller (`static_gain_controller.py` with `py_args`) on the first-order
+/// scenario with the test service tables, `extra_service` and `controller`: compares the two
+/// traces sample by sample (k, t and flags exactly; y, z and the applied u to `TOL`) and
+/// returns the trace with the Python controller and plant-proxy's report of that run.
+fn plant_proxy_against_python_and_rust_controllers(
+    test: &str,
+    extra_service: &str,
+    controller: &str,
+    py_args: &[&str],
+) -> (Csv, serde_json::Value) {
+    let dir = TestDir::new(test);
+    let scenario = |rig: &str, file: &str| {
+        let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), rig)
+            + &test_service_tables(extra_service, controller);
+        dir.write(file, &text)
+    };
+    let rust_trace = dir.path.join("rust-trace.csv");
+    run_lockstep_pair_into(
+        &dir,
+        "rust-run",
+        &scenario(&rig_name(&format!("{test}-rust")), "rust-scenario.toml"),
+        STEPS,
+        &["--trace", rust_trace.to_str().unwrap()],
+        &[],
     );
+
+    let rig = rig_name(test);
+    let sc = scenario(&rig, "py-scenario.toml");
+    let (trace, report) = (dir.path.join("trace.csv"), dir.path.join("report.json"));
+    let mut args = vec!["--rig", rig.as_str()];
+    args.extend_from_slice(py_args);
+    let mut controller = start_example("python controller", "static_gain_controller.py", &args);
     let mut plant = start_lockstep_plant(
         "plant",
         &sc,
@@ -284,8 +304,9 @@ fn plant_proxy_against_the_python_controller_matches_the_all_rust_loop() {
     // inputs and flags. The status differs by design: the service flags its grace periods
     // STARTING, the Python controller answers OK throughout.
     let py = read_csv(&trace);
+    let rust = read_csv(&rust_trace);
     let a = ("plant-proxy's trace with the Python controller", &py);
-    let b = ("plant-proxy's trace with the service", &rust_trace);
+    let b = ("plant-proxy's trace with the service", &rust);
     for (c, exact) in [
         ("k", true),
         ("t", true),
@@ -304,72 +325,32 @@ fn plant_proxy_against_the_python_controller_matches_the_all_rust_loop() {
     let r = read_json(&report);
     assert_eq!(r["actuations_applied"], STEPS, "{r}");
     assert_eq!(r["misses"], 0, "{r}");
-    assert_eq!(r["timing"], "compute-first", "{r}");
     assert_eq!(r["foreign_discarded"], 0, "{r}");
+    (py, r)
+}
+
+#[test]
+fn plant_proxy_against_the_python_controller_matches_the_all_rust_loop() {
+    let (_, report) = plant_proxy_against_python_and_rust_controllers(
+        "py-controller",
+        "",
+        &static_gain_controller(),
+        &[],
+    );
+    assert_eq!(report["timing"], "compute-first", "{report}");
 }
 
 #[test]
 fn plant_proxy_against_a_send_ahead_python_controller_matches_the_send_ahead_service() {
     // The delayed gain u_{k+1} = −2 y_k, sent ahead: by the service (an LTI controller with
     // D = 0, service.timing = "send-ahead") and by the Python controller (--send-ahead).
-    let dir = TestDir::new("py-send-ahead");
-    let scenario = |rig: &str, file: &str| {
-        let text = with_rig_name(&scenario_text("first-order-lockstep.toml"), rig)
-            + &test_service_tables(
-                "timing = \"send-ahead\"\n",
-                &fixture("delayed-gain-controller.toml"),
-            );
-        dir.write(file, &text)
-    };
-    let rust_trace = dir.path.join("rust-trace.csv");
-    run_lockstep_pair_into(
-        &dir,
-        "rust-run",
-        &scenario(&rig_name("py-sa-rust"), "rust-scenario.toml"),
-        STEPS,
-        &["--trace", rust_trace.to_str().unwrap()],
-        &[],
+    let (py, report) = plant_proxy_against_python_and_rust_controllers(
+        "py-send-ahead",
+        "timing = \"send-ahead\"\n",
+        &fixture("delayed-gain-controller.toml"),
+        &["--send-ahead"],
     );
-
-    let rig = rig_name("py-sa");
-    let sc = scenario(&rig, "py-scenario.toml");
-    let (trace, report) = (dir.path.join("trace.csv"), dir.path.join("report.json"));
-    let mut controller = start_example(
-        "python controller",
-        "static_gain_controller.py",
-        &["--rig", &rig, "--send-ahead"],
-    );
-    let mut plant = start_lockstep_plant(
-        "plant",
-        &sc,
-        STEPS,
-        &[
-            "--trace",
-            trace.to_str().unwrap(),
-            "--report",
-            report.to_str().unwrap(),
-        ],
-    );
-    plant.wait_success(Duration::from_secs(300));
-    controller.wait_success(Duration::from_secs(60));
-
-    let py = read_csv(&trace);
-    let rust = read_csv(&rust_trace);
-    let a = (
-        "plant-proxy's trace with the send-ahead Python controller",
-        &py,
-    );
-    let b = ("plant-proxy's trace with the send-ahead service", &rust);
-    for (c, exact) in [
-        ("k", true),
-        ("t", true),
-        ("flags", true),
-        ("y0", false),
-        ("z0", false),
-        ("u0", false),
-    ] {
-        compare_column(a, b, c, exact);
-    }
+    assert_eq!(report["timing"], "send-ahead", "{report}");
     // The loop really ran ahead: u_k = −2 y_{k−1} was applied at every sample but the first
     // (answered with the initial input 0, as the service answers it from x_0 = 0).
     let (iy, iu) = (column(&py.0, "y0"), column(&py.0, "u0"));
@@ -380,11 +361,6 @@ fn plant_proxy_against_a_send_ahead_python_controller_matches_the_send_ahead_ser
             "u at k = {k} is not −2 y_(k−1)"
         );
     }
-    let r = read_json(&report);
-    assert_eq!(r["timing"], "send-ahead", "{r}");
-    assert_eq!(r["actuations_applied"], STEPS, "{r}");
-    assert_eq!(r["misses"], 0, "{r}");
-    assert_eq!(r["foreign_discarded"], 0, "{r}");
 }
 
 /// The message after `prefix` in `output` with its "  - " lines, the rig name replaced by

@@ -75,7 +75,7 @@ impl ScenarioCheck {
                 p.scenario.plant.kind.name(),
                 p.states,
                 p.scenario.rig.duration,
-                p.proxy.mode
+                p.proxy.plant.mode
             )),
             None => s.push_str("; no [plant] table: the plant half is a hardware plant's"),
         }
@@ -147,7 +147,7 @@ fn plant_half(
             ),
         ));
     }
-    if proxy.late_policy == plant_proxy::runtime::LatePolicy::Plan
+    if proxy.plant.late_policy == plant_proxy::runtime::LatePolicy::Plan
         && service.answer.plan_length == 0
     {
         return Err(err(
