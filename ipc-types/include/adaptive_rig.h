@@ -5,8 +5,8 @@
  *
  * Build the library with `cargo build --release -p adaptive-rig-c`; it gives
  * target/release/libadaptive_rig.a and target/release/libadaptive_rig.so. Link:
- *   cc  -I ipc-types/include my_daq.c   target/release/libadaptive_rig.a -lpthread -ldl -lm -lrt
- *   c++ -I ipc-types/include my_daq.cpp target/release/libadaptive_rig.a -lpthread -ldl -lm -lrt
+ *   cc  -I ipc-types/include my_daq.c   target/release/libadaptive_rig.a -lgcc_s -lutil -lrt -lpthread -lm -ldl -lc
+ *   c++ -I ipc-types/include my_daq.cpp target/release/libadaptive_rig.a -lgcc_s -lutil -lrt -lpthread -lm -ldl -lc
  * or -L target/release -ladaptive_rig -Wl,-rpath,<dir> for the shared library.
  *
  * A plant's period k (see ipc-types/c/README.md):
@@ -172,7 +172,7 @@ typedef struct ar_plant_report {
     uint64_t safe_output_samples;        /* samples spent in the safe output */
     uint64_t stalls_injected;            /* samples published with AR_MEAS_INJECTED_STALL */
     uint64_t stall_acks;                 /* stall acknowledgements received */
-    double wall_time_s;                  /* seconds since ar_plant_open */
+    double wall_time_s;                  /* seconds from ar_plant_open to the latest input taken */
     uint32_t service_pid;                /* pid of the pinned service, 0 when unknown */
     uint32_t gave_up;                    /* 1 once ar_plant_take returned AR_ERR_GAVE_UP */
 } ar_plant_report_t;
@@ -212,13 +212,14 @@ ar_status_t ar_plant_take(ar_plant_t* plant, uint64_t k, ar_wait_t wait, uint64_
  * application instant of sample k is t_k + *out. */
 ar_status_t ar_plant_deadline_offset_ns(const ar_plant_t* plant, uint64_t* out);
 
-/* The counters so far. */
+/* The counters so far. They change only with ar_plant_publish and ar_plant_take. */
 ar_status_t ar_plant_report(const ar_plant_t* plant, ar_plant_report_t* out);
 
 /* The report so far as JSON (plant-proxy's plant-report.json fields), NUL-terminated, into
  * buf of capacity bytes; *len_out (unless NULL) = its length without the NUL.
  * AR_ERR_BUFFER_TOO_SMALL when it does not fit (buf untouched); buf may be NULL with
- * capacity 0 to ask for the length. */
+ * capacity 0 to ask for the length (the report does not change until the next publish or
+ * take, so a buffer of that length plus one then fits). */
 ar_status_t ar_plant_report_json(const ar_plant_t* plant, char* buf, size_t capacity,
                                  size_t* len_out);
 

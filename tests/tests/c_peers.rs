@@ -45,7 +45,16 @@ fn build(compiler: &str, flags: &[&str], source: &Path, out: &Path) {
         .arg(&include)
         .arg(source)
         .arg(static_lib())
-        .args(["-lpthread", "-ldl", "-lm", "-lrt", "-o"])
+        .args([
+            "-lgcc_s",
+            "-lutil",
+            "-lrt",
+            "-lpthread",
+            "-lm",
+            "-ldl",
+            "-lc",
+            "-o",
+        ])
         .arg(out)
         .output()
         .unwrap_or_else(|e| panic!("running {compiler} (a C compiler is required): {e}"));

@@ -18,7 +18,7 @@
  * Build (see ipc-types/c/README.md):
  *   cargo build --release -p adaptive-rig-c
  *   cc -std=c11 -O2 -I ipc-types/include ipc-types/c/examples/first_order_plant.c \
- *      target/release/libadaptive_rig.a -lpthread -ldl -lm -lrt -o first_order_plant
+ *      target/release/libadaptive_rig.a -lgcc_s -lutil -lrt -lpthread -lm -ldl -lc -o first_order_plant
  */
 #include "adaptive_rig.h"
 

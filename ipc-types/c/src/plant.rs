@@ -50,6 +50,9 @@ pub const fn kind_code(kind: InputKind) -> i32 {
 pub struct ArPlant {
     side: PlantSide<'static>,
     opened: Instant,
+    /// When the latest `ar_plant_take` decided an input: the end of the run so far, so that
+    /// the report does not change between two calls without a sample between them.
+    last_take: Option<Instant>,
 }
 
 // SAFETY: iceoryx2's `ipc::Service` ports are `!Send` only because they share their state
@@ -61,10 +64,12 @@ pub struct ArPlant {
 unsafe impl Send for ArPlant {}
 
 impl ArPlant {
-    /// The counters so far, with the wall time since open.
+    /// The counters so far, with the wall time from open to the latest input decided.
     pub fn report(&self) -> PlantReport {
         let mut r = self.side.report().clone();
-        r.wall_time_s = self.opened.elapsed().as_secs_f64();
+        r.wall_time_s = self
+            .last_take
+            .map_or(0.0, |t| (t - self.opened).as_secs_f64());
         r
     }
 }
@@ -122,6 +127,7 @@ pub unsafe extern "C" fn ar_plant_open(
         *out = Box::into_raw(Box::new(ArPlant {
             side,
             opened: Instant::now(),
+            last_take: None,
         }));
         Ok(())
     })
@@ -224,6 +230,7 @@ pub unsafe extern "C" fn ar_plant_take(
                 ),
             ));
         };
+        p.last_take = Some(Instant::now());
         u.copy_from_slice(&input.u[..n_u]);
         // SAFETY: null or writable, by this function's contract.
         if let Some(kind) = unsafe { kind_out.as_mut() } {

@@ -45,7 +45,8 @@ pub struct ArPlantReport {
     pub stalls_injected: u64,
     /// Stall acknowledgements received.
     pub stall_acks: u64,
-    /// Seconds since `ar_plant_open`.
+    /// Seconds from `ar_plant_open` to the latest input decided by `ar_plant_take` (0 before
+    /// the first): the report changes only with the run.
     pub wall_time_s: f64,
     /// The pid of the pinned service, 0 when unknown.
     pub service_pid: u32,
@@ -105,7 +106,8 @@ pub unsafe extern "C" fn ar_plant_report(
 /// are empty here), NUL-terminated, into `buf` of `capacity` bytes. `*len_out` (unless
 /// null) gets the JSON's length without the NUL. `AR_ERR_BUFFER_TOO_SMALL` when it does not
 /// fit (nothing written to `buf`; `*len_out` says how much is needed, plus one for the NUL);
-/// `buf` may be null with `capacity` 0 to ask for the length.
+/// `buf` may be null with `capacity` 0 to ask for the length. The report does not change
+/// until the next publish or take, so a buffer of that length plus one then fits.
 ///
 /// # Safety
 /// `plant` is null or a live handle not used by another thread during the call; `buf` is

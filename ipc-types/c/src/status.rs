@@ -2,7 +2,7 @@
 //!
 //! Every function of the interface that can fail returns an [`ArStatus`]: [`AR_OK`] (0) on
 //! success, [`AR_STOPPED`] (positive: not a failure of the call) when a wait was abandoned
-//! because [`ar_request_stop`](crate::clock::ar_request_stop) was called, and a negative
+//! because [`ar_request_stop`](crate::stop::ar_request_stop) was called, and a negative
 //! `AR_ERR_*` code otherwise, whose message [`ar_last_error`](crate::last_error::ar_last_error)
 //! gives.
 
@@ -16,7 +16,7 @@ pub type ArStatus = i32;
 /// The call succeeded.
 pub const AR_OK: ArStatus = 0;
 /// A wait (connect, a lockstep answer, a controller's receive) was abandoned because
-/// [`ar_request_stop`](crate::clock::ar_request_stop) was called; nothing was decided.
+/// [`ar_request_stop`](crate::stop::ar_request_stop) was called; nothing was decided.
 pub const AR_STOPPED: ArStatus = 1;
 /// A null pointer, a count past the contract's capacity, a string that is not UTF-8, a
 /// value outside its range; the message names the argument.

@@ -162,12 +162,15 @@ macro_rules! offsets {
     };
 }
 
-fn layouts() -> Vec<(
+/// A struct of the header: its tag, its typedef name, the Rust size and field offsets.
+type Layout = (
     &'static str,
     &'static str,
     usize,
     Vec<(&'static str, usize)>,
-)> {
+);
+
+fn layouts() -> Vec<Layout> {
     vec![
         (
             "ar_plant_config",
