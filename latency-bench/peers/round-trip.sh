@@ -9,11 +9,10 @@
 # publishing M_k to holding the answer to it (plant report `round_trip`, p50 and p99 in µs);
 # for a plant in C or Python it is the same plant-side code (C) or its Python twin.
 #
-#   rust plant  -> rust service      plant-proxy               against `service`
-#   rust plant  -> python controller plant-proxy               against static_gain_controller.py
-#   rust plant  -> c controller      plant-proxy               against first_order_plant.c's controller mode
-#   c plant     -> rust service      first_order_plant.c       against `service`
-#   python plant-> rust service      first_order_plant.py      against `service`
+#   rust-rust     plant-proxy (Rust plant side)      against `service`
+#   rust-python   plant-proxy                        against static_gain_controller.py
+#   c-rust        first_order_plant.c (C interface)  against `service`
+#   python-rust   first_order_plant.py (Python)      against `service`
 #
 # Needs: `cargo build --release --workspace` (the service, plant-proxy, libadaptive_rig),
 # `cc`, and a Python with iceoryx2==0.10.0 and numpy in $RIG_PYTHON or target/py-venv
@@ -32,9 +31,9 @@ for f in "$T/service" "$T/plant-proxy" "$PY"; do
     [ -x "$f" ] || { echo "missing $f (cargo build --release --workspace; the tests make target/py-venv)" >&2; exit 1; }
 done
 HAVE_C=0
-if [ -f "$T/libadaptive_rig.a" ] && [ -f ipc-types/c/examples/first_order_plant.c ]; then
-    cc -O2 -o "$W/c_plant" ipc-types/c/examples/first_order_plant.c -Iipc-types/include \
-        "$T/libadaptive_rig.a" -lpthread -ldl -lm && HAVE_C=1
+if [ -f "$T/libadaptive_rig.a" ]; then
+    cc -std=c11 -O2 -I ipc-types/include ipc-types/c/examples/first_order_plant.c \
+        "$T/libadaptive_rig.a" -lgcc_s -lutil -lrt -lpthread -lm -ldl -lc -o "$W/c_plant" && HAVE_C=1
 fi
 
 scenario() { # rig name -> scenario file
@@ -62,7 +61,7 @@ run_pair() { # name, round
         "$PY" ipc-types/python/examples/first_order_plant.py --rig "$rig" --steps "$STEPS" --report "$rep" >/dev/null 2>&1 ;;
     c-rust)
         "$T/service" run "$sc" --exit-with-plant --run-folder "$W/run-$name-$i" >/dev/null 2>&1 &
-        "$W/c_plant" "$rig" "$STEPS" lockstep --report "$rep" >/dev/null 2>&1 ;;
+        "$W/c_plant" "$rig" "$STEPS" lockstep --json 2>/dev/null | grep '^{' > "$rep" ;;
     esac
     wait
     printf '%-12s round %d: p50 %8.2f us  p99 %8.2f us  (%s samples)\n' "$name" "$i" \
@@ -72,7 +71,7 @@ run_pair() { # name, round
 }
 
 PAIRS="rust-rust rust-python python-rust"
-[ $HAVE_C = 1 ] && PAIRS="$PAIRS c-rust"
+if [ $HAVE_C = 1 ]; then PAIRS="$PAIRS c-rust"; else echo "no target/release/libadaptive_rig.a: the C path is left out" >&2; fi
 for i in $(seq 1 "$ROUNDS"); do
     for p in $PAIRS; do run_pair "$p" "$i"; done
 done

@@ -64,9 +64,10 @@ pub struct ArPlant {
 unsafe impl Send for ArPlant {}
 
 impl ArPlant {
-    /// The counters so far, with the wall time from open to the latest input decided.
+    /// The counters so far with the end-of-run figures (RMS of `z`, the service's timing,
+    /// the round trip), and the wall time from open to the latest input decided.
     pub fn report(&self) -> PlantReport {
-        let mut r = self.side.report().clone();
+        let mut r = self.side.snapshot();
         r.wall_time_s = self
             .last_take
             .map_or(0.0, |t| (t - self.opened).as_secs_f64());

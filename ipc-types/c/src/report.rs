@@ -102,8 +102,8 @@ pub unsafe extern "C" fn ar_plant_report(
 }
 
 /// Writes the plant's report so far as JSON (the fields of plant-proxy's
-/// `plant-report.json`; `z_rms` and `timing` are filled only at the end of a Rust run, and
-/// are empty here), NUL-terminated, into `buf` of `capacity` bytes. `*len_out` (unless
+/// `plant-report.json`, with the RMS of `z`, the service's timing and the round trip
+/// `round_trip` from publish to answer so far), NUL-terminated, into `buf` of `capacity` bytes. `*len_out` (unless
 /// null) gets the JSON's length without the NUL. `AR_ERR_BUFFER_TOO_SMALL` when it does not
 /// fit (nothing written to `buf`; `*len_out` says how much is needed, plus one for the NUL);
 /// `buf` may be null with `capacity` 0 to ask for the length. The report does not change

@@ -619,34 +619,37 @@ impl<'a> PlantSide<'a> {
         }
     }
 
-    /// Fills the report's end-of-run figures: RMS of `z`, the service's pid and timing, the
-    /// wall time.
-    fn close_report(&mut self) {
+    /// The report so far with its end-of-run figures (RMS of `z`, the service's pid and
+    /// timing, the round trip, the wall time since connect), without ending the run.
+    /// Allocates: not for the per-sample path.
+    pub fn snapshot(&self) -> PlantReport {
+        let mut r = self.report.clone();
         let n_z = self.counts.n_z as usize;
-        let samples = self.report.samples.max(1) as f64;
-        self.report.z_rms = self.z_sum_sq[..n_z]
+        let samples = r.samples.max(1) as f64;
+        r.z_rms = self.z_sum_sq[..n_z]
             .iter()
             .map(|s| (s / samples).sqrt())
             .collect();
-        self.report.service_pid = self.ports.peer_pid();
-        self.report.timing = self.last_timing.map(|w| match Timing::from_wire(w) {
+        r.service_pid = self.ports.peer_pid();
+        r.timing = self.last_timing.map(|w| match Timing::from_wire(w) {
             Some(t) => t.name().to_string(),
             None => format!("unknown ({w})"),
         });
-        self.report.wall_time_s = self.wall.elapsed().as_secs_f64();
+        r.wall_time_s = self.wall.elapsed().as_secs_f64();
         let h = &self.round_trip;
-        self.report.round_trip = (!h.is_empty()).then(|| RoundTrip {
+        r.round_trip = (!h.is_empty()).then(|| RoundTrip {
             samples: h.len(),
             p50_us: h.value_at_quantile(0.5) as f64 * 1e-3,
             p99_us: h.value_at_quantile(0.99) as f64 * 1e-3,
             max_us: h.max() as f64 * 1e-3,
         });
+        r
     }
 
     /// Ends the run: the report with its end-of-run figures. Printed trust counters when
     /// verbose, or when a foreign actuation was refused or a new service appeared.
     pub fn finish(mut self) -> PlantReport {
-        self.close_report();
+        self.report = self.snapshot();
         if self.verbose || self.report.foreign_discarded > 0 || self.report.new_services > 0 {
             eprintln!("[{}] {}", self.label, trust_line(&self.report));
         }
@@ -655,7 +658,7 @@ impl<'a> PlantSide<'a> {
 
     /// The lockstep plant's end when no service answers after its watchdog tripped.
     fn give_up(&mut self, k: u64) -> PlantError {
-        self.close_report();
+        self.report = self.snapshot();
         let presence = match self.ports.refresh_peer() {
             ipc_types::ports::PeerPresence::Present { pid } => format!(
                 "the service ({}) is still registered but silent",
