@@ -45,10 +45,13 @@
 //!   5 Publish            u8 ok  u64 t_pub  u32 contract  u32 status  u64 seq  u64 reply_to
 //!                        u64 t_sample  u64 compute_ns  4×u16 counts  u32 timing
 //!                        u32 plan_len  f64 u[n_u]  f64 plan[plan_length][n_u]
+//!   6 End                (nothing; its index is the number of entries the loop offered)
 //! ```
 //!
 //! The index counts every entry the loop offered: one dropped by a full queue, or lost
-//! to the disk, shows as a gap ([`RecordError::Gap`]).
+//! to the disk, shows as a gap ([`RecordError::Gap`]), also at the end (before the end
+//! mark); a file without the end mark is a run that did not finish
+//! ([`RecordError::Unfinished`]).
 //!
 //! ## Out of the RT thread
 //!

@@ -244,6 +244,7 @@ pub fn replay(opts: &ReplayOptions) -> Result<ReplaySummary, ReplayError> {
                 core.on_idle(now_ns);
                 summary.sessions.1 += 1;
             }
+            Entry::End => break,
             Entry::Publish { act, .. } => {
                 // Not taken by the loop's publications of the previous input.
                 if out.stop.is_none() {

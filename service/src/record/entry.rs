@@ -29,6 +29,8 @@ pub enum Entry {
         /// The time given to `LoopCore::on_idle`.
         now_ns: u64,
     },
+    /// The end mark; its index is the number of entries the loop offered.
+    End,
     /// An actuation the loop published.
     Publish {
         /// The actuation (plan rows past the record's plan length are zero).
@@ -49,6 +51,7 @@ impl Entry {
             Entry::NewPeer => EntryKind::NewPeer,
             Entry::WentSilent { .. } => EntryKind::WentSilent,
             Entry::Publish { .. } => EntryKind::Publish,
+            Entry::End => EntryKind::End,
         }
     }
 
@@ -63,6 +66,7 @@ impl Entry {
                 encode_measurement(layout, EntryKind::Observe, index, m, 0, buf)
             }
             Entry::NewPeer => encode_marker(EntryKind::NewPeer, index, None, buf),
+            Entry::End => encode_marker(EntryKind::End, index, None, buf),
             Entry::WentSilent { now_ns } => {
                 encode_marker(EntryKind::WentSilent, index, Some(*now_ns), buf)
             }
@@ -145,7 +149,7 @@ pub fn encode_measurement(
     p.at
 }
 
-/// Encodes an entry without a body (`NewPeer`) or with one time (`WentSilent`).
+/// Encodes an entry without a body (`NewPeer`, `End`) or with one time (`WentSilent`).
 pub fn encode_marker(kind: EntryKind, index: u64, time: Option<u64>, buf: &mut [u8]) -> usize {
     let mut p = Put { buf, at: 0 };
     p.u8(kind as u8);
@@ -257,6 +261,7 @@ pub fn decode(layout: &RecordLayout, kind: EntryKind, bytes: &[u8]) -> (u64, Ent
             }
         }
         EntryKind::NewPeer => Entry::NewPeer,
+        EntryKind::End => Entry::End,
         EntryKind::WentSilent => Entry::WentSilent { now_ns: g.u64() },
         EntryKind::Publish => {
             let ok = g.u8() != 0;

@@ -23,6 +23,9 @@ pub enum EntryKind {
     WentSilent = 4,
     /// An actuation the loop published, with what the publisher returned.
     Publish = 5,
+    /// The end mark, written by the writer when the run ends: its index is the number of
+    /// entries the loop offered, so entries lost at the end show as a gap before it.
+    End = 6,
 }
 
 impl EntryKind {
@@ -34,6 +37,7 @@ impl EntryKind {
             3 => Some(Self::NewPeer),
             4 => Some(Self::WentSilent),
             5 => Some(Self::Publish),
+            6 => Some(Self::End),
             _ => None,
         }
     }
@@ -106,7 +110,7 @@ impl RecordLayout {
     pub fn entry_bytes(&self, kind: EntryKind) -> usize {
         match kind {
             EntryKind::Handle | EntryKind::Observe => self.measurement_bytes(),
-            EntryKind::NewPeer => ENTRY_HEAD_BYTES,
+            EntryKind::NewPeer | EntryKind::End => ENTRY_HEAD_BYTES,
             EntryKind::WentSilent => ENTRY_HEAD_BYTES + 8,
             EntryKind::Publish => self.publish_bytes(),
         }

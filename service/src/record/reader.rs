@@ -56,6 +56,16 @@ pub enum RecordError {
         /// The byte.
         kind: u8,
     },
+    /// The file ends without the end mark: the service did not finish (killed, or the
+    /// disk failed at the end); entries after `offset` may be missing.
+    Unfinished {
+        /// The file.
+        path: String,
+        /// Byte offset of the end of the file.
+        offset: u64,
+        /// Entries read.
+        entries: u64,
+    },
     /// Entries are missing (the queue was full, or the disk failed): the next entry in the
     /// file is not the next the loop offered.
     Gap {
@@ -72,11 +82,13 @@ pub enum RecordError {
 
 impl RecordError {
     /// True for a record that is readable but incomplete ([`RecordError::Truncated`],
-    /// [`RecordError::Gap`]).
+    /// [`RecordError::Gap`], [`RecordError::Unfinished`]).
     pub fn is_incomplete(&self) -> bool {
         matches!(
             self,
-            RecordError::Truncated { .. } | RecordError::Gap { .. }
+            RecordError::Truncated { .. }
+                | RecordError::Gap { .. }
+                | RecordError::Unfinished { .. }
         )
     }
 }
@@ -100,6 +112,15 @@ impl fmt::Display for RecordError {
                 f,
                 "{path}: truncated at byte offset {offset}: entry {index} needs {needed} bytes, \
                  the file has {found} more"
+            ),
+            RecordError::Unfinished {
+                path,
+                offset,
+                entries,
+            } => write!(
+                f,
+                "{path}: ends at byte offset {offset} after {entries} entries without its end \
+                 mark: the service did not finish, later entries may be missing"
             ),
             RecordError::UnknownKind { path, offset, kind } => write!(
                 f,
@@ -144,6 +165,8 @@ pub struct RecordReader {
     next_index: u64,
     peeked: Option<Result<Option<Located>, RecordError>>,
     buf: Vec<u8>,
+    /// The end mark was read.
+    ended: bool,
 }
 
 impl RecordReader {
@@ -203,6 +226,7 @@ impl RecordReader {
             offset: 16 + len as u64,
             next_index: 0,
             peeked: None,
+            ended: false,
         })
     }
 
@@ -237,11 +261,12 @@ impl RecordReader {
         }
     }
 
-    /// The next entry, `None` at the clean end of the file.
+    /// The next entry, `None` at the end mark.
     ///
     /// # Errors
     ///
-    /// A read error, a truncated entry, an unknown kind, or a gap in the indices; each
+    /// A read error, a truncated entry, an unknown kind, a gap in the indices (also
+    /// before the end mark: entries lost at the end), a file without the end mark; each
     /// names the file and the byte offset. The same error is returned again by later
     /// calls.
     pub fn next_entry(&mut self) -> Result<Option<Located>, RecordError> {
@@ -256,6 +281,9 @@ impl RecordReader {
     }
 
     fn read_entry(&mut self) -> Result<Option<Located>, RecordError> {
+        if self.ended {
+            return Ok(None);
+        }
         let path = self.path.display().to_string();
         let offset = self.offset;
         let io = |e: std::io::Error| RecordError::Io {
@@ -264,7 +292,11 @@ impl RecordReader {
         };
         let mut first = [0u8; 1];
         if read_full(&mut self.input, &mut first).map_err(io)? == 0 {
-            return Ok(None);
+            return Err(RecordError::Unfinished {
+                path,
+                offset,
+                entries: self.next_index,
+            });
         }
         let Some(kind) = EntryKind::from_byte(first[0]) else {
             return Err(RecordError::UnknownKind {
@@ -295,6 +327,10 @@ impl RecordReader {
             });
         }
         self.offset += size as u64;
+        if kind == EntryKind::End {
+            self.ended = true;
+            return Ok(None);
+        }
         self.next_index += 1;
         Ok(Some(Located {
             index,

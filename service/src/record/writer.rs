@@ -1,9 +1,11 @@
 //! The non-RT end of the record queue: a thread that drains the byte ring, cuts it into
-//! whole entries and writes them to `record.bin` through a
+//! whole entries and writes them, and the end mark when the run ends, to `record.bin`
+//! through a
 //! [`RecordFile`](crate::logging::RecordFile) (whole entries only; a full disk is reported,
 //! counted and retried, never waited on).
 
-use super::layout::{EntryKind, RecordLayout};
+use super::entry::encode_marker;
+use super::layout::{ENTRY_HEAD_BYTES, EntryKind, RecordLayout};
 use super::recorder::Counters;
 use crate::logging::{RETRY_EVERY, RecordFile, RecordTarget, WriteHealth};
 use serde::Serialize;
@@ -37,7 +39,7 @@ pub struct RecordStats {
     pub path: String,
     /// Entries the loop offered.
     pub entries: u64,
-    /// Entries in the file, complete.
+    /// Entries in the file, complete (the end mark not counted).
     pub written: u64,
     /// Entries dropped because the queue was full.
     pub dropped: u64,
@@ -76,6 +78,7 @@ impl RecordWriter {
         let thread_stop = Arc::clone(&stop);
         let mut rx = self.rx;
         let layout = self.layout;
+        let counters = Arc::clone(&self.counters);
         let thread = thread::Builder::new()
             .name("record-writer".to_owned())
             .spawn(move || {
@@ -86,6 +89,11 @@ impl RecordWriter {
                     let stopping = thread_stop.load(Ordering::Acquire);
                     let n = drain(&mut rx, &mut pending, &layout, &mut file);
                     if stopping {
+                        // The loop has stopped: the end mark carries the entries it offered.
+                        let mut end = [0u8; ENTRY_HEAD_BYTES];
+                        let offered = counters.offered.load(Ordering::Relaxed);
+                        let n = encode_marker(EntryKind::End, offered, None, &mut end);
+                        file.push(&end[..n]);
                         break;
                     }
                     if n == 0 {
@@ -170,13 +178,13 @@ impl RecordWriterHandle {
         Ok(RecordStats {
             path: self.path.display().to_string(),
             entries,
-            written: health.records_written,
+            written: health.records_written.saturating_sub(1).min(entries),
             dropped,
             lost_to_disk: health.records_lost,
             complete: dropped == 0
                 && health.records_lost == 0
                 && health.intact
-                && health.records_written == entries,
+                && health.records_written == entries + 1,
             first_error: health.first_error,
         })
     }
