@@ -8,6 +8,9 @@ use super::layout::{ENTRY_HEAD_BYTES, EntryKind, RecordLayout};
 use ipc_types::{Actuation, ChannelCounts, MAX_PLAN, Measurement};
 
 /// A decoded entry.
+// One entry is decoded at a time and moved little: boxing the actuation would allocate per
+// entry for nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 pub enum Entry {
     /// A measurement handed to `LoopCore::handle`, received at `t_recv_ns`.
