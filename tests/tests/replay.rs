@@ -331,3 +331,60 @@ fn a_run_with_a_silent_and_restarted_plant_replays_bit_for_bit() {
     assert!(inputs.contains("600 samples handled"), "{inputs}");
     assert!(!inputs.contains(" 0 silences"), "{inputs}");
 }
+
+#[test]
+fn a_warm_started_run_replays_bit_for_bit_from_the_checkpoint_copied_into_its_folder() {
+    let dir = TestDir::new("replay-warm");
+    let scenario = tone_scenario(&dir, "replay-warm", "", &rcac_controller(0.999));
+    let first = run_lockstep_pair_into(&dir, "first", &scenario, 500, &[], &[]);
+    // The second run starts from what the first learned, from a file removed after the
+    // run: the replay must find the checkpoint in the second run's folder.
+    let checkpoint = dir.path.join("learned.json");
+    std::fs::copy(first.join("checkpoint.json"), &checkpoint).unwrap();
+    let second = run_lockstep_pair_into(
+        &dir,
+        "second",
+        &scenario,
+        500,
+        &[],
+        &["--warm-start", checkpoint.to_str().unwrap()],
+    );
+    std::fs::remove_file(&checkpoint).unwrap();
+    assert_eq!(
+        std::fs::read(second.join("warm-start.json")).unwrap(),
+        std::fs::read(first.join("checkpoint.json")).unwrap()
+    );
+    assert_replays_bit_for_bit(&second);
+    // Without that copy the replay refuses, naming it, rather than start from nothing.
+    std::fs::remove_file(second.join("warm-start.json")).unwrap();
+    let (code, text) = replay(&second, &[]);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("warm-start.json"), "{text}");
+}
+
+#[test]
+fn with_record_off_there_is_no_record_and_replay_says_which_file_it_lacks() {
+    let dir = TestDir::new("replay-off");
+    let text = with_rig_name(
+        &scenario_text("first-order-lockstep.toml"),
+        &rig_name("replay-off"),
+    ) + &test_service_tables("", &static_gain_controller()).replace(
+        "[log]\ndecimation = 1\n",
+        "[log]\ndecimation = 1\nrecord = false\n",
+    );
+    assert!(text.contains("record = false"));
+    let scenario = dir.write("scenario.toml", &text);
+    let folder = run_lockstep_pair(&dir, &scenario, 100, &[]);
+    assert!(folder.join("signals.csv").exists());
+    assert!(!folder.join("record.bin").exists());
+    assert_eq!(
+        read_json(&folder.join("report.json"))["record"],
+        Value::Null
+    );
+    let (code, text) = replay(&folder, &[]);
+    assert_eq!(code, 2, "{text}");
+    assert!(
+        text.contains(&folder.join("record.bin").display().to_string()),
+        "{text}"
+    );
+}
