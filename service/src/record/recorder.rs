@@ -127,8 +127,18 @@ impl Recorder {
     fn commit(&mut self, n: usize) {
         let n = n.min(self.scratch.len());
         match self.tx.write_chunk_uninit(n) {
-            Ok(chunk) => {
-                chunk.fill_from_iter(self.scratch[..n].iter().copied());
+            Ok(mut chunk) => {
+                let (first, second) = chunk.as_mut_slices();
+                let (head, tail) = self.scratch[..n].split_at(first.len().min(n));
+                for (dst, src) in first.iter_mut().zip(head) {
+                    dst.write(*src);
+                }
+                for (dst, src) in second.iter_mut().zip(tail) {
+                    dst.write(*src);
+                }
+                // SAFETY: the chunk holds exactly `n` slots (`first.len() + second.len() ==
+                // n`), and the two loops above wrote every one of them.
+                unsafe { chunk.commit_all() };
             }
             Err(_) => {
                 self.dropped += 1;
