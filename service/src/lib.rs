@@ -15,6 +15,10 @@
 //!   outside it (HdrHistogram interval logs, cyclictest-style summaries).
 //! - [`logging`]: the bounded lock-free queue that carries signal logs out of the RT thread
 //!   and the CSV writer behind it.
+//! - [`record`]: `record.bin`, every input and output of the loop at full precision,
+//!   written off the RT thread like the signal log.
+//! - [`replay`]: `service replay`, the loop re-run offline on a record, compared bit for
+//!   bit (or, with another controller, open loop).
 //! - [`wire`]: controller dimensions and status bits to and from the contract.
 //! - [`system_check`]: what the box does to a real-time loop (PREEMPT_RT, isolated
 //!   cores, throttling, governor, SMT, IRQs, swap, huge pages, privileges), with fixes.
@@ -25,6 +29,8 @@
 
 pub mod config;
 pub mod logging;
+pub mod record;
+pub mod replay;
 pub use ipc_types::rt_alloc;
 pub mod runtime;
 pub mod system_check;

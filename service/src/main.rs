@@ -4,6 +4,7 @@
 //! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N] [--warm-start checkpoint.json]
 //! service check <scenario.toml> [--controller FILE]
 //! service check-system [scenario.toml] [--core N]
+//! service replay RUN_FOLDER [--controller FILE] [--scenario FILE] [--comparison FILE]
 //! ```
 //!
 //! `run` is the service alone, against whatever plant process serves the rig (plant-proxy or
@@ -11,7 +12,10 @@
 //! validates the whole scenario, both halves, and exits; a refused configuration or
 //! command-line value exits with code 2, naming the file and the field. The main job (plant-proxy and the service started
 //! together, then the figure) is `rig launch` of the offline tools: this binary runs next
-//! to the hardware and links no plotting.
+//! to the hardware and links no plotting. `replay` re-runs the loop offline on a run
+//! folder's `record.bin` and compares its outputs with the logged ones bit for bit (exit 0
+//! equal, 1 different, 2 cannot replay, 3 incomplete record), or with `--controller` /
+//! `--scenario` compares another configuration open loop (docs/replay.md).
 
 use clap::{Parser, Subcommand};
 use service::config::{ConfigError, ScenarioCheck, ServiceConfig, WaitMode};
@@ -82,6 +86,22 @@ enum Command {
         #[arg(long)]
         core: Option<usize>,
     },
+    /// Re-run the loop offline on a run folder's record.bin and compare its outputs with
+    /// the logged ones bit for bit; with --controller or --scenario, compare another
+    /// configuration open loop and write a comparison CSV.
+    Replay {
+        /// The run folder.
+        run_folder: PathBuf,
+        /// Replace the recorded [controller] (and [log]) table by this file's.
+        #[arg(long)]
+        controller: Option<PathBuf>,
+        /// Rebuild from this scenario instead of the recorded configuration.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// The open-loop comparison CSV (default <run folder>/replay-comparison.csv).
+        #[arg(long)]
+        comparison: Option<PathBuf>,
+    },
     /// Validate the whole scenario, both halves (the service's tables and plant-proxy's
     /// [rig], [plant] and [proxy], when the file has a [plant] table), and exit.
     Check {
@@ -139,6 +159,29 @@ fn main() -> ExitCode {
                 println!("{}", f.render());
             }
             ExitCode::SUCCESS
+        }
+        Command::Replay {
+            run_folder,
+            controller,
+            scenario,
+            comparison,
+        } => {
+            let opts = service::replay::ReplayOptions {
+                run_folder,
+                controller,
+                scenario,
+                comparison,
+            };
+            match service::replay::replay(&opts) {
+                Ok(summary) => {
+                    print!("{}", summary.render());
+                    ExitCode::from(summary.exit_code())
+                }
+                Err(e) => {
+                    eprintln!("service replay: {e}");
+                    ExitCode::from(2)
+                }
+            }
         }
         Command::Check { config, controller } => {
             match ScenarioCheck::load(&config, controller.as_deref()) {

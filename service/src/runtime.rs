@@ -67,6 +67,7 @@ pub use tones::{ToneLine, ToneMeter, ToneReport};
 
 use crate::config::{ServiceConfig, WaitMode};
 use crate::logging::{self, LogLayout, LogProducer, LogRecord};
+use crate::record::{self, RecordHeader, RecordStats, Recorder};
 use crate::telemetry::{self, CycleTiming, TelemetryRt, TelemetrySummary};
 use checkpoint::{Checkpoint, WarmStart};
 use checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
@@ -366,6 +367,8 @@ pub struct LoopCore {
     checkpoints: Option<Arc<CheckpointSlot>>,
     checkpoint_every: u64,
     cycles_since_checkpoint: u64,
+    /// Where every input and output of the loop goes for `record.bin` ([`crate::record`]).
+    recorder: Option<Recorder>,
 }
 
 /// What [`LoopCore::handle`] did with one sample.
@@ -509,6 +512,7 @@ impl LoopCore {
             checkpoints: None,
             checkpoint_every: cfg.checkpoint_every_cycles,
             cycles_since_checkpoint: 0,
+            recorder: None,
         };
         core.refresh_prepared();
         core
@@ -554,6 +558,18 @@ impl LoopCore {
     pub fn with_checkpoints(mut self, slot: Arc<CheckpointSlot>) -> Self {
         self.checkpoints = (!slot.is_empty() && self.checkpoint_every > 0).then_some(slot);
         self
+    }
+
+    /// Records every input and output of the loop through `recorder` ([`crate::record`]).
+    pub fn with_recorder(mut self, recorder: Recorder) -> Self {
+        self.recorder = Some(recorder);
+        self
+    }
+
+    /// The controller's own per-thread set-up ([`Controller::prepare_thread`]), on the
+    /// thread that runs the loop.
+    pub fn prepare_controller_thread(&mut self) {
+        self.controller.prepare_thread();
     }
 
     /// The sequence number of the last accepted sample (`None` before any).
@@ -649,6 +665,9 @@ impl LoopCore {
     /// replaced plant): it begins a new plant session. Called by the IPC glue, which pins
     /// the peer's identity.
     pub fn note_new_peer(&mut self) {
+        if let Some(r) = self.recorder.as_mut() {
+            r.new_peer();
+        }
         self.new_peer_pending = true;
     }
 
@@ -743,6 +762,9 @@ impl LoopCore {
     /// actuation is computed for the plant. A sample of an injected stall is acknowledged
     /// through `out`.
     pub fn observe(&mut self, m: &Measurement, out: &mut dyn Outbox) {
+        if let Some(r) = self.recorder.as_mut() {
+            r.observe(m);
+        }
         if Self::injected_stall(m) {
             self.take_in_stalled(m, out);
         } else {
@@ -782,7 +804,7 @@ impl LoopCore {
         a.u = [0.0; MAX_U];
         a.plan_len = 0;
         a.compute_ns = 0;
-        let (ok, _) = out.publish(a);
+        let (ok, _) = self.publish(out);
         self.count_extra(ok);
     }
 
@@ -877,9 +899,18 @@ impl LoopCore {
         }
     }
 
+    /// Publishes the outgoing actuation through `out` and records it.
+    fn publish(&mut self, out: &mut dyn Outbox) -> (bool, u64) {
+        let (ok, t_pub) = out.publish(&mut self.outgoing);
+        if let Some(r) = self.recorder.as_mut() {
+            r.publish(&self.outgoing, ok, t_pub);
+        }
+        (ok, t_pub)
+    }
+
     /// Publishes the outgoing actuation as an input: counted, remembered, held.
     fn send(&mut self, out: &mut dyn Outbox, main: bool) -> (bool, u64) {
-        let (ok, t_pub) = out.publish(&mut self.outgoing);
+        let (ok, t_pub) = self.publish(out);
         if ok {
             self.sent.record(&self.outgoing);
             self.last_u = self.outgoing.u;
@@ -938,6 +969,9 @@ impl LoopCore {
         t_recv_ns: u64,
         out: &mut dyn Outbox,
     ) -> CycleDecision {
+        if let Some(r) = self.recorder.as_mut() {
+            r.handle(m, t_recv_ns);
+        }
         let last_sample = m.flags & measurement_flags::LAST_SAMPLE != 0;
         if Self::injected_stall(m) {
             self.take_in_stalled(m, out);
@@ -1202,6 +1236,9 @@ impl LoopCore {
             Idle::Active => false,
             Idle::Silent => true,
             Idle::WentSilent { last_seq } => {
+                if let Some(r) = self.recorder.as_mut() {
+                    r.went_silent(now_ns);
+                }
                 self.sync_stats();
                 let periods = self.silent_periods;
                 self.event(LoopEvent::PlantSilent { last_seq, periods });
@@ -1363,6 +1400,9 @@ pub struct RunReport {
     pub log_lost_to_disk: u64,
     /// The first write failure of the signal log, naming the file; `None` when there was none.
     pub log_first_error: Option<String>,
+    /// `record.bin` ([`crate::record`]): entries offered, written, dropped, lost to the
+    /// disk, and whether it is complete; `None` with `log.record = false`.
+    pub record: Option<RecordStats>,
     /// Response-time budget used for "over budget" (the sample period), ns.
     pub budget_ns: u64,
     /// Sample period, s.
@@ -1609,6 +1649,20 @@ impl RunReport {
                 .map(|e| format!(" ({e})"))
                 .unwrap_or_default()
         );
+        if let Some(r) = &self.record {
+            out += &format!(
+                "record: {} entries written to {}, {} dropped (queue full), {} lost to the disk: {}\n",
+                r.written,
+                r.path,
+                r.dropped,
+                r.lost_to_disk,
+                if r.complete {
+                    "complete"
+                } else {
+                    "INCOMPLETE (a replay stops at the first gap)"
+                }
+            );
+        }
         let a = &self.rt_allocations;
         if a.installed && !a.counted {
             out += "RT-thread allocations: not counted (the RT thread has no pool)\n";
@@ -1725,8 +1779,44 @@ pub fn run(
             })?
     };
 
-    let core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx)
+    let mut core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx)
         .with_checkpoints(checkpoint_slot.clone());
+    let record_handle = if cfg.log.record {
+        // The warm start's checkpoint goes with the record: checkpoint.json is overwritten
+        // by this run.
+        let warm_copy = match &opts.warm_start {
+            Some(path) => {
+                let name = "warm-start.json";
+                std::fs::copy(path, folder.join(name)).map_err(|error| ServiceError::Io {
+                    what: format!(
+                        "copying the warm-start checkpoint {} into the run folder",
+                        path.display()
+                    ),
+                    error,
+                })?;
+                Some(name.to_string())
+            }
+            None => None,
+        };
+        let header = RecordHeader::for_run(
+            &cfg,
+            controller_kind,
+            core.timing(),
+            core.plan_length(),
+            warm_copy,
+        );
+        let (recorder, writer) = record::channel(&header, cfg.log.queue_capacity);
+        let handle = writer
+            .spawn(&folder.join(record::FILE_NAME))
+            .map_err(|error| ServiceError::Io {
+                what: "starting the record writer".into(),
+                error,
+            })?;
+        core = core.with_recorder(recorder);
+        Some(handle)
+    } else {
+        None
+    };
     let rt_cfg = cfg.clone();
     let rt_shutdown = shutdown.clone();
     let max_cycles = opts.max_cycles;
@@ -1800,6 +1890,29 @@ pub fn run(
         }
         None => LogOutcome::default(),
     };
+    let record = match record_handle.map(|h| h.finish()) {
+        Some(Ok(st)) => Some(st),
+        Some(Err(e)) => {
+            warnings.push(format!("the record writer failed: {e}"));
+            None
+        }
+        None => None,
+    };
+    if let Some(r) = record.as_ref().filter(|r| !r.complete) {
+        warnings.push(format!(
+            "{}: incomplete ({} of {} entries written, {} dropped (queue full), {} lost to \
+             the disk{}); a replay stops at the first gap",
+            r.path,
+            r.written,
+            r.entries,
+            r.dropped,
+            r.lost_to_disk,
+            r.first_error
+                .as_deref()
+                .map(|e| format!(": {e}"))
+                .unwrap_or_default()
+        ));
+    }
     if let Some(e) = &log.first_error {
         warnings.push(format!(
             "signals.csv: {} records lost to the disk{}: {e}",
@@ -1874,6 +1987,7 @@ pub fn run(
         log_dropped: log.dropped,
         log_lost_to_disk: log.lost_to_disk,
         log_first_error: log.first_error,
+        record,
         budget_ns: cfg.budget_ns,
         sample_period_s: cfg.sample_period_ns as f64 * 1e-9,
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
@@ -1990,7 +2104,7 @@ fn rt_thread_main(
         cfg.wait,
         core.timing().name()
     );
-    core.controller.prepare_thread();
+    core.prepare_controller_thread();
     crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let before = crate::rt_alloc::thread_stats();
     let stop = rt_loop(

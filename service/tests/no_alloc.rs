@@ -3,6 +3,7 @@
 //!
 //! - the controller step, and the loop's own per-sample work (validation, deadline policy,
 //!   histograms with interval swaps, the signal-log queue) make none at all;
+//! - every push into the record's queue (`record.bin`), kept or dropped, makes none;
 //! - the full loop over real iceoryx2 ports makes exactly one per published sample, which
 //!   is iceoryx2 0.10's per-loan `Rc` (see `service::rt_alloc`), served from the RT pool,
 //!   and none from the system allocator.
@@ -11,6 +12,7 @@ use control::StepInput;
 use ipc_types::ports::{ConnectOptions, ContractInfo, PlantPorts, ServicePorts, Side};
 use ipc_types::{Actuation, Measurement, measurement_flags};
 use service::config::{ServiceConfig, WaitMode};
+use service::record::RecordHeader;
 use service::rt_alloc::{RtAllocStats, RtAwareAllocator, enter_rt_thread, thread_stats};
 use service::runtime::checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use service::runtime::{LoopCore, StopReason, rt_loop};
@@ -144,7 +146,13 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     let (producer, writer) = service::logging::channel(cfg.log.queue_capacity, layout);
     let writer = writer.spawn(folder.join("signals.csv")).unwrap();
     let (events_tx, mut events_rx) = rtrb::RingBuffer::new(64);
-    let mut core = LoopCore::new(&cfg, controller, tele_rt, Some(producer), events_tx);
+    let core = LoopCore::new(&cfg, controller, tele_rt, Some(producer), events_tx);
+    let header = RecordHeader::for_run(&cfg, "lti", core.timing(), core.plan_length(), None);
+    let (recorder, record_writer) = service::record::channel(&header, cfg.log.queue_capacity);
+    let record_writer = record_writer
+        .spawn(&folder.join(service::record::FILE_NAME))
+        .unwrap();
+    let mut core = core.with_recorder(recorder);
 
     // The plant: a thread that answers in lockstep with a simple first-order response.
     const STEPS: u64 = 30_000;
@@ -255,6 +263,14 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     assert_eq!(summary.response.count, STEPS - 1, "{summary:?}"); // all but the first sample
     let stats = writer.finish().unwrap();
     assert_eq!(stats.written + stats.dropped, STEPS);
+    // One measurement and one actuation per sample went to the record.
+    let record = record_writer.finish().unwrap();
+    assert_eq!(record.entries, 2 * STEPS, "{record:?}");
+    assert_eq!(
+        record.written + record.dropped,
+        record.entries,
+        "{record:?}"
+    );
     while events_rx.pop().is_ok() {}
     let _ = std::fs::remove_dir_all(&folder);
 }
@@ -329,7 +345,11 @@ fn loop_core_run(cfg: &ServiceConfig, timing: ipc_types::Timing) {
     };
     let (producer, writer) = service::logging::channel(64, layout);
     let (events_tx, _events_rx) = rtrb::RingBuffer::new(64);
-    let mut core = LoopCore::new(cfg, controller, tele_rt, Some(producer), events_tx);
+    let core = LoopCore::new(cfg, controller, tele_rt, Some(producer), events_tx);
+    // The record's queue, never drained: it fills and then drops, allocating nothing.
+    let header = RecordHeader::for_run(cfg, "lti", core.timing(), core.plan_length(), None);
+    let (recorder, _record_writer) = service::record::channel(&header, 64);
+    let mut core = core.with_recorder(recorder);
     assert_eq!(core.timing(), timing);
     let mut m = Measurement::zeroed(cfg.counts);
     let mut out = KeepLast(Actuation::zeroed(cfg.counts));
@@ -381,6 +401,32 @@ fn loop_core_run(cfg: &ServiceConfig, timing: ipc_types::Timing) {
     assert!(r.tones[0].suppression_db.unwrap().abs() < 1e-6);
     drop(writer);
     let _ = std::fs::remove_dir_all(&folder);
+}
+
+#[test]
+fn every_kind_of_record_entry_is_pushed_and_dropped_without_allocating() {
+    let cfg = ahead_lti("", ipc_types::Timing::SendAhead, 64);
+    let header = RecordHeader::for_run(&cfg, "lti", ipc_types::Timing::SendAhead, 64, None);
+    // A queue of 4 samples, never drained: it fills, then every push is dropped.
+    let (mut recorder, _writer) = service::record::channel(&header, 4);
+    let mut m = Measurement::zeroed(cfg.counts);
+    let mut a = Actuation::zeroed(cfg.counts);
+    a.plan_len = 64;
+    enter_rt_thread(16);
+    let before = thread_stats();
+    for k in 0..10_000u64 {
+        m.seq = k;
+        m.y[0] = k as f64;
+        a.seq = k + 1;
+        recorder.handle(&m, k);
+        recorder.observe(&m);
+        recorder.publish(&a, true, k);
+        recorder.new_peer();
+        recorder.went_silent(k);
+    }
+    assert_nothing_allocated_since(&before, String::new);
+    assert_eq!(recorder.offered(), 50_000);
+    assert!(recorder.dropped() > 49_000, "{}", recorder.dropped());
 }
 
 #[test]

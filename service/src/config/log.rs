@@ -6,6 +6,8 @@
 //! decimation = 1                  # keep every N-th sample (1 to 10⁶)
 //! queue-capacity = 65536          # records in the lock-free queue out of the RT thread
 //!                                 # (16 to 2¹⁹)
+//! record = true                   # default true: record.bin, what the loop saw and sent,
+//!                                 # for `service replay` (crate::record)
 //! ```
 
 use super::bounds::{MAX_LOG_DECIMATION, MAX_LOG_QUEUE_CAPACITY, MIN_LOG_QUEUE_CAPACITY};
@@ -22,6 +24,9 @@ pub struct LogConfig {
     pub decimation: u32,
     /// Capacity of the lock-free queue out of the RT thread, in records.
     pub queue_capacity: usize,
+    /// Write `record.bin`, every input and output of the loop at full precision, for
+    /// `service replay` ([`crate::record`]); its queue holds `queue_capacity` samples.
+    pub record: bool,
 }
 
 #[derive(Deserialize, Default)]
@@ -30,6 +35,7 @@ pub(super) struct RawLog {
     enabled: Option<bool>,
     decimation: Option<u64>,
     queue_capacity: Option<u64>,
+    record: Option<bool>,
 }
 
 /// The table with its defaults filled in, each count within its bound.
@@ -52,5 +58,6 @@ pub(super) fn parse(raw: RawLog, err: &ErrFn<'_>) -> Result<LogConfig, ConfigErr
         enabled: raw.enabled.unwrap_or(true),
         decimation: decimation as u32,
         queue_capacity: queue_capacity as usize,
+        record: raw.record.unwrap_or(true),
     })
 }

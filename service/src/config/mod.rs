@@ -160,6 +160,19 @@ pub struct ServiceConfig {
     /// When the service answers and how long its plans are (`service.timing`,
     /// `service.plan-length`).
     pub answer: AnswerTiming,
+    /// The text this configuration was parsed from (after a `--controller` merge) and the
+    /// folder its relative file names were resolved from: what `record.bin` keeps so that
+    /// `service replay` rebuilds the same configuration ([`ServiceConfig::parse_in`]).
+    pub source: ConfigSource,
+}
+
+/// The text a [`ServiceConfig`] was parsed from and the folder of its relative file names.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ConfigSource {
+    /// The TOML text.
+    pub text: String,
+    /// The folder relative file names (a target-model file) were resolved from.
+    pub base_dir: PathBuf,
 }
 
 #[derive(Deserialize)]
@@ -170,6 +183,18 @@ struct RawFile {
     controller: Option<toml::Value>,
     log: Option<log::RawLog>,
     plant: Option<toml::Value>,
+}
+
+/// The tables of the TOML file at `path`.
+fn read_table(p: &Path) -> Result<toml::Table, ConfigError> {
+    let origin = p.display().to_string();
+    let e = |message: String| ConfigError {
+        file: origin.clone(),
+        field: String::new(),
+        message,
+    };
+    let text = std::fs::read_to_string(p).map_err(|x| e(format!("cannot read the file: {x}")))?;
+    toml::from_str(&text).map_err(|x| e(format!("not valid TOML: {x}")))
 }
 
 /// The text of the scenario file at `path` and its name as errors give it.
@@ -207,22 +232,34 @@ impl ServiceConfig {
     /// in the replaced tables name `controller_file`; a relative target-model file in it is
     /// found from `controller_file`'s folder.
     pub fn load_with_controller(path: &Path, controller_file: &Path) -> Result<Self, ConfigError> {
-        let read = |p: &Path| -> Result<toml::Table, ConfigError> {
-            let origin = p.display().to_string();
-            let e = |message: String| ConfigError {
-                file: origin.clone(),
-                field: String::new(),
-                message,
-            };
-            let text =
-                std::fs::read_to_string(p).map_err(|x| e(format!("cannot read the file: {x}")))?;
-            toml::from_str(&text).map_err(|x| e(format!("not valid TOML: {x}")))
-        };
-        let mut base = read(path)?;
-        let over = read(controller_file)?;
+        let base = read_table(path)?;
+        Self::with_controller_tables(base, &path.display().to_string(), controller_file)
+    }
+
+    /// [`ServiceConfig::load_with_controller`] on a scenario given as text: the
+    /// `[controller]` (and `[log]`) tables of `text` (named `origin` in errors) replaced by
+    /// those of `controller_file` (`service replay --controller`).
+    pub fn parse_with_controller(
+        text: &str,
+        origin: &str,
+        controller_file: &Path,
+    ) -> Result<Self, ConfigError> {
+        let base: toml::Table = toml::from_str(text).map_err(|x| ConfigError {
+            file: origin.to_string(),
+            field: String::new(),
+            message: format!("not valid TOML: {x}"),
+        })?;
+        Self::with_controller_tables(base, origin, controller_file)
+    }
+
+    fn with_controller_tables(
+        mut base: toml::Table,
+        base_origin: &str,
+        controller_file: &Path,
+    ) -> Result<Self, ConfigError> {
+        let over = read_table(controller_file)?;
         let origin = format!(
-            "{} (controller from {})",
-            path.display(),
+            "{base_origin} (controller from {})",
             controller_file.display()
         );
         for key in over.keys() {
@@ -292,8 +329,9 @@ impl ServiceConfig {
     }
 
     /// [`ServiceConfig::parse`] with relative file names in the controller table (a
-    /// target-model file) resolved from `base_dir`.
-    fn parse_in(text: &str, origin: &str, base_dir: &Path) -> Result<Self, ConfigError> {
+    /// target-model file) resolved from `base_dir` (`service replay` rebuilds a recorded
+    /// configuration with it).
+    pub fn parse_in(text: &str, origin: &str, base_dir: &Path) -> Result<Self, ConfigError> {
         let err = |field: &str, message: String| ConfigError {
             file: origin.to_string(),
             field: field.to_string(),
@@ -368,6 +406,10 @@ impl ServiceConfig {
             tone_report,
             checkpoint_every_cycles: s.checkpoint_every_cycles,
             answer,
+            source: ConfigSource {
+                text: text.to_string(),
+                base_dir: base_dir.to_path_buf(),
+            },
         })
     }
 }

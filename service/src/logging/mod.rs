@@ -98,6 +98,7 @@ use ipc_types::{MAX_U, MAX_Y, MAX_Z};
 use rtrb::{Consumer, Producer, RingBuffer};
 
 pub use record_file::{RecordFile, RecordTarget, WriteHealth};
+pub(crate) use writer::drop_realtime_priority;
 pub use writer::{LogStats, LogWriter, LogWriterHandle, RETRY_EVERY};
 
 /// Capacity of [`LogRecord::internals`]: controller internals (parameter estimates,

@@ -204,7 +204,7 @@ fn drain<T: RecordTarget>(rx: &mut Consumer<LogRecord>, sink: &mut CsvSink<T>) -
 
 /// Puts the calling thread under the default time-sharing policy (a no-op unless it
 /// inherited a real-time one). Lowering one's own priority needs no privilege.
-fn drop_realtime_priority() {
+pub(crate) fn drop_realtime_priority() {
     let param = libc::sched_param { sched_priority: 0 };
     // SAFETY: `pthread_self()` is the calling thread, `param` is a valid sched_param for
     // SCHED_OTHER (priority 0); the call has no other preconditions.
