@@ -85,6 +85,23 @@ pub fn start_service(name: &str, scenario: &Path, folder: &Path) -> Proc {
     )
 }
 
+/// Starts `service run <scenario> --exit-with-plant --run-folder <folder>` as the process
+/// `service`: the service that ends with the plant's last sample, for a plant process
+/// started next (plant-proxy or a DAQ process in any language).
+pub fn start_service_until_plant_ends(scenario: &Path, folder: &Path) -> Proc {
+    Proc::start(
+        "service",
+        &bin("service"),
+        &[
+            "run",
+            scenario.to_str().expect("UTF-8 path"),
+            "--exit-with-plant",
+            "--run-folder",
+            folder.to_str().expect("UTF-8 path"),
+        ],
+    )
+}
+
 /// Starts `plant-proxy run <scenario> --mode lockstep --steps <steps> <extra…>` as the
 /// process `name`.
 pub fn start_lockstep_plant(name: &str, scenario: &Path, steps: u64, extra: &[&str]) -> Proc {

@@ -105,17 +105,7 @@ fn run_c_pair(
     let scenario = scenario(dir, "c-scenario.toml", rig, controller);
     let run_folder = dir.path.join("c-service-run");
     let trace = dir.path.join("c-trace.csv");
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            scenario.to_str().unwrap(),
-            "--exit-with-plant",
-            "--run-folder",
-            run_folder.to_str().unwrap(),
-        ],
-    );
+    let mut service = start_service_until_plant_ends(&scenario, &run_folder);
     let steps_arg = steps.to_string();
     let mut plant = Proc::start(
         "c-plant",

@@ -196,17 +196,7 @@ fn a_python_plant_against_the_service_matches_the_all_rust_loop() {
         dir.path.join("py-trace.csv"),
         dir.path.join("py-report.json"),
     );
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            sc.to_str().unwrap(),
-            "--exit-with-plant",
-            "--run-folder",
-            run.to_str().unwrap(),
-        ],
-    );
+    let mut service = start_service_until_plant_ends(&sc, &run);
     let mut plant = start_example(
         "python plant",
         "first_order_plant.py",

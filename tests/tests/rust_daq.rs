@@ -19,17 +19,7 @@ fn the_loopback_daq_example_closes_the_loop_with_the_service_sample_by_sample() 
         + &test_service_tables("", &static_gain_controller());
     let scenario = dir.write("scenario.toml", &text);
     let run_folder = dir.path.join("service-run");
-    let mut service = Proc::start(
-        "service",
-        &bin("service"),
-        &[
-            "run",
-            scenario.to_str().unwrap(),
-            "--exit-with-plant",
-            "--run-folder",
-            run_folder.to_str().unwrap(),
-        ],
-    );
+    let mut service = start_service_until_plant_ends(&scenario, &run_folder);
     let steps = 40;
     let mut daq = Proc::start(
         "loopback-daq",
