@@ -9,8 +9,8 @@
 
 use std::f64::consts::PI;
 
-use control::forgetting::ForgettingRule;
 use control::OutputLimits;
+use control::forgetting::ForgettingRule;
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams, poly};
 use control::{Controller, Dimensions, StepInput, status};
 use nalgebra::{DMatrix, DVector};
@@ -81,7 +81,10 @@ fn sub(a: &[f64], b: &[f64]) -> Vec<f64> {
 /// Solves `X A + Y B = T` for `X = Σ_{i=1}^{n} X_i q⁻ⁱ`, `Y = Σ_{i=1}^{n} Y_i q⁻ⁱ`
 /// (coefficients `1..=2n` of `T`; `T_0` must be 0) by the Sylvester matrix.
 fn diophantine(a: &[f64], b: &[f64], t: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
-    assert!(t.first().copied().unwrap_or(0.0).abs() < 1e-14, "T_0 = {t:?}");
+    assert!(
+        t.first().copied().unwrap_or(0.0).abs() < 1e-14,
+        "T_0 = {t:?}"
+    );
     let mut m = DMatrix::zeros(2 * n, 2 * n);
     for i in 1..=n {
         for (l, c) in a.iter().enumerate() {
@@ -97,9 +100,16 @@ fn diophantine(a: &[f64], b: &[f64], t: &[f64], n: usize) -> (Vec<f64>, Vec<f64>
     }
     assert!(t.len() <= 2 * n + 1 || t[2 * n + 1..].iter().all(|c| c.abs() < 1e-14));
     let rhs = DVector::from_fn(2 * n, |r, _| t.get(r + 1).copied().unwrap_or(0.0));
-    let s = m.lu().solve(&rhs).expect("coprime: the Sylvester matrix is invertible");
-    let x = std::iter::once(0.0).chain(s.iter().take(n).copied()).collect();
-    let y = std::iter::once(0.0).chain(s.iter().skip(n).copied()).collect();
+    let s = m
+        .lu()
+        .solve(&rhs)
+        .expect("coprime: the Sylvester matrix is invertible");
+    let x = std::iter::once(0.0)
+        .chain(s.iter().take(n).copied())
+        .collect();
+    let y = std::iter::once(0.0)
+        .chain(s.iter().skip(n).copied())
+        .collect();
     (x, y)
 }
 
@@ -156,7 +166,12 @@ struct Run {
     statuses: Vec<u32>,
 }
 
-fn run(c: &mut dyn Controller, plant: &mut Plant, command: impl Fn(usize) -> f64, steps: usize) -> Run {
+fn run(
+    c: &mut dyn Controller,
+    plant: &mut Plant,
+    command: impl Fn(usize) -> f64,
+    steps: usize,
+) -> Run {
     let mut out = Run {
         y: vec![],
         u: vec![],
@@ -166,8 +181,14 @@ fn run(c: &mut dyn Controller, plant: &mut Plant, command: impl Fn(usize) -> f64
         statuses: vec![],
     };
     let names = c.internal_names();
-    let ie = names.iter().position(|n| n.ends_with("_e")).expect("e internal");
-    let iz = names.iter().position(|n| n.ends_with("_zhat")).expect("zhat internal");
+    let ie = names
+        .iter()
+        .position(|n| n.ends_with("_e"))
+        .expect("e internal");
+    let iz = names
+        .iter()
+        .position(|n| n.ends_with("_zhat"))
+        .expect("zhat internal");
     let mut internals = [0.0; control::MAX_INTERNALS];
     for k in 0..steps {
         let y = plant.output();
@@ -221,6 +242,9 @@ const RC_MRAC_STEP_BOUND: f64 = 1e-4;
 /// chapter's ordering: the four-harmonic error is below those of the step and of the
 /// two-harmonic command.
 const APPC_FOUR_HARMONIC_BOUND: f64 = 5e-2;
+
+/// A command `r_k`.
+type Command = fn(usize) -> f64;
 
 fn step_command(_: usize) -> f64 {
     1.0
@@ -315,7 +339,10 @@ impl Example {
 
     /// `N_c*`, `D_c*` of (4.54)–(4.55): `N_c N + D_c D = D − D_m N_s F`.
     fn rc_mrac_controller(&self) -> (Vec<f64>, Vec<f64>) {
-        let t = sub(&self.den, &poly::mul(&poly::mul(&self.d_m, &self.n_s), &self.f));
+        let t = sub(
+            &self.den,
+            &poly::mul(&poly::mul(&self.d_m, &self.n_s), &self.f),
+        );
         diophantine(&self.num, &self.den, &t, 2)
     }
 }
@@ -339,7 +366,11 @@ fn rc_mrac_theta_star(ex: &Example) -> Vec<f64> {
 
 #[test]
 fn appc_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_20() {
-    for ex in [example1(0.5, PI / 4.0), example1(0.9, 2.0), example2(0.5, PI / 4.0)] {
+    for ex in [
+        example1(0.5, PI / 4.0),
+        example1(0.9, 2.0),
+        example2(0.5, PI / 4.0),
+    ] {
         let theta = appc_theta_star(&ex);
         let mut p = ex.appc_params();
         p.theta0 = Some(theta.clone());
@@ -362,7 +393,11 @@ fn appc_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_20
         for k in 0..200 {
             let z = lhs[k] - (out.u[k] - ncy[k] - dcu[k]);
             assert!(z.abs() < 1e-12 * scale, "(4.33) z_{k} = {z:e}");
-            assert!(out.zhat[k].abs() < 1e-10 * scale, "ẑ_{k} = {:e}", out.zhat[k]);
+            assert!(
+                out.zhat[k].abs() < 1e-10 * scale,
+                "ẑ_{k} = {:e}",
+                out.zhat[k]
+            );
             assert_eq!(out.statuses[k], status::OK);
         }
         // The estimate stays at θ*.
@@ -372,7 +407,12 @@ fn appc_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_20
         // The closed loop is y = N/D_m r (4.20), so e = 0 with N_m = N.
         let want = tf(&ex.num, &ex.d_m, &out.r);
         for k in 0..200 {
-            assert!((out.y[k] - want[k]).abs() < 1e-10 * scale, "y_{k}: {} vs {}", out.y[k], want[k]);
+            assert!(
+                (out.y[k] - want[k]).abs() < 1e-10 * scale,
+                "y_{k}: {} vs {}",
+                out.y[k],
+                want[k]
+            );
             assert!(out.e[k].abs() < 1e-10 * scale, "e_{k} = {:e}", out.e[k]);
         }
     }
@@ -380,7 +420,11 @@ fn appc_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_20
 
 #[test]
 fn rc_mrac_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_56() {
-    for ex in [example1(0.5, PI / 4.0), example1(0.9, 2.0), example2(0.5, PI / 4.0)] {
+    for ex in [
+        example1(0.5, PI / 4.0),
+        example1(0.9, 2.0),
+        example2(0.5, PI / 4.0),
+    ] {
         let theta = rc_mrac_theta_star(&ex);
         let mut p = ex.rc_mrac_params();
         assert_eq!(p.model_cofactor().expect("valid"), ex.n_s, "R_c* of (4.57)");
@@ -396,14 +440,20 @@ fn rc_mrac_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4
         let rcf = fir(&poly::mul(&ex.n_s, &ex.f), &out.r);
         let ncy = fir(&nc, &out.y);
         let dcu = fir(&dc, &out.u);
-        let bracket: Vec<f64> = (0..200).map(|k| out.u[k] - ncy[k] - dcu[k] - rcf[k]).collect();
+        let bracket: Vec<f64> = (0..200)
+            .map(|k| out.u[k] - ncy[k] - dcu[k] - rcf[k])
+            .collect();
         let nuq = [&[0.0][..], &ex.n_u[..]].concat(); // N_{n_r} N_u q^{−1}
         let second = fir(&nuq, &bracket);
         let scale = max_abs(&out.u).max(max_abs(&out.y)).max(1.0);
         for k in 0..200 {
             let z = zf[k] - second[k];
             assert!(z.abs() < 1e-12 * scale, "(4.66) z_{k} = {z:e}");
-            assert!(out.zhat[k].abs() < 1e-10 * scale, "ẑ_{k} = {:e}", out.zhat[k]);
+            assert!(
+                out.zhat[k].abs() < 1e-10 * scale,
+                "ẑ_{k} = {:e}",
+                out.zhat[k]
+            );
             assert_eq!(out.statuses[k], status::OK);
         }
         for (t, w) in c.theta().iter().zip(&theta) {
@@ -413,7 +463,12 @@ fn rc_mrac_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4
         let num_cl = poly::mul(&nuq, &ex.n_s);
         let want = tf(&num_cl, &ex.d_m, &out.r);
         for k in 0..200 {
-            assert!((out.y[k] - want[k]).abs() < 1e-10 * scale, "y_{k}: {} vs {}", out.y[k], want[k]);
+            assert!(
+                (out.y[k] - want[k]).abs() < 1e-10 * scale,
+                "y_{k}: {} vs {}",
+                out.y[k],
+                want[k]
+            );
             assert!(out.e[k].abs() < 1e-10 * scale, "e_{k} = {:e}", out.e[k]);
         }
     }
@@ -434,7 +489,9 @@ fn proposition_4_4_1_the_same_controller_satisfies_4_65_and_4_32() {
         assert!((a - r).abs() < 1e-12, "{a} vs {r}");
     }
     // Both identities on the same data: an arbitrary input and command (open loop).
-    let u: Vec<f64> = (0..200).map(|k| ((k * 7919) % 101) as f64 / 50.0 - 1.0).collect();
+    let u: Vec<f64> = (0..200)
+        .map(|k| ((k * 7919) % 101) as f64 / 50.0 - 1.0)
+        .collect();
     let r: Vec<f64> = (0..200).map(four_harmonic).collect();
     let y = tf(&ex.num, &ex.den, &u);
     let y_m = tf(&ex.num, &ex.d_m, &r); // N_m = N
@@ -446,7 +503,11 @@ fn proposition_4_4_1_the_same_controller_satisfies_4_65_and_4_32() {
         (0..200).map(|k| u[k] - ncy[k] - dcu[k]).collect()
     };
     // (4.32): D_m H [B y + C u] = u − N_c y − D_c u.
-    let by_cu: Vec<f64> = fir(&b, &y).iter().zip(fir(&c, &u)).map(|(a, b)| a + b).collect();
+    let by_cu: Vec<f64> = fir(&b, &y)
+        .iter()
+        .zip(fir(&c, &u))
+        .map(|(a, b)| a + b)
+        .collect();
     let lhs_432 = fir(&poly::mul(&ex.d_m, &h), &by_cu);
     // (4.65): D_m F (y − y_m) − N_{n_r} N_u q^{−n_r}[u − N_c y − D_c u − R_c F r] = 0, R_c = N_s.
     let e: Vec<f64> = y.iter().zip(&y_m).map(|(a, b)| a - b).collect();
@@ -456,7 +517,10 @@ fn proposition_4_4_1_the_same_controller_satisfies_4_65_and_4_32() {
     let second = fir(&[0.0, 1.0], &bracket);
     let scale = max_abs(&y).max(max_abs(&u));
     for k in 0..200 {
-        assert!((lhs_432[k] - ctrl[k]).abs() < 1e-12 * scale, "(4.32) at {k}");
+        assert!(
+            (lhs_432[k] - ctrl[k]).abs() < 1e-12 * scale,
+            "(4.32) at {k}"
+        );
         assert!((zf[k] - second[k]).abs() < 1e-12 * scale, "(4.65) at {k}");
     }
 }
@@ -484,7 +548,10 @@ fn rc_mrac_follows_the_step_of_example_1() {
     println!("RC-MRAC, Example 1b, step, ρ = 0.5, ν = π/4: ‖e‖ = {norm:.3e}");
     assert!(out.statuses.iter().all(|&s| s == status::OK));
     assert!(norm < RC_MRAC_STEP_BOUND, "‖e‖ = {norm:e}");
-    println!("  ‖y_m‖ over the same samples = {:.3}", model_output_norm(step_command));
+    println!(
+        "  ‖y_m‖ over the same samples = {:.3}",
+        model_output_norm(step_command)
+    );
 }
 
 #[test]
@@ -498,7 +565,10 @@ fn appc_follows_the_four_harmonic_command_of_example_1() {
     let ex = example1(0.5, PI / 4.0);
     let (step, _) = appc_e_norm(&ex, step_command);
     let (two, _) = appc_e_norm(&ex, two_harmonic);
-    assert!(norm < step && norm < two, "four {norm:e}, step {step:e}, two {two:e}");
+    assert!(
+        norm < step && norm < two,
+        "four {norm:e}, step {step:e}, two {two:e}"
+    );
 }
 
 /// `sqrt(Σ_{i=101}^{200} y_{m,i}²)` for the reference model of Example 1.
@@ -512,12 +582,15 @@ fn model_output_norm(command: fn(usize) -> f64) -> f64 {
 /// b panels); asserts only that the runs stay finite.
 #[test]
 fn the_chapter_table_at_rho_one_half_nu_pi_over_four() {
-    let commands: [(&str, fn(usize) -> f64); 3] = [
+    let commands: [(&str, Command); 3] = [
         ("step", step_command),
         ("two harmonics", two_harmonic),
         ("four harmonics", four_harmonic),
     ];
-    for (name, ex) in [("Example 1", example1(0.5, PI / 4.0)), ("Example 2", example2(0.5, PI / 4.0))] {
+    for (name, ex) in [
+        ("Example 1", example1(0.5, PI / 4.0)),
+        ("Example 2", example2(0.5, PI / 4.0)),
+    ] {
         for (cname, cmd) in commands {
             let (a, ra) = appc_e_norm(&ex, cmd);
             let (r, rr) = rc_mrac_e_norm(&ex, cmd);
@@ -686,6 +759,11 @@ fn a_non_finite_sample_holds_the_input_with_a_fault_and_the_loop_goes_on() {
         let n = c.internals(&mut internals);
         assert_eq!(n, c.internal_names().len());
         // Still following after the faults: e of the last sample is small.
-        assert!(internals[1].abs() < 0.05, "{}: e = {}", c.kind(), internals[1]);
+        assert!(
+            internals[1].abs() < 0.05,
+            "{}: e = {}",
+            c.kind(),
+            internals[1]
+        );
     }
 }

@@ -29,7 +29,7 @@
 //!
 //! and RLS minimizes (4.42) with `θ̂_0 = [θ̂_{1,0}; θ̂_{2,0}]`, `R_θ` (diagonal) and the
 //! forgetting factor of any [`ForgettingRule`] (`λ` constant in the dissertation); see
-//! the module `estimator` (crate-private) for how `R_θ` enters the kernel. `D_m H − 1` has no `q⁰` term,
+//! [`crate::mrac`] ("RLS with `R_θ`") for how `R_θ` enters the kernel. `D_m H − 1` has no `q⁰` term,
 //! so `ẑ_k` involves `y_{k−1}, u_{k−1}` and older only.
 //!
 //! # Input (4.43) and timing
@@ -47,7 +47,7 @@
 //! (4.4) runs alongside only to report `y_{m,k}` and `e_k = y_k − y_{m,k}` (APPC's closed
 //! loop is `N/D_m`; `N_m` should be `N`).
 //!
-//! Bad and missing samples: module `signals` (crate-private); on a bad sample the input
+//! Bad and missing samples: [`crate::mrac`] ("Bad and missing samples"); on a bad sample the input
 //! is held and the status is [`status::CONTROLLER_FAULT`], as when the RLS guard resets
 //! `θ̂` or a regression is not finite (its update is then skipped).
 //!
@@ -62,9 +62,9 @@ use super::checks;
 use super::estimator::Estimator;
 use super::poly;
 use super::signals::Signals;
+use crate::ParamError;
 use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
 use crate::forgetting::ForgettingRule;
-use crate::ParamError;
 
 /// Parameters of an [`Appc`] controller (coefficients of `q⁰, q⁻¹, …`).
 #[derive(Debug, Clone, PartialEq)]
@@ -129,7 +129,7 @@ impl AppcParams {
     }
 
     /// The trimmed `D_m`, `N_m`, `H`.
-    fn check(&self) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), ParamError> {
+    fn check(&self) -> Result<Polynomials, ParamError> {
         let n = self.n;
         if n == 0 {
             return Err(ParamError::new("n", "the plant order must be at least 1"));
@@ -145,8 +145,15 @@ impl AppcParams {
             self.trace_limit,
         )?;
         checks::limits(self.limits.as_ref())?;
-        Ok((d_m, n_m, h))
+        Ok(Polynomials { d_m, n_m, h })
     }
+}
+
+/// What [`AppcParams::check`] keeps: the polynomials up to their degrees.
+struct Polynomials {
+    d_m: Vec<f64>,
+    n_m: Vec<f64>,
+    h: Vec<f64>,
 }
 
 /// The APPC controller (module docs).
@@ -175,7 +182,7 @@ impl Appc {
     /// Those of [`AppcParams::validate`], and `"channels"` for other counts.
     pub fn new(params: &AppcParams, counts: Dimensions) -> Result<Self, ParamError> {
         checks::siso(counts)?;
-        let (d_m, n_m, h) = params.check()?;
+        let Polynomials { d_m, n_m, h } = params.check()?;
         let n = params.n;
         let g = poly::mul(&d_m, &h);
         // Φ_{k−d} for d ≤ deg(D_m H) reads y_{k−d−j}, u_{k−d−j}, j ≤ n.

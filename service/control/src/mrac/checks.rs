@@ -41,10 +41,7 @@ pub(crate) fn stable_monic(
     if !poly::is_monic(&p) {
         return Err(ParamError::new(
             field,
-            format!(
-                "must be monic (coefficient of q⁰ equal to 1), got {}",
-                p[0]
-            ),
+            format!("must be monic (coefficient of q⁰ equal to 1), got {}", p[0]),
         ));
     }
     if !poly::is_schur_stable(&p) {

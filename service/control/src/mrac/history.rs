@@ -68,7 +68,10 @@ mod tests {
         let mut h = History::new(3);
         h.push(1.0);
         h.push(2.0);
-        assert_eq!((h.get(0), h.get(1), h.get(2), h.get(7)), (2.0, 1.0, 0.0, 0.0));
+        assert_eq!(
+            (h.get(0), h.get(1), h.get(2), h.get(7)),
+            (2.0, 1.0, 0.0, 0.0)
+        );
         h.push(3.0);
         h.push(4.0);
         assert_eq!((h.get(0), h.get(2)), (4.0, 2.0));

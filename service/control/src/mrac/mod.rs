@@ -39,19 +39,50 @@
 //! `u_{k−1}` and older, as in the service's loop. `z_k` is not read (the performance is
 //! `e_k`, formed inside), so a rig may configure `z = y` or none.
 //!
+//! # RLS with `R_θ`
+//!
+//! Both minimize `Σ λ^{k−i} ẑ_i² + λ^k (θ̂ − θ̂_0)ᵀ R_θ (θ̂ − θ̂_0)` ((4.42), (4.76)) with
+//! the crate's [`Rls`](crate::rls::Rls) kernel, which starts from `P_0 = p0 I`. A diagonal
+//! `R_θ = diag(r_1, …, r_N)` is taken by the change of variables `θ̂ = S θ̂'`,
+//! `S = diag(r_i^{−1/2})`: the regularization becomes `|θ̂' − θ̂'_0|²` and the regressor
+//! `φ S`, so RLS with `P'_0 = I` minimizes the same cost exactly. The forgetting factor
+//! comes from any [`ForgettingRule`](crate::forgetting::ForgettingRule) (constant `λ` in
+//! the dissertation). The kernel's guard (non-finite values, `tr(R_θ^{1/2} P R_θ^{1/2})`
+//! above `trace-limit`) resets `θ̂, P` to `θ̂_0, P_0`; the checkpoint blocks
+//! ([`crate::Controller::learned`]) are the kernel's, in the scaled coordinates.
+//!
+//! # Bad and missing samples
+//!
+//! - A non-finite `y_k` or `r_k` (or a command so large that `y_{m,k}` or `e_k` is not
+//!   finite) makes the sample bad: the input `u_{k−1}` is held, the status is
+//!   [`crate::status::CONTROLLER_FAULT`], the last finite `y`, `r` (and `e`) are pushed
+//!   into the histories in its place (so they stay aligned with the plant's samples), and
+//!   the estimator's update is suspended until the substituted values have left every
+//!   window the regression reads.
+//! - A regression that is not finite (huge measurements) skips the update with
+//!   `CONTROLLER_FAULT`; a guard reset of the estimator also reports `CONTROLLER_FAULT`.
+//!   A non-finite input is replaced by 0 (clipped into the limits) with `CONTROLLER_FAULT`.
+//! - [`StepInput::u_applied`](crate::StepInput::u_applied), when finite, replaces the
+//!   stored `u_{k−1}` before anything reads it.
+//! - `m` lost samples ([`StepInput::lost`](crate::StepInput::lost)) are bridged by as many
+//!   history entries (at most the history length) with the held `y`, `r` and `u` (the
+//!   plant held its input), and the update is suspended while they are in the windows.
+//! - [`crate::Controller::observe`] is the trait's default (the sample is stepped and the
+//!   output discarded); neither controller has an ahead form (`u_k` needs `r_k`).
+//!
 //! # Real time
 //!
 //! Every buffer is sized in the constructors; [`crate::Controller::step`] does not
-//! allocate, and does not panic: a non-finite `y_k` or `r_k` holds the last input and
-//! reports [`crate::status::CONTROLLER_FAULT`] (module docs of [`Appc`] and [`RcMrac`]).
+//! allocate (checked by `tests/conformance.rs` under a counting allocator), and does not
+//! panic (slices are read with `get`, histories return 0 beyond their length).
 
-mod appc;
+pub mod appc;
 mod checks;
 mod estimator;
 mod history;
 pub mod poly;
-mod rc_mrac;
-mod reference;
+pub mod rc_mrac;
+pub mod reference;
 mod signals;
 
 pub use appc::{Appc, AppcParams};

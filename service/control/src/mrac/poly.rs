@@ -60,7 +60,7 @@ pub fn is_schur_stable(p: &[f64]) -> bool {
     let mut next = a.clone();
     for m in (1..a.len()).rev() {
         let k = a[m];
-        if !(k.abs() < 1.0) {
+        if k.is_nan() || k.abs() >= 1.0 {
             return false;
         }
         let den = 1.0 - k * k;
@@ -92,7 +92,10 @@ pub fn roots(p: &[f64]) -> Vec<Complex<f64>> {
 
 /// The smallest modulus of the roots of `p` in `q` (`+∞` for a constant).
 pub fn min_root_modulus(p: &[f64]) -> f64 {
-    roots(p).iter().map(|z| z.norm()).fold(f64::INFINITY, f64::min)
+    roots(p)
+        .iter()
+        .map(|z| z.norm())
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Division of `num` by `den` with the coefficients taken from index 0 on (as polynomials

@@ -44,8 +44,8 @@
 //! ```
 //!
 //! RLS minimizes (4.76) with `θ̂_0`, `R_θ` (diagonal) and the forgetting factor of any
-//! [`ForgettingRule`] (`λ` constant in the dissertation); the crate-private module
-//! `estimator` says how `R_θ` enters the kernel. Since `n_r ≥ 1`, `ẑ_k` involves
+//! [`ForgettingRule`] (`λ` constant in the dissertation); [`crate::mrac`]
+//! ("RLS with `R_θ`") says how `R_θ` enters the kernel. Since `n_r ≥ 1`, `ẑ_k` involves
 //! `y_k, r_{k−n_r}` and older, and `u_{k−n_r}` and older.
 //!
 //! # Input (4.77) and timing
@@ -60,7 +60,7 @@
 //! ((4.77) with the index shifted by one), saturated to the output limits if any (the
 //! applied `u_k` enters the histories).
 //!
-//! Bad and missing samples: module `signals` (crate-private); on a bad sample the input
+//! Bad and missing samples: [`crate::mrac`] ("Bad and missing samples"); on a bad sample the input
 //! is held and the status is [`status::CONTROLLER_FAULT`], as when the RLS guard resets
 //! `θ̂` or a regression is not finite (its update is then skipped).
 //!
@@ -196,7 +196,10 @@ impl RcMracParams {
         if !poly::is_monic(&n_u) {
             return Err(ParamError::new(
                 "n-u",
-                format!("must be monic (coefficient of q⁰ equal to 1), got {}", n_u[0]),
+                format!(
+                    "must be monic (coefficient of q⁰ equal to 1), got {}",
+                    n_u[0]
+                ),
             ));
         }
         let m = poly::min_root_modulus(&n_u);
@@ -254,7 +257,11 @@ impl RcMracParams {
             .collect();
         let (rc, rem) = poly::divide(&tail, n_u);
         let rem_max = rem.iter().fold(0.0_f64, |a, c| a.max(c.abs()));
-        let rc_degree = if rc.is_empty() { usize::MAX } else { poly::degree(&rc) };
+        let rc_degree = if rc.is_empty() {
+            usize::MAX
+        } else {
+            poly::degree(&rc)
+        };
         if rc.is_empty() || rem_max > FACTOR_TOL * scale / self.leading_coefficient.abs() {
             return Err(ParamError::new(
                 "n-m",

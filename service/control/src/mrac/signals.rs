@@ -104,7 +104,11 @@ impl Signals {
     /// something is not finite. `held`: the values are already substitutes.
     fn push_data(&mut self, y: f64, r: f64, held: bool) -> bool {
         let ok = y.is_finite() && r.is_finite();
-        let (y, r) = if ok { (y, r) } else { (self.y_hold, self.r_hold) };
+        let (y, r) = if ok {
+            (y, r)
+        } else {
+            (self.y_hold, self.r_hold)
+        };
         self.r.push(r);
         let y_m = self.reference.step(r);
         let e = y - y_m;
