@@ -21,6 +21,8 @@
 //!   model (2.36)–(2.42), its Markov parameters and free response (2.43)–(2.46).
 //! - [`pcac`]: predictive cost adaptive control (2.24)–(2.51): identification,
 //!   realization, receding-horizon control.
+//! - [`mrac`]: model reference adaptive control of chapter 4: APPC (4.7)–(4.43) and
+//!   RC-MRAC (4.46)–(4.77).
 //! - [`mpc`]: the receding-horizon optimization of PCAC (2.43)–(2.51): condensing and the
 //!   dense QP solver (with clarabel as the reference under the `clarabel` feature).
 //! - [`lti`]: a discrete-time LTI controller; `excitation` (crate feature `excitation`,
@@ -42,6 +44,7 @@ pub mod learned;
 pub mod linalg;
 pub mod lti;
 pub mod mpc;
+pub mod mrac;
 mod param_error;
 pub mod pcac;
 pub mod rcac;

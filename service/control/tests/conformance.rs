@@ -6,12 +6,12 @@
 //! realistic parameters and the output limits it was given (if any). The
 //! [`conformance!`] macro instantiates every property as one test per kind, in a module
 //! named after the kind, so the test names read
-//! `rcac_rls::reset_returns_to_the_initial_state`. **Adding a future kind (RC-MRAC, APPC,
-//! the sampling-arm controller) is one line** in the `conformance!` invocation at the end
+//! `rcac_rls::reset_returns_to_the_initial_state`. **Adding a future kind (the
+//! sampling-arm controller) is one line** in the `conformance!` invocation at the end
 //! of this file, next to its constructor:
 //!
 //! ```text
-//! rc_mrac: Kind { build: rc_mrac, limits: Some((&[-1.0], &[1.0])), observe: Observe::AsStep, ahead: true },
+//! arm: Kind { build: arm, limits: Some((&[-1.0], &[1.0])), observe: Observe::AsStep, ahead: true },
 //! ```
 //!
 //! The properties, on a closed loop with a small stable plant ([`Plant`]):
@@ -57,6 +57,7 @@ use std::cell::Cell;
 use control::forgetting::ForgettingRule;
 use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
 use control::mpc::qp::QpSettings;
+use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
 use control::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
 use control::rcac::{Rcac, RcacParams, RcacUpdate, StepSize};
 use control::target::{TargetForm, TargetModel};
@@ -319,6 +320,44 @@ fn pcac_timed(timing: PcacTiming) -> Box<dyn Controller> {
     };
     let c = Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters");
     Box::new(c)
+}
+
+/// APPC (§4.2) for the loop's plant (`n = 2`): `D_m = (1 − 0.5 q⁻¹)²`,
+/// `N_m = 0.25 q⁻¹`, `H = 1 − 0.25 q⁻²`, `R_θ = 10⁻³ I`, F-test forgetting, saturated.
+fn appc() -> Box<dyn Controller> {
+    let mut p = AppcParams::new(
+        2,
+        vec![1.0, -1.0, 0.25],
+        vec![0.0, 0.25],
+        vec![1.0, 0.0, -0.25],
+    );
+    p.r_theta = vec![1e-3; AppcParams::theta_len(2)];
+    p.forgetting = ForgettingRule::FTest {
+        tau_n: 10,
+        tau_d: 100,
+        eta: 0.1,
+        alpha: 0.001,
+    };
+    p.trace_limit = 1e9;
+    p.limits = limits();
+    Box::new(Appc::new(&p, Dimensions::new(1, 1, 1, 1)).expect("valid APPC parameters"))
+}
+
+/// RC-MRAC (§4.3) for the loop's plant (`n = 2`, `n_r = 1`, `N_1 = 0.1`, `N_u = 1`,
+/// `n_s = 0`): `F = 1 + 0.5 q⁻¹`, `D_m = (1 − 0.5 q⁻¹)²`, `N_m = 0.25 q⁻¹`, `λ = 1`,
+/// without limits.
+fn rc_mrac() -> Box<dyn Controller> {
+    let p = RcMracParams::new(
+        2,
+        1,
+        0.1,
+        vec![1.0],
+        0,
+        vec![1.0, 0.5],
+        vec![1.0, -1.0, 0.25],
+        vec![0.0, 0.25],
+    );
+    Box::new(RcMrac::new(&p, Dimensions::new(1, 1, 1, 1)).expect("valid RC-MRAC parameters"))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -989,4 +1028,6 @@ conformance! {
     rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData, ahead: true },
     pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep, ahead: false },
     pcac_next_step: Kind { build: pcac_next_step, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
+    appc: Kind { build: appc, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    rc_mrac: Kind { build: rc_mrac, limits: None, observe: Observe::AsStep, ahead: false },
 }

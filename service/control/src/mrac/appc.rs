@@ -1,0 +1,389 @@
+//! Adaptive pole placement control (APPC), §4.2, (4.7)–(4.43).
+//!
+//! # Controller (4.10)
+//!
+//! ```text
+//! u_k = N_c(q⁻¹) y_k + D_c(q⁻¹) u_k + H(q⁻¹) r_k                                  (4.10)
+//! N_c = Σ_{i=1}^{n} N_{c,i} q⁻ⁱ,  D_c = Σ_{i=1}^{n} D_{c,i} q⁻ⁱ,  H = 1 + Σ_{i=1}^{n} H_i q⁻ⁱ   (4.11)–(4.13)
+//! ```
+//!
+//! `H` asymptotically stable and monic. With `N_c*`, `D_c*` solving the Diophantine
+//! equation `D_m H = D − N_c* N − D_c* D` (4.18)–(4.19) the closed loop is
+//! `y_k = N/D_m r_k` (4.20); with the Bezout pair `1 = B* N + C* D` (4.22)–(4.24),
+//!
+//! ```text
+//! D_m H [B* y_k + C* u_k] = u_k − N_c* y_k − D_c* u_k                               (4.32)
+//! ```
+//!
+//! holds for any input, which is the regression of the algorithm.
+//!
+//! # Regression and update (4.35)–(4.42)
+//!
+//! ```text
+//! θ_1 = [N_{c,1} … N_{c,n} D_{c,1} … D_{c,n}]ᵀ,  θ_2 = [B_1 … B_n C_1 … C_n]ᵀ           (4.35)–(4.36)
+//! Φ_k     = [y_{k−1} … y_{k−n} u_{k−1} … u_{k−n}]                                     (4.38)
+//! Φ_{f,k} = D_m(q⁻¹) H(q⁻¹) Φ_k                                                      (4.39)
+//! u_{f,k} = [D_m(q⁻¹) H(q⁻¹) − 1] u_k                                                 (4.40)
+//! ẑ_k(θ̂_1, θ̂_2) = [Φ_k Φ_{f,k}] [θ̂_1; θ̂_2] + u_{f,k}                                   (4.41)
+//! ```
+//!
+//! and RLS minimizes (4.42) with `θ̂_0 = [θ̂_{1,0}; θ̂_{2,0}]`, `R_θ` (diagonal) and the
+//! forgetting factor of any [`ForgettingRule`] (`λ` constant in the dissertation); see
+//! [`crate::mrac`] ("RLS with `R_θ`") for how `R_θ` enters the kernel. `D_m H − 1` has no `q⁰` term,
+//! so `ẑ_k` involves `y_{k−1}, u_{k−1}` and older only.
+//!
+//! # Input (4.43) and timing
+//!
+//! At sample `k` (the service's compute-first step) the controller takes `y_k` and
+//! `r_k`, updates `θ̂_{k−1} → θ̂_k` with the regression of index `k`, and applies
+//!
+//! ```text
+//! u_k = Φ_k θ̂_{1,k} + H(q⁻¹) r_k                                                      (4.43)
+//! ```
+//!
+//! (saturated to the output limits if any; the applied `u_k` enters the histories). This
+//! is (4.43) with the index shifted by one: `u_{k+1} = Φ_{k+1} θ̂_{1,k+1} + H r_{k+1}`. The
+//! Bezout estimates `θ̂_2` are identified but not used for the input. The reference model
+//! (4.4) runs alongside only to report `y_{m,k}` and `e_k = y_k − y_{m,k}` (APPC's closed
+//! loop is `N/D_m`; `N_m` should be `N`).
+//!
+//! Bad and missing samples: [`crate::mrac`] ("Bad and missing samples"); on a bad sample the input
+//! is held and the status is [`status::CONTROLLER_FAULT`], as when the RLS guard resets
+//! `θ̂` or a regression is not finite (its update is then skipped).
+//!
+//! # Internals
+//!
+//! `appc_y_m` (`y_{m,k}`), `appc_e` (`e_k`), `appc_zhat` (`ẑ_k(θ̂_k)` (4.41), with the
+//! updated estimate), `theta_norm` (`‖θ̂_k‖`), `trace_p` (`tr(R_θ^{1/2} P_k R_θ^{1/2})`),
+//! `lambda` (`λ_k`), `resets` (guard resets), then `theta[i]`, the first entries of
+//! `θ̂_k = [θ̂_1; θ̂_2]` (up to [`MAX_INTERNALS`] signals in all).
+
+use super::checks;
+use super::estimator::Estimator;
+use super::poly;
+use super::signals::Signals;
+use crate::ParamError;
+use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+use crate::forgetting::ForgettingRule;
+
+/// Parameters of an [`Appc`] controller (coefficients of `q⁰, q⁻¹, …`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AppcParams {
+    /// The plant order `n ≥ 1` (the degree of `D`, (4.3)).
+    pub n: usize,
+    /// `D_m` (4.6), (4.17): the desired closed-loop poles; monic, asymptotically stable,
+    /// degree `≤ n`.
+    pub d_m: Vec<f64>,
+    /// `N_m` (4.5): the reference model's numerator, degree `≤ n` (used for `y_m`, `e`).
+    pub n_m: Vec<f64>,
+    /// `H` (4.13): monic, asymptotically stable, degree `≤ n`.
+    pub h: Vec<f64>,
+    /// `θ̂_0 = [θ̂_{1,0}; θ̂_{2,0}]` (length `4n`); `None`: zero.
+    pub theta0: Option<Vec<f64>>,
+    /// The diagonal of `R_θ` in (4.42) (length `4n`, positive).
+    pub r_theta: Vec<f64>,
+    /// How `λ_k` is chosen ((4.42): constant `λ ∈ (0, 1]`).
+    pub forgetting: ForgettingRule,
+    /// The RLS guard: `tr(R_θ^{1/2} P R_θ^{1/2})` above this resets `θ̂, P` (must exceed
+    /// `4n`; may be `+∞`).
+    pub trace_limit: f64,
+    /// Output saturation, if any.
+    pub limits: Option<OutputLimits>,
+}
+
+impl AppcParams {
+    /// `R_θ = DEFAULT_R_THETA · I`, as in Examples 1a and 2a.
+    pub const DEFAULT_R_THETA: f64 = 1e-5;
+
+    /// Parameters with `θ̂_0 = 0`, `R_θ = 10⁻⁵ I_{4n}`, `λ = 1`, no trace limit and no
+    /// saturation (the chapter's examples).
+    pub fn new(n: usize, d_m: Vec<f64>, n_m: Vec<f64>, h: Vec<f64>) -> Self {
+        Self {
+            n,
+            d_m,
+            n_m,
+            h,
+            theta0: None,
+            r_theta: vec![Self::DEFAULT_R_THETA; Self::theta_len(n)],
+            forgetting: ForgettingRule::DEFAULT,
+            trace_limit: f64::INFINITY,
+            limits: None,
+        }
+    }
+
+    /// `4n`, the length of `[θ_1; θ_2]`.
+    pub fn theta_len(n: usize) -> usize {
+        4 * n
+    }
+
+    /// Checks the parameters without building anything.
+    ///
+    /// # Errors
+    ///
+    /// The first refused field: `"n"` (0), `"d-m"` and `"h"` (empty, non-finite, degree
+    /// above `n`, not monic, not asymptotically stable), `"n-m"` (empty, non-finite,
+    /// degree above `n`), `"theta0"`, `"r-theta"` (not `4n` entries, not positive),
+    /// `"trace-limit"`, the forgetting rule's fields, `"u-min"`.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        self.check().map(|_| ())
+    }
+
+    /// The trimmed `D_m`, `N_m`, `H`.
+    fn check(&self) -> Result<Polynomials, ParamError> {
+        let n = self.n;
+        if n == 0 {
+            return Err(ParamError::new("n", "the plant order must be at least 1"));
+        }
+        let d_m = checks::stable_monic(&self.d_m, "d-m", n, "the plant order n")?;
+        let n_m = checks::polynomial(&self.n_m, "n-m", n, "the plant order n")?;
+        let h = checks::stable_monic(&self.h, "h", n, "the plant order n")?;
+        super::estimator::check(
+            Self::theta_len(n),
+            self.theta0.as_deref(),
+            &self.r_theta,
+            &self.forgetting,
+            self.trace_limit,
+        )?;
+        checks::limits(self.limits.as_ref())?;
+        Ok(Polynomials { d_m, n_m, h })
+    }
+}
+
+/// What [`AppcParams::check`] keeps: the polynomials up to their degrees.
+struct Polynomials {
+    d_m: Vec<f64>,
+    n_m: Vec<f64>,
+    h: Vec<f64>,
+}
+
+/// The APPC controller (module docs).
+#[derive(Debug, Clone)]
+pub struct Appc {
+    counts: Dimensions,
+    n: usize,
+    /// `D_m H` (degree ≤ 2n).
+    g: Vec<f64>,
+    h: Vec<f64>,
+    sig: Signals,
+    est: Estimator,
+    /// `[Φ_k Φ_{f,k}]` (4n).
+    phi: Vec<f64>,
+    limits: Option<OutputLimits>,
+    zhat: f64,
+    lambda: f64,
+    theta_norm: f64,
+}
+
+impl Appc {
+    /// Builds the controller for a SISO rig (`n_y = n_r = n_u = 1`; `z` is not read).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`AppcParams::validate`], and `"channels"` for other counts.
+    pub fn new(params: &AppcParams, counts: Dimensions) -> Result<Self, ParamError> {
+        checks::siso(counts)?;
+        let Polynomials { d_m, n_m, h } = params.check()?;
+        let n = params.n;
+        let g = poly::mul(&d_m, &h);
+        // Φ_{k−d} for d ≤ deg(D_m H) reads y_{k−d−j}, u_{k−d−j}, j ≤ n.
+        let len = g.len() + n;
+        let est = Estimator::new(
+            AppcParams::theta_len(n),
+            params.theta0.as_deref(),
+            &params.r_theta,
+            &params.forgetting,
+            params.trace_limit,
+        )?;
+        let mut s = Self {
+            counts,
+            n,
+            sig: Signals::new(len.max(h.len()), &n_m, &d_m, &[1.0]),
+            g,
+            h,
+            est,
+            phi: vec![0.0; AppcParams::theta_len(n)],
+            limits: params.limits.clone(),
+            zhat: 0.0,
+            lambda: 1.0,
+            theta_norm: 0.0,
+        };
+        s.reset();
+        Ok(s)
+    }
+
+    /// `θ̂_k = [θ̂_1; θ̂_2]` (4.35)–(4.36): `[N_{c,1..n}, D_{c,1..n}, B_{1..n}, C_{1..n}]`.
+    pub fn theta(&self) -> &[f64] {
+        self.est.theta()
+    }
+
+    /// `y_{m,k}` of the last sample (NaN after a bad one).
+    pub fn y_m(&self) -> f64 {
+        self.sig.y_m
+    }
+
+    /// `e_k = y_k − y_{m,k}` of the last sample (NaN after a bad one).
+    pub fn e(&self) -> f64 {
+        self.sig.e_k
+    }
+
+    /// `ẑ_k(θ̂_k)` (4.41) of the last sample, with the updated estimate.
+    pub fn zhat(&self) -> f64 {
+        self.zhat
+    }
+
+    /// `[Φ_k Φ_{f,k}]` of the last sample (4.38)–(4.39).
+    pub fn regressor(&self) -> &[f64] {
+        &self.phi
+    }
+
+    /// Guard resets of the estimator since construction.
+    pub fn resets(&self) -> u64 {
+        self.est.resets()
+    }
+
+    /// `[Φ_k Φ_{f,k}]` into `self.phi`; returns `u_{f,k}` (4.40).
+    fn regression(&mut self) -> f64 {
+        let n = self.n;
+        let sig = &self.sig;
+        let (phi, phi_f) = self.phi.split_at_mut(2 * n);
+        for j in 1..=n {
+            if let Some(d) = phi.get_mut(j - 1) {
+                *d = sig.y.get(j);
+            }
+            if let Some(d) = phi.get_mut(n + j - 1) {
+                *d = sig.u_lag(j);
+            }
+            let (mut fy, mut fu) = (0.0, 0.0);
+            for (d, gd) in self.g.iter().enumerate() {
+                fy += gd * sig.y.get(d + j);
+                fu += gd * sig.u_lag(d + j);
+            }
+            if let Some(d) = phi_f.get_mut(j - 1) {
+                *d = fy;
+            }
+            if let Some(d) = phi_f.get_mut(n + j - 1) {
+                *d = fu;
+            }
+        }
+        let mut uf = 0.0;
+        for (d, gd) in self.g.iter().enumerate().skip(1) {
+            uf += gd * sig.u_lag(d);
+        }
+        uf
+    }
+
+    /// `Φ_k θ̂_1 + H r_k` (4.43).
+    fn law(&self) -> f64 {
+        let theta = self.est.theta();
+        let n = self.n;
+        let mut u = 0.0;
+        for j in 1..=n {
+            u += theta.get(j - 1).copied().unwrap_or(0.0) * self.sig.y.get(j);
+            u += theta.get(n + j - 1).copied().unwrap_or(0.0) * self.sig.u_lag(j);
+        }
+        u + self.sig.r_fir(&self.h)
+    }
+
+    fn note_theta(&mut self) {
+        self.theta_norm = self.est.theta().iter().map(|t| t * t).sum::<f64>().sqrt();
+    }
+}
+
+impl Controller for Appc {
+    fn kind(&self) -> &'static str {
+        "appc"
+    }
+
+    fn counts(&self) -> Dimensions {
+        self.counts
+    }
+
+    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        let mut st = status::OK;
+        self.sig.absorb(input);
+        let ok = self.sig.take_in(input);
+        let mut out = self.sig.u_last();
+        if ok {
+            let uf = self.regression();
+            let b = -uf;
+            let finite = b.is_finite() && self.phi.iter().all(|v| v.is_finite());
+            if !finite {
+                st |= status::CONTROLLER_FAULT;
+                self.zhat = f64::NAN;
+            } else {
+                if self.sig.learn() {
+                    let r = self.est.update(&self.phi, b);
+                    self.lambda = r.lambda;
+                    if r.reset {
+                        st |= status::CONTROLLER_FAULT;
+                    }
+                    self.note_theta();
+                }
+                self.zhat = crate::linalg::dot(&self.phi, self.est.theta()) - b;
+            }
+            out = self.law();
+        } else {
+            st |= status::CONTROLLER_FAULT;
+            self.zhat = f64::NAN;
+        }
+        st |= checks::saturate(self.limits.as_ref(), &mut out);
+        self.sig.push_u(out);
+        if let Some(d) = u.first_mut() {
+            *d = out;
+        }
+        st
+    }
+
+    fn reset(&mut self) {
+        self.est.reset();
+        self.note_theta();
+        self.restart_data();
+    }
+
+    /// Forgets the histories, the reference model's state and the forgetting windows;
+    /// keeps `θ̂_k` and `P_k`.
+    fn restart_data(&mut self) {
+        self.sig.clear();
+        self.est.restart_data();
+        self.phi.fill(0.0);
+        self.zhat = 0.0;
+        self.lambda = 1.0;
+    }
+
+    /// The RLS blocks (in the scaled coordinates `R_θ^{1/2} θ̂`).
+    fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+        self.est.learned(visit);
+    }
+
+    fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        let r = self.est.restore_learned(saved);
+        self.note_theta();
+        r
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("coefficient resets", self.est.resets()),
+            ("gaps bridged", self.sig.gaps()),
+        ]
+    }
+
+    fn internal_names(&self) -> Vec<String> {
+        super::internal_names("appc", self.est.theta().len())
+    }
+
+    fn internals(&self, out: &mut [f64]) -> usize {
+        let head = [
+            self.sig.y_m,
+            self.sig.e_k,
+            self.zhat,
+            self.theta_norm,
+            self.est.trace(),
+            self.lambda,
+            self.est.resets() as f64,
+        ];
+        super::write_internals(&head, self.est.theta(), out)
+    }
+}
+
+const _: () = assert!(MAX_INTERNALS >= 8);
