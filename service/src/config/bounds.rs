@@ -76,3 +76,7 @@ pub fn max_cycles(period: f64) -> u64 {
 pub fn cycles(seconds: f64, period: f64) -> u64 {
     (seconds / period).round() as u64
 }
+
+/// Largest plant order `n` of APPC and RC-MRAC (`controller.n`), and the largest degree of
+/// their polynomials.
+pub const MAX_MRAC_ORDER: u64 = 64;

@@ -2,14 +2,16 @@
 //!
 //! ```toml
 //! [controller]
-//! kind = "lti"                    # "lti", "excitation", "rcac" or "pcac"
+//! kind = "lti"                    # "lti", "excitation", "rcac", "pcac", "appc" or "rc-mrac"
 //! u-min = -1.0                    # optional saturation, scalar or one per input u
 //! u-max = 1.0
 //! ```
 //!
 //! The other fields depend on the kind and are listed in the kind's module: `lti`
 //! ([`ControllerConfig::Lti`]), `excitation` ([`ControllerConfig::Excitation`]), `rcac`
-//! ([`ControllerConfig::Rcac`]) and `pcac` ([`ControllerConfig::Pcac`]).
+//! ([`ControllerConfig::Rcac`]), `pcac` ([`ControllerConfig::Pcac`]), `appc`
+//! ([`ControllerConfig::Appc`]) and `rc-mrac` ([`ControllerConfig::RcMrac`]) (both in
+//! `mrac`).
 //!
 //! Each kind's `parse` turns its table into the kernel's parameter struct (defaults from
 //! the kernel's constants) and calls the struct's `validate`, which builds nothing; the
@@ -19,9 +21,10 @@
 //! module's `parse` and in the two `match`es of [`ControllerConfig`].
 
 use super::values::{ScalarOrVec, per_channel};
-use super::{ConfigError, ErrFn, excitation, lti, pcac, rcac};
+use super::{ConfigError, ErrFn, excitation, lti, mrac, pcac, rcac};
 use control::excitation::ExcitationParams;
 use control::lti::LtiParams;
+use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
 use control::pcac::{Pcac, PcacParams};
 use control::{
     Controller, ExcitationSource, LtiController, OutputLimits, ParamError, Rcac, RcacParams,
@@ -54,6 +57,16 @@ pub enum ControllerConfig {
         /// The validated parameters.
         params: Box<PcacParams>,
     },
+    /// Adaptive pole placement control ([`Appc`], chapter 4).
+    Appc {
+        /// The validated parameters.
+        params: Box<AppcParams>,
+    },
+    /// Retrospective cost model reference adaptive control ([`RcMrac`], chapter 4).
+    RcMrac {
+        /// The validated parameters.
+        params: Box<RcMracParams>,
+    },
 }
 
 impl ControllerConfig {
@@ -64,6 +77,8 @@ impl ControllerConfig {
             ControllerConfig::Excitation { .. } => "excitation",
             ControllerConfig::Rcac { .. } => "rcac",
             ControllerConfig::Pcac { .. } => "pcac",
+            ControllerConfig::Appc { .. } => "appc",
+            ControllerConfig::RcMrac { .. } => "rc-mrac",
         }
     }
 
@@ -76,6 +91,8 @@ impl ControllerConfig {
             ControllerConfig::Excitation { params } => params.answers_ahead(),
             ControllerConfig::Rcac { params } => params.answers_ahead(),
             ControllerConfig::Pcac { params } => params.answers_ahead(),
+            // u_k needs the command r_k of the same sample ((4.43), (4.77)).
+            ControllerConfig::Appc { .. } | ControllerConfig::RcMrac { .. } => false,
         }
     }
 
@@ -87,6 +104,9 @@ impl ControllerConfig {
             ControllerConfig::Pcac { .. } => {
                 "controller.timing = \"same-step\" chooses u_k from y_k; \"next-step\", the \
                  dissertation's timing, answers ahead"
+            }
+            ControllerConfig::Appc { .. } | ControllerConfig::RcMrac { .. } => {
+                "its input u_k needs the command r_k of the same sample ((4.43), (4.77))"
             }
             ControllerConfig::Rcac { .. } | ControllerConfig::Excitation { .. } => "",
         }
@@ -104,6 +124,10 @@ impl ControllerConfig {
             ControllerConfig::Excitation { params } => params.validate(dims),
             ControllerConfig::Rcac { params } => params.validate(dims),
             ControllerConfig::Pcac { params } => params.validate(dims),
+            // The kernels check the channels when built; building allocates, which is
+            // fine here (configuration time).
+            ControllerConfig::Appc { params } => Appc::new(params, dims).map(|_| ()),
+            ControllerConfig::RcMrac { params } => RcMrac::new(params, dims).map(|_| ()),
         }
     }
 
@@ -128,6 +152,12 @@ impl ControllerConfig {
             ControllerConfig::Pcac { params } => {
                 Pcac::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
             }
+            ControllerConfig::Appc { params } => {
+                Appc::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
+            }
+            ControllerConfig::RcMrac { params } => {
+                RcMrac::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
+            }
         };
         built.map_err(|e| format!("{}: {}", table_field(&e), e.message))
     }
@@ -150,7 +180,7 @@ pub(super) fn param_error(e: ParamError, err: &ErrFn<'_>) -> ConfigError {
 }
 
 /// The kinds [`parse`] knows, for the error messages.
-const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac";
+const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac, appc, rc-mrac";
 
 /// What a kind's `parse` reads besides its own table.
 pub(super) struct Rig<'a> {
@@ -177,6 +207,8 @@ pub(super) fn parse(
         "excitation" => read(value, rig, err, excitation::parse),
         "rcac" => read(value, rig, err, rcac::parse),
         "pcac" => read(value, rig, err, pcac::parse),
+        "appc" => read(value, rig, err, mrac::parse_appc),
+        "rc-mrac" => read(value, rig, err, mrac::parse_rc_mrac),
         "" => Err(err(
             "controller.kind",
             format!("missing; known kinds: {CONTROLLER_KINDS}"),

@@ -22,6 +22,7 @@
 //! | `kind = "excitation"` | [`excitation`] | [`ControllerConfig::Excitation`] |
 //! | `kind = "rcac"` | [`rcac`], [`forgetting`], [`target_model_file`] | [`ControllerConfig::Rcac`] |
 //! | `kind = "pcac"` | [`pcac`], [`forgetting`] | [`ControllerConfig::Pcac`] |
+//! | `kind = "appc"`, `kind = "rc-mrac"` | [`mrac`], [`forgetting`] | [`ControllerConfig::Appc`], [`ControllerConfig::RcMrac`] |
 //!
 //! The shared value shapes (a scalar or one value per channel, a scalar or a matrix,
 //! bounded durations and counts, "one of" names) are in `values`; the bound of every size,
@@ -57,6 +58,7 @@ pub mod excitation;
 pub mod forgetting;
 pub mod log;
 pub mod lti;
+pub mod mrac;
 pub mod pcac;
 pub mod rcac;
 #[cfg(test)]
