@@ -202,6 +202,10 @@ pub struct StepCase {
     /// A plant closing the loop around the controller during the measurement, or `None`
     /// (then `y_k` comes from a fixed table of sines and `z_k = 0`). See [`LoopPlant`].
     pub plant: Option<LoopPlant>,
+    /// The command `r_k = Σ cos(ω_i k)` of a controller that follows one (the chapter-4
+    /// controllers; the rig then has `n_r = 1`): the frequencies `ω_i`, rad/sample. Empty:
+    /// no command channel.
+    pub command: Vec<f64>,
 }
 
 /// An FIR plant that closes the loop in the step-cost phase of an adaptive controller, so
@@ -236,6 +240,7 @@ impl StepCase {
             toml: service_toml("bench-step", channels, ss, false),
             min_warmup: 0,
             plant: None,
+            command: Vec::new(),
         }
     }
 
@@ -255,6 +260,28 @@ impl StepCase {
             toml: step_toml(channels, controller),
             min_warmup,
             plant: Some(plant),
+            command: Vec::new(),
+        }
+    }
+
+    /// A SISO case named `name` for a controller that follows the command
+    /// `r_k = Σ cos(ω_i k)` (`command`: the `ω_i`), in the loop of `plant`.
+    pub fn following(
+        name: &str,
+        slug: &str,
+        controller: &str,
+        min_warmup: u64,
+        plant: LoopPlant,
+        command: &[f64],
+    ) -> Self {
+        Self {
+            name: name.to_string(),
+            slug: slug.to_string(),
+            toml: step_toml(Channels { y: 1, z: 1, u: 1 }, controller)
+                .replace("u = 1 }", "r = 1, u = 1 }"),
+            min_warmup,
+            plant: Some(plant),
+            command: command.to_vec(),
         }
     }
 }
@@ -323,6 +350,35 @@ pub fn acoustic_plant() -> LoopPlant {
     }
 }
 
+/// The plant of chapter 4's Example 1 (4.83) at `ρ = 0.5`, `ν = π/4`,
+/// `y = (q⁻¹ − 0.5 q⁻²)/(1 − 2ρ cos ν q⁻¹ + ρ² q⁻²) u`, as its first 64 Markov parameters
+/// (the rest are below 10⁻¹⁸), with a little noise: the loop of the APPC and RC-MRAC cases.
+pub fn mrac_example1_plant() -> LoopPlant {
+    let (rho, nu) = (0.5_f64, std::f64::consts::FRAC_PI_4);
+    let (d1, d2) = (-2.0 * rho * nu.cos(), rho * rho);
+    let num = [0.0, 1.0, -0.5];
+    // The impulse response h_k of N/D: h_k = N_k − d1 h_{k−1} − d2 h_{k−2}.
+    let mut h = vec![0.0; 64];
+    for k in 0..h.len() {
+        let n_k = num.get(k).copied().unwrap_or(0.0);
+        let a = if k >= 1 { d1 * h[k - 1] } else { 0.0 };
+        let b = if k >= 2 { d2 * h[k - 2] } else { 0.0 };
+        h[k] = n_k - a - b;
+    }
+    LoopPlant {
+        markov: h.iter().map(|v| DMatrix::from_element(1, 1, *v)).collect(),
+        tone: 0.0,
+        tone_w: 0.0,
+        noise_std: 1e-3,
+        seed: 4,
+    }
+}
+
+/// The frequencies of chapter 4's four-harmonic command
+/// `r_k = cos k + cos(k/2) + cos(k/4) + cos(k/8)` (§4.5), rad/sample: the command of the
+/// APPC and RC-MRAC cases.
+pub const MRAC_COMMAND: [f64; 4] = [1.0, 0.5, 0.25, 0.125];
+
 /// The controller configurations the bench knows, in table order. Add new controllers
 /// (PCAC, …) here.
 pub fn step_cases() -> Vec<StepCase> {
@@ -378,6 +434,22 @@ pub fn step_cases() -> Vec<StepCase> {
             ),
             warm,
             acoustic_plant(),
+        ),
+        StepCase::following(
+            "appc, n 2 (lθ 8), Example 1 of ch. 4",
+            "appc-n2",
+            include_str!("../../scenarios/mrac/appc.toml"),
+            0,
+            mrac_example1_plant(),
+            &MRAC_COMMAND,
+        ),
+        StepCase::following(
+            "rc-mrac, n 2, n_s 1 (lθ 6), Example 1 of ch. 4",
+            "rc-mrac-n2",
+            include_str!("../../scenarios/mrac/rc-mrac.toml"),
+            0,
+            mrac_example1_plant(),
+            &MRAC_COMMAND,
         ),
     ]
 }

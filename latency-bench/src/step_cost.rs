@@ -137,7 +137,7 @@ pub fn measure(
     let mut plant = case.plant.as_ref().map(|p| Loop::new(p, n_z, n_u));
     let mut y_loop = [0.0; MAX_Y];
     let mut z = [0.0; MAX_Z];
-    let r = [0.0; MAX_R];
+    let mut r = [0.0; MAX_R];
     let mut u = [0.0; MAX_U];
     let mut h = new_histogram();
     for k in 0..warmup + steps {
@@ -150,6 +150,9 @@ pub fn measure(
             }
             None => &ys[(k as usize) % TABLE],
         };
+        if n_r > 0 {
+            r[0] = case.command.iter().map(|w| (w * k as f64).cos()).sum();
+        }
         let input = StepInput {
             seq: k,
             y: &y[..n_y],
