@@ -113,6 +113,9 @@
 //! [`PlantSim::sample_noiseless`], [`PlantSim::advance`] and [`PlantSim::reset`] do not
 //! (all buffers are pre-allocated, products are written in place with `gemv`).
 
+use crate::command::Command;
+use crate::discrete::{DifferenceEquation, DiscretePlant};
+use crate::harmonic::sum_at;
 use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, StateSpace, c2d_zoh, eigenvalues};
 use crate::scenario::{BandLimited, PlantParams, Tone};
 use nalgebra::{DMatrix, DVector, DVectorViewMut, SymmetricEigen};
@@ -260,7 +263,10 @@ pub struct PlantSim {
     z_std: Vec<f64>,
     y_noise: Vec<f64>,
     z_noise: Vec<f64>,
-    command: Vec<f64>,
+    command: Command,
+    /// A discrete-time plant and its recursion: then the continuous part has no state and
+    /// the recursion gives `y = z` ([`crate::discrete`]).
+    discrete: Option<(DiscretePlant, DifferenceEquation)>,
     seed: u64,
     rng: ChaCha8Rng,
     k: u64,
@@ -330,16 +336,14 @@ impl PlantSim {
         non_negative("disturbance.white_std", &params.disturbance.white_std)?;
         non_negative("noise.y_std", &params.noise.y_std)?;
         non_negative("noise.z_std", &params.noise.z_std)?;
-        if params
-            .initial_state
-            .iter()
-            .chain(&params.command)
-            .any(|v| !v.is_finite())
-        {
+        if params.initial_state.iter().any(|v| !v.is_finite()) || !params.command.is_valid() {
             return Err(param(
                 "initial_state/command",
-                "has a NaN or infinite value".into(),
+                "has a NaN or infinite value (or a harmonic outside [0, π] rad/step)".into(),
             ));
+        }
+        if let Some(d) = &params.discrete {
+            check_discrete(params, d)?;
         }
         for t in &params.disturbance.tones {
             if t.input >= n_w {
@@ -440,7 +444,7 @@ impl PlantSim {
         let mut sim = PlantSim {
             ts,
             dims,
-            n_r: params.command.len(),
+            n_r: params.command.n_r(),
             n_p,
             plant: plant.clone(),
             tones,
@@ -471,6 +475,10 @@ impl PlantSim {
             y_noise: vec![0.0; n_y],
             z_noise: vec![0.0; n_z],
             command: params.command.clone(),
+            discrete: params
+                .discrete
+                .as_ref()
+                .map(|d| (d.clone(), DifferenceEquation::new(d.tf.clone()))),
             seed,
             rng: ChaCha8Rng::seed_from_u64(seed),
             k: 0,
@@ -485,7 +493,9 @@ impl PlantSim {
     /// Sets when a new input takes effect inside the period: `Some(f)`, `0 < f < 1`, at
     /// `kT + fT` (the previous input is held over `[kT, kT + fT)`); `None`, at `kT` (the ideal
     /// zero-order hold). Computes both discretizations now: it allocates, so call it before
-    /// the real-time loop. The state and `k` are kept.
+    /// the real-time loop. The state and `k` are kept. A discrete-time plant has no
+    /// behaviour between samples: a valid offset is accepted and has no effect (the offset
+    /// in use stays `None`).
     pub fn set_apply_offset(&mut self, offset: Option<f64>) -> Result<(), SimError> {
         let Some(f) = offset else {
             self.offset = None;
@@ -493,6 +503,9 @@ impl PlantSim {
         };
         if !(f > 0.0 && f < 1.0) {
             return Err(SimError::ApplyOffset(f));
+        }
+        if self.discrete.is_some() {
+            return Ok(());
         }
         let (phi1, gamma1) = c2d_zoh(&self.a_aug, &self.b_aug, f * self.ts)?;
         let (phi2, gamma2) = c2d_zoh(&self.a_aug, &self.b_aug, (1.0 - f) * self.ts)?;
@@ -536,12 +549,17 @@ impl PlantSim {
         self.dims.n_w
     }
 
-    /// Number of plant states (without the exosystem).
+    /// Number of plant states (without the exosystem); for a discrete plant, the length
+    /// `n + m` of its difference equation's state.
     pub fn n_plant_states(&self) -> usize {
-        self.n_p
+        match &self.discrete {
+            Some((_, eq)) => eq.state().len(),
+            None => self.n_p,
+        }
     }
 
-    /// Number of exosystem states (two per tone, then `order` per band-limited disturbance).
+    /// Number of exosystem states (two per tone, then `order` per band-limited disturbance;
+    /// none for a discrete plant).
     pub fn n_exosystem_states(&self) -> usize {
         self.x.len() - self.n_p
     }
@@ -561,9 +579,14 @@ impl PlantSim {
         self.k as f64 * self.ts
     }
 
-    /// The augmented state `[x; ξ]` at `kT`.
+    /// The augmented state `[x; ξ]` at `kT`; for a discrete plant, the state
+    /// `[y_{k−1}, …, y_{k−n}, u_{k−1}, …, u_{k−m}]` of its difference equation (the applied
+    /// inputs, input disturbance included).
     pub fn state(&self) -> &[f64] {
-        self.x.as_slice()
+        match &self.discrete {
+            Some((_, eq)) => eq.state(),
+            None => self.x.as_slice(),
+        }
     }
 
     /// Writes `y_k`, `z_k` (measurement noise included) and the command `r_k`. Idempotent
@@ -577,7 +600,7 @@ impl PlantSim {
         for (v, n) in z.iter_mut().zip(&self.z_noise) {
             *v += n;
         }
-        r.copy_from_slice(&self.command);
+        self.command.write(self.k, r);
         Ok(())
     }
 
@@ -585,6 +608,11 @@ impl PlantSim {
     pub fn sample_noiseless(&self, y: &mut [f64], z: &mut [f64]) -> Result<(), SimError> {
         check_len("y", y, self.dims.n_y)?;
         check_len("z", z, self.dims.n_z)?;
+        if let Some((_, eq)) = &self.discrete {
+            y[0] = eq.output();
+            z[0] = y[0];
+            return Ok(());
+        }
         let mut yv = DVectorViewMut::from_slice(y, self.dims.n_y);
         yv.gemv(1.0, &self.c_y, &self.x, 0.0);
         yv.gemv(1.0, &self.d_y, &self.v_prev, 1.0);
@@ -613,6 +641,13 @@ impl PlantSim {
                 self.ring_pos[j] = (self.ring_pos[j] + 1) % d;
                 applied
             };
+        }
+        if let Some((plant, eq)) = &mut self.discrete {
+            eq.step(self.v_new[0] + sum_at(&plant.input_disturbance, self.k));
+            self.v_prev.copy_from(&self.v_new);
+            self.k += 1;
+            self.draw();
+            return Ok(());
         }
         for (i, &w) in self.white.iter().enumerate() {
             self.v_new[n_u + i] = w;
@@ -651,6 +686,9 @@ impl PlantSim {
         self.v_prev.fill(0.0);
         self.ring.fill(0.0);
         self.ring_pos.fill(0);
+        if let Some((_, eq)) = &mut self.discrete {
+            eq.reset();
+        }
         self.k = 0;
         self.rng = ChaCha8Rng::seed_from_u64(self.seed);
         self.draw();
@@ -680,6 +718,9 @@ impl PlantSim {
     /// measurement convention of the module documentation, the input delay given apart as
     /// `delay-samples`: the full channel is `z^{-d} num(z)/den(z)`) and its poles.
     pub fn describe(&self) -> Value {
+        if let Some((plant, _)) = &self.discrete {
+            return describe_discrete(self, plant);
+        }
         let ChannelDims { n_u, n_w, n_y, n_z } = self.dims;
         let n_x = self.x.len();
         let phi_p = self.phi.view((0, 0), (self.n_p, self.n_p)).into_owned();
@@ -754,7 +795,7 @@ impl PlantSim {
                 "white-noise-intensity": b.rms * b.rms / butterworth_noise_variance(b.order, b.omega_c),
             })).collect::<Vec<_>>(),
             "noise": { "y-std": self.y_std, "z-std": self.z_std, "seed": self.seed },
-            "command": self.command,
+            "command": command_json(&self.command),
             "plant-poles": match eigenvalues(&phi_p) {
                 Ok(p) => poles(&p),
                 Err(e) => json!({ "error": e.to_string() }),
@@ -921,6 +962,9 @@ fn matrix(m: &DMatrix<f64>) -> Value {
 fn poles(p: &[nalgebra::Complex<f64>]) -> Value {
     Value::Array(p.iter().map(|z| json!([z.re, z.im])).collect())
 }
+
+mod discrete_plant;
+use discrete_plant::{check_discrete, command_json, describe_discrete};
 
 #[cfg(test)]
 mod tests;
