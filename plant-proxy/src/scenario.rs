@@ -15,7 +15,8 @@
 //! duration = 10.0           # s of the default run
 //!
 //! [plant]
-//! kind = "transfer-function"   # or "state-space", "modal" or "truss"
+//! kind = "transfer-function"   # or "state-space", "modal", "truss", "discrete",
+//!                              # "mrac-example"
 //! inputs = 2                   # control inputs u
 //! disturbances = 1             # disturbance inputs w (may be 0)
 //! outputs-y = 1                # measurements y
@@ -23,7 +24,8 @@
 //! input-delays = [9, 16]       # optional: pure delay in samples per control input (default 0)
 //! initial-state = [0.0, …]     # optional: continuous state at t = 0 (default zeros)
 //! commands = 0                 # optional: command channels r (default 0) …
-//! command = []                 # … held at this constant vector (default zeros)
+//! command = []                 # … held at this constant vector (default zeros), or the
+//!                              # table [plant.command] below (one channel)
 //!
 //! [plant.tf]                   # kind = "transfer-function": continuous-time G(s) matrices
 //! yu = [[ { num = [..], den = [..] }, 0 ]]   # outputs-y × inputs; 0 or a missing row = zero
@@ -41,6 +43,25 @@
 //!
 //! [plant.truss]                # kind = "truss": a planar truss of pinned members, see
 //! …                            # crate::truss for its fields (nodes, members, ports, SNR)
+//!
+//! [plant.discrete]             # kind = "discrete": N(q⁻¹)/D(q⁻¹), per step (crate::discrete)
+//! num = [0.0, 1.0, -0.5]       # b_0 = 0, b_1, …: ascending powers of q⁻¹
+//! den = [1.0, -0.7071, 0.25]   # a_0 ≠ 0, a_1, …
+//!
+//! [plant.mrac-example]         # kind = "mrac-example": (4.83) or (4.88) (crate::mrac_examples)
+//! example = 1                  # 1: (4.83), zero 0.5; 2: (4.88), zero 1.5
+//! rho = 0.5                    # pole radius in (0, 1)
+//! nu = 0.7853981633974483      # pole angle in [0, π] rad
+//!
+//! [plant.input-disturbance]    # discrete kinds only: d_k added to the input u_k
+//! harmonics = [ { amplitude = 1.0, frequency-rad-step = 0.35, phase-rad = 0.0 } ]
+//!
+//! [plant.command]              # a generated command r_k, one channel (crate::command)
+//! kind = "step"                # r_k = amplitude (default 1) for k ≥ start (default 0)
+//! amplitude = 1.0
+//! start = 0
+//! # or kind = "harmonics" with preset = "two-harmonic" | "four-harmonic", or with
+//! # terms = [ { amplitude, frequency-rad-step, phase-rad } ]: Σ a_i cos(ω_i k + φ_i)
 //!
 //! [plant.disturbance]
 //! tones = [ { input = 0, amplitude = 1.0, frequency-hz = 800.0, phase-deg = 0.0 } ]
@@ -63,6 +84,14 @@
 //! `[[G_yu, G_yw], [G_zu, G_zw]]` ([`crate::lti::realize_tf_matrix_sized`]); for
 //! `kind = "modal"` they are `[q_1, q̇_1, q_2, q̇_2, …]`; for `kind = "truss"` they are the
 //! modal coordinates `[η_1, η̇_1, …]` of the truss ([`crate::truss`]).
+//!
+//! The discrete kinds (`"discrete"`, `"mrac-example"`) are run by their difference
+//! equation `y_k = Σ_j b_j u_{k−j} − Σ_i a_i y_{k−i}`, one step per sample, with no
+//! discretization ([`crate::discrete`]); they have one input, no `w`, one `y` and `z = y`
+//! (`inputs`, `disturbances`, `outputs-y`, `outputs-z` may be omitted, and must be 1, 0,
+//! 1, 1 when given), start at rest (no `initial-state`), and take their disturbance in
+//! `[plant.input-disturbance]` (`u_k + d_k`, after the input delay) instead of
+//! `[plant.disturbance]`. `[plant.noise]` adds measurement noise as for the other kinds.
 //!
 //! A band-limited disturbance is `w_i(t) += y_f(t)`, the output of a Butterworth low-pass
 //! of order `order` and cutoff `cutoff-hz` (unit DC gain) driven by continuous-time white
