@@ -205,6 +205,26 @@ fn a_discrete_plant_from_num_and_den_is_its_recursion_with_its_input_delay() {
 }
 
 #[test]
+fn the_fixed_counts_of_a_discrete_plant_may_be_omitted_or_spelled_out() {
+    let ex1 = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/mrac/example1.toml"),
+    )
+    .unwrap();
+    let mut short = ex1.clone();
+    for line in [
+        "inputs = 1\n",
+        "disturbances = 0\n",
+        "outputs-y = 1\n",
+        "outputs-z = 1\n",
+        "commands = 1\n",
+    ] {
+        assert!(short.contains(line), "{line}");
+        short = short.replacen(line, "", 1);
+    }
+    assert_eq!(parse(&short).plant, parse(&ex1).plant);
+}
+
+#[test]
 fn the_discrete_kind_and_the_mrac_example_kind_agree_at_the_same_coefficients() {
     let text = DISCRETE.replace(
         "num = [0.0, 0.0, 1.0, 0.5, -0.25]\nden = [1.0, -1.2, 0.5, -0.1]",
@@ -372,22 +392,17 @@ fn bad_tables_are_refused_naming_the_field() {
             "kind = \"discrete\"",
             "plant.mrac-example",
         ),
+        (&ex1, "\ninputs = 1\n", "\ninputs = 2\n", "plant.inputs"),
         (
             &ex1,
-            "kind = \"mrac-example\"",
-            "kind = \"mrac-example\"\ninputs = 2",
-            "plant.inputs",
-        ),
-        (
-            &ex1,
-            "kind = \"mrac-example\"",
-            "kind = \"mrac-example\"\ndisturbances = 1",
+            "\ndisturbances = 0\n",
+            "\ndisturbances = 1\n",
             "plant.disturbances",
         ),
         (
             &ex1,
-            "kind = \"mrac-example\"",
-            "kind = \"mrac-example\"\noutputs-z = 2",
+            "\noutputs-z = 1\n",
+            "\noutputs-z = 2\n",
             "plant.outputs-z",
         ),
         (
@@ -398,8 +413,8 @@ fn bad_tables_are_refused_naming_the_field() {
         ),
         (
             &ex1,
-            "kind = \"mrac-example\"",
-            "kind = \"mrac-example\"\ncommands = 2",
+            "\ncommands = 1\n",
+            "\ncommands = 2\n",
             "plant.commands",
         ),
         (
@@ -575,4 +590,30 @@ fn bad_tables_are_refused_naming_the_field() {
     )
     .unwrap_err();
     assert_eq!(e.field(), Some("plant.input-disturbance"), "{e}");
+}
+
+#[test]
+fn the_scenario_files_spell_out_the_counts_the_service_reads() {
+    // Without [service.channels] the service takes its counts from these keys of [plant]
+    // (a missing `commands` counting as 0), so they must be there and agree.
+    for file in ["example1.toml", "example2.toml", "example3.toml"] {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../scenarios/mrac")
+            .join(file);
+        let table: toml::Table = toml::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+        let plant = &table["plant"];
+        let s = load(file);
+        for (key, n) in [
+            ("outputs-y", s.plant.n_y()),
+            ("outputs-z", s.plant.n_z()),
+            ("commands", s.plant.n_r()),
+            ("inputs", s.plant.n_u()),
+        ] {
+            assert_eq!(
+                plant.get(key).and_then(|v| v.as_integer()),
+                Some(n as i64),
+                "{file}: plant.{key}"
+            );
+        }
+    }
 }
