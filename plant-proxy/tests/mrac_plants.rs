@@ -617,3 +617,45 @@ fn the_scenario_files_spell_out_the_counts_the_service_reads() {
         }
     }
 }
+
+#[test]
+fn a_discrete_plant_built_in_code_runs_as_the_file_and_bad_parameters_are_refused() {
+    use plant_proxy::discrete::DiscretePlant;
+    use plant_proxy::harmonic::Harmonic;
+    use plant_proxy::mrac_examples::MracExample;
+    use plant_proxy::scenario::{PlantParams, Tone};
+    let plant = DiscretePlant {
+        tf: MracExample::MinimumPhase.plant(0.5, PI / 4.0).unwrap(),
+        input_disturbance: vec![Harmonic::unit(0.35)],
+        example: None,
+    };
+    let mut params = PlantParams::new_discrete(plant.clone());
+    params.command = Command::Step {
+        amplitude: 1.0,
+        start: 0,
+    };
+    let u = input(200);
+    let mut sim = PlantSim::new(&params, 0.001).unwrap();
+    let (y, _, r) = run(&mut sim, &u);
+    let (y3, _, r3) = run(&mut sim_of(&load("example3.toml")), &u);
+    assert_eq!(bits(&y), bits(&y3));
+    assert_eq!(bits(&r), bits(&r3));
+
+    let mut bad = params.clone();
+    bad.discrete.as_mut().unwrap().input_disturbance[0].omega = f64::NAN;
+    assert!(PlantSim::new(&bad, 0.001).is_err());
+    let mut bad = params.clone();
+    bad.disturbance.tones.push(Tone {
+        input: 0,
+        amplitude: 1.0,
+        omega: 1.0,
+        phase: 0.0,
+    });
+    assert!(PlantSim::new(&bad, 0.001).is_err());
+    let mut bad = params.clone();
+    bad.initial_state = vec![1.0];
+    assert!(PlantSim::new(&bad, 0.001).is_err());
+    let mut bad = params;
+    bad.command = Command::harmonics_at(&[7.0]);
+    assert!(PlantSim::new(&bad, 0.001).is_err());
+}
