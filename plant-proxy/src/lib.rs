@@ -12,6 +12,14 @@
 //! - [`scenario`]: the plant part of a scenario TOML file, validated into typed parameters.
 //! - [`truss`]: the planar truss of chapter 6 (pinned members, (6.2)), assembled into a
 //!   modal plant at load time (`kind = "truss"`).
+//! - [`discrete`]: discrete-time transfer-function plants `N(q⁻¹)/D(q⁻¹)` run exactly by
+//!   their difference equation at the sample rate (`kind = "discrete"`).
+//! - [`mrac_examples`]: the plants (4.83) and (4.88) of chapter 4 from the pole radius and
+//!   angle `(ρ, ν)` (`kind = "mrac-example"`).
+//! - [`harmonic`]: a cosine of the step index, `A cos(ω k + φ)`, for the generated commands
+//!   and the discrete plants' input disturbance.
+//! - [`command`]: the command `r_k` the plant publishes: constant, a step, or a sum of
+//!   harmonics (the two- and four-harmonic commands of chapter 4).
 //! - [`runtime`]: the plant process: the simulation as the I/O device of the plant side.
 //! - [`proxy_config`]: the `[proxy]` table, validated into [`proxy_config::ProxyConfig`].
 //! - [`faults`]: the faults the plant injects on purpose (bad measurements, stalls).
@@ -22,8 +30,12 @@
 
 #![warn(missing_docs)]
 
+pub mod command;
+pub mod discrete;
 pub mod faults;
+pub mod harmonic;
 pub mod lti;
+pub mod mrac_examples;
 pub mod proxy_config;
 pub mod runtime;
 pub mod scenario;

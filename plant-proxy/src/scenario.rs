@@ -15,7 +15,8 @@
 //! duration = 10.0           # s of the default run
 //!
 //! [plant]
-//! kind = "transfer-function"   # or "state-space", "modal" or "truss"
+//! kind = "transfer-function"   # or "state-space", "modal", "truss", "discrete",
+//!                              # "mrac-example"
 //! inputs = 2                   # control inputs u
 //! disturbances = 1             # disturbance inputs w (may be 0)
 //! outputs-y = 1                # measurements y
@@ -23,7 +24,8 @@
 //! input-delays = [9, 16]       # optional: pure delay in samples per control input (default 0)
 //! initial-state = [0.0, …]     # optional: continuous state at t = 0 (default zeros)
 //! commands = 0                 # optional: command channels r (default 0) …
-//! command = []                 # … held at this constant vector (default zeros)
+//! command = []                 # … held at this constant vector (default zeros), or the
+//!                              # table [plant.command] below (one channel)
 //!
 //! [plant.tf]                   # kind = "transfer-function": continuous-time G(s) matrices
 //! yu = [[ { num = [..], den = [..] }, 0 ]]   # outputs-y × inputs; 0 or a missing row = zero
@@ -41,6 +43,25 @@
 //!
 //! [plant.truss]                # kind = "truss": a planar truss of pinned members, see
 //! …                            # crate::truss for its fields (nodes, members, ports, SNR)
+//!
+//! [plant.discrete]             # kind = "discrete": N(q⁻¹)/D(q⁻¹), per step (crate::discrete)
+//! num = [0.0, 1.0, -0.5]       # b_0 = 0, b_1, …: ascending powers of q⁻¹
+//! den = [1.0, -0.7071, 0.25]   # a_0 ≠ 0, a_1, …
+//!
+//! [plant.mrac-example]         # kind = "mrac-example": (4.83) or (4.88) (crate::mrac_examples)
+//! example = 1                  # 1: (4.83), zero 0.5; 2: (4.88), zero 1.5
+//! rho = 0.5                    # pole radius in (0, 1)
+//! nu = 0.7853981633974483      # pole angle in [0, π] rad
+//!
+//! [plant.input-disturbance]    # discrete kinds only: d_k added to the input u_k
+//! harmonics = [ { amplitude = 1.0, frequency-rad-step = 0.35, phase-rad = 0.0 } ]
+//!
+//! [plant.command]              # a generated command r_k, one channel (crate::command)
+//! kind = "step"                # r_k = amplitude (default 1) for k ≥ start (default 0)
+//! amplitude = 1.0
+//! start = 0
+//! # or kind = "harmonics" with preset = "two-harmonic" | "four-harmonic", or with
+//! # terms = [ { amplitude, frequency-rad-step, phase-rad } ]: Σ a_i cos(ω_i k + φ_i)
 //!
 //! [plant.disturbance]
 //! tones = [ { input = 0, amplitude = 1.0, frequency-hz = 800.0, phase-deg = 0.0 } ]
@@ -64,12 +85,22 @@
 //! `kind = "modal"` they are `[q_1, q̇_1, q_2, q̇_2, …]`; for `kind = "truss"` they are the
 //! modal coordinates `[η_1, η̇_1, …]` of the truss ([`crate::truss`]).
 //!
+//! The discrete kinds (`"discrete"`, `"mrac-example"`) are run by their difference
+//! equation `y_k = Σ_j b_j u_{k−j} − Σ_i a_i y_{k−i}`, one step per sample, with no
+//! discretization ([`crate::discrete`]); they have one input, no `w`, one `y` and `z = y`
+//! (`inputs`, `disturbances`, `outputs-y`, `outputs-z` may be omitted, and must be 1, 0,
+//! 1, 1 when given), start at rest (no `initial-state`), and take their disturbance in
+//! `[plant.input-disturbance]` (`u_k + d_k`, after the input delay) instead of
+//! `[plant.disturbance]`. `[plant.noise]` adds measurement noise as for the other kinds.
+//!
 //! A band-limited disturbance is `w_i(t) += y_f(t)`, the output of a Butterworth low-pass
 //! of order `order` and cutoff `cutoff-hz` (unit DC gain) driven by continuous-time white
 //! noise whose intensity makes the stationary RMS of `y_f` equal to `rms`. It is defined in
 //! continuous time, independently of the sample period, and simulated exactly
 //! ([`crate::sim`], "Band-limited disturbances").
 
+use crate::command::Command;
+use crate::discrete::DiscretePlant;
 use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, Mode, Tf};
 use nalgebra::DMatrix;
 use serde::Deserialize;
@@ -206,6 +237,12 @@ pub enum PlantKind {
     Modal,
     /// `kind = "truss"`: `[plant.truss]` ([`crate::truss`]).
     Truss,
+    /// `kind = "discrete"`: `[plant.discrete]`, a discrete-time `N(q⁻¹)/D(q⁻¹)` run by its
+    /// difference equation ([`crate::discrete`]).
+    Discrete,
+    /// `kind = "mrac-example"`: `[plant.mrac-example]`, the plant (4.83) or (4.88) of
+    /// chapter 4 from `(ρ, ν)` ([`crate::mrac_examples`]), run like `Discrete`.
+    MracExample,
 }
 
 impl PlantKind {
@@ -216,7 +253,14 @@ impl PlantKind {
             PlantKind::StateSpace => "state-space",
             PlantKind::Modal => "modal",
             PlantKind::Truss => "truss",
+            PlantKind::Discrete => "discrete",
+            PlantKind::MracExample => "mrac-example",
         }
+    }
+
+    /// True for the discrete-time kinds (`"discrete"`, `"mrac-example"`).
+    pub fn is_discrete(self) -> bool {
+        matches!(self, PlantKind::Discrete | PlantKind::MracExample)
     }
 }
 
@@ -273,19 +317,26 @@ pub struct NoiseParams {
     pub seed: u64,
 }
 
-/// The validated `[plant]` table: the continuous-time generalized plant and what drives it.
+/// The validated `[plant]` table: the continuous-time generalized plant (or the
+/// discrete-time one) and what drives it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlantParams {
     /// How the plant was described.
     pub kind: PlantKind,
-    /// The continuous-time model (realized for `kind = "transfer-function"`).
+    /// The continuous-time model (realized for `kind = "transfer-function"`). For the
+    /// discrete kinds it has no state, one input `u`, no `w`, one `y` and one `z` (all
+    /// matrices zero): the plant is [`PlantParams::discrete`].
     pub model: GeneralizedPlant,
+    /// The discrete-time plant of `kind = "discrete"` or `"mrac-example"`, run by its
+    /// difference equation instead of `model` ([`crate::discrete`]).
+    pub discrete: Option<DiscretePlant>,
     /// Pure delay of each control input, samples (`n_u` entries).
     pub input_delays: Vec<usize>,
     /// State at `t = 0` (`n_x` entries).
     pub initial_state: Vec<f64>,
-    /// The constant command `r` (`n_r` entries).
-    pub command: Vec<f64>,
+    /// The command `r`: constant (`n_r` entries) or generated (one channel)
+    /// ([`crate::command`]).
+    pub command: Command,
     /// Disturbances.
     pub disturbance: DisturbanceParams,
     /// Measurement noise.
@@ -299,9 +350,10 @@ impl PlantParams {
         let d = model.dims();
         Self {
             kind: PlantKind::StateSpace,
+            discrete: None,
             input_delays: vec![0; d.n_u],
             initial_state: vec![0.0; model.n_x()],
-            command: Vec::new(),
+            command: Command::default(),
             disturbance: DisturbanceParams {
                 tones: Vec::new(),
                 white_std: vec![0.0; d.n_w],
@@ -338,12 +390,33 @@ impl PlantParams {
 
     /// Number of command channels `r`.
     pub fn n_r(&self) -> usize {
-        self.command.len()
+        self.command.n_r()
     }
 
-    /// Number of states of the continuous plant (without the exosystem of the tones).
+    /// Number of states of the continuous plant (without the exosystem of the tones); for
+    /// a discrete plant, the length `n + m` of its difference equation's state.
     pub fn n_x(&self) -> usize {
-        self.model.n_x()
+        match &self.discrete {
+            Some(d) => d.tf.n_states(),
+            None => self.model.n_x(),
+        }
+    }
+
+    /// Parameters for the discrete-time plant `plant` (`kind = "discrete"`): one input, no
+    /// `w`, `z = y`, no delay, no command and no noise (seed 0).
+    pub fn new_discrete(plant: DiscretePlant) -> Self {
+        let dims = ChannelDims {
+            n_u: 1,
+            n_w: 0,
+            n_y: 1,
+            n_z: 1,
+        };
+        Self {
+            kind: PlantKind::Discrete,
+            discrete: Some(plant),
+            initial_state: Vec::new(),
+            ..Self::new(GeneralizedPlant::zeros(0, dims))
+        }
     }
 }
 
@@ -409,11 +482,14 @@ struct RawPlant {
     input_delays: Option<Vec<usize>>,
     initial_state: Option<Vec<f64>>,
     commands: Option<usize>,
-    command: Option<Vec<f64>>,
+    command: Option<toml::Value>,
     tf: Option<RawTf>,
     ss: Option<RawSs>,
     modal: Option<RawModal>,
     truss: Option<toml::Value>,
+    discrete: Option<discrete_tables::RawDiscrete>,
+    mrac_example: Option<discrete_tables::RawMracExample>,
+    input_disturbance: Option<discrete_tables::RawInputDisturbance>,
     disturbance: Option<RawDisturbance>,
     noise: Option<RawNoise>,
 }
@@ -838,14 +914,37 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         "state-space" => PlantKind::StateSpace,
         "modal" => PlantKind::Modal,
         "truss" => PlantKind::Truss,
+        "discrete" => PlantKind::Discrete,
+        "mrac-example" => PlantKind::MracExample,
         other => {
             return Err(cx.err(
                 "plant.kind",
                 format!(
-                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\", \"truss\""
+                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\", \"truss\", \"discrete\", \"mrac-example\""
                 ),
             ));
         }
+    };
+    // A discrete plant has one u, no w, one y and z = y: the counts may be omitted.
+    let (inputs, disturbances, outputs_y, outputs_z) = if kind.is_discrete() {
+        let fixed = |v: Option<usize>, field: &str, n: usize| match v {
+            Some(v) if v != n => Err(cx.err(
+                field,
+                format!(
+                    "{v}, but a discrete plant (plant.kind = \"{}\") has {n}: give {n} or omit it",
+                    kind.name()
+                ),
+            )),
+            _ => Ok(Some(n)),
+        };
+        (
+            fixed(raw.inputs, "plant.inputs", 1)?,
+            fixed(raw.disturbances, "plant.disturbances", 0)?,
+            fixed(raw.outputs_y, "plant.outputs-y", 1)?,
+            fixed(raw.outputs_z, "plant.outputs-z", 1)?,
+        )
+    } else {
+        (raw.inputs, raw.disturbances, raw.outputs_y, raw.outputs_z)
     };
     let count =
         |v: Option<usize>, field: &str, max: Option<usize>| -> Result<usize, ScenarioError> {
@@ -856,32 +955,33 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             }
         };
     let dims = ChannelDims {
-        n_u: count(raw.inputs, "plant.inputs", Some(ipc_types::MAX_U))?,
-        n_w: count(
-            raw.disturbances,
-            "plant.disturbances",
-            Some(MAX_DISTURBANCES),
-        )?,
-        n_y: count(raw.outputs_y, "plant.outputs-y", Some(ipc_types::MAX_Y))?,
-        n_z: count(raw.outputs_z, "plant.outputs-z", Some(ipc_types::MAX_Z))?,
+        n_u: count(inputs, "plant.inputs", Some(ipc_types::MAX_U))?,
+        n_w: count(disturbances, "plant.disturbances", Some(MAX_DISTURBANCES))?,
+        n_y: count(outputs_y, "plant.outputs-y", Some(ipc_types::MAX_Y))?,
+        n_z: count(outputs_z, "plant.outputs-z", Some(ipc_types::MAX_Z))?,
     };
     let n_r = count(
         raw.commands.or(Some(0)),
         "plant.commands",
         Some(ipc_types::MAX_R),
     )?;
+    let command = discrete_tables::command(cx, raw.command, raw.commands.map(|_| n_r))?;
 
     let given = [
         ("tf", raw.tf.is_some()),
         ("ss", raw.ss.is_some()),
         ("modal", raw.modal.is_some()),
         ("truss", raw.truss.is_some()),
+        ("discrete", raw.discrete.is_some()),
+        ("mrac-example", raw.mrac_example.is_some()),
     ];
     let wanted = match kind {
         PlantKind::TransferFunction => "tf",
         PlantKind::StateSpace => "ss",
         PlantKind::Modal => "modal",
         PlantKind::Truss => "truss",
+        PlantKind::Discrete => "discrete",
+        PlantKind::MracExample => "mrac-example",
     };
     for (table, present) in given {
         if present && table != wanted {
@@ -894,8 +994,56 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             ));
         }
     }
+    if kind.is_discrete() {
+        if raw.disturbance.is_some() {
+            return Err(cx.err(
+                "plant.disturbance",
+                "a discrete plant has no disturbance input w: give its input disturbance in \
+                 [plant.input-disturbance]",
+            ));
+        }
+        if raw.initial_state.is_some() {
+            return Err(cx.err(
+                "plant.initial-state",
+                "a discrete plant starts at rest (every u_k and y_k with k < 0 is zero)",
+            ));
+        }
+    } else if raw.input_disturbance.is_some() {
+        return Err(cx.err(
+            "plant.input-disturbance",
+            format!(
+                "is for the discrete kinds; plant.kind = \"{}\" takes its disturbances in \
+                 [plant.disturbance]",
+                kind.name()
+            ),
+        ));
+    }
+    let mut discrete = None;
+    if kind.is_discrete() {
+        let (tf, example) = match kind {
+            PlantKind::MracExample => {
+                let t = cx.required(raw.mrac_example, "plant.mrac-example")?;
+                let (tf, ex) = discrete_tables::mrac_example(cx, t)?;
+                (tf, Some(ex))
+            }
+            _ => {
+                let t = cx.required(raw.discrete, "plant.discrete")?;
+                (discrete_tables::discrete_tf(cx, t)?, None)
+            }
+        };
+        let input_disturbance = match raw.input_disturbance {
+            Some(d) => discrete_tables::input_disturbance(cx, d)?,
+            None => Vec::new(),
+        };
+        discrete = Some(DiscretePlant {
+            tf,
+            input_disturbance,
+            example,
+        });
+    }
     let mut truss_y_std = None;
     let model = match kind {
+        PlantKind::Discrete | PlantKind::MracExample => GeneralizedPlant::zeros(0, dims),
         PlantKind::TransferFunction => {
             let tf = cx.required(raw.tf, "plant.tf")?;
             tf_model(cx, tf, dims)?
@@ -915,7 +1063,10 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             tp.model
         }
     };
-    let n_x = model.n_x();
+    let n_x = match &discrete {
+        Some(d) => d.tf.n_states(),
+        None => model.n_x(),
+    };
     if n_x > MAX_STATES {
         return Err(cx.err(
             format!("plant.{wanted}"),
@@ -960,21 +1111,15 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             ),
         ));
     }
-    let initial_state = raw.initial_state.unwrap_or_else(|| vec![0.0; n_x]);
+    let initial_state = raw.initial_state.unwrap_or_else(|| vec![0.0; model.n_x()]);
     let what = match kind {
         PlantKind::TransferFunction => "state of the column-wise realization",
         PlantKind::StateSpace => "state",
         PlantKind::Modal => "state [q, q̇] of each mode",
         PlantKind::Truss => "state [η, η̇] of each mode of the truss",
+        PlantKind::Discrete | PlantKind::MracExample => "state",
     };
-    cx.vector(&initial_state, n_x, "plant.initial-state", what)?;
-    let command = raw.command.unwrap_or_else(|| vec![0.0; n_r]);
-    cx.vector(
-        &command,
-        n_r,
-        "plant.command",
-        "command channel (plant.commands)",
-    )?;
+    cx.vector(&initial_state, model.n_x(), "plant.initial-state", what)?;
 
     let disturbance = match raw.disturbance {
         None => DisturbanceParams {
@@ -1008,6 +1153,7 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
     Ok(PlantParams {
         kind,
         model,
+        discrete,
         input_delays,
         initial_state,
         command,
@@ -1292,6 +1438,8 @@ fn disturbance(
         band_limited,
     })
 }
+
+mod discrete_tables;
 
 #[cfg(test)]
 mod tests;

@@ -86,7 +86,7 @@ fn a_good_file_gives_typed_parameters_and_other_tables_are_ignored() {
             seed: 9
         }
     );
-    assert!(p.command.is_empty());
+    assert_eq!(p.command, crate::command::Command::Constant(Vec::new()));
 }
 
 #[test]
@@ -216,7 +216,10 @@ d-yu = [[0.5]]
 "#;
     let s = parse(ss, "ss.toml").unwrap();
     assert_eq!(s.plant.model.d_yu[(0, 0)], 0.5);
-    assert_eq!(s.plant.command, vec![1.0, -1.0]);
+    assert_eq!(
+        s.plant.command,
+        crate::command::Command::Constant(vec![1.0, -1.0])
+    );
     assert_refused_naming(
         ss,
         &[
