@@ -57,6 +57,7 @@ pub mod checkpoint;
 pub mod checkpoint_slot;
 pub mod deadline;
 pub mod gate;
+pub mod model_following;
 pub mod reset;
 pub mod sent;
 pub mod session;
@@ -338,6 +339,8 @@ pub struct LoopCore {
     open_loop_cycles: u64,
     /// Windows of `z` for the per-tone report.
     pub tones: ToneMeter,
+    /// The model-following error norm (4.85), for a controller that follows a model.
+    pub following: model_following::ModelFollowing,
     period_ns: u64,
     silent_periods: u64,
     rms_settle_cycles: u64,
@@ -490,6 +493,7 @@ impl LoopCore {
                 cfg.counts.n_z as usize,
                 cfg.sample_period_ns as f64 * 1e-9,
             ),
+            following: model_following::ModelFollowing::new(cfg.tone_report.error_window),
             period_ns: cfg.sample_period_ns,
             silent_periods: cfg.policy.silent_periods,
             rms_settle_cycles: cfg.rms_settle_cycles,
@@ -1149,6 +1153,9 @@ impl LoopCore {
     fn accumulate_z(&mut self, m: &Measurement) {
         self.tones
             .record(self.session.session_cycle(), m.seq, m.z());
+        if let Some(e) = self.controller.model_following_error() {
+            self.following.record(m.seq, e);
+        }
         self.z_count += 1;
         let settled = self.z_count > self.rms_settle_cycles;
         if settled {
@@ -1415,6 +1422,9 @@ pub struct RunReport {
     /// Per-tone amplitudes of `z` at the end of the open-loop phase and at the end of the
     /// run (`[service.report]`), when tones are known.
     pub tones: Option<ToneReport>,
+    /// The model-following error norm (4.85), for a controller that follows a reference
+    /// model (`service.report.error-window`).
+    pub model_following: Option<model_following::ModelFollowingReport>,
     /// What the box does to a real-time loop, for the RT core of this run
     /// ([`crate::system_check`]).
     pub system: Vec<crate::system_check::Finding>,
@@ -1674,6 +1684,9 @@ impl RunReport {
         }
         if let Some(t) = &self.tones {
             out += &t.render();
+        }
+        if let Some(f) = &self.model_following {
+            out += &f.line();
         }
         out += &self.latency.render_table(self.budget_ns);
         out += &self.verdict.headline();
@@ -1993,6 +2006,7 @@ pub fn run(
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
         tones: core.tones.report(),
+        model_following: core.following.report(),
         system: crate::system_check::check_system(
             &crate::system_check::SystemRoot::live(),
             cfg.rt.core,

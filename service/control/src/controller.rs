@@ -140,6 +140,12 @@ pub trait Controller: Send {
     /// (e.g. the matrix-multiply scratch of PCAC's QP solver) creates it here, so that the
     /// first real-time step does not allocate. The default does nothing.
     fn prepare_thread(&mut self) {}
+    /// The model-following error `e_k = y_k − y_{m,k}` of the latest step, for a
+    /// controller that follows a reference model (APPC and RC-MRAC, chapter 4); the service
+    /// reports its norm (4.85). `None` (the default) for the others. Must not allocate.
+    fn model_following_error(&self) -> Option<f64> {
+        None
+    }
     /// Names of the internal signals written by [`Controller::internals`].
     fn internal_names(&self) -> Vec<String> {
         Vec::new()

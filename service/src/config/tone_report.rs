@@ -1,9 +1,13 @@
-//! `[service.report]`: the per-tone suppression of `z` in the run report.
+//! `[service.report]`: the per-tone suppression of `z` in the run report, and the window
+//! of the model-following error norm (4.85).
 //!
 //! ```toml
 //! [service.report]
 //! tones-hz = [800.0, 900.0]       # default: the tones of [plant.disturbance], if any
 //! window = 0.5                    # s: the end of the open-loop phase against the end of the run
+//! error-window = [101, 200]       # samples (seq, inclusive) of ‖e‖ (4.85) for a controller
+//!                                 # that follows a reference model (APPC, RC-MRAC); default:
+//!                                 # the whole run only
 //! ```
 //!
 //! Every tone must lie strictly between 0 and the Nyquist frequency; at most 64 tones, and
@@ -26,6 +30,9 @@ pub struct ToneReportConfig {
     /// Samples in each window (the open-loop window ends when the controller starts; the
     /// closed-loop window is the end of the run).
     pub window_cycles: u64,
+    /// The samples `[first, last]` (sequence numbers, inclusive) over which the run report
+    /// gives the model-following error norm (4.85); `None`: the whole run only.
+    pub error_window: Option<(u64, u64)>,
 }
 
 #[derive(Deserialize, Default)]
@@ -33,6 +40,7 @@ pub struct ToneReportConfig {
 pub(super) struct RawReport {
     tones_hz: Option<Vec<f64>>,
     window: Option<f64>,
+    error_window: Option<[u64; 2]>,
 }
 
 /// The tones (given, or those of `[plant.disturbance]`) and the window, which must fit in
@@ -75,10 +83,21 @@ pub(super) fn parse(
     if open_loop_cycles > 0 {
         window_cycles = window_cycles.min(open_loop_cycles / 2).max(1);
     }
+    let error_window = match raw.error_window {
+        Some([first, last]) if first > last => {
+            return Err(err(
+                "service.report.error-window",
+                format!("[{first}, {last}]: the first sample comes after the last"),
+            ));
+        }
+        Some([first, last]) => Some((first, last)),
+        None => None,
+    };
     Ok(ToneReportConfig {
         tones_hz,
         source,
         window_cycles,
+        error_window,
     })
 }
 

@@ -207,6 +207,7 @@ mod tests {
             tones_hz: vec![50.0, 120.0],
             source: "test".into(),
             window_cycles: 400,
+            error_window: None,
         };
         let period = 1e-3;
         let mut m = ToneMeter::new(&cfg, 1000, 1, period);

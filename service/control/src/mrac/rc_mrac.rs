@@ -455,6 +455,10 @@ impl Controller for RcMrac {
         self.counts
     }
 
+    fn model_following_error(&self) -> Option<f64> {
+        Some(self.e())
+    }
+
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
         let mut st = status::OK;
         self.sig.absorb(input);
