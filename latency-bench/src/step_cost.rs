@@ -275,11 +275,10 @@ mod tests {
         for case in crate::configs::step_cases() {
             let (h, kind) = measure(&case, 10, 100).unwrap();
             assert_eq!(h.len(), 100, "{}", case.name);
-            let expected = if case.slug.starts_with("rcac") {
-                "rcac"
-            } else {
-                "lti"
-            };
+            let expected = ["rcac", "appc", "rc-mrac"]
+                .into_iter()
+                .find(|k| case.slug.starts_with(&format!("{k}-")))
+                .unwrap_or("lti");
             assert_eq!(kind, expected, "{}", case.name);
         }
         assert_eq!(timer_overhead(50).len(), 50);
