@@ -6,7 +6,8 @@
 //! [`crate::study::mrac_run`]), runs the response at `ρ = 0.5`, `ν = π/4`, and checks the
 //! chapter's claims ([`crate::study::mrac_summary`]). It writes into `--out`:
 //!
-//! - `grid.csv`: `example, command, method, rho, nu, e_norm, unstable, diverged_at`;
+//! - `grid.csv`: `example, command, method, rho, nu, e_norm, unstable, diverged_at,
+//!   peak_y` ([`mrac_grid::write_csv`]);
 //! - `single-ex{e}-{command}-{method}.csv`: `k, r, y, y_m, e, u` and `θ̂_k` (named as
 //!   [`crate::study::mrac_setup::theta_names`]) of the run at `ρ = 0.5`, `ν = π/4`;
 //! - `map-ex{e}-{command}-{method}.png`: the heat map ([`mrac_figures::heat_map`]);

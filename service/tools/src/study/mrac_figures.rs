@@ -33,7 +33,8 @@ const RAMP: [(u8, u8, u8); 5] = [
     (253, 231, 37),
 ];
 
-/// The color of `t ∈ [0, 1]` (clamped) on [`RAMP`].
+/// The color of `t ∈ [0, 1]` (clamped) on a viridis-like ramp from dark violet (0) to
+/// yellow (1).
 pub fn ramp(t: f64) -> RGBColor {
     let t = if t.is_finite() {
         t.clamp(0.0, 1.0)
@@ -59,7 +60,7 @@ pub fn heat_map(
 ) -> Result<(), String> {
     register_font()?;
     let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (900, 560)).into_drawing_area();
+    let root = BitMapBackend::new(path, (900, 450)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let root = root.titled(title, (FONT, 18)).map_err(|e| fail(&e))?;
     let (left, right) = root.split_horizontally(780);
@@ -72,8 +73,8 @@ pub fn heat_map(
     chart
         .configure_mesh()
         .disable_mesh()
-        .x_desc("Re (pole ρ e^{jν})")
-        .y_desc("Im")
+        .x_desc("Re of the pole ρe^(jν)")
+        .y_desc("Im of the pole")
         .label_style((FONT, 12))
         .draw()
         .map_err(|e| fail(&e))?;

@@ -60,6 +60,8 @@ pub struct GridPoint {
     pub e_norm: f64,
     /// Why and where the run diverged, if it did.
     pub diverged: Option<(Divergence, usize)>,
+    /// The largest `|y_k|` of the run.
+    pub peak_y: f64,
 }
 
 impl GridPoint {
@@ -105,6 +107,7 @@ pub fn sweep(
                 nu,
                 e_norm: o.e_norm,
                 diverged: o.diverged,
+                peak_y: o.peak_y,
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
@@ -117,14 +120,15 @@ pub fn sweep(
 }
 
 /// Writes every sweep as CSV: `example, command, method, rho, nu, e_norm, unstable,
-/// diverged_at` (`e_norm` is `inf` and `diverged_at` the sample for an unstable point).
+/// diverged_at, peak_y` (`e_norm` is `inf` and `diverged_at` the sample for an unstable
+/// point; `peak_y` the largest `|y_k|`).
 pub fn write_csv(path: &Path, sweeps: &[Sweep]) -> Result<(), String> {
-    let mut s = String::from("example,command,method,rho,nu,e_norm,unstable,diverged_at\n");
+    let mut s = String::from("example,command,method,rho,nu,e_norm,unstable,diverged_at,peak_y\n");
     for sw in sweeps {
         for p in &sw.points {
             let _ = writeln!(
                 s,
-                "{},{},{},{:.6},{:.6},{:.6e},{},{}",
+                "{},{},{},{:.6},{:.6},{:.6e},{},{},{:.6e}",
                 sw.example.number(),
                 sw.command.name(),
                 sw.method.name(),
@@ -132,7 +136,8 @@ pub fn write_csv(path: &Path, sweeps: &[Sweep]) -> Result<(), String> {
                 p.nu,
                 p.e_norm,
                 u8::from(p.unstable()),
-                p.diverged.map(|(_, k)| k.to_string()).unwrap_or_default()
+                p.diverged.map(|(_, k)| k.to_string()).unwrap_or_default(),
+                p.peak_y
             );
         }
     }

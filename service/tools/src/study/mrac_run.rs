@@ -69,6 +69,8 @@ pub struct RunOutcome {
     pub e_norm: f64,
     /// Why the run diverged, if it did, and at which sample.
     pub diverged: Option<(Divergence, usize)>,
+    /// The largest `|y_k|` of the run (up to the divergence).
+    pub peak_y: f64,
     /// The signals, when asked for.
     pub trace: Option<RunTrace>,
 }
@@ -111,8 +113,10 @@ pub fn run(
     let mut trace = RunTrace::default();
     let mut e = Vec::with_capacity(STEPS + 1);
     let mut diverged = None;
+    let mut peak_y = 0.0_f64;
     for k in 0..=STEPS {
         let y = plant.output();
+        peak_y = peak_y.max(y.abs());
         let r = cmd.value(k as u64);
         let mut u = 0.0;
         let st = kernel.step(k as u64, y, r, &mut u);
@@ -149,6 +153,7 @@ pub fn run(
     Ok(RunOutcome {
         e_norm,
         diverged,
+        peak_y,
         trace: record.then_some(trace),
     })
 }
