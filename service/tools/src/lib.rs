@@ -9,7 +9,7 @@
 //!   scenario, then the run's figure.
 //! - [`design`]: model and measured frequency responses, Markov parameters, dereverberated
 //!   transfer functions and RCAC target models (section 3.2).
-//! - [`study`]: the studies of chapters 3, 5 and 6.
+//! - [`study`]: the studies of chapters 3, 4, 5 and 6.
 //! - [`simulate`]: a controller against the simulated plant in one process (lockstep).
 //! - [`figures`]: figures of adaptive runs in the manner of Figures 3.7/3.10/3.14/3.17.
 //! - [`plot`]: PNG figures (line panels, pole–zero maps).

@@ -5,7 +5,11 @@
 //! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both]
+//! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE]
 //! ```
+//!
+//! `mrac` is the chapter 4 study of APPC against RC-MRAC over the plant's pole plane
+//! (§4.5–4.7, Figures 4.2–4.14); see the `mrac` module for the settings and the files.
 //!
 //! `rcac-siso` and `rcac-miso` are the chapter 3 studies of RCAC with dereverberated
 //! target models (§3.3.1 on the structure (3.50), Figures 3.5–3.10; §3.3.2 on a 4-mode
@@ -44,7 +48,7 @@ use rig_tools::study::experiment::{Case, Method, run, run_seed};
 use rig_tools::study::montecarlo::{Summary, monte_carlo};
 use rig_tools::study::plant::{Msd, PRINTED, Plant, SAMPLE_PERIOD};
 use rig_tools::study::{
-    experiment, output, pcac_truss, plant, rcac_common, rcac_miso, rcac_siso, rcac_study,
+    experiment, mrac, output, pcac_truss, plant, rcac_common, rcac_miso, rcac_siso, rcac_study,
 };
 
 /// Command line.
@@ -120,6 +124,26 @@ enum Study {
         #[arg(long, default_value = "both")]
         settings: String,
     },
+    /// Chapter 4, §4.5–4.7: APPC against RC-MRAC over the plant's pole plane (ρ, ν), with
+    /// the step, two- and four-harmonic commands, and Example 3's harmonic rejection
+    /// (Figures 4.2–4.14).
+    Mrac {
+        /// Examples: all, or a comma-separated list of 1, 2, 3.
+        #[arg(long, default_value = "all")]
+        example: String,
+        /// Commands: all, or a comma-separated list of step, two, four (Example 3: step).
+        #[arg(long, default_value = "all")]
+        command: String,
+        /// N of the N × N grid of pole radii and angles.
+        #[arg(long, default_value_t = mrac::DEFAULT_GRID)]
+        grid: usize,
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-mrac")]
+        out: PathBuf,
+        /// Also write the summary as Markdown into this file (e.g. docs/results/mrac.md).
+        #[arg(long)]
+        results: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -153,6 +177,13 @@ fn main() -> ExitCode {
                 )
             })
         }),
+        Study::Mrac {
+            example,
+            command,
+            grid,
+            out,
+            results,
+        } => mrac_study(&example, &command, grid, &out, results.as_deref()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -366,4 +397,31 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
     print!("{table}");
     report.push_str(&table);
     std::fs::write(out.join("summary.txt"), report).map_err(|e| e.to_string())
+}
+
+/// `study mrac`: runs, prints the summary, writes `--results` if given.
+fn mrac_study(
+    example: &str,
+    command: &str,
+    grid: usize,
+    out: &Path,
+    results: Option<&Path>,
+) -> Result<(), String> {
+    let t0 = Instant::now();
+    let options = mrac::Options::parse(example, command, grid)?;
+    let line = format!("study mrac --example {example} --command {command} --grid {grid}");
+    let report = mrac::run(&options, out, &line)?;
+    print!("{}", report.markdown);
+    println!(
+        "\n{} cases, {} threads, {:.2} s; files in {}",
+        report.stats.len(),
+        rayon::current_num_threads(),
+        t0.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if let Some(path) = results {
+        mrac::write_results(path, &report)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }

@@ -6,9 +6,17 @@
 //!   [`rcac_siso`], [`rcac_miso`]: chapter 3, RCAC with dereverberated
 //!   target models (§3.3.1 on (3.50), §3.3.2 on a 4-mode MISO structure).
 //! - [`pcac_truss`]: chapter 6, PCAC on the 4-bay truss (§6.2).
+//! - [`mrac`], [`mrac_setup`], [`mrac_run`], [`mrac_grid`], [`mrac_summary`],
+//!   [`mrac_figures`]: chapter 4, APPC against RC-MRAC over the pole plane (§4.5–4.7).
 
 pub mod experiment;
 pub mod montecarlo;
+pub mod mrac;
+pub mod mrac_figures;
+pub mod mrac_grid;
+pub mod mrac_run;
+pub mod mrac_setup;
+pub mod mrac_summary;
 pub mod output;
 pub mod pcac_truss;
 pub mod plant;

@@ -1,0 +1,198 @@
+//! `study mrac` on a small grid (3 × 3, Example 1, the step): the files it writes, the
+//! summary's values, and its single runs against a loop written here directly on the
+//! kernels of `control::mrac` (the loop of `service/control/tests/mrac.rs`).
+
+use std::f64::consts::PI;
+use std::path::PathBuf;
+
+use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
+use control::{Controller, Dimensions, StepInput};
+use rig_tools::study::mrac::{self, Options};
+use rig_tools::study::mrac_setup::{CommandKind, Example, Method};
+use rig_tools::study::mrac_summary::Verdict;
+
+/// ‖e‖ (4.85) of `c` on Example 1's plant at `ρ = 0.5`, `ν = π/4` with the unit step:
+/// `y_{k+1} = u_k − 0.5 u_{k−1} + 2ρ cos ν y_k − ρ² y_{k−1}`, samples `k = 0 … 200`.
+fn direct_e_norm(c: &mut dyn Controller) -> f64 {
+    let (rho, nu) = (0.5_f64, PI / 4.0);
+    let (a1, a2) = (-2.0 * rho * nu.cos(), rho * rho);
+    let (mut y, mut y1, mut u1) = (0.0_f64, 0.0_f64, 0.0_f64);
+    let mut sum = 0.0;
+    let mut internals = [0.0; control::MAX_INTERNALS];
+    let ie = c
+        .internal_names()
+        .iter()
+        .position(|n| n.ends_with("_e"))
+        .expect("e");
+    for k in 0..=200u64 {
+        let mut u = [0.0];
+        c.step(
+            &StepInput {
+                seq: k,
+                y: &[y],
+                z: &[y],
+                r: &[1.0],
+                u_applied: None,
+                lost: 0,
+            },
+            &mut u,
+        );
+        c.internals(&mut internals);
+        if k >= 101 {
+            sum += internals[ie] * internals[ie];
+        }
+        let next = u[0] - 0.5 * u1 - a1 * y - a2 * y1;
+        (y1, y, u1) = (y, next, u[0]);
+    }
+    sum.sqrt()
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("mrac-study-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn a_small_study_writes_its_files_and_repeats_the_kernel_tests_single_runs() {
+    let out = out_dir("small");
+    let options = Options::parse("1", "step", 3).expect("valid");
+    let t0 = std::time::Instant::now();
+    let report = mrac::run(
+        &options,
+        &out,
+        "study mrac --example 1 --command step --grid 3",
+    )
+    .expect("runs");
+    assert!(t0.elapsed().as_secs_f64() < 10.0);
+
+    for f in [
+        "grid.csv",
+        "summary.md",
+        "map-ex1-step-appc.png",
+        "map-ex1-step-rc-mrac.png",
+        "single-ex1-step-appc.png",
+        "single-ex1-step-rc-mrac.png",
+        "single-ex1-step-appc.csv",
+        "single-ex1-step-rc-mrac.csv",
+    ] {
+        let meta = std::fs::metadata(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        assert!(meta.len() > 100, "{f} is nearly empty");
+    }
+    let grid = std::fs::read_to_string(out.join("grid.csv")).expect("grid.csv");
+    assert_eq!(
+        grid.lines().count(),
+        1 + 2 * 9,
+        "header and 9 points per method"
+    );
+    assert!(grid.starts_with("example,command,method,rho,nu,e_norm,unstable"));
+    assert!(grid.contains("\n1,step,rc-mrac,0.500000,1.570796,"));
+
+    // The summary: two methods, finite statistics, RC-MRAC ahead, nothing unstable.
+    assert_eq!(report.stats.len(), 2);
+    for s in &report.stats {
+        assert!(s.median.is_finite() && s.worst.is_finite(), "{s:?}");
+        assert_eq!((s.unstable, s.points), (0, 9));
+    }
+    let median = |m| {
+        report
+            .stats
+            .iter()
+            .find(|s| s.method == m)
+            .expect("method")
+            .median
+    };
+    assert!(median(Method::RcMrac) < median(Method::Appc) - 2.0);
+    // Only the claims whose runs were all made are checked: RC-MRAC's stability (5).
+    for c in &report.claims {
+        let want = if c.number == 5 {
+            Verdict::Pass
+        } else {
+            Verdict::NotChecked
+        };
+        assert_eq!(c.verdict, want, "claim {}", c.number);
+    }
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
+    assert_eq!(summary, report.markdown);
+
+    // The single runs equal the loop written here on the kernels (same arithmetic), and
+    // RC-MRAC's is the value the kernel test measures (1.2·10⁻⁶).
+    let single = |m| {
+        report
+            .singles
+            .iter()
+            .find(|s| s.example == Example::One && s.command == CommandKind::Step && s.method == m)
+            .expect("single run")
+            .e_norm
+    };
+    let siso = Dimensions::new(1, 1, 1, 1);
+    let num = vec![0.0, 1.0, -0.5];
+    let d_m = vec![1.0, 0.0, 0.25];
+    let mut rc = RcMrac::new(
+        &RcMracParams::new(
+            2,
+            1,
+            1.0,
+            vec![1.0],
+            1,
+            vec![1.0, 0.5],
+            d_m.clone(),
+            num.clone(),
+        ),
+        siso,
+    )
+    .expect("valid");
+    let mut appc =
+        Appc::new(&AppcParams::new(2, d_m, num, vec![1.0, 0.0, -0.25]), siso).expect("valid");
+    let rc_direct = direct_e_norm(&mut rc);
+    let appc_direct = direct_e_norm(&mut appc);
+    let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+    assert!(
+        rel(single(Method::RcMrac), rc_direct) < 1e-9,
+        "{} vs {rc_direct}",
+        single(Method::RcMrac)
+    );
+    assert!(
+        rel(single(Method::Appc), appc_direct) < 1e-9,
+        "{} vs {appc_direct}",
+        single(Method::Appc)
+    );
+    assert_eq!(format!("{:.1e}", single(Method::RcMrac)), "1.2e-6");
+
+    // The single run's CSV carries the error whose (4.85) is the reported value.
+    let csv = std::fs::read_to_string(out.join("single-ex1-step-rc-mrac.csv")).expect("csv");
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("k,r,y,y_m,e,u,nc1,nc2,dc1,dc2,rc0,rc1"));
+    let e: Vec<f64> = lines
+        .map(|l| l.split(',').nth(4).expect("e").parse().expect("number"))
+        .collect();
+    assert_eq!(e.len(), 201);
+    let from_csv = e[101..].iter().map(|v| v * v).sum::<f64>().sqrt();
+    assert!(rel(from_csv, single(Method::RcMrac)) < 1e-8);
+
+    // The results file.
+    let results = out.join("results.md");
+    mrac::write_results(&results, &report).expect("written");
+    let text = std::fs::read_to_string(&results).expect("results");
+    assert!(text.starts_with("# Chapter 4 study"));
+    assert!(text.contains("Written by `study mrac`"));
+    assert!(text.ends_with(&report.markdown));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn example_three_without_the_step_is_refused_naming_the_arguments() {
+    let options = Options::parse("3", "two,four", 3).expect("parses");
+    let err = mrac::run(&options, &out_dir("empty"), "").unwrap_err();
+    assert!(err.contains("--example/--command"), "{err}");
+    assert!(
+        Options::parse("1", "step", 0)
+            .unwrap_err()
+            .contains("--grid")
+    );
+    assert!(
+        Options::parse("1,5", "all", 3)
+            .unwrap_err()
+            .contains("--example")
+    );
+}
