@@ -77,7 +77,7 @@ fn examples_1_and_2_publish_the_difference_equation_and_the_unit_step() {
         let s = load(file);
         assert_eq!(s.plant.kind, PlantKind::MracExample);
         assert_eq!(s.rig.sample_period, 0.001);
-        assert_eq!((s.rig.duration / s.rig.sample_period).round(), 200.0);
+        assert_eq!((s.rig.duration / s.rig.sample_period).round(), 201.0);
         let p = &s.plant;
         assert_eq!(
             (p.n_u(), p.n_w(), p.n_y(), p.n_z(), p.n_r()),
