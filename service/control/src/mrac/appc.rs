@@ -58,12 +58,13 @@
 //! `lambda` (`λ_k`), `resets` (guard resets), then `theta[i]`, the first entries of
 //! `θ̂_k = [θ̂_1; θ̂_2]` (up to [`MAX_INTERNALS`] signals in all).
 
+use super::adaptive::{Adaptive, Law};
 use super::checks;
 use super::estimator::Estimator;
 use super::poly;
 use super::signals::Signals;
 use crate::ParamError;
-use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput};
 use crate::forgetting::ForgettingRule;
 
 /// Parameters of an [`Appc`] controller (coefficients of `q⁰, q⁻¹, …`).
@@ -160,18 +161,17 @@ struct Polynomials {
 #[derive(Debug, Clone)]
 pub struct Appc {
     counts: Dimensions,
+    law: AppcLaw,
+    core: Adaptive,
+}
+
+/// What is APPC's own: the regression (4.37)–(4.41) and the law (4.43).
+#[derive(Debug, Clone)]
+struct AppcLaw {
     n: usize,
     /// `D_m H` (degree ≤ 2n).
     g: Vec<f64>,
     h: Vec<f64>,
-    sig: Signals,
-    est: Estimator,
-    /// `[Φ_k Φ_{f,k}]` (4n).
-    phi: Vec<f64>,
-    limits: Option<OutputLimits>,
-    zhat: f64,
-    lambda: f64,
-    theta_norm: f64,
 }
 
 impl Appc {
@@ -194,58 +194,50 @@ impl Appc {
             &params.forgetting,
             params.trace_limit,
         )?;
-        let mut s = Self {
+        let sig = Signals::new(len.max(h.len()), &n_m, &d_m, &[1.0]);
+        Ok(Self {
             counts,
-            n,
-            sig: Signals::new(len.max(h.len()), &n_m, &d_m, &[1.0]),
-            g,
-            h,
-            est,
-            phi: vec![0.0; AppcParams::theta_len(n)],
-            limits: params.limits.clone(),
-            zhat: 0.0,
-            lambda: 1.0,
-            theta_norm: 0.0,
-        };
-        s.reset();
-        Ok(s)
+            law: AppcLaw { n, g, h },
+            core: Adaptive::new(sig, est, params.limits.clone()),
+        })
     }
 
     /// `θ̂_k = [θ̂_1; θ̂_2]` (4.35)–(4.36): `[N_{c,1..n}, D_{c,1..n}, B_{1..n}, C_{1..n}]`.
     pub fn theta(&self) -> &[f64] {
-        self.est.theta()
+        self.core.est.theta()
     }
 
     /// `y_{m,k}` of the last sample (NaN after a bad one).
     pub fn y_m(&self) -> f64 {
-        self.sig.y_m
+        self.core.sig.y_m
     }
 
     /// `e_k = y_k − y_{m,k}` of the last sample (NaN after a bad one).
     pub fn e(&self) -> f64 {
-        self.sig.e_k
+        self.core.sig.e_k
     }
 
     /// `ẑ_k(θ̂_k)` (4.41) of the last sample, with the updated estimate.
     pub fn zhat(&self) -> f64 {
-        self.zhat
+        self.core.zhat
     }
 
     /// `[Φ_k Φ_{f,k}]` of the last sample (4.38)–(4.39).
     pub fn regressor(&self) -> &[f64] {
-        &self.phi
+        &self.core.phi
     }
 
     /// Guard resets of the estimator since construction.
     pub fn resets(&self) -> u64 {
-        self.est.resets()
+        self.core.est.resets()
     }
+}
 
-    /// `[Φ_k Φ_{f,k}]` into `self.phi`; returns `u_{f,k}` (4.40).
-    fn regression(&mut self) -> f64 {
+impl Law for AppcLaw {
+    /// `[Φ_k Φ_{f,k}]` into `phi`; returns `−u_{f,k}` (4.40)–(4.41).
+    fn regression(&self, sig: &Signals, phi: &mut [f64]) -> f64 {
         let n = self.n;
-        let sig = &self.sig;
-        let (phi, phi_f) = self.phi.split_at_mut(2 * n);
+        let (phi, phi_f) = phi.split_at_mut(2 * n);
         for j in 1..=n {
             if let Some(d) = phi.get_mut(j - 1) {
                 *d = sig.y.get(j);
@@ -269,23 +261,18 @@ impl Appc {
         for (d, gd) in self.g.iter().enumerate().skip(1) {
             uf += gd * sig.u_lag(d);
         }
-        uf
+        -uf
     }
 
     /// `Φ_k θ̂_1 + H r_k` (4.43).
-    fn law(&self) -> f64 {
-        let theta = self.est.theta();
+    fn law(&self, sig: &Signals, theta: &[f64]) -> f64 {
         let n = self.n;
         let mut u = 0.0;
         for j in 1..=n {
-            u += theta.get(j - 1).copied().unwrap_or(0.0) * self.sig.y.get(j);
-            u += theta.get(n + j - 1).copied().unwrap_or(0.0) * self.sig.u_lag(j);
+            u += theta.get(j - 1).copied().unwrap_or(0.0) * sig.y.get(j);
+            u += theta.get(n + j - 1).copied().unwrap_or(0.0) * sig.u_lag(j);
         }
-        u + self.sig.r_fir(&self.h)
-    }
-
-    fn note_theta(&mut self) {
-        self.theta_norm = self.est.theta().iter().map(|t| t * t).sum::<f64>().sqrt();
+        u + sig.r_fir(&self.h)
     }
 }
 
@@ -303,90 +290,38 @@ impl Controller for Appc {
     }
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
-        let mut st = status::OK;
-        self.sig.absorb(input);
-        let ok = self.sig.take_in(input);
-        let mut out = self.sig.u_last();
-        if ok {
-            let uf = self.regression();
-            let b = -uf;
-            let finite = b.is_finite() && self.phi.iter().all(|v| v.is_finite());
-            if !finite {
-                st |= status::CONTROLLER_FAULT;
-                self.zhat = f64::NAN;
-            } else {
-                if self.sig.learn() {
-                    let r = self.est.update(&self.phi, b);
-                    self.lambda = r.lambda;
-                    if r.reset {
-                        st |= status::CONTROLLER_FAULT;
-                    }
-                    self.note_theta();
-                }
-                self.zhat = crate::linalg::dot(&self.phi, self.est.theta()) - b;
-            }
-            out = self.law();
-        } else {
-            st |= status::CONTROLLER_FAULT;
-            self.zhat = f64::NAN;
-        }
-        st |= checks::saturate(self.limits.as_ref(), &mut out);
-        self.sig.push_u(out);
-        if let Some(d) = u.first_mut() {
-            *d = out;
-        }
-        st
+        self.core.step(&self.law, input, u)
     }
 
     fn reset(&mut self) {
-        self.est.reset();
-        self.note_theta();
-        self.restart_data();
+        self.core.reset();
     }
 
     /// Forgets the histories, the reference model's state and the forgetting windows;
     /// keeps `θ̂_k` and `P_k`.
     fn restart_data(&mut self) {
-        self.sig.clear();
-        self.est.restart_data();
-        self.phi.fill(0.0);
-        self.zhat = 0.0;
-        self.lambda = 1.0;
+        self.core.restart_data();
     }
 
     /// The RLS blocks (in the scaled coordinates `R_θ^{1/2} θ̂`).
     fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
-        self.est.learned(visit);
+        self.core.est.learned(visit);
     }
 
     fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
-        let r = self.est.restore_learned(saved);
-        self.note_theta();
-        r
+        self.core.restore_learned(saved)
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
-        vec![
-            ("coefficient resets", self.est.resets()),
-            ("gaps bridged", self.sig.gaps()),
-        ]
+        self.core.counters()
     }
 
     fn internal_names(&self) -> Vec<String> {
-        super::internal_names("appc", self.est.theta().len())
+        super::internal_names("appc", self.theta().len())
     }
 
     fn internals(&self, out: &mut [f64]) -> usize {
-        let head = [
-            self.sig.y_m,
-            self.sig.e_k,
-            self.zhat,
-            self.theta_norm,
-            self.est.trace(),
-            self.lambda,
-            self.est.resets() as f64,
-        ];
-        super::write_internals(&head, self.est.theta(), out)
+        self.core.internals(out)
     }
 }
 

@@ -76,6 +76,7 @@
 //! allocate (checked by `tests/conformance.rs` under a counting allocator), and does not
 //! panic (slices are read with `get`, histories return 0 beyond their length).
 
+mod adaptive;
 pub mod appc;
 mod checks;
 mod estimator;

@@ -70,12 +70,13 @@
 //! with the updated estimate), `theta_norm`, `trace_p` (`tr(R_θ^{1/2} P_k R_θ^{1/2})`),
 //! `lambda`, `resets`, then `theta[i]`, the first entries of `θ̂_k`.
 
+use super::adaptive::{Adaptive, Law};
 use super::checks;
 use super::estimator::Estimator;
 use super::poly;
 use super::signals::Signals;
 use crate::ParamError;
-use crate::controller::{Controller, Dimensions, OutputLimits, StepInput, status};
+use crate::controller::{Controller, Dimensions, OutputLimits, StepInput};
 use crate::forgetting::ForgettingRule;
 
 /// Relative size of the remainder of `N_m / (N_{n_r} N_u)` below which `N_m` is taken to
@@ -306,6 +307,13 @@ struct Checked {
 #[derive(Debug, Clone)]
 pub struct RcMrac {
     counts: Dimensions,
+    law: RcMracLaw,
+    core: Adaptive,
+}
+
+/// What is RC-MRAC's own: the filtered regression (4.70)–(4.75) and the law (4.77).
+#[derive(Debug, Clone)]
+struct RcMracLaw {
     n: usize,
     n_s: usize,
     n_r: usize,
@@ -313,14 +321,6 @@ pub struct RcMrac {
     nu_scaled: Vec<f64>,
     /// `D_m F`.
     dmf: Vec<f64>,
-    sig: Signals,
-    est: Estimator,
-    /// `Φ_{f,k}` (2n + n_s + 1).
-    phi_f: Vec<f64>,
-    limits: Option<OutputLimits>,
-    zhat: f64,
-    lambda: f64,
-    theta_norm: f64,
 }
 
 impl RcMrac {
@@ -337,112 +337,103 @@ impl RcMrac {
         let dmf = poly::mul(&d_m, &f);
         // Φ_{k−m}, m ≤ n_r + n_u, reads y_{k−m−j}, u_{k−m−j} (j ≤ n), r_{f,k−m−i} (i ≤ n_s).
         let len = (n_r + nu_scaled.len() + n).max(dmf.len()).max(f.len());
-        let lt = RcMracParams::theta_len(n, n_s);
         let est = Estimator::new(
-            lt,
+            RcMracParams::theta_len(n, n_s),
             params.theta0.as_deref(),
             &params.r_theta,
             &params.forgetting,
             params.trace_limit,
         )?;
-        let mut s = Self {
+        let sig = Signals::new(len, &n_m, &d_m, &f);
+        Ok(Self {
             counts,
-            n,
-            n_s,
-            n_r,
-            nu_scaled,
-            dmf,
-            sig: Signals::new(len, &n_m, &d_m, &f),
-            est,
-            phi_f: vec![0.0; lt],
-            limits: params.limits.clone(),
-            zhat: 0.0,
-            lambda: 1.0,
-            theta_norm: 0.0,
-        };
-        s.reset();
-        Ok(s)
+            law: RcMracLaw {
+                n,
+                n_s,
+                n_r,
+                nu_scaled,
+                dmf,
+            },
+            core: Adaptive::new(sig, est, params.limits.clone()),
+        })
     }
 
     /// `θ̂_k` (4.68): `[N_{c,1..n}, D_{c,1..n}, R_{c,0..n_s}]`.
     pub fn theta(&self) -> &[f64] {
-        self.est.theta()
+        self.core.est.theta()
     }
 
     /// `y_{m,k}` of the last sample (NaN after a bad one).
     pub fn y_m(&self) -> f64 {
-        self.sig.y_m
+        self.core.sig.y_m
     }
 
     /// `e_k = y_k − y_{m,k}` of the last sample (NaN after a bad one).
     pub fn e(&self) -> f64 {
-        self.sig.e_k
+        self.core.sig.e_k
     }
 
     /// `ẑ_k(θ̂_k)` (4.75) of the last sample, with the updated estimate.
     pub fn zhat(&self) -> f64 {
-        self.zhat
+        self.core.zhat
     }
 
     /// `Φ_{f,k}` of the last sample (4.72).
     pub fn regressor(&self) -> &[f64] {
-        &self.phi_f
+        &self.core.phi
     }
 
     /// Guard resets of the estimator since construction.
     pub fn resets(&self) -> u64 {
-        self.est.resets()
-    }
-
-    /// Entry `i` of `Φ_{k−m}` (4.71).
-    #[inline]
-    fn phi_entry(&self, m: usize, i: usize) -> f64 {
-        let n = self.n;
-        if i < n {
-            self.sig.y.get(m + i + 1)
-        } else if i < 2 * n {
-            self.sig.u_lag(m + i - n + 1)
-        } else {
-            self.sig.rf.get(m + i - 2 * n)
-        }
-    }
-
-    /// `Φ_{f,k}` into `self.phi_f`; returns `u_{f,k} − z_{f,k}` ((4.72)–(4.74)).
-    fn regression(&mut self) -> f64 {
-        for i in 0..self.phi_f.len() {
-            let mut s = 0.0;
-            for (l, c) in self.nu_scaled.iter().enumerate() {
-                s += c * self.phi_entry(self.n_r + l, i);
-            }
-            if let Some(d) = self.phi_f.get_mut(i) {
-                *d = s;
-            }
-        }
-        let mut uf = 0.0;
-        for (l, c) in self.nu_scaled.iter().enumerate() {
-            uf += c * self.sig.u_lag(self.n_r + l);
-        }
-        let zf = self.sig.e.fir(&self.dmf, 0);
-        uf - zf
-    }
-
-    /// `Φ_k θ̂_k` (4.77).
-    fn law(&self) -> f64 {
-        let theta = self.est.theta();
-        let mut u = 0.0;
-        for (i, t) in theta.iter().enumerate() {
-            u += t * self.phi_entry(0, i);
-        }
-        u
-    }
-
-    fn note_theta(&mut self) {
-        self.theta_norm = self.est.theta().iter().map(|t| t * t).sum::<f64>().sqrt();
+        self.core.est.resets()
     }
 
     /// `n_s`.
     pub fn n_s(&self) -> usize {
-        self.n_s
+        self.law.n_s
+    }
+}
+
+impl RcMracLaw {
+    /// Entry `i` of `Φ_{k−m}` (4.71).
+    #[inline]
+    fn phi_entry(&self, sig: &Signals, m: usize, i: usize) -> f64 {
+        let n = self.n;
+        if i < n {
+            sig.y.get(m + i + 1)
+        } else if i < 2 * n {
+            sig.u_lag(m + i - n + 1)
+        } else {
+            sig.rf.get(m + i - 2 * n)
+        }
+    }
+}
+
+impl Law for RcMracLaw {
+    /// `Φ_{f,k}` into `phi`; returns `u_{f,k} − z_{f,k}` ((4.72)–(4.74)).
+    fn regression(&self, sig: &Signals, phi: &mut [f64]) -> f64 {
+        for (i, d) in phi.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (l, c) in self.nu_scaled.iter().enumerate() {
+                s += c * self.phi_entry(sig, self.n_r + l, i);
+            }
+            *d = s;
+        }
+        let mut uf = 0.0;
+        for (l, c) in self.nu_scaled.iter().enumerate() {
+            uf += c * sig.u_lag(self.n_r + l);
+        }
+        let zf = sig.e.fir(&self.dmf, 0);
+        uf - zf
+    }
+
+    /// `Φ_k θ̂_k` (4.77).
+    fn law(&self, sig: &Signals, theta: &[f64]) -> f64 {
+        let mut u = 0.0;
+        for (i, t) in theta.iter().enumerate() {
+            u += t * self.phi_entry(sig, 0, i);
+        }
+        u
     }
 }
 
@@ -460,88 +451,37 @@ impl Controller for RcMrac {
     }
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
-        let mut st = status::OK;
-        self.sig.absorb(input);
-        let ok = self.sig.take_in(input);
-        let mut out = self.sig.u_last();
-        if ok {
-            let b = self.regression();
-            let finite = b.is_finite() && self.phi_f.iter().all(|v| v.is_finite());
-            if !finite {
-                st |= status::CONTROLLER_FAULT;
-                self.zhat = f64::NAN;
-            } else {
-                if self.sig.learn() {
-                    let r = self.est.update(&self.phi_f, b);
-                    self.lambda = r.lambda;
-                    if r.reset {
-                        st |= status::CONTROLLER_FAULT;
-                    }
-                    self.note_theta();
-                }
-                self.zhat = crate::linalg::dot(&self.phi_f, self.est.theta()) - b;
-            }
-            out = self.law();
-        } else {
-            st |= status::CONTROLLER_FAULT;
-            self.zhat = f64::NAN;
-        }
-        st |= checks::saturate(self.limits.as_ref(), &mut out);
-        self.sig.push_u(out);
-        if let Some(d) = u.first_mut() {
-            *d = out;
-        }
-        st
+        self.core.step(&self.law, input, u)
     }
 
     fn reset(&mut self) {
-        self.est.reset();
-        self.note_theta();
-        self.restart_data();
+        self.core.reset();
     }
 
-    /// Forgets the histories, the reference model's state and the forgetting windows;
-    /// keeps `θ̂_k` and `P_k`.
+    /// Forgets the histories, the reference model's state, the filtered command and the
+    /// forgetting windows; keeps `θ̂_k` and `P_k`.
     fn restart_data(&mut self) {
-        self.sig.clear();
-        self.est.restart_data();
-        self.phi_f.fill(0.0);
-        self.zhat = 0.0;
-        self.lambda = 1.0;
+        self.core.restart_data();
     }
 
     /// The RLS blocks (in the scaled coordinates `R_θ^{1/2} θ̂`).
     fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
-        self.est.learned(visit);
+        self.core.est.learned(visit);
     }
 
     fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
-        let r = self.est.restore_learned(saved);
-        self.note_theta();
-        r
+        self.core.restore_learned(saved)
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
-        vec![
-            ("coefficient resets", self.est.resets()),
-            ("gaps bridged", self.sig.gaps()),
-        ]
+        self.core.counters()
     }
 
     fn internal_names(&self) -> Vec<String> {
-        super::internal_names("rc_mrac", self.est.theta().len())
+        super::internal_names("rc_mrac", self.theta().len())
     }
 
     fn internals(&self, out: &mut [f64]) -> usize {
-        let head = [
-            self.sig.y_m,
-            self.sig.e_k,
-            self.zhat,
-            self.theta_norm,
-            self.est.trace(),
-            self.lambda,
-            self.est.resets() as f64,
-        ];
-        super::write_internals(&head, self.est.theta(), out)
+        self.core.internals(out)
     }
 }

@@ -1,0 +1,147 @@
+//! What APPC and RC-MRAC share: the loop of one adaptive step around a regression and a
+//! law that differ. At sample `k`:
+//!
+//! 1. the signals take `y_k`, `r_k` in (the reference model gives `y_{m,k}`, `e_k`; a bad or
+//!    lost sample is bridged, [`Signals`]);
+//! 2. the method fills its regressor `φ_k` and gives `b_k`, the target of
+//!    `ẑ_k(θ̂) = φ_k θ̂ − b_k` (APPC: (4.39)–(4.41), `φ = [Φ_k Φ_{f,k}]`, `b = −u_{f,k}`;
+//!    RC-MRAC: (4.72)–(4.75), `φ = Φ_{f,k}`, `b = u_{f,k} − z_{f,k}`);
+//! 3. RLS updates `θ̂` on (4.42) / (4.76) when the windows hold only measured data;
+//! 4. the method's law gives `u_k` ((4.43), (4.77)) from `θ̂_{k+1}`, saturated.
+//!
+//! No allocation after construction, no panic.
+
+use super::estimator::Estimator;
+use super::signals::Signals;
+use crate::controller::{OutputLimits, StepInput, status};
+
+/// The part of a method that differs: its regression and its law.
+pub(super) trait Law {
+    /// Fills `phi` (the regressor `φ_k`) from the signals and returns `b_k`, the target of
+    /// `ẑ_k(θ̂) = φ_k θ̂ − b_k`.
+    fn regression(&self, sig: &Signals, phi: &mut [f64]) -> f64;
+    /// The input `u_k` from the signals and `θ̂`.
+    fn law(&self, sig: &Signals, theta: &[f64]) -> f64;
+}
+
+/// The signals, the estimator and the step's outputs (module docs).
+#[derive(Debug, Clone)]
+pub(super) struct Adaptive {
+    /// Histories, the reference model, `y_m`, `e`.
+    pub sig: Signals,
+    /// RLS with `R_θ`.
+    pub est: Estimator,
+    /// The regressor of the last sample.
+    pub phi: Vec<f64>,
+    limits: Option<OutputLimits>,
+    /// `ẑ_k(θ̂_{k+1})` of the last sample.
+    pub zhat: f64,
+    /// λ of the last update.
+    pub lambda: f64,
+    /// `‖θ̂‖`.
+    pub theta_norm: f64,
+}
+
+impl Adaptive {
+    /// At rest, `θ̂ = θ̂_0`.
+    pub fn new(sig: Signals, est: Estimator, limits: Option<OutputLimits>) -> Self {
+        let phi = vec![0.0; est.theta().len()];
+        let mut s = Self {
+            sig,
+            est,
+            phi,
+            limits,
+            zhat: 0.0,
+            lambda: 1.0,
+            theta_norm: 0.0,
+        };
+        s.reset();
+        s
+    }
+
+    /// One step of `method` (module docs); writes `u_k` into `u[0]`, returns the status.
+    pub fn step(&mut self, method: &impl Law, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        let mut st = status::OK;
+        self.sig.absorb(input);
+        let ok = self.sig.take_in(input);
+        let mut out = self.sig.u_last();
+        if ok {
+            let b = method.regression(&self.sig, &mut self.phi);
+            let finite = b.is_finite() && self.phi.iter().all(|v| v.is_finite());
+            if !finite {
+                st |= status::CONTROLLER_FAULT;
+                self.zhat = f64::NAN;
+            } else {
+                if self.sig.learn() {
+                    let r = self.est.update(&self.phi, b);
+                    self.lambda = r.lambda;
+                    if r.reset {
+                        st |= status::CONTROLLER_FAULT;
+                    }
+                    self.note_theta();
+                }
+                self.zhat = crate::linalg::dot(&self.phi, self.est.theta()) - b;
+            }
+            out = method.law(&self.sig, self.est.theta());
+        } else {
+            st |= status::CONTROLLER_FAULT;
+            self.zhat = f64::NAN;
+        }
+        st |= super::checks::saturate(self.limits.as_ref(), &mut out);
+        self.sig.push_u(out);
+        if let Some(d) = u.first_mut() {
+            *d = out;
+        }
+        st
+    }
+
+    /// Back to `θ̂_0`, `P_0` and rest.
+    pub fn reset(&mut self) {
+        self.est.reset();
+        self.note_theta();
+        self.restart_data();
+    }
+
+    /// Forgets the histories, the reference model's state and the forgetting windows;
+    /// keeps `θ̂_k` and `P_k`.
+    pub fn restart_data(&mut self) {
+        self.sig.clear();
+        self.est.restart_data();
+        self.phi.fill(0.0);
+        self.zhat = 0.0;
+        self.lambda = 1.0;
+    }
+
+    /// Takes a checkpoint's RLS blocks.
+    pub fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
+        let r = self.est.restore_learned(saved);
+        self.note_theta();
+        r
+    }
+
+    /// The report's counters.
+    pub fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("coefficient resets", self.est.resets()),
+            ("gaps bridged", self.sig.gaps()),
+        ]
+    }
+
+    /// The internals in the order of [`super::internal_names`].
+    pub fn internals(&self, out: &mut [f64]) -> usize {
+        let head = [
+            self.sig.y_m,
+            self.sig.e_k,
+            self.zhat,
+            self.theta_norm,
+            self.est.trace(),
+            self.lambda,
+            self.est.resets() as f64,
+        ];
+        super::write_internals(&head, self.est.theta(), out)
+    }
+
+    fn note_theta(&mut self) {
+        self.theta_norm = self.est.theta().iter().map(|t| t * t).sum::<f64>().sqrt();
+    }
+}
