@@ -61,7 +61,7 @@
 //! applied `u_k` enters the histories).
 //!
 //! Bad and missing samples: [`crate::mrac`] ("Bad and missing samples"); on a bad sample the input
-//! is held and the status is [`status::CONTROLLER_FAULT`], as when the RLS guard resets
+//! is held and the status is [`CONTROLLER_FAULT`](crate::status::CONTROLLER_FAULT), as when the RLS guard resets
 //! `θ̂` or a regression is not finite (its update is then skipped).
 //!
 //! # Internals
