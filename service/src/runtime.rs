@@ -2226,6 +2226,12 @@ pub fn rt_loop(
             last_rx_ns = t_recv;
             // Late samples first (a newer one is waiting): observed, not answered.
             let first = n.saturating_sub(PENDING);
+            if (first..n).any(|i| new_peer[i % PENDING]) {
+                // A replacing plant whose samples came before the loop took its ports in
+                // while idle: iceoryx2 allocates when it connects to the new subscriber, so
+                // connect now, outside the counted real-time work, before answering it.
+                crate::rt_alloc::outside_rt(|| ports.update_connections());
+            }
             for i in first..n - 1 {
                 if new_peer[i % PENDING] {
                     core.note_new_peer();
