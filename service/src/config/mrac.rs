@@ -168,6 +168,28 @@ fn polynomial(
     Ok(v)
 }
 
+/// `D_m` and `N_m` of the reference model (4.4), both required.
+fn reference_model(
+    d_m: Option<Vec<f64>>,
+    n_m: Option<Vec<f64>>,
+    err: &ErrFn<'_>,
+) -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
+    Ok((
+        polynomial(
+            d_m,
+            "controller.d-m",
+            "D_m, the reference model's poles",
+            err,
+        )?,
+        polynomial(
+            n_m,
+            "controller.n-m",
+            "N_m, the reference model's numerator",
+            err,
+        )?,
+    ))
+}
+
 /// Reads `kind = "appc"` into [`AppcParams`] and validates them for the rig's channels.
 pub(super) fn parse_appc(
     raw: RawAppc,
@@ -175,18 +197,7 @@ pub(super) fn parse_appc(
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
     let n = order(raw.n, err)?;
-    let d_m = polynomial(
-        raw.d_m,
-        "controller.d-m",
-        "D_m, the reference model's poles",
-        err,
-    )?;
-    let n_m = polynomial(
-        raw.n_m,
-        "controller.n-m",
-        "N_m, the reference model's numerator",
-        err,
-    )?;
+    let (d_m, n_m) = reference_model(raw.d_m, raw.n_m, err)?;
     let h = polynomial(raw.h.or(Some(vec![1.0])), "controller.h", "H", err)?;
     let c = common(
         &raw_common!(raw),
@@ -242,18 +253,7 @@ pub(super) fn parse_rc_mrac(
     let n_s = count(n_s, 0, n as u64, "controller.n-s", err)? as usize;
     let n_u = polynomial(raw.n_u.or(Some(vec![1.0])), "controller.n-u", "N_u", err)?;
     let f = polynomial(raw.f.or(Some(vec![1.0])), "controller.f", "F", err)?;
-    let d_m = polynomial(
-        raw.d_m,
-        "controller.d-m",
-        "D_m, the reference model's poles",
-        err,
-    )?;
-    let n_m = polynomial(
-        raw.n_m,
-        "controller.n-m",
-        "N_m, the reference model's numerator",
-        err,
-    )?;
+    let (d_m, n_m) = reference_model(raw.d_m, raw.n_m, err)?;
     let c = common(
         &raw_common!(raw),
         RcMracParams::theta_len(n, n_s),

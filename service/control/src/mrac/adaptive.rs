@@ -145,3 +145,64 @@ impl Adaptive {
         self.theta_norm = self.est.theta().iter().map(|t| t * t).sum::<f64>().sqrt();
     }
 }
+
+/// The [`Controller`](crate::Controller) impl of a method built on [`Adaptive`]: a struct
+/// with the fields `counts: Dimensions`, `law` (its [`Law`]) and `core: Adaptive`, and the
+/// methods `e()` and `theta()`. `$kind` is the kind's name, `$prefix` that of its
+/// internals.
+macro_rules! adaptive_controller {
+    ($ty:ty, $kind:literal, $prefix:literal) => {
+        impl Controller for $ty {
+            fn kind(&self) -> &'static str {
+                $kind
+            }
+
+            fn counts(&self) -> Dimensions {
+                self.counts
+            }
+
+            fn model_following_error(&self) -> Option<f64> {
+                Some(self.e())
+            }
+
+            fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+                self.core.step(&self.law, input, u)
+            }
+
+            fn reset(&mut self) {
+                self.core.reset();
+            }
+
+            /// Forgets the histories, the reference model's state, the filtered command and
+            /// the forgetting windows; keeps `θ̂_k` and `P_k`.
+            fn restart_data(&mut self) {
+                self.core.restart_data();
+            }
+
+            /// The RLS blocks (in the scaled coordinates `R_θ^{1/2} θ̂`).
+            fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
+                self.core.est.learned(visit);
+            }
+
+            fn restore_learned(
+                &mut self,
+                saved: &crate::learned::Learned<'_>,
+            ) -> Result<(), String> {
+                self.core.restore_learned(saved)
+            }
+
+            fn counters(&self) -> Vec<(&'static str, u64)> {
+                self.core.counters()
+            }
+
+            fn internal_names(&self) -> Vec<String> {
+                super::internal_names($prefix, self.theta().len())
+            }
+
+            fn internals(&self, out: &mut [f64]) -> usize {
+                self.core.internals(out)
+            }
+        }
+    };
+}
+pub(super) use adaptive_controller;

@@ -70,7 +70,7 @@
 //! with the updated estimate), `theta_norm`, `trace_p` (`tr(R_θ^{1/2} P_k R_θ^{1/2})`),
 //! `lambda`, `resets`, then `theta[i]`, the first entries of `θ̂_k`.
 
-use super::adaptive::{Adaptive, Law};
+use super::adaptive::{Adaptive, Law, adaptive_controller};
 use super::checks;
 use super::estimator::Estimator;
 use super::poly;
@@ -437,51 +437,4 @@ impl Law for RcMracLaw {
     }
 }
 
-impl Controller for RcMrac {
-    fn kind(&self) -> &'static str {
-        "rc-mrac"
-    }
-
-    fn counts(&self) -> Dimensions {
-        self.counts
-    }
-
-    fn model_following_error(&self) -> Option<f64> {
-        Some(self.e())
-    }
-
-    fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
-        self.core.step(&self.law, input, u)
-    }
-
-    fn reset(&mut self) {
-        self.core.reset();
-    }
-
-    /// Forgets the histories, the reference model's state, the filtered command and the
-    /// forgetting windows; keeps `θ̂_k` and `P_k`.
-    fn restart_data(&mut self) {
-        self.core.restart_data();
-    }
-
-    /// The RLS blocks (in the scaled coordinates `R_θ^{1/2} θ̂`).
-    fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
-        self.core.est.learned(visit);
-    }
-
-    fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
-        self.core.restore_learned(saved)
-    }
-
-    fn counters(&self) -> Vec<(&'static str, u64)> {
-        self.core.counters()
-    }
-
-    fn internal_names(&self) -> Vec<String> {
-        super::internal_names("rc_mrac", self.theta().len())
-    }
-
-    fn internals(&self, out: &mut [f64]) -> usize {
-        self.core.internals(out)
-    }
-}
+adaptive_controller!(RcMrac, "rc-mrac", "rc_mrac");
