@@ -25,6 +25,8 @@
 //!   RC-MRAC (4.46)–(4.77).
 //! - [`mpc`]: the receding-horizon optimization of PCAC (2.43)–(2.51): condensing and the
 //!   dense QP solver (with clarabel as the reference under the `clarabel` feature).
+//! - [`arm`]: the spacecraft sampling arm of chapter 7: its model (7.1)–(7.26), the
+//!   feedback linearization (7.31), the robust gain (7.39)–(7.41) and Algorithm 3.
 //! - [`lti`]: a discrete-time LTI controller; `excitation` (crate feature `excitation`,
 //!   which brings the random number generator): white-noise inputs for identification
 //!   runs.
@@ -35,6 +37,7 @@
 #![warn(missing_docs)]
 
 pub mod ahead;
+pub mod arm;
 pub mod bocf;
 pub mod controller;
 #[cfg(feature = "excitation")]

@@ -1,0 +1,1 @@
+//! Algorithm 3 as a controller (to be written).

@@ -1,0 +1,1 @@
+//! The feedback linearization (7.31) (to be written).

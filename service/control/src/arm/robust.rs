@@ -1,0 +1,1 @@
+//! The robust gain (7.39)–(7.41) (to be written).
