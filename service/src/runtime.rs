@@ -56,6 +56,7 @@
 pub mod checkpoint;
 pub mod checkpoint_slot;
 pub mod deadline;
+pub mod force_regulation;
 pub mod gate;
 pub mod model_following;
 pub mod reset;
@@ -341,6 +342,8 @@ pub struct LoopCore {
     pub tones: ToneMeter,
     /// The model-following error norm (4.85), for a controller that follows a model.
     pub following: model_following::ModelFollowing,
+    /// The contact phases of a force-regulating rig (`service.report.force-regulation`).
+    pub force: force_regulation::ForceRegulation,
     period_ns: u64,
     silent_periods: u64,
     rms_settle_cycles: u64,
@@ -494,6 +497,10 @@ impl LoopCore {
                 cfg.sample_period_ns as f64 * 1e-9,
             ),
             following: model_following::ModelFollowing::new(cfg.tone_report.error_window),
+            force: force_regulation::ForceRegulation::new(
+                cfg.tone_report.force_regulation,
+                cfg.sample_period_ns as f64 * 1e-9,
+            ),
             period_ns: cfg.sample_period_ns,
             silent_periods: cfg.policy.silent_periods,
             rms_settle_cycles: cfg.rms_settle_cycles,
@@ -1156,6 +1163,7 @@ impl LoopCore {
         if let Some(e) = self.controller.model_following_error() {
             self.following.record(m.seq, e);
         }
+        self.force.record(m.seq, m.y(), m.r());
         self.z_count += 1;
         let settled = self.z_count > self.rms_settle_cycles;
         if settled {
@@ -1425,6 +1433,8 @@ pub struct RunReport {
     /// The model-following error norm (4.85), for a controller that follows a reference
     /// model (`service.report.error-window`).
     pub model_following: Option<model_following::ModelFollowingReport>,
+    /// The contact phases' force regulation (`service.report.force-regulation`).
+    pub force_regulation: Option<force_regulation::ForceRegulationReport>,
     /// What the box does to a real-time loop, for the RT core of this run
     /// ([`crate::system_check`]).
     pub system: Vec<crate::system_check::Finding>,
@@ -1687,6 +1697,9 @@ impl RunReport {
         }
         if let Some(f) = &self.model_following {
             out += &f.line();
+        }
+        if let Some(f) = &self.force_regulation {
+            out += &f.lines();
         }
         out += &self.latency.render_table(self.budget_ns);
         out += &self.verdict.headline();
@@ -2007,6 +2020,7 @@ pub fn run(
         rt_allocations: core.rt_allocations,
         tones: core.tones.report(),
         model_following: core.following.report(),
+        force_regulation: core.force.report(),
         system: crate::system_check::check_system(
             &crate::system_check::SystemRoot::live(),
             cfg.rt.core,

@@ -76,7 +76,7 @@ pub use log::LogConfig;
 pub use scenario_check::ScenarioCheck;
 pub use service_table::{DeadlinePolicy, MeasurementLimits, MissSource, WaitMode};
 pub use target_model_file::TargetModelFile;
-pub use tone_report::ToneReportConfig;
+pub use tone_report::{ForceRegulationConfig, ToneReportConfig};
 
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
@@ -368,6 +368,7 @@ impl ServiceConfig {
             raw.plant.as_ref(),
             period,
             s.open_loop_cycles,
+            (s.counts.n_y as usize, s.counts.n_r as usize),
             &err,
         )?;
         let controller_value = raw

@@ -1,5 +1,6 @@
-//! `[service.report]`: the per-tone suppression of `z` in the run report, and the window
-//! of the model-following error norm (4.85).
+//! `[service.report]`: the per-tone suppression of `z` in the run report, the window of
+//! the model-following error norm (4.85), and the force regulation of a contact phase
+//! (chapter 7).
 //!
 //! ```toml
 //! [service.report]
@@ -8,6 +9,10 @@
 //! error-window = [101, 200]       # samples (seq, inclusive) of ‖e‖ (4.85) for a controller
 //!                                 # that follows a reference model (APPC, RC-MRAC); default:
 //!                                 # the whole run only
+//! force-regulation = { measured = 6, set-point = 0, band = 0.05 }
+//!                                 # y channel of the measured force, r channel of its
+//!                                 # set-point, the ± band of the settling time (a fraction
+//!                                 # of the set-point); default: no force report
 //! ```
 //!
 //! Every tone must lie strictly between 0 and the Nyquist frequency; at most 64 tones, and
@@ -33,6 +38,28 @@ pub struct ToneReportConfig {
     /// The samples `[first, last]` (sequence numbers, inclusive) over which the run report
     /// gives the model-following error norm (4.85); `None`: the whole run only.
     pub error_window: Option<(u64, u64)>,
+    /// The force regulation report (`service.report.force-regulation`), when configured.
+    pub force_regulation: Option<ForceRegulationConfig>,
+}
+
+/// Which channels hold a regulated force and its set-point, for the run report's contact
+/// phases ([`crate::runtime::force_regulation`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceRegulationConfig {
+    /// The `y` channel of the measured force.
+    pub measured: usize,
+    /// The `r` channel of the set-point; a phase lasts while it is positive.
+    pub set_point: usize,
+    /// The settling band, a fraction of the set-point (the chapter's target: 0.05).
+    pub band: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawForceRegulation {
+    measured: usize,
+    set_point: usize,
+    band: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -41,6 +68,7 @@ pub(super) struct RawReport {
     tones_hz: Option<Vec<f64>>,
     window: Option<f64>,
     error_window: Option<[u64; 2]>,
+    force_regulation: Option<RawForceRegulation>,
 }
 
 /// The tones (given, or those of `[plant.disturbance]`) and the window, which must fit in
@@ -50,6 +78,7 @@ pub(super) fn parse(
     plant: Option<&toml::Value>,
     period: f64,
     open_loop_cycles: u64,
+    counts: (usize, usize),
     err: &ErrFn<'_>,
 ) -> Result<ToneReportConfig, ConfigError> {
     let nyquist = 0.5 / period;
@@ -93,11 +122,55 @@ pub(super) fn parse(
         Some([first, last]) => Some((first, last)),
         None => None,
     };
+    let force_regulation = match raw.force_regulation {
+        None => None,
+        Some(f) => Some(force_regulation(f, counts, err)?),
+    };
     Ok(ToneReportConfig {
         tones_hz,
         source,
         window_cycles,
         error_window,
+        force_regulation,
+    })
+}
+
+/// `service.report.force-regulation`: channels that exist (`counts` = `(n_y, n_r)`), a
+/// band in `(0, 1)`.
+fn force_regulation(
+    raw: RawForceRegulation,
+    (n_y, n_r): (usize, usize),
+    err: &ErrFn<'_>,
+) -> Result<ForceRegulationConfig, ConfigError> {
+    if raw.measured >= n_y {
+        return Err(err(
+            "service.report.force-regulation.measured",
+            format!(
+                "y channel {} does not exist: the rig has {n_y}",
+                raw.measured
+            ),
+        ));
+    }
+    if raw.set_point >= n_r {
+        return Err(err(
+            "service.report.force-regulation.set-point",
+            format!(
+                "r channel {} does not exist: the rig has {n_r}",
+                raw.set_point
+            ),
+        ));
+    }
+    let band = raw.band.unwrap_or(0.05);
+    if !(band.is_finite() && band > 0.0 && band < 1.0) {
+        return Err(err(
+            "service.report.force-regulation.band",
+            format!("{band} must lie strictly between 0 and 1"),
+        ));
+    }
+    Ok(ForceRegulationConfig {
+        measured: raw.measured,
+        set_point: raw.set_point,
+        band,
     })
 }
 

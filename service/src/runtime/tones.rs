@@ -208,6 +208,7 @@ mod tests {
             source: "test".into(),
             window_cycles: 400,
             error_window: None,
+            force_regulation: None,
         };
         let period = 1e-3;
         let mut m = ToneMeter::new(&cfg, 1000, 1, period);
