@@ -11,12 +11,17 @@
 //! rig-design identify  LOG --inputs … --outputs … [frf options] --method … [dtf options]
 //! rig-design compare     TARGET.toml SCENARIO --hz F1,F2,… [--output y|z]
 //! rig-design example-3-41 [--out DIR]
+//! rig-design robust-gain [--decay-rate λ] [--force-scale E0] [--grid N] [--out FILE]
 //! ```
 //!
 //! Each writes its results into `--out` (CSV, TOML, PNG) and prints a summary; the
 //! `target-model.toml` files are what RCAC's configuration reads. `identify` is the whole
 //! path of a measured rig: log → H1 frequency response and coherence → pure delays →
 //! dereverberated transfer function per channel → target model (3.49).
+//!
+//! `robust-gain` solves the sampling arm's normalized (7.41) (crate feature `sdp`), checks
+//! its gain independently (spectral radii at the box's vertices and over a grid) and writes
+//! the gain file the arm controller reads (`scenarios/arm/robust-gain.toml` by default).
 
 #![warn(missing_docs)]
 
@@ -216,6 +221,24 @@ enum Command {
         #[arg(long, default_value = "runs/design/example-3-41")]
         out: PathBuf,
     },
+    /// The sampling arm's robust gain K of (7.39)–(7.41): the normalized SDP over the
+    /// chapter's box of surface stiffness and damping, its independent check and the gain
+    /// file (needs the crate feature `sdp`).
+    RobustGain {
+        /// Decay rate λ (1/s) to certify (default: the chapter's 0.05).
+        #[arg(long)]
+        decay_rate: Option<f64>,
+        /// Force scale e_0 (N s/m) of the scaled state [ẋ, ẏ, e/e_0] (default: the one
+        /// that maximizes the margin s).
+        #[arg(long)]
+        force_scale: Option<f64>,
+        /// Grid points per axis (log-spaced) of the independent check.
+        #[arg(long, default_value_t = 60)]
+        grid: usize,
+        /// The gain file to write.
+        #[arg(long, default_value = "scenarios/arm/robust-gain.toml")]
+        out: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -247,6 +270,12 @@ fn main() -> ExitCode {
             output,
         } => compare(&target, &scenario, &hz, output),
         Command::Example341 { out } => example_3_41(&out),
+        Command::RobustGain {
+            decay_rate,
+            force_scale,
+            grid,
+            out,
+        } => robust_gain(decay_rate, force_scale, grid, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -797,5 +826,201 @@ fn example_3_41(out: &Path) -> Result<(), String> {
         ],
     )?;
     println!("wrote {} and the figures", path.display());
+    Ok(())
+}
+
+/// `rig-design robust-gain` without the SDP solver.
+#[cfg(not(feature = "sdp"))]
+fn robust_gain(_: Option<f64>, _: Option<f64>, _: usize, _: &Path) -> Result<(), String> {
+    Err(
+        "robust-gain needs the SDP solver: build rig-tools with `--features sdp` (it links \
+         the system's OpenBLAS: apt-get install libopenblas-dev)"
+            .into(),
+    )
+}
+
+/// `rig-design robust-gain`: solve, report, check, write.
+#[cfg(feature = "sdp")]
+fn robust_gain(
+    decay_rate: Option<f64>,
+    force_scale: Option<f64>,
+    grid: usize,
+    out: &Path,
+) -> Result<(), String> {
+    use control::arm::robust::RobustBox;
+    use rig_tools::design::robust_gain::{self as rg, MARGIN_TOLERANCE};
+    use rig_tools::design::robust_gain_file::RobustGainFile;
+    use std::fmt::Write;
+
+    let chapter = RobustBox::CHAPTER_7;
+    let design = RobustBox {
+        decay_rate: decay_rate.unwrap_or(chapter.decay_rate),
+        ..chapter
+    };
+    design
+        .validate()
+        .map_err(|e| format!("--decay-rate: {e}"))?;
+    if grid < 2 {
+        return Err(format!("--grid {grid}: at least 2 points per axis"));
+    }
+    let sol = match force_scale {
+        Some(e) => rg::solve(&design, e)?,
+        None => rg::best_force_scale(&design)?,
+    };
+    // λ* with the scale of a certified design: this one, or the best at λ = 0.
+    let star_scale = match (sol.margin() > MARGIN_TOLERANCE, force_scale) {
+        (true, _) => sol.force_scale,
+        (false, Some(e)) => e,
+        (false, None) => {
+            rg::best_force_scale(&RobustBox {
+                decay_rate: 0.0,
+                ..design
+            })?
+            .force_scale
+        }
+    };
+    let star = rg::largest_certified_decay(&design, star_scale)?;
+    let command: Vec<String> = std::env::args().skip(1).collect();
+    let mut r = String::new();
+    let w = |r: &mut String, line: String| {
+        let _ = writeln!(r, "{line}");
+    };
+    w(
+        &mut r,
+        "The robust state feedback τ_f = K χ of §7.2.2, (7.39)–(7.41), χ = [ẋ, ẏ, e].".into(),
+    );
+    w(&mut r, "Produced from the repository root by".into());
+    w(
+        &mut r,
+        format!(
+            "  cargo run --release -p rig-tools --features sdp --bin rig-design -- {}",
+            command.join(" ")
+        ),
+    );
+    w(
+        &mut r,
+        format!(
+            "Box: T_s = {} s, λ = {} /s, k_s ∈ [{}, {}] N/m, c_s ∈ [{}, {}] N s/m.",
+            design.sample_period,
+            design.decay_rate,
+            design.stiffness[0],
+            design.stiffness[1],
+            design.damping[0],
+            design.damping[1]
+        ),
+    );
+    w(
+        &mut r,
+        format!(
+            "Normalized (7.41): max s s.t. the 4 vertex LMIs, Q ⪰ sI, Q ⪯ I on [ẋ, ẏ, e/e_0], e_0 = {:.4e} N s/m.",
+            sol.force_scale
+        ),
+    );
+    w(
+        &mut r,
+        format!(
+            "{}: s = {:.4e}, cond(Q) = {:.4e}.",
+            sol.solver,
+            sol.margin(),
+            sol.condition()
+        ),
+    );
+    w(
+        &mut r,
+        match star {
+            Some(l) => format!(
+                "Largest decay rate certified over the box (s > {MARGIN_TOLERANCE:e}): λ* ≈ {l:.4} /s."
+            ),
+            None => "Not even λ = 0 (robust stability) is certified over the box.".into(),
+        },
+    );
+    if !sol.certified() {
+        print!("{r}");
+        return Err(format!(
+            "λ = {} /s is not certified over the box: the normalized (7.41) has s = {:.3e} ≤ {MARGIN_TOLERANCE:e} \
+             (no common quadratic Lyapunov function gives that decay at every (k_s, c_s)); {}",
+            design.decay_rate,
+            sol.margin(),
+            match star {
+                Some(l) => format!("rerun with --decay-rate at most {l:.4}"),
+                None => "the box itself is too wide".into(),
+            }
+        ));
+    }
+    let m = sol.margins();
+    let l = sol.lyapunov_margins();
+    w(
+        &mut r,
+        format!(
+            "LMI smallest eigenvalues at the solution: vertices {:.3e} {:.3e} {:.3e} {:.3e}, Q − sI {:.3e}, I − Q {:.3e}; (7.40) (s = 0) {:.3e}.",
+            m.vertices[0],
+            m.vertices[1],
+            m.vertices[2],
+            m.vertices[3],
+            m.lower,
+            m.upper,
+            l.vertices.iter().copied().fold(f64::INFINITY, f64::min)
+        ),
+    );
+    let k = sol.gain;
+    w(
+        &mut r,
+        format!(
+            "K = [[{:.6e}, {:.6e}, {:.6e}], [{:.6e}, {:.6e}, {:.6e}]]",
+            k[(0, 0)],
+            k[(0, 1)],
+            k[(0, 2)],
+            k[(1, 0)],
+            k[(1, 1)],
+            k[(1, 2)]
+        ),
+    );
+    let check = design.check_gain(&k, grid);
+    w(
+        &mut r,
+        format!(
+            "Check: spectral radius of A_d + B_d K against e^(−λ T_s) = {:.9}:",
+            check.bound
+        ),
+    );
+    for v in &check.vertices {
+        w(
+            &mut r,
+            format!(
+                "  vertex (k_s, c_s) = ({:e}, {:e}): ρ = {:.9}",
+                v.stiffness, v.damping, v.radius
+            ),
+        );
+    }
+    let g = check.worst_grid;
+    w(
+        &mut r,
+        format!(
+            "  worst over the {grid}×{grid} log grid: ρ = {:.9} at ({:e}, {:e})",
+            g.radius, g.stiffness, g.damping
+        ),
+    );
+    w(
+        &mut r,
+        format!("  {}", if check.passed() { "passed" } else { "FAILED" }),
+    );
+    print!("{r}");
+    if !check.passed() {
+        return Err(format!(
+            "the gain fails the independent check: worst radius {:.9} ≥ {:.9}",
+            check.worst_grid.radius.max(check.worst_vertex.radius),
+            check.bound
+        ));
+    }
+    let file = RobustGainFile {
+        gain: k,
+        design,
+        margin: sol.margin(),
+    };
+    file.save(out, &r)?;
+    if RobustGainFile::load(out)? != file {
+        return Err(format!("{} does not read back as written", out.display()));
+    }
+    println!("wrote {}", out.display());
     Ok(())
 }

@@ -11,6 +11,11 @@
 //!  model ─────────► Markov parameters H_i, FIR target model (3.39) (markov.rs)
 //! ```
 //!
+//! Beside that path, the robust gain of the sampling arm (7.39)–(7.41): the semidefinite
+//! program (`sdp.rs`, `robust_gain.rs`, under the crate feature `sdp`, which links BLAS and
+//! LAPACK) and its file ([`robust_gain_file`], always built, so the committed gain is
+//! checked by the default tests).
+//!
 //! Everything here runs offline (it allocates freely); nothing is called from the RT loop.
 //!
 //! ## Conventions
@@ -29,6 +34,11 @@ pub mod frf_file;
 pub mod markov;
 pub mod model;
 pub mod plots;
+#[cfg(feature = "sdp")]
+pub mod robust_gain;
+pub mod robust_gain_file;
+#[cfg(feature = "sdp")]
+pub mod sdp;
 pub mod target_response;
 pub mod welch;
 

@@ -1,0 +1,177 @@
+//! The robust gain file `scenarios/arm/robust-gain.toml`: the gain `K` of (7.41) with the
+//! box it was designed for, as `rig-design robust-gain` writes it and the arm
+//! controller's configuration reads it.
+//!
+//! ```toml
+//! [robust-gain]
+//! k = [[k11, k12, k13], [k21, k22, k23]]   # τ_f = K χ, χ = [ẋ, ẏ, e], e = F_c − F_d
+//! sample-period = 0.0005                   # T_s (s)
+//! decay-rate = 0.025                       # λ (1/s) the gain is certified for
+//! stiffness = [300.0, 270000.0]            # [k_1, k_2] (N/m)
+//! damping = [0.35, 1000.0]                 # [c_1, c_2] (N s/m)
+//! margin = 1.0e-6                          # the optimal s of the normalized SDP
+//! ```
+//!
+//! Comments above the table say how the file was produced and what its verification
+//! printed; they are not read back.
+
+use control::arm::robust::RobustBox;
+use nalgebra::Matrix2x3;
+use serde::Deserialize;
+use std::path::Path;
+
+/// The contents of a robust gain file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobustGainFile {
+    /// `K` (2×3) of `τ_f = K χ`.
+    pub gain: Matrix2x3<f64>,
+    /// The box (sample period, decay rate, stiffness and damping ranges).
+    pub design: RobustBox,
+    /// The optimal `s` of the normalized SDP.
+    pub margin: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Outer {
+    #[serde(rename = "robust-gain")]
+    robust_gain: Inner,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+struct Inner {
+    k: [[f64; 3]; 2],
+    sample_period: f64,
+    decay_rate: f64,
+    stiffness: [f64; 2],
+    damping: [f64; 2],
+    margin: f64,
+}
+
+impl RobustGainFile {
+    /// Parses the TOML text of a robust gain file; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<RobustGainFile, String> {
+        let outer: Outer = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
+        let i = outer.robust_gain;
+        let design = RobustBox {
+            sample_period: i.sample_period,
+            decay_rate: i.decay_rate,
+            stiffness: i.stiffness,
+            damping: i.damping,
+        };
+        design
+            .validate()
+            .map_err(|e| format!("{origin}: [robust-gain] {e}"))?;
+        if let Some(v) = i.k.iter().flatten().find(|v| !v.is_finite()) {
+            return Err(format!("{origin}: [robust-gain] k has the entry {v}"));
+        }
+        if !i.margin.is_finite() {
+            return Err(format!(
+                "{origin}: [robust-gain] margin {} is not finite",
+                i.margin
+            ));
+        }
+        let gain = Matrix2x3::from_fn(|r, c| i.k[r][c]);
+        Ok(RobustGainFile {
+            gain,
+            design,
+            margin: i.margin,
+        })
+    }
+
+    /// Reads and parses `path`.
+    pub fn load(path: &Path) -> Result<RobustGainFile, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("reading {}: {e}", path.display()))?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// The TOML text: `comment` (each line prefixed with `# `), then the table. Numbers are
+    /// written in Rust's shortest round-trip form, so parsing gives back the same values.
+    pub fn to_toml(&self, comment: &str) -> String {
+        let mut s = String::new();
+        for line in comment.lines() {
+            if line.is_empty() {
+                s += "#\n";
+            } else {
+                s += &format!("# {line}\n");
+            }
+        }
+        let row = |r: usize| {
+            let v: Vec<String> = (0..3).map(|c| format!("{:?}", self.gain[(r, c)])).collect();
+            format!("[{}]", v.join(", "))
+        };
+        let d = &self.design;
+        s += "[robust-gain]\n";
+        s += &format!(
+            "k = [{}, {}]   # τ_f = K χ, χ = [ẋ, ẏ, e], e = F_c − F_d\n",
+            row(0),
+            row(1)
+        );
+        s += &format!("sample-period = {:?}   # T_s (s)\n", d.sample_period);
+        s += &format!("decay-rate = {:?}   # λ (1/s)\n", d.decay_rate);
+        s += &format!(
+            "stiffness = [{:?}, {:?}]   # [k_1, k_2] (N/m)\n",
+            d.stiffness[0], d.stiffness[1]
+        );
+        s += &format!(
+            "damping = [{:?}, {:?}]   # [c_1, c_2] (N s/m)\n",
+            d.damping[0], d.damping[1]
+        );
+        s += &format!(
+            "margin = {:?}   # the optimal s of the normalized SDP\n",
+            self.margin
+        );
+        s
+    }
+
+    /// Writes [`RobustGainFile::to_toml`] to `path` (creating its folder).
+    pub fn save(&self, path: &Path, comment: &str) -> Result<(), String> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+        }
+        std::fs::write(path, self.to_toml(comment))
+            .map_err(|e| format!("writing {}: {e}", path.display()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> RobustGainFile {
+        RobustGainFile {
+            gain: Matrix2x3::new(-1999.9, 1e-9, -3.0e-12, 2.5e-13, -193.02, 0.027621),
+            design: RobustBox {
+                decay_rate: 0.025,
+                ..RobustBox::CHAPTER_7
+            },
+            margin: 2.2e-6,
+        }
+    }
+
+    #[test]
+    fn what_is_written_reads_back_exactly() {
+        let f = sample();
+        let text = f.to_toml("made by a test\n\nsecond paragraph");
+        assert!(text.starts_with("# made by a test\n#\n# second paragraph\n[robust-gain]\n"));
+        assert_eq!(RobustGainFile::parse(&text, "t.toml").unwrap(), f);
+    }
+
+    #[test]
+    fn errors_name_the_file_and_the_field() {
+        let text = sample().to_toml("");
+        let bad = text.replace("damping = [0.35, 1000.0]", "damping = [1000.0, 0.35]");
+        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        assert!(e.contains("g.toml") && e.contains("damping"), "{e}");
+        let bad = text.replace("margin", "margn");
+        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        assert!(e.contains("g.toml") && e.contains("margn"), "{e}");
+        let bad = text.replace("k = [[", "k = [[1.0, ");
+        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        assert!(e.contains("g.toml"), "{e}");
+        let e = RobustGainFile::load(Path::new("/nonexistent/robust-gain.toml")).unwrap_err();
+        assert!(e.contains("/nonexistent/robust-gain.toml"), "{e}");
+    }
+}

@@ -1,0 +1,239 @@
+//! Linear matrix inequalities as clarabel's positive semidefinite cones.
+//!
+//! A program
+//!
+//! ```text
+//! minimize cᵀ x   subject to   F_l(x) = F_{l,0} + Σ_i x_i F_{l,i} ⪰ 0,   l = 1 … L
+//! ```
+//!
+//! with symmetric `F_{l,i}` is clarabel's `A x + s = b`, `s ∈ K` with one
+//! `PSDTriangleConeT(n_l)` per inequality: `s_l = svec(F_l(x))`, so the rows of `b` are
+//! `svec(F_{l,0})` and column `i` of `A` is `−svec(F_{l,i})`.
+//!
+//! `svec` is clarabel's packing of a symmetric `n × n` matrix into `n(n+1)/2` numbers: the
+//! upper triangle column by column, `(0,0), (0,1), (1,1), (0,2), (1,2), (2,2), …`, with the
+//! off-diagonal entries multiplied by `√2` (so that `svec(X)ᵀ svec(Y) = trace(X Y)`).
+//! The tests prove the order and the scaling on small programs with known solutions.
+//!
+//! [`affine_lmis`] builds the `F_{l,i}` of an affine matrix function from its values at
+//! `x = 0` and at the unit vectors, so a caller writes the inequalities once, as matrices.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use nalgebra::DMatrix;
+
+/// One inequality `F(x) = constant + Σ_i x_i coefficients[i] ⪰ 0`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lmi {
+    /// `F_0`, symmetric.
+    pub constant: DMatrix<f64>,
+    /// `F_i`, one per variable, symmetric, of the size of `F_0`.
+    pub coefficients: Vec<DMatrix<f64>>,
+}
+
+/// A solution of [`minimize`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SdpSolution {
+    /// The minimizer `x`.
+    pub x: Vec<f64>,
+    /// The optimal cost `cᵀ x`.
+    pub cost: f64,
+    /// Clarabel's status (`Solved` or `AlmostSolved`).
+    pub status: String,
+    /// Interior-point iterations.
+    pub iterations: u32,
+}
+
+/// `svec(M)` of a symmetric matrix (the upper triangle by columns, off-diagonals × √2).
+pub fn svec(m: &DMatrix<f64>) -> Vec<f64> {
+    let n = m.nrows();
+    let mut v = Vec::with_capacity(n * (n + 1) / 2);
+    for col in 0..n {
+        for row in 0..=col {
+            v.push(if row == col {
+                m[(row, col)]
+            } else {
+                std::f64::consts::SQRT_2 * m[(row, col)]
+            });
+        }
+    }
+    v
+}
+
+/// The symmetric `n × n` matrix of a packed `svec`.
+pub fn smat(v: &[f64], n: usize) -> DMatrix<f64> {
+    let mut m = DMatrix::zeros(n, n);
+    let mut idx = 0;
+    for col in 0..n {
+        for row in 0..=col {
+            if row == col {
+                m[(row, col)] = v[idx];
+            } else {
+                let x = v[idx] / std::f64::consts::SQRT_2;
+                m[(row, col)] = x;
+                m[(col, row)] = x;
+            }
+            idx += 1;
+        }
+    }
+    m
+}
+
+/// The inequalities of an affine map `x ↦ [F_1(x), …, F_L(x)]` of `n` variables, from its
+/// values at `0` and at the unit vectors.
+pub fn affine_lmis(n: usize, f: impl Fn(&[f64]) -> Vec<DMatrix<f64>>) -> Vec<Lmi> {
+    let f0 = f(&vec![0.0; n]);
+    let fi: Vec<Vec<DMatrix<f64>>> = (0..n)
+        .map(|i| {
+            let mut e = vec![0.0; n];
+            e[i] = 1.0;
+            f(&e)
+        })
+        .collect();
+    f0.iter()
+        .enumerate()
+        .map(|(l, c)| Lmi {
+            constant: c.clone(),
+            coefficients: fi.iter().map(|v| &v[l] - c).collect(),
+        })
+        .collect()
+}
+
+/// Minimizes `cᵀ x` subject to `lmis` with clarabel's interior-point method. `Err` when an
+/// inequality is malformed or the solver does not report `Solved`/`AlmostSolved`.
+pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, String> {
+    let n = c.len();
+    let mut b = Vec::new();
+    let mut columns: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    let mut cones = Vec::with_capacity(lmis.len());
+    for (l, lmi) in lmis.iter().enumerate() {
+        let dim = lmi.constant.nrows();
+        if lmi.constant.ncols() != dim || lmi.coefficients.len() != n {
+            return Err(format!(
+                "inequality {l}: F_0 is {}×{} with {} coefficients for {n} variables",
+                dim,
+                lmi.constant.ncols(),
+                lmi.coefficients.len()
+            ));
+        }
+        let row0 = b.len();
+        b.extend(svec(&lmi.constant));
+        for (i, fi) in lmi.coefficients.iter().enumerate() {
+            if fi.shape() != (dim, dim) {
+                return Err(format!("inequality {l}: F_{} is not {dim}×{dim}", i + 1));
+            }
+            for (r, v) in svec(fi).into_iter().enumerate() {
+                if v != 0.0 {
+                    columns[i].push((row0 + r, -v));
+                }
+            }
+        }
+        cones.push(SupportedConeT::PSDTriangleConeT(dim));
+    }
+    let m = b.len();
+    let mut colptr = Vec::with_capacity(n + 1);
+    let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
+    colptr.push(0);
+    for col in &columns {
+        for &(r, v) in col {
+            rowval.push(r);
+            nzval.push(v);
+        }
+        colptr.push(rowval.len());
+    }
+    let a = CscMatrix::new(m, n, colptr, rowval, nzval);
+    let p = CscMatrix::zeros((n, n));
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(false)
+        .build()
+        .map_err(|e| format!("clarabel settings: {e}"))?;
+    let mut solver = DefaultSolver::new(&p, c, &a, &b, &cones, settings)
+        .map_err(|e| format!("clarabel rejected the problem: {e:?}"))?;
+    solver.solve();
+    let status = solver.solution.status;
+    match status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => Ok(SdpSolution {
+            x: solver.solution.x.clone(),
+            cost: solver.solution.obj_val,
+            status: format!("{status:?}"),
+            iterations: solver.solution.iterations,
+        }),
+        other => Err(format!(
+            "clarabel stopped with status {other:?} after {} iterations",
+            solver.solution.iterations
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sym(rows: &[&[f64]]) -> DMatrix<f64> {
+        let n = rows.len();
+        DMatrix::from_fn(n, n, |i, j| rows[i][j])
+    }
+
+    #[test]
+    fn svec_follows_the_upper_triangle_by_columns_with_root_two() {
+        let m = sym(&[&[1.0, 2.0, 4.0], &[2.0, 3.0, 5.0], &[4.0, 5.0, 6.0]]);
+        let r2 = std::f64::consts::SQRT_2;
+        assert_eq!(svec(&m), vec![1.0, 2.0 * r2, 3.0, 4.0 * r2, 5.0 * r2, 6.0]);
+        assert!((smat(&svec(&m), 3) - &m).abs().max() < 1e-15);
+        // The inner product of svecs is the trace inner product.
+        let k = sym(&[&[0.5, -1.0, 2.0], &[-1.0, 4.0, 0.0], &[2.0, 0.0, -3.0]]);
+        let dot: f64 = svec(&m).iter().zip(svec(&k)).map(|(a, b)| a * b).sum();
+        assert!((dot - (&m * &k).trace()).abs() < 1e-12);
+    }
+
+    /// `X` as six variables in svec order without the √2 (plain entries).
+    fn sym_of(x: &[f64]) -> DMatrix<f64> {
+        sym(&[
+            &[x[0], x[1], x[3]],
+            &[x[1], x[2], x[4]],
+            &[x[3], x[4], x[5]],
+        ])
+    }
+
+    #[test]
+    fn min_trace_above_a_known_matrix_returns_that_matrix() {
+        // minimize trace X subject to X − M ⪰ 0: the unique optimum is X = M (X − M ⪰ 0
+        // with zero trace is 0). A wrong order or scale of the packing moves it.
+        let m = sym(&[&[2.0, 0.7, -0.4], &[0.7, 1.5, 0.3], &[-0.4, 0.3, 1.0]]);
+        let mm = m.clone();
+        let lmis = affine_lmis(6, move |x| vec![sym_of(x) - &mm]);
+        let c = [1.0, 0.0, 1.0, 0.0, 0.0, 1.0];
+        let sol = minimize(&c, &lmis).unwrap();
+        assert!((sym_of(&sol.x) - &m).abs().max() < 1e-6, "{:?}", sol.x);
+        assert!((sol.cost - m.trace()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_smallest_bound_on_a_matrix_is_its_largest_eigenvalue() {
+        // minimize t subject to t I − M ⪰ 0 (constant off-diagonals in b).
+        let m = sym(&[&[1.0, 0.0, 2.0], &[0.0, -1.0, 0.5], &[2.0, 0.5, 3.0]]);
+        let mm = m.clone();
+        let lmis = affine_lmis(1, move |x| vec![DMatrix::identity(3, 3) * x[0] - &mm]);
+        let sol = minimize(&[1.0], &lmis).unwrap();
+        let want = m.symmetric_eigenvalues().max();
+        assert!((sol.x[0] - want).abs() < 1e-6, "{} vs {want}", sol.x[0]);
+    }
+
+    #[test]
+    fn a_schur_complement_gives_the_bound_of_a_two_by_two() {
+        // minimize x subject to [[x, 1], [1, 2]] ⪰ 0: x = 1/2.
+        let lmis = affine_lmis(1, |x| vec![sym(&[&[x[0], 1.0], &[1.0, 2.0]])]);
+        let sol = minimize(&[1.0], &lmis).unwrap();
+        assert!((sol.x[0] - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn an_infeasible_program_is_an_error() {
+        // −1 − x² ... as an LMI: [[−1, 0], [0, x]] ⪰ 0 has no solution.
+        let lmis = affine_lmis(1, |x| vec![sym(&[&[-1.0, 0.0], &[0.0, x[0]]])]);
+        let e = minimize(&[1.0], &lmis).unwrap_err();
+        assert!(e.contains("Infeasible"), "{e}");
+    }
+}
