@@ -41,11 +41,11 @@ struct Outer {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 struct Inner {
-    k: [[f64; 3]; 2],
+    k: Vec<Vec<f64>>,
     sample_period: f64,
     decay_rate: f64,
-    stiffness: [f64; 2],
-    damping: [f64; 2],
+    stiffness: Vec<f64>,
+    damping: Vec<f64>,
     margin: f64,
 }
 
@@ -54,11 +54,25 @@ impl RobustGainFile {
     pub fn parse(text: &str, origin: &str) -> Result<RobustGainFile, String> {
         let outer: Outer = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
         let i = outer.robust_gain;
+        // (Fixed-size arrays would let the TOML reader drop extra entries silently.)
+        let pair = |name: &str, v: &[f64]| -> Result<[f64; 2], String> {
+            <[f64; 2]>::try_from(v).map_err(|_| {
+                format!(
+                    "{origin}: [robust-gain] {name} has {} entries, not 2",
+                    v.len()
+                )
+            })
+        };
+        if i.k.len() != 2 || i.k.iter().any(|r| r.len() != 3) {
+            return Err(format!(
+                "{origin}: [robust-gain] k must be 2 rows of 3 entries (K is 2×3)"
+            ));
+        }
         let design = RobustBox {
             sample_period: i.sample_period,
             decay_rate: i.decay_rate,
-            stiffness: i.stiffness,
-            damping: i.damping,
+            stiffness: pair("stiffness", &i.stiffness)?,
+            damping: pair("damping", &i.damping)?,
         };
         design
             .validate()
@@ -170,7 +184,10 @@ mod tests {
         assert!(e.contains("g.toml") && e.contains("margn"), "{e}");
         let bad = text.replace("k = [[", "k = [[1.0, ");
         let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
-        assert!(e.contains("g.toml"), "{e}");
+        assert!(e.contains("g.toml") && e.contains("2×3"), "{e}");
+        let bad = text.replace("stiffness = [300.0,", "stiffness = [1.0, 300.0,");
+        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        assert!(e.contains("g.toml") && e.contains("stiffness"), "{e}");
         let e = RobustGainFile::load(Path::new("/nonexistent/robust-gain.toml")).unwrap_err();
         assert!(e.contains("/nonexistent/robust-gain.toml"), "{e}");
     }
