@@ -941,9 +941,13 @@ fn robust_gain(
              (no common quadratic Lyapunov function gives that decay at every (k_s, c_s)); {}",
             design.decay_rate,
             sol.margin(),
-            match star {
-                Some(l) => format!("rerun with --decay-rate at most {l:.4}"),
-                None => "the box itself is too wide".into(),
+            match (star, force_scale) {
+                (Some(l), _) => format!("rerun with --decay-rate at most {l:.4}"),
+                (None, Some(e)) => format!(
+                    "not even λ = 0 reaches the margin at --force-scale {e}: try another scale, \
+                     or leave it to the search"
+                ),
+                (None, None) => "not even λ = 0 does: the box is too wide".into(),
             }
         ));
     }
