@@ -62,7 +62,7 @@
 //! solver's `(Q, Y, s)`, for the design tool's own tests.
 //!
 //! The solve of (7.41) itself is a design-time step (`rig-design robust-gain`, with an SDP
-//! solver); nothing here allocates except the grid check's report.
+//! solver); nothing here allocates (all matrices are fixed-size).
 
 use nalgebra::linalg::Schur;
 use nalgebra::{Matrix2x3, Matrix3, Matrix3x2, Matrix6, Vector3};

@@ -1006,6 +1006,14 @@ fn robust_gain(
     );
     w(
         &mut r,
+        format!(
+            "  slowest decay of a frozen (k_s, c_s): −ln ρ / T_s = {:.4} /s (asked: {} /s)",
+            -g.radius.ln() / design.sample_period,
+            design.decay_rate
+        ),
+    );
+    w(
+        &mut r,
         format!("  {}", if check.passed() { "passed" } else { "FAILED" }),
     );
     print!("{r}");

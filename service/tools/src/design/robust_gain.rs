@@ -23,7 +23,7 @@
 //!
 //! `s` is bounded by `λ_min(Q)` under `Q ⪯ I`, so it depends on the units of `χ`: with the
 //! velocities in m/s and the force error in N, the certificate `Q` of the chapter's box has
-//! eigenvalues six orders apart and `s` sinks to the solver's tolerance. The program is
+//! a condition number of about 10⁷ and `s` sinks below the solver's tolerance. The program is
 //! therefore solved on `χ̃ = D χ`, `D = diag(1, 1, 1/e_0)` (a force error of `e_0` newtons
 //! weighs as much as 1 m/s), with `Ã = D A D⁻¹`, `B̃ = D B` and `K = K̃ D`; feasibility and
 //! the spectral radii do not depend on `e_0`, only the conditioning does.
