@@ -317,6 +317,7 @@ fn pcac_timed(timing: PcacTiming) -> Box<dyn Controller> {
         timing,
         qp: QpSettings::default(),
         warm_start: true,
+        augmentation: None,
     };
     let c = Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters");
     Box::new(c)

@@ -199,6 +199,7 @@ pub(super) fn parse(
         timing,
         qp,
         warm_start: raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START),
+        augmentation: None,
     };
     params
         .validate(dims)
