@@ -286,6 +286,8 @@ pub struct ArmController {
     continuous: bool,
     /// Samples PCAC has not seen since its last step within this contact phase.
     pending_lost: u64,
+    /// PCAC took in the current sample (a fault after it must not count it as lost).
+    pcac_stepped: bool,
     counters: ArmCounters,
 }
 
@@ -328,6 +330,7 @@ impl ArmController {
             aug_reported: [0.0; 2],
             continuous: false,
             pending_lost: 0,
+            pcac_stepped: false,
             counters: ArmCounters::default(),
         })
     }
@@ -412,7 +415,7 @@ impl ArmController {
         if singular {
             self.counters.singular += 1;
         }
-        if self.mode == ArmMode::Contact {
+        if self.mode == ArmMode::Contact && !self.pcac_stepped {
             self.pending_lost += 1;
         }
         self.continuous = false;
@@ -518,6 +521,7 @@ impl ArmController {
             };
             bits |= p.step(&inner, &mut self.u_aug);
             self.pending_lost = 0;
+            self.pcac_stepped = true;
         }
         let tau_f = u_robust + Vector2::new(self.u_aug[0], self.u_aug[1]);
         let tau = terms.torques(&tau_f);
@@ -552,6 +556,7 @@ impl Controller for ArmController {
     }
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        self.pcac_stepped = false;
         let (y, r) = (input.y, input.r);
         if y.len() < N_Y || r.is_empty() {
             return self.fault(u, false);
@@ -687,5 +692,6 @@ impl ArmController {
         self.aug_reported = [0.0; 2];
         self.continuous = false;
         self.pending_lost = 0;
+        self.pcac_stepped = false;
     }
 }
