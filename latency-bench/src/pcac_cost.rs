@@ -213,6 +213,7 @@ impl Workload {
             timing: PcacTiming::NextStep,
             qp: QpSettings::default(),
             warm_start: true,
+            augmentation: None,
         }
     }
 }

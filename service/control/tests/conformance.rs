@@ -6,13 +6,16 @@
 //! realistic parameters and the output limits it was given (if any). The
 //! [`conformance!`] macro instantiates every property as one test per kind, in a module
 //! named after the kind, so the test names read
-//! `rcac_rls::reset_returns_to_the_initial_state`. **Adding a future kind (the
-//! sampling-arm controller) is one line** in the `conformance!` invocation at the end
-//! of this file, next to its constructor:
+//! `rcac_rls::reset_returns_to_the_initial_state`. **Adding a kind is one line** in the
+//! `conformance!` invocation at the end of this file, next to its constructor:
 //!
 //! ```text
-//! arm: Kind { build: arm, limits: Some((&[-1.0], &[1.0])), observe: Observe::AsStep, ahead: true },
+//! sampling_arm: Kind { build: sampling_arm, limits: ARM_LIMITS, observe: Observe::AsStep, ahead: false },
 //! ```
+//!
+//! A kind whose channels are not the loop's single-output ones reads the plant's output
+//! on every `y` channel (the sampling-arm controller, `n_y = 7`, `n_u = 2`, switching
+//! between its joint hold and its contact law with the command).
 //!
 //! The properties, on a closed loop with a small stable plant ([`Plant`]):
 //!
@@ -54,11 +57,14 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
+use control::arm::controller::{ArmController, ArmControllerParams, JointHold};
+use control::arm::dynamics::ArmParams;
+use control::arm::feedback_linearization::{ContactPrior, FeedbackLinearization};
 use control::forgetting::ForgettingRule;
 use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
 use control::mpc::qp::QpSettings;
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
-use control::pcac::{IdKernel, IoModelParams, Pcac, PcacParams, PcacTiming};
+use control::pcac::{IdKernel, IoModelParams, OutputFeedback, Pcac, PcacParams, PcacTiming};
 use control::rcac::{Rcac, RcacParams, RcacUpdate, StepSize};
 use control::target::{TargetForm, TargetModel};
 use control::{
@@ -282,7 +288,14 @@ fn pcac_next_step() -> Box<dyn Controller> {
 
 /// [`pcac`] with the given timing.
 fn pcac_timed(timing: PcacTiming) -> Box<dyn Controller> {
-    let params = PcacParams {
+    let params = pcac_params(timing);
+    let c = Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters");
+    Box::new(c)
+}
+
+/// The parameters of [`pcac_timed`].
+fn pcac_params(timing: PcacTiming) -> PcacParams {
+    PcacParams {
         model: IoModelParams {
             n_hat: 4,
             p: 1,
@@ -317,9 +330,111 @@ fn pcac_timed(timing: PcacTiming) -> Box<dyn Controller> {
         timing,
         qp: QpSettings::default(),
         warm_start: true,
+        augmentation: None,
+    }
+}
+
+/// [`pcac`] augmenting the fixed output feedback `K̄ = −0.5` (7.53)–(7.57): the plant's
+/// input is `−0.5 y + u`.
+fn pcac_augmented() -> Box<dyn Controller> {
+    let params = PcacParams {
+        augmentation: Some(OutputFeedback { gain: vec![-0.5] }),
+        ..pcac_params(PcacTiming::SameStep)
     };
-    let c = Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters");
-    Box::new(c)
+    Box::new(Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters"))
+}
+
+/// The sampling-arm controller's torque limits in these tests (N m).
+const ARM_TAU_MAX: f64 = 1.5;
+const ARM_LIMITS: Option<(&[f64], &[f64])> =
+    Some((&[-ARM_TAU_MAX, -ARM_TAU_MAX], &[ARM_TAU_MAX, ARM_TAU_MAX]));
+
+/// The sampling-arm controller (Algorithm 3) on the loop's plant: every `y` channel is
+/// the plant's output, read as `[θ_1, θ_2, θ̇_1, θ̇_2, ẋ, ẏ, F_c]`, and the command that
+/// steps between 0 and 0.5 every 100 samples switches it between the joint hold
+/// (`r = 0`) and the contact law (`F_d = 0.5`), so that every property sees both modes,
+/// the phase changes and (near `θ_2 = 0`) samples without a linearization. Small gains
+/// and torque limits of ±1.5 keep the loop bounded. `pcac`: with the augmentation of
+/// §7.3's size (`p = 5`, `m = 2`, `ℓ = 50`, 100 decision variables). With five equal
+/// outputs PCAC's identified model is degenerate here and most of its QPs end in the
+/// numerical-error fallback; `tests/arm_step.rs` counts the allocations of the solved
+/// path on the simulated spacecraft.
+fn arm_params(pcac: bool) -> ArmControllerParams {
+    let pcac = pcac.then(|| {
+        let fl = FeedbackLinearization::new(ArmParams::CHAPTER_7);
+        let theta0 = fl
+            .pcac_prior(&ContactPrior::CHAPTER_7, 0.0005)
+            .expect("the chapter's prior");
+        let mut tracking = vec![0.0; 15];
+        for i in 0..3 {
+            tracking[i * 5 + 2 + i] = 1.0;
+        }
+        PcacParams {
+            model: IoModelParams {
+                n_hat: 1,
+                p: 5,
+                m: 2,
+                theta0,
+                p0: 10.0,
+                rule: ForgettingRule::FTest {
+                    tau_n: 40,
+                    tau_d: 200,
+                    eta: 0.1,
+                    alpha: 0.001,
+                },
+                trace_limit: 3.5e8,
+                kernel: IdKernel::Shared,
+            },
+            mpc: MpcSpec {
+                horizon: 50,
+                n_inputs: 2,
+                n_outputs: 5,
+                n_tracked: 3,
+                tracking,
+                q: Weight::PerChannel(vec![1000.0, 100.0, 1.0]),
+                r: Weight::Scalar(1.0),
+                u_min: vec![-100.0; 2],
+                u_max: vec![100.0; 2],
+                move_bounds: Some(MoveBounds {
+                    min: vec![-20.0; 2],
+                    max: vec![20.0; 2],
+                }),
+                output_constraints: None,
+            },
+            timing: PcacTiming::SameStep,
+            qp: QpSettings::default(),
+            warm_start: true,
+            augmentation: None,
+        }
+    });
+    ArmControllerParams {
+        arm: ArmParams::CHAPTER_7,
+        robust_gain: [-0.3, 0.0, 0.0, 0.0, -0.3, 0.01],
+        hold: JointHold {
+            kp: [0.5, 0.5],
+            kd: [0.2, 0.2],
+        },
+        pcac,
+        limits: Some(OutputLimits {
+            min: vec![-ARM_TAU_MAX; 2],
+            max: vec![ARM_TAU_MAX; 2],
+        }),
+    }
+}
+
+/// The robust sampling-arm controller (no PCAC).
+fn sampling_arm() -> Box<dyn Controller> {
+    Box::new(ArmController::new(&arm_params(false), arm_counts()).expect("valid arm parameters"))
+}
+
+/// The sampling-arm controller with the PCAC augmentation.
+fn sampling_arm_pcac() -> Box<dyn Controller> {
+    Box::new(ArmController::new(&arm_params(true), arm_counts()).expect("valid arm parameters"))
+}
+
+/// The arm rig's channels: `n_y = 7`, `n_z = 1`, `n_r = 1`, `n_u = 2`.
+fn arm_counts() -> Dimensions {
+    Dimensions::new(7, 1, 1, 2)
 }
 
 /// APPC (§4.2) for the loop's plant (`n = 2`): `D_m = (1 − 0.5 q⁻¹)²`,
@@ -1028,6 +1143,9 @@ conformance! {
     rcac_gradient: Kind { build: rcac_gradient, limits: None, observe: Observe::RecordsData, ahead: true },
     pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep, ahead: false },
     pcac_next_step: Kind { build: pcac_next_step, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
+    pcac_augmented: Kind { build: pcac_augmented, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    sampling_arm: Kind { build: sampling_arm, limits: ARM_LIMITS, observe: Observe::AsStep, ahead: false },
+    sampling_arm_pcac: Kind { build: sampling_arm_pcac, limits: ARM_LIMITS, observe: Observe::AsStep, ahead: false },
     appc: Kind { build: appc, limits: LIMITS, observe: Observe::AsStep, ahead: false },
     rc_mrac: Kind { build: rc_mrac, limits: None, observe: Observe::AsStep, ahead: false },
 }

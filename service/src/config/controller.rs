@@ -2,7 +2,8 @@
 //!
 //! ```toml
 //! [controller]
-//! kind = "lti"                    # "lti", "excitation", "rcac", "pcac", "appc" or "rc-mrac"
+//! kind = "lti"                    # "lti", "excitation", "rcac", "pcac", "appc", "rc-mrac"
+//!                                 # or "sampling-arm"
 //! u-min = -1.0                    # optional saturation, scalar or one per input u
 //! u-max = 1.0
 //! ```
@@ -11,7 +12,7 @@
 //! ([`ControllerConfig::Lti`]), `excitation` ([`ControllerConfig::Excitation`]), `rcac`
 //! ([`ControllerConfig::Rcac`]), `pcac` ([`ControllerConfig::Pcac`]), `appc`
 //! ([`ControllerConfig::Appc`]) and `rc-mrac` ([`ControllerConfig::RcMrac`]) (both in
-//! `mrac`).
+//! `mrac`), `sampling-arm` ([`ControllerConfig::SamplingArm`], in `arm`).
 //!
 //! Each kind's `parse` turns its table into the kernel's parameter struct (defaults from
 //! the kernel's constants) and calls the struct's `validate`, which builds nothing; the
@@ -21,7 +22,8 @@
 //! module's `parse` and in the two `match`es of [`ControllerConfig`].
 
 use super::values::{ScalarOrVec, per_channel};
-use super::{ConfigError, ErrFn, excitation, lti, mrac, pcac, rcac};
+use super::{ConfigError, ErrFn, arm, excitation, lti, mrac, pcac, rcac};
+use control::arm::controller::{ArmController, ArmControllerParams};
 use control::excitation::ExcitationParams;
 use control::lti::LtiParams;
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
@@ -67,6 +69,11 @@ pub enum ControllerConfig {
         /// The validated parameters.
         params: Box<RcMracParams>,
     },
+    /// The sampling arm's adaptive force control ([`ArmController`], chapter 7).
+    SamplingArm {
+        /// The validated parameters.
+        params: Box<ArmControllerParams>,
+    },
 }
 
 impl ControllerConfig {
@@ -79,6 +86,7 @@ impl ControllerConfig {
             ControllerConfig::Pcac { .. } => "pcac",
             ControllerConfig::Appc { .. } => "appc",
             ControllerConfig::RcMrac { .. } => "rc-mrac",
+            ControllerConfig::SamplingArm { .. } => "sampling-arm",
         }
     }
 
@@ -93,6 +101,8 @@ impl ControllerConfig {
             ControllerConfig::Pcac { params } => params.answers_ahead(),
             // u_k needs the command r_k of the same sample ((4.43), (4.77)).
             ControllerConfig::Appc { .. } | ControllerConfig::RcMrac { .. } => false,
+            // The torques (7.31) linearize at the measurement of the same sample.
+            ControllerConfig::SamplingArm { .. } => false,
         }
     }
 
@@ -107,6 +117,9 @@ impl ControllerConfig {
             }
             ControllerConfig::Appc { .. } | ControllerConfig::RcMrac { .. } => {
                 "its input u_k needs the command r_k of the same sample ((4.43), (4.77))"
+            }
+            ControllerConfig::SamplingArm { .. } => {
+                "its torques (7.31) linearize the arm at the measurement y_k of the same sample"
             }
             ControllerConfig::Rcac { .. } | ControllerConfig::Excitation { .. } => "",
         }
@@ -128,6 +141,7 @@ impl ControllerConfig {
             // fine here (configuration time).
             ControllerConfig::Appc { params } => Appc::new(params, dims).map(|_| ()),
             ControllerConfig::RcMrac { params } => RcMrac::new(params, dims).map(|_| ()),
+            ControllerConfig::SamplingArm { params } => params.validate(dims),
         }
     }
 
@@ -158,6 +172,9 @@ impl ControllerConfig {
             ControllerConfig::RcMrac { params } => {
                 RcMrac::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
             }
+            ControllerConfig::SamplingArm { params } => {
+                ArmController::new(params, dims).map(|c| Box::new(c) as Box<dyn Controller>)
+            }
         };
         built.map_err(|e| format!("{}: {}", table_field(&e), e.message))
     }
@@ -180,7 +197,7 @@ pub(super) fn param_error(e: ParamError, err: &ErrFn<'_>) -> ConfigError {
 }
 
 /// The kinds [`parse`] knows, for the error messages.
-const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac, appc, rc-mrac";
+const CONTROLLER_KINDS: &str = "lti, excitation, rcac, pcac, appc, rc-mrac, sampling-arm";
 
 /// What a kind's `parse` reads besides its own table.
 pub(super) struct Rig<'a> {
@@ -209,6 +226,7 @@ pub(super) fn parse(
         "pcac" => read(value, rig, err, pcac::parse),
         "appc" => read(value, rig, err, mrac::parse_appc),
         "rc-mrac" => read(value, rig, err, mrac::parse_rc_mrac),
+        "sampling-arm" => read(value, rig, err, arm::parse),
         "" => Err(err(
             "controller.kind",
             format!("missing; known kinds: {CONTROLLER_KINDS}"),

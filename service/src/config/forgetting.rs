@@ -37,14 +37,21 @@ pub(super) struct RawForgetting {
     alpha: Option<f64>,
 }
 
-/// `p0` of `P_0 = p0 I`: required (`when` says for which setting); the kernel checks
-/// that it is positive and finite.
+/// `p0` of `P_0 = p0 I` in the table at `table` (`"controller"`, `"controller.pcac"`):
+/// required (`when` says for which setting); the kernel checks that it is positive and
+/// finite.
 pub(super) fn required_p0(
     p0: Option<f64>,
+    table: &str,
     when: &str,
     err: &ErrFn<'_>,
 ) -> Result<f64, ConfigError> {
-    p0.ok_or_else(|| err("controller.p0", format!("missing (P_0 = p0 I) {when}")))
+    p0.ok_or_else(|| {
+        err(
+            &format!("{table}.p0"),
+            format!("missing (P_0 = p0 I) {when}"),
+        )
+    })
 }
 
 /// The forgetting rule as read, and where: from `lambda` or from the table.
@@ -70,17 +77,19 @@ impl ReadRule {
     }
 }
 
-/// The forgetting of an RLS: `lambda` (constant, default [`ForgettingRule::DEFAULT`]) or a
-/// `[controller.forgetting]` table, not both. The values are the kernel's to check.
+/// The forgetting of an RLS in the table at `at` (`"controller"`, `"controller.pcac"`):
+/// `lambda` (constant, default [`ForgettingRule::DEFAULT`]) or a `[<at>.forgetting]`
+/// table, not both. The values are the kernel's to check.
 pub(super) fn forgetting_rule(
     lambda: Option<f64>,
     table: Option<&RawForgetting>,
+    at: &str,
     err: &ErrFn<'_>,
 ) -> Result<ReadRule, ConfigError> {
     match (lambda, table) {
         (Some(_), Some(_)) => Err(err(
-            "controller.lambda",
-            "give lambda or [controller.forgetting], not both".into(),
+            &format!("{at}.lambda"),
+            format!("give lambda or [{at}.forgetting], not both"),
         )),
         (Some(lambda), None) => Ok(ReadRule {
             rule: ForgettingRule::Constant { lambda },
@@ -91,31 +100,35 @@ pub(super) fn forgetting_rule(
             from_lambda: false,
         }),
         (None, Some(f)) => Ok(ReadRule {
-            rule: parse_table(f, err)?,
+            rule: parse_table(f, &format!("{at}.forgetting"), err)?,
             from_lambda: false,
         }),
     }
 }
 
-/// The `[controller.forgetting]` table: the rule and the fields it needs; a field the
-/// rule does not read is refused, and the windows are at most [`MAX_FORGETTING_WINDOW`].
-fn parse_table(f: &RawForgetting, err: &ErrFn<'_>) -> Result<ForgettingRule, ConfigError> {
-    const TABLE: &str = "controller.forgetting";
+/// The forgetting table at `table` (`controller.forgetting`): the rule and the fields it
+/// needs; a field the rule does not read is refused, and the windows are at most
+/// [`MAX_FORGETTING_WINDOW`].
+fn parse_table(
+    f: &RawForgetting,
+    table: &str,
+    err: &ErrFn<'_>,
+) -> Result<ForgettingRule, ConfigError> {
     let missing = |name: &str| {
         err(
-            &format!("{TABLE}.{name}"),
+            &format!("{table}.{name}"),
             format!("missing for rule = \"{}\"", f.rule),
         )
     };
     let need = |v: Option<f64>, name: &str| v.ok_or_else(|| missing(name));
     let need_n = |v: Option<usize>, name: &str| -> Result<usize, ConfigError> {
         let n = v.ok_or_else(|| missing(name))?;
-        let field = format!("{TABLE}.{name}");
+        let field = format!("{table}.{name}");
         Ok(count(n as u64, 0, MAX_FORGETTING_WINDOW, &field, err)? as usize)
     };
     let not_read = |fields: &[(bool, &str)]| {
         let why = format!("not read by rule = \"{}\"", f.rule);
-        refuse_given(fields, TABLE, &why, err)
+        refuse_given(fields, table, &why, err)
     };
     let lambda = (f.lambda.is_some(), "lambda");
     let windows = [(f.tau_n.is_some(), "tau-n"), (f.tau_d.is_some(), "tau-d")];
@@ -146,7 +159,7 @@ fn parse_table(f: &RawForgetting, err: &ErrFn<'_>) -> Result<ForgettingRule, Con
             })
         }
         other => Err(err(
-            &format!("{TABLE}.rule"),
+            &format!("{table}.rule"),
             format!("'{other}' is not one of constant, f-test, rms-ratio"),
         )),
     }

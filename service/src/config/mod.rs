@@ -23,6 +23,7 @@
 //! | `kind = "rcac"` | [`rcac`], [`forgetting`], [`target_model_file`] | [`ControllerConfig::Rcac`] |
 //! | `kind = "pcac"` | [`pcac`], [`forgetting`] | [`ControllerConfig::Pcac`] |
 //! | `kind = "appc"`, `kind = "rc-mrac"` | [`mrac`], [`forgetting`] | [`ControllerConfig::Appc`], [`ControllerConfig::RcMrac`] |
+//! | `kind = "sampling-arm"` | [`arm`], [`pcac`], [`robust_gain_file`] | [`ControllerConfig::SamplingArm`] |
 //!
 //! The shared value shapes (a scalar or one value per channel, a scalar or a matrix,
 //! bounded durations and counts, "one of" names) are in `values`; the bound of every size,
@@ -52,6 +53,7 @@
 //! tables of a scenario by those of another file.
 
 pub mod answer_timing;
+pub mod arm;
 pub mod bounds;
 pub mod controller;
 pub mod excitation;
@@ -64,6 +66,7 @@ pub mod rcac;
 #[cfg(test)]
 mod refusal_cases;
 pub mod rig;
+pub mod robust_gain_file;
 pub mod scenario_check;
 pub mod service_table;
 pub mod target_model_file;
@@ -73,6 +76,7 @@ mod values;
 pub use answer_timing::AnswerTiming;
 pub use controller::ControllerConfig;
 pub use log::LogConfig;
+pub use robust_gain_file::RobustGainFile;
 pub use scenario_check::ScenarioCheck;
 pub use service_table::{DeadlinePolicy, MeasurementLimits, MissSource, WaitMode};
 pub use target_model_file::TargetModelFile;
@@ -173,7 +177,8 @@ pub struct ServiceConfig {
 pub struct ConfigSource {
     /// The TOML text.
     pub text: String,
-    /// The folder relative file names (a target-model file) were resolved from.
+    /// The folder relative file names (a target-model file, a robust-gain file) were
+    /// resolved from.
     pub base_dir: PathBuf,
 }
 

@@ -137,7 +137,7 @@ fn common(
             err,
         )?,
         theta0: raw.theta0.clone(),
-        rule: forgetting_rule(raw.lambda, raw.forgetting, err)?,
+        rule: forgetting_rule(raw.lambda, raw.forgetting, "controller", err)?,
         trace_limit: raw.trace_limit.unwrap_or(f64::INFINITY),
         limits: output_limits(raw.u_min, raw.u_max, rig.counts.n_u as usize, err)?,
     })

@@ -37,7 +37,7 @@ use serde::Deserialize;
 
 use super::bounds::{MAX_PCAC_HORIZON, MAX_PCAC_N_HAT, MAX_QP_ITERATIONS, MAX_THETA0};
 use super::controller::{ControllerConfig, Rig, param_error};
-use super::forgetting::{RawForgetting, forgetting_rule, required_p0};
+use super::forgetting::{RawForgetting, ReadRule, forgetting_rule, required_p0};
 use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
 use control::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
@@ -47,8 +47,9 @@ use control::pcac::{IdKernel, IoModelParams, PcacParams, PcacTiming};
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub(super) struct RawPcac {
+    /// `"pcac"` for the kind; absent in the sampling-arm controller's `[controller.pcac]`.
     #[allow(dead_code)]
-    kind: String,
+    kind: Option<String>,
     n_hat: Option<usize>,
     p0: Option<f64>,
     theta0: Option<ScalarOrVec>,
@@ -83,71 +84,83 @@ pub(super) fn parse(
     rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
-    let counts = rig.counts;
-    let dims = crate::wire::dimensions(counts);
-    let (p, m) = (dims.n_y, dims.n_u);
+    let dims = crate::wire::dimensions(rig.counts);
+    let (params, rule) = read(raw, "controller", dims.n_y, dims.n_u, err)?;
+    params
+        .validate(dims)
+        .map_err(|e| param_error(rule.locate(e), err))?;
+    Ok(ControllerConfig::Pcac {
+        params: Box::new(params),
+    })
+}
+
+/// Reads a PCAC table found at `table` (`"controller"`, or `"controller.pcac"` in the
+/// sampling-arm controller) for a model with `p` outputs and `m` inputs into
+/// [`PcacParams`] (without an augmentation), naming its fields `<table>.<field>`; the
+/// caller validates the result (the kernel's fields are relative to the table) with the
+/// returned rule's [`ReadRule::locate`].
+pub(super) fn read(
+    raw: RawPcac,
+    table: &str,
+    p: usize,
+    m: usize,
+    err: &ErrFn<'_>,
+) -> Result<(PcacParams, ReadRule), ConfigError> {
+    let f = |name: &str| format!("{table}.{name}");
     let n_hat = raw
         .n_hat
-        .ok_or_else(|| err("controller.n-hat", "missing (the model order n̂)".into()))?;
-    let n_hat = count(n_hat as u64, 0, MAX_PCAC_N_HAT, "controller.n-hat", err)? as usize;
-    let p0 = required_p0(raw.p0, "for kind = \"pcac\"", err)?;
+        .ok_or_else(|| err(&f("n-hat"), "missing (the model order n̂)".into()))?;
+    let n_hat = count(n_hat as u64, 0, MAX_PCAC_N_HAT, &f("n-hat"), err)? as usize;
+    let p0 = required_p0(raw.p0, table, "for PCAC", err)?;
     let theta0 = match &raw.theta0 {
         None => Vec::new(),
         Some(ScalarOrVec::Scalar(x)) => vec![*x; PcacParams::theta_len(n_hat, p, m)],
         Some(ScalarOrVec::Vec(v)) => v.clone(),
     };
-    magnitudes(&theta0, MAX_THETA0, "controller.theta0", err)?;
+    magnitudes(&theta0, MAX_THETA0, &f("theta0"), err)?;
     let trace_limit = raw
         .trace_limit
         .unwrap_or_else(|| PcacParams::default_trace_limit(n_hat, p, m, p0));
-    let rule = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
+    let rule = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), table, err)?;
     let horizon = raw
         .horizon
-        .ok_or_else(|| err("controller.horizon", "missing (the horizon ℓ)".into()))?;
-    let horizon = count(
-        horizon as u64,
-        0,
-        MAX_PCAC_HORIZON,
-        "controller.horizon",
-        err,
-    )? as usize;
+        .ok_or_else(|| err(&f("horizon"), "missing (the horizon ℓ)".into()))?;
+    let horizon = count(horizon as u64, 0, MAX_PCAC_HORIZON, &f("horizon"), err)? as usize;
     let tracking = match &raw.tracking {
         None => nalgebra::DMatrix::identity(p, p),
-        Some(rows) => {
-            matrix(rows, p, "controller.tracking").map_err(|m| err("controller.tracking", m))?
-        }
+        Some(rows) => matrix(rows, p, &f("tracking")).map_err(|m| err(&f("tracking"), m))?,
     };
     if tracking.ncols() != p || tracking.nrows() == 0 {
         return Err(err(
-            "controller.tracking",
+            &f("tracking"),
             format!(
-                "is {}×{}, expected p_t × {p} (one column per measurement y)",
+                "is {}×{}, expected p_t × {p} (one column per identified output)",
                 tracking.nrows(),
                 tracking.ncols()
             ),
         ));
     }
     let pt = tracking.nrows();
-    let q = per_channel(&raw.q, pt, PcacParams::DEFAULT_Q, "controller.q", err)?;
-    let r = per_channel(&raw.r, m, PcacParams::DEFAULT_R, "controller.r", err)?;
-    let u_min = per_channel(&raw.u_min, m, f64::NEG_INFINITY, "controller.u-min", err)?;
-    let u_max = per_channel(&raw.u_max, m, f64::INFINITY, "controller.u-max", err)?;
+    let q = per_channel(&raw.q, pt, PcacParams::DEFAULT_Q, &f("q"), err)?;
+    let r = per_channel(&raw.r, m, PcacParams::DEFAULT_R, &f("r"), err)?;
+    let u_min = per_channel(&raw.u_min, m, f64::NEG_INFINITY, &f("u-min"), err)?;
+    let u_max = per_channel(&raw.u_max, m, f64::INFINITY, &f("u-max"), err)?;
     let move_bounds = if raw.du_min.is_none() && raw.du_max.is_none() {
         None
     } else {
         Some(MoveBounds {
-            min: per_channel(&raw.du_min, m, f64::NEG_INFINITY, "controller.du-min", err)?,
-            max: per_channel(&raw.du_max, m, f64::INFINITY, "controller.du-max", err)?,
+            min: per_channel(&raw.du_min, m, f64::NEG_INFINITY, &f("du-min"), err)?,
+            max: per_channel(&raw.du_max, m, f64::INFINITY, &f("du-max"), err)?,
         })
     };
     let output_constraints = match &raw.output_constraints {
         None => None,
         Some(oc) => {
-            let c = matrix(&oc.c, p, "controller.output-constraints.c")
-                .map_err(|m| err("controller.output-constraints.c", m))?;
+            let field = f("output-constraints.c");
+            let c = matrix(&oc.c, p, &field).map_err(|m| err(&field, m))?;
             if c.ncols() != p || c.nrows() == 0 {
                 return Err(err(
-                    "controller.output-constraints.c",
+                    &field,
                     format!("is {}×{}, expected n_c × {p}", c.nrows(), c.ncols()),
                 ));
             }
@@ -164,13 +177,13 @@ pub(super) fn parse(
             ("same-step", PcacTiming::SameStep),
             ("next-step", PcacTiming::NextStep),
         ],
-        "controller.timing",
+        &f("timing"),
         err,
     )?;
     let mut qp = QpSettings::default();
     if let Some(n) = raw.qp_max_iterations {
-        let field = "controller.qp-max-iterations";
-        qp.max_iterations = count(n as u64, 0, MAX_QP_ITERATIONS, field, err)? as usize;
+        let field = f("qp-max-iterations");
+        qp.max_iterations = count(n as u64, 0, MAX_QP_ITERATIONS, &field, err)? as usize;
     }
     let params = PcacParams {
         model: IoModelParams {
@@ -199,13 +212,9 @@ pub(super) fn parse(
         timing,
         qp,
         warm_start: raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START),
+        augmentation: None,
     };
-    params
-        .validate(dims)
-        .map_err(|e| param_error(rule.locate(e), err))?;
-    Ok(ControllerConfig::Pcac {
-        params: Box::new(params),
-    })
+    Ok((params, rule))
 }
 
 #[cfg(test)]

@@ -132,8 +132,8 @@ pub(super) fn parse(
                     ),
                 ));
             }
-            let p0 = required_p0(raw.p0, "for update = \"rls\"", err)?;
-            let read = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), err)?;
+            let p0 = required_p0(raw.p0, "controller", "for update = \"rls\"", err)?;
+            let read = forgetting_rule(raw.lambda, raw.forgetting.as_ref(), "controller", err)?;
             let update = RcacUpdate::Rls {
                 p0,
                 rule: read.rule.clone(),

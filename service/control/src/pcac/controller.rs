@@ -69,6 +69,7 @@
 
 use crate::controller::{Dimensions, status};
 
+use super::augmentation::{Augmentation, AugmentedModel, OutputFeedback};
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
 use crate::ParamError;
 use crate::ahead::Ahead;
@@ -103,6 +104,11 @@ pub struct PcacParams {
     pub qp: QpSettings,
     /// Start each QP from the previous active set shifted by one step (default true).
     pub warm_start: bool,
+    /// A fixed output feedback `K̄` that this PCAC augments (chapter 7, (7.53)–(7.57);
+    /// [`super::augmentation`]): the plant's input is `K̄ y_k + u_k`, identification
+    /// regresses on it, and the MPC plans `u_k` with the closed-loop model. `None`: plain
+    /// PCAC, the plant's input is `u_k`.
+    pub augmentation: Option<OutputFeedback>,
 }
 
 /// Why a step fell back, and how often (see [`Pcac::counts_of`]).
@@ -151,6 +157,8 @@ pub struct Pcac {
     timing: PcacTiming,
     warm_start: bool,
     model: IoModel,
+    /// The closed-loop coefficients and the `u` history when augmenting a fixed `K̄`.
+    aug: Option<Augmentation>,
     pred: HorizonPrediction,
     cond: Condenser,
     solver: DenseQpSolver,
@@ -225,8 +233,9 @@ impl PcacParams {
     /// wrong size or non-finite, or `n_r` neither 0 nor `p_t`), `"q"` (not finite and
     /// `≥ 0`), `"r"` (not finite and `> 0`), `"u-min"` (`u_min ≤ u_max` violated),
     /// `"du-min"`, `"du-max"` (holding the input not allowed), `"output-constraints.c"`,
-    /// `"output-constraints.d"`, `"qp-max-iterations"` (0); and the empty field when the
-    /// model's or the MPC problem's `p`, `m` do not match the rig's `n_y`, `n_u`.
+    /// `"output-constraints.d"`, `"qp-max-iterations"` (0), `"augmentation"` (a `K̄` that
+    /// is not `m × p` or not finite); and the empty field when the model's or the MPC
+    /// problem's `p`, `m` do not match the rig's `n_y`, `n_u`.
     ///
     /// [`ForgettingRule::validate`]: crate::forgetting::ForgettingRule::validate
     pub fn validate(&self, counts: Dimensions) -> Result<(), ParamError> {
@@ -355,6 +364,20 @@ impl PcacParams {
         if self.qp.max_iterations == 0 {
             return Err(ParamError::new("qp-max-iterations", "must be at least 1"));
         }
+        if let Some(fb) = &self.augmentation {
+            if fb.gain.len() != m * p {
+                return Err(ParamError::new(
+                    "augmentation",
+                    format!(
+                        "the output feedback K̄ has {} entries, expected m × p = {m} × {p}",
+                        fb.gain.len()
+                    ),
+                ));
+            }
+            if fb.gain.iter().any(|x| !x.is_finite()) {
+                return Err(ParamError::new("augmentation", "K̄ must be finite"));
+            }
+        }
         Ok(())
     }
 
@@ -450,6 +473,10 @@ impl Pcac {
         // Validated above: what the pieces still refuse is reported for the whole table.
         let whole = |e: String| ParamError::new("", e);
         let model = IoModel::new(mp).map_err(whole)?;
+        let aug = params
+            .augmentation
+            .as_ref()
+            .map(|fb| Augmentation::new(&model, fb));
         let pred = HorizonPrediction::new(&model, spec.horizon).map_err(whole)?;
         let cond = Condenser::new(spec).map_err(|e| whole(format!("pcac: {e}")))?;
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
@@ -459,6 +486,7 @@ impl Pcac {
             timing: params.timing,
             warm_start: params.warm_start,
             model,
+            aug,
             pred,
             solver,
             u_last: vec![0.0; n_u],
@@ -495,6 +523,10 @@ impl Pcac {
     /// The planned and held inputs back to their initial values and the gap bookkeeping
     /// cleared (a reset or a new data stream).
     fn restart_plan(&mut self) {
+        if let Some(aug) = &mut self.aug {
+            aug.clear();
+            aug.refresh(&self.model);
+        }
         self.initial_inputs();
         self.n_shifted = 0;
         self.suspend = 0;
@@ -504,9 +536,36 @@ impl Pcac {
         self.plan_valid = false;
     }
 
-    /// The identified model (coefficients `θ_{k+1}`, covariance, prior error).
+    /// The identified model (coefficients `θ_{k+1}`, covariance, prior error). With an
+    /// augmented `K̄` these are the plant's coefficients `F̂_i`, `Ĝ_i` of (7.42), identified
+    /// on its input `τ_f` ([`super::augmentation`]).
     pub fn model(&self) -> &IoModel {
         &self.model
+    }
+
+    /// With an augmented `K̄` ([`PcacParams::augmentation`]), the closed-loop model the MPC
+    /// plans with: the coefficients `F̂_i − Ĝ_i K̄`, `Ĝ_i` and the data `y`, `u`
+    /// ((7.53)–(7.57), [`super::augmentation`]); `None` for plain PCAC.
+    pub fn closed_loop_model(&self) -> Option<AugmentedModel<'_>> {
+        self.aug.as_ref().map(|a| a.view(&self.model))
+    }
+
+    /// The output feedback `K̄` this PCAC augments, if any.
+    pub fn augmentation(&self) -> Option<&OutputFeedback> {
+        self.aug.as_ref().map(Augmentation::feedback)
+    }
+
+    /// Starts a new phase of the same experiment after a gap in the data (the sampling
+    /// arm's next contact, chapter 7): the identification's histories, the `u` history and
+    /// the plan start again (the held input back to its start-up value), and the first
+    /// `n̂` samples only refill the regressor, so that identification never regresses
+    /// across the gap; the estimate `θ`, `P` **and the forgetting windows** are kept
+    /// ([`IoModel::restart_histories`]), so that the F-test forgets at once when the new
+    /// phase's data no longer fit (§7.3.3). Does not allocate.
+    pub fn restart_histories(&mut self) {
+        self.model.restart_histories();
+        self.restart_plan();
+        self.suspend = self.model.n_hat();
     }
 
     /// The last horizon prediction (state, Markov parameters, free response).
@@ -550,7 +609,7 @@ impl Pcac {
             self.y_work.copy_from_slice(self.model.last_y());
             let bridge = (input.lost as usize).min(n_hat);
             for _ in 0..bridge {
-                let _ = self.model.observe(&self.y_work, &self.u_last);
+                self.store_sample(false);
             }
             self.counters.bridged += input.lost;
             self.suspend = n_hat + 1;
@@ -567,12 +626,31 @@ impl Pcac {
         }
         if self.suspend > 0 {
             self.suspend -= 1;
-            let _ = self.model.observe(&self.y_work, &self.u_last);
-        } else if let Ok(st) = self.model.update(&self.y_work, &self.u_last)
-            && st.reset
-        {
+            self.store_sample(false);
+        } else if self.store_sample(true) {
             self.counters.id_resets += 1;
         }
+    }
+
+    /// Stores `y_k = self.y_work` with the input of the period before it, identifying
+    /// from the sample when `identify` ([`IoModel::update`], else [`IoModel::observe`]);
+    /// returns whether the RLS guard reset the estimate. The input is `u_{k−1}` itself,
+    /// or with an augmented `K̄` the plant's input `τ_{f,k−1} = u_{k−1} + K̄ y_{k−1}`
+    /// ([`super::augmentation`]), whose `u_{k−1}` joins the closed-loop model's history.
+    fn store_sample(&mut self, identify: bool) -> bool {
+        let input: &[f64] = match &mut self.aug {
+            None => &self.u_last,
+            Some(aug) => aug.take_input(self.model.last_y(), &self.u_last),
+        };
+        if !identify {
+            let _ = self.model.observe(&self.y_work, input);
+            return false;
+        }
+        let reset = matches!(self.model.update(&self.y_work, input), Ok(st) if st.reset);
+        if let Some(aug) = &mut self.aug {
+            aug.refresh(&self.model);
+        }
+        reset
     }
 
     /// Steps 3–5: the input for the period the MPC plans from, into `self.u_tmp`; returns
@@ -593,9 +671,15 @@ impl Pcac {
                 .filter(|v| v.is_finite())
                 .unwrap_or(0.0);
         }
-        let predicted = match self.timing {
-            PcacTiming::SameStep => self.pred.compute_from_state(&self.model),
-            PcacTiming::NextStep => self.pred.compute(&self.model, &self.u_ref),
+        let predicted = match (&self.aug, self.timing) {
+            (None, PcacTiming::SameStep) => self.pred.compute_from_state(&self.model),
+            (None, PcacTiming::NextStep) => self.pred.compute(&self.model, &self.u_ref),
+            (Some(aug), PcacTiming::SameStep) => {
+                self.pred.compute_from_state(&aug.view(&self.model))
+            }
+            (Some(aug), PcacTiming::NextStep) => {
+                self.pred.compute(&aug.view(&self.model), &self.u_ref)
+            }
         };
         self.last_iterations = 0;
         self.last_active = 0;
@@ -746,8 +830,8 @@ impl Controller for Pcac {
         self.restart_plan();
     }
 
-    /// Forgets the identification's histories and the planned inputs; keeps the
-    /// identified model's `θ` and `P`.
+    /// Forgets the identification's histories, its forgetting windows and the planned
+    /// inputs; keeps the identified model's `θ` and `P`.
     fn restart_data(&mut self) {
         self.model.restart_data();
         self.restart_plan();
@@ -758,7 +842,11 @@ impl Controller for Pcac {
     }
 
     fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
-        self.model.restore_learned(saved)
+        let restored = self.model.restore_learned(saved);
+        if let Some(aug) = &mut self.aug {
+            aug.refresh(&self.model);
+        }
+        restored
     }
 
     /// `Some` for [`PcacTiming::NextStep`] ([`PcacParams::answers_ahead`]).

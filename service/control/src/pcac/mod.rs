@@ -30,10 +30,21 @@
 //! `ℓ`-step prediction (2.43) are their own concept, [`crate::bocf`]
 //! ([`IoModel::realization`], [`HorizonPrediction`], re-exported here). The call order
 //! per sample is documented on [`model::IoModel`].
+//!
+//! # Augmenting a fixed output feedback (7.53)–(7.57)
+//!
+//! With [`PcacParams::augmentation`] `= Some(K̄)` the plant's input is `K̄ y_k + u_k`:
+//! identification regresses on that input (the open-loop plant (7.42)), and the MPC plans
+//! `u_k` with the closed-loop realization `Â + B̂ K̄ Ĉ`, `B̂`, `Ĉ` (7.56)–(7.57), realized
+//! as the input–output model with `F̂_i − Ĝ_i K̄` ([`augmentation`], where the equivalence
+//! is derived). Chapter 7 augments the robust force controller of the sampling arm this
+//! way ([`crate::arm`]).
 
+pub mod augmentation;
 mod controller;
 pub mod model;
 
+pub use augmentation::{AugmentedModel, OutputFeedback};
 pub use controller::{Pcac, PcacCounters, PcacParams, PcacTiming};
 pub use model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
 

@@ -116,7 +116,7 @@ pub struct IoModelParams {
 
 /// A pre-sized history of vectors of length `dim`; `back(0)` is the newest.
 #[derive(Debug, Clone)]
-struct Ring {
+pub(super) struct Ring {
     dim: usize,
     cap: usize,
     data: Vec<f64>,
@@ -125,7 +125,7 @@ struct Ring {
 }
 
 impl Ring {
-    fn new(dim: usize, cap: usize) -> Self {
+    pub(super) fn new(dim: usize, cap: usize) -> Self {
         Self {
             dim,
             cap,
@@ -134,7 +134,7 @@ impl Ring {
         }
     }
 
-    fn push(&mut self, v: &[f64]) {
+    pub(super) fn push(&mut self, v: &[f64]) {
         self.head = if self.head + 1 == self.cap {
             0
         } else {
@@ -145,9 +145,14 @@ impl Ring {
     }
 
     /// The entry `j` pushes ago (`j < cap`).
-    fn back(&self, j: usize) -> &[f64] {
+    pub(super) fn back(&self, j: usize) -> &[f64] {
         let idx = (self.head + self.cap - j) % self.cap;
         &self.data[idx * self.dim..(idx + 1) * self.dim]
+    }
+
+    /// Every entry back to zero.
+    pub(super) fn clear(&mut self) {
+        self.data.fill(0.0);
     }
 }
 
@@ -465,8 +470,19 @@ impl IoModel {
             Kernel::Shared(k) => k.restart_data(),
             Kernel::Full { rls, .. } => rls.restart_data(),
         }
-        self.ys.data.fill(0.0);
-        self.us.data.fill(0.0);
+        self.restart_histories();
+    }
+
+    /// Zero histories `y`, `u`, `ψ` and the prior error, keeping `θ`, `P` **and the
+    /// forgetting rule's windows**: a new phase of the same experiment after a gap in the
+    /// data (the sampling arm's next contact, chapter 7), in which the windows still hold
+    /// the prior errors of the last phase, so that a model that no longer fits is seen at
+    /// once (the F-test compares the new errors with the old ones and forgets,
+    /// §7.3.3). The histories start again from zeros: the caller must not identify before
+    /// `n̂` samples have refilled them ([`IoModel::observe`] them). Does not allocate.
+    pub fn restart_histories(&mut self) {
+        self.ys.clear();
+        self.us.clear();
         self.psi.fill(0.0);
         self.err.fill(0.0);
         self.last = RlsStep {

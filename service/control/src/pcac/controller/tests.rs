@@ -61,6 +61,7 @@ fn params(timing: PcacTiming) -> PcacParams {
         timing,
         qp: QpSettings::default(),
         warm_start: true,
+        augmentation: None,
     }
 }
 
@@ -601,4 +602,72 @@ fn the_plan_is_the_rest_of_the_mpc_solution() {
     let s = c.advance(&input, &[0.0], true);
     assert_ne!(s & status::FALLBACK, 0);
     assert_eq!(c.plan(&mut [0.0; 8]), 0);
+}
+
+/// A first-order plant `y_{k+1} = a y_k + b (u_k + d_k)` with a small random input
+/// disturbance `d_k`, regulated by `c` for `steps` samples from `y = 0.5`; returns the
+/// forgetting factors `λ_k` of the steps.
+fn regulate(c: &mut Pcac, a: f64, b: f64, steps: usize, g: &mut Gauss) -> Vec<f64> {
+    let mut y = 0.5;
+    let mut lambdas = Vec::new();
+    for _ in 0..steps {
+        let (u, _) = step_once(c, y, Some(0.0), f64::NAN, 0);
+        lambdas.push(c.model().last_step().lambda);
+        y = a * y + b * (u + 0.05 * g.normal());
+    }
+    lambdas
+}
+
+/// A new phase after a gap ([`Pcac::restart_histories`]): the first `n̂` samples only
+/// refill the regressor (θ unchanged), and since the forgetting windows still hold the
+/// last phase's errors, a plant that changed during the gap makes λ drop within the short
+/// window; after [`Controller::restart_data`] (empty windows) there is no forgetting until
+/// the long window has filled again.
+#[test]
+fn a_new_phase_keeps_the_forgetting_windows_and_does_not_identify_across_the_gap() {
+    let mut p = params(PcacTiming::SameStep);
+    p.model.n_hat = 2;
+    p.model.theta0 = vec![1e-10; 4];
+    let (tau_n, tau_d) = (20, 200);
+    let mut g = Gauss::new(3);
+    let mut phases = Vec::new();
+    for restart_windows in [false, true] {
+        let mut c = Pcac::new(&p, counts(1)).unwrap();
+        regulate(&mut c, 0.9, 1.0, 2000, &mut g);
+        if restart_windows {
+            c.restart_data();
+        } else {
+            c.restart_histories();
+        }
+        let theta = c.model().coefficients().to_vec();
+        let mut u = [0.0];
+        for k in 0..2 {
+            let y = [0.3 + k as f64];
+            c.step(
+                &StepInput {
+                    y: &y,
+                    z: &y,
+                    r: &[0.0],
+                    ..Default::default()
+                },
+                &mut u,
+            );
+            if !restart_windows {
+                assert_eq!(c.model().coefficients(), &theta[..], "identified at {k}");
+            }
+        }
+        // The plant changed during the gap.
+        phases.push(regulate(&mut c, 0.6, -2.0, tau_d, &mut g));
+    }
+    let first_forgetting = |l: &[f64]| l.iter().position(|&v| v < 1.0);
+    let kept = first_forgetting(&phases[0]).expect("no forgetting after the gap");
+    assert!(
+        kept <= tau_n,
+        "λ first dropped {kept} samples into the phase"
+    );
+    assert_eq!(
+        first_forgetting(&phases[1][..tau_d - 2]),
+        None,
+        "emptied windows forget only once the long window is full"
+    );
 }
