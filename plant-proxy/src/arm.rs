@@ -10,7 +10,7 @@
 //! - [`dopri5`]: the adaptive Dormand–Prince 5(4) integrator with dense output and event
 //!   location, allocation-free;
 //! - [`guidance`]: the descent, contact and departure guidance (our design; the
-//!   dissertation's follows [83], which we do not have), the double sampling maneuver and
+//!   dissertation's follows \[83\], which we do not have), the double sampling maneuver and
 //!   the command `r = F_d`;
 //! - [`sim`]: [`ArmSim`], the period-by-period simulation: torques under zero-order hold,
 //!   contact onset and loss located as events.

@@ -16,7 +16,7 @@
 //!
 //! [plant]
 //! kind = "transfer-function"   # or "state-space", "modal", "truss", "discrete",
-//!                              # "mrac-example"
+//!                              # "mrac-example", "sampling-arm"
 //! inputs = 2                   # control inputs u
 //! disturbances = 1             # disturbance inputs w (may be 0)
 //! outputs-y = 1                # measurements y
@@ -52,6 +52,15 @@
 //! example = 1                  # 1: (4.83), zero 0.5; 2: (4.88), zero 1.5
 //! rho = 0.5                    # pole radius in (0, 1)
 //! nu = 0.7853981633974483      # pole angle in [0, π] rad
+//!
+//! [plant.surface]              # kind = "sampling-arm": the arm of chapter 7 (crate::arm);
+//! model = "kelvin-voigt"       # (7.27), or "hunt-crossley" (7.28) with restitution = c_r
+//! stiffness = 2.0e5            # k_s
+//! damping = 5.0                # c_s
+//!                              # optional, the chapter's defaults: [plant.sampling-arm]
+//!                              # (spacecraft, initial angles, height, descent speed),
+//!                              # [plant.guidance], [plant.second-sampling] (with its own
+//!                              # .surface: the double maneuver), [plant.integrator]
 //!
 //! [plant.input-disturbance]    # discrete kinds only: d_k added to the input u_k
 //! harmonics = [ { amplitude = 1.0, frequency-rad-step = 0.35, phase-rad = 0.0 } ]
@@ -92,6 +101,11 @@
 //! 1, 1 when given), start at rest (no `initial-state`), and take their disturbance in
 //! `[plant.input-disturbance]` (`u_k + d_k`, after the input delay) instead of
 //! `[plant.disturbance]`. `[plant.noise]` adds measurement noise as for the other kinds.
+//!
+//! The sampling arm (`"sampling-arm"`, [`crate::arm`]) is nonlinear and integrated between
+//! samples; its channel counts are its wire contract (2 `u`, no `w`, 7 `y`, 1 `z`, one
+//! command `r = F_d` made by its guidance), which may be omitted; it takes no
+//! `plant.command`, `initial-state` or `[plant.disturbance]`.
 //!
 //! A band-limited disturbance is `w_i(t) += y_f(t)`, the output of a Butterworth low-pass
 //! of order `order` and cutoff `cutoff-hz` (unit DC gain) driven by continuous-time white

@@ -1,6 +1,6 @@
 //! # The descent, contact and departure guidance (our design)
 //!
-//! §7.2 says that "the ascent and descent control follows the method given in [83]",
+//! §7.2 says that "the ascent and descent control follows the method given in \[83\]",
 //! which we do not have. This is the simple guidance we designed in its place; it is part
 //! of the plant (the spacecraft's own guidance, not the force controller under test) and
 //! it also produces the command `r_k = F_d` the force controller follows.

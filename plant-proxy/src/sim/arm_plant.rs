@@ -1,7 +1,7 @@
 //! The sampling arm inside [`PlantSim`]: the checks of its parameters and what
 //! `describe` reports for it. The simulation itself is [`crate::arm::ArmSim`].
 
-use super::{PlantSim, SimError, command_json, param};
+use super::{PlantSim, SimError, param};
 use crate::arm::{self, ArmPlantParams, ArmSim, ContactModel, Surface};
 use crate::scenario::PlantParams;
 use serde_json::{Value, json};
@@ -124,6 +124,6 @@ pub(super) fn describe(sim: &PlantSim, a: &ArmSim) -> Value {
         "measurement-convention": "y_k at t = kT, before u_k is applied",
         "input-delays": sim.delays,
         "noise": { "y-std": sim.y_std, "z-std": sim.z_std, "seed": sim.seed },
-        "command": command_json(&sim.command),
+        "command": "r = F_d (guidance.force-set-point) during a contact phase, else 0",
     })
 }
