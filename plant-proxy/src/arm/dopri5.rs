@@ -41,6 +41,8 @@
 //!
 //! ## Bounds
 //!
+//! An interval shorter than `64 ε max(|t|, 10⁻³)` (what is left after an event or a phase
+//! change that falls just before the end) is stepped over with the state unchanged.
 //! Every step attempt (accepted or rejected) counts against a budget the caller passes in
 //! (the plant's maximum number of steps per sample); when it runs out, or the step size
 //! falls below the resolution of `t`, or `f` cannot be evaluated (returns `None`, e.g. a
@@ -268,9 +270,19 @@ impl<const N: usize> Dopri5<N> {
         S: OdeSystem<N>,
         G: Fn(f64, &SVector<f64, N>) -> f64,
     {
+        if self.negligible(*t, t_end) {
+            *t = t_end.max(*t);
+            return Ok(Stop::End);
+        }
         let mut k1 = self.eval(sys, *t, x)?;
         while *t < t_end {
             let remaining = t_end - *t;
+            if self.negligible(*t, t_end) {
+                // What is left is below the resolution of t (an event or a phase change
+                // just before t_end): x does not change over it.
+                *t = t_end;
+                break;
+            }
             // Step onto t_end when it is within reach (and do not leave a sliver).
             let mut h = self.h.min(self.h_max);
             let last = h >= remaining * (1.0 - 1e-12) || remaining - h < 1e-3 * h;
@@ -326,6 +338,11 @@ impl<const N: usize> Dopri5<N> {
             }
         }
         Ok(Stop::End)
+    }
+
+    /// True when `[t, t_end]` is shorter than what a step can resolve at `t`.
+    fn negligible(&self, t: f64, t_end: f64) -> bool {
+        t_end - t <= 64.0 * f64::EPSILON * t.abs().max(1e-3)
     }
 
     fn eval<S: OdeSystem<N>>(

@@ -154,6 +154,21 @@ fn dopri5_stops_with_an_error_instead_of_looping() {
     assert!(matches!(e, IntegrationError::Rhs { t } if t >= 0.5), "{e}");
 }
 
+#[test]
+fn dopri5_steps_over_an_interval_below_the_resolution_of_t() {
+    // What an event or a phase change a hair before the end of a period leaves.
+    let mut ode = Dopri5::<2>::new(tol(1e-10), 1e-4, 1.0);
+    let x0 = SVector::<f64, 2>::new(1.0, 0.0);
+    let (mut t, mut x) = (2.0, x0);
+    let t_end = 2.0 + 4.0 * f64::EPSILON;
+    let mut budget = 10;
+    let stop = ode
+        .integrate(&Oscillator, &mut t, &mut x, t_end, |_, _| 1.0, &mut budget)
+        .unwrap();
+    assert_eq!((stop, t, x), (Stop::End, t_end, x0));
+    assert_eq!(budget, 10);
+}
+
 /// The arm's equations with constant torques and no contact, for the reference crate.
 struct FreeArm {
     model: ArmModel,
