@@ -289,7 +289,8 @@ fn a_free_flight_without_torque_or_thrust_conserves_energy_and_momenta() {
         "θ_2 = {}",
         sim.state()[1]
     );
-    let bound = 100.0 * rtol;
+    // Measured: about 1e-13 relative; the bound is the tolerance itself.
+    let bound = rtol;
     assert!(
         max_dt < bound,
         "kinetic energy drifted by {max_dt:e} (relative)"
@@ -460,8 +461,8 @@ fn contact_onset_is_located_at_two_seconds_with_zero_torque() {
     let onset = sim.contact_onsets()[0].expect("no contact");
     // 0.2 m at 0.1 m/s.
     assert!((onset - 2.0).abs() < 1e-9, "onset at {onset}");
-    // The first sample after the onset is in the contact phase, with r = F_d.
-    assert_eq!(sim.k(), 4001);
+    // The first sample at or after the onset is in the contact phase, with r = F_d.
+    assert_eq!(sim.k(), (onset / TS).ceil() as u64);
     assert_eq!(sim.phase(), Phase::Contact);
     assert_eq!(sim.command(), 25.0);
     assert!(sim.in_contact());
