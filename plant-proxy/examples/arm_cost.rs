@@ -2,28 +2,54 @@
 //! stand-in controller (the joint hold of the arm rig's contract:
 //! `τ = L⁻¹(−K_p (θ̄ − θ̄_0) − K_d θ̄̇)`) or with zero torque, and prints the wall time per
 //! sample overall and in contact, the integrator's steps per sample, the contact onsets
-//! and the largest contact force.
+//! and the largest contact force. With `grid`, the corners of the study's surface grids
+//! instead (Kelvin–Voigt `k_s ∈ {300, 2.7e5}` × `c_s ∈ {0.35, 1e3}`, Hunt–Crossley
+//! `k_s ∈ {300, 2.7e5}` × `c_r ∈ {0.1, 1}`) on `linear.toml`.
 //!
 //! ```sh
-//! cargo run --release -p plant-proxy --example arm_cost [-- zero]
+//! cargo run --release -p plant-proxy --example arm_cost [-- zero] [-- grid]
 //! ```
 
-use plant_proxy::scenario;
+use plant_proxy::arm::ContactModel;
+use plant_proxy::scenario::{self, Scenario};
 use plant_proxy::sim::PlantSim;
 use std::path::Path;
 use std::time::Instant;
 
 fn main() {
     let zero = std::env::args().any(|a| a == "zero");
+    let grid = std::env::args().any(|a| a == "grid");
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    for name in [
-        "linear",
-        "hunt-crossley",
-        "double-linear",
-        "double-hunt-crossley",
-    ] {
-        let path = root.join(format!("scenarios/arm/{name}.toml"));
-        let sc = scenario::load(&path).expect("scenario");
+    let load = |name: &str| -> Scenario {
+        scenario::load(&root.join(format!("scenarios/arm/{name}.toml"))).expect("scenario")
+    };
+    let mut runs: Vec<(String, Scenario)> = Vec::new();
+    if grid {
+        for k in [300.0, 2.7e5] {
+            let surfaces = [
+                ContactModel::kelvin_voigt(k, 0.35),
+                ContactModel::kelvin_voigt(k, 1e3),
+                ContactModel::hunt_crossley(k, 0.1),
+                ContactModel::hunt_crossley(k, 1.0),
+            ];
+            for m in surfaces {
+                let m = m.expect("surface");
+                let mut sc = load("linear");
+                sc.plant.arm_mut().expect("arm").surface.model = m;
+                runs.push((format!("{m:?}"), sc));
+            }
+        }
+    } else {
+        for name in [
+            "linear",
+            "hunt-crossley",
+            "double-linear",
+            "double-hunt-crossley",
+        ] {
+            runs.push((name.to_string(), load(name)));
+        }
+    }
+    for (name, sc) in runs {
         let ts = sc.rig.sample_period;
         let mut sim = PlantSim::new(&sc.plant, ts).expect("sim");
         let steps = sc.run_steps(None).expect("steps");
