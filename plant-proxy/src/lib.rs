@@ -16,6 +16,9 @@
 //!   their difference equation at the sample rate (`kind = "discrete"`).
 //! - [`mrac_examples`]: the plants (4.83) and (4.88) of chapter 4 from the pole radius and
 //!   angle `(ρ, ν)` (`kind = "mrac-example"`).
+//! - [`arm`]: the spacecraft with a two-link sampling arm of chapter 7 (`kind =
+//!   "sampling-arm"`): contact and friction (7.27)–(7.29), an adaptive Dormand–Prince
+//!   integrator with contact events, and the descent/contact/departure guidance.
 //! - [`harmonic`]: a cosine of the step index, `A cos(ω k + φ)`, for the generated commands
 //!   and the discrete plants' input disturbance.
 //! - [`command`]: the command `r_k` the plant publishes: constant, a step, or a sum of
@@ -30,6 +33,7 @@
 
 #![warn(missing_docs)]
 
+pub mod arm;
 pub mod command;
 pub mod discrete;
 pub mod faults;

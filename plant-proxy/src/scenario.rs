@@ -16,7 +16,7 @@
 //!
 //! [plant]
 //! kind = "transfer-function"   # or "state-space", "modal", "truss", "discrete",
-//!                              # "mrac-example"
+//!                              # "mrac-example", "sampling-arm"
 //! inputs = 2                   # control inputs u
 //! disturbances = 1             # disturbance inputs w (may be 0)
 //! outputs-y = 1                # measurements y
@@ -52,6 +52,15 @@
 //! example = 1                  # 1: (4.83), zero 0.5; 2: (4.88), zero 1.5
 //! rho = 0.5                    # pole radius in (0, 1)
 //! nu = 0.7853981633974483      # pole angle in [0, π] rad
+//!
+//! [plant.surface]              # kind = "sampling-arm": the arm of chapter 7 (crate::arm);
+//! model = "kelvin-voigt"       # (7.27), or "hunt-crossley" (7.28) with restitution = c_r
+//! stiffness = 2.0e5            # k_s
+//! damping = 5.0                # c_s
+//!                              # optional, the chapter's defaults: [plant.sampling-arm]
+//!                              # (spacecraft, initial angles, height, descent speed),
+//!                              # [plant.guidance], [plant.second-sampling] (with its own
+//!                              # .surface: the double maneuver), [plant.integrator]
 //!
 //! [plant.input-disturbance]    # discrete kinds only: d_k added to the input u_k
 //! harmonics = [ { amplitude = 1.0, frequency-rad-step = 0.35, phase-rad = 0.0 } ]
@@ -93,12 +102,18 @@
 //! `[plant.input-disturbance]` (`u_k + d_k`, after the input delay) instead of
 //! `[plant.disturbance]`. `[plant.noise]` adds measurement noise as for the other kinds.
 //!
+//! The sampling arm (`"sampling-arm"`, [`crate::arm`]) is nonlinear and integrated between
+//! samples; its channel counts are its wire contract (2 `u`, no `w`, 7 `y`, 1 `z`, one
+//! command `r = F_d` made by its guidance), which may be omitted; it takes no
+//! `plant.command`, `initial-state` or `[plant.disturbance]`.
+//!
 //! A band-limited disturbance is `w_i(t) += y_f(t)`, the output of a Butterworth low-pass
 //! of order `order` and cutoff `cutoff-hz` (unit DC gain) driven by continuous-time white
 //! noise whose intensity makes the stationary RMS of `y_f` equal to `rms`. It is defined in
 //! continuous time, independently of the sample period, and simulated exactly
 //! ([`crate::sim`], "Band-limited disturbances").
 
+use crate::arm::ArmPlantParams;
 use crate::command::Command;
 use crate::discrete::DiscretePlant;
 use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, Mode, Tf};
@@ -243,6 +258,10 @@ pub enum PlantKind {
     /// `kind = "mrac-example"`: `[plant.mrac-example]`, the plant (4.83) or (4.88) of
     /// chapter 4 from `(ρ, ν)` ([`crate::mrac_examples`]), run like `Discrete`.
     MracExample,
+    /// `kind = "sampling-arm"`: the spacecraft with a two-link sampling arm of chapter 7
+    /// (`[plant.sampling-arm]`, `[plant.surface]`, …), a nonlinear plant integrated between
+    /// samples ([`crate::arm`]).
+    SamplingArm,
 }
 
 impl PlantKind {
@@ -255,6 +274,7 @@ impl PlantKind {
             PlantKind::Truss => "truss",
             PlantKind::Discrete => "discrete",
             PlantKind::MracExample => "mrac-example",
+            PlantKind::SamplingArm => "sampling-arm",
         }
     }
 
@@ -330,6 +350,9 @@ pub struct PlantParams {
     /// The discrete-time plant of `kind = "discrete"` or `"mrac-example"`, run by its
     /// difference equation instead of `model` ([`crate::discrete`]).
     pub discrete: Option<DiscretePlant>,
+    /// The sampling arm of `kind = "sampling-arm"`, simulated instead of `model` (which
+    /// then has no state, 2 inputs `u`, no `w`, 7 `y` and 1 `z`) ([`crate::arm`]).
+    pub arm: Option<ArmPlantParams>,
     /// Pure delay of each control input, samples (`n_u` entries).
     pub input_delays: Vec<usize>,
     /// State at `t = 0` (`n_x` entries).
@@ -351,6 +374,7 @@ impl PlantParams {
         Self {
             kind: PlantKind::StateSpace,
             discrete: None,
+            arm: None,
             input_delays: vec![0; d.n_u],
             initial_state: vec![0.0; model.n_x()],
             command: Command::default(),
@@ -396,9 +420,10 @@ impl PlantParams {
     /// Number of states of the continuous plant (without the exosystem of the tones); for
     /// a discrete plant, the length `n + m` of its difference equation's state.
     pub fn n_x(&self) -> usize {
-        match &self.discrete {
-            Some(d) => d.tf.n_states(),
-            None => self.model.n_x(),
+        match (&self.discrete, &self.arm) {
+            (Some(d), _) => d.tf.n_states(),
+            (None, Some(_)) => crate::arm::N_STATES,
+            (None, None) => self.model.n_x(),
         }
     }
 
@@ -417,6 +442,27 @@ impl PlantParams {
             initial_state: Vec::new(),
             ..Self::new(GeneralizedPlant::zeros(0, dims))
         }
+    }
+
+    /// Parameters for the sampling arm `arm` (`kind = "sampling-arm"`): 2 inputs, no `w`,
+    /// 7 `y`, 1 `z`, the command channel `r = F_d` of the guidance, no delay and no noise
+    /// (seed 0).
+    pub fn new_arm(arm: ArmPlantParams) -> Self {
+        let dims = crate::arm::dims();
+        Self {
+            kind: PlantKind::SamplingArm,
+            arm: Some(arm),
+            initial_state: Vec::new(),
+            command: Command::Constant(vec![0.0; crate::arm::N_R]),
+            ..Self::new(GeneralizedPlant::zeros(0, dims))
+        }
+    }
+
+    /// The sampling arm's parameters, to change before building a simulation (a study's
+    /// surface: `params.arm_mut().unwrap().surface.model = ContactModel::kelvin_voigt(k, c)?`);
+    /// `None` for other kinds. [`crate::sim::PlantSim::new`] validates them again.
+    pub fn arm_mut(&mut self) -> Option<&mut ArmPlantParams> {
+        self.arm.as_mut()
     }
 }
 
@@ -490,6 +536,11 @@ struct RawPlant {
     discrete: Option<discrete_tables::RawDiscrete>,
     mrac_example: Option<discrete_tables::RawMracExample>,
     input_disturbance: Option<discrete_tables::RawInputDisturbance>,
+    sampling_arm: Option<arm_tables::RawSamplingArm>,
+    surface: Option<arm_tables::RawSurface>,
+    guidance: Option<arm_tables::RawGuidance>,
+    second_sampling: Option<arm_tables::RawSecondSampling>,
+    integrator: Option<arm_tables::RawIntegrator>,
     disturbance: Option<RawDisturbance>,
     noise: Option<RawNoise>,
 }
@@ -916,32 +967,41 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         "truss" => PlantKind::Truss,
         "discrete" => PlantKind::Discrete,
         "mrac-example" => PlantKind::MracExample,
+        "sampling-arm" => PlantKind::SamplingArm,
         other => {
             return Err(cx.err(
                 "plant.kind",
                 format!(
-                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\", \"truss\", \"discrete\", \"mrac-example\""
+                    "'{other}' is not one of \"transfer-function\", \"state-space\", \"modal\", \"truss\", \"discrete\", \"mrac-example\", \"sampling-arm\""
                 ),
             ));
         }
     };
-    // A discrete plant has one u, no w, one y and z = y: the counts may be omitted.
+    // A discrete plant has one u, no w, one y and z = y; the sampling arm has its wire
+    // contract (2, 0, 7, 1): the counts may be omitted.
+    let fixed = |v: Option<usize>, field: &str, n: usize| match v {
+        Some(v) if v != n => Err(cx.err(
+            field,
+            format!(
+                "{v}, but a plant of plant.kind = \"{}\" has {n}: give {n} or omit it",
+                kind.name()
+            ),
+        )),
+        _ => Ok(Some(n)),
+    };
     let (inputs, disturbances, outputs_y, outputs_z) = if kind.is_discrete() {
-        let fixed = |v: Option<usize>, field: &str, n: usize| match v {
-            Some(v) if v != n => Err(cx.err(
-                field,
-                format!(
-                    "{v}, but a discrete plant (plant.kind = \"{}\") has {n}: give {n} or omit it",
-                    kind.name()
-                ),
-            )),
-            _ => Ok(Some(n)),
-        };
         (
             fixed(raw.inputs, "plant.inputs", 1)?,
             fixed(raw.disturbances, "plant.disturbances", 0)?,
             fixed(raw.outputs_y, "plant.outputs-y", 1)?,
             fixed(raw.outputs_z, "plant.outputs-z", 1)?,
+        )
+    } else if kind == PlantKind::SamplingArm {
+        (
+            fixed(raw.inputs, "plant.inputs", crate::arm::N_U)?,
+            fixed(raw.disturbances, "plant.disturbances", 0)?,
+            fixed(raw.outputs_y, "plant.outputs-y", crate::arm::N_Y)?,
+            fixed(raw.outputs_z, "plant.outputs-z", crate::arm::N_Z)?,
         )
     } else {
         (raw.inputs, raw.disturbances, raw.outputs_y, raw.outputs_z)
@@ -960,14 +1020,33 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         n_y: count(outputs_y, "plant.outputs-y", Some(ipc_types::MAX_Y))?,
         n_z: count(outputs_z, "plant.outputs-z", Some(ipc_types::MAX_Z))?,
     };
-    let n_r = count(
-        raw.commands.or(Some(0)),
-        "plant.commands",
-        Some(ipc_types::MAX_R),
-    )?;
-    let command = discrete_tables::command(cx, raw.command, raw.commands.map(|_| n_r))?;
+    let command = if kind == PlantKind::SamplingArm {
+        fixed(raw.commands, "plant.commands", crate::arm::N_R)?;
+        if raw.command.is_some() {
+            return Err(cx.err(
+                "plant.command",
+                "the sampling arm's command r = F_d comes from its guidance \
+                 ([plant.guidance] force-set-point): remove plant.command",
+            ));
+        }
+        Command::Constant(vec![0.0; crate::arm::N_R])
+    } else {
+        let n_r = count(
+            raw.commands.or(Some(0)),
+            "plant.commands",
+            Some(ipc_types::MAX_R),
+        )?;
+        discrete_tables::command(cx, raw.command, raw.commands.map(|_| n_r))?
+    };
 
-    let given = [
+    let arm_tables = arm_tables::RawArmTables {
+        sampling_arm: raw.sampling_arm,
+        surface: raw.surface,
+        guidance: raw.guidance,
+        second_sampling: raw.second_sampling,
+        integrator: raw.integrator,
+    };
+    let mut given = vec![
         ("tf", raw.tf.is_some()),
         ("ss", raw.ss.is_some()),
         ("modal", raw.modal.is_some()),
@@ -975,22 +1054,44 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         ("discrete", raw.discrete.is_some()),
         ("mrac-example", raw.mrac_example.is_some()),
     ];
-    let wanted = match kind {
-        PlantKind::TransferFunction => "tf",
-        PlantKind::StateSpace => "ss",
-        PlantKind::Modal => "modal",
-        PlantKind::Truss => "truss",
-        PlantKind::Discrete => "discrete",
-        PlantKind::MracExample => "mrac-example",
+    given.extend(arm_tables.present());
+    let wanted: &[&str] = match kind {
+        PlantKind::TransferFunction => &["tf"],
+        PlantKind::StateSpace => &["ss"],
+        PlantKind::Modal => &["modal"],
+        PlantKind::Truss => &["truss"],
+        PlantKind::Discrete => &["discrete"],
+        PlantKind::MracExample => &["mrac-example"],
+        PlantKind::SamplingArm => &arm_tables::TABLES,
     };
     for (table, present) in given {
-        if present && table != wanted {
+        if present && !wanted.contains(&table) {
             return Err(cx.err(
                 format!("plant.{table}"),
                 format!(
-                    "given, but plant.kind = \"{}\" reads [plant.{wanted}]",
-                    kind.name()
+                    "given, but plant.kind = \"{}\" reads {}",
+                    kind.name(),
+                    wanted
+                        .iter()
+                        .map(|w| format!("[plant.{w}]"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ),
+            ));
+        }
+    }
+    if kind == PlantKind::SamplingArm {
+        if raw.disturbance.is_some() {
+            return Err(cx.err(
+                "plant.disturbance",
+                "the sampling arm has no disturbance input w",
+            ));
+        }
+        if raw.initial_state.is_some() {
+            return Err(cx.err(
+                "plant.initial-state",
+                "the sampling arm starts as [plant.sampling-arm] says (theta1, theta2, \
+                 initial-height, descent-speed)",
             ));
         }
     }
@@ -1041,9 +1142,16 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             example,
         });
     }
+    let arm = if kind == PlantKind::SamplingArm {
+        Some(arm_tables::arm_params(cx, arm_tables)?)
+    } else {
+        None
+    };
     let mut truss_y_std = None;
     let model = match kind {
-        PlantKind::Discrete | PlantKind::MracExample => GeneralizedPlant::zeros(0, dims),
+        PlantKind::Discrete | PlantKind::MracExample | PlantKind::SamplingArm => {
+            GeneralizedPlant::zeros(0, dims)
+        }
         PlantKind::TransferFunction => {
             let tf = cx.required(raw.tf, "plant.tf")?;
             tf_model(cx, tf, dims)?
@@ -1063,13 +1171,14 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
             tp.model
         }
     };
-    let n_x = match &discrete {
-        Some(d) => d.tf.n_states(),
-        None => model.n_x(),
+    let n_x = match (&discrete, &arm) {
+        (Some(d), _) => d.tf.n_states(),
+        (None, Some(_)) => crate::arm::N_STATES,
+        (None, None) => model.n_x(),
     };
     if n_x > MAX_STATES {
         return Err(cx.err(
-            format!("plant.{wanted}"),
+            format!("plant.{}", wanted[0]),
             format!("the plant has {n_x} states, at most {MAX_STATES}"),
         ));
     }
@@ -1086,7 +1195,7 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
     ];
     if matrices.iter().any(|m| m.iter().any(|x| !x.is_finite())) {
         return Err(cx.err(
-            format!("plant.{wanted}"),
+            format!("plant.{}", wanted[0]),
             "the continuous model has entries beyond the range of f64 (a value too large)",
         ));
     }
@@ -1117,7 +1226,7 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         PlantKind::StateSpace => "state",
         PlantKind::Modal => "state [q, q̇] of each mode",
         PlantKind::Truss => "state [η, η̇] of each mode of the truss",
-        PlantKind::Discrete | PlantKind::MracExample => "state",
+        PlantKind::Discrete | PlantKind::MracExample | PlantKind::SamplingArm => "state",
     };
     cx.vector(&initial_state, model.n_x(), "plant.initial-state", what)?;
 
@@ -1154,6 +1263,7 @@ fn validate_plant(cx: &Cx<'_>, raw: RawPlant) -> Result<PlantParams, ScenarioErr
         kind,
         model,
         discrete,
+        arm,
         input_delays,
         initial_state,
         command,
@@ -1439,6 +1549,7 @@ fn disturbance(
     })
 }
 
+mod arm_tables;
 mod discrete_tables;
 
 #[cfg(test)]
