@@ -30,7 +30,9 @@
 //! - `case{c}_{case}_ftvrf_vs_crf.png`, `case2_noisy_ftvrf_vs_rmsvrf.png`: single runs in
 //!   the manner of Figures 5.1, 5.3, 5.5, 5.7;
 //! - `case{c}_{case}_{method}_mc.png`: bands in the manner of Figures 5.2, 5.4, 5.6, 5.8;
-//! - `summary.txt`: the printed summary table.
+//! - `summary.txt`: the printed summary table;
+//! - `claims.json`: the chapter's claims checked on the Monte Carlo
+//!   (`rig_tools::study::reproduction_forgetting`).
 //!
 //! The plant derivation is documented in the `plant` module.
 
@@ -321,6 +323,7 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
         "final trP med"
     );
     let mut mc_time = 0.0;
+    let mut results = Vec::new();
     for case in Case::ALL {
         let n_steps = case.steps();
         let stem = format!("case{}_{}", case.number(), case.name());
@@ -346,6 +349,7 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
             let mc = monte_carlo(&plant, case, method, n_steps, runs, seed, true)?;
             mc_time += t0.elapsed().as_secs_f64();
             let s: Summary = mc.summary;
+            results.push((case, method, s));
             output::write_bands_csv(
                 &out.join(format!("{stem}_{}_mc.csv", method.name())),
                 &mc.bands,
@@ -396,7 +400,18 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
     );
     print!("{table}");
     report.push_str(&table);
-    std::fs::write(out.join("summary.txt"), report).map_err(|e| e.to_string())
+    std::fs::write(out.join("summary.txt"), report).map_err(|e| e.to_string())?;
+    // The chapter's claims, for `study all`.
+    use rig_tools::study::{reproduction, reproduction_forgetting};
+    reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: "forgetting".into(),
+            chapter: 5,
+            run: format!("study forgetting --runs {runs} --seed {seed}"),
+            claims: reproduction_forgetting::claims(&results),
+        },
+    )
 }
 
 /// `study mrac`: runs, prints the summary, writes `--results` if given.

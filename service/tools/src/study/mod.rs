@@ -26,3 +26,8 @@ pub mod rcac_siso;
 pub mod rcac_study;
 pub mod rcac_sweep_csv;
 pub mod rcac_sweep_stats;
+pub mod reproduction;
+pub mod reproduction_forgetting;
+pub mod reproduction_mrac;
+pub mod reproduction_pcac_truss;
+pub mod reproduction_rcac;
