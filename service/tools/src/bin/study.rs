@@ -6,7 +6,11 @@
 //! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both]
 //! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE]
+//! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
 //! ```
+//!
+//! `all` runs every study into `DIR/<study>/` and writes the reproduction report
+//! `DIR/reproduction.md`; see the `all` module for the table of studies.
 //!
 //! `mrac` is the chapter 4 study of APPC against RC-MRAC over the plant's pole plane
 //! (§4.5–4.7, Figures 4.2–4.14); see the `mrac` module for the settings and the files.
@@ -146,6 +150,22 @@ enum Study {
         #[arg(long)]
         results: Option<PathBuf>,
     },
+    /// Every study of the dissertation, each into `--out/<study>/`, several at a time, and
+    /// one reproduction report `--out/reproduction.md` of the chapters' claims.
+    All {
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-all")]
+        out: PathBuf,
+        /// Reduced sizes for a quick check (not the reproduction).
+        #[arg(long)]
+        quick: bool,
+        /// Studies at a time (default: the number of cores; each gets cores/jobs threads).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Also write the report into this file (e.g. docs/results/reproduction.md).
+        #[arg(long)]
+        results: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -186,6 +206,25 @@ fn main() -> ExitCode {
             out,
             results,
         } => mrac_study(&example, &command, grid, &out, results.as_deref()),
+        Study::All {
+            out,
+            quick,
+            jobs,
+            results,
+        } => rig_tools::study::all::command(
+            &out,
+            if quick {
+                rig_tools::study::all::Size::Quick
+            } else {
+                rig_tools::study::all::Size::Full
+            },
+            jobs,
+            results.as_deref(),
+            std::iter::once("study".to_string())
+                .chain(std::env::args().skip(1))
+                .collect::<Vec<_>>()
+                .join(" "),
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -9,6 +9,7 @@
 //! - [`mrac`], [`mrac_setup`], [`mrac_run`], [`mrac_grid`], [`mrac_summary`],
 //!   [`mrac_figures`]: chapter 4, APPC against RC-MRAC over the pole plane (§4.5–4.7).
 
+pub mod all;
 pub mod experiment;
 pub mod montecarlo;
 pub mod mrac;
@@ -31,3 +32,4 @@ pub mod reproduction_forgetting;
 pub mod reproduction_mrac;
 pub mod reproduction_pcac_truss;
 pub mod reproduction_rcac;
+pub mod reproduction_report;
