@@ -6,7 +6,11 @@
 //! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both]
 //! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE]
+//! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
 //! ```
+//!
+//! `all` runs every study into `DIR/<study>/` and writes the reproduction report
+//! `DIR/reproduction.md`; see the `all` module for the table of studies.
 //!
 //! `mrac` is the chapter 4 study of APPC against RC-MRAC over the plant's pole plane
 //! (§4.5–4.7, Figures 4.2–4.14); see the `mrac` module for the settings and the files.
@@ -30,7 +34,9 @@
 //! - `case{c}_{case}_ftvrf_vs_crf.png`, `case2_noisy_ftvrf_vs_rmsvrf.png`: single runs in
 //!   the manner of Figures 5.1, 5.3, 5.5, 5.7;
 //! - `case{c}_{case}_{method}_mc.png`: bands in the manner of Figures 5.2, 5.4, 5.6, 5.8;
-//! - `summary.txt`: the printed summary table.
+//! - `summary.txt`: the printed summary table;
+//! - `claims.json`: the chapter's claims checked on the Monte Carlo
+//!   (`rig_tools::study::reproduction_forgetting`).
 //!
 //! The plant derivation is documented in the `plant` module.
 
@@ -144,6 +150,22 @@ enum Study {
         #[arg(long)]
         results: Option<PathBuf>,
     },
+    /// Every study of the dissertation, each into `--out/<study>/`, several at a time, and
+    /// one reproduction report `--out/reproduction.md` of the chapters' claims.
+    All {
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-all")]
+        out: PathBuf,
+        /// Reduced sizes for a quick check (not the reproduction).
+        #[arg(long)]
+        quick: bool,
+        /// Studies at a time (default: the number of cores; each gets cores/jobs threads).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Also write the report into this file (e.g. docs/results/reproduction.md).
+        #[arg(long)]
+        results: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -184,6 +206,25 @@ fn main() -> ExitCode {
             out,
             results,
         } => mrac_study(&example, &command, grid, &out, results.as_deref()),
+        Study::All {
+            out,
+            quick,
+            jobs,
+            results,
+        } => rig_tools::study::all::command(
+            &out,
+            if quick {
+                rig_tools::study::all::Size::Quick
+            } else {
+                rig_tools::study::all::Size::Full
+            },
+            jobs,
+            results.as_deref(),
+            std::iter::once("study".to_string())
+                .chain(std::env::args().skip(1))
+                .collect::<Vec<_>>()
+                .join(" "),
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -321,6 +362,7 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
         "final trP med"
     );
     let mut mc_time = 0.0;
+    let mut results = Vec::new();
     for case in Case::ALL {
         let n_steps = case.steps();
         let stem = format!("case{}_{}", case.number(), case.name());
@@ -346,6 +388,7 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
             let mc = monte_carlo(&plant, case, method, n_steps, runs, seed, true)?;
             mc_time += t0.elapsed().as_secs_f64();
             let s: Summary = mc.summary;
+            results.push((case, method, s));
             output::write_bands_csv(
                 &out.join(format!("{stem}_{}_mc.csv", method.name())),
                 &mc.bands,
@@ -396,7 +439,18 @@ fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
     );
     print!("{table}");
     report.push_str(&table);
-    std::fs::write(out.join("summary.txt"), report).map_err(|e| e.to_string())
+    std::fs::write(out.join("summary.txt"), report).map_err(|e| e.to_string())?;
+    // The chapter's claims, for `study all`.
+    use rig_tools::study::{reproduction, reproduction_forgetting};
+    reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: "forgetting".into(),
+            chapter: 5,
+            run: format!("study forgetting --runs {runs} --seed {seed}"),
+            claims: reproduction_forgetting::claims(&results),
+        },
+    )
 }
 
 /// `study mrac`: runs, prints the summary, writes `--results` if given.

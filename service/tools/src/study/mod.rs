@@ -9,6 +9,7 @@
 //! - [`mrac`], [`mrac_setup`], [`mrac_run`], [`mrac_grid`], [`mrac_summary`],
 //!   [`mrac_figures`]: chapter 4, APPC against RC-MRAC over the pole plane (§4.5–4.7).
 
+pub mod all;
 pub mod experiment;
 pub mod montecarlo;
 pub mod mrac;
@@ -26,3 +27,9 @@ pub mod rcac_siso;
 pub mod rcac_study;
 pub mod rcac_sweep_csv;
 pub mod rcac_sweep_stats;
+pub mod reproduction;
+pub mod reproduction_forgetting;
+pub mod reproduction_mrac;
+pub mod reproduction_pcac_truss;
+pub mod reproduction_rcac;
+pub mod reproduction_report;

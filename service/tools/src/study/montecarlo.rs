@@ -56,10 +56,14 @@ pub struct Summary {
     pub settle_median: f64,
     /// 95th percentile of the settling steps (`+∞`: "never").
     pub settle_p95: f64,
+    /// The slowest run's settling steps (`+∞`: one never settles).
+    pub settle_max: f64,
     /// Median of the settling steps at the 10 % threshold.
     pub settle_loose_median: f64,
     /// 95th percentile of the settling steps at the 10 % threshold.
     pub settle_loose_p95: f64,
+    /// The slowest run's settling steps at the 10 % threshold.
+    pub settle_loose_max: f64,
     /// Fraction of runs that never settle.
     pub never_fraction: f64,
     /// Fraction of runs with `λ_k < 1` for `τ_d + 1 ≤ k < 100`.
@@ -91,8 +95,10 @@ pub fn summarize(runs: &[RunSummary]) -> Summary {
         runs: runs.len(),
         settle_median: percentile(&mut settle, 0.5),
         settle_p95: percentile(&mut settle, 0.95),
+        settle_max: settle.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         settle_loose_median: percentile(&mut loose, 0.5),
         settle_loose_p95: percentile(&mut loose, 0.95),
+        settle_loose_max: loose.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         never_fraction: runs.iter().filter(|r| r.settle.is_none()).count() as f64 / n,
         early_forget_fraction: runs.iter().filter(|r| r.early_forget).count() as f64 / n,
         max_trace_median: percentile(&mut max_tr, 0.5),
@@ -254,6 +260,9 @@ mod tests {
         assert_eq!(s.runs, 4);
         assert_eq!(s.settle_median, 25.0);
         assert_eq!(s.settle_p95, f64::INFINITY);
+        assert_eq!(s.settle_max, f64::INFINITY);
+        assert_eq!(summarize(&runs[..2]).settle_max, 20.0);
+        assert_eq!(summarize(&runs[..2]).settle_loose_max, 20.0);
         assert_eq!(s.never_fraction, 0.25);
         assert_eq!(s.early_forget_fraction, 0.25);
         assert_eq!(s.max_trace_median, 650.0);

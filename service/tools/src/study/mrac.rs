@@ -13,7 +13,8 @@
 //! - `map-ex{e}-{command}-{method}.png`: the heat map ([`mrac_figures::heat_map`]);
 //! - `single-ex{e}-{command}-{method}.png`: the four panels
 //!   ([`mrac_figures::single_run`]);
-//! - `summary.md`: the summary table, the single runs and the claims.
+//! - `summary.md`: the summary table, the single runs and the claims;
+//! - `claims.json`: the claims in the reproduction's record ([`reproduction_mrac`]).
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -24,6 +25,7 @@ use crate::study::mrac_grid::{self, Grid, Sweep};
 use crate::study::mrac_run::{self, RunTrace};
 use crate::study::mrac_setup::{CommandKind, Example, Method, theta_names};
 use crate::study::mrac_summary::{self, Claim, SweepStats};
+use crate::study::{reproduction, reproduction_mrac};
 
 /// The pole of the single runs (the b panels): `ρ = 0.5`, `ν = π/4`.
 pub const SINGLE_POLE: (f64, f64) = (0.5, PI / 4.0);
@@ -212,6 +214,15 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, S
     }
     let path = out.join("summary.md");
     std::fs::write(&path, &markdown).map_err(|e| format!("{}: {e}", path.display()))?;
+    reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: "mrac".into(),
+            chapter: 4,
+            run: command.into(),
+            claims: reproduction_mrac::claims(&claims),
+        },
+    )?;
     Ok(MracReport {
         stats,
         singles,

@@ -87,7 +87,9 @@
 //! - `figure-6.4-harmonic-<setting>-identification.png` (6.7, 6.10): `‖θ_k‖` and `tr P_k`;
 //! - `<name>-<setting>-trace.csv`: `t`, `z` OL and CL of the four nodes, `u`, the internals;
 //! - `reductions.csv`: one row per experiment, setting and node (RMS OL, RMS CL, dB);
-//! - `summary.txt`: the printed summary.
+//! - `summary.txt`: the printed summary;
+//! - `claims.json`: the chapter's claims checked on these measurements
+//!   ([`reproduction_pcac_truss`]).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -104,6 +106,7 @@ use plotters::style::RGBColor;
 use service::config::{ControllerConfig, ServiceConfig};
 
 use crate::study::rcac_common::write;
+use crate::study::{reproduction, reproduction_pcac_truss};
 
 /// Default simulated duration of each run, s.
 pub const DURATION_S: f64 = 100.0;
@@ -573,7 +576,26 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), String> {
         out.display()
     );
     print!("{report}");
-    write(&out.join("summary.txt"), &report)
+    write(&out.join("summary.txt"), &report)?;
+    let names = |v: Vec<&str>| v.join(",");
+    reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: "pcac-truss".into(),
+            chapter: 6,
+            run: format!(
+                "study pcac-truss --duration {} --experiments {} --settings {}",
+                opts.duration,
+                names(opts.experiments.iter().map(|e| e.name()).collect()),
+                if opts.settings.len() == Setting::ALL.len() {
+                    "both".into()
+                } else {
+                    names(opts.settings.iter().map(|s| s.name()).collect())
+                }
+            ),
+            claims: reproduction_pcac_truss::claims(&outcomes),
+        },
+    )
 }
 
 fn summarize(o: &Outcome, secs: f64, report: &mut String) -> Result<(), String> {

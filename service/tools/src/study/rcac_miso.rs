@@ -58,10 +58,12 @@ use crate::study::rcac_common::{
 };
 pub use crate::study::rcac_study::Options;
 use crate::study::rcac_study::{
-    self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleRun, tone_errors,
+    self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleOutcome, SingleRun, tone_errors,
 };
 use crate::study::rcac_sweep_csv;
 use crate::study::rcac_sweep_stats::{POOR_DB, SweepStats, secs};
+use crate::study::reproduction::Claim;
+use crate::study::reproduction_rcac;
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -184,6 +186,7 @@ impl RcacStudy<2> for Miso {
     /// The DTM of each method, from the nominal model.
     type Designs = Vec<(Method, Dtm)>;
 
+    const NAME: &'static str = "rcac-miso";
     const ALPHA: f64 = ALPHA;
     const REPORTS_DESIGN_TIME: bool = false;
     const FIGURES: [FigureNumbers; 2] = [
@@ -438,6 +441,10 @@ impl RcacStudy<2> for Miso {
                 );
             }
         }
+    }
+
+    fn claims(&self, rows: &[Row], singles: &[SingleOutcome<2>], updates: &[Update]) -> Vec<Claim> {
+        reproduction_rcac::miso_claims(rows, singles, updates)
     }
 }
 

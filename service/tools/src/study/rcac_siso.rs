@@ -42,11 +42,13 @@ use crate::study::rcac_common::{
 };
 pub use crate::study::rcac_study::Options;
 use crate::study::rcac_study::{
-    self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleRun,
+    self, Bode, FigureNumbers, PlaneFigure, RcacStudy, Setup, SingleOutcome, SingleRun,
 };
 use crate::study::rcac_sweep_csv;
 pub use crate::study::rcac_sweep_stats::POOR_DB;
 use crate::study::rcac_sweep_stats::{SweepStats, secs};
+use crate::study::reproduction::Claim;
+use crate::study::reproduction_rcac;
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -206,6 +208,7 @@ impl RcacStudy<1> for Siso {
     /// Per case: `G_{zu,d}` and the DTM of each method.
     type Designs = Vec<(DiscreteModel, Vec<(Method, Dtm)>)>;
 
+    const NAME: &'static str = "rcac-siso";
     const ALPHA: f64 = ALPHA;
     const REPORTS_DESIGN_TIME: bool = true;
     const FIGURES: [FigureNumbers; 2] = [
@@ -500,6 +503,10 @@ impl RcacStudy<1> for Siso {
                 let _ = writeln!(report, "{line}");
             }
         }
+    }
+
+    fn claims(&self, rows: &[Row], singles: &[SingleOutcome<1>], updates: &[Update]) -> Vec<Claim> {
+        reproduction_rcac::siso_claims(rows, singles, updates)
     }
 }
 

@@ -14,7 +14,9 @@
 //!    and one closed-loop run per update law ([`run_closed`]), into [`Row`]s;
 //! 3. the CSV files, the error-plane figures, the single runs;
 //! 4. the study's summary, the time taken, the report printed and written to
-//!    `summary.txt`.
+//!    `summary.txt`;
+//! 5. the chapter's claims ([`RcacStudy::claims`]) written to `claims.json`
+//!    ([`crate::study::reproduction`]).
 //!
 //! `N` is the number of tones, one per input channel: the tone `θ_j` of channel `j`
 //! (output 0, input `j`) is measured in `z_0`.
@@ -32,6 +34,7 @@ use crate::study::rcac_common::{
     Dtm, Method, Point, RUN_SECONDS, TS, Update, WINDOW_SECONDS, Window, model_error, rcac_params,
     run_closed, run_open, single_run_figure, write,
 };
+use crate::study::reproduction::{self, Claim};
 use control::tones::suppression_db;
 use plant_proxy::scenario::Scenario;
 use rayon::prelude::*;
@@ -177,6 +180,19 @@ pub struct SingleRun<'a, const N: usize> {
     pub settle: Option<f64>,
 }
 
+/// What a single run achieved, for the claims.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SingleOutcome<const N: usize> {
+    /// The method of the target model.
+    pub method: Method,
+    /// The update law.
+    pub update: Update,
+    /// Stayed finite, bounded, no guard reset.
+    pub finite: bool,
+    /// Suppression of each tone, dB (−∞ when diverged).
+    pub suppression: [f64; N],
+}
+
 /// What one RCAC study of chapter 3 has of its own; [`run`] drives it.
 pub trait RcacStudy<const N: usize>: Sync {
     /// Where a sweep point lies (a case and a tone frequency, a damping ratio).
@@ -184,6 +200,8 @@ pub trait RcacStudy<const N: usize>: Sync {
     /// The target models and whatever else is designed once before the sweep.
     type Designs: Sync;
 
+    /// The study's `study` subcommand.
+    const NAME: &'static str;
     /// Step factor `α` of `μ_Exp` (3.63).
     const ALPHA: f64;
     /// Whether the time line of the report gives the time of the designs.
@@ -233,6 +251,14 @@ pub trait RcacStudy<const N: usize>: Sync {
 
     /// Writes the sweep's summary tables to the report.
     fn summary(&self, rows: &[Row<Self::At, N>], updates: &[Update], report: &mut String);
+
+    /// The chapter's claims checked on the sweep `rows` and the single runs `singles`.
+    fn claims(
+        &self,
+        rows: &[Row<Self::At, N>],
+        singles: &[SingleOutcome<N>],
+        updates: &[Update],
+    ) -> Vec<Claim>;
 }
 
 /// Samples per run and per measurement window.
@@ -330,7 +356,7 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
             )?;
         }
     }
-    single_runs(study, out, &designs, &opts.updates, &mut report)?;
+    let singles = single_runs(study, out, &designs, &opts.updates, &mut report)?;
     let t_fig = t2.elapsed().as_secs_f64();
     study.summary(&rows, &opts.updates, &mut report);
     let designs_time = if S::REPORTS_DESIGN_TIME {
@@ -348,7 +374,24 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
         out.display()
     );
     print!("{report}");
-    write(&out.join("summary.txt"), &report)
+    write(&out.join("summary.txt"), &report)?;
+    let update = match opts.updates.as_slice() {
+        [one] => one.name(),
+        _ => "both",
+    };
+    reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: S::NAME.into(),
+            chapter: 3,
+            run: format!(
+                "study {} --points {} --update {update}",
+                S::NAME,
+                opts.points
+            ),
+            claims: study.claims(&rows, &singles, &opts.updates),
+        },
+    )
 }
 
 /// Runs one sweep point: the open loop and every method × update.
@@ -389,14 +432,15 @@ fn sweep_point<S: RcacStudy<N>, const N: usize>(
 }
 
 /// The single runs at [`RcacStudy::single_at`]: per method the Bode plot, per update law
-/// the run's report line and figure.
+/// the run's report line and figure; returns what each achieved.
 fn single_runs<S: RcacStudy<N>, const N: usize>(
     study: &S,
     out: &Path,
     designs: &S::Designs,
     updates: &[Update],
     report: &mut String,
-) -> Result<(), String> {
+) -> Result<Vec<SingleOutcome<N>>, String> {
+    let mut outcomes = Vec::new();
     let s = study.setup(designs, study.single_at())?;
     let (steps, window) = steps_and_window();
     let (open_w, open) = run_open(&s.scenario, steps, window, &s.thetas)?;
@@ -436,6 +480,12 @@ fn single_runs<S: RcacStudy<N>, const N: usize>(
             let every = 10;
             let p = rcac_run(&s, dtm, update, S::ALPHA, open_w.peak, every)?;
             let Some(closed) = p.trace.as_ref().filter(|_| p.finite()) else {
+                outcomes.push(SingleOutcome {
+                    method: *method,
+                    update,
+                    finite: false,
+                    suppression: [f64::NEG_INFINITY; N],
+                });
                 let _ = writeln!(
                     report,
                     "  {:<22} {:<8}: diverged (no figure)",
@@ -457,6 +507,12 @@ fn single_runs<S: RcacStudy<N>, const N: usize>(
                 closed: &w,
                 settle: p.settle,
             };
+            outcomes.push(SingleOutcome {
+                method: *method,
+                update,
+                finite: true,
+                suppression: run.suppression,
+            });
             let _ = writeln!(
                 report,
                 "  {:<22} {:<8}: {}",
@@ -478,5 +534,5 @@ fn single_runs<S: RcacStudy<N>, const N: usize>(
             )?;
         }
     }
-    Ok(())
+    Ok(outcomes)
 }
