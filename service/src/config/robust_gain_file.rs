@@ -77,6 +77,16 @@ impl RobustGainFile {
             .get("robust-gain")
             .ok_or_else(|| format!("{origin}: the [robust-gain] table is missing"))?;
         let field = |name: &str, m: String| format!("{origin}: field 'robust-gain{name}': {m}");
+        for range in ["stiffness", "damping"] {
+            if let Some(n) = value.get(range).and_then(|v| v.as_array()).map(Vec::len)
+                && n != 2
+            {
+                return Err(field(
+                    &format!(".{range}"),
+                    format!("has {n} entries, expected [lower, upper]"),
+                ));
+            }
+        }
         let file: RobustGainFile = value
             .clone()
             .try_into()

@@ -17,7 +17,6 @@
 
 use control::arm::robust::RobustBox;
 use nalgebra::Matrix2x3;
-use serde::Deserialize;
 use std::path::Path;
 
 /// The contents of a robust gain file.
@@ -31,66 +30,35 @@ pub struct RobustGainFile {
     pub margin: f64,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Outer {
-    #[serde(rename = "robust-gain")]
-    robust_gain: Inner,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case")]
-struct Inner {
-    k: Vec<Vec<f64>>,
-    sample_period: f64,
-    decay_rate: f64,
-    stiffness: Vec<f64>,
-    damping: Vec<f64>,
-    margin: f64,
-}
-
 impl RobustGainFile {
-    /// Parses the TOML text of a robust gain file; `origin` names it in errors.
+    /// Parses the TOML text of a robust gain file with the service's reader
+    /// ([`service::config::RobustGainFile`]), then requires what a designed gain records:
+    /// its box (a valid [`RobustBox`]) and a finite margin. `origin` names it in errors.
     pub fn parse(text: &str, origin: &str) -> Result<RobustGainFile, String> {
-        let outer: Outer = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
-        let i = outer.robust_gain;
-        // (Fixed-size arrays would let the TOML reader drop extra entries silently.)
-        let pair = |name: &str, v: &[f64]| -> Result<[f64; 2], String> {
-            <[f64; 2]>::try_from(v).map_err(|_| {
-                format!(
-                    "{origin}: [robust-gain] {name} has {} entries, not 2",
-                    v.len()
-                )
-            })
+        let f = service::config::RobustGainFile::parse(text, origin)?;
+        let need = |name: &str| {
+            format!("{origin}: field 'robust-gain.{name}': missing (a designed gain records it)")
         };
-        if i.k.len() != 2 || i.k.iter().any(|r| r.len() != 3) {
-            return Err(format!(
-                "{origin}: [robust-gain] k must be 2 rows of 3 entries (K is 2×3)"
-            ));
-        }
         let design = RobustBox {
-            sample_period: i.sample_period,
-            decay_rate: i.decay_rate,
-            stiffness: pair("stiffness", &i.stiffness)?,
-            damping: pair("damping", &i.damping)?,
+            sample_period: f.sample_period,
+            decay_rate: f.decay_rate.ok_or_else(|| need("decay-rate"))?,
+            stiffness: f.stiffness.ok_or_else(|| need("stiffness"))?,
+            damping: f.damping.ok_or_else(|| need("damping"))?,
         };
         design
             .validate()
             .map_err(|e| format!("{origin}: [robust-gain] {e}"))?;
-        if let Some(v) = i.k.iter().flatten().find(|v| !v.is_finite()) {
-            return Err(format!("{origin}: [robust-gain] k has the entry {v}"));
-        }
-        if !i.margin.is_finite() {
+        let margin = f.margin.ok_or_else(|| need("margin"))?;
+        if !margin.is_finite() {
             return Err(format!(
-                "{origin}: [robust-gain] margin {} is not finite",
-                i.margin
+                "{origin}: [robust-gain] margin {margin} is not finite"
             ));
         }
-        let gain = Matrix2x3::from_fn(|r, c| i.k[r][c]);
+        let k = f.gain();
         Ok(RobustGainFile {
-            gain,
+            gain: Matrix2x3::from_row_slice(&k),
             design,
-            margin: i.margin,
+            margin,
         })
     }
 
@@ -184,7 +152,7 @@ mod tests {
         assert!(e.contains("g.toml") && e.contains("margn"), "{e}");
         let bad = text.replace("k = [[", "k = [[1.0, ");
         let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
-        assert!(e.contains("g.toml") && e.contains("2×3"), "{e}");
+        assert!(e.contains("g.toml") && e.contains("K must be 2 × 3"), "{e}");
         let bad = text.replace("stiffness = [300.0,", "stiffness = [1.0, 300.0,");
         let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
         assert!(e.contains("g.toml") && e.contains("stiffness"), "{e}");
