@@ -296,3 +296,48 @@ fn bad_parameters_are_refused_naming_the_field() {
     });
     assert_eq!(field(&p, rig()), Some("u-min"));
 }
+
+/// The committed LMI gain (`scenarios/arm/robust-gain.toml`) on a soft surface at the
+/// corner of §7.3's box (`k_s = 300` N/m, `c_s = 0.35` N s/m): as in Figure 7.3, the
+/// robust controller alone stays far below `F_d` over the 2 s contact, and with the PCAC
+/// augmentation the contact force reaches `F_d` and `χ → 0`.
+#[test]
+fn with_the_lmi_gain_pcac_reaches_the_force_the_robust_controller_misses_on_a_soft_surface() {
+    let k = committed_gain();
+    let surface = Surface {
+        k_s: 300.0,
+        c_s: 0.35,
+        mu: 0.5,
+    };
+    let mut medians = Vec::new();
+    for pcac in [false, true] {
+        let mut c = ArmController::new(
+            &ArmControllerParams {
+                pcac: pcac.then(chapter_pcac),
+                ..ArmControllerParams::robust_only(k)
+            },
+            rig(),
+        )
+        .unwrap();
+        let chi = contact_run(&mut c, surface, 4000);
+        let mut force: Vec<f64> = chi.iter().map(|c| c[2] + F_D).collect();
+        force.sort_by(f64::total_cmp);
+        let median = force[force.len() / 2];
+        let w = worst_after(&chi, 3000);
+        eprintln!("pcac {pcac}: median F_c {median:.2} N, max |χ| over the last 0.5 s {w:?}");
+        medians.push(median);
+        if pcac {
+            assert!(w[0] < 1e-3 && w[1] < 1e-3 && w[2] < 0.02 * F_D, "{w:?}");
+        }
+    }
+    assert!(
+        medians[0] < 0.2 * F_D,
+        "robust alone: median {}",
+        medians[0]
+    );
+    assert!(
+        (medians[1] - F_D).abs() < 0.02 * F_D,
+        "augmented: median {}",
+        medians[1]
+    );
+}

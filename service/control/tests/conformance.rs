@@ -396,8 +396,8 @@ fn arm_params(pcac: bool) -> ArmControllerParams {
                 u_min: vec![-100.0; 2],
                 u_max: vec![100.0; 2],
                 move_bounds: Some(MoveBounds {
-                    min: vec![-20.0; 2],
-                    max: vec![20.0; 2],
+                    min: vec![-50.0; 2],
+                    max: vec![50.0; 2],
                 }),
                 output_constraints: None,
             },

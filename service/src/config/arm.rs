@@ -435,7 +435,7 @@ mod tests {
             (pcac.mpc.u_min.clone(), pcac.mpc.u_max.clone()),
             (vec![-100.0; 2], vec![100.0; 2])
         );
-        assert_eq!(pcac.mpc.move_bounds.as_ref().unwrap().max, vec![20.0; 2]);
+        assert_eq!(pcac.mpc.move_bounds.as_ref().unwrap().max, vec![50.0; 2]);
         assert_eq!(pcac.timing, PcacTiming::SameStep);
         // The configuration validates, the controller builds, and answers compute-first.
         let c = ServiceConfig::parse(&format!("{RIG}{PCAC_FILE}"), &o).unwrap();
@@ -536,7 +536,7 @@ mod tests {
                 "q = [1.0, 2.0]",
                 "controller.pcac.q",
             ),
-            ("du-max = 20.0", "du-max = -20.0", "controller.pcac.du-max"),
+            ("du-max = 50.0", "du-max = -50.0", "controller.pcac.du-max"),
             (
                 "n-hat = 1",
                 "n-hat = 1\nkind = \"pcac\"",

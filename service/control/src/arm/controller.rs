@@ -92,9 +92,10 @@ pub struct JointHold {
 
 impl JointHold {
     /// `K_p = 1000` N m/rad, `K_d = 200` N m s/rad per joint (not in the chapter, whose
-    /// descent and ascent control follows [83]): the generalized joint forces of a PD
-    /// loop that, on the free arm of §7.3 (joint inertia of the order of 20 kg m² with
-    /// the bus moving), settles in about a second with a damping ratio near 0.7.
+    /// descent and ascent control follows its reference 83): with the bus free, the arm of
+    /// §7.3 at the contact angles has a joint inertia `M_1 − M_2 M_2ᵀ / m_0` with
+    /// principal values of about 22 and 2.3 kg m², so the slower mode of the hold settles
+    /// in about 0.9 s with a damping ratio near 0.7 and the faster one is overdamped.
     pub const DEFAULT: JointHold = JointHold {
         kp: [1000.0, 1000.0],
         kd: [200.0, 200.0],

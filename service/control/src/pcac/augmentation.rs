@@ -57,7 +57,7 @@
 //!
 //! equals the one of the identified model from `y`, `τ_f`, as (7.55) writes it. So the
 //! predictor of (7.58)–(7.61) is exactly [`crate::bocf`]'s for the coefficients
-//! `Θ̃' = [F̂'_1 … F̂'_n̂ Ĝ_1 … Ĝ_n̂]` and the data `y`, `u_aug`: [`Augmentation`] keeps
+//! `Θ̃' = [F̂'_1 … F̂'_n̂ Ĝ_1 … Ĝ_n̂]` and the data `y`, `u_aug`: the controller keeps
 //! `Θ̃'` (refreshed from `Θ̃` before each prediction, `n̂ p² m` multiply–adds) and the
 //! `u_aug` history in preallocated buffers, and [`AugmentedModel`] presents them as an
 //! [`IdentifiedModel`], so that the Markov parameters `Ĥ'_i = Ĉ Â'^{i−1} B̂` of

@@ -67,7 +67,7 @@ pub fn closed_loop_radius(k: &[f64; 6], k_s: f64, c_s: f64) -> f64 {
 
 /// PCAC with the settings of §7.3: `n̂ = 1`, `P_0 = 10 I`, F-test (τ_n = 40, τ_d = 200,
 /// η = 0.1, α = 0.001), `ℓ = 50`, `Q = diag(1000, 100, 1)` on `C_t ζ = χ`, `R = I`,
-/// `|u_aug| ≤ 100`, moves `|Δu_aug| ≤ 20` (as `scenarios/arm/pcac.toml`; the chapter gives
+/// `|u_aug| ≤ 100`, moves `|Δu_aug| ≤ 50` (as `scenarios/arm/pcac.toml`; the chapter gives
 /// none), the prior `w_0` of the contact model.
 pub fn chapter_pcac() -> PcacParams {
     let fl = FeedbackLinearization::new(ArmParams::CHAPTER_7);
@@ -103,8 +103,8 @@ pub fn chapter_pcac() -> PcacParams {
             u_min: vec![-100.0; 2],
             u_max: vec![100.0; 2],
             move_bounds: Some(MoveBounds {
-                min: vec![-20.0; 2],
-                max: vec![20.0; 2],
+                min: vec![-50.0; 2],
+                max: vec![50.0; 2],
             }),
             output_constraints: None,
         },
@@ -232,14 +232,30 @@ pub fn step(c: &mut ArmController, sc: &Spacecraft, k: u64, f_d: f64) -> ([f64; 
     (u, s)
 }
 
-/// The augmented controller of §7.3 with [`test_gain`].
+/// The augmented controller of §7.3 with the committed LMI gain ([`committed_gain`]).
 pub fn augmented() -> ArmController {
     ArmController::new(
         &ArmControllerParams {
             pcac: Some(chapter_pcac()),
-            ..ArmControllerParams::robust_only(test_gain())
+            ..ArmControllerParams::robust_only(committed_gain())
         },
         rig(),
     )
     .expect("valid parameters")
+}
+
+/// `K` of the committed robust-gain file `scenarios/arm/robust-gain.toml` (the LMI
+/// design of (7.41) by `rig-design robust-gain`), read from its `k = [[…], […]]` line.
+pub fn committed_gain() -> [f64; 6] {
+    let text = include_str!("../../../../scenarios/arm/robust-gain.toml");
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("k = "))
+        .expect("a k line");
+    let list = line.split('#').next().unwrap();
+    let values: Vec<f64> = list
+        .split(['[', ']', ',', '='])
+        .filter_map(|t| t.trim().parse().ok())
+        .collect();
+    values.try_into().expect("K has 2 × 3 entries")
 }
