@@ -2,52 +2,73 @@
 //!
 //! ## Workloads
 //!
-//! Two sizes of [`control::pcac::Pcac`] ([`Workload`]), both with the
-//! dissertation's next-step timing ([`PcacTiming::NextStep`]), F-test forgetting
-//! (τ_n = 40, τ_d = 200, η = 0.1, α = 0.001), `θ_0 = 10⁻¹⁰ 1` and the shared-covariance
-//! identification kernel:
+//! Two closed loops ([`Workload`]), both with F-test forgetting (τ_n = 40, τ_d = 200,
+//! η = 0.1, α = 0.001) and the shared-covariance identification kernel:
 //!
-//! | workload | `n̂` | `p` | `m` | `θ` | `ℓ` | `C_t` | `Q`, `R` | bounds | plant |
+//! | workload | controller | `n̂` | `p` | `m` | `θ` | `ℓ` | timing | bounds | plant |
 //! | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |
-//! | [`Workload::Truss`] (chapter 6) | 25 | 4 | 2 | 600 | 40 | `[0 0 0 1]` | `10⁶`, `1` | `\|u\| ≤ 10` | the truss of `scenarios/truss/broadband-25hz.toml` at 50 Hz |
-//! | [`Workload::Arm`] (chapter 7) | 1 | 5 | 2 | 35 | 50 | `[0₃ₓ₂ I₃]` | `diag(1000, 100, 1)`, `1` | `\|u\| ≤ 100`, `\|Δu\| ≤ 5` | [`ArmPlant`], synthetic |
+//! | [`Workload::Truss`] (chapter 6) | [`Pcac`], [`truss_params`] (`C_t = [0 0 0 1]`, `Q = 10⁶`, `R = 1`, `θ_0 = 10⁻¹⁰ 1`) | 25 | 4 | 2 | 600 | 40 | next step | `\|u\| ≤ 10` | `scenarios/truss/broadband-25hz.toml` at 50 Hz |
+//! | [`Workload::Arm`] (chapter 7) | `sampling-arm` of [`ARM_CONTROLLER`] | 1 | 5 | 2 | 35 | 50 | same step | `\|u_aug\| ≤ 100`, `\|Δu_aug\| ≤ 20` | [`ARM_SCENARIO`] at 2 kHz |
 //!
 //! The truss is driven by `plant_proxy::sim::PlantSim` on the scenario's plant (its 25 Hz
 //! band-limited disturbance of 1 N RMS at node 1, 40 dB sensor noise), so that the active
 //! sets are those of a real closed loop: with the truss's outputs in millimetres and the
 //! §6.2 weights, the planned input often sits on its ±10 N bound once the model is
 //! identified (the bench reports the share of such steps and the distribution of the
-//! active-set size). The sampling-arm plant of chapter 7 does not exist yet; [`ArmPlant`]
-//! stands in for it at the controller's size (its design is on the type).
+//! active-set size).
+//!
+//! The arm is chapter 7's loop as `rig launch scenarios/arm/linear.toml --controller
+//! scenarios/arm/pcac.toml` runs it: the plant `PlantSim` of the Figure 7.4 surface
+//! (Kelvin–Voigt, `k_s = 2·10⁵` N/m, `c_s = 5` N s/m, noiseless sensors), the controller
+//! read by `service::config::ServiceConfig::load_with_controller` (kind `sampling-arm`, its
+//! robust gain from `scenarios/arm/robust-gain.toml`) and built as
+//! `control::arm::controller::ArmController`. Its step is Algorithm 3: the feedback
+//! linearization (7.31), `u_robust = K χ` and PCAC augmenting `K̄ = [0 K]`
+//! (identification on `τ_f`, the closed-loop realization (7.56)–(7.57), condensing, the
+//! QP), then the torques. Only the samples of the contact phase (`r = F_d > 0`: from the
+//! touch-down at ≈ 2 s for 2 s, 4000 samples) are counted and timed; the joint hold of
+//! the descent is stepped but not timed. When a contact phase ends, plant and controller
+//! are reset and the maneuver runs again, so that `steps` beyond 4000 time further
+//! touch-downs from the prior `w_0` (the plant is noiseless: every maneuver is the same
+//! run, and what varies is the machine).
 //!
 //! ## Method
 //!
-//! Three copies of the loop run in lockstep, in blocks of [`BLOCK`] samples, on the
-//! calling thread (which the bench pins on the RT core under `SCHED_FIFO`):
+//! Two copies of the loop run in lockstep, in blocks of [`BLOCK`] samples, on the calling
+//! thread (which the bench pins on the RT core under `SCHED_FIFO`):
 //!
-//! 1. **Timed.** `Pcac::step` between two `CLOCK_MONOTONIC` readings and nothing else: the
-//!    plant's sample is taken before the first reading and the input applied after the
-//!    second. Its outputs `u_k`, its planned first move `u_{1|k}` and `y_k` are kept for
-//!    the block.
-//! 2. **Reference.** A second controller and plant, built from the same parameters and
-//!    seeds, step through the same samples untimed (the bench checks that they produce
-//!    bit-identical inputs, so that they solve the same QPs). After each step
-//!    `solve_with_clarabel(&pcac.last_problem(), 1e-8)` — clarabel's set-up and solve,
-//!    allocating — is timed, and the first move of both solvers is compared where both
-//!    report *solved*. The active-set size and the iteration count of the dense solver are
-//!    read here from `Controller::internals` (`qp_active`, `qp_iterations`).
-//! 3. **Pieces.** The step taken apart into the public kernels of `service`, fed with the
-//!    timed loop's `y_k` and `u_k`, each timed alone: `IoModel::update` (identification),
-//!    `HorizonPrediction::compute` (realization: state, Markov parameters, free response),
-//!    `Condenser::build` (condensing) and `DenseQpSolver::solve` (warm-started from the
-//!    shifted active set, as `Pcac` does). Its first move is compared with the timed
-//!    controller's, which checks that the pieces are the step.
+//! 1. **Timed.** `Controller::step` between two `CLOCK_MONOTONIC` readings and nothing
+//!    else: the plant's sample is taken before the first reading and the input applied
+//!    after the second. Its output `u_k` and PCAC's planned first move `u_{1|k}` are kept
+//!    for the block.
+//! 2. **Reference.** A second controller and plant, built from the same files and seeds,
+//!    step through the same samples untimed (the bench checks that they produce
+//!    bit-identical inputs, so that they solve the same QPs). After each counted step:
+//!    - **the pieces**: the step's PCAC part taken apart into the public kernels of
+//!      `control`, each timed alone on the data the reference PCAC just used:
+//!      `IoModel::update` on a copy of its model taken before the step (identification;
+//!      the copy's coefficients are checked equal to PCAC's), `HorizonPrediction` on the
+//!      identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
+//!      `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state, Markov
+//!      parameters, free response), `Condenser::build` (condensing) and
+//!      `DenseQpSolver::solve` (warm-started from its own shifted active set, as `Pcac`
+//!      does). Its first move is compared with the timed controller's, which checks that
+//!      the pieces are the step. Not timed as pieces: the arm's linearization and robust
+//!      gain, and PCAC's bookkeeping (the difference between the step and the sum of the
+//!      pieces). The arm's first contact sample of a phase only primes PCAC's regressor
+//!      and has no pieces.
+//!    - **clarabel**: `solve_with_clarabel(&pcac.last_problem(), 1e-8)` — clarabel's
+//!      set-up and solve, allocating — on the reference PCAC's QP (the arm's through
+//!      `ArmController::pcac`), and the first move of both solvers is compared where both
+//!      report *solved*. The active-set size and the iteration count of the dense solver
+//!      are read here from `Controller::internals` (`qp_active`, `qp_iterations`).
 //!
 //! Running the copies in blocks rather than interleaved per step keeps clarabel's
 //! allocations out of the timed controller's cache except at block starts: the first
-//! [`REWARM`] timed steps of each block run but are recorded apart ([`PcacCost::cold`]),
-//! as in [`crate::rls_cost`]. Timing starts after `warmup` samples (identification from
-//! `θ_0` first; the truss needs a few hundred samples before its model means anything).
+//! [`REWARM`] counted steps of each block run but are recorded apart
+//! ([`PcacCost::cold`]), as in [`crate::rls_cost`]. Timing starts after `warmup` counted
+//! samples ([`Workload::default_warmup`]: the truss needs a few hundred samples before
+//! its model means anything; the arm none).
 
 use crate::hist::new_histogram;
 use control::arm::controller::{ArmController, ArmControllerParams, ArmMode};
@@ -472,7 +493,7 @@ impl Pieces {
 /// Names of the four pieces, in the order of [`PcacCost::pieces`].
 pub const PIECES: [&str; 4] = [
     "identification (IoModel::update)",
-    "realization + prediction (HorizonPrediction::compute)",
+    "realization + prediction (HorizonPrediction)",
     "condensing (Condenser::build)",
     "QP solve, warm (DenseQpSolver::solve)",
 ];
