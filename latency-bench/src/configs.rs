@@ -464,7 +464,7 @@ pub enum PacedPlant {
     /// The closed loop of a [`LoopPlant`] (`y = z`), as in the step-cost phase: the input
     /// answered for sample `k` enters the FIR for the next samples.
     Fir(LoopPlant),
-    /// The closed loop of [`crate::pcac_cost::ArmPlant`] with this noise seed (`y = z = x + v`).
+    /// The closed loop of [`crate::synthetic_arm::ArmPlant`] with this noise seed (`y = z = x + v`).
     Arm(u64),
 }
 
@@ -505,8 +505,9 @@ impl TimingCase {
 
 /// The controllers of the response-time phase, in table order: those of
 /// [`step_cases`] that answer ahead, at the same sizes and on the same loops, and PCAC at
-/// the sampling arm's size in its next-step timing ([`crate::pcac_cost::Workload::Arm`],
-/// on its [`crate::pcac_cost::ArmPlant`]).
+/// the sampling arm's size in its next-step timing on the synthetic plant of
+/// [`crate::synthetic_arm`] (the real arm controller answers in the same step and has no
+/// ahead form).
 ///
 /// - the 50-state 2-in/1-out LTI controller of the step cost with `D = 0` (with `D ≠ 0`
 ///   its `u_k` needs `y_k`, so it has no ahead form), 8 kHz;
@@ -521,9 +522,9 @@ pub fn timing_cases() -> Vec<TimingCase> {
     let two_in = Channels { y: 2, z: 2, u: 1 };
     let acoustic = Channels { y: 1, z: 1, u: 2 };
     let arm = Channels {
-        y: crate::pcac_cost::ARM_P,
-        z: crate::pcac_cost::ARM_P,
-        u: crate::pcac_cost::ARM_M,
+        y: crate::synthetic_arm::ARM_P,
+        z: crate::synthetic_arm::ARM_P,
+        u: crate::synthetic_arm::ARM_M,
     };
     let mut lti = random_controller(50, 2, 1, 0.9, 0.5, 50);
     lti.d.fill(0.0);
@@ -566,7 +567,7 @@ pub fn timing_cases() -> Vec<TimingCase> {
                 "pcac arm next-step 2 kHz",
                 "pcac-arm-next-step-2khz",
                 arm,
-                crate::pcac_cost::arm_controller_toml(),
+                crate::synthetic_arm::arm_controller_toml(),
                 PacedPlant::Arm(7),
             )
         },

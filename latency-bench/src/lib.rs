@@ -64,6 +64,7 @@ pub mod report;
 pub mod rls_cost;
 pub mod roundtrip;
 pub mod step_cost;
+pub mod synthetic_arm;
 pub mod table;
 pub mod timing_phase;
 

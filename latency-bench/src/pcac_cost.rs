@@ -2,56 +2,79 @@
 //!
 //! ## Workloads
 //!
-//! Two sizes of [`control::pcac::Pcac`] ([`Workload`]), both with the
-//! dissertation's next-step timing ([`PcacTiming::NextStep`]), F-test forgetting
-//! (τ_n = 40, τ_d = 200, η = 0.1, α = 0.001), `θ_0 = 10⁻¹⁰ 1` and the shared-covariance
-//! identification kernel:
+//! Two closed loops ([`Workload`]), both with F-test forgetting (τ_n = 40, τ_d = 200,
+//! η = 0.1, α = 0.001) and the shared-covariance identification kernel:
 //!
-//! | workload | `n̂` | `p` | `m` | `θ` | `ℓ` | `C_t` | `Q`, `R` | bounds | plant |
+//! | workload | controller | `n̂` | `p` | `m` | `θ` | `ℓ` | timing | bounds | plant |
 //! | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |
-//! | [`Workload::Truss`] (chapter 6) | 25 | 4 | 2 | 600 | 40 | `[0 0 0 1]` | `10⁶`, `1` | `\|u\| ≤ 10` | the truss of `scenarios/truss/broadband-25hz.toml` at 50 Hz |
-//! | [`Workload::Arm`] (chapter 7) | 1 | 5 | 2 | 35 | 50 | `[0₃ₓ₂ I₃]` | `diag(1000, 100, 1)`, `1` | `\|u\| ≤ 100`, `\|Δu\| ≤ 5` | [`ArmPlant`], synthetic |
+//! | [`Workload::Truss`] (chapter 6) | [`Pcac`], [`truss_params`] (`C_t = [0 0 0 1]`, `Q = 10⁶`, `R = 1`, `θ_0 = 10⁻¹⁰ 1`) | 25 | 4 | 2 | 600 | 40 | next step | `\|u\| ≤ 10` | `scenarios/truss/broadband-25hz.toml` at 50 Hz |
+//! | [`Workload::Arm`] (chapter 7) | `sampling-arm` of [`ARM_CONTROLLER`] | 1 | 5 | 2 | 35 | 50 | same step | `\|u_aug\| ≤ 100`, `\|Δu_aug\| ≤ 20` | [`ARM_SCENARIO`] at 2 kHz |
 //!
 //! The truss is driven by `plant_proxy::sim::PlantSim` on the scenario's plant (its 25 Hz
 //! band-limited disturbance of 1 N RMS at node 1, 40 dB sensor noise), so that the active
 //! sets are those of a real closed loop: with the truss's outputs in millimetres and the
 //! §6.2 weights, the planned input often sits on its ±10 N bound once the model is
 //! identified (the bench reports the share of such steps and the distribution of the
-//! active-set size). The sampling-arm plant of chapter 7 does not exist yet; [`ArmPlant`]
-//! stands in for it at the controller's size (its design is on the type).
+//! active-set size).
+//!
+//! The arm is chapter 7's loop as `rig launch scenarios/arm/linear.toml --controller
+//! scenarios/arm/pcac.toml` runs it: the plant `PlantSim` of the Figure 7.4 surface
+//! (Kelvin–Voigt, `k_s = 2·10⁵` N/m, `c_s = 5` N s/m, noiseless sensors), the controller
+//! read by `service::config::ServiceConfig::load_with_controller` (kind `sampling-arm`, its
+//! robust gain from `scenarios/arm/robust-gain.toml`) and built as
+//! `control::arm::controller::ArmController`. Its step is Algorithm 3: the feedback
+//! linearization (7.31), `u_robust = K χ` and PCAC augmenting `K̄ = [0 K]`
+//! (identification on `τ_f`, the closed-loop realization (7.56)–(7.57), condensing, the
+//! QP), then the torques. Only the samples of the contact phase (`r = F_d > 0`: from the
+//! touch-down at ≈ 2 s for 2 s, 4000 samples) are counted and timed; the joint hold of
+//! the descent is stepped but not timed. When a contact phase ends, plant and controller
+//! are reset and the maneuver runs again, so that `steps` beyond 4000 time further
+//! touch-downs from the prior `w_0` (the plant is noiseless: every maneuver is the same
+//! run, and what varies is the machine).
 //!
 //! ## Method
 //!
-//! Three copies of the loop run in lockstep, in blocks of [`BLOCK`] samples, on the
-//! calling thread (which the bench pins on the RT core under `SCHED_FIFO`):
+//! Two copies of the loop run in lockstep, in blocks of [`BLOCK`] samples, on the calling
+//! thread (which the bench pins on the RT core under `SCHED_FIFO`):
 //!
-//! 1. **Timed.** `Pcac::step` between two `CLOCK_MONOTONIC` readings and nothing else: the
-//!    plant's sample is taken before the first reading and the input applied after the
-//!    second. Its outputs `u_k`, its planned first move `u_{1|k}` and `y_k` are kept for
-//!    the block.
-//! 2. **Reference.** A second controller and plant, built from the same parameters and
-//!    seeds, step through the same samples untimed (the bench checks that they produce
-//!    bit-identical inputs, so that they solve the same QPs). After each step
-//!    `solve_with_clarabel(&pcac.last_problem(), 1e-8)` — clarabel's set-up and solve,
-//!    allocating — is timed, and the first move of both solvers is compared where both
-//!    report *solved*. The active-set size and the iteration count of the dense solver are
-//!    read here from `Controller::internals` (`qp_active`, `qp_iterations`).
-//! 3. **Pieces.** The step taken apart into the public kernels of `service`, fed with the
-//!    timed loop's `y_k` and `u_k`, each timed alone: `IoModel::update` (identification),
-//!    `HorizonPrediction::compute` (realization: state, Markov parameters, free response),
-//!    `Condenser::build` (condensing) and `DenseQpSolver::solve` (warm-started from the
-//!    shifted active set, as `Pcac` does). Its first move is compared with the timed
-//!    controller's, which checks that the pieces are the step.
+//! 1. **Timed.** `Controller::step` between two `CLOCK_MONOTONIC` readings and nothing
+//!    else: the plant's sample is taken before the first reading and the input applied
+//!    after the second. Its output `u_k` and PCAC's planned first move `u_{1|k}` are kept
+//!    for the block.
+//! 2. **Reference.** A second controller and plant, built from the same files and seeds,
+//!    step through the same samples untimed (the bench checks that they produce
+//!    bit-identical inputs, so that they solve the same QPs). After each counted step:
+//!    - **the pieces**: the step's PCAC part taken apart into the public kernels of
+//!      `control`, each timed alone on the data the reference PCAC just used:
+//!      `IoModel::update` on a copy of its model taken before the step (identification;
+//!      the copy's coefficients are checked equal to PCAC's), `HorizonPrediction` on the
+//!      identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
+//!      `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state, Markov
+//!      parameters, free response), `Condenser::build` (condensing) and
+//!      `DenseQpSolver::solve` (warm-started from its own shifted active set, as `Pcac`
+//!      does). Its first move is compared with the timed controller's, which checks that
+//!      the pieces are the step. Not timed as pieces: the arm's linearization and robust
+//!      gain, and PCAC's bookkeeping (the difference between the step and the sum of the
+//!      pieces). The arm's first contact sample of a phase only primes PCAC's regressor
+//!      and has no pieces.
+//!    - **clarabel**: `solve_with_clarabel(&pcac.last_problem(), 1e-8)` — clarabel's
+//!      set-up and solve, allocating — on the reference PCAC's QP (the arm's through
+//!      `ArmController::pcac`), and the first move of both solvers is compared where both
+//!      report *solved*. The active-set size and the iteration count of the dense solver
+//!      are read here from `Controller::internals` (`qp_active`, `qp_iterations`).
 //!
 //! Running the copies in blocks rather than interleaved per step keeps clarabel's
 //! allocations out of the timed controller's cache except at block starts: the first
-//! [`REWARM`] timed steps of each block run but are recorded apart ([`PcacCost::cold`]),
-//! as in [`crate::rls_cost`]. Timing starts after `warmup` samples (identification from
-//! `θ_0` first; the truss needs a few hundred samples before its model means anything).
+//! [`REWARM`] counted steps of each block run but are recorded apart
+//! ([`PcacCost::cold`]), as in [`crate::rls_cost`]. Timing starts after `warmup` counted
+//! samples ([`Workload::default_warmup`]: the truss needs a few hundred samples before
+//! its model means anything; the arm none).
 
 use crate::hist::new_histogram;
+use control::arm::controller::{ArmController, ArmControllerParams, ArmMode};
+use control::bocf::DataWindow;
 use control::forgetting::ForgettingRule;
-use control::mpc::condense::{Condenser, MoveBounds, MpcSpec, Weight};
+use control::mpc::condense::{Condenser, MpcSpec, Weight};
 use control::mpc::qp::{
     ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
 };
@@ -64,8 +87,7 @@ use hdrhistogram::Histogram;
 use ipc_types::ChannelCounts;
 use ipc_types::clock::monotonic_ns;
 use plant_proxy::sim::PlantSim;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use service::config::{ControllerConfig, ServiceConfig};
 
 /// Samples per block of each copy of the loop (see the module docs).
 pub const BLOCK: u64 = 256;
@@ -86,13 +108,21 @@ pub const CLARABEL_TIGHT_TOL: f64 = 1e-11;
 /// The truss scenario the truss workload runs (plant tables only are read).
 const TRUSS_SCENARIO: &str = include_str!("../../scenarios/truss/broadband-25hz.toml");
 
+/// The arm workload's plant scenario: Figure 7.4's surface (`k_s = 2·10⁵`, `c_s = 5`).
+pub const ARM_SCENARIO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/arm/linear.toml");
+
+/// The arm workload's controller file (Algorithm 3 with the PCAC augmentation); its
+/// robust-gain file is found from its folder.
+pub const ARM_CONTROLLER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/arm/pcac.toml");
+
 /// A PCAC size to time (see the module docs for the full parameters).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Workload {
     /// Chapter 6's truss: `n̂ = 25`, `p = 4`, `m = 2` (600 coefficients), `ℓ = 40`, 50 Hz.
     Truss,
-    /// Chapter 7's sampling arm at its size: `n̂ = 1`, `p = 5`, `m = 2`, `ℓ = 50`, input
-    /// and move bounds, on [`ArmPlant`].
+    /// Chapter 7's sampling arm: the controller of `scenarios/arm/pcac.toml` (feedback
+    /// linearization, robust gain, PCAC augmentation with `n̂ = 1`, `p = 5`, `m = 2`,
+    /// `ℓ = 50`) on the plant of `scenarios/arm/linear.toml`, timed in the contact phases.
     Arm,
 }
 
@@ -133,318 +163,215 @@ impl Workload {
         }
     }
 
-    /// Untimed samples before timing starts by default: 500 (10 s of the truss, 0.25 s of
-    /// the arm). The truss loop rides its bound from about sample 200 on; the arm's 35
-    /// coefficients converge within the first few hundred samples.
+    /// Untimed samples before timing starts by default: 500 for the truss (10 s; its loop
+    /// rides its bound from about sample 200 on), none for the arm (its contact phases
+    /// start from the prior `w_0`, and the touch-down's first steps are part of the
+    /// real-time load).
     pub fn default_warmup(self) -> u64 {
-        500
+        match self {
+            Workload::Truss => 500,
+            Workload::Arm => 0,
+        }
     }
+}
 
-    /// The rig's channel counts: `n_y = n_z = p`, no command, `m` inputs.
-    pub fn counts(self) -> ChannelCounts {
-        let p = self.params();
-        ChannelCounts::new(p.model.p, p.model.p, 0, p.model.m).expect("within capacity")
-    }
-
-    /// The controller's parameters.
-    pub fn params(self) -> PcacParams {
-        let rule = ForgettingRule::FTest {
-            tau_n: 40,
-            tau_d: 200,
-            eta: 0.1,
-            alpha: 0.001,
-        };
-        let (n_hat, p, m, p0) = match self {
-            Workload::Truss => (25, 4, 2, 1.0),
-            Workload::Arm => (1, 5, 2, 10.0),
-        };
-        let n_theta = n_hat * p * (p + m);
-        let model = IoModelParams {
+/// The truss workload's PCAC (module docs).
+pub fn truss_params() -> PcacParams {
+    let (n_hat, p, m, p0) = (25, 4, 2, 1.0);
+    let n_theta = n_hat * p * (p + m);
+    PcacParams {
+        model: IoModelParams {
             n_hat,
             p,
             m,
             theta0: vec![1e-10; n_theta],
             p0,
-            rule,
+            rule: ForgettingRule::FTest {
+                tau_n: 40,
+                tau_d: 200,
+                eta: 0.1,
+                alpha: 0.001,
+            },
             trace_limit: 1e6 * n_theta as f64 * p0,
             kernel: IdKernel::Shared,
-        };
-        let mpc = match self {
-            Workload::Truss => MpcSpec {
-                horizon: 40,
-                n_inputs: m,
-                n_outputs: p,
-                n_tracked: 1,
-                tracking: vec![0.0, 0.0, 0.0, 1.0],
-                q: Weight::Scalar(1e6),
-                r: Weight::Scalar(1.0),
-                u_min: vec![-10.0; m],
-                u_max: vec![10.0; m],
-                move_bounds: None,
-                output_constraints: None,
-            },
-            Workload::Arm => {
-                // C_t = [0_{3×2} I_3].
-                let mut tracking = vec![0.0; 3 * p];
-                for i in 0..3 {
-                    tracking[i * p + 2 + i] = 1.0;
-                }
-                MpcSpec {
-                    horizon: 50,
-                    n_inputs: m,
-                    n_outputs: p,
-                    n_tracked: 3,
-                    tracking,
-                    q: Weight::PerChannel(vec![1000.0, 100.0, 1.0]),
-                    r: Weight::Scalar(1.0),
-                    u_min: vec![-ARM_U_MAX; m],
-                    u_max: vec![ARM_U_MAX; m],
-                    move_bounds: Some(MoveBounds {
-                        min: vec![-ARM_DU_MAX; m],
-                        max: vec![ARM_DU_MAX; m],
-                    }),
-                    output_constraints: None,
-                }
-            }
-        };
-        PcacParams {
-            model,
-            mpc,
-            timing: PcacTiming::NextStep,
-            qp: QpSettings::default(),
-            warm_start: true,
-            augmentation: None,
-        }
+        },
+        mpc: MpcSpec {
+            horizon: 40,
+            n_inputs: m,
+            n_outputs: p,
+            n_tracked: 1,
+            tracking: vec![0.0, 0.0, 0.0, 1.0],
+            q: Weight::Scalar(1e6),
+            r: Weight::Scalar(1.0),
+            u_min: vec![-10.0; m],
+            u_max: vec![10.0; m],
+            move_bounds: None,
+            output_constraints: None,
+        },
+        timing: PcacTiming::NextStep,
+        qp: QpSettings::default(),
+        warm_start: true,
+        augmentation: None,
     }
 }
 
-/// The arm workload's input bound `|u| ≤ 100` (§7.3's `u_max`).
-pub const ARM_U_MAX: f64 = 100.0;
-
-/// The arm workload's move bound `|Δu| ≤ 5` per sample, a slew limit of 10⁴ per second
-/// at 2 kHz (not in §7.3; the issue asks for move bounds at this size).
-pub const ARM_DU_MAX: f64 = 5.0;
-
-/// The `[controller]` table of [`Workload::Arm`]'s parameters, for a service run (the
-/// response-time phase, [`crate::timing_phase`]): the rig must have `n_y = 5`, `n_u = 2`
-/// and no command. A unit test checks that `ServiceConfig::parse` reads it into exactly
-/// `Workload::Arm.params()`.
-pub fn arm_controller_toml() -> String {
-    format!(
-        "[controller]\nkind = \"pcac\"\nn-hat = 1\np0 = 10.0\ntheta0 = 1e-10\nhorizon = 50\n\
-         tracking = [[0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]\n\
-         q = [1000.0, 100.0, 1.0]\nr = 1.0\nu-min = {umin:?}\nu-max = {umax:?}\n\
-         du-min = {dumin:?}\ndu-max = {dumax:?}\ntiming = \"next-step\"\n\
-         [controller.forgetting]\nrule = \"f-test\"\ntau-n = 40\ntau-d = 200\neta = 0.1\nalpha = 0.001\n",
-        umin = -ARM_U_MAX,
-        umax = ARM_U_MAX,
-        dumin = -ARM_DU_MAX,
-        dumax = ARM_DU_MAX,
-    )
+/// The controller of a closed loop: PCAC alone (truss) or the arm's Algorithm 3 with PCAC
+/// inside.
+enum Ctrl {
+    Truss(Box<Pcac>),
+    Arm(Box<ArmController>),
 }
 
-/// A synthetic stand-in for the sampling arm at PCAC's chapter 7 size: 5 outputs, 2
-/// inputs, sampled at 2 kHz.
-///
-/// ```text
-/// x_{k+1} = A x_k + B u_k + e w_k,   y_k = x_k + v_k
-/// A = S · blkdiag(ρ₁ R(ω₁), ρ₂ R(ω₂), a₅) · S,   S = I − 2 s sᵀ / sᵀs
-/// ```
-///
-/// `R(ω)` is the 2×2 rotation; `ρ₁ = 0.9995`, `ω₁ = 2π · 6 Hz / 2 kHz` and `ρ₂ = 0.998`,
-/// `ω₂ = 2π · 45 Hz / 2 kHz` are two lightly damped modes (ζ ≈ 3 % and 1.4 %), `a₅ = 0.99`
-/// a slow real pole, and the Householder reflection `S` (`s` fixed) mixes them into every
-/// output, so that the plant is coupled and `A` is not normal. With `y = x` the plant is
-/// exactly a first-order ARX model in 5 outputs, the `n̂ = 1` model PCAC identifies.
-/// The disturbance `w_k` (gain `e`) is a 6 Hz tone of amplitude 12 near the first mode
-/// plus white Gaussian noise of σ 6, the measurement noise `v_k` white (σ 0.01); all
-/// seeded. Its level is chosen so that, under the arm workload's MPC, the inputs ride
-/// their ±100 bound and the moves their ±5 bound part of the time (the unit tests check
-/// that both bounds are reached; the bench reports how often).
-#[derive(Debug, Clone)]
-pub struct ArmPlant {
-    a: [[f64; ARM_P]; ARM_P],
-    b: [[f64; ARM_M]; ARM_P],
-    e: [f64; ARM_P],
-    x: [f64; ARM_P],
-    next: [f64; ARM_P],
-    v: [f64; ARM_P],
-    w: f64,
-    k: u64,
-    rng: ChaCha8Rng,
+/// One copy of a workload's closed loop: the plant, the controller and the sample's data.
+struct ClosedLoop {
+    ctrl: Ctrl,
+    /// PCAC's MPC as the controller runs it.
+    mpc: MpcSpec,
+    plant: Box<PlantSim>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    r: Vec<f64>,
+    u: Vec<f64>,
+    /// The arm: the last sample was in a contact phase.
+    in_contact: bool,
+    /// The arm: the controller was in contact before the last step (PCAC identified).
+    identifies: bool,
 }
 
-/// Outputs of [`ArmPlant`].
-pub const ARM_P: usize = 5;
-/// Inputs of [`ArmPlant`].
-pub const ARM_M: usize = 2;
-
-/// Amplitude of the arm disturbance's tone.
-const ARM_TONE: f64 = 12.0;
-/// Standard deviation of the arm disturbance's white part.
-const ARM_WHITE: f64 = 6.0;
-/// Standard deviation of the arm's measurement noise.
-const ARM_NOISE: f64 = 0.01;
-
-/// A standard normal draw (Box–Muller, one of the pair).
-fn gauss(rng: &mut ChaCha8Rng) -> f64 {
-    let (a, b): (f64, f64) = (rng.random_range(f64::EPSILON..1.0), rng.random());
-    (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-}
-
-impl ArmPlant {
-    /// The plant at rest, its noise drawn from `seed`.
-    pub fn new(seed: u64) -> Self {
-        let fs = 2_000.0;
-        let modes = [(0.9995, 6.0), (0.998, 45.0)];
-        let mut d = [[0.0; ARM_P]; ARM_P];
-        for (i, (rho, hz)) in modes.iter().enumerate() {
-            let w: f64 = 2.0 * std::f64::consts::PI * hz / fs;
-            let (c, s) = (rho * w.cos(), rho * w.sin());
-            d[2 * i][2 * i] = c;
-            d[2 * i][2 * i + 1] = -s;
-            d[2 * i + 1][2 * i] = s;
-            d[2 * i + 1][2 * i + 1] = c;
-        }
-        d[4][4] = 0.99;
-        let s = [1.0, -0.5, 0.3, 0.8, -0.2];
-        let ss: f64 = s.iter().map(|v| v * v).sum();
-        let mut h = [[0.0; ARM_P]; ARM_P];
-        for i in 0..ARM_P {
-            for j in 0..ARM_P {
-                h[i][j] = f64::from(u8::from(i == j)) - 2.0 * s[i] * s[j] / ss;
-            }
-        }
-        let mut hd = [[0.0; ARM_P]; ARM_P];
-        let mut a = [[0.0; ARM_P]; ARM_P];
-        for i in 0..ARM_P {
-            for j in 0..ARM_P {
-                hd[i][j] = (0..ARM_P).map(|l| h[i][l] * d[l][j]).sum();
-            }
-        }
-        for i in 0..ARM_P {
-            for j in 0..ARM_P {
-                a[i][j] = (0..ARM_P).map(|l| hd[i][l] * h[l][j]).sum();
-            }
-        }
-        let b = [
-            [2.0e-3, 0.5e-3],
-            [-1.0e-3, 1.5e-3],
-            [1.5e-3, -1.0e-3],
-            [0.5e-3, 2.0e-3],
-            [1.0e-3, 1.0e-3],
-        ];
-        let e = [0.02, 0.01, -0.015, 0.01, 0.012];
-        let mut p = Self {
-            a,
-            b,
-            e,
-            x: [0.0; ARM_P],
-            next: [0.0; ARM_P],
-            v: [0.0; ARM_P],
-            w: 0.0,
-            k: 0,
-            rng: ChaCha8Rng::seed_from_u64(seed),
-        };
-        p.draw();
-        p
-    }
-
-    /// Draws this sample's measurement noise and disturbance.
-    fn draw(&mut self) {
-        for i in 0..ARM_P {
-            self.v[i] = ARM_NOISE * gauss(&mut self.rng);
-        }
-        let w1 = 2.0 * std::f64::consts::PI * 6.0 / 2_000.0;
-        self.w = ARM_TONE * (w1 * self.k as f64).sin() + ARM_WHITE * gauss(&mut self.rng);
-    }
-
-    /// `y_k` (5 values).
-    pub fn sample(&self, y: &mut [f64]) {
-        for (i, yi) in y.iter_mut().enumerate().take(ARM_P) {
-            *yi = self.x[i] + self.v[i];
-        }
-    }
-
-    /// Applies `u_k` (2 values) and steps to `k + 1`.
-    pub fn advance(&mut self, u: &[f64]) {
-        for i in 0..ARM_P {
-            let mut v = self.e[i] * self.w;
-            for j in 0..ARM_P {
-                v += self.a[i][j] * self.x[j];
-            }
-            for j in 0..ARM_M {
-                v += self.b[i][j] * u.get(j).copied().unwrap_or(0.0);
-            }
-            self.next[i] = v;
-        }
-        self.x = self.next;
-        self.k += 1;
-        self.draw();
-    }
-}
-
-/// The plant of a workload.
-enum Driver {
-    Truss(Box<PlantSim>),
-    Arm(Box<ArmPlant>),
-}
-
-impl Driver {
+impl ClosedLoop {
+    /// The workload's plant and controller, as the service and plant-proxy build them.
     fn new(w: Workload) -> Result<Self, String> {
-        match w {
+        let (plant, ctrl, mpc, n_u) = match w {
             Workload::Truss => {
                 let sc = plant_proxy::scenario::parse(TRUSS_SCENARIO, "broadband-25hz.toml")
                     .map_err(|e| e.to_string())?;
                 let sim = PlantSim::new(&sc.plant, sc.rig.sample_period)
                     .map_err(|e| format!("truss plant: {e}"))?;
-                Ok(Driver::Truss(Box::new(sim)))
+                let params = truss_params();
+                let (p, m) = (params.model.p, params.model.m);
+                let counts = ChannelCounts::new(p, p, 0, m).map_err(|e| e.to_string())?;
+                let c = Pcac::new(&params, service::wire::dimensions(counts))
+                    .map_err(|e| e.to_string())?;
+                (sim, Ctrl::Truss(Box::new(c)), params.mpc, m)
             }
-            Workload::Arm => Ok(Driver::Arm(Box::new(ArmPlant::new(7)))),
-        }
-    }
-
-    /// `y_k` into `y`; `z` and `r` are scratch of the plant's sizes.
-    fn sample(&self, y: &mut [f64], z: &mut [f64]) -> Result<(), String> {
-        match self {
-            Driver::Truss(s) => s.sample(y, z, &mut []).map_err(|e| e.to_string()),
-            Driver::Arm(a) => {
-                a.sample(y);
-                Ok(())
+            Workload::Arm => {
+                let (sim, params, counts) = arm_loop()?;
+                let mpc = params
+                    .augmented_pcac()
+                    .map_err(|e| format!("{ARM_CONTROLLER}: {}", e.message))?
+                    .mpc;
+                let c = ArmController::new(&params, service::wire::dimensions(counts))
+                    .map_err(|e| format!("{ARM_CONTROLLER}: {}", e.message))?;
+                (sim, Ctrl::Arm(Box::new(c)), mpc, counts.n_u as usize)
             }
-        }
-    }
-
-    /// Samples `y_k` into `y` (`z` as in [`Self::sample`]) and returns the controller's
-    /// input of sample `seq` (no command).
-    fn sampled_input<'a>(
-        &self,
-        seq: u64,
-        y: &'a mut [f64],
-        z: &'a mut [f64],
-    ) -> Result<StepInput<'a>, String> {
-        self.sample(y, z)?;
-        Ok(StepInput {
-            seq,
-            y,
-            z,
-            r: &[],
-            ..Default::default()
+        };
+        Ok(Self {
+            y: vec![0.0; plant.n_y()],
+            z: vec![0.0; plant.n_z()],
+            r: vec![0.0; plant.n_r()],
+            u: vec![0.0; n_u],
+            in_contact: false,
+            identifies: true,
+            ctrl,
+            mpc,
+            plant: Box::new(plant),
         })
     }
 
-    fn advance(&mut self, u: &[f64]) -> Result<(), String> {
-        match self {
-            Driver::Truss(s) => s.advance(u).map_err(|e| e.to_string()),
-            Driver::Arm(a) => {
-                a.advance(u);
-                Ok(())
-            }
+    /// PCAC, alone or inside the arm's controller.
+    fn pcac(&self) -> &Pcac {
+        match &self.ctrl {
+            Ctrl::Truss(c) => c,
+            Ctrl::Arm(c) => c.pcac().expect("the arm workload is built with PCAC"),
         }
+    }
+
+    /// Samples the plant; returns whether the sample is one the bench times (truss: all;
+    /// arm: the contact phase, `r > 0`). After a contact phase the arm's maneuver starts
+    /// again: plant and controller back to their start (a fresh run of Figure 7.4).
+    fn sample(&mut self) -> Result<bool, String> {
+        self.plant
+            .sample(&mut self.y, &mut self.z, &mut self.r)
+            .map_err(|e| e.to_string())?;
+        let Ctrl::Arm(c) = &mut self.ctrl else {
+            return Ok(true);
+        };
+        let contact = self.r.first().is_some_and(|f| *f > 0.0);
+        if self.in_contact && !contact {
+            self.plant.reset();
+            c.reset();
+            self.in_contact = false;
+            return self.sample();
+        }
+        self.in_contact = contact;
+        self.identifies = contact && c.mode() == ArmMode::Contact;
+        Ok(contact)
+    }
+
+    /// One step of the controller on the sample `seq` just taken, timed alone by two
+    /// `CLOCK_MONOTONIC` readings; returns the status bits and the duration, ns.
+    fn step(&mut self, seq: u64) -> (u32, u64) {
+        let input = StepInput {
+            seq,
+            y: &self.y,
+            z: &self.z,
+            r: &self.r,
+            ..Default::default()
+        };
+        let (status, t0, t1) = match &mut self.ctrl {
+            Ctrl::Truss(c) => {
+                let t0 = monotonic_ns();
+                let s = c.step(&input, &mut self.u);
+                (s, t0, monotonic_ns())
+            }
+            Ctrl::Arm(c) => {
+                let t0 = monotonic_ns();
+                let s = c.step(&input, &mut self.u);
+                (s, t0, monotonic_ns())
+            }
+        };
+        (status, t1.saturating_sub(t0))
+    }
+
+    /// PCAC's output of the step (truss: `u_k`; arm: `u_aug,k`).
+    fn pcac_output(&self) -> [f64; 2] {
+        match &self.ctrl {
+            Ctrl::Truss(_) => [self.u[0], self.u[1]],
+            Ctrl::Arm(c) => c.augmentation_input(),
+        }
+    }
+
+    /// Applies the step's input and moves the plant to the next sample.
+    fn advance(&mut self) -> Result<(), String> {
+        self.plant.advance(&self.u).map_err(|e| e.to_string())
     }
 }
 
-/// The PCAC step taken apart into its kernels (copy 3 of the module docs).
+/// The arm workload's plant, the controller's parameters and the rig's channel counts,
+/// from [`ARM_SCENARIO`] with the controller tables of [`ARM_CONTROLLER`] (as
+/// `rig launch <scenario> --controller <file>` reads them).
+fn arm_loop() -> Result<(PlantSim, ArmControllerParams, ChannelCounts), String> {
+    let text = std::fs::read_to_string(ARM_SCENARIO)
+        .map_err(|e| format!("{ARM_SCENARIO}: cannot read the file: {e}"))?;
+    let sc = plant_proxy::scenario::parse(&text, ARM_SCENARIO).map_err(|e| e.to_string())?;
+    let sim = PlantSim::new(&sc.plant, sc.rig.sample_period)
+        .map_err(|e| format!("{ARM_SCENARIO}: arm plant: {e}"))?;
+    let cfg = ServiceConfig::load_with_controller(
+        std::path::Path::new(ARM_SCENARIO),
+        std::path::Path::new(ARM_CONTROLLER),
+    )
+    .map_err(|e| e.to_string())?;
+    let ControllerConfig::SamplingArm { params } = cfg.controller else {
+        return Err(format!("{ARM_CONTROLLER}: kind is not \"sampling-arm\""));
+    };
+    if params.pcac.is_none() {
+        return Err(format!("{ARM_CONTROLLER}: controller.pcac: missing"));
+    }
+    Ok((sim, *params, cfg.counts))
+}
+
+/// The PCAC step taken apart into its kernels (module docs, copy 2), each on the data the
+/// reference controller's PCAC just stepped with.
 struct Pieces {
     model: IoModel,
     pred: HorizonPrediction,
@@ -454,19 +381,19 @@ struct Pieces {
     shifted: Vec<ConstraintId>,
     n_shifted: usize,
     reference: Vec<f64>,
-    u_prev: Vec<f64>,
+    u_ref: Vec<f64>,
 }
 
 impl Pieces {
-    fn new(params: &PcacParams) -> Result<Self, String> {
-        let model = IoModel::new(&params.model)?;
-        let pred = HorizonPrediction::new(&model, params.mpc.horizon)?;
-        let cond = Condenser::new(&params.mpc).map_err(|e| e.to_string())?;
-        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
+    fn new(pcac: &Pcac, mpc: &MpcSpec) -> Result<Self, String> {
+        let model = pcac.model().clone();
+        let pred = HorizonPrediction::new(&model, mpc.horizon)?;
+        let cond = Condenser::new(mpc).map_err(|e| e.to_string())?;
+        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), QpSettings::default());
         let ids = cond.n() + cond.n_ineq();
         Ok(Self {
-            reference: vec![0.0; params.mpc.horizon * params.mpc.n_tracked],
-            u_prev: vec![0.0; params.model.m],
+            reference: vec![0.0; mpc.horizon * mpc.n_tracked],
+            u_ref: vec![0.0; mpc.n_inputs],
             active: vec![ConstraintId::Row(0); ids],
             shifted: vec![ConstraintId::Row(0); ids],
             n_shifted: 0,
@@ -477,37 +404,71 @@ impl Pieces {
         })
     }
 
-    /// One next-step-timing step with `y_k` and the applied `u_k`; records the four
-    /// durations (ns) into `t` and returns the QP's status (`None`: not built).
-    fn step(&mut self, y: &[f64], u_k: &[f64], t: &mut [u64; 4]) -> Option<QpStatus> {
+    /// Before the reference step: PCAC's model as it stands (the identification piece
+    /// repeats the step's update on this copy).
+    fn before(&mut self, pcac: &Pcac) {
+        self.model.clone_from(pcac.model());
+    }
+
+    /// After the reference step, which identified: the four kernels on its data, timed
+    /// into `t` (ns). Returns the QP's status (`None`: not built) and the largest
+    /// difference between the copy's coefficients and PCAC's.
+    /// `u_k` is the controller's output at the step.
+    fn step(&mut self, pcac: &Pcac, u_k: &[f64], t: &mut [u64; 4]) -> (Option<QpStatus>, f64) {
+        let m = pcac.model();
+        let (y, tau) = (m.last_y(), m.past_input(1));
         let t0 = monotonic_ns();
-        let _ = self.model.update(y, &self.u_prev);
+        let _ = self.model.update(y, tau);
         let t1 = monotonic_ns();
-        let predicted = self.pred.compute(&self.model, u_k);
-        let t2 = monotonic_ns();
-        self.u_prev.copy_from_slice(u_k);
+        let coef_diff = self
+            .model
+            .coefficients()
+            .iter()
+            .zip(m.coefficients())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        // Same-step timing with the augmentation (the arm): the closed-loop model from its
+        // state, moves from u_aug,k−1; next-step timing (the truss): from the model and
+        // u_k, moves from u_k (`Pcac::solve_mpc`).
+        let t2;
+        let predicted = match pcac.closed_loop_model() {
+            Some(cl) => {
+                let r = self.pred.compute_from_state(&cl);
+                t2 = monotonic_ns();
+                self.u_ref.copy_from_slice(cl.past_input(1));
+                r
+            }
+            None => {
+                let m = self.u_ref.len();
+                self.u_ref.copy_from_slice(&u_k[..m]);
+                let r = self.pred.compute(&self.model, &self.u_ref);
+                t2 = monotonic_ns();
+                r
+            }
+        };
         if predicted.is_err() {
             self.n_shifted = 0;
-            return None;
+            return (None, coef_diff);
         }
         let warm = if self.n_shifted > 0 {
             WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
         } else {
             WarmStart::Cold
         };
+        let t2b = monotonic_ns();
         let Ok(problem) = self.cond.build(
             self.pred.markov(),
             self.pred.free_response(),
-            u_k,
+            &self.u_ref,
             &self.reference,
         ) else {
             self.n_shifted = 0;
-            return None;
+            return (None, coef_diff);
         };
         let t3 = monotonic_ns();
         let status = self.solver.solve(&problem, warm);
         let t4 = monotonic_ns();
-        *t = [t1 - t0, t2 - t1, t3 - t2, t4 - t3];
+        *t = [t1 - t0, t2 - t1, t3 - t2b, t4 - t3];
         if status == QpStatus::Solved {
             let na = self.solver.active_set_into(&mut self.active);
             self.n_shifted = self
@@ -516,7 +477,12 @@ impl Pieces {
         } else {
             self.n_shifted = 0;
         }
-        Some(status)
+        (Some(status), coef_diff)
+    }
+
+    /// A step the pieces do not follow (no identification): the warm start is dropped.
+    fn skip(&mut self) {
+        self.n_shifted = 0;
     }
 
     fn first_move(&self) -> &[f64] {
@@ -527,7 +493,7 @@ impl Pieces {
 /// Names of the four pieces, in the order of [`PcacCost::pieces`].
 pub const PIECES: [&str; 4] = [
     "identification (IoModel::update)",
-    "realization + prediction (HorizonPrediction::compute)",
+    "realization + prediction (HorizonPrediction)",
     "condensing (Condenser::build)",
     "QP solve, warm (DenseQpSolver::solve)",
 ];
@@ -536,7 +502,9 @@ pub const PIECES: [&str; 4] = [
 pub struct PcacCost {
     /// The workload.
     pub workload: Workload,
-    /// `Pcac::step`, ns (warm: the first [`REWARM`] steps of each block excluded).
+    /// PCAC has move bounds ([`PcacCost::at_move_bound`] is meaningful).
+    pub move_bounds: bool,
+    /// The controller's step, ns (warm: the first [`REWARM`] steps of each block excluded).
     pub step: Histogram<u64>,
     /// The timed steps at block starts, after the other copies ran, ns.
     pub cold: Histogram<u64>,
@@ -591,12 +559,15 @@ pub struct PcacCost {
     pub max_abs_u: f64,
 }
 
-/// Per-block storage of the timed copy, read by the other two.
+/// Per-block storage of the timed copy, read by the reference copy.
 struct BlockLog {
     /// The step's duration, ns (`None`: not recorded in [`PcacCost::step`]).
     dt: Vec<Option<u64>>,
-    y: Vec<f64>,
+    /// The sample counts (truss: all; arm: contact phases).
+    counted: Vec<bool>,
+    /// The controller's output `u_k`.
     u: Vec<f64>,
+    /// PCAC's planned first move `u_{1|k}`.
     first: Vec<f64>,
 }
 
@@ -643,39 +614,33 @@ fn internal_of(c: &Pcac, names: &[String], name: &str, buf: &mut [f64; MAX_INTER
 }
 
 /// The measurement of the module docs: `warmup` untimed samples, then `steps` timed
-/// ones; clarabel solves the reference copy's QP at every timed step when
-/// `with_clarabel`.
+/// ones (the arm: samples of its contact phases); clarabel solves the reference copy's QP
+/// at every timed step when `with_clarabel`.
 pub fn measure(
     w: Workload,
     warmup: u64,
     steps: u64,
     with_clarabel: bool,
 ) -> Result<PcacCost, String> {
-    let params = w.params();
-    let counts = w.counts();
-    let (p, m) = (params.model.p, params.model.m);
-    let mut timed =
-        Pcac::new(&params, service::wire::dimensions(counts)).map_err(|e| e.to_string())?;
-    let mut reference =
-        Pcac::new(&params, service::wire::dimensions(counts)).map_err(|e| e.to_string())?;
-    let mut pieces = Pieces::new(&params)?;
-    let mut plant_t = Driver::new(w)?;
-    let mut plant_r = Driver::new(w)?;
-    let names = reference.internal_names();
-    let du_max = params.mpc.move_bounds.as_ref().map(|b| b.max.clone());
+    let mut timed = ClosedLoop::new(w)?;
+    let mut reference = ClosedLoop::new(w)?;
+    let mpc = reference.mpc.clone();
+    let mut pieces = Pieces::new(reference.pcac(), &mpc)?;
+    let (m, n_u) = (mpc.n_inputs, timed.u.len());
+    let names = reference.pcac().internal_names();
+    let du_max = mpc.move_bounds.as_ref().map(|b| b.max.clone());
     let block = BLOCK as usize;
     let mut log = BlockLog {
         dt: vec![None; block],
-        y: vec![0.0; block * p],
-        u: vec![0.0; block * m],
+        counted: vec![false; block],
+        u: vec![0.0; block * n_u],
         first: vec![0.0; block * m],
     };
-    let (mut y, mut z) = (vec![0.0; p], vec![0.0; p]);
-    let (mut u, mut u_prev) = (vec![0.0; m], vec![0.0; m]);
-    let mut ur = vec![0.0; m];
+    let mut u_prev = vec![0.0; m];
     let mut buf = [0.0; MAX_INTERNALS];
     let mut r = PcacCost {
         workload: w,
+        move_bounds: du_max.is_some(),
         step: new_histogram(),
         cold: new_histogram(),
         step_by_active: [new_histogram(), new_histogram()],
@@ -701,61 +666,98 @@ pub fn measure(
         max_abs_u: 0.0,
     };
     let total = warmup + steps;
-    let mut k = 0u64;
-    while k < total {
-        let end = (k + BLOCK).min(total);
-        // 1. The timed copy.
-        for j in k..end {
-            let i = (j - k) as usize;
-            let input = plant_t.sampled_input(j, &mut y, &mut z)?;
-            let t0 = monotonic_ns();
-            let status = timed.step(&input, &mut u);
-            let t1 = monotonic_ns();
-            plant_t.advance(&u)?;
-            let dt = t1.saturating_sub(t0);
-            log.dt[i] = None;
-            if j >= warmup {
-                if j - k < REWARM {
-                    r.cold.saturating_record(dt);
-                } else {
-                    r.step.saturating_record(dt);
-                    log.dt[i] = Some(dt);
+    // `seq` counts every sample, `counted` the samples that count (all for the truss, the
+    // contact phases for the arm): timing starts at counted = warmup.
+    let (mut seq, mut counted) = (0u64, 0u64);
+    while counted < total {
+        // 1. The timed copy, until the block is full or enough steps are counted.
+        let (start_seq, start_counted) = (seq, counted);
+        let mut n = 0usize;
+        let mut in_block = 0u64;
+        while n < block && counted < total {
+            let counts = timed.sample()?;
+            let (status, dt) = timed.step(seq);
+            timed.advance()?;
+            log.dt[n] = None;
+            log.counted[n] = counts;
+            if counts {
+                if counted >= warmup {
+                    if in_block < REWARM {
+                        r.cold.saturating_record(dt);
+                    } else {
+                        r.step.saturating_record(dt);
+                        log.dt[n] = Some(dt);
+                    }
+                    in_block += 1;
+                    if status & status::SATURATED != 0 {
+                        r.saturated += 1;
+                    }
+                    if status & status::FALLBACK != 0 {
+                        r.fallback_steps += 1;
+                    }
+                    let u = timed.pcac_output();
+                    if let Some(dmax) = &du_max
+                        && u.iter()
+                            .zip(&u_prev)
+                            .zip(dmax)
+                            .any(|((a, b), d)| (a - b).abs() >= d - 1e-9)
+                    {
+                        r.at_move_bound += 1;
+                    }
+                    r.max_abs_u = timed.u.iter().fold(r.max_abs_u, |acc, v| acc.max(v.abs()));
                 }
-                if status & status::SATURATED != 0 {
-                    r.saturated += 1;
-                }
-                if status & status::FALLBACK != 0 {
-                    r.fallback_steps += 1;
-                }
-                if let Some(dmax) = &du_max
-                    && u.iter()
-                        .zip(&u_prev)
-                        .zip(dmax)
-                        .any(|((a, b), d)| (a - b).abs() >= d - 1e-9)
-                {
-                    r.at_move_bound += 1;
-                }
-                r.max_abs_u = u.iter().fold(r.max_abs_u, |acc, v| acc.max(v.abs()));
+                counted += 1;
             }
-            u_prev.copy_from_slice(&u);
-            log.y[i * p..(i + 1) * p].copy_from_slice(&y);
-            log.u[i * m..(i + 1) * m].copy_from_slice(&u);
-            log.first[i * m..(i + 1) * m].copy_from_slice(&timed.planned_inputs()[..m]);
+            u_prev.copy_from_slice(&timed.pcac_output()[..m]);
+            log.u[n * n_u..(n + 1) * n_u].copy_from_slice(&timed.u);
+            log.first[n * m..(n + 1) * m].copy_from_slice(&timed.pcac().planned_inputs()[..m]);
+            seq += 1;
+            n += 1;
         }
-        // 2. The reference copy and clarabel.
-        for j in k..end {
-            let i = (j - k) as usize;
-            let input = plant_r.sampled_input(j, &mut y, &mut z)?;
-            reference.step(&input, &mut ur);
-            plant_r.advance(&ur)?;
-            if ur[..] != log.u[i * m..(i + 1) * m] {
+        // 2. The reference copy: clarabel and the pieces on its QPs.
+        let mut c = start_counted;
+        for (i, j) in (start_seq..seq).enumerate() {
+            let counts = reference.sample()?;
+            pieces.before(reference.pcac());
+            reference.step(j);
+            reference.advance()?;
+            if counts != log.counted[i] || reference.u[..] != log.u[i * n_u..(i + 1) * n_u] {
                 r.replica_mismatches += 1;
             }
-            if j < warmup {
+            if !counts {
+                pieces.skip();
                 continue;
             }
-            let active = internal_of(&reference, &names, "qp_active", &mut buf);
-            let iters = internal_of(&reference, &names, "qp_iterations", &mut buf);
+            let measured = c >= warmup;
+            c += 1;
+            let pcac = reference.pcac();
+            // The pieces (only where PCAC identified: not the first sample of a contact).
+            if reference.identifies {
+                let mut t = [0u64; 4];
+                let (st, coef_diff) = pieces.step(pcac, &reference.u, &mut t);
+                r.pieces_diff = r.pieces_diff.max(coef_diff);
+                if st == Some(QpStatus::Solved) {
+                    let d = pieces
+                        .first_move()
+                        .iter()
+                        .zip(&log.first[i * m..(i + 1) * m])
+                        .map(|(a, b)| (a - b).abs())
+                        .fold(0.0, f64::max);
+                    r.pieces_diff = r.pieces_diff.max(d);
+                }
+                if measured && log.dt[i].is_some() && st.is_some() {
+                    for (h, v) in r.pieces.iter_mut().zip(t) {
+                        h.saturating_record(v);
+                    }
+                }
+            } else {
+                pieces.skip();
+            }
+            if !measured {
+                continue;
+            }
+            let active = internal_of(pcac, &names, "qp_active", &mut buf);
+            let iters = internal_of(pcac, &names, "qp_iterations", &mut buf);
             if active.is_finite() {
                 r.active.saturating_record(active as u64);
                 if let Some(dt) = log.dt[i] {
@@ -769,13 +771,13 @@ pub fn measure(
                 continue;
             }
             let t0 = monotonic_ns();
-            let sol = solve_with_clarabel(&reference.last_problem(), CLARABEL_TOL);
+            let sol = solve_with_clarabel(&pcac.last_problem(), CLARABEL_TOL);
             let t1 = monotonic_ns();
             r.clarabel.saturating_record(t1.saturating_sub(t0));
-            if reference.last_qp_status() == Some(QpStatus::Solved) {
+            if pcac.last_qp_status() == Some(QpStatus::Solved) {
                 match sol {
                     Some(s) if s.status == clarabel::solver::SolverStatus::Solved => {
-                        let ours = &reference.planned_inputs()[..m];
+                        let ours = &pcac.planned_inputs()[..m];
                         let d = ours
                             .iter()
                             .zip(&s.x)
@@ -786,8 +788,8 @@ pub fn measure(
                         r.compared += 1;
                         if d > AGREE_TOL {
                             r.over_tol += 1;
-                            let qp = reference.last_problem();
-                            let x = reference.planned_inputs();
+                            let qp = pcac.last_problem();
+                            let x = pcac.planned_inputs();
                             r.optimality_ratio =
                                 r.optimality_ratio.min(optimality_ratio(&qp, x, &s.x));
                             r.clarabel_violation = r.clarabel_violation.max(violation(&qp, &s.x));
@@ -808,34 +810,9 @@ pub fn measure(
                 }
             }
         }
-        // 3. The pieces, on the timed copy's data.
-        let mut t = [0u64; 4];
-        for j in k..end {
-            let i = (j - k) as usize;
-            let st = pieces.step(
-                &log.y[i * p..(i + 1) * p],
-                &log.u[i * m..(i + 1) * m],
-                &mut t,
-            );
-            if st == Some(QpStatus::Solved) {
-                let d = pieces
-                    .first_move()
-                    .iter()
-                    .zip(&log.first[i * m..(i + 1) * m])
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max);
-                r.pieces_diff = r.pieces_diff.max(d);
-            }
-            if j >= warmup && j - k >= REWARM && st.is_some() {
-                for (h, v) in r.pieces.iter_mut().zip(t) {
-                    h.saturating_record(v);
-                }
-            }
-        }
-        k = end;
     }
-    r.counters = timed.counts_of();
-    if u.iter().any(|v| !v.is_finite()) {
+    r.counters = timed.pcac().counts_of();
+    if timed.u.iter().any(|v| !v.is_finite()) {
         return Err(format!("{}: the input is not finite", w.slug()));
     }
     Ok(r)
@@ -858,44 +835,26 @@ mod tests {
         assert!(r.saturated > 0, "the inputs never reach ±10 N");
     }
 
-    /// The arm workload hits its input bound and its move bound, and the same checks as
-    /// the truss's hold (clarabel at tolerance 1e-8 differs from the dense solver's first
-    /// move by up to 3e-2 at this size; its points are feasible and never lower).
+    /// The arm workload builds from the scenario files (plant of `linear.toml`, the
+    /// `sampling-arm` controller of `pcac.toml` through the service's configuration),
+    /// times only contact samples, and on its first contact steps the dense solver's first
+    /// move agrees with clarabel's (or clarabel's point is not better), the reference copy
+    /// replays the timed one and the pieces are PCAC's step.
     #[test]
-    fn the_arm_workload_hits_its_bounds_and_clarabel_is_never_better() {
-        let r = measure(Workload::Arm, 500, 1000, true).unwrap();
-        check_common(&r, 1000);
-        assert!(r.saturated > 0, "the inputs never reach ±{ARM_U_MAX}");
-        assert!(r.at_move_bound > 0, "the moves never reach ±{ARM_DU_MAX}");
-        assert!(r.active.max() > 0);
-    }
-
-    /// The service reads the arm's `[controller]` table into exactly the parameters the
-    /// step-cost phase times (only the form of the scalar `R` differs).
-    #[test]
-    fn the_arm_controller_table_is_the_arm_workload() {
-        let text = crate::configs::service_toml_with(
-            "bench-arm",
-            crate::configs::ARM_PERIOD_NS,
-            crate::configs::Channels {
-                y: ARM_P,
-                z: ARM_P,
-                u: ARM_M,
-            },
-            &arm_controller_toml(),
-            None,
-            false,
+    fn the_arm_workload_runs_the_chapter_7_loop_and_agrees_with_clarabel() {
+        let (sim, params, counts) = arm_loop().unwrap();
+        assert_eq!(
+            (sim.n_y(), sim.n_r(), sim.n_u()),
+            (7, 1, 2),
+            "the arm's wire contract"
         );
-        let cfg = service::config::ServiceConfig::parse(&text, "bench").unwrap();
-        let service::config::ControllerConfig::Pcac { params } = cfg.controller else {
-            panic!("not pcac");
-        };
-        let mut parsed = *params;
-        let expected = Workload::Arm.params();
-        assert_eq!(parsed.mpc.r, Weight::PerChannel(vec![1.0; ARM_M]));
-        parsed.mpc.r = expected.mpc.r.clone();
-        assert_eq!(parsed, expected);
-        assert_eq!(cfg.counts, Workload::Arm.counts());
+        assert_eq!(counts.n_y, 7);
+        assert!(params.pcac.is_some());
+        let r = measure(Workload::Arm, 0, 300, true).unwrap();
+        check_common(&r, 300);
+        assert!(r.move_bounds);
+        // PCAC stepped only in the contact samples: the 300 timed ones.
+        assert_eq!(r.counters.steps, 300);
     }
 
     fn check_common(r: &PcacCost, steps: u64) {

@@ -108,7 +108,7 @@ pub fn pcac_rows(
         c.fallback_steps,
         pct(c.saturated)
     ));
-    if w.params().mpc.move_bounds.is_some() {
+    if c.move_bounds {
         note.push_str(&format!(", Δu at bound {:.1} %", pct(c.at_move_bound)));
     }
     m.note = note;
