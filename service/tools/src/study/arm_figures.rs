@@ -37,14 +37,23 @@ fn edges(v: &[f64]) -> Vec<f64> {
     for i in 1..n {
         e.push((v[i - 1] * v[i]).sqrt());
     }
-    let r = if n > 1 { (v[n - 1] / v[n - 2]).sqrt() } else { 2.0 };
+    let r = if n > 1 {
+        (v[n - 1] / v[n - 2]).sqrt()
+    } else {
+        2.0
+    };
     e.push(v[n - 1] * r);
     e
 }
 
 /// The heat map of `points` (one law on `grid`, in the order of [`Grid::points`]) into
 /// `path`.
-pub fn heat_map(path: &Path, title: &str, grid: &Grid, points: &[&GridPoint]) -> Result<(), String> {
+pub fn heat_map(
+    path: &Path,
+    title: &str,
+    grid: &Grid,
+    points: &[&GridPoint],
+) -> Result<(), String> {
     register_font()?;
     let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
     let root = BitMapBackend::new(path, (900, 650)).into_drawing_area();
@@ -92,10 +101,12 @@ pub fn heat_map(path: &Path, title: &str, grid: &Grid, points: &[&GridPoint]) ->
             .draw_series(std::iter::once(Text::new(
                 format!("{:.1}", p.median),
                 (grid.k_s[i], grid.c[j]),
-                (FONT, 11).into_font().color(&text_color).pos(plotters::style::text_anchor::Pos::new(
-                    plotters::style::text_anchor::HPos::Center,
-                    plotters::style::text_anchor::VPos::Center,
-                )),
+                (FONT, 11).into_font().color(&text_color).pos(
+                    plotters::style::text_anchor::Pos::new(
+                        plotters::style::text_anchor::HPos::Center,
+                        plotters::style::text_anchor::VPos::Center,
+                    ),
+                ),
             )))
             .map_err(|e| fail(&e))?;
     }
@@ -127,7 +138,10 @@ fn color_bar(area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> R
     chart
         .draw_series((0..STEPS).map(|i| {
             let y = lo + i as f64 * h;
-            Rectangle::new([(0.0, y), (1.0, y + h)], ramp((i as f64 + 0.5) / STEPS as f64).filled())
+            Rectangle::new(
+                [(0.0, y), (1.0, y + h)],
+                ramp((i as f64 + 0.5) / STEPS as f64).filled(),
+            )
         }))
         .map_err(|e| e.to_string())?;
     Ok(())
@@ -190,13 +204,25 @@ fn theta_panel(t: &Trace) -> Panel {
             s
         })
         .collect();
-    panel("PCAC augmented controller: model coefficients Θ̃_k (35)", "", series)
+    panel(
+        "PCAC augmented controller: model coefficients Θ̃_k (35)",
+        "",
+        series,
+    )
 }
 
 /// Figure 7.4 / 7.6: both controllers' runs on one surface into `path`.
-pub fn single_run(path: &Path, title: &str, robust: &Trace, augmented: &Trace) -> Result<(), String> {
+pub fn single_run(
+    path: &Path,
+    title: &str,
+    robust: &Trace,
+    augmented: &Trace,
+) -> Result<(), String> {
     let mut panels = Vec::new();
-    let (r, a) = (law_panels(Law::Robust, robust), law_panels(Law::Augmented, augmented));
+    let (r, a) = (
+        law_panels(Law::Robust, robust),
+        law_panels(Law::Augmented, augmented),
+    );
     for (x, y) in r.into_iter().zip(a) {
         panels.push(x);
         panels.push(y);
@@ -208,16 +234,30 @@ pub fn single_run(path: &Path, title: &str, robust: &Trace, augmented: &Trace) -
         vec![
             Series::line("robust", &robust.t, &robust.force, PALETTE[1]),
             Series::line("augmented", &augmented.t, &augmented.force, PALETTE[0]),
-            Series::line("F_d = 25 N", &augmented.t, &vec![F_D; augmented.t.len()], BLACK).with(Mark::Dashed),
+            Series::line(
+                "F_d = 25 N",
+                &augmented.t,
+                &vec![F_D; augmented.t.len()],
+                BLACK,
+            )
+            .with(Mark::Dashed),
         ],
     ));
     plot::figure(path, title, (4, 2), (1400, 1500), &panels)
 }
 
 /// Figure 7.7 / 7.8: the double maneuver, both controllers, with `λ_k` and `tr P_k`.
-pub fn double_run(path: &Path, title: &str, robust: &Trace, augmented: &Trace) -> Result<(), String> {
+pub fn double_run(
+    path: &Path,
+    title: &str,
+    robust: &Trace,
+    augmented: &Trace,
+) -> Result<(), String> {
     let mut panels = Vec::new();
-    let (r, a) = (law_panels(Law::Robust, robust), law_panels(Law::Augmented, augmented));
+    let (r, a) = (
+        law_panels(Law::Robust, robust),
+        law_panels(Law::Augmented, augmented),
+    );
     for (x, y) in r.into_iter().zip(a) {
         panels.push(x);
         panels.push(y);
@@ -225,12 +265,22 @@ pub fn double_run(path: &Path, title: &str, robust: &Trace, augmented: &Trace) -
     panels.push(panel(
         "PCAC augmented controller: forgetting factor λ_k",
         "λ",
-        vec![Series::line("λ_k", &augmented.t, &augmented.lambda, PALETTE[0])],
+        vec![Series::line(
+            "λ_k",
+            &augmented.t,
+            &augmented.lambda,
+            PALETTE[0],
+        )],
     ));
     panels.push(panel(
         "PCAC augmented controller: tr P_k",
         "tr P",
-        vec![Series::line("tr P_k", &augmented.t, &augmented.trace_p, PALETTE[3])],
+        vec![Series::line(
+            "tr P_k",
+            &augmented.t,
+            &augmented.trace_p,
+            PALETTE[3],
+        )],
     ));
     panels.push(theta_panel(augmented));
     panels.push(panel(

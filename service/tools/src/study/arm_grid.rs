@@ -145,7 +145,8 @@ pub fn sweep(setup: &Setup, grids: &[Grid]) -> Vec<GridPoint> {
 /// Writes the points as CSV: `model, controller, k_s, c_s_or_c_r, median_force,
 /// settling_s, failed, failure` (`settling_s` is `inf` when never settled).
 pub fn write_csv(path: &Path, points: &[GridPoint]) -> Result<(), String> {
-    let mut s = String::from("model,controller,k_s,c_s_or_c_r,median_force,settling_s,failed,failure\n");
+    let mut s =
+        String::from("model,controller,k_s,c_s_or_c_r,median_force,settling_s,failed,failure\n");
     for p in points {
         let _ = writeln!(
             s,

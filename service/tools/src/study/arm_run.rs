@@ -120,7 +120,13 @@ impl Model {
             Model::Linear => ContactModel::kelvin_voigt(k_s, c),
             Model::HuntCrossley => ContactModel::hunt_crossley(k_s, c),
         }
-        .map_err(|e| format!("{} surface k_s = {k_s}, {} = {c}: {e}", self.name(), self.second()))
+        .map_err(|e| {
+            format!(
+                "{} surface k_s = {k_s}, {} = {c}: {e}",
+                self.name(),
+                self.second()
+            )
+        })
     }
 }
 
@@ -150,9 +156,11 @@ impl Setup {
             scenario::load(&p).map_err(|e| format!("{}: {e}", p.display()))
         };
         let ctl = |law: Law| -> Result<(ArmControllerParams, control::Dimensions), String> {
-            let cfg =
-                ServiceConfig::load_with_controller(&dir.join("linear.toml"), &dir.join(law.file()))
-                    .map_err(|e| e.to_string())?;
+            let cfg = ServiceConfig::load_with_controller(
+                &dir.join("linear.toml"),
+                &dir.join(law.file()),
+            )
+            .map_err(|e| e.to_string())?;
             match cfg.controller {
                 ControllerConfig::SamplingArm { params } => {
                     Ok((*params, service::wire::dimensions(cfg.counts)))
@@ -194,6 +202,26 @@ impl Setup {
             .model = model.surface(k_s, c)?;
         Ok(sc)
     }
+
+    /// The scenario of `m`.
+    pub fn scenario(&self, m: Maneuver) -> Result<Scenario, String> {
+        match m {
+            Maneuver::Single(model, k_s, c) => self.single_on(model, k_s, c),
+            Maneuver::DoubleLinear => Ok(self.double_linear.clone()),
+            Maneuver::DoubleHuntCrossley => Ok(self.double_hunt_crossley.clone()),
+        }
+    }
+}
+
+/// The maneuvers of §7.3.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Maneuver {
+    /// The single maneuver (`linear.toml`) on the surface `model(k_s, c)`.
+    Single(Model, f64, f64),
+    /// `double-linear.toml` (Figure 7.7).
+    DoubleLinear,
+    /// `double-hunt-crossley.toml` (Figure 7.8).
+    DoubleHuntCrossley,
 }
 
 /// How much of a run to record.
@@ -320,9 +348,15 @@ pub fn contact_stats(r: &[f64], force: &[f64], ts: f64) -> Vec<ContactStats> {
 
 /// Runs `law` on the plant of `scenario` for the scenario's duration (or to the end of
 /// the first contact phase, for [`Record::FirstContact`]).
-pub fn run(setup: &Setup, scenario: &Scenario, law: Law, record: Record) -> Result<Outcome, String> {
+pub fn run(
+    setup: &Setup,
+    scenario: &Scenario,
+    law: Law,
+    record: Record,
+) -> Result<Outcome, String> {
     let ts = scenario.rig.sample_period;
-    let mut sim = PlantSim::new(&scenario.plant, ts).map_err(|e| format!("{}: {e}", scenario.origin))?;
+    let mut sim =
+        PlantSim::new(&scenario.plant, ts).map_err(|e| format!("{}: {e}", scenario.origin))?;
     let mut ctl = ArmController::new(setup.params(law), setup.dims)
         .map_err(|e| format!("{}: {}: {}", law.file(), e.path(), e.message))?;
     let steps = (scenario.rig.duration / ts).round() as u64;
@@ -359,8 +393,12 @@ pub fn run(setup: &Setup, scenario: &Scenario, law: Law, record: Record) -> Resu
             trace.yd.push(y[5]);
             trace.tau1.push(u[0]);
             trace.tau2.push(u[1]);
-            trace.lambda.push(ctl.forgetting_factor().unwrap_or(f64::NAN));
-            trace.trace_p.push(ctl.covariance_trace().unwrap_or(f64::NAN));
+            trace
+                .lambda
+                .push(ctl.forgetting_factor().unwrap_or(f64::NAN));
+            trace
+                .trace_p
+                .push(ctl.covariance_trace().unwrap_or(f64::NAN));
             if let Some(c) = ctl.model_coefficients() {
                 trace.theta.push(c.to_vec());
             }
@@ -405,7 +443,11 @@ mod tests {
         assert_eq!(settling_time(&[25.0, 25.0], ts), 0.0);
         assert_eq!(settling_time(&[0.0, 30.0, 24.0, 25.5], ts), 1.0);
         assert_eq!(settling_time(&[25.0, 0.0], ts), f64::INFINITY);
-        let c = contact_stats(&[0.0, 25.0, 25.0, 0.0, 25.0], &[9.0, 1.0, 25.0, 9.0, 25.0], ts);
+        let c = contact_stats(
+            &[0.0, 25.0, 25.0, 0.0, 25.0],
+            &[9.0, 1.0, 25.0, 9.0, 25.0],
+            ts,
+        );
         assert_eq!(c.len(), 2);
         assert_eq!((c[0].first, c[0].samples, c[0].median), (1, 2, 13.0));
         assert_eq!(c[0].settling, 0.5);
