@@ -27,7 +27,7 @@ use crate::study::arm_figures;
 use crate::study::arm_grid::{self, Grid, GridPoint};
 use crate::study::arm_run::{self, ContactStats, Law, Model, Outcome, Record, Setup, Trace};
 use crate::study::reproduction::{self, Claims, Verdict};
-use crate::study::reproduction_sampling_arm::{self as claims_of, Evidence};
+use crate::study::reproduction_sampling_arm::{self as claims_of, DoubleEvidence, Evidence};
 
 /// The chapter's grid size (at least 10 × 10).
 pub const DEFAULT_GRID: usize = 10;
@@ -224,16 +224,16 @@ pub fn run(n: usize, out: &Path, line: &str) -> Result<Report, String> {
     }
 
     // Claims.
-    let doubles: Vec<(&str, Vec<ContactStats>, &[f64], &[f64])> = pairs[2..]
+    let doubles: Vec<DoubleEvidence> = pairs[2..]
         .iter()
         .map(|p| {
             let t = p.augmented.trace.as_ref().unwrap_or(&empty);
-            (
-                p.figure,
-                p.augmented.contacts.clone(),
-                t.lambda.as_slice(),
-                t.trace_p.as_slice(),
-            )
+            DoubleEvidence {
+                name: p.figure,
+                contacts: p.augmented.contacts.clone(),
+                lambda: t.lambda.as_slice(),
+                trace_p: t.trace_p.as_slice(),
+            }
         })
         .collect();
     let evidence = Evidence {

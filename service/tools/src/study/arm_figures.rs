@@ -195,13 +195,12 @@ fn theta_panel(t: &Trace) -> Panel {
     let series = (0..n)
         .map(|i| {
             let y: Vec<f64> = t.theta.iter().map(|th| th[i]).collect();
-            let s = Series::line(
+            Series::line(
                 if i == 0 { "entries of Θ̃" } else { "" },
                 &t.t,
                 &y,
                 PALETTE[i % PALETTE.len()],
-            );
-            s
+            )
         })
         .collect();
     panel(

@@ -82,6 +82,20 @@ pub const STATEMENTS: [Statement; 8] = [
     },
 ];
 
+/// One double maneuver's evidence: its name, the augmented run's contact phases, its
+/// `λ_k` and `tr P_k` per sample.
+#[derive(Debug, Clone)]
+pub struct DoubleEvidence<'a> {
+    /// The figure's name.
+    pub name: &'a str,
+    /// The augmented run's contact phases.
+    pub contacts: Vec<ContactStats>,
+    /// `λ_k`.
+    pub lambda: &'a [f64],
+    /// `tr P_k`.
+    pub trace_p: &'a [f64],
+}
+
 /// What the claims are checked on.
 #[derive(Debug, Clone)]
 pub struct Evidence<'a> {
@@ -91,9 +105,8 @@ pub struct Evidence<'a> {
     pub fig_7_4: (ContactStats, ContactStats),
     /// Figure 7.6's contact statistics `(robust, augmented)`.
     pub fig_7_6: (ContactStats, ContactStats),
-    /// Per double maneuver: its name, the augmented run's contact phases, its `λ_k` and
-    /// `tr P_k`.
-    pub doubles: Vec<(&'a str, Vec<ContactStats>, &'a [f64], &'a [f64])>,
+    /// Per double maneuver.
+    pub doubles: Vec<DoubleEvidence<'a>>,
 }
 
 /// True when `m` is within `F_d (1 ± BAND)`.
@@ -101,7 +114,7 @@ pub fn reaches(m: f64) -> bool {
     (m - F_D).abs() <= BAND * F_D
 }
 
-fn pts<'a>(g: &'a [GridPoint], model: Model, law: Law) -> Vec<&'a GridPoint> {
+fn pts(g: &[GridPoint], model: Model, law: Law) -> Vec<&GridPoint> {
     g.iter()
         .filter(|p| p.model == model && p.law == law)
         .collect()
@@ -249,7 +262,8 @@ pub fn claims(e: &Evidence<'_>) -> Vec<Claim> {
     let mut ok8 = !e.doubles.is_empty();
     let mut ours7 = Vec::new();
     let mut ours8 = Vec::new();
-    for (name, contacts, lambda, trace_p) in &e.doubles {
+    for d in &e.doubles {
+        let (name, contacts, lambda, trace_p) = (d.name, &d.contacts, d.lambda, d.trace_p);
         let both = contacts.len() >= 2 && contacts.iter().take(2).all(|c| reaches(c.median));
         ok7 &= both;
         ours7.push(format!(
