@@ -150,6 +150,23 @@ enum Study {
         #[arg(long)]
         results: Option<PathBuf>,
     },
+    /// Chapter 7, §7.3: the spacecraft sampling arm's force control, the robust controller
+    /// alone against the PCAC-augmented one, over linear and Hunt–Crossley surface grids,
+    /// in the single runs and the double maneuvers (Figures 7.3–7.8).
+    SamplingArm {
+        /// N of the N × N log-spaced surface grids (default 10; 2 with --quick).
+        #[arg(long)]
+        grid: Option<usize>,
+        /// Output directory.
+        #[arg(long, default_value = "runs/study-sampling-arm")]
+        out: PathBuf,
+        /// Reduced size for a quick check (a 2 × 2 grid; not the reproduction).
+        #[arg(long)]
+        quick: bool,
+        /// Also write the summary as Markdown into this file (e.g. docs/results/sampling-arm.md).
+        #[arg(long)]
+        results: Option<PathBuf>,
+    },
     /// Every study of the dissertation, each into `--out/<study>/`, several at a time, and
     /// one reproduction report `--out/reproduction.md` of the chapters' claims.
     All {
@@ -206,6 +223,12 @@ fn main() -> ExitCode {
             out,
             results,
         } => mrac_study(&example, &command, grid, &out, results.as_deref()),
+        Study::SamplingArm {
+            grid,
+            out,
+            quick,
+            results,
+        } => sampling_arm(grid, quick, &out, results.as_deref()),
         Study::All {
             out,
             quick,
@@ -475,6 +498,36 @@ fn mrac_study(
     );
     if let Some(path) = results {
         mrac::write_results(path, &report)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// `study sampling-arm`: runs, prints the summary, writes `--results` if given.
+fn sampling_arm(
+    grid: Option<usize>,
+    quick: bool,
+    out: &Path,
+    results: Option<&Path>,
+) -> Result<(), String> {
+    use rig_tools::study::arm;
+    let n = grid.unwrap_or(if quick {
+        arm::QUICK_GRID
+    } else {
+        arm::DEFAULT_GRID
+    });
+    let line = format!("study sampling-arm --grid {n}");
+    let report = arm::run(n, out, &line)?;
+    print!("{}", report.markdown);
+    println!(
+        "\n{} threads, {:.2} s; files in {}",
+        rayon::current_num_threads(),
+        report.wall,
+        out.display()
+    );
+    if let Some(path) = results {
+        ipc_types::files::write_atomic(path, report.markdown.as_bytes())
+            .map_err(|e| format!("--results {}: {e}", path.display()))?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -122,6 +122,16 @@ pub const STUDIES: &[StudyEntry] = &[
         claims: reproduction::read,
         cost: 7,
     },
+    StudyEntry {
+        name: "sampling-arm",
+        chapter: 7,
+        title: "Robust against PCAC-augmented force control of the spacecraft sampling arm over linear and Hunt–Crossley surfaces and in double maneuvers, §7.3, Figures 7.3–7.8",
+        full: &[],
+        quick: &["--quick"],
+        summary: "summary.md",
+        claims: reproduction::read,
+        cost: 120,
+    },
 ];
 
 /// The dissertation's chapters with studies.

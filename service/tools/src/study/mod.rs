@@ -8,8 +8,15 @@
 //! - [`pcac_truss`]: chapter 6, PCAC on the 4-bay truss (§6.2).
 //! - [`mrac`], [`mrac_setup`], [`mrac_run`], [`mrac_grid`], [`mrac_summary`],
 //!   [`mrac_figures`]: chapter 4, APPC against RC-MRAC over the pole plane (§4.5–4.7).
+//! - [`arm`], [`arm_run`], [`arm_grid`], [`arm_figures`], [`reproduction_sampling_arm`]:
+//!   chapter 7, the spacecraft sampling arm's force control, robust against
+//!   PCAC-augmented, over the surface grids and the double maneuvers (§7.3).
 
 pub mod all;
+pub mod arm;
+pub mod arm_figures;
+pub mod arm_grid;
+pub mod arm_run;
 pub mod experiment;
 pub mod montecarlo;
 pub mod mrac;
@@ -33,3 +40,4 @@ pub mod reproduction_mrac;
 pub mod reproduction_pcac_truss;
 pub mod reproduction_rcac;
 pub mod reproduction_report;
+pub mod reproduction_sampling_arm;

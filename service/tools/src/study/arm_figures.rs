@@ -1,0 +1,308 @@
+//! The figures of `study sampling-arm`, in the manner of Figures 7.3–7.8.
+//!
+//! - [`heat_map`] (Figures 7.3 and 7.5): the median contact force over the contact phase
+//!   on the `k_s × c` grid, log axes; each point fills the cell between the geometric
+//!   midpoints to its neighbours with the color of its median on the fixed scale
+//!   `[0, 30]` N (the color bar; the same in every map, so that the maps compare), and
+//!   prints the value; a failed run is a black cross.
+//! - [`single_run`] (Figures 7.4 and 7.6): contact force with `F_d`, sampler velocity
+//!   `ẋ`, `ẏ`, torques `τ1`, `τ2`, for both controllers, and the augmented controller's
+//!   PCAC coefficients (the 35 entries of `Θ̃_k`).
+//! - [`double_run`] (Figures 7.7 and 7.8): the same over both contacts with `λ_k` and
+//!   `tr P_k` of the identification.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::plot::{self, Mark, PALETTE, Panel, Series};
+use crate::study::arm_grid::{Grid, GridPoint};
+use crate::study::arm_run::{F_D, Law, Trace};
+use crate::study::mrac_figures::ramp;
+use crate::study::output::register_font;
+
+/// Font family of the embedded font ([`register_font`]).
+const FONT: &str = "sans-serif";
+
+/// The color scale of the heat maps, N.
+pub const SCALE: (f64, f64) = (0.0, 30.0);
+
+/// The cell edges around log-spaced `v`: geometric midpoints, the ends extended by the
+/// same ratio.
+fn edges(v: &[f64]) -> Vec<f64> {
+    let n = v.len();
+    let mut e = Vec::with_capacity(n + 1);
+    let r = if n > 1 { (v[1] / v[0]).sqrt() } else { 2.0 };
+    e.push(v[0] / r);
+    for i in 1..n {
+        e.push((v[i - 1] * v[i]).sqrt());
+    }
+    let r = if n > 1 {
+        (v[n - 1] / v[n - 2]).sqrt()
+    } else {
+        2.0
+    };
+    e.push(v[n - 1] * r);
+    e
+}
+
+/// The heat map of `points` (one law on `grid`, in the order of [`Grid::points`]) into
+/// `path`.
+pub fn heat_map(
+    path: &Path,
+    title: &str,
+    grid: &Grid,
+    points: &[&GridPoint],
+) -> Result<(), String> {
+    register_font()?;
+    let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
+    let root = BitMapBackend::new(path, (900, 650)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let root = root.titled(title, (FONT, 18)).map_err(|e| fail(&e))?;
+    let (left, right) = root.split_horizontally(800);
+    let (kx, cy) = (edges(&grid.k_s), edges(&grid.c));
+    let mut chart = ChartBuilder::on(&left)
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(
+            (kx[0]..kx[kx.len() - 1]).log_scale(),
+            (cy[0]..cy[cy.len() - 1]).log_scale(),
+        )
+        .map_err(|e| fail(&e))?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("k_s")
+        .y_desc(grid.model.second())
+        .label_style((FONT, 12))
+        .draw()
+        .map_err(|e| fail(&e))?;
+    let n = grid.c.len();
+    for (idx, p) in points.iter().enumerate() {
+        let (i, j) = (idx / n, idx % n);
+        let cell = [(kx[i], cy[j]), (kx[i + 1], cy[j + 1])];
+        if p.failed() || !p.median.is_finite() {
+            chart
+                .draw_series(std::iter::once(Cross::new(
+                    (grid.k_s[i], grid.c[j]),
+                    8,
+                    BLACK.stroke_width(2),
+                )))
+                .map_err(|e| fail(&e))?;
+            continue;
+        }
+        let color = ramp((p.median - SCALE.0) / (SCALE.1 - SCALE.0));
+        chart
+            .draw_series(std::iter::once(Rectangle::new(cell, color.filled())))
+            .map_err(|e| fail(&e))?;
+        let text_color = if p.median > 18.0 { BLACK } else { WHITE };
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("{:.1}", p.median),
+                (grid.k_s[i], grid.c[j]),
+                (FONT, 11).into_font().color(&text_color).pos(
+                    plotters::style::text_anchor::Pos::new(
+                        plotters::style::text_anchor::HPos::Center,
+                        plotters::style::text_anchor::VPos::Center,
+                    ),
+                ),
+            )))
+            .map_err(|e| fail(&e))?;
+    }
+    color_bar(&right).map_err(|e| fail(&e))?;
+    root.present().map_err(|e| fail(&e))
+}
+
+/// The color bar of [`SCALE`] in `area`.
+fn color_bar(area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String> {
+    let (lo, hi) = SCALE;
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(20)
+        .margin_bottom(50)
+        .margin_right(10)
+        .y_label_area_size(40)
+        .caption("F_c (N)", (FONT, 13))
+        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .label_style((FONT, 12))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    const STEPS: usize = 100;
+    let h = (hi - lo) / STEPS as f64;
+    chart
+        .draw_series((0..STEPS).map(|i| {
+            let y = lo + i as f64 * h;
+            Rectangle::new(
+                [(0.0, y), (1.0, y + h)],
+                ramp((i as f64 + 0.5) / STEPS as f64).filled(),
+            )
+        }))
+        .map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// A time-series panel.
+fn panel(title: &str, y_label: &str, series: Vec<Series>) -> Panel {
+    Panel {
+        title: title.into(),
+        x_label: "t (s)".into(),
+        y_label: y_label.into(),
+        series,
+        ..Panel::default()
+    }
+}
+
+/// The panels of one controller's run: force, velocity, torques.
+fn law_panels(law: Law, t: &Trace) -> Vec<Panel> {
+    let fd: Vec<f64> = t.r.clone();
+    vec![
+        panel(
+            &format!("{}: contact force", law.label()),
+            "N",
+            vec![
+                Series::line("F_c", &t.t, &t.force, PALETTE[0]),
+                Series::line("F_d", &t.t, &fd, PALETTE[1]).with(Mark::Dashed),
+            ],
+        ),
+        panel(
+            &format!("{}: sampler velocity", law.label()),
+            "m/s",
+            vec![
+                Series::line("ẋ", &t.t, &t.xd, PALETTE[0]),
+                Series::line("ẏ", &t.t, &t.yd, PALETTE[2]),
+            ],
+        ),
+        panel(
+            &format!("{}: joint torques", law.label()),
+            "N m",
+            vec![
+                Series::line("τ1", &t.t, &t.tau1, PALETTE[0]),
+                Series::line("τ2", &t.t, &t.tau2, PALETTE[3]),
+            ],
+        ),
+    ]
+}
+
+/// The 35 coefficients of `Θ̃_k` over time (every entry one line).
+fn theta_panel(t: &Trace) -> Panel {
+    let n = t.theta.first().map_or(0, Vec::len);
+    let series = (0..n)
+        .map(|i| {
+            let y: Vec<f64> = t.theta.iter().map(|th| th[i]).collect();
+            Series::line(
+                if i == 0 { "entries of Θ̃" } else { "" },
+                &t.t,
+                &y,
+                PALETTE[i % PALETTE.len()],
+            )
+        })
+        .collect();
+    panel(
+        "PCAC augmented controller: model coefficients Θ̃_k (35)",
+        "",
+        series,
+    )
+}
+
+/// Figure 7.4 / 7.6: both controllers' runs on one surface into `path`.
+pub fn single_run(
+    path: &Path,
+    title: &str,
+    robust: &Trace,
+    augmented: &Trace,
+) -> Result<(), String> {
+    let mut panels = Vec::new();
+    let (r, a) = (
+        law_panels(Law::Robust, robust),
+        law_panels(Law::Augmented, augmented),
+    );
+    for (x, y) in r.into_iter().zip(a) {
+        panels.push(x);
+        panels.push(y);
+    }
+    panels.push(theta_panel(augmented));
+    panels.push(panel(
+        "contact force, both controllers",
+        "N",
+        vec![
+            Series::line("robust", &robust.t, &robust.force, PALETTE[1]),
+            Series::line("augmented", &augmented.t, &augmented.force, PALETTE[0]),
+            Series::line(
+                "F_d = 25 N",
+                &augmented.t,
+                &vec![F_D; augmented.t.len()],
+                BLACK,
+            )
+            .with(Mark::Dashed),
+        ],
+    ));
+    plot::figure(path, title, (4, 2), (1400, 1500), &panels)
+}
+
+/// Figure 7.7 / 7.8: the double maneuver, both controllers, with `λ_k` and `tr P_k`.
+pub fn double_run(
+    path: &Path,
+    title: &str,
+    robust: &Trace,
+    augmented: &Trace,
+) -> Result<(), String> {
+    let mut panels = Vec::new();
+    let (r, a) = (
+        law_panels(Law::Robust, robust),
+        law_panels(Law::Augmented, augmented),
+    );
+    for (x, y) in r.into_iter().zip(a) {
+        panels.push(x);
+        panels.push(y);
+    }
+    panels.push(panel(
+        "PCAC augmented controller: forgetting factor λ_k",
+        "λ",
+        vec![Series::line(
+            "λ_k",
+            &augmented.t,
+            &augmented.lambda,
+            PALETTE[0],
+        )],
+    ));
+    panels.push(panel(
+        "PCAC augmented controller: tr P_k",
+        "tr P",
+        vec![Series::line(
+            "tr P_k",
+            &augmented.t,
+            &augmented.trace_p,
+            PALETTE[3],
+        )],
+    ));
+    panels.push(theta_panel(augmented));
+    panels.push(panel(
+        "contact force, both controllers",
+        "N",
+        vec![
+            Series::line("robust", &robust.t, &robust.force, PALETTE[1]),
+            Series::line("augmented", &augmented.t, &augmented.force, PALETTE[0]),
+        ],
+    ));
+    plot::figure(path, title, (5, 2), (1400, 1800), &panels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cell_edges_are_geometric_midpoints() {
+        let e = edges(&[1.0, 100.0, 10_000.0]);
+        assert_eq!(e.len(), 4);
+        for (a, b) in e.iter().zip([0.1, 10.0, 1000.0, 100_000.0]) {
+            assert!((a / b - 1.0).abs() < 1e-12, "{a} {b}");
+        }
+    }
+}
