@@ -7,62 +7,14 @@
 //! ```
 
 mod arm_support;
+mod counting_alloc;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::time::Instant;
 
 use arm_support::*;
 use control::arm::controller::ArmController;
 use control::{Controller, MAX_INTERNALS, StepInput};
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-/// [`System`], counting the allocations of the threads that asked for it.
-struct CountingAllocator;
-
-impl CountingAllocator {
-    fn note(&self) {
-        let _ = COUNTING.try_with(|on| {
-            if on.get() {
-                let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
-            }
-        });
-    }
-}
-
-// SAFETY: every method forwards to `System` with the caller's arguments unchanged; the
-// bookkeeping touches only `const`-initialized thread-locals without destructors.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        self.note();
-        // SAFETY: the caller's contract for `alloc` is passed on.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        self.note();
-        // SAFETY: the caller's contract for `alloc_zeroed` is passed on.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        self.note();
-        // SAFETY: the caller's contract for `realloc` is passed on.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: the caller's contract for `dealloc` is passed on.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static ALLOCATOR: CountingAllocator = CountingAllocator;
+use counting_alloc::allocations_in;
 
 /// One controller step on the spacecraft's measurement with the command `f_d`; the
 /// closure `around` wraps the call (counting or timing it).
@@ -104,13 +56,7 @@ fn steps_in_contact_and_hold_do_not_allocate() {
     });
     let mut internals = [0.0; MAX_INTERNALS];
     let mut allocations = 0;
-    let mut count = |f: &mut dyn FnMut()| {
-        COUNTING.with(|on| on.set(true));
-        let before = ALLOCATIONS.with(Cell::get);
-        f();
-        allocations += ALLOCATIONS.with(Cell::get) - before;
-        COUNTING.with(|on| on.set(false));
-    };
+    let mut count = |f: &mut dyn FnMut()| allocations += allocations_in(f);
     let mut k = 0;
     for _ in 0..100 {
         let u = answer(&mut c, &sc, k, F_D, &mut |f| f());
