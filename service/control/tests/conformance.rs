@@ -56,7 +56,6 @@
 
 use control::arm::controller::{ArmController, ArmControllerParams, JointHold};
 use control::arm::dynamics::ArmParams;
-use control::arm::feedback_linearization::{ContactPrior, FeedbackLinearization};
 use control::forgetting::ForgettingRule;
 use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
 use control::mpc::qp::QpSettings;
@@ -69,6 +68,7 @@ use control::{
 };
 use nalgebra::DMatrix;
 
+mod arm_support;
 mod counting_alloc;
 use counting_alloc::allocations_in;
 
@@ -296,53 +296,7 @@ const ARM_LIMITS: Option<(&[f64], &[f64])> =
 /// numerical-error fallback; `tests/arm_step.rs` counts the allocations of the solved
 /// path on the simulated spacecraft.
 fn arm_params(pcac: bool) -> ArmControllerParams {
-    let pcac = pcac.then(|| {
-        let fl = FeedbackLinearization::new(ArmParams::CHAPTER_7);
-        let theta0 = fl
-            .pcac_prior(&ContactPrior::CHAPTER_7, 0.0005)
-            .expect("the chapter's prior");
-        let mut tracking = vec![0.0; 15];
-        for i in 0..3 {
-            tracking[i * 5 + 2 + i] = 1.0;
-        }
-        PcacParams {
-            model: IoModelParams {
-                n_hat: 1,
-                p: 5,
-                m: 2,
-                theta0,
-                p0: 10.0,
-                rule: ForgettingRule::FTest {
-                    tau_n: 40,
-                    tau_d: 200,
-                    eta: 0.1,
-                    alpha: 0.001,
-                },
-                trace_limit: 3.5e8,
-                kernel: IdKernel::Shared,
-            },
-            mpc: MpcSpec {
-                horizon: 50,
-                n_inputs: 2,
-                n_outputs: 5,
-                n_tracked: 3,
-                tracking,
-                q: Weight::PerChannel(vec![1000.0, 100.0, 1.0]),
-                r: Weight::Scalar(1.0),
-                u_min: vec![-100.0; 2],
-                u_max: vec![100.0; 2],
-                move_bounds: Some(MoveBounds {
-                    min: vec![-50.0; 2],
-                    max: vec![50.0; 2],
-                }),
-                output_constraints: None,
-            },
-            timing: PcacTiming::SameStep,
-            qp: QpSettings::default(),
-            warm_start: true,
-            augmentation: None,
-        }
-    });
+    let pcac = pcac.then(arm_support::chapter_pcac);
     ArmControllerParams {
         arm: ArmParams::CHAPTER_7,
         robust_gain: [-0.3, 0.0, 0.0, 0.0, -0.3, 0.01],
