@@ -18,7 +18,7 @@ use plotters::prelude::*;
 use crate::plot::{self, Mark, PALETTE, Panel, Series};
 use crate::study::arm_grid::{Grid, GridPoint};
 use crate::study::arm_run::{F_D, Law, Trace};
-use crate::study::mrac_figures::ramp;
+use crate::study::mrac_figures::{color_bar, ramp};
 use crate::study::output::register_font;
 
 /// Font family of the embedded font ([`register_font`]).
@@ -110,41 +110,8 @@ pub fn heat_map(
             )))
             .map_err(|e| fail(&e))?;
     }
-    color_bar(&right).map_err(|e| fail(&e))?;
+    color_bar(&right, SCALE, "F_c (N)", 0).map_err(|e| fail(&e))?;
     root.present().map_err(|e| fail(&e))
-}
-
-/// The color bar of [`SCALE`] in `area`.
-fn color_bar(area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String> {
-    let (lo, hi) = SCALE;
-    let mut chart = ChartBuilder::on(area)
-        .margin_top(20)
-        .margin_bottom(50)
-        .margin_right(10)
-        .y_label_area_size(40)
-        .caption("F_c (N)", (FONT, 13))
-        .build_cartesian_2d(0.0..1.0, lo..hi)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .disable_x_axis()
-        .label_style((FONT, 12))
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    const STEPS: usize = 100;
-    let h = (hi - lo) / STEPS as f64;
-    chart
-        .draw_series((0..STEPS).map(|i| {
-            let y = lo + i as f64 * h;
-            Rectangle::new(
-                [(0.0, y), (1.0, y + h)],
-                ramp((i as f64 + 0.5) / STEPS as f64).filled(),
-            )
-        }))
-        .map_err(|e| e.to_string())?;
-    Ok(())
 }
 
 /// A time-series panel.

@@ -151,7 +151,7 @@ pub fn heat_map(
         .label_font((FONT, 12))
         .draw()
         .map_err(|e| fail(&e))?;
-    color_bar(&right, (lo, hi)).map_err(|e| fail(&e))?;
+    color_bar(&right, (lo, hi), "log10 ‖e‖", 1).map_err(|e| fail(&e))?;
     root.present().map_err(|e| fail(&e))
 }
 
@@ -179,17 +179,20 @@ fn sector(rho: f64, nu: f64, d_rho: f64, d_nu: f64) -> Vec<(f64, f64)> {
     arc(r1, false).chain(arc(r0, true)).collect()
 }
 
-/// The color bar of `[lo, hi]` in `area`.
-fn color_bar(
+/// The color bar of [`ramp`] over `[lo, hi]` in `area`, captioned `caption`, its labels
+/// with `decimals` digits after the point (the heat maps of the studies share it).
+pub fn color_bar(
     area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
     (lo, hi): (f64, f64),
+    caption: &str,
+    decimals: usize,
 ) -> Result<(), String> {
     let mut chart = ChartBuilder::on(area)
         .margin_top(20)
         .margin_bottom(46)
         .margin_right(10)
         .y_label_area_size(40)
-        .caption("log10 ‖e‖", (FONT, 13))
+        .caption(caption, (FONT, 13))
         .build_cartesian_2d(0.0..1.0, lo..hi.max(lo + 1e-9))
         .map_err(|e| e.to_string())?;
     chart
@@ -197,7 +200,7 @@ fn color_bar(
         .disable_mesh()
         .disable_x_axis()
         .label_style((FONT, 12))
-        .y_label_formatter(&|v| format!("{v:.1}"))
+        .y_label_formatter(&|v| format!("{v:.decimals$}"))
         .draw()
         .map_err(|e| e.to_string())?;
     const STEPS: usize = 100;
