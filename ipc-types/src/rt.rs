@@ -206,9 +206,10 @@ pub fn busy_poll_throttling_warning() -> Option<String> {
     rt_throttling().map(|(runtime, period)| {
         format!(
             "RT throttling is on (sched_rt_runtime_us = {runtime} of {period}): a SCHED_FIFO thread \
-             that busy-polls is stalled for {} ms every {} ms. Use wait = \"block\", \
-             fifo-priority = 0 with busy-poll, or disable throttling on a box with an isolated RT \
-             core (echo -1 > /proc/sys/kernel/sched_rt_runtime_us)",
+             that busy-polls is stalled for {} ms every {} ms. Use wait = \"sleep-poll\" (the \
+             default: it sleeps until shortly before each sample) or \"block\", or disable \
+             throttling on a box with an isolated RT core (echo -1 > \
+             /proc/sys/kernel/sched_rt_runtime_us)",
             (period - runtime) / 1000,
             period / 1000
         )

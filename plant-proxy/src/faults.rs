@@ -11,9 +11,15 @@
 //!   at a deadline (the input sent ahead for it, else its late policy). A deterministic
 //!   stand-in for a service that stalled for `periods` periods, repeatable bit for bit; in
 //!   real time a stall is a real one (SIGSTOP, a CPU hog), so they are refused there.
+//! - **Lost samples** (`lost = [{ at = 4000, periods = 8 }, …]`, lockstep only): the samples
+//!   `at … at + periods − 1` are measured and the plant advances over them, but they are
+//!   never published, as samples that overflowed the service's queue; the plant decides
+//!   their inputs as at a deadline (the input sent ahead for the first, then its late
+//!   policy: the plan). The service sees a gap in the sequence. A deterministic stand-in
+//!   for a loop that lost samples, for testing the gap rules and the verdict.
 //!
-//! Every list holds at most [`MAX_FAULT_SAMPLES`] entries; stalls are sorted by `at`, do not
-//! overlap and last at least one period.
+//! Every list holds at most [`MAX_FAULT_SAMPLES`] entries; stalls and losses are each sorted
+//! by `at`, do not overlap and last at least one period.
 
 use serde::{Deserialize, Serialize};
 
@@ -59,6 +65,10 @@ pub struct Faults {
     /// Injected stalls of the service, sorted and not overlapping (lockstep only).
     #[serde(default)]
     pub stalls: Vec<Stall>,
+    /// Samples never published, sorted and not overlapping (lockstep only; the same
+    /// `{ at, periods }` spans as the stalls).
+    #[serde(default)]
+    pub lost: Vec<Stall>,
 }
 
 fn default_oor() -> f64 {
@@ -99,8 +109,13 @@ impl Faults {
     /// True when sample `k` is inside an injected stall (a binary search of the validated,
     /// sorted list; no allocation).
     pub fn stalled(&self, k: u64) -> bool {
-        let i = self.stalls.partition_point(|s| s.at <= k);
-        i > 0 && self.stalls[i - 1].end().is_none_or(|end| k < end)
+        covers(&self.stalls, k)
+    }
+
+    /// True when sample `k` is one of the injected lost samples (a binary search, no
+    /// allocation).
+    pub fn lost(&self, k: u64) -> bool {
+        covers(&self.lost, k)
     }
 
     /// Checks the bounds: at most [`MAX_FAULT_SAMPLES`] entries per list; stalls of at least
@@ -113,6 +128,7 @@ impl Faults {
             ("neg-inf-at", self.neg_inf_at.len()),
             ("out-of-range-at", self.out_of_range_at.len()),
             ("stalls", self.stalls.len()),
+            ("lost", self.lost.len()),
         ];
         for (name, n) in lists {
             if n > MAX_FAULT_SAMPLES {
@@ -122,17 +138,32 @@ impl Faults {
                 );
             }
         }
+        validate_spans(&self.stalls, "stalls")?;
+        validate_spans(&self.lost, "lost")
+    }
+}
+
+/// True when one of the sorted, validated `spans` covers sample `k`.
+fn covers(spans: &[Stall], k: u64) -> bool {
+    let i = spans.partition_point(|s| s.at <= k);
+    i > 0 && spans[i - 1].end().is_none_or(|end| k < end)
+}
+
+/// Spans of at least one period, sorted by `at`, not overlapping, with `at + periods`
+/// representable; `name` is the list's key below `proxy.faults`.
+fn validate_spans(spans: &[Stall], name: &str) -> Result<(), FaultsError> {
+    let err = |field: String, problem: String| Err(FaultsError { field, problem });
         let mut previous: Option<(usize, Stall, u64)> = None;
-        for (i, s) in self.stalls.iter().enumerate() {
+        for (i, s) in spans.iter().enumerate() {
             if s.periods == 0 {
                 return err(
-                    format!("proxy.faults.stalls[{i}].periods"),
+                    format!("proxy.faults.{name}[{i}].periods"),
                     "must be at least 1".into(),
                 );
             }
             let Some(end) = s.end() else {
                 return err(
-                    format!("proxy.faults.stalls[{i}]"),
+                    format!("proxy.faults.{name}[{i}]"),
                     format!(
                         "at + periods = {} + {} is past the last sample number",
                         s.at, s.periods
@@ -143,9 +174,9 @@ impl Faults {
                 && s.at < p_end
             {
                 return err(
-                    format!("proxy.faults.stalls[{i}].at"),
+                    format!("proxy.faults.{name}[{i}].at"),
                     format!(
-                        "{} is inside or before stalls[{j}] (samples {} to {}): stalls must be \
+                        "{} is inside or before {name}[{j}] (samples {} to {}): the spans must be \
                          sorted by 'at' and must not overlap",
                         s.at,
                         p.at,
@@ -155,8 +186,7 @@ impl Faults {
             }
             previous = Some((i, *s, end));
         }
-        Ok(())
-    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -19,10 +19,11 @@
 //! [proxy.faults]               # crate::faults
 //! nan-at = [10]
 //! stalls = [{ at = 4000, periods = 4 }]   # lockstep only
+//! lost = [{ at = 6000, periods = 3 }]      # lockstep only: samples never published
 //! ```
 //!
 //! Every refusal names the file and the field ([`ProxyConfigError`]). The checks that
-//! depend on the mode (`proxy.faults.stalls` only in lockstep) are made for the mode the
+//! depend on the mode (`proxy.faults.stalls` and `lost` only in lockstep) are made for the mode the
 //! plant will run in: [`ProxyConfig::parse_with_mode`] takes the command line's `--mode`.
 
 use crate::faults::Faults;
@@ -196,6 +197,15 @@ impl ProxyConfig {
                 "injected stalls need lockstep mode (mode = \"lockstep\" or --mode lockstep); \
                  the plant runs in real time, where a stall of the service is a real one \
                  (SIGSTOP, a CPU hog)"
+                    .into(),
+            ));
+        }
+        if self.plant.mode == Mode::RealTime && !self.faults.lost.is_empty() {
+            return Err(field_error(
+                origin,
+                "faults.lost",
+                "injected lost samples need lockstep mode (mode = \"lockstep\" or --mode \
+                 lockstep); in real time samples are lost for real (a service kept off its core)"
                     .into(),
             ));
         }

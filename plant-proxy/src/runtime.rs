@@ -192,6 +192,10 @@ impl PlantIo for SimIo<'_> {
     fn stalled(&self, k: u64) -> bool {
         self.faults.stalled(k)
     }
+
+    fn lost(&self, k: u64) -> bool {
+        self.faults.lost(k)
+    }
 }
 
 /// Runs the plant of `scenario` against the service until `steps` samples are done or

@@ -1,7 +1,7 @@
 //! `service`: the adaptive real-time control service.
 //!
 //! ```text
-//! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait busy-poll|block] [--core N] [--warm-start checkpoint.json]
+//! service run <scenario.toml> [--run-folder DIR] [--exit-with-plant] [--max-cycles N] [--wait sleep-poll|busy-poll|block] [--core N] [--warm-start checkpoint.json]
 //! service check <scenario.toml> [--controller FILE]
 //! service check-system [scenario.toml] [--core N]
 //! service replay RUN_FOLDER [--controller FILE] [--scenario FILE] [--comparison FILE]
@@ -114,11 +114,10 @@ enum Command {
 }
 
 fn parse_wait(s: &str) -> Result<WaitMode, String> {
-    match s {
-        "busy-poll" => Ok(WaitMode::BusyPoll),
-        "block" => Ok(WaitMode::Block),
-        _ => Err(format!("'{s}' is not busy-poll or block")),
-    }
+    [WaitMode::SleepPoll, WaitMode::BusyPoll, WaitMode::Block]
+        .into_iter()
+        .find(|w| w.name() == s)
+        .ok_or_else(|| format!("'{s}' is not sleep-poll, busy-poll or block"))
 }
 
 /// Prints a refused configuration and gives exit code 2.
@@ -185,6 +184,11 @@ fn main() -> ExitCode {
         }
         Command::Check { config, controller } => {
             match ScenarioCheck::load(&config, controller.as_deref()) {
+                Ok(c) if c.service.throttled_busy_poll().is_some() => refused(ConfigError {
+                    file: c.service.origin.clone(),
+                    field: "service.wait".into(),
+                    message: c.service.throttled_busy_poll().unwrap_or_default(),
+                }),
                 Ok(c) => {
                     println!("{}: ok ({})", config.display(), c.summary());
                     ExitCode::SUCCESS

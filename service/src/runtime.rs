@@ -7,7 +7,7 @@
 //! and runs [`LoopCore`], whose per-sample work is:
 //!
 //! ```text
-//!  wait for measurement k (busy-poll or blocking on the plant's event)
+//!  wait for measurement k (sleep-poll, busy-poll or blocking on the plant's event: [`pacing`])
 //!  session: first sample, next (gaps counted as lost), stall resumed, or new plant session
 //!  gate: contract version and counts, finite, in range — else hold u, count
 //!  answer, by service.timing (the safe input instead in the safe state and the open-loop
@@ -59,6 +59,7 @@ pub mod deadline;
 pub mod force_regulation;
 pub mod gate;
 pub mod model_following;
+pub mod pacing;
 pub mod reset;
 pub mod sent;
 pub mod session;
@@ -76,6 +77,7 @@ use checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use control::controller::{Controller, MAX_INTERNALS, StepInput};
 use deadline::{Answer, DeadlineMonitor, SafeStateChange};
 use gate::MeasurementGate;
+pub use pacing::{Pacer, WaitStep};
 use ipc_types::clock::monotonic_ns;
 use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
@@ -286,6 +288,16 @@ pub struct LoopStats {
     pub checkpoints_skipped: u64,
     /// Checkpoints not taken because a learned value was not finite.
     pub checkpoints_not_finite: u64,
+    /// Samples past start-up (the grace period and the open-loop phase of a connection):
+    /// received, and lost just before one received.
+    pub samples_past_startup: u64,
+    /// Of those, the samples lost (never received).
+    pub lost_past_startup: u64,
+    /// Samples past start-up whose plant reports that it held its input or applied its
+    /// safe output over the period before (a late answer that no plan entry covered).
+    pub held_past_startup: u64,
+    /// Closed-loop answers whose input differs from the safe input.
+    pub inputs_off_safe: u64,
 }
 
 /// Why the loop stopped.
@@ -766,6 +778,25 @@ impl LoopCore {
         m.flags & both == both
     }
 
+    /// Counts sample `m`, received after `lost` lost ones, toward the shares of the verdict
+    /// when it is past start-up (the grace period and the open-loop phase): the samples,
+    /// the lost ones, and whether the plant held its input before it.
+    fn count_past_startup(&mut self, m: &Measurement, lost: u64) {
+        if self.deadline.in_grace(self.session.connection_cycle())
+            || self.session.session_cycle() <= self.open_loop_cycles
+        {
+            return;
+        }
+        let f = m.flags;
+        let held = (f & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
+            && f & measurement_flags::PLAN_APPLIED == 0)
+            || f & measurement_flags::PLANT_SAFE_OUTPUT != 0;
+        let s = &mut self.stats;
+        s.samples_past_startup += 1 + lost;
+        s.lost_past_startup += lost;
+        s.held_past_startup += u64::from(held);
+    }
+
     /// Takes in a measurement that was received too late to be answered, because a newer
     /// one was already waiting: the controller records it ([`Controller::observe`], or an
     /// ahead controller's `advance` without adaptation, with the input the plant applies
@@ -787,6 +818,7 @@ impl LoopCore {
         let Some(lost) = self.admit(m) else {
             return;
         };
+        self.count_past_startup(m, lost);
         self.stats.caught_up += 1;
         if !self.admissible(m) {
             return;
@@ -1006,6 +1038,7 @@ impl LoopCore {
             self.stats.impossible_timestamps += 1;
         }
         self.check_u_applied(m);
+        self.count_past_startup(m, lost);
         let cycle = self.session.connection_cycle();
         let flagged = m.flags & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0;
         let covered = m.flags & measurement_flags::PLAN_APPLIED != 0;
@@ -1039,6 +1072,10 @@ impl LoopCore {
         };
         if mode != Mode::Rejected {
             self.accumulate_z(m);
+        }
+        let n_u = self.counts.n_u as usize;
+        if mode == Mode::Control && self.outgoing.u[..n_u] != self.safe_input[..n_u] {
+            self.stats.inputs_off_safe += 1;
         }
         self.pending_jitter = jitter;
         self.finish_cycle(m, t_recv_ns, answer);
@@ -1444,6 +1481,31 @@ pub struct RunReport {
     /// What the controller counted over the run ([`Controller::counters`]), e.g. PCAC's
     /// solved, infeasible and unsolved QPs.
     pub controller_counters: Vec<(String, u64)>,
+    /// How often an adaptive controller's update ran in closed loop and why it did not
+    /// ([`Controller::adaptation`]); `None` for a controller that does not adapt.
+    pub adaptation: Option<AdaptationReport>,
+}
+
+/// An adaptive controller's closed-loop updates, for the run report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AdaptationReport {
+    /// Steps whose update ran.
+    pub updated: u64,
+    /// Steps whose update was suspended, per cause.
+    pub suspended: Vec<(String, u64)>,
+}
+
+impl From<control::Adaptation> for AdaptationReport {
+    fn from(a: control::Adaptation) -> Self {
+        Self {
+            updated: a.updated,
+            suspended: a
+                .suspended
+                .into_iter()
+                .map(|(c, n)| (c.to_string(), n))
+                .collect(),
+        }
+    }
 }
 
 /// The checkpoints of a run, for its report.
@@ -1577,6 +1639,29 @@ impl RunReport {
                 String::new()
             }
         );
+        out += &format!(
+            "past start-up: {} samples, {} lost ({:.2} %), {} inputs held or safe at the \
+             plant ({:.2} %); {} closed-loop inputs off the safe input\n",
+            s.samples_past_startup,
+            s.lost_past_startup,
+            100.0 * verdict::lost_share(s),
+            s.held_past_startup,
+            100.0 * verdict::held_share(s),
+            s.inputs_off_safe
+        );
+        if let Some(a) = &self.adaptation {
+            let total = a.updated + a.suspended.iter().map(|(_, n)| n).sum::<u64>();
+            let causes: Vec<String> = a
+                .suspended
+                .iter()
+                .map(|(c, n)| format!("{n} for {c}"))
+                .collect();
+            out += &format!(
+                "adaptation: {} of {total} closed-loop steps updated; suspended: {}\n",
+                a.updated,
+                causes.join(", ")
+            );
+        }
         out += &format!(
             "deadline: {} misses (service-measured), {} reported by the plant ({} covered by \
              the plan, {} held or safe), longest run {}, safe state entered {}× ({} cycles)\n",
@@ -1965,15 +2050,30 @@ pub fn run(
     if setup.any_refused() {
         warnings.push(format!("real-time set-up incomplete: {}", setup.describe()));
     }
-    if cfg.wait == WaitMode::BusyPoll && setup.fifo == ipc_types::rt::StepOutcome::Done {
-        warnings.extend(ipc_types::rt::busy_poll_throttling_warning());
-    }
+    let throttled_busy_poll = (cfg.wait == WaitMode::BusyPoll
+        && setup.fifo == ipc_types::rt::StepOutcome::Done)
+        .then(ipc_types::rt::busy_poll_throttling_warning)
+        .flatten();
+    let tones = core.tones.report();
+    let adaptation = core.controller.adaptation();
     let verdict = verdict::judge(&verdict::VerdictInputs {
         stats: core.stats,
         safe_state_at_end: core.safe_state_at_end(),
-        max_safe_state_share: cfg.policy.max_safe_state_share,
+        limits: verdict::Limits {
+            max_safe_state_share: cfg.policy.max_safe_state_share,
+            max_lost_share: cfg.policy.max_lost_share,
+            max_held_share: cfg.policy.max_held_share,
+            max_suspended_share: cfg.policy.max_suspended_share,
+            min_suppression_db: cfg.tone_report.min_suppression_db,
+        },
         open_loop_cycles: cfg.open_loop_cycles,
         log_dropped: log.dropped + log.lost_to_disk,
+        adaptation: adaptation.clone(),
+        suppression_db: tones
+            .as_ref()
+            .map(|t| t.tones.iter().map(|l| (l.hz, l.suppression_db)).collect())
+            .unwrap_or_default(),
+        throttled_busy_poll,
     });
     warnings.extend(verdict.warnings.iter().cloned());
     if let Some(e) = &checkpoints.first_error {
@@ -2018,7 +2118,8 @@ pub fn run(
         sample_period_s: cfg.sample_period_ns as f64 * 1e-9,
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
-        tones: core.tones.report(),
+        tones,
+        adaptation: adaptation.map(AdaptationReport::from),
         model_following: core.following.report(),
         force_regulation: core.force.report(),
         system: crate::system_check::check_system(
@@ -2117,7 +2218,7 @@ fn rt_thread_main(
     let waiting = format!("[service] waiting for the plant on rig '{}' ...", cfg.rig);
     let opts = ConnectOptions::new(cfg.peer_timeout)
         .with_shutdown(&shutdown)
-        .with_listener(cfg.wait == WaitMode::Block)
+        .with_listener(cfg.wait != WaitMode::BusyPoll)
         .with_waiting_message(waiting.as_str());
     let ports: ServicePorts =
         match ipc_types::ports::connect(&cfg.rig, own, "adaptive-rig-service", opts) {
@@ -2139,8 +2240,7 @@ fn rt_thread_main(
         &ports,
         &mut core,
         &shutdown,
-        cfg.wait,
-        cfg.sample_period_ns,
+        Pacer::new(cfg.wait, cfg.sample_period_ns, cfg.poll_window_ns),
         max_cycles,
         exit_with_plant,
     );
@@ -2160,9 +2260,9 @@ fn step_input(m: &Measurement, lost: u64) -> StepInput<'_> {
     }
 }
 
-/// Measurements kept per wake-up; the subscriber buffer holds at most 4
-/// (`ipc_types::ports`), so none is dropped here.
-const PENDING: usize = 8;
+/// Measurements kept per wake-up: the subscriber's whole queue
+/// ([`ipc_types::ports::SUBSCRIBER_BUFFER`]), so none is dropped here.
+const PENDING: usize = ipc_types::ports::SUBSCRIBER_BUFFER;
 
 /// Takes every pending measurement of the pinned plant, oldest first, into the ring
 /// `pending` (with `new_peer[i]` true for the first sample of a plant that replaced the
@@ -2216,8 +2316,7 @@ pub fn rt_loop(
     ports: &ServicePorts,
     core: &mut LoopCore,
     shutdown: &AtomicBool,
-    wait: WaitMode,
-    period_ns: u64,
+    mut pacer: Pacer,
     max_cycles: Option<u64>,
     exit_with_plant: bool,
 ) -> StopReason {
@@ -2227,8 +2326,9 @@ pub fn rt_loop(
     let mut spins: u32 = 0;
     let mut last_cleanup_ns = 0u64;
     let mut last_rx_ns = 0u64;
+    let period_ns = core.period_ns;
     let late_ns = period_ns.saturating_add(period_ns / 2);
-    let block_timeout = Duration::from_nanos(period_ns.clamp(50_000, 100_000_000));
+    let wait = pacer.mode();
     loop {
         if shutdown.load(Ordering::Relaxed) {
             return StopReason::Signal;
@@ -2256,6 +2356,11 @@ pub fn rt_loop(
                 core.note_new_peer();
             }
             let m = &pending[(n - 1) % PENDING];
+            pacer.on_sample(
+                m.t_sample_ns,
+                t_recv,
+                m.flags & measurement_flags::LOCKSTEP != 0,
+            );
             let d = core.handle(m, t_recv, &mut out);
             if d.last_sample && exit_with_plant {
                 return StopReason::PlantEnded;
@@ -2265,10 +2370,11 @@ pub fn rt_loop(
             }
             continue;
         }
-        match (wait, &ports.listener) {
-            (WaitMode::Block, Some(listener)) => {
-                let _ = listener.timed_wait(|_| {}, block_timeout);
+        match (pacer.next(monotonic_ns(), ports.listener.is_some()), &ports.listener) {
+            (WaitStep::Block(timeout), Some(listener)) => {
+                let _ = listener.timed_wait(|_| {}, timeout);
             }
+            (WaitStep::SleepUntil(t), _) => ipc_types::clock::sleep_until_ns(t),
             _ => {
                 core::hint::spin_loop();
                 spins = spins.wrapping_add(1);

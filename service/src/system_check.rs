@@ -300,7 +300,8 @@ fn throttling(sys: &SystemRoot) -> Finding {
                  stalled for the rest"
             ),
             "on a box with an isolated RT core: sysctl -w kernel.sched_rt_runtime_us=-1; \
-             otherwise service.wait = \"block\" or fifo-priority = 0 with busy-poll"
+             otherwise service.wait = \"sleep-poll\" (the default) or \"block\", never a \
+             SCHED_FIFO busy-poll"
                 .into(),
         ),
         _ => Finding::unknown(C, "/proc/sys/kernel/sched_rt_* unreadable".into()),

@@ -15,7 +15,7 @@ use service::config::{ServiceConfig, WaitMode};
 use service::record::RecordHeader;
 use service::rt_alloc::{RtAllocStats, RtAwareAllocator, enter_rt_thread, thread_stats};
 use service::runtime::checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
-use service::runtime::{LoopCore, StopReason, rt_loop};
+use service::runtime::{LoopCore, Pacer, StopReason, rt_loop};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -218,8 +218,7 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
         &ports,
         &mut core,
         &shutdown,
-        WaitMode::BusyPoll,
-        period_ns,
+        Pacer::new(WaitMode::BusyPoll, period_ns, 0),
         Some(WARM_UP),
         false,
     );
@@ -232,8 +231,8 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
         &ports,
         &mut core,
         &shutdown,
-        WaitMode::BusyPoll,
-        period_ns,
+        // The default wait: its sleeps and polls allocate nothing either.
+        Pacer::new(WaitMode::SleepPoll, period_ns, 40_000),
         None,
         true,
     );

@@ -42,6 +42,9 @@ from .peer import FOREIGN, NEW_PEER, PeerPin
 
 #: Prefix of every service name of this product.
 SERVICE_PREFIX = "adaptive-rig"
+# Samples a subscriber's queue holds, as ipc_types::ports::SUBSCRIBER_BUFFER: a service
+# created with less is refused when the Rust side opens it.
+SUBSCRIBER_BUFFER = 64
 #: How long a side that refuses a peer for a contract mismatch keeps its own service up,
 #: so that the peer can read it and refuse too (Rust: ``MISMATCH_LINGER``).
 MISMATCH_LINGER_S = 3.0
@@ -407,7 +410,7 @@ def _pubsub_builder(node, name: str, payload):
         .publish_subscribe(payload)
         .max_publishers(1)
         .max_subscribers(1)
-        .subscriber_max_buffer_size(4)
+        .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
         .history_size(0)
         .enable_safe_overflow(True)
     )

@@ -98,6 +98,12 @@ pub trait PlantIo {
     fn stalled(&self, _k: u64) -> bool {
         false
     }
+
+    /// Lockstep test runs: whether sample `k` is lost (measured and applied, never
+    /// published). No device loses samples by default.
+    fn lost(&self, _k: u64) -> bool {
+        false
+    }
 }
 
 /// Runs `steps` samples of `io` on the connected `side` (see the [module
@@ -178,8 +184,16 @@ pub fn run<Io: PlantIo>(
             if policy.mode == Mode::Lockstep && io.stalled(k) {
                 extra |= measurement_flags::INJECTED_STALL;
             }
-            let flags = side.publish(k, t_k, [&y[..n_y], &z[..n_z], &r[..n_r]], extra)?;
+            // The last sample is always published: it tells the service the run ended.
+            let lost = policy.mode == Mode::Lockstep && k + 1 != steps && io.lost(k);
+            let flags = if lost {
+                0
+            } else {
+                side.publish(k, t_k, [&y[..n_y], &z[..n_z], &r[..n_r]], extra)?
+            };
             let input = match (early, policy.mode) {
+                // Never published: its input is decided as at a deadline.
+                (_, Mode::Lockstep) if lost => side.take(k, Wait::Now)?,
                 (Some(mut i), _) => {
                     i.published_flags = flags;
                     Some(i)

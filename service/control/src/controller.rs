@@ -161,6 +161,33 @@ pub trait Controller: Send {
     fn internals(&self, _out: &mut [f64]) -> usize {
         0
     }
+    /// How often an adaptive controller's update ran on the steps it was asked to adapt
+    /// (closed loop) and, per cause, how often it was suspended; the run report gives it
+    /// and the verdict fails a run in which it was suspended on most steps. `None` (the
+    /// default): the controller does not adapt, or does not count. Called outside the
+    /// real-time loop; may allocate.
+    fn adaptation(&self) -> Option<Adaptation> {
+        None
+    }
+}
+
+/// How often an adaptive controller's update ran and why it did not
+/// ([`Controller::adaptation`]). The steps before the controller's own start of adaptation
+/// (RCAC's `k_w`) count in neither.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Adaptation {
+    /// Closed-loop steps whose update ran.
+    pub updated: u64,
+    /// Closed-loop steps whose update was suspended, per cause (a short phrase: "a gap in
+    /// its data", "a bad sample").
+    pub suspended: Vec<(&'static str, u64)>,
+}
+
+impl Adaptation {
+    /// All suspended steps.
+    pub fn suspended(&self) -> u64 {
+        self.suspended.iter().map(|(_, n)| n).sum()
+    }
 }
 
 /// Per-channel limits on `u`.

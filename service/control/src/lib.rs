@@ -58,7 +58,9 @@ mod test_support;
 pub mod tones;
 
 pub use ahead::Ahead;
-pub use controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+pub use controller::{
+    Adaptation, Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status,
+};
 #[cfg(feature = "excitation")]
 pub use excitation::ExcitationSource;
 pub use lti::{ControllerInput, LtiController};

@@ -50,7 +50,9 @@
 //! ```
 //!
 //! [`ServiceConfig::load_with_controller`] replaces the `[controller]` (and `[log]`)
-//! tables of a scenario by those of another file.
+//! tables of a scenario by those of another file; the scenario's acceptance criterion
+//! (`service.report.min-suppression-db`, stated for its own controller) is dropped, and
+//! the keys of the file's own `[service.report]`, if it has one, replace the scenario's.
 
 pub mod answer_timing;
 pub mod arm;
@@ -135,6 +137,8 @@ pub struct ServiceConfig {
     pub require_rt: bool,
     /// How the loop waits.
     pub wait: WaitMode,
+    /// `service.poll-window` in ns: how long before a sample is due `sleep-poll` polls.
+    pub poll_window_ns: u64,
     /// Deadline and silence policy.
     pub policy: DeadlinePolicy,
     /// Accepted measurement ranges.
@@ -269,13 +273,56 @@ impl ServiceConfig {
             "{base_origin} (controller from {})",
             controller_file.display()
         );
+        let mut over = over;
+        let report = match over.remove("service") {
+            None => None,
+            Some(toml::Value::Table(mut service)) => {
+                let report = service.remove("report");
+                if let Some(key) = service.keys().next() {
+                    return Err(ConfigError {
+                        file: controller_file.display().to_string(),
+                        field: format!("service.{key}"),
+                        message: "of [service], a controller file may hold only \
+                                  [service.report] (the controller's acceptance criterion)"
+                            .into(),
+                    });
+                }
+                match report {
+                    Some(toml::Value::Table(r)) => Some(r),
+                    _ => None,
+                }
+            }
+            Some(_) => None,
+        };
         for key in over.keys() {
             if key != "controller" && key != "log" {
                 return Err(ConfigError {
                     file: controller_file.display().to_string(),
                     field: key.clone(),
-                    message: "a controller file may hold only [controller] and [log]".into(),
+                    message: "a controller file may hold only [controller], [log] and \
+                              [service.report]"
+                        .into(),
                 });
+            }
+        }
+        // The scenario's acceptance criterion was stated for its own controller: another
+        // controller is judged by its own file's (none when it states none). The other
+        // [service.report] keys of the controller file replace the scenario's, key by key.
+        if let Some(toml::Value::Table(service)) = base.get_mut("service")
+            && let Some(toml::Value::Table(r)) = service.get_mut("report")
+        {
+            r.remove("min-suppression-db");
+        }
+        if let Some(report) = report
+            && let Some(toml::Value::Table(service)) = base.get_mut("service")
+        {
+            let entry = service
+                .entry("report")
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(base_report) = entry {
+                for (k, v) in report {
+                    base_report.insert(k, v);
+                }
             }
         }
         if !over.contains_key("controller") {
@@ -298,6 +345,17 @@ impl ServiceConfig {
             .map(Path::to_path_buf)
             .unwrap_or_default();
         Self::parse_in(&text, &origin, &base_dir)
+    }
+
+    /// The reason this configuration will not hold real time on this machine, if it is a
+    /// `SCHED_FIFO` thread that busy-polls while the kernel's RT throttling is on: the
+    /// kernel then stalls it for `1 − runtime/period` of every second
+    /// ([`ipc_types::rt::busy_poll_throttling_warning`]). `service check` refuses such a
+    /// configuration and a run of it fails its verdict.
+    pub fn throttled_busy_poll(&self) -> Option<String> {
+        (self.wait == WaitMode::BusyPoll && self.rt.fifo_priority.is_some())
+            .then(ipc_types::rt::busy_poll_throttling_warning)
+            .flatten()
     }
 
     /// Checks the command-line overrides of `service run` as the file's values are
@@ -400,6 +458,7 @@ impl ServiceConfig {
             rt: s.rt,
             require_rt: s.require_rt,
             wait: s.wait,
+            poll_window_ns: s.poll_window_ns,
             policy: s.policy,
             limits: s.limits,
             safe_input: s.safe_input,
@@ -443,7 +502,7 @@ mod tests {
             }
         );
         assert_eq!(c.limits.y_max, vec![5.0]);
-        assert_eq!(c.wait, WaitMode::BusyPoll);
+        assert_eq!(c.wait, WaitMode::SleepPoll);
     }
 
     fn refused(text: &str) -> String {

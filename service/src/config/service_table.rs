@@ -7,7 +7,9 @@
 //! fifo-priority = 80              # SCHED_FIFO priority (0: stay SCHED_OTHER)
 //! mlockall = true
 //! require-rt = false              # true: refuse to run when the OS refuses any of the above
-//! wait = "busy-poll"              # or "block" (WaitMode)
+//! wait = "sleep-poll"             # or "busy-poll", "block" (WaitMode; runtime::pacing)
+//! poll-window = 40e-6             # s: sleep-poll polls from this long before the sample
+//!                                 # is due (cover the timer's wake-up latency; ≤ T/3)
 //! grace-periods = 100             # start-up cycles whose misses do not count toward the limit
 //! max-consecutive-misses = 10     # then go to the safe state (≥ 1)
 //! miss-source = "plant"           # misses the plant reports, or "response-time" (measured here)
@@ -26,6 +28,11 @@
 //!                                 # "reset-controller" (back to its initial state)
 //! max-safe-state-share = 0.1      # a run with more of its closed-loop cycles in the safe
 //!                                 # state fails its verdict (exit status 1)
+//! max-lost-share = 0.01           # ... more of its samples past start-up lost
+//! max-held-share = 0.01           # ... more of its inputs past start-up held or safe-
+//!                                 # outputted by the plant (a late answer no plan covered)
+//! max-suspended-share = 0.5       # ... an adaptive controller's update suspended (a gap
+//!                                 # in its data, a bad sample) on more of its steps
 //! u-applied-tolerance = 1e-6      # |u_applied − u_sent| above this raises the foreign-
 //!                                 # actuation alarm (a DAQ reading back quantized outputs
 //!                                 # needs about one DAC step)
@@ -61,14 +68,30 @@ use serde::Deserialize;
 use std::path::PathBuf;
 use std::time::Duration;
 
-/// How the RT thread waits for the next measurement.
+/// How the RT thread waits for the next measurement ([`crate::runtime::pacing`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum WaitMode {
-    /// Spin on the subscriber (lowest latency; burns the pinned core).
+    /// Sleep until `service.poll-window` before the next sample is due, then poll a
+    /// bounded window (the default: preempts other work on its core at `SCHED_FIFO`, never
+    /// reaches RT throttling).
+    SleepPoll,
+    /// Spin on the subscriber (burns the pinned core; at `SCHED_FIFO` with RT throttling on
+    /// the kernel stalls it every second, and `service check` refuses that).
     BusyPoll,
-    /// Sleep on the plant's iceoryx2 event (spares the core; adds a wake-up).
+    /// Sleep on the plant's iceoryx2 event (spares the core; adds the event's wake-up).
     Block,
+}
+
+impl WaitMode {
+    /// The name in the configuration (`sleep-poll`, `busy-poll`, `block`).
+    pub fn name(self) -> &'static str {
+        match self {
+            WaitMode::SleepPoll => "sleep-poll",
+            WaitMode::BusyPoll => "busy-poll",
+            WaitMode::Block => "block",
+        }
+    }
 }
 
 /// Which misses count toward the safe-state limit.
@@ -112,6 +135,14 @@ pub struct DeadlinePolicy {
     /// Largest share of the closed-loop cycles a run may spend in the safe state and still
     /// pass its verdict.
     pub max_safe_state_share: f64,
+    /// Largest share of the samples past start-up a run may lose and still pass.
+    pub max_lost_share: f64,
+    /// Largest share of the inputs past start-up the plant may hold or replace by its safe
+    /// output (late answers no plan covered) in a run that passes.
+    pub max_held_share: f64,
+    /// Largest share of an adaptive controller's closed-loop steps whose update may be
+    /// suspended in a run that passes.
+    pub max_suspended_share: f64,
 }
 
 /// Accepted range of each measurement channel.
@@ -156,6 +187,10 @@ pub(super) struct RawService {
     miss_source: Option<MissSource>,
     u_applied_tolerance: Option<f64>,
     max_safe_state_share: Option<f64>,
+    max_lost_share: Option<f64>,
+    max_held_share: Option<f64>,
+    max_suspended_share: Option<f64>,
+    poll_window: Option<f64>,
     peer_timeout: Option<f64>,
     safe_input: Option<ScalarOrVec>,
     y_min: Option<ScalarOrVec>,
@@ -181,6 +216,7 @@ pub(super) struct ServiceTable {
     pub rt: RtRequest,
     pub require_rt: bool,
     pub wait: WaitMode,
+    pub poll_window_ns: u64,
     pub policy: DeadlinePolicy,
     pub limits: MeasurementLimits,
     pub safe_input: Vec<f64>,
@@ -228,6 +264,10 @@ pub(super) fn parse(
     let cycles = |v: Option<u64>, default: u64, min: u64, field: &str| {
         count(v.unwrap_or(default), min, max_cycles, field, err)
     };
+    let share = |v: Option<f64>, default: f64, field: &str| match v.unwrap_or(default) {
+        x if (0.0..=1.0).contains(&x) => Ok(x),
+        _ => Err(err(field, "must lie in [0, 1]".into())),
+    };
     let policy = DeadlinePolicy {
         grace_cycles: cycles(s.grace_periods, 100, 0, "service.grace-periods")?,
         max_consecutive_misses: cycles(
@@ -243,15 +283,10 @@ pub(super) fn parse(
         reset_on_resume: s.reset_on_resume.unwrap_or(false),
         on_timing_fault: s.on_timing_fault.unwrap_or_default(),
         miss_source: s.miss_source.unwrap_or(MissSource::Plant),
-        max_safe_state_share: match s.max_safe_state_share.unwrap_or(0.1) {
-            x if (0.0..=1.0).contains(&x) => x,
-            _ => {
-                return Err(err(
-                    "service.max-safe-state-share",
-                    "must lie in [0, 1]".into(),
-                ));
-            }
-        },
+        max_safe_state_share: share(s.max_safe_state_share, 0.1, "service.max-safe-state-share")?,
+        max_lost_share: share(s.max_lost_share, 0.01, "service.max-lost-share")?,
+        max_held_share: share(s.max_held_share, 0.01, "service.max-held-share")?,
+        max_suspended_share: share(s.max_suspended_share, 0.5, "service.max-suspended-share")?,
         u_applied_tolerance: match s.u_applied_tolerance.unwrap_or(1e-6) {
             t if t >= 0.0 && t.is_finite() => t,
             _ => {
@@ -311,7 +346,26 @@ pub(super) fn parse(
         counts,
         rt,
         require_rt: s.require_rt.unwrap_or(false),
-        wait: s.wait.unwrap_or(WaitMode::BusyPoll),
+        wait: s.wait.unwrap_or(WaitMode::SleepPoll),
+        poll_window_ns: {
+            let w = seconds(
+                s.poll_window.unwrap_or(40e-6),
+                true,
+                MAX_WAIT_S,
+                "service.poll-window",
+                err,
+            )?;
+            if w > period / 3.0 {
+                return Err(err(
+                    "service.poll-window",
+                    format!(
+                        "{w} s is more than a third of the sample period {period} s: the \
+                         thread would poll most of each period"
+                    ),
+                ));
+            }
+            (w * 1e9).round() as u64
+        },
         policy,
         limits,
         safe_input,

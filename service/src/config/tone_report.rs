@@ -9,6 +9,11 @@
 //! error-window = [101, 200]       # samples (seq, inclusive) of ‖e‖ (4.85) for a controller
 //!                                 # that follows a reference model (APPC, RC-MRAC); default:
 //!                                 # the whole run only
+//! min-suppression-db = 60.0       # the acceptance criterion: a run in which a tone is
+//!                                 # suppressed by less (or not measured) fails its verdict;
+//!                                 # default: none. It is the scenario's controller's: a
+//!                                 # controller file (`--controller`) replaces it by its
+//!                                 # own [service.report] min-suppression-db, or by none
 //! force-regulation = { measured = 6, set-point = 0, band = 0.05 }
 //!                                 # y channel of the measured force, r channel of its
 //!                                 # set-point, the ± band of the settling time (a fraction
@@ -40,6 +45,9 @@ pub struct ToneReportConfig {
     pub error_window: Option<(u64, u64)>,
     /// The force regulation report (`service.report.force-regulation`), when configured.
     pub force_regulation: Option<ForceRegulationConfig>,
+    /// The acceptance criterion `service.report.min-suppression-db`: every tone must be
+    /// suppressed by at least this much for the run to pass.
+    pub min_suppression_db: Option<f64>,
 }
 
 /// Which channels hold a regulated force and its set-point, for the run report's contact
@@ -69,6 +77,7 @@ pub(super) struct RawReport {
     window: Option<f64>,
     error_window: Option<[u64; 2]>,
     force_regulation: Option<RawForceRegulation>,
+    min_suppression_db: Option<f64>,
 }
 
 /// The tones (given, or those of `[plant.disturbance]`) and the window, which must fit in
@@ -126,12 +135,38 @@ pub(super) fn parse(
         None => None,
         Some(f) => Some(force_regulation(f, counts, err)?),
     };
+    let min_suppression_db = match raw.min_suppression_db {
+        Some(d) if !d.is_finite() => {
+            return Err(err(
+                "service.report.min-suppression-db",
+                format!("{d} must be a finite number of dB"),
+            ));
+        }
+        Some(_) if tones_hz.is_empty() => {
+            return Err(err(
+                "service.report.min-suppression-db",
+                "there is no tone to judge: give service.report.tones-hz or \
+                 [plant.disturbance] tones"
+                    .into(),
+            ));
+        }
+        Some(_) if open_loop_cycles == 0 => {
+            return Err(err(
+                "service.report.min-suppression-db",
+                "suppression is measured against the open-loop phase: service.open-loop must \
+                 be positive"
+                    .into(),
+            ));
+        }
+        d => d,
+    };
     Ok(ToneReportConfig {
         tones_hz,
         source,
         window_cycles,
         error_window,
         force_regulation,
+        min_suppression_db,
     })
 }
 

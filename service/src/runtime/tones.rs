@@ -209,6 +209,7 @@ mod tests {
             window_cycles: 400,
             error_window: None,
             force_regulation: None,
+            min_suppression_db: None,
         };
         let period = 1e-3;
         let mut m = ToneMeter::new(&cfg, 1000, 1, period);

@@ -9,7 +9,20 @@
 //! 2. the share of closed-loop cycles spent in the safe state,
 //!    `s = n_safe / (n_steps + n_safe)`, exceeds `service.max-safe-state-share`;
 //! 3. samples past the open-loop phase were answered but the controller never ran;
-//! 4. the plant reported applying inputs the service did not send (a foreign actuation).
+//! 4. the plant reported applying inputs the service did not send (a foreign actuation);
+//! 5. the share of the samples past start-up (the grace period and the open-loop phase)
+//!    that never reached the service, `lost / (received + lost)` over those samples,
+//!    exceeds `service.max-lost-share`;
+//! 6. the share of the inputs past start-up that the plant held or replaced by its safe
+//!    output (a late answer that no plan entry covered) exceeds `service.max-held-share`;
+//! 7. the controller ran, but none of its inputs left the safe input (`service.safe-input`):
+//!    it controlled nothing;
+//! 8. an adaptive controller's update was suspended (a gap in its data, a bad sample) on
+//!    more than `service.max-suspended-share` of its closed-loop steps;
+//! 9. a tone of the report was suppressed by less than `service.report.min-suppression-db`
+//!    (the scenario's acceptance criterion), or could not be measured;
+//! 10. the service busy-polled at `SCHED_FIFO` while the kernel's RT throttling was on: the
+//!     kernel stalled it every second, so its figures are not those of a real-time loop.
 //!
 //! Everything else that makes the figures less than they look — lost, refused or rejected
 //! samples, new plant sessions, impossible sample times, misses during start-up, dropped
@@ -34,19 +47,59 @@ pub struct SafeStateAtEnd {
     pub longest_clean_run: u64,
 }
 
+/// The acceptance limits of a run (`[service]` and `[service.report]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    /// `service.max-safe-state-share`.
+    pub max_safe_state_share: f64,
+    /// `service.max-lost-share`.
+    pub max_lost_share: f64,
+    /// `service.max-held-share`.
+    pub max_held_share: f64,
+    /// `service.max-suspended-share`.
+    pub max_suspended_share: f64,
+    /// `service.report.min-suppression-db`, when the scenario states one.
+    pub min_suppression_db: Option<f64>,
+}
+
+impl Default for Limits {
+    /// The configuration's defaults.
+    fn default() -> Self {
+        Self {
+            max_safe_state_share: 0.1,
+            max_lost_share: 0.01,
+            max_held_share: 0.01,
+            max_suspended_share: 0.5,
+            min_suppression_db: None,
+        }
+    }
+}
+
+/// How often an adaptive controller's update ran in closed loop and why it did not
+/// ([`control::Controller::adaptation`]).
+pub use control::controller::Adaptation;
+
 /// What the verdict is computed from.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct VerdictInputs {
     /// The loop's counters.
     pub stats: LoopStats,
     /// `Some` when the run ended in the safe state.
     pub safe_state_at_end: Option<SafeStateAtEnd>,
-    /// `service.max-safe-state-share`.
-    pub max_safe_state_share: f64,
+    /// The acceptance limits.
+    pub limits: Limits,
     /// Cycles of the open-loop phase of a session.
     pub open_loop_cycles: u64,
     /// Signal-log records dropped.
     pub log_dropped: u64,
+    /// The controller's adaptation counts, for an adaptive controller.
+    pub adaptation: Option<Adaptation>,
+    /// Per tone of the report: its frequency (Hz) and suppression (dB; `None`: not
+    /// measured).
+    pub suppression_db: Vec<(f64, Option<f64>)>,
+    /// The throttling warning, when the loop busy-polled at `SCHED_FIFO` with throttling
+    /// on.
+    pub throttled_busy_poll: Option<String>,
 }
 
 /// The verdict: failures make the run failed; warnings qualify its figures.
@@ -81,6 +134,21 @@ pub fn safe_state_share(stats: &LoopStats) -> f64 {
     }
 }
 
+/// The share of the samples past start-up that were lost (0 without any).
+pub fn lost_share(stats: &LoopStats) -> f64 {
+    ratio(stats.lost_past_startup, stats.samples_past_startup)
+}
+
+/// The share of the inputs past start-up that the plant held or replaced by its safe
+/// output (0 without any).
+pub fn held_share(stats: &LoopStats) -> f64 {
+    ratio(stats.held_past_startup, stats.samples_past_startup)
+}
+
+fn ratio(n: u64, d: u64) -> f64 {
+    if d == 0 { 0.0 } else { n as f64 / d as f64 }
+}
+
 /// The verdict of the module docs.
 pub fn judge(v: &VerdictInputs) -> RunVerdict {
     let s = &v.stats;
@@ -102,15 +170,91 @@ pub fn judge(v: &VerdictInputs) -> RunVerdict {
         ));
     }
     let share = safe_state_share(s);
-    if share > v.max_safe_state_share {
+    let limits = &v.limits;
+    if share > limits.max_safe_state_share {
         failures.push(format!(
             "{:.1} % of the closed-loop cycles in the safe state ({} of {}), more than \
              service.max-safe-state-share = {:.1} %",
             100.0 * share,
             s.safe_state_cycles,
             s.controller_steps + s.safe_state_cycles,
-            100.0 * v.max_safe_state_share
+            100.0 * limits.max_safe_state_share
         ));
+    }
+    let lost = lost_share(s);
+    if lost > limits.max_lost_share {
+        failures.push(format!(
+            "SAMPLES LOST: {:.2} % of the samples past start-up never reached the service ({} \
+             of {}), more than service.max-lost-share = {:.2} %",
+            100.0 * lost,
+            s.lost_past_startup,
+            s.samples_past_startup,
+            100.0 * limits.max_lost_share
+        ));
+    }
+    let held = held_share(s);
+    if held > limits.max_held_share {
+        failures.push(format!(
+            "INPUTS HELD: the plant held or safe-outputted {:.2} % of the inputs past start-up \
+             ({} of {}; late answers no plan covered), more than service.max-held-share = \
+             {:.2} %",
+            100.0 * held,
+            s.held_past_startup,
+            s.samples_past_startup,
+            100.0 * limits.max_held_share
+        ));
+    }
+    if s.controller_steps > 0 && s.inputs_off_safe == 0 {
+        failures.push(format!(
+            "NO CONTROL: the controller ran {} steps but its input never left the safe input",
+            s.controller_steps
+        ));
+    }
+    if let Some(a) = &v.adaptation {
+        let closed = a.updated + a.suspended();
+        let suspended = ratio(a.suspended(), closed);
+        if closed > 0 && suspended > limits.max_suspended_share {
+            let causes: Vec<String> = a
+                .suspended
+                .iter()
+                .filter(|(_, n)| *n > 0)
+                .map(|(cause, n)| format!("{n} for {cause}"))
+                .collect();
+            failures.push(format!(
+                "ADAPTATION SUSPENDED on {:.1} % of the closed-loop steps ({} of {}: {}), more \
+                 than service.max-suspended-share = {:.1} %",
+                100.0 * suspended,
+                a.suspended(),
+                closed,
+                causes.join(", "),
+                100.0 * limits.max_suspended_share
+            ));
+        }
+    }
+    if let Some(min) = limits.min_suppression_db {
+        let short: Vec<String> = v
+            .suppression_db
+            .iter()
+            .filter(|(_, db)| db.is_none_or(|d| d.is_nan() || d < min))
+            .map(|(hz, db)| match db {
+                Some(d) => format!("{hz} Hz {d:.1} dB"),
+                None => format!("{hz} Hz not measured"),
+            })
+            .collect();
+        if v.suppression_db.is_empty() {
+            failures.push(format!(
+                "SUPPRESSION NOT MEASURED: service.report.min-suppression-db = {min} dB, but the \
+                 run measured no tone"
+            ));
+        } else if !short.is_empty() {
+            failures.push(format!(
+                "SUPPRESSION BELOW {min} dB (service.report.min-suppression-db): {}",
+                short.join(", ")
+            ));
+        }
+    }
+    if let Some(w) = &v.throttled_busy_poll {
+        failures.push(format!("THROTTLED BUSY-POLL: {w}"));
     }
     if s.controller_steps == 0 && s.published > v.open_loop_cycles && s.safe_state_cycles == 0 {
         failures.push(format!(
@@ -177,9 +321,12 @@ mod tests {
         VerdictInputs {
             stats,
             safe_state_at_end: None,
-            max_safe_state_share: 0.1,
+            limits: Limits::default(),
             open_loop_cycles: 10,
             log_dropped: 0,
+            adaptation: None,
+            suppression_db: vec![],
+            throttled_busy_poll: None,
         }
     }
 
@@ -188,6 +335,8 @@ mod tests {
             received: 1000,
             published: 1000,
             controller_steps: 990,
+            inputs_off_safe: 990,
+            samples_past_startup: 900,
             ..LoopStats::default()
         }
     }
@@ -248,7 +397,10 @@ mod tests {
             "{v:?}"
         );
         let v = judge(&VerdictInputs {
-            max_safe_state_share: 0.25,
+            limits: Limits {
+                max_safe_state_share: 0.25,
+                ..Limits::default()
+            },
             ..inputs(stats)
         });
         assert!(v.ok, "{v:?}");
@@ -258,6 +410,7 @@ mod tests {
     fn a_controller_that_never_ran_and_foreign_actuations_fail_the_run() {
         let v = judge(&inputs(LoopStats {
             controller_steps: 0,
+            inputs_off_safe: 0,
             foreign_actuations: 3,
             ..clean()
         }));
@@ -291,5 +444,89 @@ mod tests {
         assert!(v.ok);
         assert_eq!(v.warnings.len(), 12, "{:#?}", v.warnings);
         assert!(v.warnings[1].starts_with("3 samples refused"));
+    }
+
+    #[test]
+    fn lost_samples_past_start_up_above_the_limit_fail_the_run_naming_the_share() {
+        let at = |lost| LoopStats {
+            lost_past_startup: lost,
+            skipped: lost,
+            ..clean()
+        };
+        assert!(judge(&inputs(at(9))).ok, "1 % of 900 is the limit itself");
+        let v = judge(&inputs(at(10)));
+        assert!(!v.ok);
+        assert_eq!(
+            v.failures,
+            ["SAMPLES LOST: 1.11 % of the samples past start-up never reached the service (10 \
+              of 900), more than service.max-lost-share = 1.00 %"]
+        );
+        assert!(v.warnings[0].starts_with("10 samples lost"), "{v:?}");
+    }
+
+    #[test]
+    fn inputs_the_plant_held_above_the_limit_fail_the_run() {
+        let v = judge(&inputs(LoopStats {
+            held_past_startup: 20,
+            ..clean()
+        }));
+        assert!(!v.ok);
+        assert!(v.failures[0].starts_with("INPUTS HELD: the plant held or safe-outputted 2.22 %"));
+    }
+
+    #[test]
+    fn a_controller_whose_input_never_left_the_safe_input_fails_the_run() {
+        let v = judge(&inputs(LoopStats {
+            inputs_off_safe: 0,
+            ..clean()
+        }));
+        assert_eq!(
+            v.failures,
+            ["NO CONTROL: the controller ran 990 steps but its input never left the safe input"]
+        );
+    }
+
+    #[test]
+    fn adaptation_suspended_on_most_steps_fails_the_run_naming_the_causes() {
+        let adaptation = |updated, gap| Adaptation {
+            updated,
+            suspended: vec![("a gap in its data", gap), ("a bad sample", 0)],
+        };
+        let mut i = inputs(clean());
+        i.adaptation = Some(adaptation(500, 500));
+        assert!(judge(&i).ok, "half is the limit itself");
+        i.adaptation = Some(adaptation(100, 890));
+        let v = judge(&i);
+        assert_eq!(
+            v.failures,
+            ["ADAPTATION SUSPENDED on 89.9 % of the closed-loop steps (890 of 990: 890 for a gap \
+              in its data), more than service.max-suspended-share = 50.0 %"]
+        );
+    }
+
+    #[test]
+    fn a_tone_below_the_acceptance_criterion_fails_the_run_and_an_unmeasured_one_too() {
+        let mut i = inputs(clean());
+        i.limits.min_suppression_db = Some(60.0);
+        i.suppression_db = vec![(800.0, Some(66.0)), (900.0, Some(61.0))];
+        assert!(judge(&i).ok);
+        i.suppression_db = vec![(800.0, Some(66.0)), (900.0, Some(12.2)), (1060.0, None)];
+        let v = judge(&i);
+        assert_eq!(
+            v.failures,
+            ["SUPPRESSION BELOW 60 dB (service.report.min-suppression-db): 900 Hz 12.2 dB, 1060 \
+              Hz not measured"]
+        );
+        i.suppression_db.clear();
+        assert!(judge(&i).failures[0].starts_with("SUPPRESSION NOT MEASURED"));
+        i.limits.min_suppression_db = None;
+        assert!(judge(&i).ok, "no criterion, no failure");
+    }
+
+    #[test]
+    fn a_throttled_fifo_busy_poll_fails_the_run() {
+        let mut i = inputs(clean());
+        i.throttled_busy_poll = Some("RT throttling is on".into());
+        assert_eq!(judge(&i).failures, ["THROTTLED BUSY-POLL: RT throttling is on"]);
     }
 }

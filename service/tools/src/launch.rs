@@ -52,7 +52,7 @@ pub struct LaunchOptions {
     pub mode: String,
     /// Seconds of plant time (default: the scenario's `rig.duration`).
     pub duration: Option<f64>,
-    /// `busy-poll` or `block`, passed to `service run --wait`.
+    /// `sleep-poll`, `busy-poll` or `block`, passed to `service run --wait`.
     pub wait: Option<String>,
     /// The service's RT core, passed to `service run --core`.
     pub core: Option<usize>,

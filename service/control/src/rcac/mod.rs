@@ -330,6 +330,9 @@ pub struct Rcac {
     update_from: u64,
     /// Gaps bridged (lost samples, counted once per gap).
     gaps: u64,
+    /// Steps asked to adapt (from `k_w` on): updated, suspended for a bridged gap in the
+    /// windows, suspended for a bad sample ([`Controller::adaptation`]).
+    adapted: [u64; 3],
     limits: Option<OutputLimits>,
     /// [`RcacParams::answers_ahead`], computed once at construction.
     ahead: bool,
@@ -699,6 +702,7 @@ impl Rcac {
             k: 0,
             update_from: 0,
             gaps: 0,
+            adapted: [0; 3],
             limits: params.limits.clone(),
             ahead: params.answers_ahead(),
             ready_u: vec![0.0; lu],
@@ -807,6 +811,16 @@ impl Rcac {
         let learn = self.k >= self.kw && self.k >= self.update_from;
         self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
         // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows).
+        if adapt && self.k >= self.kw {
+            let i = if !ok {
+                2
+            } else if learn {
+                0
+            } else {
+                1
+            };
+            self.adapted[i] += 1;
+        }
         if ok && learn && adapt {
             if self.update_theta(input.z) {
                 status |= status::CONTROLLER_FAULT;
@@ -1249,6 +1263,16 @@ impl Controller for Rcac {
             ("coefficient resets", self.resets()),
             ("gaps bridged", self.gaps()),
         ]
+    }
+
+    /// From `k_w` on: steps updated, suspended while a bridged gap is in the windows, and
+    /// suspended on a bad sample.
+    fn adaptation(&self) -> Option<crate::controller::Adaptation> {
+        let [updated, gap, bad] = self.adapted;
+        Some(crate::controller::Adaptation {
+            updated,
+            suspended: vec![("a bridged gap in its windows", gap), ("a bad sample", bad)],
+        })
     }
 
     fn internal_names(&self) -> Vec<String> {

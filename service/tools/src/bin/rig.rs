@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! rig launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--run-folder DIR]
-//!            [--wait busy-poll|block] [--core N] [--controller FILE] [--warm-start FILE]
+//!            [--wait sleep-poll|busy-poll|block] [--core N] [--controller FILE] [--warm-start FILE]
 //!            [--plant-trace]
 //! rig plot <run-folder>
 //! rig stalls <scenario.toml> [--plan-length H] [--runs DIR] [--results FILE] [--json FILE]
@@ -52,7 +52,7 @@ enum Command {
         /// Folder for this run's artifacts (default: `<service.run-dir>/<rig>-<time>`).
         #[arg(long)]
         run_folder: Option<PathBuf>,
-        /// Override service.wait (busy-poll or block).
+        /// Override service.wait (sleep-poll, busy-poll or block).
         #[arg(long)]
         wait: Option<String>,
         /// Override service.core (the RT core).
