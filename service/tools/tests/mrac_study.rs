@@ -57,14 +57,12 @@ fn out_dir(name: &str) -> PathBuf {
 fn a_small_study_writes_its_files_and_repeats_the_kernel_tests_single_runs() {
     let out = out_dir("small");
     let options = Options::parse("1", "step", 3).expect("valid");
-    let t0 = std::time::Instant::now();
     let report = mrac::run(
         &options,
         &out,
         "study mrac --example 1 --command step --grid 3",
     )
     .expect("runs");
-    assert!(t0.elapsed().as_secs_f64() < 10.0);
 
     for f in [
         "grid.csv",

@@ -35,7 +35,7 @@
 //! `s(λ)` decreases with `λ`; [`largest_certified_decay`] bisects for the largest `λ` with
 //! `s > `[`MARGIN_TOLERANCE`], which the tool prints beside the requested one.
 
-use super::sdp::{self, SdpSolution};
+use super::sdp::{self, SdpSolution, Tolerances};
 use control::arm::robust::{LmiCertificate, LmiMargins, RobustBox, Vertex};
 use nalgebra::{DMatrix, Matrix2x3, Matrix3, Vector3};
 
@@ -60,6 +60,12 @@ pub struct RobustDesign {
     pub gain: Matrix2x3<f64>,
     /// The solver's status and iterations.
     pub solver: String,
+    /// The solver stopped at the tolerances it was given (`Solved`), not at clarabel's
+    /// reduced ones (`AlmostSolved`).
+    pub full_accuracy: bool,
+    /// The dual bound on the margin (minus the dual cost): the optimal `s` at this `e_0`
+    /// lies between it and [`RobustDesign::margin`] up to the residuals.
+    pub dual_margin: f64,
 }
 
 impl RobustDesign {
@@ -95,6 +101,30 @@ impl RobustDesign {
         .margins(&self.scaled_vertices(), alpha)
     }
 
+    /// The largest margin `s` at which the returned `(Q̃, Ỹ)` satisfies the normalized
+    /// program *exactly* (no solver residual): with `M_v = Ã_v Q̃ + B̃_v Ỹ` and `Q̃ ≻ 0`,
+    /// the vertex inequality is, by its Schur complement, `s ≤ λ_min(α Q̃ − M_v Q̃⁻¹ M_vᵀ)`;
+    /// `Q̃ ⪰ s I` is `s ≤ λ_min(Q̃)`; and when `λ_max(Q̃)` exceeds 1 by the residual,
+    /// `(Q̃, Ỹ, s) / λ_max(Q̃)` satisfies `Q̃ ⪯ I` as well (every inequality is homogeneous
+    /// in `(Q̃, Ỹ, s)`). So this is a lower bound on the optimal `s` at this `e_0` (up to
+    /// the rounding of 3×3 eigenvalues); `None` when `Q̃` is not positive definite.
+    pub fn feasible_margin(&self) -> Option<f64> {
+        let q = self.certificate.q;
+        let ev = q.symmetric_eigenvalues();
+        if ev.min() <= 0.0 {
+            return None;
+        }
+        let qi = q.try_inverse()?;
+        let alpha = self.design.contraction().powi(2);
+        let schur = self.scaled_vertices().map(|v| {
+            let m = v.a * q + v.b * self.certificate.y;
+            let c = q * alpha - m * qi * m.transpose();
+            (0.5 * (c + c.transpose())).symmetric_eigenvalues().min()
+        });
+        let s = schur.iter().copied().fold(ev.min(), f64::min);
+        Some(s / ev.max().max(1.0))
+    }
+
     /// The condition number of `Q̃`.
     pub fn condition(&self) -> f64 {
         let ev = self.certificate.q.symmetric_eigenvalues();
@@ -123,6 +153,15 @@ fn sym3(x: &[f64]) -> Matrix3<f64> {
 /// Solves the normalized (7.41) for `design` in the coordinates scaled by `e_0 =
 /// force_scale`. Variables: the six entries of `Q̃`, the six of `Ỹ` (row-major), `s`.
 pub fn solve(design: &RobustBox, force_scale: f64) -> Result<RobustDesign, String> {
+    solve_with(design, force_scale, &Tolerances::DEFAULT)
+}
+
+/// [`solve`] with the solver's stopping tolerances `tol`.
+pub fn solve_with(
+    design: &RobustBox,
+    force_scale: f64,
+    tol: &Tolerances,
+) -> Result<RobustDesign, String> {
     design.validate()?;
     if !(force_scale.is_finite() && force_scale > 0.0) {
         return Err(format!("force scale {force_scale} must be positive"));
@@ -152,10 +191,12 @@ pub fn solve(design: &RobustBox, force_scale: f64) -> Result<RobustDesign, Strin
     c[12] = -1.0;
     let SdpSolution {
         x,
+        dual_cost,
         status,
+        full_accuracy,
         iterations,
         ..
-    } = sdp::minimize(&c, &lmis)
+    } = sdp::minimize_with(&c, &lmis, tol)
         .map_err(|e| format!("(7.41) at λ = {} /s: {e}", design.decay_rate))?;
     let certificate = LmiCertificate {
         q: sym3(&x[0..6]),
@@ -172,19 +213,84 @@ pub fn solve(design: &RobustBox, force_scale: f64) -> Result<RobustDesign, Strin
         certificate,
         gain,
         solver: format!("clarabel {status} in {iterations} iterations"),
+        full_accuracy,
+        dual_margin: -dual_cost,
     })
 }
 
+/// The largest margin `s` that certifies a *given* gain `K` over `design`'s box at `e_0 =
+/// force_scale`: the normalized (7.41) with `Ỹ = K̃ Q̃` (`K̃ = K D⁻¹`), maximized over `Q̃`
+/// and `s` only. The result's `gain` is `K`; its certificate is `(Q̃, K̃ Q̃, s)`. A gain
+/// that is optimal for the box has the optimal `s` of [`solve`] here (up to the solver's
+/// accuracy); a perturbed one has less.
+pub fn certify_gain(
+    design: &RobustBox,
+    gain: &Matrix2x3<f64>,
+    force_scale: f64,
+) -> Result<RobustDesign, String> {
+    design.validate()?;
+    if !(force_scale.is_finite() && force_scale > 0.0) {
+        return Err(format!("force scale {force_scale} must be positive"));
+    }
+    let d = scale(force_scale);
+    let k_scaled = gain * Matrix3::from_diagonal(&d.map(|v| 1.0 / v));
+    let vertices = design.vertices().map(|v| v.scaled(&d));
+    let alpha = design.contraction().powi(2);
+    let to_d = |m: Matrix3<f64>| DMatrix::from_fn(3, 3, |i, j| m[(i, j)]);
+    let cert_of = |x: &[f64]| {
+        let q = sym3(&x[0..6]);
+        LmiCertificate {
+            q,
+            y: k_scaled * q,
+            s: x[6],
+        }
+    };
+    let lmis = sdp::affine_lmis(7, |x| {
+        let cert = cert_of(x);
+        let mut out: Vec<DMatrix<f64>> = vertices
+            .iter()
+            .map(|v| {
+                let l = cert.vertex_matrix(v, alpha);
+                DMatrix::from_fn(6, 6, |i, j| l[(i, j)])
+            })
+            .collect();
+        out.push(to_d(cert.q - Matrix3::identity() * cert.s));
+        out.push(to_d(Matrix3::identity() - cert.q));
+        out
+    });
+    let mut c = vec![0.0; 7];
+    c[6] = -1.0;
+    let sol = sdp::minimize(&c, &lmis)
+        .map_err(|e| format!("(7.41) for a given K at λ = {} /s: {e}", design.decay_rate))?;
+    Ok(RobustDesign {
+        design: *design,
+        force_scale,
+        certificate: cert_of(&sol.x),
+        gain: *gain,
+        solver: format!("clarabel {} in {} iterations", sol.status, sol.iterations),
+        full_accuracy: sol.full_accuracy,
+        dual_margin: -sol.dual_cost,
+    })
+}
+
+/// The width (decades of `e_0`) of the final bracket of [`best_force_scale`]'s search.
+pub const FORCE_SCALE_BRACKET: f64 = 0.01;
+
 /// [`solve`] at the `e_0 ∈ [1, 10⁵]` N s/m that maximizes the margin `s` (golden-section
-/// search over `log₁₀ e_0`, to 0.01 decades).
+/// search over `log₁₀ e_0`, to [`FORCE_SCALE_BRACKET`] decades).
 pub fn best_force_scale(design: &RobustBox) -> Result<RobustDesign, String> {
+    best_force_scale_with(design, &Tolerances::DEFAULT)
+}
+
+/// [`best_force_scale`] with the solver's stopping tolerances `tol`.
+pub fn best_force_scale_with(design: &RobustBox, tol: &Tolerances) -> Result<RobustDesign, String> {
     let g = (5f64.sqrt() - 1.0) / 2.0;
-    let at = |l: f64| solve(design, 10f64.powf(l));
+    let at = |l: f64| solve_with(design, 10f64.powf(l), tol);
     let (mut a, mut b) = (0.0_f64, 5.0_f64);
     let mut x1 = b - g * (b - a);
     let mut x2 = a + g * (b - a);
     let (mut f1, mut f2) = (at(x1)?, at(x2)?);
-    while b - a > 0.01 {
+    while b - a > FORCE_SCALE_BRACKET {
         if f1.margin() >= f2.margin() {
             b = x2;
             (x2, f2) = (x1, f1);

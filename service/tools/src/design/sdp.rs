@@ -17,6 +17,25 @@
 //!
 //! [`affine_lmis`] builds the `F_{l,i}` of an affine matrix function from its values at
 //! `x = 0` and at the unit vectors, so a caller writes the inequalities once, as matrices.
+//!
+//! # What a solve guarantees
+//!
+//! The solver's stopping rule is the whole of what a caller may rely on, so the tolerances
+//! are set here explicitly ([`Tolerances::DEFAULT`], clarabel's documented defaults; a
+//! change of clarabel's defaults cannot move them). With `p = cᵀ x` and `d` the dual cost,
+//! clarabel reports `Solved` when
+//!
+//! ```text
+//! |p − d| < gap_abs   or   |p − d| / max(1, min(|p|, |d|)) < gap_rel,
+//! ‖A x + s − b‖₂ < feas · max(1, ‖b‖₂ + ‖x‖₂ + ‖s‖₂),   and the same for the dual residual,
+//! ```
+//!
+//! so the optimal cost is known to within [`Tolerances::cost_accuracy`]
+//! `= max(gap_abs, gap_rel · max(1, |p|))` of the returned `p` (up to the residuals, which
+//! a caller checks on the returned point itself). `AlmostSolved` means clarabel fell back
+//! to its *reduced* tolerances (5·10⁻⁵ on the gap, 10⁻⁴ on feasibility): [`minimize`]
+//! accepts it, but [`SdpSolution::full_accuracy`] is then `false` and the bounds above do
+//! not hold.
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -33,6 +52,44 @@ pub struct Lmi {
     pub coefficients: Vec<DMatrix<f64>>,
 }
 
+/// The stopping tolerances of the interior-point solve (clarabel's `tol_gap_abs`,
+/// `tol_gap_rel` and `tol_feas`; the module docs state the rule they enter).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// Absolute duality gap `|p − d|`.
+    pub gap_abs: f64,
+    /// Duality gap relative to `max(1, min(|p|, |d|))`.
+    pub gap_rel: f64,
+    /// Primal and dual residuals relative to `max(1, ‖b‖ + ‖x‖ + ‖s‖)` (resp. the dual's).
+    pub feas: f64,
+}
+
+impl Tolerances {
+    /// Clarabel's defaults (0.11): `10⁻⁸` on both gaps and on feasibility. [`minimize`]
+    /// uses these.
+    pub const DEFAULT: Tolerances = Tolerances {
+        gap_abs: 1e-8,
+        gap_rel: 1e-8,
+        feas: 1e-8,
+    };
+
+    /// The same tolerance `tol` on the gaps and feasibility (for measuring how a solution
+    /// moves as the solve is tightened).
+    pub fn uniform(tol: f64) -> Tolerances {
+        Tolerances {
+            gap_abs: tol,
+            gap_rel: tol,
+            feas: tol,
+        }
+    }
+
+    /// The largest duality gap `|p − d|` a `Solved` solve with cost `p` may stop at:
+    /// `max(gap_abs, gap_rel · max(1, |p|))` (the stopping rule is an *or* of the two gaps).
+    pub fn cost_accuracy(&self, cost: f64) -> f64 {
+        self.gap_abs.max(self.gap_rel * cost.abs().max(1.0))
+    }
+}
+
 /// A solution of [`minimize`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct SdpSolution {
@@ -40,8 +97,14 @@ pub struct SdpSolution {
     pub x: Vec<f64>,
     /// The optimal cost `cᵀ x`.
     pub cost: f64,
+    /// The dual cost (the gap `|cost − dual_cost|` is below
+    /// [`Tolerances::cost_accuracy`] when [`SdpSolution::full_accuracy`]).
+    pub dual_cost: f64,
     /// Clarabel's status (`Solved` or `AlmostSolved`).
     pub status: String,
+    /// `true` for `Solved` (the tolerances asked for hold), `false` for `AlmostSolved`
+    /// (only clarabel's reduced tolerances do).
+    pub full_accuracy: bool,
     /// Interior-point iterations.
     pub iterations: u32,
 }
@@ -101,9 +164,15 @@ pub fn affine_lmis(n: usize, f: impl Fn(&[f64]) -> Vec<DMatrix<f64>>) -> Vec<Lmi
         .collect()
 }
 
-/// Minimizes `cᵀ x` subject to `lmis` with clarabel's interior-point method. `Err` when an
-/// inequality is malformed or the solver does not report `Solved`/`AlmostSolved`.
+/// Minimizes `cᵀ x` subject to `lmis` with clarabel's interior-point method at
+/// [`Tolerances::DEFAULT`]. `Err` when an inequality is malformed or the solver does not
+/// report `Solved`/`AlmostSolved`.
 pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, String> {
+    minimize_with(c, lmis, &Tolerances::DEFAULT)
+}
+
+/// [`minimize`] with the stopping tolerances `tol`.
+pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSolution, String> {
     let n = c.len();
     let mut b = Vec::new();
     let mut columns: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
@@ -147,6 +216,9 @@ pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, String> {
     let p = CscMatrix::zeros((n, n));
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
+        .tol_gap_abs(tol.gap_abs)
+        .tol_gap_rel(tol.gap_rel)
+        .tol_feas(tol.feas)
         .build()
         .map_err(|e| format!("clarabel settings: {e}"))?;
     let mut solver = DefaultSolver::new(&p, c, &a, &b, &cones, settings)
@@ -157,7 +229,9 @@ pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, String> {
         SolverStatus::Solved | SolverStatus::AlmostSolved => Ok(SdpSolution {
             x: solver.solution.x.clone(),
             cost: solver.solution.obj_val,
+            dual_cost: solver.solution.obj_val_dual,
             status: format!("{status:?}"),
+            full_accuracy: status == SolverStatus::Solved,
             iterations: solver.solution.iterations,
         }),
         other => Err(format!(
