@@ -67,12 +67,12 @@ pub enum IntervalKind {
     PlantSilent,
     /// The plant's watchdog had tripped: it applied its safe output.
     PlantWatchdog,
-    /// Samples missing from the log: a gap in `seq` (never answered, or dropped by the
-    /// logger).
-    SamplesLost,
     /// The answer to the sample missed the plant's deadline (`PREVIOUS_ACTUATION_MISSED`
     /// on the next row).
     AnswerMissed,
+    /// Samples missing from the log: a gap in `seq` (never answered, or dropped by the
+    /// logger); drawn over the missed answers.
+    SamplesLost,
 }
 
 impl IntervalKind {
@@ -528,9 +528,9 @@ mod tests {
         assert_eq!(
             kinds,
             vec![
+                (IntervalKind::AnswerMissed, 6.0, 7.0),
                 (IntervalKind::SamplesLost, 1.0, 2.5),
                 (IntervalKind::SamplesLost, 4.0, 5.0),
-                (IntervalKind::AnswerMissed, 6.0, 7.0),
             ]
         );
         // A decimated log (stride 2) with nothing lost shades nothing; a new session is
