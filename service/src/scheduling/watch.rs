@@ -195,7 +195,7 @@ fn core_tasks_report(
         scans: run.scans(),
         scan_every_ms: SCAN_EVERY.as_millis() as u64,
         scan_cpu_mean_ms: (s.scans > 0).then(|| s.scan_cpu_ns_total as f64 * 1e-6 / s.scans as f64),
-        scan_cpu_max_ms: (s.scans > 0).then(|| s.scan_cpu_ns_max as f64 * 1e-6),
+        scan_cpu_max_ms: (s.scans > 0).then_some(s.scan_cpu_ns_max as f64 * 1e-6),
         proc_unreadable: s.failed,
         other_cpu_s: secs(all),
         other_user_cpu_s: secs(user),
