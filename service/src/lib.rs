@@ -22,6 +22,8 @@
 //! - [`wire`]: controller dimensions and status bits to and from the contract.
 //! - [`system_check`]: what the box does to a real-time loop (PREEMPT_RT, isolated
 //!   cores, throttling, governor, SMT, IRQs, swap, huge pages, privileges), with fixes.
+//! - [`scheduling`]: why a real-time run lost samples: the RT thread's on-CPU time,
+//!   run-queue wait and preemptions, steal time, and the other tasks seen on the RT core.
 //! - [`rt_alloc`]: the global allocator that serves the RT thread from a private pool and
 //!   counts every allocation made on it.
 
@@ -33,6 +35,7 @@ pub mod record;
 pub mod replay;
 pub use ipc_types::rt_alloc;
 pub mod runtime;
+pub mod scheduling;
 pub mod system_check;
 pub mod telemetry;
 pub mod wire;

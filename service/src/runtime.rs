@@ -1478,6 +1478,9 @@ pub struct RunReport {
     /// Checkpoints of what the controller learned ([`checkpoint`]); `None` for a
     /// controller that learns nothing.
     pub checkpoint: Option<CheckpointReport>,
+    /// Why samples were lost: the RT thread's scheduling over the loop, steal time, and
+    /// the other tasks on the RT core ([`crate::scheduling`]).
+    pub scheduling: crate::scheduling::SchedulingReport,
     /// What the controller counted over the run ([`Controller::counters`]), e.g. PCAC's
     /// solved, infeasible and unsolved QPs.
     pub controller_counters: Vec<(String, u64)>,
@@ -1786,6 +1789,7 @@ impl RunReport {
         if let Some(f) = &self.force_regulation {
             out += &f.lines();
         }
+        out += &self.scheduling.lines();
         out += &self.latency.render_table(self.budget_ns);
         out += &self.verdict.headline();
         out.push('\n');
@@ -1859,6 +1863,8 @@ pub fn run(
     // Helper threads inherit this thread's affinity and policy: off the RT core, normal
     // priority. The RT thread pins itself afterwards.
     ipc_types::rt::keep_off_core(rt_core);
+    let sched_watch = crate::scheduling::RunWatch::start(rt_core);
+    let rt_probe = sched_watch.probe();
     let log_handle = match log_writer {
         Some(w) => Some(
             w.spawn(folder.join("signals.csv"))
@@ -1934,7 +1940,17 @@ pub fn run(
     let exit_with_plant = opts.exit_with_plant;
     let rt_thread = std::thread::Builder::new()
         .name("rt-loop".into())
-        .spawn(move || rt_thread_main(rt_cfg, core, rt_shutdown, max_cycles, exit_with_plant))
+        .spawn(move || {
+            rt_probe.register();
+            rt_thread_main(
+                rt_cfg,
+                core,
+                rt_shutdown,
+                max_cycles,
+                exit_with_plant,
+                &rt_probe,
+            )
+        })
         .map_err(|error| ServiceError::Io {
             what: "starting the RT thread".into(),
             error,
@@ -1959,6 +1975,7 @@ pub fn run(
         .join()
         .map_err(|_| ServiceError::RtThread("panicked".into()))?;
     drain(&mut events);
+    let scheduling = sched_watch.finish();
     reporter_stop.store(true, Ordering::Release);
     let reporter = reporter_thread
         .join()
@@ -2134,6 +2151,7 @@ pub fn run(
             last_seq: checkpoints.last_seq,
             warm_start: warm_start.clone(),
         }),
+        scheduling,
         controller_counters: core
             .controller
             .counters()
@@ -2193,6 +2211,7 @@ fn rt_thread_main(
     shutdown: Arc<AtomicBool>,
     max_cycles: Option<u64>,
     exit_with_plant: bool,
+    probe: &crate::scheduling::RtProbe,
 ) -> RtResult {
     let setup = ipc_types::rt::setup_current_thread(&cfg.rt);
     if setup.any_refused() {
@@ -2236,6 +2255,7 @@ fn rt_thread_main(
     core.prepare_controller_thread();
     crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let before = crate::rt_alloc::thread_stats();
+    crate::rt_alloc::outside_rt(|| probe.loop_starts());
     let stop = rt_loop(
         &ports,
         &mut core,
@@ -2245,6 +2265,7 @@ fn rt_thread_main(
         exit_with_plant,
     );
     core.rt_allocations = crate::rt_alloc::thread_stats().since(&before);
+    crate::rt_alloc::outside_rt(|| probe.loop_ends());
     Ok((core, setup, stop))
 }
 

@@ -15,13 +15,25 @@
 //! | `swap` | none, or `mlockall` (the service locks its memory) | `/proc/swaps` |
 //! | `transparent huge pages` | `madvise` or `never` (no compaction stalls) | `/sys/kernel/mm/transparent_hugepage/enabled` |
 //! | `privileges` | `CAP_SYS_NICE` and `CAP_IPC_LOCK`, or the rlimits `RTPRIO` and `MEMLOCK` | `/proc/self/status`, `getrlimit` |
+//! | `shared rt core` | no user-space task ran on the RT core during a [`SHARED_CORE_WINDOW`] sample (per-CPU kernel threads are named, not faulted) | `/proc/[pid]/task/[tid]/stat` ([`crate::scheduling::core_tasks`]) |
 //!
 //! A check that cannot read its file says "unknown" (a virtual machine has no cpufreq, a
 //! container may hide `/proc/irq`) rather than guessing. The paths are read under a root
 //! folder ([`SystemRoot`]), so that the tests can give a made-up machine.
+//!
+//! `shared rt core` is the one check that watches rather than reads: it scans the tasks
+//! every [`crate::scheduling::watch::SCAN_EVERY`] for [`SystemRoot::sample_window`]
+//! ([`SHARED_CORE_WINDOW`] on the box) and names those that were runnable on the RT core or
+//! gained CPU time there. The service runs the same check over its first 200 ms and prints
+//! one warning line when the core is shared.
 
+use crate::scheduling::core_tasks::{CoreTasks, scan_tasks};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// How long the `shared rt core` check watches the RT core.
+pub const SHARED_CORE_WINDOW: Duration = Duration::from_millis(200);
 
 /// What a check concluded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -99,6 +111,9 @@ pub struct SystemRoot {
     pub cap_eff: Option<u64>,
     /// `RLIMIT_RTPRIO` and `RLIMIT_MEMLOCK` (soft limits; `u64::MAX` is unlimited).
     pub rlimits: Option<(u64, u64)>,
+    /// How long the `shared rt core` check watches ([`SHARED_CORE_WINDOW`] on the box;
+    /// zero for a made-up machine: one scan).
+    pub sample_window: Duration,
 }
 
 impl SystemRoot {
@@ -123,6 +138,7 @@ impl SystemRoot {
             kernel_version: kernel_version(),
             cap_eff,
             rlimits,
+            sample_window: SHARED_CORE_WINDOW,
         }
     }
 
@@ -133,6 +149,7 @@ impl SystemRoot {
             kernel_version: kernel_version.into(),
             cap_eff: None,
             rlimits: None,
+            sample_window: Duration::ZERO,
         }
     }
 
@@ -212,6 +229,7 @@ pub fn check_system(sys: &SystemRoot, core: Option<usize>) -> Vec<Finding> {
         swap(sys),
         huge_pages(sys),
         privileges(sys),
+        shared_core(sys, core),
     ]
 }
 
@@ -234,6 +252,21 @@ fn preemption(sys: &SystemRoot) -> Finding {
         format!("{model} kernel, not PREEMPT_RT: wake-ups can wait for kernel sections"),
         "boot a PREEMPT_RT kernel (Debian: apt-get install linux-image-rt-amd64)".into(),
     )
+}
+
+/// Whether `core` is isolated (`isolcpus` or `/sys/devices/system/cpu/isolated`); `None`
+/// when neither can be read.
+pub fn core_isolated(sys: &SystemRoot, core: usize) -> Option<bool> {
+    let cmdline = sys.read("proc/cmdline");
+    let sysfs = sys.read("sys/devices/system/cpu/isolated");
+    if cmdline.is_none() && sysfs.is_none() {
+        return None;
+    }
+    let has = |list: Option<&str>| {
+        list.and_then(parse_cpu_list)
+            .is_some_and(|c| c.contains(&core))
+    };
+    Some(has(cmdline.as_deref().and_then(|c| boot_param(c, "isolcpus"))) || has(sysfs.as_deref()))
 }
 
 fn isolation(sys: &SystemRoot, core: Option<usize>) -> Finding {
@@ -480,6 +513,115 @@ fn privileges(sys: &SystemRoot) -> Finding {
     )
 }
 
+const SHARED: &str = "shared rt core";
+
+/// The `shared rt core` finding when `/proc` cannot be listed.
+pub fn shared_core_unreadable() -> Finding {
+    Finding::unknown(
+        SHARED,
+        "/proc unreadable: the tasks cannot be listed".into(),
+    )
+}
+
+/// The `shared rt core` finding from what `tasks` saw on `core` over `window`; `isolated`
+/// says whether the core is isolated (`None`: unknown). Fix when a user-space task was
+/// seen there, naming it; per-CPU kernel threads alone are named but Good.
+pub fn shared_core_finding(
+    core: usize,
+    isolated: Option<bool>,
+    tasks: &CoreTasks,
+    window: Duration,
+) -> Finding {
+    let top = tasks.top();
+    let name = |t: &crate::scheduling::core_tasks::CoreTask| {
+        format!(
+            "{} (pid {}, seen in {} of {} scans)",
+            t.comm,
+            t.pid,
+            t.samples,
+            tasks.scans()
+        )
+    };
+    let users: Vec<String> = top.iter().filter(|t| !t.kernel_thread).map(name).collect();
+    let kernel: Vec<String> = top
+        .iter()
+        .filter(|t| t.kernel_thread)
+        .map(|t| t.comm.clone())
+        .collect();
+    let ms = window.as_millis();
+    let isolation = match isolated {
+        Some(true) => "isolated",
+        Some(false) => "not isolated",
+        None => "isolation unknown",
+    };
+    if users.is_empty() {
+        let kernel_note = if kernel.is_empty() {
+            String::new()
+        } else {
+            format!(" (per-CPU kernel threads only: {})", kernel.join(", "))
+        };
+        return Finding::good(
+            SHARED,
+            format!(
+                "core {core} ({isolation}): no other user-space task ran there in {ms} ms{kernel_note}"
+            ),
+        );
+    }
+    let pids: Vec<String> = {
+        let mut p: Vec<u32> = top
+            .iter()
+            .filter(|t| !t.kernel_thread)
+            .map(|t| t.pid)
+            .collect();
+        p.sort_unstable();
+        p.dedup();
+        p.iter().map(u32::to_string).collect()
+    };
+    let fix = if isolated == Some(true) {
+        format!(
+            "something is pinned to the isolated core {core}: move it off (taskset -apc <other cores> {})",
+            pids.join(" ")
+        )
+    } else {
+        format!(
+            "isolate core {core} (isolcpus={core} nohz_full={core} rcu_nocbs={core}, or a cpuset), or move them off it (taskset -apc <other cores> {})",
+            pids.join(" ")
+        )
+    };
+    Finding::fix(
+        SHARED,
+        format!(
+            "the RT core {core} ({isolation}) is shared: {} other task(s) ran there in {ms} ms: {}",
+            users.len(),
+            users.join(", ")
+        ),
+        fix,
+    )
+}
+
+fn shared_core(sys: &SystemRoot, core: Option<usize>) -> Finding {
+    let Some(core) = core else {
+        return Finding::unknown(SHARED, "the RT thread is not pinned".into());
+    };
+    let step = crate::scheduling::watch::SCAN_EVERY;
+    let scans = 1 + (sys.sample_window.as_nanos() / step.as_nanos().max(1)) as usize;
+    let mut tasks = CoreTasks::new(core, crate::scheduling::watch::TOP_TASKS);
+    tasks.exclude(crate::scheduling::watch::current_tid());
+    let proc_dir = sys.root.join("proc");
+    let mut seen = Vec::new();
+    let began = std::time::Instant::now();
+    for i in 0..scans {
+        if i > 0 {
+            std::thread::sleep(step);
+        }
+        if !scan_tasks(&proc_dir, &mut seen) {
+            return shared_core_unreadable();
+        }
+        tasks.observe(&seen);
+    }
+    shared_core_finding(core, core_isolated(sys, core), &tasks, began.elapsed())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -494,6 +636,103 @@ mod tests {
             std::fs::write(p, text).unwrap();
         }
         root
+    }
+
+    /// A task's `stat` line: state `state`, kernel thread or not, last on `cpu`.
+    fn stat_line(tid: u32, comm: &str, state: char, kthread: bool, cpu: usize) -> String {
+        let mut f: Vec<String> = (3..=52).map(|_| "0".to_string()).collect();
+        f[0] = state.to_string();
+        f[9 - 3] = if kthread { "2129984" } else { "4194560" }.into();
+        f[39 - 3] = cpu.to_string();
+        format!("{tid} ({comm}) {}\n", f.join(" "))
+    }
+
+    #[test]
+    fn the_rt_core_is_shared_when_a_user_task_runs_there_and_not_for_kernel_threads() {
+        let files = |hog_cpu: usize| {
+            vec![
+                ("proc/cmdline".to_string(), "root=/dev/vda1\n".to_string()),
+                // The per-CPU kernel thread of core 2, runnable there.
+                (
+                    "proc/12/task/12/stat".into(),
+                    stat_line(12, "ksoftirqd/2", 'R', true, 2),
+                ),
+                // A busy loop of a shell, on `hog_cpu`.
+                (
+                    "proc/300/task/300/stat".into(),
+                    stat_line(300, "sh", 'R', false, hog_cpu),
+                ),
+                // A sleeping thread last on core 2: not counted.
+                (
+                    "proc/300/task/301/stat".into(),
+                    stat_line(301, "worker", 'S', false, 2),
+                ),
+            ]
+        };
+        let check = |name: &str, hog_cpu: usize| {
+            let f = files(hog_cpu);
+            let f: Vec<(&str, &str)> = f.iter().map(|(a, b)| (a.as_str(), b.as_str())).collect();
+            let root = machine(name, &f);
+            let finding = shared_core(&SystemRoot::at(&root, ""), Some(2));
+            let _ = std::fs::remove_dir_all(&root);
+            finding
+        };
+        let shared = check("shared", 2);
+        assert_eq!(shared.verdict, Verdict::Fix, "{shared:?}");
+        assert!(
+            shared
+                .found
+                .contains("core 2 (not isolated) is shared: 1 other task(s)")
+                && shared.found.contains("sh (pid 300, seen in 1 of 1 scans)")
+                && !shared.found.contains("worker"),
+            "{}",
+            shared.found
+        );
+        assert!(
+            shared
+                .fix
+                .as_deref()
+                .unwrap()
+                .contains("taskset -apc <other cores> 300")
+        );
+        let alone = check("alone", 0);
+        assert_eq!(alone.verdict, Verdict::Good, "{alone:?}");
+        assert!(
+            alone.found.contains("kernel threads only: ksoftirqd/2"),
+            "{}",
+            alone.found
+        );
+        // No /proc to list: unknown, and an unpinned service cannot be checked.
+        let root = machine("noproc", &[("sys/x", "")]);
+        assert_eq!(
+            shared_core(&SystemRoot::at(&root, ""), Some(2)).verdict,
+            Verdict::Unknown
+        );
+        assert_eq!(
+            shared_core(&SystemRoot::at(&root, ""), None).verdict,
+            Verdict::Unknown
+        );
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn an_isolated_core_with_a_task_pinned_to_it_says_to_move_the_task() {
+        let hog = stat_line(55, "stress", 'R', false, 3);
+        let root = machine(
+            "isolated",
+            &[
+                ("proc/cmdline", "isolcpus=3\n"),
+                ("proc/55/task/55/stat", &hog),
+            ],
+        );
+        let sys = SystemRoot::at(&root, "");
+        assert_eq!(core_isolated(&sys, 3), Some(true));
+        assert_eq!(core_isolated(&sys, 2), Some(false));
+        let f = shared_core(&sys, Some(3));
+        assert_eq!(f.verdict, Verdict::Fix);
+        assert!(f.found.contains("(isolated)"), "{}", f.found);
+        assert!(f.fix.as_deref().unwrap().starts_with("something is pinned"));
+        let _ = std::fs::remove_dir_all(&root);
     }
 
     fn verdicts(f: &[Finding]) -> Vec<(&'static str, Verdict)> {
@@ -548,6 +787,7 @@ mod tests {
 
     #[test]
     fn a_shared_vm_gets_a_fix_for_each_finding_and_unknown_where_it_cannot_tell() {
+        let hog = stat_line(4321, "hog", 'R', false, 1);
         let root = machine(
             "vm",
             &[
@@ -572,6 +812,7 @@ mod tests {
                     "sys/kernel/mm/transparent_hugepage/enabled",
                     "[always] madvise never\n",
                 ),
+                ("proc/4321/task/4321/stat", &hog),
             ],
         );
         let mut sys = SystemRoot::at(&root, "#1 SMP PREEMPT_DYNAMIC");
@@ -590,8 +831,11 @@ mod tests {
                 ("swap", Fix),
                 ("transparent huge pages", Fix),
                 ("privileges", Fix),
+                ("shared rt core", Fix),
             ]
         );
+        assert!(f[9].found.contains("hog (pid 4321"), "{}", f[9].found);
+        assert!(f[9].fix.as_deref().unwrap().contains("isolcpus=1"));
         assert!(
             f.iter()
                 .filter(|f| f.verdict == Fix)
@@ -615,7 +859,7 @@ mod tests {
     #[test]
     fn an_unpinned_service_is_a_finding_and_this_machine_can_be_checked() {
         let f = check_system(&SystemRoot::live(), None);
-        assert_eq!(f.len(), 9);
+        assert_eq!(f.len(), 10);
         assert_eq!((f[1].check, f[1].verdict), ("isolated core", Verdict::Fix));
         // Every finding renders on one line naming its check.
         for x in &f {

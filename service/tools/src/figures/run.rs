@@ -14,8 +14,9 @@
 //!   seconds of the run, `W` the report's tone window (`tones.window_s`), the same number
 //!   of samples `N = W / T` in both (both shortened to the open-loop phase when it is
 //!   shorter), with one Welch segment length `L = clamp(N / 4, 64, 8192)` for both;
-//! - the **shaded intervals**: safe state, plant silence, plant watchdog, and the starts
-//!   of new plant sessions;
+//! - the **shaded intervals**: safe state, plant silence, plant watchdog, lost samples
+//!   (gaps in `seq`) and missed answers (`PREVIOUS_ACTUATION_MISSED`), and the starts of
+//!   new plant sessions;
 //! - the **channels** `z0…`, `u0…` in column order, each drawn in a panel of its own;
 //! - the **verdict** line: the report's verdict (`OK`, or `FAILED` and its first failure
 //!   line), and `FAILED` whenever the log ends in the safe state.
@@ -615,6 +616,8 @@ fn band_color(kind: IntervalKind) -> RGBColor {
         IntervalKind::SafeState => RGBColor(230, 0, 0),
         IntervalKind::PlantSilent => RGBColor(255, 160, 0),
         IntervalKind::PlantWatchdog => RGBColor(150, 60, 200),
+        IntervalKind::SamplesLost => RGBColor(0, 90, 255),
+        IntervalKind::AnswerMissed => RGBColor(255, 0, 200),
     }
 }
 

@@ -20,7 +20,12 @@
 //! `SAFE_STATE` status bit of the rows, whichever says more; a safe state never left lasts
 //! to the end of the run), the plant's silence (`plant-silent` to `plant-resumed` or to the
 //! next session) and the plant's watchdog (rows whose measurement flags carry
-//! `PLANT_SAFE_OUTPUT`). [`Timeline::markers`] gives the starts of new plant sessions.
+//! `PLANT_SAFE_OUTPUT`), and where samples were lost: the steps of `seq` inside a session
+//! longer than the log's stride (from the last logged sample before the gap to the first
+//! after it: samples the service never answered, or rows the logger dropped) and the
+//! samples whose answer missed the plant's deadline (a row with the measurement flag
+//! `PREVIOUS_ACTUATION_MISSED` marks the period before it). [`Timeline::markers`] gives
+//! the starts of new plant sessions.
 
 use std::ops::Range;
 
@@ -62,6 +67,12 @@ pub enum IntervalKind {
     PlantSilent,
     /// The plant's watchdog had tripped: it applied its safe output.
     PlantWatchdog,
+    /// The answer to the sample missed the plant's deadline (`PREVIOUS_ACTUATION_MISSED`
+    /// on the next row).
+    AnswerMissed,
+    /// Samples missing from the log: a gap in `seq` (never answered, or dropped by the
+    /// logger); drawn over the missed answers.
+    SamplesLost,
 }
 
 impl IntervalKind {
@@ -71,6 +82,8 @@ impl IntervalKind {
             IntervalKind::SafeState => "safe state (service)",
             IntervalKind::PlantSilent => "plant silent",
             IntervalKind::PlantWatchdog => "plant watchdog (safe output)",
+            IntervalKind::SamplesLost => "samples lost (gap in seq)",
+            IntervalKind::AnswerMissed => "answer missed (plant's flag)",
         }
     }
 }
@@ -356,7 +369,31 @@ impl Timeline {
                 }
             }
         }
+        out.extend(self.loss_intervals(flags));
         merge(out, 1.5 * ts * self.stride as f64, end)
+    }
+
+    /// The unmerged intervals of lost samples (gaps in `seq` inside a session) and missed
+    /// answers (rows whose `flags` carry `PREVIOUS_ACTUATION_MISSED`: the period before
+    /// the row), see the module docs.
+    pub fn loss_intervals(&self, flags: Option<&[f64]>) -> Vec<(IntervalKind, f64, f64)> {
+        let ts = self.sample_period;
+        let mut out = Vec::new();
+        for ss in &self.sessions {
+            for r in ss.rows.start + 1..ss.rows.end {
+                if self.seq[r] - self.seq[r - 1] > self.stride {
+                    out.push((IntervalKind::SamplesLost, self.t[r - 1], self.t[r]));
+                }
+            }
+        }
+        if let Some(f) = flags {
+            for (r, v) in f.iter().enumerate().take(self.t.len()) {
+                if (*v as u32) & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0 {
+                    out.push((IntervalKind::AnswerMissed, self.t[r] - ts, self.t[r]));
+                }
+            }
+        }
+        out
     }
 
     /// Plant times of the starts of the sessions after the first (new plant sessions).
@@ -454,6 +491,52 @@ mod tests {
         assert_eq!((iv[0].from_s, iv[0].to_s), (6.0, 9.5));
         assert_eq!(iv[1].kind, IntervalKind::PlantWatchdog);
         assert_eq!((iv[1].from_s, iv[1].to_s), (1.5, 2.0));
+    }
+
+    #[test]
+    fn gaps_in_seq_and_missed_answers_are_shaded_and_merged_when_close() {
+        // Samples 3–4 and 9 are lost; the answers to 12 and 13 missed (flags of 13 and 14).
+        let seq: Vec<f64> = (0..20u32)
+            .filter(|k| !(3..5).contains(k) && *k != 9)
+            .map(f64::from)
+            .collect();
+        let flags: Vec<f64> = seq
+            .iter()
+            .map(|k| {
+                if (13.0..15.0).contains(k) {
+                    4.0 + 16.0
+                } else {
+                    16.0
+                }
+            })
+            .collect();
+        let tl = Timeline::new(&seq, None, &[], T, "s").unwrap();
+        assert_eq!(tl.missing, 3);
+        let raw = tl.loss_intervals(Some(&flags));
+        assert_eq!(
+            raw,
+            vec![
+                (IntervalKind::SamplesLost, 1.0, 2.5),
+                (IntervalKind::SamplesLost, 4.0, 5.0),
+                (IntervalKind::AnswerMissed, 6.0, 6.5),
+                (IntervalKind::AnswerMissed, 6.5, 7.0),
+            ]
+        );
+        let iv = tl.intervals(&[], None, Some(&flags));
+        let kinds: Vec<(IntervalKind, f64, f64)> =
+            iv.iter().map(|i| (i.kind, i.from_s, i.to_s)).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                (IntervalKind::AnswerMissed, 6.0, 7.0),
+                (IntervalKind::SamplesLost, 1.0, 2.5),
+                (IntervalKind::SamplesLost, 4.0, 5.0),
+            ]
+        );
+        // A decimated log (stride 2) with nothing lost shades nothing; a new session is
+        // not a gap.
+        let tl = Timeline::new(&[0.0, 2.0, 4.0, 6.0, 0.0, 2.0], None, &[], T, "s").unwrap();
+        assert!(tl.loss_intervals(None).is_empty());
     }
 
     #[test]
