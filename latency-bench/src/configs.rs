@@ -522,10 +522,12 @@ impl TimingCase {
 ///   much, and answer-first falls behind for good. The replay of
 ///   `examples/arm_catch_up.rs` (`loop 125`: 65 µs + 10 µs per QP iteration) answers
 ///   1256 of 8000 samples at 8 kHz, 860 in time, 71 QP iterations per step; at 2 kHz
-///   7939 in time, 2.3 per step. At 2 kHz the loop that falls behind now recovers: the
-///   samples caught up keep PCAC's warm start (moved along the horizon,
+///   7939 in time, 2.3 per step. In that replay the 2 kHz loop that falls behind now
+///   recovers: the samples caught up keep PCAC's warm start (moved along the horizon,
 ///   `Pcac::observe`); with the warm start dropped the same replay answered 900 of 8000
-///   in time.
+///   in time. The service on this box is still short of that (the replay has no
+///   RT-throttling stalls): 3906 (compute-first) and 7311 (answer-first) of 10000 in
+///   time at 2 kHz, 2811 and 7621 before.
 pub fn timing_cases() -> Vec<TimingCase> {
     let two_in = Channels { y: 2, z: 2, u: 1 };
     let acoustic = Channels { y: 1, z: 1, u: 2 };
