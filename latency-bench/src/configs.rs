@@ -513,11 +513,21 @@ impl TimingCase {
 ///   its `u_k` needs `y_k`, so it has no ahead form), 8 kHz;
 /// - RCAC gradient with the exp step size, and RCAC RLS with λ = 1, both `n_c = 50`, 2
 ///   inputs, 1 output, in the loop of [`acoustic_plant`], 8 kHz;
-/// - PCAC arm, `timing = "next-step"`, at [`ARM_PERIOD_NS`] (2 kHz, the arm's rate): its
-///   step takes a large part of the 125 µs period, and at 8 kHz a step past the period
-///   makes the service skip samples, after which the loop did not recover (most samples
-///   skipped, steps far longer than in the step-cost phase), so that the comparison
-///   would time a broken loop.
+/// - PCAC arm, `timing = "next-step"`, at [`ARM_PERIOD_NS`] (2 kHz, the arm's rate), not
+///   8 kHz, because it cannot meet that period: its steady step (no QP iteration) takes
+///   65–90 µs, more than the `T/2 = 62.5 µs` deadline of compute-first, and every dual
+///   active-set step of its QP (100 variables) adds ~10 µs, so that a change of the
+///   active set (the first samples of the identification: 160–230 dual steps, ~2 ms)
+///   spans many periods; the plant holds its input meanwhile, the next QP changes as
+///   much, and answer-first falls behind for good. The replay of
+///   `examples/arm_catch_up.rs` (`loop 125`: 65 µs + 10 µs per QP iteration) answers
+///   1256 of 8000 samples at 8 kHz, 860 in time, 71 QP iterations per step; at 2 kHz
+///   7939 in time, 2.3 per step. In that replay the 2 kHz loop that falls behind now
+///   recovers: the samples caught up keep PCAC's warm start (moved along the horizon,
+///   `Pcac::observe`); with the warm start dropped the same replay answered 900 of 8000
+///   in time. The service on this box is still short of that (the replay has no
+///   RT-throttling stalls): 3906 (compute-first) and 7311 (answer-first) of 10000 in
+///   time at 2 kHz, 2811 and 7621 before.
 pub fn timing_cases() -> Vec<TimingCase> {
     let two_in = Channels { y: 2, z: 2, u: 1 };
     let acoustic = Channels { y: 1, z: 1, u: 2 };

@@ -836,21 +836,43 @@ impl Condenser {
     /// [`WarmStart::ActiveSet`](super::qp::WarmStart): a bound or row of step `i ≥ 1`
     /// becomes the same bound or row of step `i − 1`, those of step 0 are dropped, ids out
     /// of range too. Writes at most `out.len()` ids and returns how many; allocation-free.
+    /// [`Condenser::shift_active_set_by`] with one step.
     pub fn shift_active_set(&self, active: &[ConstraintId], out: &mut [ConstraintId]) -> usize {
+        self.shift_active_set_by(active, 1, out)
+    }
+
+    /// [`Condenser::shift_active_set`] by `steps` samples at once: a bound or row of step
+    /// `i ≥ steps` becomes the same bound or row of step `i − steps`, the others are
+    /// dropped (none is left when `steps ≥ ℓ`; `steps = 0` keeps every id in range). This
+    /// is the warm start of a QP solved `steps` samples after the one that produced
+    /// `active`, when the samples between were taken in without a solve (caught up or
+    /// lost): the horizon (2.44) has moved on by that many steps. `O(|active|)` whatever
+    /// `steps`; allocation-free.
+    pub fn shift_active_set_by(
+        &self,
+        active: &[ConstraintId],
+        steps: usize,
+        out: &mut [ConstraintId],
+    ) -> usize {
         let (m, n, nc, base) = (self.m, self.n, self.nc, self.n_move_rows);
+        if steps >= self.ell {
+            return 0;
+        }
+        // steps < ℓ: neither product overflows (they are at most n and ℓ n_c).
+        let (dm, dc) = (steps * m, steps * nc);
         let mut k = 0;
         for &id in active {
             if k == out.len() {
                 break;
             }
             let shifted = match id {
-                ConstraintId::Upper(i) if i >= m && i < n => Some(ConstraintId::Upper(i - m)),
-                ConstraintId::Lower(i) if i >= m && i < n => Some(ConstraintId::Lower(i - m)),
+                ConstraintId::Upper(i) if i >= dm && i < n => Some(ConstraintId::Upper(i - dm)),
+                ConstraintId::Lower(i) if i >= dm && i < n => Some(ConstraintId::Lower(i - dm)),
                 // Move rows: i·m + j within each sign block of n rows.
-                ConstraintId::Row(j) if j < base && j % n >= m => Some(ConstraintId::Row(j - m)),
+                ConstraintId::Row(j) if j < base && j % n >= dm => Some(ConstraintId::Row(j - dm)),
                 // Output rows: base + i·n_c + r.
-                ConstraintId::Row(j) if j >= base + nc && j < self.n_ineq => {
-                    Some(ConstraintId::Row(j - nc))
+                ConstraintId::Row(j) if j >= base + dc && j < self.n_ineq => {
+                    Some(ConstraintId::Row(j - dc))
                 }
                 _ => None,
             };

@@ -588,6 +588,18 @@ fn active_sets_shift_by_one_step() {
         &[Upper(0), Lower(5), Row(1), Row(8), Row(16), Row(21)]
     );
     assert_eq!(c.shift_active_set(&active, &mut out[..2]), 2);
+    // Two steps at once: the same as shifting twice.
+    let mut once = [Row(0); 16];
+    let k1 = c.shift_active_set(&active, &mut once);
+    let mut twice = [Row(0); 16];
+    let k2 = c.shift_active_set(&once[..k1], &mut twice);
+    let k = c.shift_active_set_by(&active, 2, &mut out);
+    assert_eq!(&out[..k], &twice[..k2]);
+    assert_eq!(&out[..k], &[Lower(3), Row(19)]);
+    // ℓ steps or more leave nothing; none keeps every id in range.
+    assert_eq!(c.shift_active_set_by(&active, 4, &mut out), 0);
+    assert_eq!(c.shift_active_set_by(&active, usize::MAX, &mut out), 0);
+    assert_eq!(c.shift_active_set_by(&active, 0, &mut out), 11);
 }
 
 #[test]
