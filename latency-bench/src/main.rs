@@ -6,7 +6,7 @@
 //! ```
 //!
 //! Runs, in order: the contract round trip against the real service, the raw iceoryx2
-//! ping-pong, the service's wake-up latency at 8 kHz in busy-poll and blocking mode,
+//! ping-pong, the service's wake-up latency at 8 kHz in sleep-poll, busy-poll and blocking mode,
 //! cyclictest on the RT core (when installed), the service's response time with
 //! compute-first against answer-first per controller, the step cost of each known controller
 //! configuration, the RLS update cost and the PCAC step cost beside clarabel (the `pcac`
@@ -42,13 +42,12 @@ fn main() -> ExitCode {
             core,
             run_folder,
         }) => {
-            let wait = match wait.as_str() {
-                "busy-poll" => WaitMode::BusyPoll,
-                "block" => WaitMode::Block,
-                other => {
-                    eprintln!("unknown wait mode {other}");
-                    return ExitCode::from(2);
-                }
+            let Some(wait) = [WaitMode::SleepPoll, WaitMode::BusyPoll, WaitMode::Block]
+                .into_iter()
+                .find(|w| w.name() == wait)
+            else {
+                eprintln!("unknown wait mode {wait}");
+                return ExitCode::from(2);
             };
             child::run_service_child(&config, wait, core, &run_folder)
         }

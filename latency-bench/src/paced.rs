@@ -256,7 +256,8 @@ pub fn paced_plant_with(
     })
 }
 
-/// The wake-up phase: the service child in busy-poll, then in blocking mode, each paced
+/// The wake-up phase: the service child in sleep-poll (the default), busy-poll, then
+/// blocking mode, each paced
 /// by [`paced_plant`] at 8 kHz for `s.seconds`. The service's wake-up rows, the detail
 /// lines, the `extra` blocks and the run reports go into `col`; the plant-side rows
 /// (pacing lateness, publish → answer) are returned, to be placed after the cyclictest
@@ -269,13 +270,13 @@ pub fn wakeup_phase(
     col: &mut Collected,
 ) -> Vec<Measured> {
     let mut plant_rows: Vec<Measured> = Vec::new();
-    for (i, (mode, wait)) in [("busy-poll", "busy-poll"), ("block", "block")]
-        .into_iter()
-        .enumerate()
-    {
+    for (mode, wait) in [
+        ("sleep-poll", "sleep-poll"),
+        ("busy-poll", "busy-poll"),
+        ("block", "block"),
+    ] {
         progress(&format!(
-            "{}/6 service wake-up at 8 kHz, {mode}, {:.1} s",
-            3 + i,
+            "3-4/6 service wake-up at 8 kHz, {mode}, {:.1} s",
             s.seconds
         ));
         let dir = out.join(format!("wakeup-{mode}"));
