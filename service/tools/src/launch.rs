@@ -66,6 +66,24 @@ pub struct LaunchOptions {
     pub plant_trace: bool,
     /// Do not draw `run.png`.
     pub skip_figure: bool,
+    /// Send the children's standard output and error into [`SERVICE_LOG_FILE`] and
+    /// [`PLANT_LOG_FILE`] in the run folder instead of this process's (the run report is
+    /// in `report.json` either way).
+    pub child_logs: bool,
+}
+
+/// The service's standard output and error with [`LaunchOptions::child_logs`].
+pub const SERVICE_LOG_FILE: &str = "service.log";
+/// plant-proxy's standard output and error with [`LaunchOptions::child_logs`].
+pub const PLANT_LOG_FILE: &str = "plant-proxy.log";
+
+/// `cmd`'s standard output and error into the file `path`.
+fn output_into(cmd: &mut Command, path: &Path) -> Result<(), LaunchError> {
+    let err = |e: std::io::Error| LaunchError::Run(format!("creating {}: {e}", path.display()));
+    let out = std::fs::File::create(path).map_err(err)?;
+    let copy = out.try_clone().map_err(err)?;
+    cmd.stdout(out).stderr(copy);
+    Ok(())
 }
 
 /// The plant's per-sample trace in a run folder ([`LaunchOptions::plant_trace`]).
@@ -414,6 +432,10 @@ pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicUsize>) -> Result<Launched, 
     }
     if let Some(c) = &opts.warm_start {
         service.arg("--warm-start").arg(c);
+    }
+    if opts.child_logs {
+        output_into(&mut service, &folder.join(SERVICE_LOG_FILE))?;
+        output_into(&mut plant, &folder.join(PLANT_LOG_FILE))?;
     }
     eprintln!(
         "[launch] rig '{}': plant-proxy ({}) and the service, run folder {}",

@@ -10,6 +10,8 @@
 //! - [`design`]: model and measured frequency responses, Markov parameters, dereverberated
 //!   transfer functions and RCAC target models (section 3.2).
 //! - [`study`]: the studies of chapters 3, 4, 5 and 6.
+//! - [`stalls`]: the stall study (`rig stalls`).
+//! - [`soak`]: real time under load, in one sitting (`rig soak`).
 //! - [`simulate`]: a controller against the simulated plant in one process (lockstep).
 //! - [`figures`]: figures of adaptive runs in the manner of Figures 3.7/3.10/3.14/3.17.
 //! - [`plot`]: PNG figures (line panels, pole–zero maps).
@@ -23,5 +25,6 @@ pub mod figures;
 pub mod launch;
 pub mod plot;
 pub mod simulate;
+pub mod soak;
 pub mod stalls;
 pub mod study;

@@ -6,6 +6,8 @@
 //!            [--plant-trace]
 //! rig plot <run-folder>
 //! rig stalls <scenario.toml> [--plan-length H] [--runs DIR] [--results FILE] [--json FILE]
+//! rig soak <scenario.toml> [--controller FILE|scenario]... [--runs N] [--conditions LIST]
+//!          [--wait MODE]... [--duration S] [--out DIR] [--results FILE.md]
 //! ```
 //!
 //! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
@@ -17,7 +19,11 @@
 //! to stop; 2 when the configuration was refused before anything started. `plot` draws
 //! `run.png` from a run folder (signals.csv and report.json) of any earlier run. `stalls`
 //! runs the stall study of `rig_tools::stalls` (seven lockstep runs of the scenario) and
-//! writes its table.
+//! writes its table. `soak` runs the scenario in real time under each load, N rounds of
+//! every combination of controller, wait mode and condition (`rig_tools::soak`), prints the
+//! summary and writes the results file (default `OUT/soak.md`); it exits with 0 when the
+//! campaign ran, whatever the runs' verdicts, 2 on a refused option or configuration, 1
+//! when it was interrupted or its results could not be written.
 
 use clap::{Parser, Subcommand};
 use rig_tools::launch::{LaunchError, LaunchOptions, launch};
@@ -86,6 +92,39 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Real time under load: N rounds of every combination of controller, wait mode and
+    /// condition (idle, a busy loop on the RT core, on the plant's core, on both), in real
+    /// time, one sitting; writes a summary and a per-run table.
+    Soak {
+        /// Scenario / configuration TOML file.
+        config: PathBuf,
+        /// A controller file (as for `rig launch --controller`), or `scenario` for the
+        /// scenario's own; repeatable (default: the scenario's own).
+        #[arg(long)]
+        controller: Vec<PathBuf>,
+        /// Rounds: each runs every combination once.
+        #[arg(long, default_value_t = 10)]
+        runs: usize,
+        /// Conditions, comma-separated: idle, hog-rt, hog-plant, hog-both.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "idle,hog-rt,hog-plant,hog-both"
+        )]
+        conditions: Vec<String>,
+        /// A wait mode (sleep-poll, busy-poll, block); repeatable (default: service.wait).
+        #[arg(long)]
+        wait: Vec<String>,
+        /// Seconds of each run (default: rig.duration).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// The campaign's folder, empty or new (default: `runs/soak-<unix time>`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The results file, Markdown (default: `<out>/soak.md`).
+        #[arg(long)]
+        results: Option<PathBuf>,
+    },
     /// Draw run.png (the verdict, z open and closed loop, u, ‖θ‖, shaded safe-state and
     /// watchdog intervals, PSDs over equal windows) from a run folder.
     Plot {
@@ -148,13 +187,8 @@ fn main() -> ExitCode {
             results,
             json,
         } => {
-            let runs = runs.unwrap_or_else(|| {
-                let secs = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map(|d| d.as_secs())
-                    .unwrap_or(0);
-                PathBuf::from(format!("runs/stalls-{secs}"))
-            });
+            let runs =
+                runs.unwrap_or_else(|| PathBuf::from(format!("runs/stalls-{}", unix_secs())));
             let study = match rig_tools::stalls::run(&config, plan_length, &runs) {
                 Ok(s) => s,
                 Err(e) => {
@@ -193,6 +227,27 @@ fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         }
+        Command::Soak {
+            config,
+            controller,
+            runs,
+            conditions,
+            wait,
+            duration,
+            out,
+            results,
+        } => soak(
+            rig_tools::soak::SoakOptions {
+                scenario: config,
+                controllers: controller,
+                runs,
+                conditions,
+                waits: wait,
+                duration,
+                out: out.unwrap_or_else(|| PathBuf::from(format!("runs/soak-{}", unix_secs()))),
+            },
+            results,
+        ),
         Command::Plot { run_folder } => match rig_tools::figures::run_folder_figure(&run_folder) {
             Ok(path) => {
                 println!("wrote {}", path.display());
@@ -203,5 +258,59 @@ fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
+    }
+}
+
+/// Seconds since the Unix epoch (0 if the clock is before it).
+fn unix_secs() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0)
+}
+
+/// `rig soak`: checks the options, runs the campaign, prints its summary and writes the
+/// results file.
+fn soak(opts: rig_tools::soak::SoakOptions, results: Option<PathBuf>) -> ExitCode {
+    use rig_tools::soak::{self, SoakError};
+    let plan = match soak::plan(&opts) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("rig: soak: {e}");
+            return ExitCode::from(match e {
+                SoakError::Usage(_) => 2,
+                SoakError::Run(_) => 1,
+            });
+        }
+    };
+    let stop = Arc::new(AtomicUsize::new(0));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        let _ = signal_hook::flag::register_usize(sig, stop.clone(), sig as usize);
+    }
+    let results = results.unwrap_or_else(|| plan.out.join("soak.md"));
+    let command = soak::command_line(std::env::args());
+    let campaign = match soak::run(plan, command, stop) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("rig: soak: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    println!("{}", campaign.summary_text());
+    let mut ok = campaign.interrupted.is_none();
+    if let Some(why) = &campaign.interrupted {
+        eprintln!("rig: soak: interrupted: {why}");
+    }
+    match ipc_types::files::write_atomic(&results, campaign.render_markdown().as_bytes()) {
+        Ok(()) => println!("results: {}", results.display()),
+        Err(e) => {
+            eprintln!("rig: soak: {}: {e}", results.display());
+            ok = false;
+        }
+    }
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
     }
 }
