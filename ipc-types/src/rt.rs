@@ -153,6 +153,15 @@ pub fn keep_off_core(rt_core: Option<usize>) {
     }
 }
 
+/// Returns the calling thread to `SCHED_OTHER` (its affinity unchanged): a loop whose
+/// plant runs in lockstep has no deadline, and a `SCHED_FIFO` thread ping-ponging with it
+/// would starve every normal task on its core. Returns whether the kernel accepted it.
+pub fn leave_fifo() -> bool {
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: `param` is valid; pid 0 is the calling thread.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) == 0 }
+}
+
 fn set_fifo(prio: i32) -> StepOutcome {
     let param = libc::sched_param {
         sched_priority: prio,

@@ -77,7 +77,6 @@ use checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use control::controller::{Controller, MAX_INTERNALS, StepInput};
 use deadline::{Answer, DeadlineMonitor, SafeStateChange};
 use gate::MeasurementGate;
-pub use pacing::{Pacer, WaitStep};
 use ipc_types::clock::monotonic_ns;
 use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
@@ -86,6 +85,7 @@ use ipc_types::{
     Actuation, CONTRACT_VERSION, ChannelCounts, MAX_PLAN, MAX_U, MAX_Z, Measurement, Timing,
     actuation_status, measurement_flags,
 };
+pub use pacing::{Pacer, WaitStep};
 use reset::{ControllerResetPolicy, ResetCause};
 use sent::SentLog;
 use serde::Serialize;
@@ -294,7 +294,8 @@ pub struct LoopStats {
     /// Of those, the samples lost (never received).
     pub lost_past_startup: u64,
     /// Samples past start-up whose plant reports that it held its input or applied its
-    /// safe output over the period before (a late answer that no plan entry covered).
+    /// safe output over the period before although the service had sent an input for it
+    /// (a late answer that no plan entry covered).
     pub held_past_startup: u64,
     /// Closed-loop answers whose input differs from the safe input.
     pub inputs_off_safe: u64,
@@ -387,6 +388,8 @@ pub struct LoopCore {
     cycles_since_checkpoint: u64,
     /// Where every input and output of the loop goes for `record.bin` ([`crate::record`]).
     recorder: Option<Recorder>,
+    /// Refused samples already accounted for by [`LoopCore::count_past_startup`].
+    refusals_counted: u64,
 }
 
 /// What [`LoopCore::handle`] did with one sample.
@@ -536,6 +539,7 @@ impl LoopCore {
             checkpoint_every: cfg.checkpoint_every_cycles,
             cycles_since_checkpoint: 0,
             recorder: None,
+            refusals_counted: 0,
         };
         core.refresh_prepared();
         core
@@ -782,15 +786,27 @@ impl LoopCore {
     /// when it is past start-up (the grace period and the open-loop phase): the samples,
     /// the lost ones, and whether the plant held its input before it.
     fn count_past_startup(&mut self, m: &Measurement, lost: u64) {
+        let refusals =
+            self.stats.rejected_duplicate + self.stats.rejected_backward + self.stats.rejected_jump;
+        let refused_before = refusals != self.refusals_counted;
+        self.refusals_counted = refusals;
         if self.deadline.in_grace(self.session.connection_cycle())
             || self.session.session_cycle() <= self.open_loop_cycles
         {
             return;
         }
+        // A hold counts against the loop only when the service had sent an input for that
+        // period: after a refused or lost sample the plant holds by design, and that is
+        // counted as what it is.
         let f = m.flags;
-        let held = (f & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
-            && f & measurement_flags::PLAN_APPLIED == 0)
-            || f & measurement_flags::PLANT_SAFE_OUTPUT != 0;
+        let answered = !refused_before
+            && m.seq
+                .checked_sub(1)
+                .is_some_and(|k| self.sent.input_for(k).is_some());
+        let held = answered
+            && ((f & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
+                && f & measurement_flags::PLAN_APPLIED == 0)
+                || f & measurement_flags::PLANT_SAFE_OUTPUT != 0);
         let s = &mut self.stats;
         s.samples_past_startup += 1 + lost;
         s.lost_past_startup += lost;
@@ -2350,6 +2366,7 @@ pub fn rt_loop(
     let period_ns = core.period_ns;
     let late_ns = period_ns.saturating_add(period_ns / 2);
     let wait = pacer.mode();
+    let mut left_fifo = false;
     loop {
         if shutdown.load(Ordering::Relaxed) {
             return StopReason::Signal;
@@ -2377,6 +2394,13 @@ pub fn rt_loop(
                 core.note_new_peer();
             }
             let m = &pending[(n - 1) % PENDING];
+            if m.flags & measurement_flags::LOCKSTEP != 0 && !left_fifo {
+                // A lockstep plant has no deadline: leave SCHED_FIFO once (a system call,
+                // outside the counted real-time work), so that the ping-pong of a
+                // lockstep run does not starve the normal tasks of the RT core.
+                left_fifo = true;
+                crate::rt_alloc::outside_rt(ipc_types::rt::leave_fifo);
+            }
             pacer.on_sample(
                 m.t_sample_ns,
                 t_recv,
@@ -2391,7 +2415,10 @@ pub fn rt_loop(
             }
             continue;
         }
-        match (pacer.next(monotonic_ns(), ports.listener.is_some()), &ports.listener) {
+        match (
+            pacer.next(monotonic_ns(), ports.listener.is_some()),
+            &ports.listener,
+        ) {
             (WaitStep::Block(timeout), Some(listener)) => {
                 let _ = listener.timed_wait(|_| {}, timeout);
             }

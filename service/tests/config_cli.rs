@@ -141,7 +141,7 @@ fn check_system_prints_one_line_per_check_and_its_fix() {
         let (code, out, err) = service(&args);
         assert_eq!(code, Some(0), "{args:?}: {err}");
         let lines: Vec<&str> = out.lines().collect();
-        assert_eq!(lines.len(), 9, "{out}");
+        assert_eq!(lines.len(), 10, "{out}");
         for (line, check) in lines.iter().zip([
             "preemption",
             "isolated core",
@@ -152,6 +152,7 @@ fn check_system_prints_one_line_per_check_and_its_fix() {
             "swap",
             "transparent huge pages",
             "privileges",
+            "shared rt core",
         ]) {
             assert!(line.contains(&format!("{check}: ")), "{line}");
             let fix = line.starts_with("FIX ");

@@ -134,7 +134,7 @@ fn a_normal_lockstep_launch_exits_0_and_records_both_children_exiting_0() {
     assert_eq!(read_json(&run.join("plant-report.json"))["samples"], 200);
     // The system check is part of every report, one finding per check.
     let system = report["system"].as_array().expect("system findings");
-    assert_eq!(system.len(), 9, "{report}");
+    assert_eq!(system.len(), 10, "{report}");
     assert_eq!(system[0]["check"], "preemption", "{report}");
 }
 

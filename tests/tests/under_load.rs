@@ -53,10 +53,7 @@ fn failures(report: &Value) -> Vec<String> {
 #[test]
 fn the_main_job_loses_no_samples_and_controls_with_a_process_spinning_on_the_service_core() {
     let dir = TestDir::new("under-load-main-job");
-    let text = with_rig_name(
-        &scenario_text("acoustic-rig.toml"),
-        &rig_name("under-load"),
-    );
+    let text = with_rig_name(&scenario_text("acoustic-rig.toml"), &rig_name("under-load"));
     // The scenario's target model is found next to the scenario.
     let text = text.replace(
         "target-model-file = \"rcac/acoustic-target.toml\"",
@@ -100,7 +97,9 @@ fn the_main_job_loses_no_samples_and_controls_with_a_process_spinning_on_the_ser
         launch.output()
     );
     assert!(
-        !failures(&report).iter().any(|f| f.starts_with("SAMPLES LOST")),
+        !failures(&report)
+            .iter()
+            .any(|f| f.starts_with("SAMPLES LOST")),
         "{:?}",
         failures(&report)
     );
@@ -108,7 +107,9 @@ fn the_main_job_loses_no_samples_and_controls_with_a_process_spinning_on_the_ser
     let steps = stat(&report, "controller_steps");
     assert!(steps > 20_000, "{steps} controller steps");
     assert_eq!(stat(&report, "inputs_off_safe"), steps);
-    let updated = report["adaptation"]["updated"].as_u64().expect("adaptation");
+    let updated = report["adaptation"]["updated"]
+        .as_u64()
+        .expect("adaptation");
     assert!(
         updated as f64 >= 0.9 * steps as f64,
         "adaptation updated on {updated} of {steps} steps"
@@ -178,8 +179,10 @@ fn a_run_that_lost_more_than_max_lost_share_fails_its_verdict_naming_the_loss() 
         serde_json::json!(["30 samples lost (gaps in the sequence)"])
     );
     assert!(
-        f[0].starts_with("SAMPLES LOST: 1.51 % of the samples past start-up never reached the \
-                          service (30 of 1990)"),
+        f[0].starts_with(
+            "SAMPLES LOST: 1.51 % of the samples past start-up never reached the \
+                          service (30 of 1990)"
+        ),
         "{f:?}"
     );
     assert!(output.contains("verdict: FAILED: SAMPLES LOST"), "{output}");
