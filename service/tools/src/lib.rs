@@ -10,6 +10,9 @@
 //! - [`design`]: model and measured frequency responses, Markov parameters, dereverberated
 //!   transfer functions and RCAC target models (section 3.2).
 //! - [`study`]: the studies of chapters 3, 4, 5 and 6.
+//! - [`gaps`]: the gap campaign: RCAC's suppression against the share of samples lost, per
+//!   gap rule, in lockstep.
+//! - [`stalls`]: the stall study.
 //! - [`simulate`]: a controller against the simulated plant in one process (lockstep).
 //! - [`figures`]: figures of adaptive runs in the manner of Figures 3.7/3.10/3.14/3.17.
 //! - [`plot`]: PNG figures (line panels, pole–zero maps).
@@ -20,6 +23,7 @@
 pub mod analysis;
 pub mod design;
 pub mod figures;
+pub mod gaps;
 pub mod launch;
 pub mod plot;
 pub mod simulate;
