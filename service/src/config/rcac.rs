@@ -629,13 +629,21 @@ mod tests {
             }
         );
         let cases: &[(&str, &str, &str)] = &[
-            ("nc = 4", "nc = 4\ngap-rule = \"skip\"", "controller.gap-rule"),
+            (
+                "nc = 4",
+                "nc = 4\ngap-rule = \"skip\"",
+                "controller.gap-rule",
+            ),
             (
                 "nc = 4",
                 "nc = 4\ngap-rule = \"suspend\"\ngap-pause = 2",
                 "controller.gap-pause",
             ),
-            ("nc = 4", "nc = 4\ngap-pause = 100000", "controller.gap-pause"),
+            (
+                "nc = 4",
+                "nc = 4\ngap-pause = 100000",
+                "controller.gap-pause",
+            ),
         ];
         assert_refused_naming_fields(RCAC, "bad.toml", cases);
     }

@@ -290,7 +290,9 @@ pub fn run(
         }
     });
     let _ = std::fs::remove_dir_all(&tmp);
-    let mut done = done.into_inner().map_err(|_| "a run panicked".to_string())?;
+    let mut done = done
+        .into_inner()
+        .map_err(|_| "a run panicked".to_string())?;
     done.sort_by_key(|(i, _)| *i);
     let cells = done
         .into_iter()
@@ -431,8 +433,8 @@ fn one_run(spec: RunSpec<'_>) -> Result<Cell, String> {
     if let Some(f) = controller_file {
         let _ = std::fs::remove_file(f);
     }
-    let report = std::fs::read_to_string(folder.join("report.json"))
-        .map_err(|e| match &launched {
+    let report =
+        std::fs::read_to_string(folder.join("report.json")).map_err(|e| match &launched {
             Err(l) => format!("{slug} ({}): {l}", folder.display()),
             Ok(_) => format!("{slug} ({}): report.json: {e}", folder.display()),
         })?;

@@ -1251,7 +1251,10 @@ fn a_gap_every_100_samples_keeps_most_steps_updating_with_the_resume_rule() {
     let a = c.adaptation().unwrap();
     let kw = (120 + 20) as usize;
     let closed = log.iter().filter(|(k, _)| *k >= kw).count() as u64;
-    assert_eq!(a.updated + a.suspended.iter().map(|s| s.1).sum::<u64>(), closed);
+    assert_eq!(
+        a.updated + a.suspended.iter().map(|s| s.1).sum::<u64>(),
+        closed
+    );
     assert_eq!(a.suspended[0], ("the pause after a gap", 20 * gaps));
     assert_eq!(a.suspended[1].1, 0);
     assert!(a.updated as f64 > 0.7 * closed as f64, "{a:?}");
