@@ -153,39 +153,39 @@ fn covers(spans: &[Stall], k: u64) -> bool {
 /// representable; `name` is the list's key below `proxy.faults`.
 fn validate_spans(spans: &[Stall], name: &str) -> Result<(), FaultsError> {
     let err = |field: String, problem: String| Err(FaultsError { field, problem });
-        let mut previous: Option<(usize, Stall, u64)> = None;
-        for (i, s) in spans.iter().enumerate() {
-            if s.periods == 0 {
-                return err(
-                    format!("proxy.faults.{name}[{i}].periods"),
-                    "must be at least 1".into(),
-                );
-            }
-            let Some(end) = s.end() else {
-                return err(
-                    format!("proxy.faults.{name}[{i}]"),
-                    format!(
-                        "at + periods = {} + {} is past the last sample number",
-                        s.at, s.periods
-                    ),
-                );
-            };
-            if let Some((j, p, p_end)) = previous
-                && s.at < p_end
-            {
-                return err(
-                    format!("proxy.faults.{name}[{i}].at"),
-                    format!(
-                        "{} is inside or before {name}[{j}] (samples {} to {}): the spans must be \
-                         sorted by 'at' and must not overlap",
-                        s.at,
-                        p.at,
-                        p_end - 1
-                    ),
-                );
-            }
-            previous = Some((i, *s, end));
+    let mut previous: Option<(usize, Stall, u64)> = None;
+    for (i, s) in spans.iter().enumerate() {
+        if s.periods == 0 {
+            return err(
+                format!("proxy.faults.{name}[{i}].periods"),
+                "must be at least 1".into(),
+            );
         }
+        let Some(end) = s.end() else {
+            return err(
+                format!("proxy.faults.{name}[{i}]"),
+                format!(
+                    "at + periods = {} + {} is past the last sample number",
+                    s.at, s.periods
+                ),
+            );
+        };
+        if let Some((j, p, p_end)) = previous
+            && s.at < p_end
+        {
+            return err(
+                format!("proxy.faults.{name}[{i}].at"),
+                format!(
+                    "{} is inside or before {name}[{j}] (samples {} to {}): the spans must be \
+                         sorted by 'at' and must not overlap",
+                    s.at,
+                    p.at,
+                    p_end - 1
+                ),
+            );
+        }
+        previous = Some((i, *s, end));
+    }
     Ok(())
 }
 

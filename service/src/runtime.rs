@@ -77,7 +77,6 @@ use checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use control::controller::{Controller, MAX_INTERNALS, StepInput};
 use deadline::{Answer, DeadlineMonitor, SafeStateChange};
 use gate::MeasurementGate;
-pub use pacing::{Pacer, WaitStep};
 use ipc_types::clock::monotonic_ns;
 use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectOptions, ContractInfo, ServicePorts, Side};
@@ -86,6 +85,7 @@ use ipc_types::{
     Actuation, CONTRACT_VERSION, ChannelCounts, MAX_PLAN, MAX_U, MAX_Z, Measurement, Timing,
     actuation_status, measurement_flags,
 };
+pub use pacing::{Pacer, WaitStep};
 use reset::{ControllerResetPolicy, ResetCause};
 use sent::SentLog;
 use serde::Serialize;
@@ -2391,7 +2391,10 @@ pub fn rt_loop(
             }
             continue;
         }
-        match (pacer.next(monotonic_ns(), ports.listener.is_some()), &ports.listener) {
+        match (
+            pacer.next(monotonic_ns(), ports.listener.is_some()),
+            &ports.listener,
+        ) {
             (WaitStep::Block(timeout), Some(listener)) => {
                 let _ = listener.timed_wait(|_| {}, timeout);
             }

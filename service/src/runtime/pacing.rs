@@ -155,7 +155,10 @@ mod tests {
         p.on_sample(1_000_000, 1_010_000, false);
         let late = 1_000_000 + T + T / 2;
         assert_eq!(p.next(late, false), WaitStep::SleepUntil(late + T / 8));
-        assert_eq!(p.next(late + 10 * T, true), WaitStep::SleepUntil(late + 10 * T + T / 8));
+        assert_eq!(
+            p.next(late + 10 * T, true),
+            WaitStep::SleepUntil(late + 10 * T + T / 8)
+        );
     }
 
     #[test]
@@ -169,17 +172,29 @@ mod tests {
         let mut p = Pacer::new(WaitMode::SleepPoll, T, 0);
         // A plant clock from another time base (far in the past, or in the future).
         p.on_sample(10, 9_000_000, false);
-        assert_eq!(p.next(9_000_001, false), WaitStep::SleepUntil(9_000_000 + T));
+        assert_eq!(
+            p.next(9_000_001, false),
+            WaitStep::SleepUntil(9_000_000 + T)
+        );
         p.on_sample(50_000_000, 9_000_000, false);
-        assert_eq!(p.next(9_000_001, false), WaitStep::SleepUntil(9_000_000 + T));
+        assert_eq!(
+            p.next(9_000_001, false),
+            WaitStep::SleepUntil(9_000_000 + T)
+        );
     }
 
     #[test]
     fn the_window_is_at_most_a_third_of_the_period_and_bounds_the_polled_share() {
         let p = Pacer::new(WaitMode::SleepPoll, T, 1_000_000);
         let share = p.poll_share();
-        assert!((share - (T / 3 + T / 2) as f64 / T as f64).abs() < 1e-12, "{share}");
-        assert!(share < 0.95, "must stay inside the default throttling budget");
+        assert!(
+            (share - (T / 3 + T / 2) as f64 / T as f64).abs() < 1e-12,
+            "{share}"
+        );
+        assert!(
+            share < 0.95,
+            "must stay inside the default throttling budget"
+        );
         assert_eq!(Pacer::new(WaitMode::BusyPoll, T, 0).poll_share(), 1.0);
         assert_eq!(Pacer::new(WaitMode::Block, T, 0).poll_share(), 0.0);
     }
@@ -188,7 +203,10 @@ mod tests {
     fn a_lockstep_plant_is_waited_for_on_its_event() {
         let mut p = Pacer::new(WaitMode::SleepPoll, T, 40_000);
         p.on_sample(1_000_000, 1_010_000, true);
-        assert_eq!(p.next(1_010_001, true), WaitStep::Block(Duration::from_micros(125)));
+        assert_eq!(
+            p.next(1_010_001, true),
+            WaitStep::Block(Duration::from_micros(125))
+        );
         assert_eq!(p.next(1_010_001, false), WaitStep::Poll);
     }
 

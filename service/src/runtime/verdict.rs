@@ -458,8 +458,10 @@ mod tests {
         assert!(!v.ok);
         assert_eq!(
             v.failures,
-            ["SAMPLES LOST: 1.11 % of the samples past start-up never reached the service (10 \
-              of 900), more than service.max-lost-share = 1.00 %"]
+            [
+                "SAMPLES LOST: 1.11 % of the samples past start-up never reached the service (10 \
+              of 900), more than service.max-lost-share = 1.00 %"
+            ]
         );
         assert!(v.warnings[0].starts_with("10 samples lost"), "{v:?}");
     }
@@ -499,8 +501,10 @@ mod tests {
         let v = judge(&i);
         assert_eq!(
             v.failures,
-            ["ADAPTATION SUSPENDED on 89.9 % of the closed-loop steps (890 of 990: 890 for a gap \
-              in its data), more than service.max-suspended-share = 50.0 %"]
+            [
+                "ADAPTATION SUSPENDED on 89.9 % of the closed-loop steps (890 of 990: 890 for a gap \
+              in its data), more than service.max-suspended-share = 50.0 %"
+            ]
         );
     }
 
@@ -514,8 +518,10 @@ mod tests {
         let v = judge(&i);
         assert_eq!(
             v.failures,
-            ["SUPPRESSION BELOW 60 dB (service.report.min-suppression-db): 900 Hz 12.2 dB, 1060 \
-              Hz not measured"]
+            [
+                "SUPPRESSION BELOW 60 dB (service.report.min-suppression-db): 900 Hz 12.2 dB, 1060 \
+              Hz not measured"
+            ]
         );
         i.suppression_db.clear();
         assert!(judge(&i).failures[0].starts_with("SUPPRESSION NOT MEASURED"));
@@ -527,6 +533,9 @@ mod tests {
     fn a_throttled_fifo_busy_poll_fails_the_run() {
         let mut i = inputs(clean());
         i.throttled_busy_poll = Some("RT throttling is on".into());
-        assert_eq!(judge(&i).failures, ["THROTTLED BUSY-POLL: RT throttling is on"]);
+        assert_eq!(
+            judge(&i).failures,
+            ["THROTTLED BUSY-POLL: RT throttling is on"]
+        );
     }
 }
