@@ -1245,8 +1245,10 @@ fn after_a_one_sample_gap_the_update_resumes_after_the_pause() {
 #[test]
 fn a_gap_every_100_samples_keeps_most_steps_updating_with_the_resume_rule() {
     let steps = 3000;
-    let lose = |k: usize| k >= 300 && k % 100 == 0;
-    let gaps = (300..steps).filter(|k| k % 100 == 0).count() as u64;
+    let lose = |k: usize| k >= 300 && k.is_multiple_of(100);
+    let gaps = (300..steps)
+        .filter(|k: &usize| k.is_multiple_of(100))
+        .count() as u64;
     let (c, log) = run_with_gaps(RcacParams::DEFAULT_GAP_RULE, steps, 1, lose);
     let a = c.adaptation().unwrap();
     let kw = (120 + 20) as usize;
