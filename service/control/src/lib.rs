@@ -65,4 +65,4 @@ pub use controller::{
 pub use excitation::ExcitationSource;
 pub use lti::{ControllerInput, LtiController};
 pub use param_error::ParamError;
-pub use rcac::{Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};
+pub use rcac::{GapBridge, GapRule, Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};

@@ -179,6 +179,7 @@ fn rcac_params(update: RcacUpdate, limits: Option<OutputLimits>) -> RcacParams {
         update,
         limits,
         sample_period: TS,
+        gap_rule: RcacParams::DEFAULT_GAP_RULE,
     }
 }
 

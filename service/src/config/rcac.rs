@@ -16,6 +16,10 @@
 //!                                 # each within ±10⁶
 //! u-min = -1.0                    # optional saturation, scalar or per input
 //! u-max = 1.0
+//! gap-rule = "resume-plan"       # lost samples: "resume-plan" (default), "resume-hold" or
+//!                                 # "suspend" (the original rule), see below
+//! gap-pause = 50                  # steps without an update after a gap, 0 to L (resume-*
+//!                                 # only; default nc)
 //! target-model-file = "target-model.toml"   # relative to this file's folder, or inline:
 //! # [controller.target-model] with the fields of control::target (form, sample-period, …)
 //!
@@ -31,6 +35,17 @@
 //! ```
 //!
 //! The target model must have `l_z` outputs and `l_u` inputs and the rig's sample period.
+//!
+//! `gap-rule` says what RCAC does with samples that never reached the service
+//! ([`GapRule`], module docs of `control::rcac`, "Imperfect loops"; measured in
+//! docs/results/gap-rule.md):
+//!
+//! - `"resume-plan"` (the default): the lost samples are bridged by the plan (`y` predicted
+//!   at 0, `u` the controller run on with `θ` held: what a plant with the plan late policy
+//!   applied), and the update resumes `gap-pause` steps after the gap;
+//! - `"resume-hold"`: bridged by the held `y` and `u`, resumed after `gap-pause` steps;
+//! - `"suspend"`: bridged by the held `y` and `u`, the update suspended for the history
+//!   length `L` (largest lag of `G_f` plus `n_c`) after every gap, the original rule.
 
 use super::bounds::{MAX_RCAC_NC, MAX_RCAC_RLS_THETA, MAX_THETA0, max_cycles};
 use super::controller::{ControllerConfig, Rig, output_limits, param_error};
@@ -39,7 +54,7 @@ use super::target_model_file::read_table;
 use super::values::{ScalarOrMatrix, ScalarOrVec, count, magnitudes, one_of, refuse_given, weight};
 use super::{ConfigError, ErrFn, TargetModelFile};
 use control::target::TargetModel;
-use control::{RcacParams, RcacUpdate, StepSize};
+use control::{GapBridge, GapRule, RcacParams, RcacUpdate, StepSize};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -66,6 +81,8 @@ pub(super) struct RawRcac {
     step_size: Option<String>,
     alpha: Option<f64>,
     r: Option<f64>,
+    gap_rule: Option<String>,
+    gap_pause: Option<usize>,
 }
 
 /// Reads the table into [`RcacParams`] and validates them (the controller is built later,
@@ -178,6 +195,7 @@ pub(super) fn parse(
             }
         }
     };
+    let gap_rule = gap_rule(raw.gap_rule.as_deref(), raw.gap_pause, err)?;
     let params = RcacParams {
         nc,
         kw: raw.kw,
@@ -188,6 +206,7 @@ pub(super) fn parse(
         update,
         limits: output_limits(&raw.u_min, &raw.u_max, n_u, err)?,
         sample_period: period,
+        gap_rule,
     };
     params.validate(dims).map_err(|e| {
         let e = match &rule {
@@ -199,6 +218,48 @@ pub(super) fn parse(
     Ok(ControllerConfig::Rcac {
         params: Box::new(params),
     })
+}
+
+/// `gap-rule` and `gap-pause` (module docs); the pause's upper bound, the history length,
+/// is checked by [`RcacParams::validate`] (field `gap-pause`).
+fn gap_rule(
+    rule: Option<&str>,
+    pause: Option<usize>,
+    err: &ErrFn<'_>,
+) -> Result<GapRule, ConfigError> {
+    #[derive(Clone, Copy)]
+    enum Rule {
+        Suspend,
+        Resume(GapBridge),
+    }
+    let default = match RcacParams::DEFAULT_GAP_RULE {
+        GapRule::Suspend => Rule::Suspend,
+        GapRule::Resume { bridge, .. } => Rule::Resume(bridge),
+    };
+    let rule = one_of(
+        rule,
+        default,
+        &[
+            ("resume-plan", Rule::Resume(GapBridge::Plan)),
+            ("resume-hold", Rule::Resume(GapBridge::Hold)),
+            ("suspend", Rule::Suspend),
+        ],
+        "controller.gap-rule",
+        err,
+    )?;
+    match rule {
+        Rule::Suspend => {
+            refuse_given(
+                &[(pause.is_some(), "gap-pause")],
+                "controller",
+                "only for gap-rule = \"resume-plan\" or \"resume-hold\" (\"suspend\" pauses \
+                 the history length)",
+                err,
+            )?;
+            Ok(GapRule::Suspend)
+        }
+        Rule::Resume(bridge) => Ok(GapRule::Resume { bridge, pause }),
+    }
 }
 
 /// The update laws, as `update` names them.
@@ -538,6 +599,52 @@ mod tests {
         );
         assert_eq!(params.rz, DMatrix::identity(1, 1) * RcacParams::DEFAULT_RZ);
         assert_eq!(params.kw, None);
+        assert_eq!(params.gap_rule, RcacParams::DEFAULT_GAP_RULE);
         assert_eq!(c.controller.validate(c.counts), Ok(()));
+    }
+
+    #[test]
+    fn the_gap_rule_is_read_and_checked() {
+        let rule_of = |extra: &str| {
+            let text = RCAC.replace("nc = 4", &format!("nc = 4\n{extra}"));
+            let c = ServiceConfig::parse(&text, "rcac.toml").unwrap();
+            let ControllerConfig::Rcac { params } = c.controller else {
+                panic!("not rcac");
+            };
+            params.gap_rule
+        };
+        assert_eq!(rule_of("gap-rule = \"suspend\""), GapRule::Suspend);
+        assert_eq!(
+            rule_of("gap-rule = \"resume-hold\"\ngap-pause = 3"),
+            GapRule::Resume {
+                bridge: GapBridge::Hold,
+                pause: Some(3)
+            }
+        );
+        assert_eq!(
+            rule_of("gap-rule = \"resume-plan\""),
+            GapRule::Resume {
+                bridge: GapBridge::Plan,
+                pause: None
+            }
+        );
+        let cases: &[(&str, &str, &str)] = &[
+            (
+                "nc = 4",
+                "nc = 4\ngap-rule = \"skip\"",
+                "controller.gap-rule",
+            ),
+            (
+                "nc = 4",
+                "nc = 4\ngap-rule = \"suspend\"\ngap-pause = 2",
+                "controller.gap-pause",
+            ),
+            (
+                "nc = 4",
+                "nc = 4\ngap-pause = 100000",
+                "controller.gap-pause",
+            ),
+        ];
+        assert_refused_naming_fields(RCAC, "bad.toml", cases);
     }
 }

@@ -12,6 +12,8 @@
 //! - [`study`]: the studies of chapters 3, 4, 5 and 6.
 //! - [`stalls`]: the stall study (`rig stalls`).
 //! - [`soak`]: real time under load, in one sitting (`rig soak`).
+//! - [`gaps`]: the gap campaign: RCAC's suppression against the share of samples lost, per
+//!   gap rule, in lockstep (`rig gaps`).
 //! - [`simulate`]: a controller against the simulated plant in one process (lockstep).
 //! - [`figures`]: figures of adaptive runs in the manner of Figures 3.7/3.10/3.14/3.17.
 //! - [`plot`]: PNG figures (line panels, pole–zero maps).
@@ -22,6 +24,7 @@
 pub mod analysis;
 pub mod design;
 pub mod figures;
+pub mod gaps;
 pub mod launch;
 pub mod plot;
 pub mod simulate;

@@ -285,8 +285,12 @@ fn one_run(
             case.late_policy
         }
     );
-    // The edited scenario lives next to the original, so that relative files resolve.
-    let file = dir.join(format!(".stalls-{slug}-{}.toml", std::process::id()));
+    // The edited scenario goes into the temporary folder, its relative file names resolved
+    // from the original's folder first.
+    let mut controller = table(&t, "controller");
+    crate::gaps::resolve_files(&mut controller, dir);
+    t.insert("controller".into(), controller.into());
+    let file = std::env::temp_dir().join(format!("rig-stalls-{slug}-{}.toml", std::process::id()));
     let text = toml::to_string(&t).map_err(|e| format!("writing the scenario: {e}"))?;
     std::fs::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))?;
     let folder = runs.join(&slug);

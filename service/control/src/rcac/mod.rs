@@ -178,10 +178,36 @@
 //! - **Samples the loop received late or never.** A sample that arrived while a newer
 //!   one was waiting is recorded without an update or an input
 //!   ([`Controller::observe`]: filter and history advance). `m` samples that never
-//!   arrived ([`StepInput::lost`]) are bridged by `m` history entries with the held `y`
-//!   and the held `u` (at most `L`, the history length; a longer gap clears the history);
-//!   the update is then suspended for `L` steps, until the bridged entries have left every
-//!   window, while the input is still computed. Each gap is counted (internal `gaps`).
+//!   arrived ([`StepInput::lost`]) are bridged by `m` history entries and the update
+//!   pauses, as the [`GapRule`] says (a gap of `L` or more, `L` the history length, clears
+//!   the history and waits `L` steps under every rule). The input is still computed during
+//!   the pause. Each gap is counted (internal `gaps`); the steps suspended for it are
+//!   counted by [`Controller::adaptation`].
+//!
+//! **Gap rules.** A bridged entry at sample `j` sits in the direct window of `φ_k` for
+//! `k ∈ (j, j + n_c]` and in the windows of `Φ_{f,k}`, `u_{f,k}` until `k = j + L`.
+//!
+//! - [`GapRule::Suspend`], the original rule: the held `y` and `u` bridge the gap (the
+//!   reported `u_applied` first replaces the newest stored input) and the update is
+//!   suspended for `L` steps, until the bridged entries have left every window: only
+//!   exact rows, but on a rig with a long target model (the acoustic rig: `L` = 250) a gap
+//!   every few hundred samples stops the adaptation.
+//! - [`GapRule::Resume`] with [`GapBridge::Plan`] (the default): the bridged inputs are
+//!   the ready input `u_{j} = sat(Φ_j θ)` and then (2.15) run on over the bridged
+//!   regressor with `θ` held and the bridged measurements at their regulation target 0:
+//!   the ready input and the plan's entries of the ahead form, i.e. what a plant whose
+//!   late policy applies the plan did apply. The input reported for the last lost sample
+//!   (`u_applied`) then replaces the last bridged one. The update resumes `p` steps after
+//!   the first sample that arrived again (`p = n_c` by default: `φ_k`, which `θ`
+//!   multiplies for the new input, then holds measured data only), accepting rows whose
+//!   `Φ_{f,k}`, `u_{f,k}` windows still hold bridged entries: their `u` parts are exact
+//!   under the plan policy and their `y` parts are off by the residual `y` (small in
+//!   closed loop), so `ẑ_k(θ)` (2.20) stays near the retrospective performance of the
+//!   measured data.
+//! - [`GapRule::Resume`] with [`GapBridge::Hold`]: the same pause with the held values.
+//!
+//! Without a lost sample every rule runs the same code (the original one): a loss-free
+//! run does not depend on the rule. docs/results/gap-rule.md measures the rules.
 //!
 //! # Real time
 //!
@@ -256,6 +282,40 @@ pub enum RcacUpdate {
     },
 }
 
+/// How the history bridges samples that never reached the controller, and when the
+/// update resumes after them (module docs, "Imperfect loops").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GapRule {
+    /// The original rule: the gap is bridged with the held `y` and `u`, and the update is
+    /// suspended for `L` steps (the history length), until no bridged entry is left in any
+    /// window of `u_{f,k}`, `Φ_{f,k}` or `Φ_k`.
+    Suspend,
+    /// The gap is bridged as `bridge` says and the update resumes `pause` steps after the
+    /// first sample that arrived again, accepting the rows whose windows still hold
+    /// bridged entries; the input the plant reports for the last lost sample
+    /// ([`StepInput::u_applied`]) replaces the bridged one.
+    Resume {
+        /// What stands in for the lost samples.
+        bridge: GapBridge,
+        /// Steps without an update after the gap, `≤ L`; `None`: `n_c`, the length of the
+        /// direct windows of `φ_k` (then the regressor that the new input multiplies holds
+        /// measured data only).
+        pause: Option<usize>,
+    },
+}
+
+/// What stands in for the lost samples in the history under [`GapRule::Resume`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GapBridge {
+    /// The held `y` and `u`, as [`GapRule::Suspend`] does.
+    Hold,
+    /// The ahead form's plan: `y` predicted at its regulation target 0 and `u` the
+    /// controller (2.15) run on over the bridged regressor with `θ` held (0 before `k_w`),
+    /// i.e. the ready input and then the plan's entries, which is what a plant whose late
+    /// policy applies the plan did apply.
+    Plan,
+}
+
 /// Validated parameters of an [`Rcac`] controller.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RcacParams {
@@ -278,6 +338,8 @@ pub struct RcacParams {
     pub limits: Option<OutputLimits>,
     /// The rig's sample period in s; the target model's must equal it.
     pub sample_period: f64,
+    /// What bridges lost samples and when the update resumes after them.
+    pub gap_rule: GapRule,
 }
 
 enum Law {
@@ -326,8 +388,15 @@ pub struct Rcac {
     /// Last finite `y`.
     y_hold: Vec<f64>,
     k: u64,
-    /// No update before this step: the windows still hold samples bridged over a gap.
+    /// No update before this step: the windows still hold samples bridged over a gap
+    /// ([`GapRule::Suspend`]) or the pause after one ([`GapRule::Resume`]) is not over.
     update_from: u64,
+    gap_rule: GapRule,
+    /// Steps without an update after a gap under [`GapRule::Resume`].
+    gap_pause: u64,
+    /// A bridged input (l_u) and a zero measurement (l_y), for [`GapBridge::Plan`].
+    bridge_u: Vec<f64>,
+    y_zero: Vec<f64>,
     /// Gaps bridged (lost samples, counted once per gap).
     gaps: u64,
     /// Steps asked to adapt (from `k_w` on): updated, suspended for a bridged gap in the
@@ -451,6 +520,12 @@ impl RcacParams {
     pub const DEFAULT_STEP_SIZE: StepSize = StepSize::Exp;
     /// The gradient update's `R = r I` when a configuration gives none.
     pub const DEFAULT_GRADIENT_R: f64 = 0.0;
+    /// The gap rule when a configuration gives none: the plan bridge and a pause of `n_c`
+    /// steps (docs/results/gap-rule.md measures it against the others).
+    pub const DEFAULT_GAP_RULE: GapRule = GapRule::Resume {
+        bridge: GapBridge::Plan,
+        pause: None,
+    };
 
     /// Whether the controller answers ahead ([`Controller::ahead`] is `Some`, module docs
     /// "Ahead form (2.16) and plans"): always. The controller (2.15)–(2.16),
@@ -477,6 +552,16 @@ impl RcacParams {
             limits: None,
             sample_period: target.sample_period,
             target,
+            gap_rule: Self::DEFAULT_GAP_RULE,
+        }
+    }
+
+    /// The pause of [`GapRule::Resume`] in steps (`n_c` when it gives none); `None` for
+    /// [`GapRule::Suspend`].
+    pub fn gap_pause(&self) -> Option<usize> {
+        match self.gap_rule {
+            GapRule::Suspend => None,
+            GapRule::Resume { pause, .. } => Some(pause.unwrap_or(self.nc)),
         }
     }
 
@@ -557,6 +642,18 @@ impl RcacParams {
             ));
         }
         TargetFilter::validate(t).map_err(in_target_model)?;
+        if let Some(pause) = self.gap_pause() {
+            let len = TargetFilter::largest_lag(t).map_err(in_target_model)? + self.nc;
+            if pause > len {
+                return Err(ParamError::new(
+                    "gap-pause",
+                    format!(
+                        "{pause} exceeds the history length L = {len} (the largest lag of G_f \
+                         plus n_c); gap-rule = \"suspend\" pauses L steps"
+                    ),
+                ));
+            }
+        }
         let ltheta = Self::theta_len(self.nc, counts);
         let (wz, _) = sqrt_rows(&self.rz, "rz", true)?;
         check_weight_size(&self.rz, "rz", lz)?;
@@ -701,6 +798,10 @@ impl Rcac {
             y_hold: vec![0.0; ly],
             k: 0,
             update_from: 0,
+            gap_rule: params.gap_rule,
+            gap_pause: params.gap_pause().unwrap_or(0) as u64,
+            bridge_u: vec![0.0; lu],
+            y_zero: vec![0.0; ly],
             gaps: 0,
             adapted: [0; 3],
             limits: params.limits.clone(),
@@ -752,7 +853,6 @@ impl Rcac {
         &self.u_f
     }
 
-    /// Builds the stacked rows `A`, `b` of step `k` from `Φ_{f,k}`, `u_{f,k}`, `z_k`, `φ_k`.
     /// Gaps bridged so far (each run of lost samples counts once).
     pub fn gaps(&self) -> u64 {
         self.gaps
@@ -760,28 +860,83 @@ impl Rcac {
 
     /// Brings the history in line with the plant before sample `k` is used: the input the
     /// plant really applied after sample `k − 1` replaces the one stored, and samples lost
-    /// before `k` are bridged (module docs, "Imperfect loops").
+    /// before `k` are bridged as the [`GapRule`] says (module docs, "Imperfect loops").
     fn absorb(&mut self, input: &StepInput<'_>) {
-        if let Some(ua) = input.u_applied
-            && ua.len() >= self.lu
-            && ua.iter().take(self.lu).all(|v| v.is_finite())
-        {
-            self.u_last.copy_from_slice(&ua[..self.lu]);
-            self.filter.correct_last_u(&self.u_last);
+        let applied = input
+            .u_applied
+            .filter(|ua| ua.len() >= self.lu && ua.iter().take(self.lu).all(|v| v.is_finite()));
+        let GapRule::Resume { bridge, .. } = self.gap_rule else {
+            self.absorb_suspend(applied, input.lost);
+            return;
+        };
+        if input.lost == 0 {
+            if let Some(ua) = applied {
+                self.correct_last_u(ua);
+            }
+            return;
         }
-        if input.lost > 0 {
+        let len = self.filter.history_len() as u64;
+        if input.lost >= len {
+            self.filter.reset();
+            self.k = self.k.saturating_add(input.lost);
+            self.update_from = self.k.saturating_add(len);
+        } else {
+            for _ in 0..input.lost {
+                self.filter.filter(&mut self.phi_f, &mut self.u_f);
+                if bridge == GapBridge::Plan {
+                    // u_j = sat(Φ_j θ) (0 before k_w) with y_j predicted at 0: the plan.
+                    if self.k < self.kw {
+                        self.bridge_u.fill(0.0);
+                    } else {
+                        let (pu, py) = self.filter.regressor(0);
+                        let theta = law_theta(&self.law);
+                        controller_output(theta, pu, py, self.nphi, self.lu, &mut self.bridge_u);
+                    }
+                    let _ = saturate(self.limits.as_ref(), &mut self.bridge_u);
+                    self.u_last.copy_from_slice(&self.bridge_u);
+                    self.filter.push(&self.bridge_u, &self.y_zero);
+                } else {
+                    self.filter.push(&self.u_last, &self.y_hold);
+                }
+                self.k = self.k.saturating_add(1);
+            }
+            self.update_from = self.k.saturating_add(self.gap_pause);
+        }
+        // u_applied is the input applied after sample k − 1, the last bridged one.
+        if let Some(ua) = applied {
+            self.correct_last_u(ua);
+        }
+        self.gaps += 1;
+    }
+
+    /// [`Rcac::absorb`] under [`GapRule::Suspend`], the original rule: the reported input
+    /// replaces the newest stored one, then `lost` entries of the held `y` and `u` bridge
+    /// the gap and the update waits `L` steps.
+    fn absorb_suspend(&mut self, applied: Option<&[f64]>, lost: u64) {
+        if let Some(ua) = applied {
+            self.correct_last_u(ua);
+        }
+        if lost > 0 {
             let len = self.filter.history_len() as u64;
-            if input.lost >= len {
+            if lost >= len {
                 self.filter.reset();
             } else {
-                for _ in 0..input.lost {
+                for _ in 0..lost {
                     self.filter.filter(&mut self.phi_f, &mut self.u_f);
                     self.filter.push(&self.u_last, &self.y_hold);
                 }
             }
-            self.k = self.k.saturating_add(input.lost);
+            self.k = self.k.saturating_add(lost);
             self.update_from = self.k.saturating_add(len);
             self.gaps += 1;
+        }
+    }
+
+    /// The held input and the newest stored one become `ua` (its first `l_u` entries).
+    fn correct_last_u(&mut self, ua: &[f64]) {
+        if let Some(ua) = ua.get(..self.lu) {
+            self.u_last.copy_from_slice(ua);
+            self.filter.correct_last_u(&self.u_last);
         }
     }
 
@@ -925,6 +1080,7 @@ impl Rcac {
         self.k = self.k.saturating_add(1);
     }
 
+    /// Builds the stacked rows `A`, `b` of step `k` from `Φ_{f,k}`, `u_{f,k}`, `z_k`, `φ_k`.
     fn build_rows(&mut self, z: &[f64]) {
         let (lz, lt, nphi) = (self.lz, self.ltheta, self.nphi);
         self.a.fill(0.0);
@@ -1265,13 +1421,18 @@ impl Controller for Rcac {
         ]
     }
 
-    /// From `k_w` on: steps updated, suspended while a bridged gap is in the windows, and
-    /// suspended on a bad sample.
+    /// From `k_w` on: steps updated, suspended for a gap (while a bridged gap is in the
+    /// windows under [`GapRule::Suspend`], during the pause after it under
+    /// [`GapRule::Resume`]), and suspended on a bad sample.
     fn adaptation(&self) -> Option<crate::controller::Adaptation> {
         let [updated, gap, bad] = self.adapted;
+        let gap_cause = match self.gap_rule {
+            GapRule::Suspend => "a bridged gap in its windows",
+            GapRule::Resume { .. } => "the pause after a gap",
+        };
         Some(crate::controller::Adaptation {
             updated,
-            suspended: vec![("a bridged gap in its windows", gap), ("a bad sample", bad)],
+            suspended: vec![(gap_cause, gap), ("a bad sample", bad)],
         })
     }
 

@@ -1131,3 +1131,190 @@ fn run_loop_peak(mut plant: Plant, mut c: Rcac, ahead: bool) -> (f64, f64, Rcac)
     }
     (tone_amplitude(&z_hist, steps - window, W_D), peak, c)
 }
+
+/// The SISO target of [`siso_target`] with a negligible Markov parameter at lag 120, so
+/// that the history is long (`L = 120 + n_c`) as on the acoustic rig.
+fn long_target() -> TargetModel {
+    let mut t = siso_target();
+    if let TargetForm::Markov(h) = &mut t.form {
+        h.resize(121, DMatrix::zeros(1, 1));
+        h[120] = DMatrix::from_element(1, 1, 1e-6);
+    }
+    t
+}
+
+/// Runs RCAC (`n_c = 20`, gradient, the long target) in closed loop with a tone for
+/// `steps` samples, losing `burst` samples whenever `lose(k)` is true at the first of
+/// them; returns the controller and, per sample that arrived, whether it updated `θ`.
+fn run_with_gaps(
+    rule: GapRule,
+    steps: usize,
+    burst: usize,
+    lose: impl Fn(usize) -> bool,
+) -> (Rcac, Vec<(usize, bool)>) {
+    let mut p = params(long_target(), 20, grad(StepSize::Exp, 0.5, 0.0));
+    p.gap_rule = rule;
+    let mut c = Rcac::new(&p, counts(1, 1, 1)).unwrap();
+    let mut plant = Plant::new(vec![([B1, B2], 0)]);
+    let (mut held, mut u, mut lost) = (0.0, [0.0], 0u64);
+    let mut out = Vec::new();
+    let mut skip = 0;
+    for k in 0..steps {
+        let z = plant.output() + (W_D * k as f64).sin();
+        if skip == 0 && lose(k) {
+            skip = burst;
+        }
+        if skip > 0 {
+            skip -= 1;
+            lost += 1;
+        } else {
+            let prev = [held];
+            let before = c.adaptation().unwrap().updated;
+            c.step(
+                &StepInput {
+                    seq: k as u64,
+                    y: &[z],
+                    z: &[z],
+                    u_applied: Some(&prev),
+                    lost,
+                    ..Default::default()
+                },
+                &mut u,
+            );
+            lost = 0;
+            held = u[0];
+            out.push((k, c.adaptation().unwrap().updated > before));
+        }
+        plant.apply(&[held]);
+    }
+    (c, out)
+}
+
+/// Suspended steps right after the gap that starts at sample `at` (a 1-sample gap), and
+/// whether every later step updated.
+fn pause_after(steps: &[(usize, bool)], at: usize) -> (usize, bool) {
+    let after: Vec<bool> = steps.iter().filter(|(k, _)| *k > at).map(|s| s.1).collect();
+    let pause = after.iter().take_while(|u| !**u).count();
+    (pause, after[pause..].iter().all(|u| *u))
+}
+
+/// After a 1-sample gap the update resumes after the pause (`n_c` by default, or the
+/// configured number of steps); with the original rule it waits the history length `L`.
+#[test]
+fn after_a_one_sample_gap_the_update_resumes_after_the_pause() {
+    let len = 120 + 20;
+    let gap = 400;
+    for (rule, want) in [
+        (GapRule::Suspend, len),
+        (
+            GapRule::Resume {
+                bridge: GapBridge::Plan,
+                pause: None,
+            },
+            20,
+        ),
+        (
+            GapRule::Resume {
+                bridge: GapBridge::Hold,
+                pause: Some(5),
+            },
+            5,
+        ),
+        (
+            GapRule::Resume {
+                bridge: GapBridge::Plan,
+                pause: Some(0),
+            },
+            0,
+        ),
+    ] {
+        let (c, steps) = run_with_gaps(rule, 800, 1, |k| k == gap);
+        let (pause, rest) = pause_after(&steps, gap);
+        assert_eq!(pause, want, "{rule:?}");
+        assert!(rest, "{rule:?}: every step after the pause updates");
+        assert_eq!(c.gaps(), 1);
+        let a = c.adaptation().unwrap();
+        assert_eq!(a.suspended[0].1, want as u64, "{rule:?}");
+    }
+}
+
+/// A gap every 100 samples: the original rule (`L = 140 > 100`) never updates again after
+/// the first gap, the default rule updates on most steps (all but `n_c = 20` of every
+/// 99). The counters of `adaptation()` add up to the closed-loop steps, and the cause of
+/// the suspension is named by the rule.
+#[test]
+fn a_gap_every_100_samples_keeps_most_steps_updating_with_the_resume_rule() {
+    let steps = 3000;
+    let lose = |k: usize| k >= 300 && k.is_multiple_of(100);
+    let gaps = (300..steps)
+        .filter(|k: &usize| k.is_multiple_of(100))
+        .count() as u64;
+    let (c, log) = run_with_gaps(RcacParams::DEFAULT_GAP_RULE, steps, 1, lose);
+    let a = c.adaptation().unwrap();
+    let kw = (120 + 20) as usize;
+    let closed = log.iter().filter(|(k, _)| *k >= kw).count() as u64;
+    assert_eq!(
+        a.updated + a.suspended.iter().map(|s| s.1).sum::<u64>(),
+        closed
+    );
+    assert_eq!(a.suspended[0], ("the pause after a gap", 20 * gaps));
+    assert_eq!(a.suspended[1].1, 0);
+    assert!(a.updated as f64 > 0.7 * closed as f64, "{a:?}");
+    assert_eq!(c.gaps(), gaps);
+    assert!(c.theta().iter().all(|v| v.is_finite()));
+    let (c, _) = run_with_gaps(GapRule::Suspend, steps, 1, lose);
+    let a = c.adaptation().unwrap();
+    assert_eq!(a.suspended[0].0, "a bridged gap in its windows");
+    assert_eq!(a.updated, (300 - kw) as u64, "{a:?}");
+    assert_eq!(a.updated + a.suspended[0].1, closed);
+}
+
+/// The plan bridge stores what a plant with the plan late policy applied over the gap:
+/// the ready input for the first lost sample, then the plan's entries, with the
+/// measurements predicted at 0; the reported input for the last lost sample replaces the
+/// bridged one.
+#[test]
+fn the_plan_bridge_stores_the_ready_input_and_the_plan() {
+    let mut p = params(siso_target(), 6, grad(StepSize::Exp, 0.5, 0.0));
+    p.kw = Some(8);
+    let mut c = Rcac::new(&p, counts(1, 1, 1)).unwrap();
+    let mut g = Gauss::new(3);
+    let mut applied = [0.0];
+    let mut k = 0u64;
+    for _ in 0..60 {
+        let y = [g.normal()];
+        let st = StepInput {
+            seq: k,
+            y: &y,
+            z: &y,
+            ..Default::default()
+        };
+        Ahead::advance(&mut c, &st, &applied, true);
+        Ahead::ready(&c, &mut applied);
+        k += 1;
+    }
+    let mut ready = [0.0];
+    Ahead::ready(&c, &mut ready);
+    let mut plan = [0.0; 4];
+    Ahead::plan(&mut c, &mut plan);
+    // Samples k … k + 2 are lost; k + 3 arrives with the input applied for k + 2.
+    let reported = [0.125];
+    let y = [0.5];
+    let st = StepInput {
+        seq: k + 3,
+        y: &y,
+        z: &y,
+        u_applied: Some(&reported),
+        lost: 3,
+        ..Default::default()
+    };
+    let newest = [0.75];
+    Ahead::advance(&mut c, &st, &newest, true);
+    let (pu, py) = c.filter().regressor(0);
+    assert_eq!(pu[0], 0.75);
+    assert_eq!(pu[1], 0.125, "the reported input of the last lost sample");
+    assert_eq!(pu[2], plan[0], "the plan's first entry");
+    assert_eq!(pu[3], ready[0], "the ready input");
+    assert_eq!(&py[..4], &[0.5, 0.0, 0.0, 0.0]);
+    assert_eq!(c.gaps(), 1);
+}

@@ -8,6 +8,8 @@
 //! rig stalls <scenario.toml> [--plan-length H] [--runs DIR] [--results FILE] [--json FILE]
 //! rig soak <scenario.toml> [--controller FILE|scenario]... [--runs N] [--conditions LIST]
 //!          [--wait MODE]... [--duration S] [--out DIR] [--results FILE.md]
+//! rig gaps <scenario.toml> [--rls FILE] [--rules R,R,…] [--jobs N] [--runs DIR]
+//!          [--results FILE] [--json FILE]
 //! ```
 //!
 //! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
@@ -23,7 +25,8 @@
 //! every combination of controller, wait mode and condition (`rig_tools::soak`), prints the
 //! summary and writes the results file (default `OUT/soak.md`); it exits with 0 when the
 //! campaign ran, whatever the runs' verdicts, 2 on a refused option or configuration, 1
-//! when it was interrupted or its results could not be written.
+//! when it was interrupted or its results could not be written. `gaps` runs the gap campaign of `rig_tools::gaps` (RCAC's suppression
+//! against the share of samples lost, per gap rule, in lockstep) and writes its tables.
 
 use clap::{Parser, Subcommand};
 use rig_tools::launch::{LaunchError, LaunchOptions, launch};
@@ -124,6 +127,31 @@ enum Command {
         /// The results file, Markdown (default: `<out>/soak.md`).
         #[arg(long)]
         results: Option<PathBuf>,
+    },
+    /// The gap campaign: RCAC's suppression against the share of samples lost (0 to 10 %,
+    /// bursts of 1, 4 and 16) for each gap rule, in lockstep.
+    Gaps {
+        /// Scenario / configuration TOML file (its controller is the "gradient" variant).
+        config: PathBuf,
+        /// A controller file for the second variant ("rls"), e.g.
+        /// scenarios/rcac/acoustic-rls.toml.
+        #[arg(long)]
+        rls: Option<PathBuf>,
+        /// The gap rules, `gap-rule[:pause]`, comma-separated.
+        #[arg(long, default_value = "suspend,resume-hold,resume-plan")]
+        rules: String,
+        /// Runs at a time.
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        /// Folder for the runs (default: `runs/gaps-<unix time>`).
+        #[arg(long)]
+        runs: Option<PathBuf>,
+        /// Write the tables as Markdown into this file (e.g. docs/results/gap-rule.md).
+        #[arg(long)]
+        results: Option<PathBuf>,
+        /// Write the campaign as JSON into this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
     /// Draw run.png (the verdict, z open and closed loop, u, ‖θ‖, shaded safe-state and
     /// watchdog intervals, PSDs over equal windows) from a run folder.
@@ -248,6 +276,74 @@ fn main() -> ExitCode {
             },
             results,
         ),
+        Command::Gaps {
+            config,
+            rls,
+            rules,
+            jobs,
+            runs,
+            results,
+            json,
+        } => {
+            let parsed: Result<Vec<_>, _> =
+                rules.split(',').map(rig_tools::gaps::Rule::parse).collect();
+            let parsed = match parsed {
+                Ok(r) => r,
+                Err(e) => {
+                    eprintln!("rig: gaps: --rules {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            let mut variants = vec![rig_tools::gaps::Variant {
+                name: "gradient".into(),
+                controller: None,
+            }];
+            if let Some(f) = &rls {
+                variants.push(rig_tools::gaps::Variant {
+                    name: "rls".into(),
+                    controller: Some(f.clone()),
+                });
+            }
+            let runs = runs.unwrap_or_else(|| PathBuf::from(format!("runs/gaps-{}", unix_secs())));
+            let campaign = match rig_tools::gaps::run(&config, &variants, &parsed, &runs, jobs) {
+                Ok(c) => c,
+                Err(e) => {
+                    eprintln!("rig: gaps: {e}");
+                    return ExitCode::FAILURE;
+                }
+            };
+            let mut command = format!("rig gaps {}", config.display());
+            if let Some(f) = &rls {
+                command += &format!(" --rls {}", f.display());
+            }
+            command += &format!(" --rules {rules}");
+            let table = rig_tools::gaps::render_markdown(&campaign, &command);
+            println!("{table}");
+            let mut ok = true;
+            if let Some(path) = results {
+                let text = format!(
+                    "# Gap campaign\n\nWritten by `rig gaps`: do not edit by hand. What it \
+                     runs and how to read it: `service/tools/src/gaps.rs` and \
+                     [rcac.md](../rcac.md#lost-samples-and-the-gap-rule).\n\n{table}"
+                );
+                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
+                    eprintln!("rig: gaps: {}: {e}", path.display());
+                    ok = false;
+                }
+            }
+            if let Some(path) = json {
+                let text = serde_json::to_string_pretty(&campaign).unwrap_or_default();
+                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
+                    eprintln!("rig: gaps: {}: {e}", path.display());
+                    ok = false;
+                }
+            }
+            if ok {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            }
+        }
         Command::Plot { run_folder } => match rig_tools::figures::run_folder_figure(&run_folder) {
             Ok(path) => {
                 println!("wrote {}", path.display());

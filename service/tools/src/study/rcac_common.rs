@@ -243,6 +243,7 @@ pub fn rcac_params(target: &TargetModel, update: Update, alpha: f64) -> RcacPara
         },
         limits: None,
         sample_period: target.sample_period,
+        gap_rule: RcacParams::DEFAULT_GAP_RULE,
     }
 }
 
