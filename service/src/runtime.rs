@@ -2083,10 +2083,9 @@ pub fn run(
     if setup.any_refused() {
         warnings.push(format!("real-time set-up incomplete: {}", setup.describe()));
     }
-    let throttled_busy_poll = (cfg.wait == WaitMode::BusyPoll
-        && setup.fifo == ipc_types::rt::StepOutcome::Done)
-        .then(ipc_types::rt::busy_poll_throttling_warning)
-        .flatten();
+    let throttled_busy_poll = cfg
+        .throttled_busy_poll()
+        .filter(|_| setup.fifo == ipc_types::rt::StepOutcome::Done);
     let tones = core.tones.report();
     let adaptation = core.controller.adaptation();
     let verdict = verdict::judge(&verdict::VerdictInputs {
@@ -2239,9 +2238,8 @@ fn rt_thread_main(
             return Err(ServiceError::RtRefused(setup.describe()));
         }
     }
-    if cfg.wait == WaitMode::BusyPoll
-        && setup.fifo == ipc_types::rt::StepOutcome::Done
-        && let Some(w) = ipc_types::rt::busy_poll_throttling_warning()
+    if setup.fifo == ipc_types::rt::StepOutcome::Done
+        && let Some(w) = cfg.throttled_busy_poll()
     {
         eprintln!("[service] WARNING: {w}");
         if cfg.require_rt {
