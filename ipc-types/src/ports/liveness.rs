@@ -12,6 +12,12 @@
 //! (time spent suspended). That offset only grows, so the moved creation time is never
 //! earlier than the true one: the test can call a dead node alive (and leave it), never a
 //! live node dead (and remove a live peer's resources).
+//!
+//! A process that has exited but was not reaped yet (a zombie, state `Z` or `X` in
+//! `/proc/<pid>/stat`) is dead: it holds no mapping and will never touch its ports again.
+//! An orphan is reaped by whoever adopts it, and in a container that is often a PID 1 that
+//! never reaps; `kill(pid, 0)` succeeds on a zombie, so without this test a killed peer's
+//! resources would stay for as long as the container runs.
 
 use iceoryx2::identifiers::UniqueNodeId;
 use iceoryx2::prelude::ipc;
@@ -47,7 +53,20 @@ pub(crate) fn pid_alive(pid: i32) -> bool {
     }
     // SAFETY: signal 0 performs the existence and permission check only.
     let r = unsafe { libc::kill(pid, 0) };
-    r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    let exists = r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM);
+    exists && !exited(pid)
+}
+
+/// Whether process `pid` has exited and waits to be reaped (state `Z` or `X`).
+fn exited(pid: i32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return false;
+    };
+    // The state is the first field after the command name, which ends at the last ')'.
+    let state = stat
+        .rfind(')')
+        .and_then(|i| stat[i + 1..].split_whitespace().next());
+    matches!(state, Some("Z" | "X"))
 }
 
 fn clock_ns(clock: libc::clockid_t) -> u64 {
@@ -85,6 +104,29 @@ mod tests {
         let started = process_start_boottime_ns(me).expect("/proc/self/stat");
         assert!(started <= clock_ns(libc::CLOCK_BOOTTIME));
         assert!(!pid_alive(0) && !pid_alive(-1));
+    }
+
+    #[test]
+    fn a_zombie_is_dead() {
+        let mut child = std::process::Command::new("true")
+            .spawn()
+            .expect("starting true");
+        let pid = child.id() as i32;
+        // Not reaped yet: a zombie once it has exited.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while !exited(pid) && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        assert!(exited(pid), "'true' did not exit within 10 s");
+        // SAFETY: signal 0 performs the existence check only.
+        assert_eq!(
+            unsafe { libc::kill(pid, 0) },
+            0,
+            "a zombie still has its pid"
+        );
+        assert!(!pid_alive(pid));
+        child.wait().expect("reaping true");
+        assert!(!pid_alive(pid));
     }
 
     #[test]
