@@ -102,6 +102,15 @@ pub fn start_service_until_plant_ends(scenario: &Path, folder: &Path) -> Proc {
     )
 }
 
+/// Starts `rig launch <scenario> <extra…> --run-folder <folder>` as the process `rig`: the
+/// service and the plant as the launcher's children, the way the README's main job runs.
+pub fn start_launch(scenario: &Path, folder: &Path, extra: &[&str]) -> Proc {
+    let mut args = vec!["launch", scenario.to_str().expect("UTF-8 path")];
+    args.extend_from_slice(extra);
+    args.extend(["--run-folder", folder.to_str().expect("UTF-8 path")]);
+    Proc::start("rig", &bin("rig"), &args)
+}
+
 /// Starts `plant-proxy run <scenario> --mode lockstep --steps <steps> <extra…>` as the
 /// process `name`.
 pub fn start_lockstep_plant(name: &str, scenario: &Path, steps: u64, extra: &[&str]) -> Proc {

@@ -139,18 +139,7 @@ fn a_real_time_run_replays_bit_for_bit() {
         &rcac_controller(0.999),
     );
     let folder = dir.path.join("run");
-    let mut launch = Proc::start(
-        "rig",
-        &bin("rig"),
-        &[
-            "launch",
-            scenario.to_str().unwrap(),
-            "--duration",
-            "2.0",
-            "--run-folder",
-            folder.to_str().unwrap(),
-        ],
-    );
+    let mut launch = start_launch(&scenario, &folder, &["--duration", "2.0"]);
     // The run may miss deadlines on a loaded machine (then its verdict may fail): the record
     // holds what happened, and the replay must reproduce it whatever it was.
     launch.wait(Duration::from_secs(120));

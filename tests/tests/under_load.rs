@@ -67,18 +67,7 @@ fn the_main_job_loses_no_samples_and_controls_with_a_process_spinning_on_the_ser
     let scenario = dir.write("acoustic-rig.toml", &text);
     let run = dir.path.join("run");
     let hog = Hog::on_core(1);
-    let mut launch = Proc::start(
-        "rig",
-        &bin("rig"),
-        &[
-            "launch",
-            scenario.to_str().unwrap(),
-            "--duration",
-            "4",
-            "--run-folder",
-            run.to_str().unwrap(),
-        ],
-    );
+    let mut launch = start_launch(&scenario, &run, &["--duration", "4"]);
     let status = launch.wait(Duration::from_secs(120));
     drop(hog);
     let report = read_json(&run.join("report.json"));
@@ -140,18 +129,7 @@ fn lossy_scenario(dir: &TestDir, test: &str, lost: &str) -> std::path::PathBuf {
 
 fn launch_lockstep(dir: &TestDir, scenario: &Path) -> (bool, Value, String) {
     let run = dir.path.join("run");
-    let mut p = Proc::start(
-        "rig",
-        &bin("rig"),
-        &[
-            "launch",
-            scenario.to_str().unwrap(),
-            "--mode",
-            "lockstep",
-            "--run-folder",
-            run.to_str().unwrap(),
-        ],
-    );
+    let mut p = start_launch(scenario, &run, &["--mode", "lockstep"]);
     let ok = p.wait(Duration::from_secs(120)).success();
     (ok, read_json(&run.join("report.json")), p.output())
 }
