@@ -39,6 +39,7 @@
 #![warn(missing_docs)]
 
 pub mod clock;
+pub mod cpu_latency;
 pub mod files;
 pub mod peer;
 pub mod ports;

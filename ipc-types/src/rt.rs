@@ -1,5 +1,6 @@
 //! Real-time thread set-up shared by both sides of the contract: pin to a core, request
-//! `SCHED_FIFO`, lock memory (`mlockall`) and prefault the stack.
+//! `SCHED_FIFO`, lock memory (`mlockall`), prefault the stack, and hold the CPUs' wake-up
+//! latency down ([`crate::cpu_latency`]).
 //!
 //! On a stock kernel without `CAP_SYS_NICE` or with RT throttling the OS may refuse some of
 //! these. Each step's outcome is recorded in an [`RtSetup`] so that the process can warn
@@ -18,6 +19,9 @@ pub struct RtRequest {
     pub mlockall: bool,
     /// Bytes of stack to touch so that the pages are mapped before the loop starts.
     pub prefault_stack_bytes: usize,
+    /// The CPU wake-up latency to hold for the life of the process, µs
+    /// ([`crate::cpu_latency::hold`]), or `None` to leave it to the kernel.
+    pub cpu_latency_us: Option<u32>,
 }
 
 /// The outcome of one set-up step.
@@ -68,19 +72,28 @@ pub struct RtSetup {
     pub fifo: StepOutcome,
     /// `mlockall(MCL_CURRENT | MCL_FUTURE)`.
     pub mlockall: StepOutcome,
+    /// The CPU wake-up latency request.
+    pub cpu_latency: StepOutcome,
 }
 
 impl RtSetup {
     /// True when any requested step was refused.
     pub fn any_refused(&self) -> bool {
-        self.affinity.refused() || self.fifo.refused() || self.mlockall.refused()
+        self.affinity.refused()
+            || self.fifo.refused()
+            || self.mlockall.refused()
+            || self.cpu_latency.refused()
     }
 
     /// One line per step, for the start-up banner and the run report.
     pub fn describe(&self) -> String {
+        let latency = match crate::cpu_latency::held() {
+            Some(us) if self.cpu_latency == StepOutcome::Done => format!(" ≤ {us} µs"),
+            _ => String::new(),
+        };
         format!(
-            "core affinity: {}; SCHED_FIFO: {}; mlockall: {}",
-            self.affinity, self.fifo, self.mlockall
+            "core affinity: {}; SCHED_FIFO: {}; mlockall: {}; cpu wake-up latency{latency}: {}",
+            self.affinity, self.fifo, self.mlockall, self.cpu_latency
         )
     }
 }
@@ -100,6 +113,10 @@ pub fn setup_current_thread(req: &RtRequest) -> RtSetup {
     } else {
         StepOutcome::Skipped
     };
+    let cpu_latency = match req.cpu_latency_us {
+        None => StepOutcome::Skipped,
+        Some(us) => crate::cpu_latency::hold(us),
+    };
     if req.prefault_stack_bytes > 0 {
         prefault_stack(req.prefault_stack_bytes);
     }
@@ -107,6 +124,7 @@ pub fn setup_current_thread(req: &RtRequest) -> RtSetup {
         affinity,
         fifo,
         mlockall,
+        cpu_latency,
     }
 }
 
@@ -254,6 +272,7 @@ mod tests {
             fifo_priority: None,
             mlockall: false,
             prefault_stack_bytes: 64 * 1024,
+            cpu_latency_us: None,
         });
         assert_eq!(s.affinity, StepOutcome::Skipped);
         assert!(!s.any_refused());

@@ -37,6 +37,7 @@ fn main() {
         fifo_priority: fifo,
         mlockall: true,
         prefault_stack_bytes: 256 * 1024,
+        cpu_latency_us: Some(0),
     });
     println!("{}", setup.describe());
     println!(

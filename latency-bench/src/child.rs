@@ -327,7 +327,8 @@ pub fn drive<T: Send>(
             let setup = ipc_types::rt::RtSetup {
                 affinity: skipped.clone(),
                 fifo: skipped.clone(),
-                mlockall: skipped,
+                mlockall: skipped.clone(),
+                cpu_latency: skipped,
             };
             (Err("the plant thread panicked".into()), setup)
         })

@@ -455,6 +455,7 @@ mod tests {
             affinity: ipc_types::rt::StepOutcome::Skipped,
             fifo: ipc_types::rt::StepOutcome::Skipped,
             mlockall: ipc_types::rt::StepOutcome::Skipped,
+            cpu_latency: ipc_types::rt::StepOutcome::Skipped,
         };
         let facts = crate::machine::collect(&setup, 0);
         let record = RunRecord {

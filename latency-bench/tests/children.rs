@@ -41,6 +41,7 @@ fn no_rt() -> RtRequest {
         fifo_priority: None,
         mlockall: false,
         prefault_stack_bytes: 0,
+        cpu_latency_us: None,
     }
 }
 

@@ -177,6 +177,8 @@ impl ProxyConfig {
                     fifo_priority,
                     mlockall: raw.mlockall.unwrap_or(true),
                     prefault_stack_bytes: 256 * 1024,
+                    // The service holds the (global) request for both sides.
+                    cpu_latency_us: None,
                 },
             },
             intersample: raw.intersample.unwrap_or(Intersample::Ideal),

@@ -2106,6 +2106,7 @@ pub fn run(
             .map(|t| t.tones.iter().map(|l| (l.hz, l.suppression_db)).collect())
             .unwrap_or_default(),
         throttled_busy_poll,
+        rt_core_steal: scheduling.steal.rt_core_s.zip(scheduling.loop_s),
     });
     warnings.extend(verdict.warnings.iter().cloned());
     if let Some(e) = &checkpoints.first_error {

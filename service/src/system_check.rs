@@ -524,15 +524,27 @@ pub fn shared_core_unreadable() -> Finding {
 }
 
 /// The `shared rt core` finding from what `tasks` saw on `core` over `window`; `isolated`
-/// says whether the core is isolated (`None`: unknown). Fix when a user-space task was
-/// seen there, naming it; per-CPU kernel threads alone are named but Good.
+/// says whether the core is isolated (`None`: unknown). Fix when a user-space task of
+/// another process was seen there, naming it; per-CPU kernel threads, and the threads of
+/// process `own_pid` (the service itself: its helper threads before they moved off the
+/// core), are named apart and alone leave it Good.
 pub fn shared_core_finding(
     core: usize,
     isolated: Option<bool>,
     tasks: &CoreTasks,
     window: Duration,
+    own_pid: u32,
 ) -> Finding {
-    let top = tasks.top();
+    let (own, top): (Vec<_>, Vec<_>) = tasks
+        .top()
+        .into_iter()
+        .partition(|t| t.pid == own_pid && !t.kernel_thread);
+    let own_note = if own.is_empty() {
+        String::new()
+    } else {
+        let names: Vec<&str> = own.iter().map(|t| t.comm.as_str()).collect();
+        format!("; the service's own threads: {}", names.join(", "))
+    };
     let name = |t: &crate::scheduling::core_tasks::CoreTask| {
         format!(
             "{} (pid {}, seen in {} of {} scans)",
@@ -563,7 +575,7 @@ pub fn shared_core_finding(
         return Finding::good(
             SHARED,
             format!(
-                "core {core} ({isolation}): no other user-space task ran there in {ms} ms{kernel_note}"
+                "core {core} ({isolation}): no other user-space task ran there in {ms} ms{kernel_note}{own_note}"
             ),
         );
     }
@@ -591,7 +603,7 @@ pub fn shared_core_finding(
     Finding::fix(
         SHARED,
         format!(
-            "the RT core {core} ({isolation}) is shared: {} other task(s) ran there in {ms} ms: {}",
+            "the RT core {core} ({isolation}) is shared: {} other task(s) ran there in {ms} ms: {}{own_note}",
             users.len(),
             users.join(", ")
         ),
@@ -619,7 +631,13 @@ fn shared_core(sys: &SystemRoot, core: Option<usize>) -> Finding {
         }
         tasks.observe(&seen);
     }
-    shared_core_finding(core, core_isolated(sys, core), &tasks, began.elapsed())
+    shared_core_finding(
+        core,
+        core_isolated(sys, core),
+        &tasks,
+        began.elapsed(),
+        std::process::id(),
+    )
 }
 
 #[cfg(test)]
@@ -713,6 +731,43 @@ mod tests {
             Verdict::Unknown
         );
         let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn the_services_own_threads_are_named_apart_and_never_in_the_taskset_fix() {
+        use crate::scheduling::core_tasks::TaskStat;
+        let task = |pid: u32, tid: u32, comm: &str| TaskStat {
+            pid,
+            tid,
+            comm: comm.into(),
+            state: 'R',
+            kernel_thread: false,
+            ticks: 5,
+            processor: 1,
+        };
+        let finding = |tasks: &[TaskStat]| {
+            let mut c = CoreTasks::new(1, 8);
+            c.observe(tasks);
+            shared_core_finding(1, Some(false), &c, Duration::from_millis(200), 40)
+        };
+        // Only the service's own helper thread: nothing to fix, but it is named.
+        let own = finding(&[task(40, 41, "histograms")]);
+        assert_eq!(own.verdict, Verdict::Good, "{own:?}");
+        assert!(
+            own.found.contains("the service's own threads: histograms"),
+            "{}",
+            own.found
+        );
+        // With a foreign task: the fix names the foreign pid, never the service's.
+        let both = finding(&[task(40, 41, "histograms"), task(77, 77, "sh")]);
+        assert_eq!(both.verdict, Verdict::Fix, "{both:?}");
+        assert!(
+            both.found.contains("1 other task(s)") && both.found.contains("sh (pid 77"),
+            "{}",
+            both.found
+        );
+        let fix = both.fix.unwrap();
+        assert!(fix.ends_with("taskset -apc <other cores> 77)"), "{fix}");
     }
 
     #[test]

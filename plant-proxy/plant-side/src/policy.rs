@@ -79,6 +79,7 @@ impl PlantPolicy {
                 fifo_priority: None,
                 mlockall: false,
                 prefault_stack_bytes: 0,
+                cpu_latency_us: None,
             },
         }
     }

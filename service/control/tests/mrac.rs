@@ -768,6 +768,65 @@ fn a_non_finite_sample_holds_the_input_with_a_fault_and_the_loop_goes_on() {
     }
 }
 
+#[test]
+fn the_adaptation_counts_say_which_closed_loop_steps_updated_and_why_the_others_did_not() {
+    let ex = example1(0.5, PI / 4.0);
+    let mut controllers: [Box<dyn Controller>; 2] = [
+        Box::new(Appc::new(&ex.appc_params(), SISO).expect("valid")),
+        Box::new(RcMrac::new(&ex.rc_mrac_params(), SISO).expect("valid")),
+    ];
+    for c in controllers.iter_mut() {
+        let mut plant = Plant::new(&ex.num, &ex.den);
+        let (mut last, mut steps, mut lost) = (0.0, 0, 0);
+        for k in 0..300 {
+            let mut y = plant.output();
+            // One bad sample, three samples that never reach the controller, one sample
+            // taken in late (observed, not answered).
+            if k == 120 {
+                y = f64::NAN;
+            }
+            if (200..203).contains(&k) {
+                lost += 1;
+                plant.apply(last);
+                continue;
+            }
+            let input = StepInput {
+                seq: k as u64,
+                y: &[y],
+                z: &[y],
+                r: &[four_harmonic(k)],
+                u_applied: None,
+                lost: std::mem::take(&mut lost),
+            };
+            let mut u = [0.0];
+            if k == 250 {
+                c.observe(&input, &mut u);
+            } else {
+                c.step(&input, &mut u);
+                last = u[0];
+                steps += 1;
+            }
+            plant.apply(last);
+        }
+        let a = c.adaptation().expect("an adaptive controller counts");
+        let cause = |name: &str| {
+            a.suspended
+                .iter()
+                .find(|(c, _)| *c == name)
+                .map(|(_, n)| *n)
+                .unwrap_or_else(|| panic!("{name}: {:?}", a.suspended))
+        };
+        let (gap, bad) = (cause("a bridged gap in its windows"), cause("a bad sample"));
+        // Every closed-loop step is counted once, the observed sample not at all.
+        assert_eq!(a.updated + a.suspended(), steps, "{}: {a:?}", c.kind());
+        // The bad sample itself and the windows after it; after the gap, its windows (the
+        // lost samples already filled part of them).
+        assert!(gap > 0, "{}: {a:?}", c.kind());
+        assert_eq!(bad, gap + 1, "{}: {a:?}", c.kind());
+        assert!(a.updated > 250, "{}: {a:?}", c.kind());
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Example 3 (§4.7): an unknown harmonic input disturbance, rejected by raising the order.
 

@@ -6,6 +6,9 @@
 //! core = 1                        # pin the RT thread (omit: no pinning)
 //! fifo-priority = 80              # SCHED_FIFO priority (0: stay SCHED_OTHER)
 //! mlockall = true
+//! cpu-latency = 0                 # µs: the CPUs' wake-up latency held for the run (PM QoS,
+//!                                 # ipc_types::cpu_latency; 0: cores poll in idle instead
+//!                                 # of halting); "off": leave it to the kernel
 //! require-rt = false              # true: refuse to run when the OS refuses any of the above
 //! wait = "sleep-poll"             # or "busy-poll", "block" (WaitMode; runtime::pacing)
 //! poll-window = 40e-6             # s: sleep-poll polls from this long before the sample
@@ -174,6 +177,7 @@ pub(super) struct RawService {
     core: Option<usize>,
     fifo_priority: Option<i32>,
     mlockall: Option<bool>,
+    cpu_latency: Option<toml::Value>,
     require_rt: Option<bool>,
     wait: Option<WaitMode>,
     grace_periods: Option<u64>,
@@ -228,6 +232,22 @@ pub(super) struct ServiceTable {
     pub checkpoint_every_cycles: u64,
 }
 
+/// `service.cpu-latency`: absent → 0 µs, an integer of µs (0 … 2^31 − 1), or `"off"`
+/// (`None`: no request).
+fn cpu_latency(v: Option<&toml::Value>) -> Result<Option<u32>, String> {
+    match v {
+        None => Ok(Some(0)),
+        Some(toml::Value::Integer(us)) => match i32::try_from(*us) {
+            Ok(us) if us >= 0 => Ok(Some(us as u32)),
+            _ => Err(format!("{us} µs: must lie in 0 … {}", i32::MAX)),
+        },
+        Some(toml::Value::String(s)) if s == "off" => Ok(None),
+        Some(other) => Err(format!(
+            "{other}: an integer of µs (0: the cores never halt in idle) or \"off\""
+        )),
+    }
+}
+
 /// Validates the table; `plant` gives the channel counts when `[service.channels]` is
 /// absent, `period` (s) converts the durations to cycles.
 pub(super) fn parse(
@@ -259,6 +279,8 @@ pub(super) fn parse(
         fifo_priority,
         mlockall: s.mlockall.unwrap_or(true),
         prefault_stack_bytes: 256 * 1024,
+        cpu_latency_us: cpu_latency(s.cpu_latency.as_ref())
+            .map_err(|m| err("service.cpu-latency", m))?,
     };
     let max_cycles = bounds::max_cycles(period);
     let cycles = |v: Option<u64>, default: u64, min: u64, field: &str| {
@@ -487,4 +509,46 @@ fn channels_from_plant(plant: Option<&toml::Value>) -> Result<ChannelCounts, Str
         get("commands", Some(0))?,
         get("inputs", None)?,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::ServiceConfig;
+    use super::super::refusal_cases::assert_refused_naming_fields;
+
+    /// A static gain `u = −2y`, with a `[service]` table.
+    const BASE: &str = include_str!("../../../tests/fixtures/config/lti-static-gain.toml");
+
+    fn latency(lines: &str) -> Option<u32> {
+        let text = BASE.replacen("[service]", &format!("[service]\n{lines}"), 1);
+        ServiceConfig::parse(&text, "t.toml")
+            .expect("valid")
+            .rt
+            .cpu_latency_us
+    }
+
+    #[test]
+    fn the_cpu_wake_up_latency_is_held_at_0_unless_configured() {
+        assert_eq!(latency(""), Some(0));
+        assert_eq!(latency("cpu-latency = 20"), Some(20));
+        assert_eq!(latency("cpu-latency = \"off\""), None);
+        let cases = &[
+            (
+                "[service]",
+                "[service]\ncpu-latency = -1",
+                "service.cpu-latency",
+            ),
+            (
+                "[service]",
+                "[service]\ncpu-latency = \"low\"",
+                "service.cpu-latency",
+            ),
+            (
+                "[service]",
+                "[service]\ncpu-latency = 1e3",
+                "service.cpu-latency",
+            ),
+        ];
+        assert_refused_naming_fields(BASE, "t.toml", cases);
+    }
 }

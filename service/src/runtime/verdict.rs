@@ -26,12 +26,17 @@
 //!
 //! Everything else that makes the figures less than they look — lost, refused or rejected
 //! samples, new plant sessions, impossible sample times, misses during start-up, dropped
-//! log records, controller faults and fallbacks — is a [`RunVerdict::warnings`] line. The
+//! log records, controller faults and fallbacks, and steal time on the RT core of at least
+//! [`STEAL_WARNING_SHARE`] of the loop (the hypervisor did not run the RT thread's CPU,
+//! which no priority on the box prevents) — is a [`RunVerdict::warnings`] line. The
 //! verdict is a pure function of the counters; the service's exit status follows
 //! [`RunVerdict::ok`].
 
 use super::LoopStats;
 use serde::Serialize;
+
+/// Steal time on the RT core, as a share of the loop, from which the verdict warns.
+pub const STEAL_WARNING_SHARE: f64 = 0.01;
 
 /// Where the safe state stood when the run ended, if it was in it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -100,6 +105,9 @@ pub struct VerdictInputs {
     /// The throttling warning, when the loop busy-polled at `SCHED_FIFO` with throttling
     /// on.
     pub throttled_busy_poll: Option<String>,
+    /// Steal time on the RT core over the loop and the loop's length, s, when both are
+    /// known.
+    pub rt_core_steal: Option<(f64, f64)>,
 }
 
 /// The verdict: failures make the run failed; warnings qualify its figures.
@@ -306,6 +314,17 @@ pub fn judge(v: &VerdictInputs) -> RunVerdict {
     );
     warn(s.publish_failures, "actuations that could not be published");
     warn(v.log_dropped, "signal-log records dropped");
+    if let Some((steal, loop_s)) = v.rt_core_steal
+        && loop_s > 0.0
+        && steal >= STEAL_WARNING_SHARE * loop_s
+    {
+        warnings.push(format!(
+            "HYPERVISOR STEAL: the host did not run the RT core for {steal:.2} s of the \
+             {loop_s:.2} s loop ({:.1} %); no priority on this box prevents the misses and \
+             losses that causes",
+            100.0 * steal / loop_s
+        ));
+    }
     RunVerdict {
         ok: failures.is_empty(),
         failures,
@@ -327,6 +346,7 @@ mod tests {
             adaptation: None,
             suppression_db: vec![],
             throttled_busy_poll: None,
+            rt_core_steal: None,
         }
     }
 
@@ -537,5 +557,28 @@ mod tests {
             judge(&i).failures,
             ["THROTTLED BUSY-POLL: RT throttling is on"]
         );
+    }
+
+    #[test]
+    fn steal_on_the_rt_core_from_one_percent_of_the_loop_is_a_warning_not_a_failure() {
+        let judge_with = |steal: Option<(f64, f64)>| {
+            judge(&VerdictInputs {
+                rt_core_steal: steal,
+                ..inputs(clean())
+            })
+        };
+        let stolen = judge_with(Some((2.9, 10.0)));
+        assert!(stolen.ok, "{stolen:?}");
+        assert_eq!(stolen.warnings.len(), 1, "{stolen:?}");
+        assert!(
+            stolen.warnings[0].starts_with("HYPERVISOR STEAL")
+                && stolen.warnings[0].contains("2.90 s of the 10.00 s loop (29.0 %)"),
+            "{}",
+            stolen.warnings[0]
+        );
+        assert!(judge_with(Some((0.11, 10.0))).warnings[0].contains("(1.1 %)"));
+        assert!(judge_with(Some((0.09, 10.0))).warnings.is_empty());
+        assert!(judge_with(None).warnings.is_empty());
+        assert!(judge_with(Some((1.0, 0.0))).warnings.is_empty());
     }
 }

@@ -253,6 +253,7 @@ fn sample(shared: &Shared, core: usize) -> Sampled {
                         system_check::core_isolated(&sys, core),
                         &startup,
                         began.elapsed(),
+                        std::process::id(),
                     )
                 } else {
                     system_check::shared_core_unreadable()

@@ -3,9 +3,11 @@
 //!
 //! A scenario runs as the main job does (the two real processes over shared memory), in
 //! lockstep, once per case, with the same seed. In every case but the baselines the plant
-//! injects stalls of the service (`[proxy.faults] stalls`): stalls of 1, 2, 4 and 16
-//! periods at 6, 7, 8 and 9 s of a 10 s run, far enough apart for the lightly damped
-//! enclosure to settle in between. A stalled sample reaches the service as one that came
+//! injects stalls of the service (`[proxy.faults] stalls`): stalls of 1, 2, 4, 16, 48 and
+//! 80 periods at 4, 5, 6, 7, 8 and 9 s of a 10 s run, far enough apart for the lightly
+//! damped enclosure to settle in between. At 8 kHz the last two are 6 ms and 10 ms: the
+//! stalls a shared VM inflicts on a `SCHED_FIFO` thread (cyclictest's maximum on an idle
+//! 2-core VM; docs/deployment.md). A stalled sample reaches the service as one that came
 //! too late: it takes it in without answering, and the plant applies for it the input it
 //! already holds (sent ahead before the stall) or its late policy:
 //!
@@ -15,7 +17,10 @@
 //! | compute-first, safe | `compute-first` | the safe input (0 V) |
 //! | send-ahead, hold | `send-ahead` | hold the last input |
 //! | send-ahead, safe | `send-ahead` | the safe input (0 V) |
-//! | send-ahead, plan | `send-ahead`, plans of `H` | the plan's entry, then hold |
+//! | send-ahead, plan `H` | `send-ahead`, plans of `H` entries | the plan's entry, then hold |
+//!
+//! The plan case runs once per plan length `H` asked for, so that a stall longer than one
+//! plan and shorter than another shows what the longer plan buys.
 //!
 //! Lockstep is bit-for-bit repeatable, so a case and its baseline (the same timing, no
 //! stall) differ only by what the stalls did. The cost of a stall of `n` periods at sample
@@ -39,7 +44,14 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicUsize;
 
 /// The injected stalls: (time of the first stalled sample in s, periods).
-pub const STALLS: [(f64, u64); 4] = [(6.0, 1), (7.0, 2), (8.0, 4), (9.0, 16)];
+pub const STALLS: [(f64, u64); 6] = [
+    (4.0, 1),
+    (5.0, 2),
+    (6.0, 4),
+    (7.0, 16),
+    (8.0, 48),
+    (9.0, 80),
+];
 /// Length of the run, s.
 pub const DURATION_S: f64 = 10.0;
 /// The window over which a stall's cost is measured, s.
@@ -52,36 +64,43 @@ pub struct Case {
     pub timing: &'static str,
     /// `proxy.late-policy`.
     pub late_policy: &'static str,
+    /// `service.plan-length` (0 unless the late policy is `"plan"`).
+    pub plan_length: usize,
 }
 
 impl Case {
-    /// "send-ahead, plan".
+    /// "send-ahead, hold" or "send-ahead, plan 32".
     pub fn name(&self) -> String {
-        format!("{}, {}", self.timing, self.late_policy)
+        if self.late_policy == "plan" {
+            format!("{}, plan {}", self.timing, self.plan_length)
+        } else {
+            format!("{}, {}", self.timing, self.late_policy)
+        }
     }
 }
 
-/// The cases of the module docs, in order.
-pub const CASES: [Case; 5] = [
+/// The cases of the module docs without plans, in order; [`run`] adds one plan case per
+/// plan length.
+pub const CASES: [Case; 4] = [
     Case {
         timing: "compute-first",
         late_policy: "hold",
+        plan_length: 0,
     },
     Case {
         timing: "compute-first",
         late_policy: "safe",
+        plan_length: 0,
     },
     Case {
         timing: "send-ahead",
         late_policy: "hold",
+        plan_length: 0,
     },
     Case {
         timing: "send-ahead",
         late_policy: "safe",
-    },
-    Case {
-        timing: "send-ahead",
-        late_policy: "plan",
+        plan_length: 0,
     },
 ];
 
@@ -109,21 +128,21 @@ pub struct StallCost {
 pub struct StallStudy {
     /// The scenario.
     pub scenario: PathBuf,
-    /// Plan entries per answer in the plan case.
-    pub plan_length: usize,
+    /// Plan entries per answer, one plan case each.
+    pub plan_lengths: Vec<usize>,
     /// The RMS of `z` over the last 2 s of each baseline (no stall), by timing, Pa.
     pub baseline_rms: Vec<(String, f64)>,
     /// One row per case and stall.
     pub costs: Vec<StallCost>,
 }
 
-/// Runs the study on `scenario` with plans of `plan_length`, every run in a folder under
-/// `runs`.
+/// Runs the study on `scenario` with one plan case per entry of `plan_lengths`, every run
+/// in a folder under `runs`.
 ///
 /// # Errors
 ///
 /// A run that failed (naming its folder) or a log that could not be read.
-pub fn run(scenario: &Path, plan_length: usize, runs: &Path) -> Result<StallStudy, String> {
+pub fn run(scenario: &Path, plan_lengths: &[usize], runs: &Path) -> Result<StallStudy, String> {
     let text = std::fs::read_to_string(scenario)
         .map_err(|e| format!("{}: cannot read the file: {e}", scenario.display()))?;
     let base: toml::Table = toml::from_str(&text)
@@ -149,13 +168,19 @@ pub fn run(scenario: &Path, plan_length: usize, runs: &Path) -> Result<StallStud
         let case = Case {
             timing,
             late_policy: "hold",
+            plan_length: 0,
         };
-        let folder = one_run(&base, dir, runs, case, plan_length, &[], "baseline")?;
+        let folder = one_run(&base, dir, runs, case, &[], "baseline")?;
         baselines.push((timing, z_of(&folder)?));
     }
     let mut costs = Vec::new();
-    for case in CASES {
-        let folder = one_run(&base, dir, runs, case, plan_length, &stalls, "stalls")?;
+    let plans = plan_lengths.iter().map(|&plan_length| Case {
+        timing: "send-ahead",
+        late_policy: "plan",
+        plan_length,
+    });
+    for case in CASES.into_iter().chain(plans) {
+        let folder = one_run(&base, dir, runs, case, &stalls, "stalls")?;
         let z = z_of(&folder)?;
         let trace = csvlog::read(&folder.join(PLANT_TRACE_FILE))?;
         let (flags, status) = (trace.column("flags")?, trace.column("actuation_status")?);
@@ -210,7 +235,7 @@ pub fn run(scenario: &Path, plan_length: usize, runs: &Path) -> Result<StallStud
         .collect();
     Ok(StallStudy {
         scenario: scenario.to_path_buf(),
-        plan_length,
+        plan_lengths: plan_lengths.to_vec(),
         baseline_rms,
         costs,
     })
@@ -223,7 +248,6 @@ fn one_run(
     dir: &Path,
     runs: &Path,
     case: Case,
-    plan_length: usize,
     stalls: &[(u64, u64)],
     what: &str,
 ) -> Result<PathBuf, String> {
@@ -242,12 +266,7 @@ fn one_run(
     t.insert("rig".into(), rig.into());
     let mut service = table(&t, "service");
     service.insert("timing".into(), case.timing.into());
-    let plans = if case.late_policy == "plan" {
-        plan_length
-    } else {
-        0
-    };
-    service.insert("plan-length".into(), (plans as i64).into());
+    service.insert("plan-length".into(), (case.plan_length as i64).into());
     t.insert("service".into(), service.into());
     let mut proxy = table(&t, "proxy");
     proxy.insert("mode".into(), "lockstep".into());
@@ -276,15 +295,11 @@ fn one_run(
     faults.insert("stalls".into(), list.into());
     proxy.insert("faults".into(), faults.into());
     t.insert("proxy".into(), proxy.into());
-    let slug = format!(
-        "{what}-{}-{}",
-        case.timing,
-        if stalls.is_empty() {
-            "none"
-        } else {
-            case.late_policy
-        }
-    );
+    let slug = match (stalls.is_empty(), case.late_policy) {
+        (true, _) => format!("{what}-{}-none", case.timing),
+        (false, "plan") => format!("{what}-{}-plan-{}", case.timing, case.plan_length),
+        (false, policy) => format!("{what}-{}-{policy}", case.timing),
+    };
     // The edited scenario goes into the temporary folder, its relative file names resolved
     // from the original's folder first.
     let mut controller = table(&t, "controller");
@@ -332,8 +347,7 @@ pub fn render_markdown(s: &StallStudy, command: &str) -> String {
     out += &format!(
         ".\n\nCost of each stall: the energy of the change it made to z over {WINDOW_S} s \
          from its start, in dB relative to the residual over the same window \
-         (0 dB: as large as the whole residual); plan length {}.\n\n",
-        s.plan_length
+         (0 dB: as large as the whole residual). A plan case names its plan length.\n\n"
     );
     out += "| case | stall (periods) | held or safe inputs | plan entries | cost dB | peak change Pa |\n";
     out += "| --- | --- | --- | --- | --- | --- |\n";

@@ -619,6 +619,11 @@ impl Controller for ArmController {
         }
     }
 
+    /// PCAC's identification over the steps it ran (the contact phases).
+    fn adaptation(&self) -> Option<crate::controller::Adaptation> {
+        self.pcac.as_ref().and_then(Controller::adaptation)
+    }
+
     fn counters(&self) -> Vec<(&'static str, u64)> {
         let c = &self.counters;
         let mut v = vec![

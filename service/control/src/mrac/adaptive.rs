@@ -9,10 +9,14 @@
 //! 3. RLS updates `θ̂` on (4.42) / (4.76) when the windows hold only measured data;
 //! 4. the method's law gives `u_k` ((4.43), (4.77)) from `θ̂_{k+1}`, saturated.
 //!
+//! A step (closed loop) counts whether step 3 ran or why it did not (a bridged gap or a
+//! bad sample in the windows); a sample taken in by [`Adaptive::observe`] runs the same
+//! four steps and is not counted.
+//!
 //! No allocation after construction, no panic.
 
 use super::estimator::Estimator;
-use super::signals::Signals;
+use super::signals::{Signals, Suspension};
 use crate::controller::{OutputLimits, StepInput, status};
 
 /// The part of a method that differs: its regression and its law.
@@ -40,6 +44,8 @@ pub(super) struct Adaptive {
     pub lambda: f64,
     /// `‖θ̂‖`.
     pub theta_norm: f64,
+    /// Closed-loop steps: updated, suspended for a gap, suspended for a bad sample.
+    adapted: [u64; 3],
 }
 
 impl Adaptive {
@@ -54,14 +60,42 @@ impl Adaptive {
             zhat: 0.0,
             lambda: 1.0,
             theta_norm: 0.0,
+            adapted: [0; 3],
         };
         s.reset();
         s
     }
 
-    /// One step of `method` (module docs); writes `u_k` into `u[0]`, returns the status.
+    /// One closed-loop step of `method` (module docs); writes `u_k` into `u[0]`, returns
+    /// the status.
     pub fn step(&mut self, method: &impl Law, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
+        self.run(method, input, u, true)
+    }
+
+    /// A sample taken in without an answer: the step, not counted in [`Self::adaptation`].
+    pub fn observe(&mut self, method: &impl Law, input: &StepInput<'_>, u: &mut [f64]) {
+        let _ = self.run(method, input, u, false);
+    }
+
+    /// Closed-loop steps updated and suspended per cause.
+    pub fn adaptation(&self) -> crate::controller::Adaptation {
+        let [updated, gap, bad] = self.adapted;
+        crate::controller::Adaptation {
+            updated,
+            suspended: vec![("a bridged gap in its windows", gap), ("a bad sample", bad)],
+        }
+    }
+
+    fn run(
+        &mut self,
+        method: &impl Law,
+        input: &StepInput<'_>,
+        u: &mut [f64],
+        closed_loop: bool,
+    ) -> u32 {
         let mut st = status::OK;
+        // 0: updated, 1: suspended for a gap, 2: for a bad sample.
+        let mut outcome = 2;
         self.sig.absorb(input);
         let ok = self.sig.take_in(input);
         let mut out = self.sig.u_last();
@@ -72,6 +106,11 @@ impl Adaptive {
                 st |= status::CONTROLLER_FAULT;
                 self.zhat = f64::NAN;
             } else {
+                outcome = match self.sig.suspension {
+                    _ if self.sig.learn() => 0,
+                    Suspension::Gap => 1,
+                    Suspension::BadSample => 2,
+                };
                 if self.sig.learn() {
                     let r = self.est.update(&self.phi, b);
                     self.lambda = r.lambda;
@@ -86,6 +125,9 @@ impl Adaptive {
         } else {
             st |= status::CONTROLLER_FAULT;
             self.zhat = f64::NAN;
+        }
+        if closed_loop {
+            self.adapted[outcome] += 1;
         }
         st |= super::checks::saturate(self.limits.as_ref(), &mut out);
         self.sig.push_u(out);
@@ -167,6 +209,14 @@ macro_rules! adaptive_controller {
 
             fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
                 self.core.step(&self.law, input, u)
+            }
+
+            fn observe(&mut self, input: &StepInput<'_>, u: &mut [f64]) {
+                self.core.observe(&self.law, input, u)
+            }
+
+            fn adaptation(&self) -> Option<crate::controller::Adaptation> {
+                Some(self.core.adaptation())
             }
 
             fn reset(&mut self) {

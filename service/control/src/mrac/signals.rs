@@ -21,6 +21,15 @@ use super::history::History;
 use super::reference::ReferenceModel;
 use crate::StepInput;
 
+/// Why the estimator's update is suspended (the last event that suspended it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Suspension {
+    /// Lost samples were bridged with held values.
+    Gap,
+    /// A non-finite sample was replaced by the held one.
+    BadSample,
+}
+
 /// The histories and holds of a model-reference controller (module docs).
 #[derive(Debug, Clone)]
 pub(crate) struct Signals {
@@ -46,6 +55,8 @@ pub(crate) struct Signals {
     pub(crate) r_k: f64,
     k: u64,
     update_from: u64,
+    /// What set `update_from` last.
+    pub(crate) suspension: Suspension,
     settle: u64,
     gaps: u64,
 }
@@ -70,6 +81,7 @@ impl Signals {
             r_k: 0.0,
             k: 0,
             update_from: 0,
+            suspension: Suspension::Gap,
             settle: len as u64,
             gaps: 0,
         }
@@ -96,6 +108,7 @@ impl Signals {
             }
             self.k = self.k.saturating_add(input.lost);
             self.update_from = self.k.saturating_add(self.settle);
+            self.suspension = Suspension::Gap;
             self.gaps += 1;
         }
     }
@@ -135,6 +148,7 @@ impl Signals {
         let ok = self.push_data(y, r, false);
         if !ok {
             self.update_from = self.k.saturating_add(self.settle + 1);
+            self.suspension = Suspension::BadSample;
         }
         ok
     }

@@ -9,7 +9,9 @@
 //!    controller last gave. Samples lost before `k` ([`StepInput::lost`]) are bridged with
 //!    the held `y` and `u` (at most `n̂` entries: older ones leave the regressor anyway) and
 //!    identification is suspended until the bridged entries have left `ψ` (`n̂` samples),
-//!    so that invented data never enter `θ`.
+//!    so that invented data never enter `θ`. A closed-loop step counts whether it
+//!    identified or why not (a bridged gap, a bad sample, a restart of the histories:
+//!    [`Controller::adaptation`]).
 //! 2. **Identification** (2.24)–(2.35): [`IoModel::update`]`(y_k, u_{k−1})` gives `θ_{k+1}`
 //!    with the configured forgetting rule (the F-test (2.33)–(2.35) in chapter 6).
 //! 3. **Realization and prediction** (2.36)–(2.46): `x̂_k` (2.38)–(2.39), the Markov
@@ -77,7 +79,7 @@ use super::augmentation::{Augmentation, AugmentedModel, OutputFeedback};
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
 use crate::ParamError;
 use crate::ahead::Ahead;
-use crate::controller::{Controller, MAX_INTERNALS, StepInput};
+use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
 use crate::mpc::condense::{Condenser, MpcSpec, Weight};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
 
@@ -140,6 +142,15 @@ pub struct PcacCounters {
     pub observed: u64,
 }
 
+/// The causes of a suspended identification, as the report names them ([`Adaptation`]);
+/// index 0 is "identified".
+const SUSPENSION_CAUSES: [&str; 4] = [
+    "identified",
+    "a bridged gap in its windows",
+    "a bad sample",
+    "a restart of its histories (a new phase)",
+];
+
 /// The last QP's outcome as a number for the signal log (`qp_status`).
 fn status_code(s: Option<QpStatus>) -> f64 {
     match s {
@@ -181,6 +192,11 @@ pub struct Pcac {
     n_shifted: usize,
     /// Identification suspended for this many more samples (bridged data in `ψ`).
     suspend: usize,
+    /// Why it is suspended: an index into [`SUSPENSION_CAUSES`] (1 …).
+    suspend_cause: usize,
+    /// Closed-loop steps (a step, or an advance with adaptation): identified (index 0),
+    /// and suspended per cause of [`SUSPENSION_CAUSES`].
+    adapted: [u64; 4],
     last_status: Option<QpStatus>,
     last_iterations: usize,
     last_active: usize,
@@ -503,6 +519,8 @@ impl Pcac {
             shifted: vec![ConstraintId::Row(0); n_ids],
             n_shifted: 0,
             suspend: 0,
+            suspend_cause: 1,
+            adapted: [0; 4],
             last_status: None,
             last_iterations: 0,
             last_active: 0,
@@ -570,6 +588,7 @@ impl Pcac {
         self.model.restart_histories();
         self.restart_plan();
         self.suspend = self.model.n_hat();
+        self.suspend_cause = 3;
     }
 
     /// The last horizon prediction (state, Markov parameters, free response).
@@ -598,8 +617,10 @@ impl Pcac {
         self.solver.x()
     }
 
-    /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`.
-    fn take_in(&mut self, input: &StepInput<'_>) {
+    /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`. Returns 0 when the
+    /// sample was identified from, else the index of the cause of the suspension in
+    /// [`SUSPENSION_CAUSES`].
+    fn take_in(&mut self, input: &StepInput<'_>) -> usize {
         let m = self.u_last.len();
         if let Some(ua) = input.u_applied
             && ua.len() >= m
@@ -617,6 +638,7 @@ impl Pcac {
             }
             self.counters.bridged += input.lost;
             self.suspend = n_hat + 1;
+            self.suspend_cause = 1;
             self.age_warm_start(input.lost);
         }
         let p = self.y_work.len();
@@ -628,13 +650,17 @@ impl Pcac {
             // keep it out of θ.
             self.y_work.copy_from_slice(self.model.last_y());
             self.suspend = self.suspend.max(n_hat + 1);
+            self.suspend_cause = 2;
         }
         if self.suspend > 0 {
             self.suspend -= 1;
             self.store_sample(false);
-        } else if self.store_sample(true) {
+            return self.suspend_cause;
+        }
+        if self.store_sample(true) {
             self.counters.id_resets += 1;
         }
+        0
     }
 
     /// Stores `y_k = self.y_work` with the input of the period before it, identifying
@@ -819,7 +845,8 @@ impl Controller for Pcac {
     }
 
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
-        self.take_in(input);
+        let identified = self.take_in(input);
+        self.adapted[identified] += 1;
         let status = self.solve_mpc(input);
         let out = match self.timing {
             PcacTiming::SameStep => {
@@ -842,7 +869,7 @@ impl Controller for Pcac {
     /// Identifies from the sample without planning: the plant holds its input, which the
     /// next sample's `u_applied` confirms.
     fn observe(&mut self, input: &StepInput<'_>, _u: &mut [f64]) {
-        self.take_in(input);
+        let _ = self.take_in(input);
         self.counters.observed += 1;
         self.age_warm_start(1);
         self.plan_valid = false;
@@ -880,6 +907,19 @@ impl Controller for Pcac {
 
     fn prepare_thread(&mut self) {
         self.solver.prepare_thread();
+    }
+
+    /// Closed-loop steps (a step, or an advance with adaptation) whose identification ran,
+    /// and those whose identification was suspended, per cause.
+    fn adaptation(&self) -> Option<Adaptation> {
+        Some(Adaptation {
+            updated: self.adapted[0],
+            suspended: SUSPENSION_CAUSES[1..]
+                .iter()
+                .zip(&self.adapted[1..])
+                .map(|(c, n)| (*c, *n))
+                .collect(),
+        })
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
@@ -958,7 +998,10 @@ impl Ahead for Pcac {
     /// reference (2.47), exactly as `step` in [`PcacTiming::NextStep`]; without `adapt`
     /// as [`Controller::observe`]: identification only, `applied` held.
     fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32 {
-        self.take_in(input);
+        let identified = self.take_in(input);
+        if adapt {
+            self.adapted[identified] += 1;
+        }
         for (d, s) in self.u_next.iter_mut().zip(applied) {
             if s.is_finite() {
                 *d = *s;

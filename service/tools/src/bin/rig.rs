@@ -77,14 +77,14 @@ enum Command {
         #[arg(long)]
         plant_trace: bool,
     },
-    /// The stall study: what stalls of 1, 2, 4 and 16 periods cost under each timing and
-    /// late policy, in lockstep (seven runs of the scenario).
+    /// The stall study: what stalls of 1 to 80 periods cost under each timing and late
+    /// policy, in lockstep (one run of the scenario per case and baseline).
     Stalls {
         /// Scenario / configuration TOML file.
         config: PathBuf,
-        /// Plan entries per answer in the plan case.
-        #[arg(long, default_value_t = 32)]
-        plan_length: usize,
+        /// Plan entries per answer of a plan case; repeat it for one plan case per length.
+        #[arg(long = "plan-length", default_values_t = [32usize, 64])]
+        plan_lengths: Vec<usize>,
         /// Folder for the runs (default: `runs/stalls-<unix time>`).
         #[arg(long)]
         runs: Option<PathBuf>,
@@ -210,24 +210,25 @@ fn main() -> ExitCode {
         }
         Command::Stalls {
             config,
-            plan_length,
+            plan_lengths,
             runs,
             results,
             json,
         } => {
             let runs =
                 runs.unwrap_or_else(|| PathBuf::from(format!("runs/stalls-{}", unix_secs())));
-            let study = match rig_tools::stalls::run(&config, plan_length, &runs) {
+            let study = match rig_tools::stalls::run(&config, &plan_lengths, &runs) {
                 Ok(s) => s,
                 Err(e) => {
                     eprintln!("rig: stalls: {e}");
                     return ExitCode::FAILURE;
                 }
             };
-            let command = format!(
-                "rig stalls {} --plan-length {plan_length}",
-                config.display()
-            );
+            let lengths: String = plan_lengths
+                .iter()
+                .map(|h| format!(" --plan-length {h}"))
+                .collect();
+            let command = format!("rig stalls {}{lengths}", config.display());
             let table = rig_tools::stalls::render_markdown(&study, &command);
             println!("{table}");
             let mut ok = true;

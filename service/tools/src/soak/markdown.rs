@@ -115,8 +115,8 @@ pub fn run_table(rows: &[RunRow]) -> String {
     let mut out = String::from(
         "| # | folder | min suppression dB | criterion dB | lost share | held share | caught up \
          | response p99 µs | wake-up p99 µs | RT run-queue wait ms | RT involuntary switches \
-         | plant clock slips | verdict |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+         | steal ms, all CPUs | plant clock slips | verdict |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for r in rows {
         let crit = db(r.criterion_db);
@@ -128,7 +128,7 @@ pub fn run_table(rows: &[RunRow]) -> String {
                     Some(line) => format!("FAILED: {}", cell(line)),
                 };
                 out += &format!(
-                    "| {} | `{}` | {} | {crit} | {} | {} | {} | {} | {} | {} | {} | {} | {verdict} |\n",
+                    "| {} | `{}` | {} | {crit} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {verdict} |\n",
                     r.seq,
                     r.folder,
                     f.min_suppression_db
@@ -140,6 +140,7 @@ pub fn run_table(rows: &[RunRow]) -> String {
                     us(Some(f.wakeup_p99_ns as f64)),
                     ms(f.run_queue_wait_ns.map(|n| n as f64)),
                     or_dash(f.involuntary_switches.map(|n| n.to_string())),
+                    ms(f.steal_s.map(|s| s * 1e9)),
                     or_dash(f.plant_clock_slips.map(|n| n.to_string())),
                 );
             }
@@ -149,7 +150,7 @@ pub fn run_table(rows: &[RunRow]) -> String {
                     None => e.clone(),
                 };
                 out += &format!(
-                    "| {} | `{}` | — | {crit} | — | — | — | — | — | — | — | — | RUN FAILED, NO \
+                    "| {} | `{}` | — | {crit} | — | — | — | — | — | — | — | — | — | RUN FAILED, NO \
                      REPORT: {} |\n",
                     r.seq,
                     r.folder,

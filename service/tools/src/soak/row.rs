@@ -35,6 +35,9 @@ pub struct RunFigures {
     pub run_queue_wait_ns: Option<u64>,
     /// `scheduling.rt_thread.involuntary_switches`.
     pub involuntary_switches: Option<u64>,
+    /// Steal time over the run on all CPUs, s (`scheduling.steal.all_cpus_s`): the time
+    /// the hypervisor did not run this VM's CPUs although they had work.
+    pub steal_s: Option<f64>,
     /// The plant's clock slips (`plant-report.json` → `clock_slips`); `None` without a
     /// readable plant report.
     pub plant_clock_slips: Option<u64>,
@@ -179,6 +182,9 @@ pub fn parse_reports(report: &str, plant: Option<&str>) -> Result<RunFigures, St
         wakeup_p99_ns: u64_at(&r, "/latency/wakeup/p99")?,
         run_queue_wait_ns: opt_u64_at(&r, "/scheduling/rt_thread/run_queue_wait_ns")?,
         involuntary_switches: opt_u64_at(&r, "/scheduling/rt_thread/involuntary_switches")?,
+        steal_s: r
+            .pointer("/scheduling/steal/all_cpus_s")
+            .and_then(Value::as_f64),
         plant_clock_slips: plant_u64("clock_slips"),
         plant_held_or_safe: plant_u64("misses_held_or_safe"),
     })
@@ -220,7 +226,8 @@ pub(crate) mod tests {
   "scheduling": {{"rt_core": 1, "loop_s": 10.0,
                   "rt_thread": {{"on_cpu_ns": 2000000000, "run_queue_wait_ns": 3500000,
                                  "involuntary_switches": 12, "voluntary_switches": 80000,
-                                 "timeslices": 80012}}}}
+                                 "timeslices": 80012}},
+                  "steal": {{"rt_core_s": 0.01, "all_cpus_s": 0.03}}}}
 }}"#,
             failures.join(", ")
         )
@@ -240,6 +247,7 @@ pub(crate) mod tests {
         assert_eq!(f.wakeup_p99_ns, 21000);
         assert_eq!(f.run_queue_wait_ns, Some(3_500_000));
         assert_eq!(f.involuntary_switches, Some(12));
+        assert_eq!(f.steal_s, Some(0.03));
         assert_eq!(f.plant_clock_slips, Some(2));
         assert_eq!(f.plant_held_or_safe, Some(18));
     }

@@ -344,6 +344,19 @@ fn lost_samples_are_bridged_and_identification_pauses() {
         ys.push(y);
     }
     assert_eq!(c.counts_of().bridged, 3 * 7);
+    // Each gap suspends identification on its own step and the n̂ after it; every
+    // closed-loop step is counted once.
+    let a = c.adaptation().unwrap();
+    let per_gap = c.model().n_hat() as u64 + 1;
+    assert_eq!(
+        a.suspended,
+        vec![
+            ("a bridged gap in its windows", 7 * per_gap),
+            ("a bad sample", 0),
+            ("a restart of its histories (a new phase)", 0)
+        ]
+    );
+    assert_eq!(a.updated + a.suspended(), 3000 - 7 * 3);
     let (rms, _) = rms_and_mean(&ys[ys.len() - 500..]);
     assert!(20.0 * (open / rms).log10() > 20.0, "{rms} against {open}");
 }
