@@ -714,13 +714,19 @@ fn bad_appc_parameters_are_refused_by_field() {
 // ---------------------------------------------------------------------------------------
 // Bad samples.
 
-#[test]
-fn a_non_finite_sample_holds_the_input_with_a_fault_and_the_loop_goes_on() {
+/// Example 1 at ρ = 1/2, ν = π/4 and its APPC and RC-MRAC controllers.
+fn both_of_example1() -> (Example, [Box<dyn Controller>; 2]) {
     let ex = example1(0.5, PI / 4.0);
-    let mut controllers: [Box<dyn Controller>; 2] = [
+    let controllers: [Box<dyn Controller>; 2] = [
         Box::new(Appc::new(&ex.appc_params(), SISO).expect("valid")),
         Box::new(RcMrac::new(&ex.rc_mrac_params(), SISO).expect("valid")),
     ];
+    (ex, controllers)
+}
+
+#[test]
+fn a_non_finite_sample_holds_the_input_with_a_fault_and_the_loop_goes_on() {
+    let (ex, mut controllers) = both_of_example1();
     for c in controllers.iter_mut() {
         let mut plant = Plant::new(&ex.num, &ex.den);
         let mut last = 0.0;
@@ -770,11 +776,7 @@ fn a_non_finite_sample_holds_the_input_with_a_fault_and_the_loop_goes_on() {
 
 #[test]
 fn the_adaptation_counts_say_which_closed_loop_steps_updated_and_why_the_others_did_not() {
-    let ex = example1(0.5, PI / 4.0);
-    let mut controllers: [Box<dyn Controller>; 2] = [
-        Box::new(Appc::new(&ex.appc_params(), SISO).expect("valid")),
-        Box::new(RcMrac::new(&ex.rc_mrac_params(), SISO).expect("valid")),
-    ];
+    let (ex, mut controllers) = both_of_example1();
     for c in controllers.iter_mut() {
         let mut plant = Plant::new(&ex.num, &ex.den);
         let (mut last, mut steps, mut lost) = (0.0, 0, 0);
