@@ -184,6 +184,12 @@ pub struct Adaptation {
 }
 
 impl Adaptation {
+    /// The cause "a bridged gap in its windows": lost samples, bridged, are still in the
+    /// data the update reads.
+    pub const BRIDGED_GAP: &'static str = "a bridged gap in its windows";
+    /// The cause "a bad sample": a non-finite sample, replaced, is in the data.
+    pub const BAD_SAMPLE: &'static str = "a bad sample";
+
     /// All suspended steps.
     pub fn suspended(&self) -> u64 {
         self.suspended.iter().map(|(_, n)| n).sum()

@@ -6,9 +6,9 @@
 //! core = 1                        # pin the RT thread (omit: no pinning)
 //! fifo-priority = 80              # SCHED_FIFO priority (0: stay SCHED_OTHER)
 //! mlockall = true
-//! cpu-latency = 0                 # µs: the CPUs' wake-up latency held for the run (PM QoS,
-//!                                 # ipc_types::cpu_latency; 0: cores poll in idle instead
-//!                                 # of halting); "off": leave it to the kernel
+//! cpu-latency = 0                 # µs: the CPUs' wake-up latency held while the service
+//!                                 # runs (PM QoS, ipc_types::cpu_latency; 0: cores poll in
+//!                                 # idle instead of halting); "off": leave it to the kernel
 //! require-rt = false              # true: refuse to run when the OS refuses any of the above
 //! wait = "sleep-poll"             # or "busy-poll", "block" (WaitMode; runtime::pacing)
 //! poll-window = 40e-6             # s: sleep-poll polls from this long before the sample

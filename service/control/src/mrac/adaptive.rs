@@ -19,6 +19,14 @@ use super::estimator::Estimator;
 use super::signals::{Signals, Suspension};
 use crate::controller::{OutputLimits, StepInput, status};
 
+/// What a closed-loop step did with its update (the index of its counter).
+#[derive(Debug, Clone, Copy)]
+enum Outcome {
+    Updated = 0,
+    Gap = 1,
+    BadSample = 2,
+}
+
 /// The part of a method that differs: its regression and its law.
 pub(super) trait Law {
     /// Fills `phi` (the regressor `φ_k`) from the signals and returns `b_k`, the target of
@@ -44,7 +52,8 @@ pub(super) struct Adaptive {
     pub lambda: f64,
     /// `‖θ̂‖`.
     pub theta_norm: f64,
-    /// Closed-loop steps: updated, suspended for a gap, suspended for a bad sample.
+    /// Closed-loop steps: updated, suspended for a gap, suspended for a bad sample (indexed
+    /// by [`Outcome`]).
     adapted: [u64; 3],
 }
 
@@ -79,10 +88,14 @@ impl Adaptive {
 
     /// Closed-loop steps updated and suspended per cause.
     pub fn adaptation(&self) -> crate::controller::Adaptation {
+        use crate::controller::Adaptation;
         let [updated, gap, bad] = self.adapted;
-        crate::controller::Adaptation {
+        Adaptation {
             updated,
-            suspended: vec![("a bridged gap in its windows", gap), ("a bad sample", bad)],
+            suspended: vec![
+                (Adaptation::BRIDGED_GAP, gap),
+                (Adaptation::BAD_SAMPLE, bad),
+            ],
         }
     }
 
@@ -94,8 +107,7 @@ impl Adaptive {
         closed_loop: bool,
     ) -> u32 {
         let mut st = status::OK;
-        // 0: updated, 1: suspended for a gap, 2: for a bad sample.
-        let mut outcome = 2;
+        let mut outcome = Outcome::BadSample;
         self.sig.absorb(input);
         let ok = self.sig.take_in(input);
         let mut out = self.sig.u_last();
@@ -106,12 +118,13 @@ impl Adaptive {
                 st |= status::CONTROLLER_FAULT;
                 self.zhat = f64::NAN;
             } else {
+                let learn = self.sig.learn();
                 outcome = match self.sig.suspension {
-                    _ if self.sig.learn() => 0,
-                    Suspension::Gap => 1,
-                    Suspension::BadSample => 2,
+                    _ if learn => Outcome::Updated,
+                    Suspension::Gap => Outcome::Gap,
+                    Suspension::BadSample => Outcome::BadSample,
                 };
-                if self.sig.learn() {
+                if learn {
                     let r = self.est.update(&self.phi, b);
                     self.lambda = r.lambda;
                     if r.reset {
@@ -127,7 +140,7 @@ impl Adaptive {
             self.zhat = f64::NAN;
         }
         if closed_loop {
-            self.adapted[outcome] += 1;
+            self.adapted[outcome as usize] += 1;
         }
         st |= super::checks::saturate(self.limits.as_ref(), &mut out);
         self.sig.push_u(out);

@@ -142,12 +142,21 @@ pub struct PcacCounters {
     pub observed: u64,
 }
 
-/// The causes of a suspended identification, as the report names them ([`Adaptation`]);
-/// index 0 is "identified".
+/// Index of [`SUSPENSION_CAUSES`]: the sample was identified from.
+const IDENTIFIED: usize = 0;
+/// Index of [`SUSPENSION_CAUSES`]: bridged lost samples are in `ψ`.
+const GAP: usize = 1;
+/// Index of [`SUSPENSION_CAUSES`]: a held, non-finite sample is in `ψ`.
+const BAD_SAMPLE: usize = 2;
+/// Index of [`SUSPENSION_CAUSES`]: the histories restarted at a new phase.
+const RESTART: usize = 3;
+
+/// What a closed-loop step did with its identification, as the report names it
+/// ([`Adaptation`]), indexed by [`IDENTIFIED`], [`GAP`], [`BAD_SAMPLE`], [`RESTART`].
 const SUSPENSION_CAUSES: [&str; 4] = [
     "identified",
-    "a bridged gap in its windows",
-    "a bad sample",
+    Adaptation::BRIDGED_GAP,
+    Adaptation::BAD_SAMPLE,
     "a restart of its histories (a new phase)",
 ];
 
@@ -192,7 +201,7 @@ pub struct Pcac {
     n_shifted: usize,
     /// Identification suspended for this many more samples (bridged data in `ψ`).
     suspend: usize,
-    /// Why it is suspended: an index into [`SUSPENSION_CAUSES`] (1 …).
+    /// Why it is suspended: [`GAP`], [`BAD_SAMPLE`] or [`RESTART`].
     suspend_cause: usize,
     /// Closed-loop steps (a step, or an advance with adaptation): identified (index 0),
     /// and suspended per cause of [`SUSPENSION_CAUSES`].
@@ -519,7 +528,7 @@ impl Pcac {
             shifted: vec![ConstraintId::Row(0); n_ids],
             n_shifted: 0,
             suspend: 0,
-            suspend_cause: 1,
+            suspend_cause: GAP,
             adapted: [0; 4],
             last_status: None,
             last_iterations: 0,
@@ -588,7 +597,7 @@ impl Pcac {
         self.model.restart_histories();
         self.restart_plan();
         self.suspend = self.model.n_hat();
-        self.suspend_cause = 3;
+        self.suspend_cause = RESTART;
     }
 
     /// The last horizon prediction (state, Markov parameters, free response).
@@ -617,9 +626,8 @@ impl Pcac {
         self.solver.x()
     }
 
-    /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`. Returns 0 when the
-    /// sample was identified from, else the index of the cause of the suspension in
-    /// [`SUSPENSION_CAUSES`].
+    /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`. Returns [`IDENTIFIED`]
+    /// when the sample was identified from, else the cause of the suspension.
     fn take_in(&mut self, input: &StepInput<'_>) -> usize {
         let m = self.u_last.len();
         if let Some(ua) = input.u_applied
@@ -638,7 +646,7 @@ impl Pcac {
             }
             self.counters.bridged += input.lost;
             self.suspend = n_hat + 1;
-            self.suspend_cause = 1;
+            self.suspend_cause = GAP;
             self.age_warm_start(input.lost);
         }
         let p = self.y_work.len();
@@ -650,7 +658,7 @@ impl Pcac {
             // keep it out of θ.
             self.y_work.copy_from_slice(self.model.last_y());
             self.suspend = self.suspend.max(n_hat + 1);
-            self.suspend_cause = 2;
+            self.suspend_cause = BAD_SAMPLE;
         }
         if self.suspend > 0 {
             self.suspend -= 1;
@@ -660,7 +668,7 @@ impl Pcac {
         if self.store_sample(true) {
             self.counters.id_resets += 1;
         }
-        0
+        IDENTIFIED
     }
 
     /// Stores `y_k = self.y_work` with the input of the period before it, identifying
@@ -913,10 +921,10 @@ impl Controller for Pcac {
     /// and those whose identification was suspended, per cause.
     fn adaptation(&self) -> Option<Adaptation> {
         Some(Adaptation {
-            updated: self.adapted[0],
-            suspended: SUSPENSION_CAUSES[1..]
+            updated: self.adapted[IDENTIFIED],
+            suspended: SUSPENSION_CAUSES[GAP..]
                 .iter()
-                .zip(&self.adapted[1..])
+                .zip(&self.adapted[GAP..])
                 .map(|(c, n)| (*c, *n))
                 .collect(),
         })

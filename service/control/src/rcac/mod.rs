@@ -1427,12 +1427,15 @@ impl Controller for Rcac {
     fn adaptation(&self) -> Option<crate::controller::Adaptation> {
         let [updated, gap, bad] = self.adapted;
         let gap_cause = match self.gap_rule {
-            GapRule::Suspend => "a bridged gap in its windows",
+            GapRule::Suspend => crate::controller::Adaptation::BRIDGED_GAP,
             GapRule::Resume { .. } => "the pause after a gap",
         };
         Some(crate::controller::Adaptation {
             updated,
-            suspended: vec![(gap_cause, gap), ("a bad sample", bad)],
+            suspended: vec![
+                (gap_cause, gap),
+                (crate::controller::Adaptation::BAD_SAMPLE, bad),
+            ],
         })
     }
 
