@@ -313,6 +313,9 @@ pub enum StopReason {
     MaxCycles,
 }
 
+// Every plan row the contract carries can be filled by a controller's plan.
+const _: () = assert!(control::ahead::MAX_PLAN_ROWS >= MAX_PLAN);
+
 /// The pure per-sample logic of the RT loop, all buffers pre-allocated. The IPC glue
 /// around it only receives and calls [`LoopCore::handle`] (or [`LoopCore::observe`] for a
 /// sample taken in too late), which publish through an [`Outbox`].

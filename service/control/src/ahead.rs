@@ -51,6 +51,10 @@
 
 use crate::controller::StepInput;
 
+/// The most rows a plan holds: [`Ahead::plan`] writes at most this many (the contract's
+/// `ipc_types::MAX_PLAN`, which the service checks against it).
+pub const MAX_PLAN_ROWS: usize = 64;
+
 /// The ahead form of a controller (see the module docs).
 pub trait Ahead {
     /// Writes the input ready for the next sample (`u` has length `n_u`, finite) and
@@ -62,7 +66,7 @@ pub trait Ahead {
     /// [`status`](crate::status) bits of that input (what [`Ahead::ready`] then returns).
     fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32;
 
-    /// Writes up to `out.len() / n_u` plan entries, row `j` (`out[j n_u .. (j+1) n_u]`)
+    /// Writes up to `out.len() / n_u` plan entries (at most [`MAX_PLAN_ROWS`]), row `j` (`out[j n_u .. (j+1) n_u]`)
     /// being the input expected for the `(j + 2)`-th sample after the last one taken in
     /// (the first is the ready input itself); returns how many it wrote.
     fn plan(&mut self, out: &mut [f64]) -> usize;

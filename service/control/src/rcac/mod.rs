@@ -109,8 +109,10 @@
 //!
 //! (0 while the counter would be below `k_w`), i.e. exactly the ready inputs a copy of
 //! the controller would prepare if it were fed `y = 0` and did not adapt. Row `j` of the
-//! plan is `û_{k+2+j}`; the cost is `O(H l_θ)` for `H` rows, in two pre-allocated
-//! copies of the regressor's parts. A plant applies a plan entry only when an answer is
+//! plan is `û_{k+2+j}`; the cost is `O(H l_θ)` for `H ≤` [`MAX_PLAN_ROWS`] rows. The `u`
+//! parts of the `φ̂` are windows of one pre-allocated buffer into which each row is
+//! written as it is made, the `y` parts windows of one that holds the predicted zeros
+//! before the measured past: nothing is shifted. A plant applies a plan entry only when an answer is
 //! late; the prediction at 0 is the closed loop's goal (z → 0), and the controller's own
 //! dynamics carry the input on.
 //!
@@ -237,7 +239,7 @@ mod tests;
 pub use filter::TargetFilter;
 
 use crate::ParamError;
-use crate::ahead::Ahead;
+use crate::ahead::{Ahead, MAX_PLAN_ROWS};
 use crate::controller::{Controller, OutputLimits, StepInput};
 use crate::controller::{Dimensions, status};
 use crate::forgetting::ForgettingRule;
@@ -408,8 +410,9 @@ pub struct Rcac {
     /// The ahead form's ready input `u_{k+1}` and its status bits.
     ready_u: Vec<f64>,
     ready_status: u32,
-    /// Plan scratch: the `u` and `y` parts of the predicted regressor `φ̂` (`n_c l_u`,
-    /// `n_c l_y`).
+    /// Plan scratch: the `u` and `y` parts of the predicted regressors `φ̂`, each one
+    /// buffer that the rows' regressors are windows of (`MAX_PLAN_ROWS + n_c` blocks of
+    /// `l_u`, `MAX_PLAN_ROWS + 1 + n_c` of `l_y`; see [`Ahead::plan`]).
     plan_u: Vec<f64>,
     plan_y: Vec<f64>,
     // Internals.
@@ -808,8 +811,8 @@ impl Rcac {
             ahead: params.answers_ahead(),
             ready_u: vec![0.0; lu],
             ready_status: status::OK,
-            plan_u: vec![0.0; params.nc * lu],
-            plan_y: vec![0.0; params.nc * ly],
+            plan_u: vec![0.0; (MAX_PLAN_ROWS + params.nc) * lu],
+            plan_y: vec![0.0; (MAX_PLAN_ROWS + 1 + params.nc) * ly],
             theta_norm: 0.0,
             trace_or_mu: 0.0,
             z0: 0.0,
@@ -1511,28 +1514,38 @@ impl Ahead for Rcac {
         if lu == 0 {
             return 0;
         }
+        // The u window, newest block first: [û_{k+1+H}, …, û_{k+2}, u_{k+1}, u_k, …,
+        // u_{k+2−n_c}], the ready input at block MAX_PLAN_ROWS; row j's `u` part is the
+        // n_c blocks from block MAX_PLAN_ROWS − j on, and row j is written just before it.
         let (pu, py) = self.filter.regressor(0);
-        for (d, s) in self.plan_u.iter_mut().zip(pu) {
+        let nu = pu.len();
+        let ready_at = MAX_PLAN_ROWS * lu;
+        self.plan_u[ready_at..ready_at + lu].copy_from_slice(&self.ready_u);
+        for (d, s) in self.plan_u[ready_at + lu..].iter_mut().zip(pu) {
             *d = *s;
         }
-        for (d, s) in self.plan_y.iter_mut().zip(py) {
+        // The `y` window: MAX_PLAN_ROWS + 1 zeros (never written) before y_k, y_{k−1}, ….
+        for (d, s) in self.plan_y[(MAX_PLAN_ROWS + 1) * ly..].iter_mut().zip(py) {
             *d = *s;
         }
         let theta = law_theta(&self.law);
-        // φ̂_{k+2}: u_{k+1} (the ready input) and y_{k+1} = 0 shifted in.
-        shift_in(&mut self.plan_u, &self.ready_u, lu);
-        shift_in_zero(&mut self.plan_y, ly);
-        let mut rows = 0;
         let mut sample = self.k.saturating_add(1);
-        for row in out.chunks_exact_mut(lu) {
+        let mut rows = 0;
+        for (j, row) in out.chunks_exact_mut(lu).take(MAX_PLAN_ROWS).enumerate() {
+            let at = ready_at - j * lu;
             if sample < self.kw {
                 row.fill(0.0);
             } else {
-                controller_output(theta, &self.plan_u, &self.plan_y, nphi, lu, row);
+                // The `y` part of φ̂_{k+2+j}: j + 1 predicted zeros, then y_k, y_{k−1}, ….
+                let wu = self.plan_u.get(at..at + nu).unwrap_or(&[]);
+                let y_at = (MAX_PLAN_ROWS - j) * ly;
+                let wy = self.plan_y.get(y_at..y_at + py.len()).unwrap_or(&[]);
+                controller_output(theta, wu, wy, nphi, lu, row);
             }
             let _ = saturate(self.limits.as_ref(), row);
-            shift_in(&mut self.plan_u, row, lu);
-            shift_in_zero(&mut self.plan_y, ly);
+            if let Some(dst) = self.plan_u.get_mut(at - lu..at) {
+                dst.copy_from_slice(row);
+            }
             sample = sample.saturating_add(1);
             rows += 1;
         }
@@ -1542,26 +1555,5 @@ impl Ahead for Rcac {
     fn plan_source(&self) -> &'static str {
         "u_{k+1} exact (2.16); beyond it (2.15) run on with θ_{k+1} held and the \
          measurements predicted at 0"
-    }
-}
-
-/// Shifts the newest-first history `h` (blocks of `n`) by one block and writes `v` (`n`
-/// entries) as its newest block; does not panic.
-fn shift_in(h: &mut [f64], v: &[f64], n: usize) {
-    if let Some(keep) = h.len().checked_sub(n) {
-        h.copy_within(..keep, n);
-        for (d, s) in h.iter_mut().zip(v).take(n) {
-            *d = *s;
-        }
-    }
-}
-
-/// [`shift_in`] of a zero block.
-fn shift_in_zero(h: &mut [f64], n: usize) {
-    if let Some(keep) = h.len().checked_sub(n) {
-        h.copy_within(..keep, n);
-        for d in h.iter_mut().take(n) {
-            *d = 0.0;
-        }
     }
 }

@@ -1055,6 +1055,35 @@ fn the_plan_is_what_the_controller_would_give_if_the_coming_measurements_were_ze
     }
 }
 
+/// A plan asked for more rows than [`MAX_PLAN_ROWS`] writes that many, leaves the rest of
+/// the buffer alone, and its rows are the same as those of a shorter plan.
+#[test]
+fn a_plan_holds_at_most_max_plan_rows() {
+    let target = miso_tf_target(vec![
+        tf(0, 0, 1, &[0.4], &[1.0]),
+        tf(0, 1, 2, &[-0.2], &[1.0]),
+    ]);
+    let dims = counts(1, 1, 2);
+    let mut p = params(target, 4, grad(StepSize::Sigma, 0.5, 0.0));
+    p.kw = Some(2);
+    let mut c = Rcac::new(&p, dims).unwrap();
+    let mut g = Gauss::new(4);
+    let mut u = [0.0; 2];
+    for k in 0..50 {
+        let y = [g.normal()];
+        c.ready(&mut u);
+        c.advance(&sample(k, &y, &y), &u, true);
+    }
+    let mut long = vec![f64::NAN; 2 * (MAX_PLAN_ROWS + 10)];
+    assert_eq!(c.plan(&mut long), MAX_PLAN_ROWS);
+    assert!(long[..2 * MAX_PLAN_ROWS].iter().all(|v| v.is_finite()));
+    assert!(long[..2 * MAX_PLAN_ROWS].iter().any(|v| *v != 0.0));
+    assert!(long[2 * MAX_PLAN_ROWS..].iter().all(|v| v.is_nan()));
+    let mut short = vec![0.0; 10];
+    assert_eq!(c.plan(&mut short), 5);
+    assert_eq!(bits(&short), bits(&long[..10]));
+}
+
 fn bits(u: &[f64]) -> Vec<u64> {
     u.iter().map(|v| v.to_bits()).collect()
 }
