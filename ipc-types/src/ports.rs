@@ -56,13 +56,14 @@ use std::time::Instant;
 /// Prefix of every service name of this product.
 pub const SERVICE_PREFIX: &str = "adaptive-rig";
 
-/// Samples a subscriber's queue holds (both services, both sides): 64 periods, 8 ms at
-/// 8 kHz. A receiver that was kept off its core for less than that takes every sample in
-/// late ("caught up", its data exact) instead of losing the oldest; with safe overflow the
-/// publisher never blocks, and past 64 the oldest sample is lost. A peer that creates a
+/// Samples a subscriber's queue holds (both services, both sides): 256 periods, 32 ms at
+/// 8 kHz. A receiver that was kept off its core for less than that (a virtual machine's
+/// host takes a vCPU for 6–10 ms a few times a minute) takes every sample in late
+/// ("caught up", its data exact) instead of losing the oldest; with safe overflow the
+/// publisher never blocks, and past 256 the oldest sample is lost. A peer that creates a
 /// service (the plant its measurement service, in any language) must create it with at
 /// least this depth, or the other side's open is refused by iceoryx2.
-pub const SUBSCRIBER_BUFFER: usize = 64;
+pub const SUBSCRIBER_BUFFER: usize = 256;
 
 /// Which side of the contract a process is on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -44,7 +44,7 @@ from .peer import FOREIGN, NEW_PEER, PeerPin
 SERVICE_PREFIX = "adaptive-rig"
 # Samples a subscriber's queue holds, as ipc_types::ports::SUBSCRIBER_BUFFER: a service
 # created with less is refused when the Rust side opens it.
-SUBSCRIBER_BUFFER = 64
+SUBSCRIBER_BUFFER = 256
 #: How long a side that refuses a peer for a contract mismatch keeps its own service up,
 #: so that the peer can read it and refuse too (Rust: ``MISMATCH_LINGER``).
 MISMATCH_LINGER_S = 3.0
