@@ -816,16 +816,28 @@ where
         },
         ("creating the subscriber of", &peer_name),
     )?;
-    // Pin the peer: the one publisher of its service.
+    // Pin the peer: the one live publisher of its service. A publisher left by a killed
+    // peer can still be listed until its node is cleaned up; pinning it would leave this
+    // side waiting for samples that never come (and, on the plant's side, take the stale
+    // subscriber for the service's), so it is skipped and its resources removed.
     let start = Instant::now();
     let (peer_publisher, peer_node) = loop {
         let mut found = None;
+        let mut stale = false;
         peer_service.dynamic_config().list_publishers(|d| {
-            found = Some((d.publisher_id, d.node_id));
-            CallbackProgression::Stop
+            if liveness::node_alive(&d.node_id) {
+                found = Some((d.publisher_id, d.node_id));
+                CallbackProgression::Stop
+            } else {
+                stale = true;
+                CallbackProgression::Continue
+            }
         });
         if let Some(f) = found {
             break f;
+        }
+        if stale {
+            cleanup_dead_nodes();
         }
         wait_a_little(start, &peer_name, &opts)?;
     };

@@ -8,13 +8,13 @@
 //! Two hidden subcommands select the role of the child process of the two-process
 //! measurements ([`crate::child`]).
 
-use crate::report::default_results_file;
+use crate::report;
 use crate::roundtrip::RoundTripPlan;
 use crate::{PERIOD_NS, RT_PRIORITY, rt_request};
 use clap::{Parser, Subcommand};
 use ipc_types::rt::RtRequest;
 use serde_json::{Value, json};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The whole command line.
@@ -118,8 +118,9 @@ pub struct RunArgs {
     /// `latency-bench pcac`).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Results file the docs link to; this run replaces its section (default
-    /// docs/results/latency-bench.md of the workspace).
+    /// Results file; this run replaces its section (default `latency-bench.md` in the
+    /// output folder; the repository's is docs/results/latency-bench.md, written only when
+    /// named here).
     #[arg(long)]
     pub results: Option<PathBuf>,
     /// A short run for smoke tests.
@@ -128,9 +129,9 @@ pub struct RunArgs {
 }
 
 impl RunArgs {
-    /// The results file: `--results`, else the default one.
-    pub fn results_file(&self) -> PathBuf {
-        self.results.clone().unwrap_or_else(default_results_file)
+    /// The results file of a run whose output folder is `out` ([`report::results_file`]).
+    pub fn results_file(&self, out: &Path) -> PathBuf {
+        report::results_file(self.results.as_deref(), out)
     }
 }
 
@@ -193,8 +194,9 @@ pub struct Settings {
     pub pcac_steps: Option<u64>,
     /// Run the response-time phase (compute-first against answer-first).
     pub timing: bool,
-    /// The results file this run writes its section into.
-    pub results: PathBuf,
+    /// `--results`: the results file this run writes its section into, or `None` for the
+    /// output folder's ([`report::results_file`]).
+    pub results: Option<PathBuf>,
     /// The executable started as the child process (`None`: this executable, which is
     /// what the bench does; tests name the built `latency-bench` binary).
     pub child_exe: Option<PathBuf>,
@@ -241,7 +243,7 @@ impl Settings {
                     .max(1)
             }),
             timing: !o.skip_timing,
-            results: o.run.results_file(),
+            results: o.run.results.clone(),
             child_exe: None,
         }
     }

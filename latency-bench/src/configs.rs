@@ -525,9 +525,12 @@ impl TimingCase {
 ///   7939 in time, 2.3 per step. In that replay the 2 kHz loop that falls behind now
 ///   recovers: the samples caught up keep PCAC's warm start (moved along the horizon,
 ///   `Pcac::observe`); with the warm start dropped the same replay answered 900 of 8000
-///   in time. The service on this box is still short of that (the replay has no
-///   RT-throttling stalls): 3906 (compute-first) and 7311 (answer-first) of 10000 in
-///   time at 2 kHz, 2811 and 7621 before.
+///   in time. Each round of the bench is 1 s from a cold start, so most of it is that
+///   identification transient, with the inputs at their bounds on many steps; the
+///   service's figures (docs/results/latency-bench.md, "response by timing") are
+///   therefore below the replay's, compute-first's most (its deadline is `T/2`, so more
+///   of its answers are late, the plant holds more inputs, and the next problems move
+///   further from their warm starts).
 pub fn timing_cases() -> Vec<TimingCase> {
     let two_in = Channels { y: 2, z: 2, u: 1 };
     let acoustic = Channels { y: 1, z: 1, u: 2 };

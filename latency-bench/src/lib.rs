@@ -45,8 +45,8 @@
 //! next to a `summary.json` and the printed [`table`]. [`machine`] records what the OS
 //! granted (pinning, `SCHED_FIFO`, `mlockall`) and the kernel, since the figures mean
 //! little without them. [`report`] also writes the printed table, with the machine, the
-//! date and the command line, into the results file the docs link to
-//! (`docs/results/latency-bench.md` by default). [`cli`] holds the command line and the
+//! date and the command line, into the results file (in the output folder by default;
+//! `--results docs/results/latency-bench.md` writes the one the docs link to). [`cli`] holds the command line and the
 //! settings it resolves to.
 
 #![warn(missing_docs)]

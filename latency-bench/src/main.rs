@@ -13,9 +13,9 @@
 //! subcommand runs the last alone). Prints the machine facts and one table, writes every
 //! distribution (`.hgrm`, `.hlog`), the service's run reports and a `summary.json` to the
 //! output folder (default `bench-results/<unix-time>/`), and the table with the machine,
-//! the date and the command line into the results file (default
-//! `docs/results/latency-bench.md`). See the library docs for the method of each
-//! measurement.
+//! the date and the command line into the results file (default `latency-bench.md` in the
+//! output folder; `--results docs/results/latency-bench.md` updates the repository's). See
+//! the library docs for the method of each measurement.
 
 use clap::Parser;
 use ipc_types::ChannelCounts;
@@ -188,6 +188,7 @@ fn bench(o: &Options) -> i32 {
         "service_reports": Value::Object(std::mem::take(&mut col.reports)),
         }),
     );
+    let results = report::results_file(s.results.as_deref(), &out);
     let record = RunRecord {
         kind: RunKind::Full,
         started_unix: started,
@@ -195,7 +196,7 @@ fn bench(o: &Options) -> i32 {
         facts: &facts,
         settings: s.json(),
         out: &out,
-        results: &s.results,
+        results: &results,
     };
     let footer = [format!("load average at the end: {load_end}")];
     report::finish(&record, &col, &footer, summary)
@@ -253,7 +254,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         &facts,
         json!({ "steps": steps, "pcac": v }),
     );
-    let results = a.run.results_file();
+    let results = a.run.results_file(&out);
     let record = RunRecord {
         kind: RunKind::Pcac,
         started_unix: started,

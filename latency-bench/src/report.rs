@@ -3,10 +3,12 @@
 //!
 //! A run writes, into its output folder, `table.txt` (what was printed) and
 //! `summary.json` (every figure, the settings and the service's run reports), and into
-//! the **results file** ([`default_results_file`]: `docs/results/latency-bench.md` of the
-//! workspace, or `--results FILE`) one Markdown section holding the printed table with the
-//! machine description, the date and the exact command line. The results file is the one
-//! place where measured figures live; the docs link to it instead of copying numbers.
+//! the **results file** (`--results FILE`, else [`RESULTS_FILE_NAME`] in the output
+//! folder) one Markdown section holding the printed table with the machine description,
+//! the date and the exact command line. The repository's results file,
+//! `docs/results/latency-bench.md`, is the one place where measured figures live (the
+//! docs link to it instead of copying numbers); a run writes it only when `--results`
+//! names it.
 //!
 //! The file has one section per kind of run ([`RunKind`]), between HTML comment markers
 //! (`<!-- latency-bench:full:begin -->` … `<!-- latency-bench:full:end -->`): a run
@@ -158,16 +160,13 @@ impl RunKind {
     }
 }
 
-/// The default results file: `docs/results/latency-bench.md` in the workspace root (the
-/// parent of this package's folder).
-pub fn default_results_file() -> PathBuf {
-    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
-    manifest
-        .parent()
-        .unwrap_or(manifest)
-        .join("docs")
-        .join("results")
-        .join("latency-bench.md")
+/// The results file's name in a run's output folder, its default place.
+pub const RESULTS_FILE_NAME: &str = "latency-bench.md";
+
+/// The results file of a run whose output folder is `out`: `given` (`--results`), else
+/// [`RESULTS_FILE_NAME`] in `out`.
+pub fn results_file(given: Option<&Path>, out: &Path) -> PathBuf {
+    given.map_or_else(|| out.join(RESULTS_FILE_NAME), Path::to_path_buf)
 }
 
 /// Seconds since the Unix epoch (0 if the clock is before it).
@@ -402,6 +401,17 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_run_writes_its_results_into_its_output_folder_unless_told_otherwise() {
+        let out = Path::new("bench-results/7");
+        assert_eq!(
+            results_file(None, out),
+            Path::new("bench-results/7/latency-bench.md")
+        );
+        let docs = Path::new("docs/results/latency-bench.md");
+        assert_eq!(results_file(Some(docs), out), docs);
+    }
+
+    #[test]
     fn dates_are_utc_calendar_dates() {
         assert_eq!(utc_date(0), "1970-01-01 00:00:00 UTC");
         assert_eq!(utc_date(951_782_400), "2000-02-29 00:00:00 UTC");
@@ -435,18 +445,6 @@ mod tests {
         assert_eq!(again.matches("latency-bench:pcac:begin").count(), 1);
         let same = merge_section(Some(&again), RunKind::Full, "full one");
         assert_eq!(same, again);
-    }
-
-    #[test]
-    fn the_default_results_file_is_in_the_workspace_docs() {
-        let p = default_results_file();
-        assert!(
-            p.ends_with("docs/results/latency-bench.md"),
-            "{}",
-            p.display()
-        );
-        let root = p.parent().unwrap().parent().unwrap().parent().unwrap();
-        assert!(root.join("latency-bench").join("Cargo.toml").is_file());
     }
 
     #[test]
