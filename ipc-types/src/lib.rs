@@ -96,11 +96,12 @@ pub mod actuation_status {
     pub const SAFE_STATE: u32 = 1 << 0;
     /// The measurement was rejected (not finite or out of range); `u` holds the last good value.
     pub const MEASUREMENT_REJECTED: u32 = 1 << 1;
-    /// The controller output was clipped to its configured limits.
+    /// A finite value of the controller's law was clipped to its configured limits.
     pub const SATURATED: u32 = 1 << 2;
     /// The service is inside its start-up grace period.
     pub const STARTING: u32 = 1 << 3;
-    /// The controller reported an internal fault (for example a reset of adaptive state).
+    /// The controller reported an internal fault (its law gave a non-finite value, or a
+    /// reset of adaptive state).
     pub const CONTROLLER_FAULT: u32 = 1 << 4;
     /// The service is in its open-loop phase (`service.open-loop`): `u` is the safe input
     /// and the controller only observes.

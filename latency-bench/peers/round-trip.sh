@@ -38,7 +38,7 @@ fi
 
 scenario() { # rig name -> scenario file
     { sed "s/^name = \"first-order-lockstep\"/name = \"$1\"/" scenarios/first-order-lockstep.toml
-      cat tests/fixtures/service-tables.toml tests/fixtures/static-gain-controller.toml; } > "$W/$1.toml"
+      cat tests/fixtures/service-tables.toml scenarios/lti/static-gain.toml; } > "$W/$1.toml"
     echo "$W/$1.toml"
 }
 field() { # json file, python expression on r -> value

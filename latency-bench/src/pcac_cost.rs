@@ -78,9 +78,7 @@ use control::mpc::condense::{Condenser, MpcSpec, Weight};
 use control::mpc::qp::{
     ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
 };
-use control::pcac::{
-    HorizonPrediction, IdKernel, IoModel, IoModelParams, Pcac, PcacCounters, PcacParams, PcacTiming,
-};
+use control::pcac::{HorizonPrediction, IoModel, Pcac, PcacCounters, PcacParams, PcacTiming};
 use control::status;
 use control::{Controller, MAX_INTERNALS, StepInput};
 use hdrhistogram::Histogram;
@@ -179,40 +177,20 @@ impl Workload {
 pub fn truss_params() -> PcacParams {
     let (n_hat, p, m, p0) = (25, 4, 2, 1.0);
     let n_theta = n_hat * p * (p + m);
-    PcacParams {
-        model: IoModelParams {
-            n_hat,
-            p,
-            m,
-            theta0: vec![1e-10; n_theta],
-            p0,
-            rule: ForgettingRule::FTest {
-                tau_n: 40,
-                tau_d: 200,
-                eta: 0.1,
-                alpha: 0.001,
-            },
-            trace_limit: 1e6 * n_theta as f64 * p0,
-            kernel: IdKernel::Shared,
-        },
-        mpc: MpcSpec {
-            horizon: 40,
-            n_inputs: m,
-            n_outputs: p,
-            n_tracked: 1,
-            tracking: vec![0.0, 0.0, 0.0, 1.0],
-            q: Weight::Scalar(1e6),
-            r: Weight::Scalar(1.0),
-            u_min: vec![-10.0; m],
-            u_max: vec![10.0; m],
-            move_bounds: None,
-            output_constraints: None,
-        },
-        timing: PcacTiming::NextStep,
-        qp: QpSettings::default(),
-        warm_start: true,
-        augmentation: None,
-    }
+    PcacParams::builder(n_hat, p, m, p0, 40)
+        .theta0(vec![1e-10; n_theta])
+        .forgetting(ForgettingRule::FTest {
+            tau_n: 40,
+            tau_d: 200,
+            eta: 0.1,
+            alpha: 0.001,
+        })
+        .tracking(1, vec![0.0, 0.0, 0.0, 1.0])
+        .q(Weight::Scalar(1e6))
+        .r(Weight::Scalar(1.0))
+        .input_bounds(vec![-10.0; m], vec![10.0; m])
+        .timing(PcacTiming::NextStep)
+        .build()
 }
 
 /// The controller of a closed loop: PCAC alone (truss) or the arm's Algorithm 3 with PCAC

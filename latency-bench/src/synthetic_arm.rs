@@ -11,9 +11,8 @@
 //! [`crate::pcac_cost::Workload::Arm`].
 
 use control::forgetting::ForgettingRule;
-use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
-use control::mpc::qp::QpSettings;
-use control::pcac::{IdKernel, IoModelParams, PcacParams, PcacTiming};
+use control::mpc::condense::{MoveBounds, Weight};
+use control::pcac::{PcacParams, PcacTiming};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -26,43 +25,24 @@ pub fn pcac_params() -> PcacParams {
     for i in 0..3 {
         tracking[i * p + 2 + i] = 1.0;
     }
-    PcacParams {
-        model: IoModelParams {
-            n_hat,
-            p,
-            m,
-            theta0: vec![1e-10; n_theta],
-            p0,
-            rule: ForgettingRule::FTest {
-                tau_n: 40,
-                tau_d: 200,
-                eta: 0.1,
-                alpha: 0.001,
-            },
-            trace_limit: 1e6 * n_theta as f64 * p0,
-            kernel: IdKernel::Shared,
-        },
-        mpc: MpcSpec {
-            horizon: 50,
-            n_inputs: m,
-            n_outputs: p,
-            n_tracked: 3,
-            tracking,
-            q: Weight::PerChannel(vec![1000.0, 100.0, 1.0]),
-            r: Weight::Scalar(1.0),
-            u_min: vec![-ARM_U_MAX; m],
-            u_max: vec![ARM_U_MAX; m],
-            move_bounds: Some(MoveBounds {
-                min: vec![-ARM_DU_MAX; m],
-                max: vec![ARM_DU_MAX; m],
-            }),
-            output_constraints: None,
-        },
-        timing: PcacTiming::NextStep,
-        qp: QpSettings::default(),
-        warm_start: true,
-        augmentation: None,
-    }
+    PcacParams::builder(n_hat, p, m, p0, 50)
+        .theta0(vec![1e-10; n_theta])
+        .forgetting(ForgettingRule::FTest {
+            tau_n: 40,
+            tau_d: 200,
+            eta: 0.1,
+            alpha: 0.001,
+        })
+        .tracking(3, tracking)
+        .q(Weight::PerChannel(vec![1000.0, 100.0, 1.0]))
+        .r(Weight::Scalar(1.0))
+        .input_bounds(vec![-ARM_U_MAX; m], vec![ARM_U_MAX; m])
+        .move_bounds(Some(MoveBounds {
+            min: vec![-ARM_DU_MAX; m],
+            max: vec![ARM_DU_MAX; m],
+        }))
+        .timing(PcacTiming::NextStep)
+        .build()
 }
 
 /// The input bound `|u| ≤ 100` (§7.3's `u_max`).

@@ -280,7 +280,7 @@ fn read_text(path: &Path) -> String {
 }
 
 /// A fixture of the tests: the file `name` in `tests/fixtures/` (TOML tables that tests
-/// put together into scenario files, e.g. `static-gain-controller.toml`).
+/// put together into scenario files, e.g. `service-tables.toml`).
 pub fn fixture(name: &str) -> String {
     read_text(
         &Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -290,9 +290,10 @@ pub fn fixture(name: &str) -> String {
 }
 
 /// The controller most tests close the loop with: the static gain `u = −2 y`
-/// (`fixtures/static-gain-controller.toml`).
+/// (`scenarios/lti/static-gain.toml`, the controller file the examples of `ipc-types` run
+/// the service with).
 pub fn static_gain_controller() -> String {
-    fixture("static-gain-controller.toml")
+    scenario_text("lti/static-gain.toml")
 }
 
 /// The service and log tables used by the tests (`fixtures/service-tables.toml`: no RT

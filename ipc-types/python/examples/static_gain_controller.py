@@ -1,4 +1,4 @@
-"""The static-gain controller of ``tests/fixtures/static-gain-controller.toml`` on the service
+"""The static-gain controller of ``scenarios/lti/static-gain.toml`` on the service
 side of the contract: ``u_k = -K y_k`` with K = 2 (an LTI controller with no state and
 D = [[-K]]: u = D y), answered compute-first; with ``--send-ahead`` the delayed gain
 ``u_{k+1} = -K y_k`` (the LTI controller A = [[0]], B = [[1]], C = [[-K]], D = [[0]]),

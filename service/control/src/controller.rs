@@ -8,7 +8,7 @@
 //! inside. The interface speaks in its own types: [`Dimensions`] for the channel counts and
 //! [`status`] bits for what a step did; the service maps them to the wire contract.
 
-use crate::ParamError;
+pub use crate::output_limits::OutputLimits;
 
 /// The channels a controller reads (`n_y`, `n_z`, `n_r`) and writes (`n_u`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -34,10 +34,12 @@ impl Dimensions {
 pub mod status {
     /// The controller ran normally and `u` is its output.
     pub const OK: u32 = 0;
-    /// The output was clipped to the configured limits.
+    /// A finite value of the law was clipped to the configured limits
+    /// ([`crate::output_limits`]), or PCAC's first move lies on an input bound.
     pub const SATURATED: u32 = 1 << 0;
-    /// The controller reported an internal fault (a non-finite input held, adaptive state
-    /// reset by its guard, a diverging state reset).
+    /// The controller reported an internal fault: its law gave a value that is not finite
+    /// (replaced by the rule of [`crate::output_limits`]), a non-finite input held, adaptive
+    /// state reset by its guard, a diverging state reset.
     pub const CONTROLLER_FAULT: u32 = 1 << 1;
     /// The controller could not compute its law for this sample (for example PCAC's
     /// receding-horizon problem was infeasible or not solved within its iteration cap) and
@@ -193,59 +195,5 @@ impl Adaptation {
     /// All suspended steps.
     pub fn suspended(&self) -> u64 {
         self.suspended.iter().map(|(_, n)| n).sum()
-    }
-}
-
-/// Per-channel limits on `u`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct OutputLimits {
-    /// Lower limits, one per input.
-    pub min: Vec<f64>,
-    /// Upper limits, one per input.
-    pub max: Vec<f64>,
-}
-
-impl OutputLimits {
-    /// Checks that there are `n_u` lower and upper limits with `u-min ≤ u-max` (no NaN)
-    /// for every input; the error names the field `u-min`.
-    pub fn validate(&self, n_u: usize) -> Result<(), ParamError> {
-        if self.min.len() != n_u || self.max.len() != n_u {
-            return Err(ParamError::new(
-                "u-min",
-                format!("output limits need {n_u} entries for min and max"),
-            ));
-        }
-        if self
-            .min
-            .iter()
-            .zip(&self.max)
-            .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi)
-        {
-            return Err(ParamError::new(
-                "u-min",
-                "output limits need u-min ≤ u-max for every input",
-            ));
-        }
-        Ok(())
-    }
-
-    /// Clips `u` in place; returns true when any entry was clipped. Non-finite entries are
-    /// replaced by 0 clipped into the limits, so the result is always finite.
-    #[inline]
-    pub fn apply(&self, u: &mut [f64]) -> bool {
-        let mut clipped = false;
-        for ((v, lo), hi) in u.iter_mut().zip(&self.min).zip(&self.max) {
-            if !v.is_finite() {
-                *v = 0.0_f64.clamp(*lo, *hi);
-                clipped = true;
-            } else if *v < *lo {
-                *v = *lo;
-                clipped = true;
-            } else if *v > *hi {
-                *v = *hi;
-                clipped = true;
-            }
-        }
-        clipped
     }
 }

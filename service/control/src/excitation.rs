@@ -26,6 +26,7 @@
 use crate::ParamError;
 use crate::controller::{Controller, OutputLimits, StepInput};
 use crate::controller::{Dimensions, status};
+use crate::output_limits::limit_output;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -149,10 +150,7 @@ impl ExcitationSource {
             let n: f64 = StandardNormal.sample(rng);
             *v = s * n;
         }
-        match limits {
-            Some(l) if l.apply(u) => status::SATURATED,
-            _ => status::OK,
-        }
+        limit_output(limits.as_ref(), u)
     }
 
     /// The ready input: the next draw, read from a copy of the generator.

@@ -6,7 +6,7 @@
 //! [`Controller`] trait; the offline tools (`rig-tools`) run the same kernels in studies.
 //!
 //! - [`controller`]: the [`Controller`] trait, [`StepInput`], [`Dimensions`], the
-//!   [`status`] bits and [`OutputLimits`].
+//!   [`status`] bits.
 //! - [`ahead`]: the [`Ahead`] form of a controller whose input for sample `k` is ready
 //!   before the sample (answer-first, send-ahead) and its plan for the samples after it.
 //! - [`rls`]: recursive least squares with variable-rate forgetting (2.12)–(2.14), an
@@ -32,6 +32,8 @@
 //!   runs.
 //! - [`tones`]: amplitudes of known tones by least squares (run reports, studies).
 //! - [`linalg`]: the small vector helpers the kernels share.
+//! - [`output_limits`]: [`OutputLimits`] and the one rule that bounds every controller's
+//!   inputs, with the meaning of its `SATURATED` and `CONTROLLER_FAULT` bits.
 //! - [`ParamError`]: what a kernel says when it refuses a parameter.
 
 #![warn(missing_docs)]
@@ -48,6 +50,7 @@ pub mod linalg;
 pub mod lti;
 pub mod mpc;
 pub mod mrac;
+pub mod output_limits;
 mod param_error;
 pub mod pcac;
 pub mod rcac;
@@ -64,5 +67,6 @@ pub use controller::{
 #[cfg(feature = "excitation")]
 pub use excitation::ExcitationSource;
 pub use lti::{ControllerInput, LtiController};
+pub use output_limits::limit_output;
 pub use param_error::ParamError;
 pub use rcac::{GapBridge, GapRule, Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};

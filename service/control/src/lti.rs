@@ -35,6 +35,7 @@
 use crate::ParamError;
 use crate::ahead::Ahead;
 use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+use crate::output_limits::limit_output;
 use nalgebra::{DMatrix, DVector};
 
 /// What feeds an [`LtiController`].
@@ -293,35 +294,7 @@ impl LtiController {
         for (dst, src) in self.ready_u.iter_mut().zip(self.u.iter()) {
             *dst = *src;
         }
-        saturate(self.limits.as_ref(), &mut self.ready_u)
-    }
-}
-
-/// Saturates `u` to the limits (non-finite entries become 0 clipped into them: then
-/// `SATURATED`); without limits non-finite entries become 0 with `CONTROLLER_FAULT`.
-fn saturate(limits: Option<&OutputLimits>, u: &mut [f64]) -> u32 {
-    match limits {
-        Some(l) => {
-            if l.apply(u) {
-                status::SATURATED
-            } else {
-                status::OK
-            }
-        }
-        None => {
-            let mut bad = false;
-            for v in u.iter_mut() {
-                if !v.is_finite() {
-                    *v = 0.0;
-                    bad = true;
-                }
-            }
-            if bad {
-                status::CONTROLLER_FAULT
-            } else {
-                status::OK
-            }
-        }
+        limit_output(self.limits.as_ref(), &mut self.ready_u)
     }
 }
 
@@ -374,7 +347,7 @@ impl Ahead for LtiController {
             for (dst, src) in row.iter_mut().zip(self.u_plan.iter()) {
                 *dst = *src;
             }
-            let _ = saturate(self.limits.as_ref(), row);
+            let _ = limit_output(self.limits.as_ref(), row);
             rows += 1;
         }
         rows
@@ -405,7 +378,7 @@ impl Controller for LtiController {
         for (dst, src) in u.iter_mut().zip(self.u.iter()) {
             *dst = *src;
         }
-        status |= saturate(self.limits.as_ref(), u);
+        status |= limit_output(self.limits.as_ref(), u);
         status
     }
 
@@ -541,6 +514,20 @@ mod tests {
         let s = step(&mut c, &[f64::NAN], &[], &mut u);
         assert!(u[0].is_finite());
         assert_ne!(s & status::CONTROLLER_FAULT, 0);
+    }
+
+    #[test]
+    fn a_non_finite_output_within_limits_is_a_fault_not_a_saturation() {
+        let limits = OutputLimits {
+            min: vec![-1.0],
+            max: vec![1.0],
+        };
+        let mut c = static_gain(1.0, ControllerInput::Y, counts(1, 0, 1), Some(limits));
+        let mut u = [0.0];
+        let s = step(&mut c, &[f64::NAN], &[], &mut u);
+        assert_eq!(u, [0.0]);
+        assert_eq!(s & status::CONTROLLER_FAULT, status::CONTROLLER_FAULT);
+        assert_eq!(s & status::SATURATED, 0);
     }
 
     /// A second-order controller with `D = 0`, saturated to ±1, fed by `input`.

@@ -57,10 +57,9 @@
 use control::arm::controller::{ArmController, ArmControllerParams, JointHold};
 use control::arm::dynamics::ArmParams;
 use control::forgetting::ForgettingRule;
-use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
-use control::mpc::qp::QpSettings;
+use control::mpc::condense::{MoveBounds, Weight};
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
-use control::pcac::{IdKernel, IoModelParams, OutputFeedback, Pcac, PcacParams, PcacTiming};
+use control::pcac::{OutputFeedback, Pcac, PcacParams, PcacTiming};
 use control::rcac::{Rcac, RcacParams, RcacUpdate, StepSize};
 use control::target::{TargetForm, TargetModel};
 use control::{
@@ -232,52 +231,31 @@ fn pcac_timed(timing: PcacTiming) -> Box<dyn Controller> {
 
 /// The parameters of [`pcac_timed`].
 fn pcac_params(timing: PcacTiming) -> PcacParams {
-    PcacParams {
-        model: IoModelParams {
-            n_hat: 4,
-            p: 1,
-            m: 1,
-            theta0: vec![1e-10; 8],
-            p0: 100.0,
-            rule: ForgettingRule::FTest {
-                tau_n: 20,
-                tau_d: 200,
-                eta: 0.1,
-                alpha: 0.001,
-            },
-            trace_limit: f64::INFINITY,
-            kernel: IdKernel::Shared,
-        },
-        mpc: MpcSpec {
-            horizon: 10,
-            n_inputs: 1,
-            n_outputs: 1,
-            n_tracked: 1,
-            tracking: vec![1.0],
-            q: Weight::Scalar(1e2),
-            r: Weight::Scalar(1.0),
-            u_min: vec![-U_MAX],
-            u_max: vec![U_MAX],
-            move_bounds: Some(MoveBounds {
-                min: vec![-0.3],
-                max: vec![0.3],
-            }),
-            output_constraints: None,
-        },
-        timing,
-        qp: QpSettings::default(),
-        warm_start: true,
-        augmentation: None,
-    }
+    PcacParams::builder(4, 1, 1, 100.0, 10)
+        .theta0(vec![1e-10; 8])
+        .forgetting(ForgettingRule::FTest {
+            tau_n: 20,
+            tau_d: 200,
+            eta: 0.1,
+            alpha: 0.001,
+        })
+        .trace_limit(f64::INFINITY)
+        .q(Weight::Scalar(1e2))
+        .r(Weight::Scalar(1.0))
+        .input_bounds(vec![-U_MAX], vec![U_MAX])
+        .move_bounds(Some(MoveBounds {
+            min: vec![-0.3],
+            max: vec![0.3],
+        }))
+        .timing(timing)
+        .build()
 }
 
 /// [`pcac`] augmenting the fixed output feedback `K̄ = −0.5` (7.53)–(7.57): the plant's
 /// input is `−0.5 y + u`.
 fn pcac_augmented() -> Box<dyn Controller> {
-    let params = PcacParams {
-        augmentation: Some(OutputFeedback { gain: vec![-0.5] }),
-        ..pcac_params(PcacTiming::SameStep)
-    };
+    let mut params = pcac_params(PcacTiming::SameStep);
+    params.augmentation = Some(OutputFeedback { gain: vec![-0.5] });
     Box::new(Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters"))
 }
 

@@ -80,7 +80,9 @@ pub use controller::ControllerConfig;
 pub use log::LogConfig;
 pub use robust_gain_file::RobustGainFile;
 pub use scenario_check::ScenarioCheck;
-pub use service_table::{DeadlinePolicy, MeasurementLimits, MissSource, WaitMode};
+pub use service_table::{
+    DeadlinePolicy, MeasurementLimits, MissSource, TimingFaultReset, WaitMode,
+};
 pub use target_model_file::TargetModelFile;
 pub use tone_report::{ForceRegulationConfig, ToneReportConfig};
 
@@ -548,7 +550,7 @@ mod tests {
 
     #[test]
     fn a_timing_fault_keeps_what_the_controller_learned_unless_configured() {
-        use crate::runtime::TimingFaultReset;
+        use crate::config::TimingFaultReset;
         let c = ServiceConfig::parse(GOOD, "good.toml").unwrap();
         assert_eq!(c.policy.on_timing_fault, TimingFaultReset::KeepLearned);
         let text = GOOD.replace(

@@ -40,9 +40,9 @@ use super::controller::{ControllerConfig, Rig, param_error};
 use super::forgetting::{RawForgetting, ReadRule, forgetting_rule, required_p0};
 use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
-use control::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
+use control::mpc::condense::{MoveBounds, OutputConstraints, Weight};
 use control::mpc::qp::QpSettings;
-use control::pcac::{IdKernel, IoModelParams, PcacParams, PcacTiming};
+use control::pcac::{PcacParams, PcacTiming};
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
@@ -185,35 +185,20 @@ pub(super) fn read(
         let field = f("qp-max-iterations");
         qp.max_iterations = count(n as u64, 0, MAX_QP_ITERATIONS, &field, err)? as usize;
     }
-    let params = PcacParams {
-        model: IoModelParams {
-            n_hat,
-            p,
-            m,
-            theta0,
-            p0,
-            rule: rule.rule.clone(),
-            trace_limit,
-            kernel: IdKernel::Shared,
-        },
-        mpc: MpcSpec {
-            horizon,
-            n_inputs: m,
-            n_outputs: p,
-            n_tracked: pt,
-            tracking: row_major(&tracking),
-            q: Weight::PerChannel(q),
-            r: Weight::PerChannel(r),
-            u_min,
-            u_max,
-            move_bounds,
-            output_constraints,
-        },
-        timing,
-        qp,
-        warm_start: raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START),
-        augmentation: None,
-    };
+    let params = PcacParams::builder(n_hat, p, m, p0, horizon)
+        .theta0(theta0)
+        .forgetting(rule.rule.clone())
+        .trace_limit(trace_limit)
+        .tracking(pt, row_major(&tracking))
+        .q(Weight::PerChannel(q))
+        .r(Weight::PerChannel(r))
+        .input_bounds(u_min, u_max)
+        .move_bounds(move_bounds)
+        .output_constraints(output_constraints)
+        .timing(timing)
+        .qp(qp)
+        .warm_start(raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START))
+        .build();
     Ok((params, rule))
 }
 

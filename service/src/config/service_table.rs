@@ -64,12 +64,25 @@
 use super::bounds::{self, MAX_CORES, MAX_DURATION_S, MAX_WAIT_S};
 use super::values::{ScalarOrVec, count, per_channel, seconds};
 use super::{ConfigError, ErrFn};
-use crate::runtime::TimingFaultReset;
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::time::Duration;
+
+/// What a timing fault (deadline misses that led to the safe state, a stalled plant that
+/// resumed) does to the controller's learned state; configuration value kebab-case
+/// (`"keep-learned"`, `"reset-controller"`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TimingFaultReset {
+    /// The controller keeps what it learned (the default): a timing fault is not its fault.
+    #[default]
+    KeepLearned,
+    /// The controller returns to its initial state on leaving the safe state and after a
+    /// stall.
+    ResetController,
+}
 
 /// How the RT thread waits for the next measurement ([`crate::runtime::pacing`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

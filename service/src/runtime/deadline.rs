@@ -332,7 +332,7 @@ mod tests {
         source: MissSource,
     ) -> DeadlinePolicy {
         let cfg = crate::config::ServiceConfig::parse(
-            include_str!("tests/loop-core.toml"),
+            include_str!("loop_core/tests/loop-core.toml"),
             "loop-core.toml",
         )
         .expect("the fixture is valid");

@@ -28,21 +28,7 @@
 //! resets nothing; nor does a controller fault (the `CONTROLLER_FAULT` status bit), which
 //! is counted.
 
-use serde::{Deserialize, Serialize};
-
-/// What a timing fault (deadline misses that led to the safe state, a stalled plant that
-/// resumed) does to the controller's learned state; configuration value kebab-case
-/// (`"keep-learned"`, `"reset-controller"`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum TimingFaultReset {
-    /// The controller keeps what it learned (the default): a timing fault is not its fault.
-    #[default]
-    KeepLearned,
-    /// The controller returns to its initial state on leaving the safe state and after a
-    /// stall.
-    ResetController,
-}
+pub use crate::config::TimingFaultReset;
 
 /// A moment at which the loop may reset the controller.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -82,6 +68,7 @@ mod tests {
     use super::*;
     use ResetCause::*;
     use TimingFaultReset::*;
+    use serde::Deserialize;
 
     #[test]
     fn nothing_resets_the_controller_by_default() {

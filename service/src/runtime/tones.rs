@@ -197,6 +197,35 @@ impl ToneMeter {
     }
 }
 
+impl ToneReport {
+    /// The human-readable table.
+    pub fn render(&self) -> String {
+        let mut out = format!(
+            "tones of z ({}; windows of {:.3} s: {} samples at the end of the open-loop phase, {} at the end of the run):
+",
+            self.source, self.window_s, self.samples[0], self.samples[1]
+        );
+        if let Some(e) = &self.error {
+            out += &format!(
+                "  could not measure: {e}
+"
+            );
+        }
+        out += "  channel   tone Hz    open loop   closed loop   suppression\n";
+        for t in &self.tones {
+            let open = t.open.map_or("-".to_string(), |o| format!("{o:.3e}"));
+            let db = t
+                .suppression_db
+                .map_or("-".to_string(), |d| format!("{d:.1} dB"));
+            out += &format!(
+                "  z{:<7} {:>8.1} {:>12} {:>13.3e} {:>13}\n",
+                t.channel, t.hz, open, t.closed, db
+            );
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -70,6 +70,7 @@ use super::dynamics::ArmParams;
 use super::feedback_linearization::{FeedbackLinearization, FlTerms, TORQUE_MAP_INV};
 use crate::ParamError;
 use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, StepInput, status};
+use crate::output_limits::limit_output;
 use crate::pcac::{OutputFeedback, Pcac, PcacParams};
 
 /// The measurements the controller reads (`n_y`).
@@ -430,16 +431,15 @@ impl ArmController {
         }
     }
 
-    /// Clips `tau` to the limits into `self.tau`; returns the status bit.
+    /// Bounds `tau` by the output-limiting rule ([`limit_output`]) into `self.tau`; returns
+    /// its status bits.
     fn limit(&mut self, tau: Vector2<f64>) -> u32 {
         self.tau = [tau[0], tau[1]];
-        match &self.limits {
-            Some(l) if l.apply(&mut self.tau) => {
-                self.counters.saturated += 1;
-                status::SATURATED
-            }
-            _ => status::OK,
+        let st = limit_output(self.limits.as_ref(), &mut self.tau);
+        if st & status::SATURATED != 0 {
+            self.counters.saturated += 1;
         }
+        st
     }
 
     /// The joint hold (module docs).

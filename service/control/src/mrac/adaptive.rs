@@ -18,6 +18,7 @@
 use super::estimator::Estimator;
 use super::signals::{Signals, Suspension};
 use crate::controller::{OutputLimits, StepInput, status};
+use crate::output_limits::limit_output;
 
 /// What a closed-loop step did with its update (the index of its counter).
 #[derive(Debug, Clone, Copy)]
@@ -142,7 +143,7 @@ impl Adaptive {
         if closed_loop {
             self.adapted[outcome as usize] += 1;
         }
-        st |= super::checks::saturate(self.limits.as_ref(), &mut out);
+        st |= limit_output(self.limits.as_ref(), std::slice::from_mut(&mut out));
         self.sig.push_u(out);
         if let Some(d) = u.first_mut() {
             *d = out;

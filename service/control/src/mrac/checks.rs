@@ -1,8 +1,8 @@
 //! The parameter checks both controllers share, each refusal naming the field.
 
 use super::poly;
+use crate::ParamError;
 use crate::controller::{Dimensions, OutputLimits};
-use crate::{ParamError, status};
 
 /// The polynomial `p` (field `field`) up to its degree, after checking that it is
 /// non-empty, finite and of degree at most `max_degree` (`what` names the bound in the
@@ -77,24 +77,4 @@ pub(crate) fn siso(counts: Dimensions) -> Result<(), ParamError> {
 /// The output limits, if any, for one input.
 pub(crate) fn limits(l: Option<&OutputLimits>) -> Result<(), ParamError> {
     l.map_or(Ok(()), |l| l.validate(1))
-}
-
-/// Saturates `u` (a non-finite `u` becomes 0 clipped into the limits); returns
-/// `CONTROLLER_FAULT` for a non-finite `u`, else `SATURATED` when clipped, else `OK`.
-pub(crate) fn saturate(limits: Option<&OutputLimits>, u: &mut f64) -> u32 {
-    let bad = !u.is_finite();
-    if bad {
-        *u = 0.0;
-    }
-    let clipped = match limits {
-        Some(l) => l.apply(std::slice::from_mut(u)),
-        None => false,
-    };
-    if bad {
-        status::CONTROLLER_FAULT
-    } else if clipped {
-        status::SATURATED
-    } else {
-        status::OK
-    }
 }

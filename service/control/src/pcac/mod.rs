@@ -41,10 +41,12 @@
 //! way ([`crate::arm`]).
 
 pub mod augmentation;
+pub mod builder;
 mod controller;
 pub mod model;
 
 pub use augmentation::{AugmentedModel, OutputFeedback};
+pub use builder::PcacBuilder;
 pub use controller::{Pcac, PcacCounters, PcacParams, PcacTiming};
 pub use model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
 

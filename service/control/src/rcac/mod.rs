@@ -244,6 +244,7 @@ use crate::controller::{Controller, OutputLimits, StepInput};
 use crate::controller::{Dimensions, status};
 use crate::forgetting::ForgettingRule;
 use crate::linalg::{axpy, dot};
+use crate::output_limits::limit_output;
 use crate::rls::{Rls, RlsConfig};
 use crate::target::TargetModel;
 use nalgebra::DMatrix;
@@ -895,7 +896,7 @@ impl Rcac {
                         let theta = law_theta(&self.law);
                         controller_output(theta, pu, py, self.nphi, self.lu, &mut self.bridge_u);
                     }
-                    let _ = saturate(self.limits.as_ref(), &mut self.bridge_u);
+                    let _ = limit_output(self.limits.as_ref(), &mut self.bridge_u);
                     self.u_last.copy_from_slice(&self.bridge_u);
                     self.filter.push(&self.bridge_u, &self.y_zero);
                 } else {
@@ -1068,7 +1069,7 @@ impl Rcac {
                 &mut self.ready_u,
             );
         }
-        st | saturate(self.limits.as_ref(), &mut self.ready_u)
+        st | limit_output(self.limits.as_ref(), &mut self.ready_u)
     }
 
     /// Stores `y_k` (non-finite entries held) with the applied `u_k` at the end of step
@@ -1147,35 +1148,6 @@ fn controller_output(theta: &[f64], pu: &[f64], py: &[f64], nphi: usize, lu: usi
         let blk = theta.get(j * nphi..(j + 1) * nphi).unwrap_or(&[]);
         let (tu, ty) = blk.split_at(nu.min(blk.len()));
         *d = dot(tu, pu) + dot(ty, py);
-    }
-}
-
-/// Saturates `u` to the limits (non-finite entries become 0 clipped into them, or 0
-/// without limits); returns `CONTROLLER_FAULT` when an entry was not finite, else
-/// `SATURATED` when one was clipped, else `OK`.
-fn saturate(limits: Option<&OutputLimits>, u: &mut [f64]) -> u32 {
-    let mut bad = false;
-    let clipped = match limits {
-        Some(l) => {
-            bad = u.iter().any(|v| !v.is_finite());
-            l.apply(u)
-        }
-        None => {
-            for v in u.iter_mut() {
-                if !v.is_finite() {
-                    *v = 0.0;
-                    bad = true;
-                }
-            }
-            false
-        }
-    };
-    if bad {
-        status::CONTROLLER_FAULT
-    } else if clipped {
-        status::SATURATED
-    } else {
-        status::OK
     }
 }
 
@@ -1326,7 +1298,7 @@ impl Controller for Rcac {
             let (pu, py) = self.filter.regressor(0);
             controller_output(law_theta(&self.law), pu, py, self.nphi, self.lu, u);
         }
-        status |= saturate(self.limits.as_ref(), u);
+        status |= limit_output(self.limits.as_ref(), u);
         // (4) Store the applied u_k and y_k (non-finite entries held).
         for (d, s) in self.u_last.iter_mut().zip(u.iter()) {
             *d = *s;
@@ -1542,7 +1514,7 @@ impl Ahead for Rcac {
                 let wy = self.plan_y.get(y_at..y_at + py.len()).unwrap_or(&[]);
                 controller_output(theta, wu, wy, nphi, lu, row);
             }
-            let _ = saturate(self.limits.as_ref(), row);
+            let _ = limit_output(self.limits.as_ref(), row);
             if let Some(dst) = self.plan_u.get_mut(at - lu..at) {
                 dst.copy_from_slice(row);
             }

@@ -9,9 +9,8 @@ use control::arm::controller::{ArmController, ArmControllerParams, N_R, N_U, N_Y
 use control::arm::dynamics::{ArmModel, ArmParams};
 use control::arm::feedback_linearization::{ContactPrior, FeedbackLinearization, zoh};
 use control::forgetting::ForgettingRule;
-use control::mpc::condense::{MoveBounds, MpcSpec, Weight};
-use control::mpc::qp::QpSettings;
-use control::pcac::{IdKernel, IoModelParams, PcacParams, PcacTiming};
+use control::mpc::condense::{MoveBounds, Weight};
+use control::pcac::PcacParams;
 use control::{Controller, Dimensions, StepInput};
 use nalgebra::{DMatrix, Vector2, Vector4};
 
@@ -76,43 +75,23 @@ pub fn chapter_pcac() -> PcacParams {
     for i in 0..3 {
         tracking[i * 5 + 2 + i] = 1.0;
     }
-    PcacParams {
-        model: IoModelParams {
-            n_hat: 1,
-            p: 5,
-            m: 2,
-            theta0,
-            p0: 10.0,
-            rule: ForgettingRule::FTest {
-                tau_n: 40,
-                tau_d: 200,
-                eta: 0.1,
-                alpha: 0.001,
-            },
-            trace_limit: 1e6 * 35.0 * 10.0,
-            kernel: IdKernel::Shared,
-        },
-        mpc: MpcSpec {
-            horizon: 50,
-            n_inputs: 2,
-            n_outputs: 5,
-            n_tracked: 3,
-            tracking,
-            q: Weight::PerChannel(vec![1000.0, 100.0, 1.0]),
-            r: Weight::Scalar(1.0),
-            u_min: vec![-100.0; 2],
-            u_max: vec![100.0; 2],
-            move_bounds: Some(MoveBounds {
-                min: vec![-50.0; 2],
-                max: vec![50.0; 2],
-            }),
-            output_constraints: None,
-        },
-        timing: PcacTiming::SameStep,
-        qp: QpSettings::default(),
-        warm_start: true,
-        augmentation: None,
-    }
+    PcacParams::builder(1, 5, 2, 10.0, 50)
+        .theta0(theta0)
+        .forgetting(ForgettingRule::FTest {
+            tau_n: 40,
+            tau_d: 200,
+            eta: 0.1,
+            alpha: 0.001,
+        })
+        .tracking(3, tracking)
+        .q(Weight::PerChannel(vec![1000.0, 100.0, 1.0]))
+        .r(Weight::Scalar(1.0))
+        .input_bounds(vec![-100.0; 2], vec![100.0; 2])
+        .move_bounds(Some(MoveBounds {
+            min: vec![-50.0; 2],
+            max: vec![50.0; 2],
+        }))
+        .build()
 }
 
 /// The robust gain of these tests: [`lqr_gain`] on Figure 7.4's surface

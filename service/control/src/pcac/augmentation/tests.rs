@@ -10,9 +10,8 @@ use super::{Augmentation, OutputFeedback};
 use crate::bocf::{HorizonPrediction, IdentifiedModel};
 use crate::controller::{Controller, Dimensions, StepInput};
 use crate::forgetting::ForgettingRule;
-use crate::mpc::condense::{MpcSpec, Weight};
-use crate::mpc::qp::QpSettings;
-use crate::pcac::{IdKernel, IoModel, IoModelParams, Pcac, PcacParams, PcacTiming};
+use crate::mpc::condense::Weight;
+use crate::pcac::{IdKernel, IoModel, Pcac, PcacParams};
 use crate::test_support::{Gauss, io_model_params, max_abs, max_abs_diff};
 
 /// `n̂ = 3`, `p = 3`, `m = 2`, random coefficients and a random `K̄`.
@@ -125,37 +124,17 @@ const B: [f64; 2] = [0.5, 1.0];
 const KBAR: [f64; 2] = [-0.4, -0.3];
 
 fn augmented_params(feedback: bool) -> PcacParams {
-    PcacParams {
-        model: IoModelParams {
-            n_hat: 1,
-            p: 2,
-            m: 1,
-            theta0: vec![1e-3; 6],
-            p0: 1e3,
-            rule: ForgettingRule::Constant { lambda: 1.0 },
-            trace_limit: f64::INFINITY,
-            kernel: IdKernel::Shared,
-        },
-        mpc: MpcSpec {
-            horizon: 10,
-            n_inputs: 1,
-            n_outputs: 2,
-            n_tracked: 1,
-            tracking: vec![1.0, 0.0],
-            q: Weight::Scalar(1.0),
-            r: Weight::Scalar(1.0),
-            u_min: vec![-5.0],
-            u_max: vec![5.0],
-            move_bounds: None,
-            output_constraints: None,
-        },
-        timing: PcacTiming::SameStep,
-        qp: QpSettings::default(),
-        warm_start: true,
-        augmentation: feedback.then(|| OutputFeedback {
+    PcacParams::builder(1, 2, 1, 1e3, 10)
+        .theta0(vec![1e-3; 6])
+        .trace_limit(f64::INFINITY)
+        .tracking(1, vec![1.0, 0.0])
+        .q(Weight::Scalar(1.0))
+        .r(Weight::Scalar(1.0))
+        .input_bounds(vec![-5.0], vec![5.0])
+        .augmentation(feedback.then(|| OutputFeedback {
             gain: KBAR.to_vec(),
-        }),
-    }
+        }))
+        .build()
 }
 
 /// Runs `pcac` on the plant under `τ = K̄ y + u_aug`, `u_aug` = PCAC's output plus a

@@ -4,8 +4,7 @@
 use super::*;
 use crate::forgetting::ForgettingRule;
 use crate::mpc::condense::{MoveBounds, OutputConstraints};
-use crate::pcac::IdKernel;
-use crate::test_support::{Gauss, f_test, io_model_params, siso_mpc_spec};
+use crate::test_support::{Gauss, f_test, siso_mpc_spec};
 
 const U_MAX: f64 = 1.5;
 const DU_MAX: f64 = 0.3;
@@ -50,19 +49,19 @@ fn counts(n_r: usize) -> Dimensions {
 }
 
 fn params(timing: PcacTiming) -> PcacParams {
-    PcacParams {
-        model: IoModelParams {
-            // A cold start as in §6.2: θ_0 = 10⁻¹⁰ 1 (θ_0 = 0 would plan u = 0 forever, and
-            // the input coefficients could never be identified).
-            theta0: vec![1e-10; 12],
-            ..io_model_params(6, 1, 1, f_test(20, 200, 0.1, 0.001), IdKernel::Shared)
-        },
-        mpc: siso_mpc_spec(20, 1e4, 1.0, U_MAX, DU_MAX),
-        timing,
-        qp: QpSettings::default(),
-        warm_start: true,
-        augmentation: None,
-    }
+    let spec = siso_mpc_spec(20, 1e4, 1.0, U_MAX, DU_MAX);
+    PcacParams::builder(6, 1, 1, 100.0, spec.horizon)
+        // A cold start as in §6.2: θ_0 = 10⁻¹⁰ 1 (θ_0 = 0 would plan u = 0 forever, and
+        // the input coefficients could never be identified).
+        .theta0(vec![1e-10; 12])
+        .forgetting(f_test(20, 200, 0.1, 0.001))
+        .trace_limit(f64::INFINITY)
+        .q(spec.q)
+        .r(spec.r)
+        .input_bounds(spec.u_min, spec.u_max)
+        .move_bounds(spec.move_bounds)
+        .timing(timing)
+        .build()
 }
 
 fn step_once(c: &mut Pcac, y: f64, r: Option<f64>, u_applied: f64, lost: u64) -> (f64, u32) {

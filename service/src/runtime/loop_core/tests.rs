@@ -3,8 +3,20 @@
 //! misses to the safe state, two good answers out of it, silence after 5 periods).
 
 use super::*;
+use crate::config::ServiceConfig;
+use crate::runtime::checkpoint_slot::CheckpointSlot;
+use crate::runtime::deadline::DeadlineMonitor;
+use crate::runtime::reset::ControllerResetPolicy;
+use crate::runtime::session::NewSessionCause;
+use crate::telemetry;
 use control::Dimensions;
+use control::controller::{Controller, StepInput};
+use ipc_types::{
+    Actuation, ChannelCounts, Measurement, Timing, actuation_status, measurement_flags,
+};
+use std::sync::Arc;
 use std::sync::atomic::AtomicU64;
+use std::sync::atomic::Ordering;
 
 const T: u64 = 1_000_000;
 
