@@ -431,7 +431,10 @@ impl LoopCore {
     fn admit(&mut self, m: &Measurement) -> Option<u64> {
         let new_peer = core::mem::take(&mut self.new_peer_pending);
         let was_silent = self.session.is_silent();
-        let arrival = self.session.arrive(m.seq, m.t_sample_ns, new_peer);
+        let lockstep = m.flags & measurement_flags::LOCKSTEP != 0;
+        let arrival = self
+            .session
+            .arrive(m.seq, m.t_sample_ns, new_peer, lockstep);
         match arrival {
             Arrival::First => self.event(LoopEvent::FirstSample { seq: m.seq }),
             Arrival::Next { .. } | Arrival::Refused(_) => {}

@@ -6,7 +6,10 @@
 //! come in as arguments), the tracker classifies every received sample `k` against the last
 //! accepted one, `k_last` at `t_last`. With `g = k − k_last − 1` the samples skipped and
 //! `ĝ = 2 ⌊(t_k − t_last) / T⌋ + 8` the most the elapsed plant time can explain (`ĝ = 8` when
-//! `t_k ≤ t_last`):
+//! `t_k ≤ t_last`). A lockstep sample ([`ipc_types::measurement_flags::LOCKSTEP`]) is
+//! stamped with the plant's wall clock while it waits for every answer, not with its plant
+//! time: a lockstep plant skips the samples it was told to lose in no time at all, so for it
+//! `ĝ = max(2 ⌊(t_k − t_last) / T⌋ + 8, 2¹⁶)`, the longest list of injected faults:
 //!
 //! | condition (first that holds)                      | [`Arrival`]                              | lost |
 //! | ------------------------------------------------- | ---------------------------------------- | ---- |
@@ -180,6 +183,9 @@ pub struct SessionTracker {
 /// Skipped samples allowed beyond twice the elapsed periods (`ĝ` of the module docs).
 const JUMP_SLACK: u64 = 8;
 
+/// The least `ĝ` of a lockstep sample: a plant's fault lists hold at most 65 536 entries.
+const LOCKSTEP_JUMP_MAX: u64 = 1 << 16;
+
 impl SessionTracker {
     /// A tracker that declares the plant silent after `silent_periods` periods of
     /// `period_ns` without a sample, and resynchronises after `resync_after` (at least 1)
@@ -200,16 +206,29 @@ impl SessionTracker {
         }
     }
 
-    /// `ĝ` of the module docs for a sample stamped `t_sample_ns`.
-    fn plausible_gap(&self, t_sample_ns: u64) -> u64 {
+    /// `ĝ` of the module docs for a sample stamped `t_sample_ns` (of a lockstep plant when
+    /// `lockstep`).
+    fn plausible_gap(&self, t_sample_ns: u64, lockstep: bool) -> u64 {
         let elapsed = t_sample_ns.saturating_sub(self.last_t_sample_ns) / self.period_ns;
-        elapsed.saturating_mul(2).saturating_add(JUMP_SLACK)
+        let by_time = elapsed.saturating_mul(2).saturating_add(JUMP_SLACK);
+        if lockstep {
+            by_time.max(LOCKSTEP_JUMP_MAX)
+        } else {
+            by_time
+        }
     }
 
     /// Takes in received sample `seq` stamped `t_sample_ns` (answered or only observed);
     /// `new_peer` is true when it is the first sample of another publisher than the
-    /// previous sample's. Classifies it (module docs).
-    pub fn arrive(&mut self, seq: u64, t_sample_ns: u64, new_peer: bool) -> Arrival {
+    /// previous sample's, and `lockstep` when the sample carries the lockstep flag.
+    /// Classifies it (module docs).
+    pub fn arrive(
+        &mut self,
+        seq: u64,
+        t_sample_ns: u64,
+        new_peer: bool,
+        lockstep: bool,
+    ) -> Arrival {
         self.counts.received += 1;
         let arrival = match self.last_seq {
             None => Arrival::First,
@@ -218,7 +237,8 @@ impl SessionTracker {
                 cause: NewSessionCause::NewPeer,
             },
             Some(last) => {
-                let forward = seq > last && seq - last - 1 <= self.plausible_gap(t_sample_ns);
+                let forward =
+                    seq > last && seq - last - 1 <= self.plausible_gap(t_sample_ns, lockstep);
                 match (forward, self.silent) {
                     (true, true) => Arrival::Resumed {
                         lost: seq - last - 1,
@@ -388,7 +408,7 @@ mod tests {
                     Step::FromNewPeer { seq, t } => (seq, t, true),
                     Step::Idle { t } => return Said::Idle(s.idle(t)),
                 };
-                let a = s.arrive(seq, t, new_peer);
+                let a = s.arrive(seq, t, new_peer, false);
                 if a.accepted() {
                     s.answered(t);
                 }
@@ -649,12 +669,12 @@ mod tests {
     #[test]
     fn a_new_connection_forgets_the_receive_time_of_the_previous_one() {
         let mut s = SessionTracker::new(2, T, 10);
-        s.arrive(0, 0, false);
+        s.arrive(0, 0, false, false);
         assert_eq!(s.answered(0), None);
-        s.arrive(1, T, false);
+        s.arrive(1, T, false, false);
         assert_eq!(s.answered(T + 5), Some(T + 5));
         assert_eq!(s.idle(10 * T), Idle::WentSilent { last_seq: 1 });
-        s.arrive(2, 2 * T, false);
+        s.arrive(2, 2 * T, false, false);
         // Neither a jitter across the silence nor a second silence before an answer.
         assert_eq!(s.idle(100 * T), Idle::Active);
         assert_eq!(s.answered(100 * T), None);
@@ -663,11 +683,35 @@ mod tests {
     #[test]
     fn the_largest_sequence_number_does_not_overflow_the_gap() {
         let mut s = SessionTracker::new(10, T, 10);
-        assert_eq!(s.arrive(u64::MAX - 1, 5 * T, false), Arrival::First);
-        assert_eq!(s.arrive(u64::MAX, 6 * T, false), Arrival::Next { lost: 0 });
+        assert_eq!(s.arrive(u64::MAX - 1, 5 * T, false, false), Arrival::First);
         assert_eq!(
-            s.arrive(u64::MAX, 7 * T, false),
+            s.arrive(u64::MAX, 6 * T, false, false),
+            Arrival::Next { lost: 0 }
+        );
+        assert_eq!(
+            s.arrive(u64::MAX, 7 * T, false, false),
             Arrival::Refused(SequenceFault::Duplicate)
+        );
+    }
+
+    #[test]
+    fn a_lockstep_plant_may_skip_a_burst_in_no_time_a_real_time_one_may_not() {
+        // 16 samples lost between two samples stamped 1 µs apart: the plant's time cannot
+        // explain them in real time (ĝ = 8), a lockstep plant skips them without waiting.
+        for (lockstep, expected) in [
+            (true, Arrival::Next { lost: 16 }),
+            (false, Arrival::Refused(SequenceFault::ImplausibleJump)),
+        ] {
+            let mut s = SessionTracker::new(10, T, 10);
+            s.arrive(100, 50 * T, false, lockstep);
+            assert_eq!(s.arrive(117, 50 * T + 1_000, false, lockstep), expected);
+        }
+        // A lockstep jump beyond the longest fault list is still refused.
+        let mut s = SessionTracker::new(10, T, 10);
+        s.arrive(0, T, false, true);
+        assert_eq!(
+            s.arrive(1 + LOCKSTEP_JUMP_MAX + 1, T + 1_000, false, true),
+            Arrival::Refused(SequenceFault::ImplausibleJump)
         );
     }
 }

@@ -1,0 +1,163 @@
+//! The acoustic rig's two shipped controllers, each in lockstep (deterministic) on the
+//! main job's scenario `scenarios/acoustic-rig.toml`, the real processes over shared
+//! memory: the scenario's gradient RCAC and full-RLS RCAC
+//! (`scenarios/rcac/acoustic-rls.toml`). Each must meet its own acceptance criterion
+//! (`service.report.min-suppression-db`: 60 dB and 40 dB for every one of the seven tones
+//! at the end of the 10 s run), pass its verdict, and show no burst once adapted: a burst
+//! is the adapted loop leaving its stability margin for a moment, `z` ringing up several
+//! times its residual and the inputs climbing from about 11 V towards their ±40 V limits
+//! (docs/rcac.md, "Variants on the same rig"). From 2 s on (the open loop and the first
+//! closed-loop second excluded) the RMS of `z` over windows of 0.25 s must stay within
+//! [`Z_RING_MAX`] times its median over those windows, and |u| within [`U_ADAPTED_MAX`].
+//!
+//! Measured (lockstep, deterministic): the largest window over the median is 1.34 for the
+//! gradient update and 1.12 for full RLS at `p0 = 0.15`; at `p0 = 0.1` and 0.12 a burst
+//! near 5 s gives 5.5 and 5.8.
+
+use rig_tests::*;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// The largest |u| allowed after the first two seconds (the open loop and the first
+/// closed-loop second): the adapted inputs stay near 11 V, a burst reaches the 40 V limit.
+const U_ADAPTED_MAX: f64 = 20.0;
+/// The sample from which [`U_ADAPTED_MAX`] and [`Z_RING_MAX`] apply: 2 s at 8 kHz.
+const ADAPTED_FROM: f64 = 16_000.0;
+/// The largest RMS of `z` over a window of [`WINDOW`] samples, over the median of those
+/// windows, that is not a burst.
+const Z_RING_MAX: f64 = 2.0;
+/// Samples per window of the burst check: 0.25 s at 8 kHz.
+const WINDOW: usize = 2000;
+
+/// The repository's `scenarios/` folder.
+fn scenarios() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
+}
+
+/// `text` with its relative target-model file name made absolute (the copies are written
+/// into a test folder, away from the target model).
+fn absolute_target(text: &str, relative: &str) -> String {
+    text.replace(
+        &format!("target-model-file = \"{relative}\""),
+        &format!(
+            "target-model-file = \"{}\"",
+            scenarios().join("rcac/acoustic-target.toml").display()
+        ),
+    )
+}
+
+/// What a run left: its verdict, `report.json`, and `signals.csv` (header, rows).
+struct Run {
+    ok: bool,
+    report: Value,
+    header: Vec<String>,
+    rows: Vec<Vec<f64>>,
+}
+
+/// Runs the main job's scenario in lockstep, with `controller` (a file of `scenarios/`)
+/// in place of the scenario's own when given.
+fn run(test: &str, controller: Option<&str>) -> Run {
+    let dir = TestDir::new(test);
+    let text = with_rig_name(&scenario_text("acoustic-rig.toml"), &rig_name(test));
+    let scenario = dir.write(
+        "acoustic-rig.toml",
+        &absolute_target(&text, "rcac/acoustic-target.toml"),
+    );
+    let folder = dir.path.join("run");
+    let mut extra = vec!["--mode".to_string(), "lockstep".to_string()];
+    if let Some(file) = controller {
+        let text = std::fs::read_to_string(scenarios().join(file)).expect(file);
+        let copy = dir.write(
+            "controller.toml",
+            &absolute_target(&text, "acoustic-target.toml"),
+        );
+        extra.push("--controller".to_string());
+        extra.push(copy.display().to_string());
+    }
+    let args: Vec<&str> = extra.iter().map(String::as_str).collect();
+    let mut launch = start_launch(&scenario, &folder, &args);
+    let ok = launch.wait(Duration::from_secs(300)).success();
+    let report = read_json(&folder.join("report.json"));
+    assert_eq!(
+        ok,
+        report["verdict"]["ok"].as_bool().unwrap(),
+        "{}",
+        launch.output()
+    );
+    let (header, rows) = read_csv(&folder.join("signals.csv"));
+    Run {
+        ok,
+        report,
+        header,
+        rows,
+    }
+}
+
+/// Checks a run against its criterion: verdict OK, every tone suppressed by at least
+/// `criterion_db`, and |u| ≤ [`U_ADAPTED_MAX`] from [`ADAPTED_FROM`] on.
+fn check(name: &str, run: Run, criterion_db: f64) {
+    let Run {
+        ok,
+        report,
+        header,
+        rows,
+    } = run;
+    let tones = report["tones"]["tones"].as_array().expect("tones");
+    assert_eq!(tones.len(), 7, "{name}: seven tones");
+    for t in tones {
+        let db = t["suppression_db"].as_f64().unwrap_or(f64::NAN);
+        assert!(
+            db >= criterion_db,
+            "{name}: tone {t} suppressed by {db} dB < {criterion_db}"
+        );
+    }
+    assert!(ok, "{name}: verdict {}", report["verdict"]);
+    let (seq, z0, u0, u1) = (
+        column(&header, "seq"),
+        column(&header, "z0"),
+        column(&header, "u0"),
+        column(&header, "u1"),
+    );
+    let adapted: Vec<&Vec<f64>> = rows.iter().filter(|r| r[seq] >= ADAPTED_FROM).collect();
+    assert!(
+        adapted.len() > 60_000,
+        "{name}: {} adapted rows",
+        adapted.len()
+    );
+    let u_max = adapted
+        .iter()
+        .map(|r| r[u0].abs().max(r[u1].abs()))
+        .fold(0.0, f64::max);
+    assert!(
+        u_max <= U_ADAPTED_MAX,
+        "{name}: |u| reached {u_max} V after 2 s (a burst)"
+    );
+    let mut rms: Vec<f64> = adapted
+        .chunks_exact(WINDOW)
+        .map(|w| (w.iter().map(|r| r[z0] * r[z0]).sum::<f64>() / WINDOW as f64).sqrt())
+        .collect();
+    let largest = rms.iter().copied().fold(0.0, f64::max);
+    rms.sort_by(f64::total_cmp);
+    let median = rms[rms.len() / 2];
+    assert!(
+        largest <= Z_RING_MAX * median,
+        "{name}: z rang up to {largest:.3e} RMS over {WINDOW} samples, {:.2} times its median \
+         {median:.3e} (a burst)",
+        largest / median
+    );
+}
+
+#[test]
+fn the_main_jobs_gradient_rcac_meets_its_60_db_without_a_burst() {
+    check("gradient", run("acoustic-gradient", None), 60.0);
+}
+
+#[test]
+fn full_rls_rcac_meets_its_40_db_without_a_burst() {
+    check(
+        "full RLS",
+        run("acoustic-rls", Some("rcac/acoustic-rls.toml")),
+        40.0,
+    );
+}
