@@ -14,11 +14,11 @@
 //! - **Lost samples** (`lost = [{ at = 4000, periods = 8 }, …]`, lockstep only): the samples
 //!   `at … at + periods − 1` are measured and the plant advances over them, but they are
 //!   never published, as samples that overflowed the service's queue; the plant decides
-//!   their inputs as at a deadline (the input sent ahead for the first, then its late
-//!   policy: the plan). The service sees a gap in the sequence. A deterministic stand-in
-//!   for a loop that lost samples, for testing the gap rules and the verdict. No plant
-//!   time passes over a burst in lockstep, so the service takes a burst of more than 8
-//!   samples for a jump its clock cannot explain and refuses the sample after it.
+//!   their inputs as at a deadline (the input sent ahead for the first, which the plant
+//!   waits for when the service sends ahead, then its late policy: the plan). The service
+//!   sees a gap in the sequence; a lockstep sample's stamp explains any burst up to the
+//!   length of a fault list. A deterministic stand-in for a loop that lost samples,
+//!   repeatable bit for bit, for testing the gap rules and the verdict.
 //!
 //! Every list holds at most [`MAX_FAULT_SAMPLES`] entries; stalls and losses are each sorted
 //! by `at`, do not overlap and last at least one period.

@@ -125,6 +125,8 @@ pub struct ActuationBook<const N: usize> {
     answered: Option<u64>,
     /// The latest measurement a stall acknowledgement acknowledged.
     acknowledged: Option<u64>,
+    /// The newest valid actuation's timing sends ahead (`lead` ≥ 1).
+    sends_ahead: bool,
 }
 
 impl<const N: usize> ActuationBook<N> {
@@ -141,6 +143,7 @@ impl<const N: usize> ActuationBook<N> {
             plan_source: None,
             answered: None,
             acknowledged: None,
+            sends_ahead: false,
         }
     }
 
@@ -156,6 +159,7 @@ impl<const N: usize> ActuationBook<N> {
         self.plan_source = None;
         self.answered = None;
         self.acknowledged = None;
+        self.sends_ahead = false;
     }
 
     /// Takes the actuation `a` received while the plant is at sample `k` (the sample whose
@@ -172,6 +176,7 @@ impl<const N: usize> ActuationBook<N> {
             return Offer::Invalid;
         }
         self.answered = self.answered.max(Some(answered_measurement(a)));
+        self.sends_ahead = a.timing().is_some_and(|t| t.lead() > 0);
         if a.seq < k {
             self.consider_plan(a);
             return Offer::Late;
@@ -255,6 +260,12 @@ impl<const N: usize> ActuationBook<N> {
     /// that leaves `reply_to` at 0 from stalling a lockstep plant.
     pub fn answers(&self, k: u64) -> bool {
         self.answered.is_some_and(|a| a >= k) || self.acknowledged.is_some_and(|a| a >= k)
+    }
+
+    /// True when the newest valid actuation came from a service that sends each input one
+    /// sample ahead ([`Timing::SendAhead`]).
+    pub fn sends_ahead(&self) -> bool {
+        self.sends_ahead
     }
 
     /// True when the book holds an actuation for sample `seq`.

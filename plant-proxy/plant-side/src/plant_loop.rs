@@ -152,6 +152,7 @@ pub fn run<Io: PlantIo>(
     ipc_types::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let allocations_before = ipc_types::rt_alloc::thread_stats();
     let result = (|| {
+        let mut previous_published = false;
         for k in 0..steps {
             if shutdown.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 break;
@@ -192,7 +193,11 @@ pub fn run<Io: PlantIo>(
                 side.publish(k, t_k, [&y[..n_y], &z[..n_z], &r[..n_r]], extra)?
             };
             let input = match (early, policy.mode) {
-                // Never published: its input is decided as at a deadline.
+                // Never published: its input is decided as at a deadline, from what the
+                // service had sent for it by its answer to the previous sample.
+                (_, Mode::Lockstep) if lost && previous_published => {
+                    side.take(k, Wait::LockstepAhead)?
+                }
                 (_, Mode::Lockstep) if lost => side.take(k, Wait::Now)?,
                 (Some(mut i), _) => {
                     i.published_flags = flags;
@@ -202,6 +207,7 @@ pub fn run<Io: PlantIo>(
                 (None, Mode::RealTime) => side.take(k, Wait::At(t_k + deadline_ns))?,
                 (None, Mode::Lockstep) => side.take(k, Wait::Lockstep)?,
             };
+            previous_published = !lost;
             let Some(input) = input else { break };
             match input.kind {
                 InputKind::WatchdogSafe => io.apply_safe(k, &input),

@@ -93,6 +93,13 @@ pub enum Wait {
     /// Until the service has answered (or acknowledged) `M_k`, at most the policy's
     /// `lockstep-timeout`.
     Lockstep,
+    /// Lockstep, for a sample `k` that was not published (an injected loss) while `M_{k−1}`
+    /// was: a service that sends ahead publishes the input for `k` with its answer to
+    /// `M_{k−1}`, sometimes as the second of two actuations (after a gap, `M_{k−1}` gets an
+    /// answer of its own first). Waits until that input is there, at most the policy's
+    /// `lockstep-timeout`; decides at once when the service does not send ahead. So the
+    /// input of a lost sample never depends on which of the two had arrived.
+    LockstepAhead,
 }
 
 /// What the plant applies for one sample, from [`PlantSide::take`].
@@ -393,6 +400,36 @@ impl<'a> PlantSide<'a> {
         Ok(m.flags)
     }
 
+    /// Takes in actuations until `done` holds for the book, at most the policy's
+    /// `lockstep-timeout` (or until shutdown); true when `done` held.
+    fn lockstep_wait(
+        &mut self,
+        k: u64,
+        done: impl Fn(&ActuationBook<AHEAD_CAPACITY>) -> bool,
+    ) -> bool {
+        let deadline = Instant::now() + self.policy.lockstep_timeout;
+        loop {
+            self.drain(k);
+            if done(&self.book) {
+                return true;
+            }
+            let now = Instant::now();
+            if now >= deadline || self.stopping() {
+                return false;
+            }
+            if let Some(l) = &self.ports.listener {
+                // At least 1 ms: iceoryx2 waits on a socket receive timeout, and a timeout
+                // that rounds down to 0 µs means "wait for ever" there (seen as a lockstep
+                // plant that never woke up once its service had died).
+                let wait =
+                    (deadline - now).clamp(Duration::from_millis(1), Duration::from_millis(10));
+                let _ = l.timed_wait(|_| {}, wait);
+            } else {
+                std::thread::sleep(Duration::from_micros(POLL_NS / 1000));
+            }
+        }
+    }
+
     /// Decides the input for sample `k` when `wait` says ([`Wait`]), and updates the
     /// watchdog and the counters. `Ok(None)`: the shutdown flag was set while the sample was
     /// still unanswered (it was neither decided nor applied). Call it once per sample, `k`
@@ -423,28 +460,13 @@ impl<'a> PlantSide<'a> {
                 self.book.decide(k)
             }
             Wait::Lockstep => {
-                let deadline = Instant::now() + self.policy.lockstep_timeout;
-                loop {
-                    self.drain(k);
-                    if self.book.answers(k) {
-                        self.time_round_trip(k);
-                        break;
-                    }
-                    let now = Instant::now();
-                    if now >= deadline || self.stopping() {
-                        break;
-                    }
-                    if let Some(l) = &self.ports.listener {
-                        // At least 1 ms: iceoryx2 waits on a socket receive timeout, and a
-                        // timeout that rounds down to 0 µs means "wait for ever" there (seen
-                        // as a lockstep plant that never woke up once its service had died).
-                        let wait = (deadline - now)
-                            .clamp(Duration::from_millis(1), Duration::from_millis(10));
-                        let _ = l.timed_wait(|_| {}, wait);
-                    } else {
-                        std::thread::sleep(Duration::from_micros(POLL_NS / 1000));
-                    }
+                if self.lockstep_wait(k, |book| book.answers(k)) {
+                    self.time_round_trip(k);
                 }
+                self.book.decide(k)
+            }
+            Wait::LockstepAhead => {
+                self.lockstep_wait(k, |book| !book.sends_ahead() || book.holds(k));
                 self.book.decide(k)
             }
         };
