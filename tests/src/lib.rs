@@ -317,6 +317,21 @@ pub fn scenario_text(name: &str) -> String {
     )
 }
 
+/// The main job's scenario (`scenarios/acoustic-rig.toml`) under the rig name
+/// [`rig_name`]`(test)`, with its target model named by absolute path, so that it runs from
+/// a test folder.
+pub fn acoustic_rig_scenario(test: &str) -> String {
+    with_rig_name(&scenario_text("acoustic-rig.toml"), &rig_name(test)).replace(
+        "target-model-file = \"rcac/acoustic-target.toml\"",
+        &format!(
+            "target-model-file = \"{}\"",
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../scenarios/rcac/acoustic-target.toml")
+                .display()
+        ),
+    )
+}
+
 /// Replaces the rig name of a scenario text (so parallel tests do not share services).
 pub fn with_rig_name(text: &str, rig: &str) -> String {
     let mut out = String::new();

@@ -59,11 +59,7 @@ struct Run {
 /// in place of the scenario's own when given.
 fn run(test: &str, controller: Option<&str>) -> Run {
     let dir = TestDir::new(test);
-    let text = with_rig_name(&scenario_text("acoustic-rig.toml"), &rig_name(test));
-    let scenario = dir.write(
-        "acoustic-rig.toml",
-        &absolute_target(&text, "rcac/acoustic-target.toml"),
-    );
+    let scenario = dir.write("acoustic-rig.toml", &acoustic_rig_scenario(test));
     let folder = dir.path.join("run");
     let mut extra = vec!["--mode".to_string(), "lockstep".to_string()];
     if let Some(file) = controller {

@@ -9,7 +9,6 @@
 //! wall-clock sample time). Before, three such runs of 10 s gave three different logs.
 
 use rig_tests::*;
-use std::path::Path;
 use std::time::Duration;
 
 /// First and last (exclusive) sample of the lossy stretch: every other sample is lost.
@@ -18,15 +17,7 @@ const LOSSY: (u64, u64) = (8_000, 12_000);
 /// Runs the lossy scenario once; returns the signal log's header and rows.
 fn run(test: &str) -> (Vec<String>, Vec<Vec<f64>>) {
     let dir = TestDir::new(test);
-    let text = with_rig_name(&scenario_text("acoustic-rig.toml"), &rig_name(test)).replace(
-        "target-model-file = \"rcac/acoustic-target.toml\"",
-        &format!(
-            "target-model-file = \"{}\"",
-            Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../scenarios/rcac/acoustic-target.toml")
-                .display()
-        ),
-    );
+    let text = acoustic_rig_scenario(test);
     let losses: String = (LOSSY.0..LOSSY.1)
         .step_by(2)
         .map(|k| format!("[[proxy.faults.lost]]\nat = {k}\nperiods = 1\n\n"))

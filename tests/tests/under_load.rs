@@ -53,17 +53,7 @@ fn failures(report: &Value) -> Vec<String> {
 #[test]
 fn the_main_job_loses_no_samples_and_controls_with_a_process_spinning_on_the_service_core() {
     let dir = TestDir::new("under-load-main-job");
-    let text = with_rig_name(&scenario_text("acoustic-rig.toml"), &rig_name("under-load"));
-    // The scenario's target model is found next to the scenario.
-    let text = text.replace(
-        "target-model-file = \"rcac/acoustic-target.toml\"",
-        &format!(
-            "target-model-file = \"{}\"",
-            Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../scenarios/rcac/acoustic-target.toml")
-                .display()
-        ),
-    );
+    let text = acoustic_rig_scenario("under-load");
     let scenario = dir.write("acoustic-rig.toml", &text);
     let run = dir.path.join("run");
     let hog = Hog::on_core(1);
