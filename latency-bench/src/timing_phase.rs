@@ -10,7 +10,8 @@
 //! 500 µs for the PCAC arm, whose step does not fit 8 kHz: see
 //! [`configs::timing_cases`]) with a deadline of half a period (`deadline_ns = T/2`),
 //! and the child is the real service
-//! (`service::runtime::run`, busy-poll) on the RT core. The service runs the controller
+//! (`service::runtime::run`, with the service's default wait `sleep-poll`, the one every
+//! shipped scenario uses) on the RT core. The service runs the controller
 //! once per timing:
 //!
 //! ```text
@@ -253,7 +254,7 @@ fn round(
 ) -> Result<Round, String> {
     let text = case.service_toml(rig, timing, s.service_log);
     let counts = counts(case);
-    let child = child::spawn_service_with(s, dir, &text, "busy-poll")?;
+    let child = child::spawn_service_with(s, dir, &text, "sleep-poll")?;
     let mut model = model(&case.plant, counts);
     let plant = paced::PacedSpec {
         counts,
@@ -514,7 +515,7 @@ pub fn timing_phase(s: &Settings, out: &Path, rig_base: &str, col: &mut Collecte
     }
     col.details.push(format!(
         "response by timing: {} rounds per timing of {:.2} s each, fresh service children in ABBA \
-         order (compute-first first); service busy-polling on core {}, SCHED_FIFO {RT_PRIORITY}, \
+         order (compute-first first); service sleep-polling on core {}, SCHED_FIFO {RT_PRIORITY}, \
          service RT set-up: {}; paced plant on core {} at {} unless the row names its rate, \
          deadline T/2, closing each controller's loop; plant thread: {}; rows: the service's \
          own response.hlog and compute.hlog summed over the rounds",
