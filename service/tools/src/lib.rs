@@ -30,4 +30,5 @@ pub mod plot;
 pub mod simulate;
 pub mod soak;
 pub mod stalls;
+pub mod stats;
 pub mod study;

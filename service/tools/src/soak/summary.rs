@@ -5,19 +5,9 @@
 
 use super::row::RunRow;
 
-/// The median of `v` (the mean of the middle two for an even count); `None` when empty.
+/// The median of `v` ([`crate::stats::median`]); `None` when no value is a number.
 pub fn median(v: &[f64]) -> Option<f64> {
-    let mut s: Vec<f64> = v.iter().copied().filter(|x| !x.is_nan()).collect();
-    if s.is_empty() {
-        return None;
-    }
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    Some(if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    })
+    Some(crate::stats::median(v)).filter(|m| !m.is_nan())
 }
 
 fn max(v: &[f64]) -> Option<f64> {

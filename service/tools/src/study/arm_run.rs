@@ -295,20 +295,7 @@ impl Outcome {
     }
 }
 
-/// The median of `v` (NaN for none).
-pub fn median(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
-}
+pub use crate::stats::median;
 
 /// The settling time of the forces `f` sampled every `ts` into `F_d (1 ± BAND)`: the
 /// time from the first sample to the first after which every sample is in the band

@@ -81,7 +81,7 @@ impl SweepStats {
             })
             .collect();
         logs.sort_by(f64::total_cmp);
-        let median = median_sorted(&logs);
+        let median = crate::stats::median(&logs);
         let worst = logs
             .iter()
             .copied()
@@ -96,21 +96,6 @@ impl SweepStats {
             unstable: sweep.unstable(),
             points: sweep.points.len(),
         }
-    }
-}
-
-/// The median of sorted values (the mean of the two middle ones for an even count; NaN
-/// when empty).
-fn median_sorted(v: &[f64]) -> f64 {
-    let n = v.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        let (a, b) = (v[n / 2 - 1], v[n / 2]);
-        if a == b { a } else { 0.5 * (a + b) }
     }
 }
 
