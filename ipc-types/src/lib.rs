@@ -41,10 +41,13 @@
 pub mod clock;
 pub mod cpu_latency;
 pub mod files;
+pub mod operator;
 pub mod peer;
 pub mod ports;
 pub mod rt;
 pub mod rt_alloc;
+pub mod telemetry;
+pub mod timing_rules;
 
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -390,21 +393,16 @@ impl Actuation {
 
     /// The used part of the plan entry for sample `seq + 1 + j`; `None` past `plan_len`.
     pub fn plan_entry(&self, j: usize) -> Option<&[f64]> {
-        let len = (self.plan_len as usize).min(MAX_PLAN);
-        (j < len).then(|| &self.plan[j][..(self.counts.n_u as usize).min(MAX_U)])
+        (j < timing_rules::plan_rows(self.plan_len))
+            .then(|| &self.plan[j][..(self.counts.n_u as usize).min(MAX_U)])
     }
 
     /// The input this actuation carries for sample `k`: `u` for `k = seq`, the plan's entry
-    /// for a later sample it covers; `None` otherwise.
+    /// for a later sample it covers; `None` otherwise ([`timing_rules::carried`]).
     pub fn input_for(&self, k: u64) -> Option<&[f64]> {
-        if k == self.seq {
-            Some(self.u())
-        } else if k > self.seq {
-            usize::try_from(k - self.seq - 1)
-                .ok()
-                .and_then(|j| self.plan_entry(j))
-        } else {
-            None
+        match timing_rules::carried(self.seq, self.plan_len, k)? {
+            timing_rules::Carried::Input => Some(self.u()),
+            timing_rules::Carried::PlanRow(j) => self.plan_entry(j),
         }
     }
 

@@ -112,7 +112,8 @@ impl Applies {
         }
     }
 
-    fn from_name(name: &str) -> Option<Self> {
+    /// The application of an attribute value given by [`Applies::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
         [Applies::AtSample, Applies::AtDeadline, Applies::Lockstep]
             .into_iter()
             .find(|a| a.name() == name)
@@ -273,9 +274,8 @@ impl ContractInfo {
             Side::Service => (other, self),
         };
         if plant.side != service.side
-            && plant.applies == Some(Applies::AtSample)
-            && let Some(t) = service.timing
-            && t != Timing::SendAhead
+            && let (Some(applies), Some(t)) = (plant.applies, service.timing)
+            && !crate::timing_rules::timings_meet(applies, t)
         {
             out.push(format!(
                 "timing: the plant applies each input at its sample instant (its deadline is 0), \
@@ -388,7 +388,7 @@ pub enum ConnectError {
 /// and node creation reports a folder it may not write as `InternalError`; both become
 /// [`ConnectError::PermissionDenied`] (the latter only when the iceoryx2 folder is not
 /// writable by this process, see [`iceoryx2_folder_denied`]).
-fn ipc_err(what: &str, item: &str, e: impl fmt::Debug) -> ConnectError {
+pub(crate) fn ipc_err(what: &str, item: &str, e: impl fmt::Debug) -> ConnectError {
     let detail = format!("{e:?}");
     if detail.contains("InsufficientPermissions") || detail.contains("PermissionDenied") {
         ConnectError::PermissionDenied {
@@ -407,7 +407,7 @@ fn ipc_err(what: &str, item: &str, e: impl fmt::Debug) -> ConnectError {
 
 /// A node creation failure: `InternalError` is what iceoryx2 0.10 reports when it cannot
 /// create its files in a folder of another user, so it is checked against the folders.
-fn node_err(node_name: &str, e: impl fmt::Debug) -> ConnectError {
+pub(crate) fn node_err(node_name: &str, e: impl fmt::Debug) -> ConnectError {
     match (
         ipc_err("creating the node", node_name, &e),
         iceoryx2_folder_denied(),
@@ -563,6 +563,15 @@ pub struct RigServiceNames {
 /// Service names derived from a rig name, so that several rigs run side by side. A rig name
 /// is 1 to 64 characters of ASCII letters, digits, `-` and `_`.
 pub fn service_names(rig: &str) -> Result<RigServiceNames, ConnectError> {
+    valid_rig(rig)?;
+    Ok(RigServiceNames {
+        measurement: format!("{SERVICE_PREFIX}/{rig}/measurement"),
+        actuation: format!("{SERVICE_PREFIX}/{rig}/actuation"),
+    })
+}
+
+/// Refuses a rig name that is not 1 to 64 characters of ASCII letters, digits, `-` and `_`.
+pub(crate) fn valid_rig(rig: &str) -> Result<(), ConnectError> {
     let bad = |detail: &str| ConnectError::InvalidRigName {
         rig: rig.into(),
         detail: detail.into(),
@@ -576,10 +585,7 @@ pub fn service_names(rig: &str) -> Result<RigServiceNames, ConnectError> {
     {
         return Err(bad("only ASCII letters, digits, '-' and '_' are allowed"));
     }
-    Ok(RigServiceNames {
-        measurement: format!("{SERVICE_PREFIX}/{rig}/measurement"),
-        actuation: format!("{SERVICE_PREFIX}/{rig}/actuation"),
-    })
+    Ok(())
 }
 
 /// Removes the stale resources of every dead iceoryx2 node on this machine, and returns
@@ -720,15 +726,7 @@ where
     };
     set_log_level(LogLevel::Error);
     cleanup_dead_nodes();
-    let node = NodeBuilder::new()
-        .name(
-            &node_name
-                .try_into()
-                .map_err(|e| ipc_err("naming the node", node_name, e))?,
-        )
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
-        .map_err(|e| node_err(node_name, e))?;
+    let node = create_node(node_name)?;
 
     let own_service = open_own::<Out>(&node, &own_name, &own, &opts)?;
     // This side's publisher first, before waiting for the peer: the one publisher slot is
@@ -1020,7 +1018,20 @@ pub enum PeerPresence {
     },
 }
 
-fn service_name(name: &str) -> Result<ServiceName, ConnectError> {
+/// Creates this process's iceoryx2 node `node_name` (signal handling left to the caller).
+pub(crate) fn create_node(node_name: &str) -> Result<Node<ipc::Service>, ConnectError> {
+    NodeBuilder::new()
+        .name(
+            &node_name
+                .try_into()
+                .map_err(|e| ipc_err("naming the node", node_name, e))?,
+        )
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| node_err(node_name, e))
+}
+
+pub(crate) fn service_name(name: &str) -> Result<ServiceName, ConnectError> {
     ServiceName::new(name).map_err(|e| ipc_err("naming the service", name, e))
 }
 

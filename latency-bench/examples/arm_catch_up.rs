@@ -13,26 +13,18 @@
 //!   last solution's plan, `late-policy = "plan"`). The QP iterations of the first step
 //!   after each gap are compared with the steady steps' and with the same QP solved cold.
 //! - `loop T_us [samples]`: the service's answer-first loop in virtual time at period
-//!   `T_us`: each answered step costs `65 µs + 10 µs` per QP iteration (the steady
-//!   step and one dual active-set step at this size on this machine), samples that
-//!   arrive meanwhile are caught up (at most the subscriber's 4; older ones lost), and
-//!   the plant holds its input when an answer misses `T/2`.
+//!   `T_us` ([`latency_bench::catch_up`]: each answered step costs `65 µs + 10 µs` per QP
+//!   iteration, samples that arrive meanwhile are caught up, at most the subscriber's 4,
+//!   older ones lost, and the plant holds its input when an answer misses `T/2`).
 
 use control::mpc::qp::{DenseQpSolver, QpSettings, WarmStart};
 use control::pcac::Pcac;
 use control::{Controller, MAX_INTERNALS, StepInput};
+use latency_bench::catch_up::replay;
 use latency_bench::synthetic_arm::{ARM_M, ARM_P, ArmPlant, pcac_params};
 
 /// Index of `qp_iterations` in PCAC's internals.
 const ITERATIONS: usize = 5;
-/// Index of `qp_active` in PCAC's internals.
-const ACTIVE: usize = 6;
-/// Cost model of the `loop` replay: a step without dual steps, µs.
-const STEP_US: f64 = 65.0;
-/// Cost model of the `loop` replay: one dual active-set step, µs.
-const ITERATION_US: f64 = 10.0;
-/// Samples the service's subscriber keeps.
-const BUFFER: usize = 4;
 
 fn controller() -> Pcac {
     let counts = ipc_types::ChannelCounts::new(ARM_P, ARM_P, 0, ARM_M).expect("counts");
@@ -121,84 +113,26 @@ fn gap(g: u64, follow_plan: bool) {
 }
 
 fn virtual_loop(period_us: f64, n: usize) {
-    let mut c = controller();
-    let mut plant = ArmPlant::new(7);
-    let mut ys: Vec<[f64; ARM_P]> = Vec::with_capacity(n);
-    let mut applied: Vec<[f64; ARM_M]> = Vec::with_capacity(n);
-    // The answer to each sample and when it was published, µs.
-    let mut answers: Vec<Option<([f64; ARM_M], f64)>> = vec![None; n];
-    let mut internals = [0.0; MAX_INTERNALS];
-    let (mut t, mut next) = (0.0f64, 0usize);
-    let (mut lost_total, mut observed, mut in_time) = (0u64, 0u64, 0u64);
-    let (mut costs, mut iterations) = (vec![], vec![]);
-    let mut last_sent = [0.0; ARM_M];
-    while next < n {
-        t = t.max(next as f64 * period_us);
-        let newest = ((t / period_us).floor() as usize).min(n - 1);
-        let first = newest.saturating_sub(BUFFER - 1).max(next);
-        let lost = (first - next) as u64;
-        lost_total += lost;
-        while ys.len() <= newest {
-            let i = ys.len();
-            if i > 0 {
-                let held = if i > 1 { applied[i - 2] } else { [0.0; ARM_M] };
-                let a = match answers[i - 1] {
-                    Some((u, tp)) if tp <= (i - 1) as f64 * period_us + period_us / 2.0 => u,
-                    _ => held,
-                };
-                applied.push(a);
-                plant.advance(&a);
-            }
-            let mut y = [0.0; ARM_P];
-            plant.sample(&mut y);
-            ys.push(y);
-        }
-        for j in first..=newest {
-            let input = StepInput {
-                seq: j as u64,
-                y: &ys[j],
-                z: &ys[j],
-                r: &[],
-                u_applied: j.checked_sub(1).map(|p| &applied[p][..]),
-                lost: if j == first { lost } else { 0 },
-            };
-            let ahead = c.ahead().expect("next-step PCAC answers ahead");
-            if j < newest {
-                ahead.advance(&input, &last_sent, false);
-                observed += 1;
-                t += 1.0;
-                continue;
-            }
-            let mut ready = [0.0; ARM_M];
-            ahead.ready(&mut ready);
-            answers[j] = Some((ready, t + 1.0));
-            last_sent = ready;
-            in_time += u64::from(t + 1.0 <= j as f64 * period_us + period_us / 2.0);
-            ahead.advance(&input, &ready, true);
-            c.internals(&mut internals);
-            let cost = STEP_US + ITERATION_US * internals[ITERATIONS];
-            t += 1.0 + cost;
-            costs.push(cost);
-            iterations.push(internals[ITERATIONS]);
-            if costs.len() <= 40 && internals[ACTIVE] > 0.0 {
-                println!(
-                    "  sample {j}: {lost} lost, {} caught up, {} QP iterations, {} active, {cost} µs",
-                    newest - first,
-                    internals[ITERATIONS],
-                    internals[ACTIVE]
-                );
-            }
-        }
-        next = newest + 1;
+    let r = replay(period_us, n);
+    for a in r.answered.iter().take(40).filter(|a| a.active > 0.0) {
+        println!(
+            "  sample {}: {} lost, {} caught up, {} QP iterations, {} active, {} µs",
+            a.sample, a.lost, a.caught_up, a.iterations, a.active, a.cost_us
+        );
     }
     println!(
-        "answer-first at {period_us} µs: {n} samples, {} answered ({in_time} in time), \
-         {observed} caught up, {lost_total} lost",
-        costs.len()
+        "answer-first at {period_us} µs: {n} samples, {} answered ({} in time), \
+         {} caught up, {} lost",
+        r.answered.len(),
+        r.in_time,
+        r.observed,
+        r.lost
     );
+    let costs: Vec<f64> = r.answered.iter().map(|a| a.cost_us).collect();
+    let iterations: Vec<f64> = r.answered.iter().map(|a| a.iterations).collect();
     println!("  step cost, µs:  {}", quantiles(&costs));
     println!("  QP iterations:  {}", quantiles(&iterations));
-    println!("  {:?}", c.counts_of());
+    println!("  {:?}", r.controller.counts_of());
 }
 
 fn main() {

@@ -51,6 +51,7 @@
 
 #![warn(missing_docs)]
 
+pub mod catch_up;
 pub mod child;
 pub mod cli;
 pub mod configs;

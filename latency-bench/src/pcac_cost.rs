@@ -73,8 +73,7 @@
 use crate::hist::new_histogram;
 use control::arm::controller::{ArmController, ArmControllerParams, ArmMode};
 use control::bocf::DataWindow;
-use control::forgetting::ForgettingRule;
-use control::mpc::condense::{Condenser, MpcSpec, Weight};
+use control::mpc::condense::{Condenser, MpcSpec};
 use control::mpc::qp::{
     ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
 };
@@ -173,22 +172,11 @@ impl Workload {
     }
 }
 
-/// The truss workload's PCAC (module docs).
+/// The truss workload's PCAC (module docs): §6.2's ([`PcacParams::chapter_6`]) with
+/// `|u| ≤ 10` and the next-step timing.
 pub fn truss_params() -> PcacParams {
-    let (n_hat, p, m, p0) = (25, 4, 2, 1.0);
-    let n_theta = n_hat * p * (p + m);
-    PcacParams::builder(n_hat, p, m, p0, 40)
-        .theta0(vec![1e-10; n_theta])
-        .forgetting(ForgettingRule::FTest {
-            tau_n: 40,
-            tau_d: 200,
-            eta: 0.1,
-            alpha: 0.001,
-        })
-        .tracking(1, vec![0.0, 0.0, 0.0, 1.0])
-        .q(Weight::Scalar(1e6))
-        .r(Weight::Scalar(1.0))
-        .input_bounds(vec![-10.0; m], vec![10.0; m])
+    PcacParams::chapter_6()
+        .input_bounds(vec![-10.0; 2], vec![10.0; 2])
         .timing(PcacTiming::NextStep)
         .build()
 }

@@ -107,10 +107,6 @@ fn time_ns<T>(f: impl FnOnce() -> T) -> u64 {
 /// interleaved blocks of [`BLOCK`], with the cold-cache rule.
 pub fn measure_detailed(n: usize, p: usize, warmup: u64, steps: u64) -> Result<RlsCost, String> {
     let cfg = RlsConfig {
-        n,
-        p,
-        theta0: vec![0.0; n],
-        p0: 100.0,
         rule: ForgettingRule::FTest {
             tau_n: 10,
             tau_d: 80,
@@ -118,6 +114,7 @@ pub fn measure_detailed(n: usize, p: usize, warmup: u64, steps: u64) -> Result<R
             alpha: 0.001,
         },
         trace_limit: 1e12,
+        ..RlsConfig::new(n, p, 100.0)
     };
     let mut fast = Rls::new(&cfg)?;
     let mut text = TextbookRls::new(&cfg)?;

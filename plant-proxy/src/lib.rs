@@ -4,9 +4,9 @@
 //! master that publishes `y_k`, `z_k`, `r_k` at sample `k` and applies the service's `u_k`.
 //! A hardware DAQ I/O process can take its place without any change to the service.
 //!
-//! - [`lti`]: continuous and discrete linear time-invariant models, realization of transfer
-//!   function matrices, exact zero-order-hold discretization by the matrix exponential of the
-//!   augmented matrix.
+//! - [`lti`] (from the `rig-scenario` crate): continuous and discrete linear time-invariant
+//!   models, realization of transfer function matrices, exact zero-order-hold
+//!   discretization by the matrix exponential of the augmented matrix.
 //! - [`sim`]: the sampled-data simulation of a scenario plant with per-input delays, harmonic
 //!   disturbances integrated exactly through an exosystem, and seeded white noise.
 //! - [`scenario`]: the plant part of a scenario TOML file, validated into typed parameters.
@@ -38,7 +38,6 @@ pub mod command;
 pub mod discrete;
 pub mod faults;
 pub mod harmonic;
-pub mod lti;
 pub mod mrac_examples;
 pub mod proxy_config;
 pub mod runtime;
@@ -47,3 +46,5 @@ pub mod sim;
 pub mod truss;
 
 pub use plant_side::{actuation_book, late_policy, plant_report, sample_clock};
+/// The LTI models, their realization and discretization, from the scenario schema.
+pub use rig_scenario::lti;

@@ -118,6 +118,8 @@ use crate::command::Command;
 use crate::discrete::DiscretePlant;
 use crate::lti::{ChannelDims, GeneralizedPlant, LtiError, Mode, Tf};
 use nalgebra::DMatrix;
+use rig_scenario::FieldError;
+use rig_scenario::rig::{RawRig, RigTable};
 use serde::Deserialize;
 use std::f64::consts::PI;
 use std::fmt;
@@ -126,15 +128,7 @@ use std::path::Path;
 /// The largest accepted input delay, in samples (the ring buffers are allocated up front).
 pub const MAX_INPUT_DELAY: usize = 1 << 20;
 
-/// The longest run, s (7 days): the bound of `rig.duration`, of `--duration` and
-/// `--steps` (times the period), and of the service's durations within a run.
-pub const MAX_DURATION_S: f64 = 7.0 * 86_400.0;
-
-/// The shortest accepted sample period, s (10 MHz); the period must exceed it.
-pub const MIN_SAMPLE_PERIOD_S: f64 = 1e-7;
-
-/// The longest accepted sample period, s; the period must be below it.
-pub const MAX_SAMPLE_PERIOD_S: f64 = 100.0;
+pub use rig_scenario::bounds::{MAX_DURATION_S, MAX_SAMPLE_PERIOD_S, MIN_SAMPLE_PERIOD_S};
 
 /// The largest number of disturbance inputs `w` (`plant.disturbances`).
 pub const MAX_DISTURBANCES: usize = 64;
@@ -510,15 +504,6 @@ struct RawFile {
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawRig {
-    name: Option<String>,
-    sample_period: Option<f64>,
-    sample_rate_hz: Option<f64>,
-    duration: Option<f64>,
-}
-
-#[derive(Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
 struct RawPlant {
     kind: Option<String>,
     inputs: Option<usize>,
@@ -641,6 +626,11 @@ impl Cx<'_> {
             field: field.into(),
             problem: problem.into(),
         }
+    }
+
+    /// A refusal of the schema crate, with the file.
+    fn field(&self, e: FieldError) -> ScenarioError {
+        self.err(e.field, e.problem)
     }
 
     fn required<T>(&self, v: Option<T>, field: &str) -> Result<T, ScenarioError> {
@@ -823,46 +813,14 @@ fn number(v: &toml::Value) -> Option<f64> {
     }
 }
 
+/// The `[rig]` table through the schema's reader ([`RigTable`]); the plant needs its
+/// duration.
 fn validate_rig(cx: &Cx<'_>, raw: RawRig) -> Result<RigParams, ScenarioError> {
-    let name = cx.required(raw.name, "rig.name")?;
-    // The same rule as the service names derived from it (1 to 64 of [A-Za-z0-9_-]).
-    if let Err(e) = ipc_types::ports::service_names(&name) {
-        return Err(cx.err("rig.name", e.to_string()));
-    }
-    let sample_period = match (raw.sample_period, raw.sample_rate_hz) {
-        (Some(t), None) => cx.positive(t, "rig.sample-period")?,
-        (None, Some(f)) => 1.0 / cx.positive(f, "rig.sample-rate-hz")?,
-        (Some(_), Some(_)) => {
-            return Err(cx.err(
-                "rig.sample-period",
-                "give sample-period or sample-rate-hz, not both",
-            ));
-        }
-        (None, None) => {
-            return Err(cx.err(
-                "rig.sample-period",
-                "is missing (or give rig.sample-rate-hz)",
-            ));
-        }
-    };
-    if !(sample_period > MIN_SAMPLE_PERIOD_S && sample_period < MAX_SAMPLE_PERIOD_S) {
-        let field = match raw.sample_rate_hz {
-            Some(_) => "rig.sample-rate-hz",
-            None => "rig.sample-period",
-        };
-        return Err(cx.err(
-            field,
-            format!(
-                "a period of {sample_period} s is not between {MIN_SAMPLE_PERIOD_S} s and \
-                 {MAX_SAMPLE_PERIOD_S} s"
-            ),
-        ));
-    }
-    let duration = check_duration(cx, cx.required(raw.duration, "rig.duration")?, "")?;
+    let t = RigTable::parse(raw).map_err(|e| cx.field(e))?;
     Ok(RigParams {
-        name,
-        sample_period,
-        duration,
+        name: t.name,
+        sample_period: t.sample_period,
+        duration: cx.required(t.duration, "rig.duration")?,
     })
 }
 
@@ -911,17 +869,9 @@ fn check_discretizable(cx: &Cx<'_>, p: &PlantParams, ts: f64) -> Result<(), Scen
     Ok(())
 }
 
-/// A run duration: positive, finite and at most [`MAX_DURATION_S`]; `how` says where a
-/// value that did not come from the file came from.
+/// [`rig_scenario::rig::check_duration`] with the file named.
 fn check_duration(cx: &Cx<'_>, d: f64, how: &str) -> Result<f64, ScenarioError> {
-    if d.is_finite() && d > 0.0 && d <= MAX_DURATION_S {
-        Ok(d)
-    } else {
-        Err(cx.err(
-            "rig.duration",
-            format!("{d} s{how} is not a duration in (0, {MAX_DURATION_S}] s (7 days)"),
-        ))
-    }
+    rig_scenario::rig::check_duration(d, how).map_err(|e| cx.field(e))
 }
 
 impl Scenario {

@@ -9,6 +9,7 @@ mod common;
 use plant_proxy::arm::{ContactModel, Phase};
 use plant_proxy::scenario::{self, PlantKind, Scenario};
 use plant_proxy::sim::PlantSim;
+use rig_scenario::refusal_cases;
 
 const FILES: [&str; 5] = [
     "linear",
@@ -196,130 +197,16 @@ fn a_study_can_change_the_surface_before_building_the_simulation() {
 #[test]
 fn bad_fields_are_refused_naming_the_field() {
     let base = text("double-linear");
-    let cases: &[(&str, &str, &str)] = &[
-        (
-            "stiffness = 2.0e5",
-            "stiffness = -2.0e5",
-            "plant.surface.stiffness",
-        ),
-        ("damping = 5.0 ", "damping = -5.0 ", "plant.surface.damping"),
-        (
-            "model = \"kelvin-voigt\"         #",
-            "model = \"maxwell\"         #",
-            "plant.surface.model",
-        ),
-        (
-            "damping = 5.0 ",
-            "restitution = 0.5\ndamping = 5.0 ",
-            "plant.surface.restitution",
-        ),
-        (
-            "friction = 0.5                 # μ",
-            "friction = -0.5 # μ",
-            "plant.surface.friction",
-        ),
-        ("m-sc = 420.0", "m-sc = 0.0", "plant.sampling-arm.m-sc"),
-        ("r1 = 1.0", "r1 = 2.5", "plant.sampling-arm.r1"),
-        (
-            "theta1 = 0.7853981633974483",
-            "theta1 = -1.5707963267948966",
-            "plant.sampling-arm.theta1",
-        ),
-        (
-            "initial-height = 0.2",
-            "initial-height = -0.2",
-            "plant.sampling-arm.initial-height",
-        ),
-        (
-            "descent-speed = 0.1            # m/s: every",
-            "descent-speed = 0.0 # m/s: every",
-            "plant.sampling-arm.descent-speed",
-        ),
-        (
-            "force-set-point = 25.0",
-            "force-set-point = -25.0",
-            "plant.guidance.force-set-point",
-        ),
-        (
-            "contact-duration = 2.0",
-            "contact-duration = 0.0",
-            "plant.guidance.contact-duration",
-        ),
-        (
-            "thrust-limit = 100.0",
-            "thrust-limit = inf",
-            "plant.guidance.thrust-limit",
-        ),
-        (
-            "loop-gain = 2.0",
-            "loop-gain = -2.0",
-            "plant.guidance.loop-gain",
-        ),
-        (
-            "sample-mass = 0.5",
-            "sample-mass = -0.5",
-            "plant.second-sampling.sample-mass",
-        ),
-        (
-            "ascent-duration = 1.75",
-            "ascent-duration = 0.0",
-            "plant.second-sampling.ascent-duration",
-        ),
-        (
-            "stiffness = 200.0",
-            "stiffness = 0.0",
-            "plant.second-sampling.surface.stiffness",
-        ),
-        (
-            "damping = 500.0",
-            "damping = nan",
-            "plant.second-sampling.surface.damping",
-        ),
-        ("rtol = 1.0e-8", "rtol = 0.0", "plant.integrator.rtol"),
-        ("atol = 1.0e-10", "atol = 1.5", "plant.integrator.atol"),
-        (
-            "max-steps-per-sample = 20000",
-            "max-steps-per-sample = 0",
-            "plant.integrator.max-steps-per-sample",
-        ),
-        (
-            "event-time-tolerance = 1.0e-12",
-            "event-time-tolerance = 0.1",
-            "plant.integrator.event-time-tolerance",
-        ),
-        ("outputs-y = 7", "outputs-y = 6", "plant.outputs-y"),
-        ("inputs = 2", "inputs = 1", "plant.inputs"),
-        ("commands = 1", "commands = 2", "plant.commands"),
-        (
-            "commands = 1",
-            "commands = 1\ncommand = [25.0]",
-            "plant.command",
-        ),
-        (
-            "commands = 1",
-            "commands = 1\ninitial-state = [0.0]",
-            "plant.initial-state",
-        ),
-        (
-            "y-std = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]",
-            "y-std = [0.0, 0.0]",
-            "plant.noise.y-std",
-        ),
-        (
-            "[plant.second-sampling.surface]",
-            "[plant.second-sampling.lid]",
-            "",
-        ),
-    ];
-    for (from, to, field) in cases {
-        assert!(base.contains(from), "the fixture lost '{from}'");
-        let t = base.replacen(from, to, 1);
+    let cases =
+        refusal_cases::parse(include_str!("../../tests/fixtures/refusals/arm-plant.toml")).unwrap();
+    for c in cases {
+        let t = c.edit(&base).unwrap();
         let e = scenario::parse(&t, "arm.toml").unwrap_err();
-        if field.is_empty() {
+        if c.field.is_empty() {
             // An unknown table: the TOML reader names the key.
             assert!(e.to_string().contains("lid"), "{e}");
         } else {
-            assert_eq!(e.field(), Some(*field), "{from} → {to}: {e}");
+            assert_eq!(e.field(), Some(c.field.as_str()), "{c:?}: {e}");
         }
         assert!(e.to_string().starts_with("arm.toml"), "{e}");
     }

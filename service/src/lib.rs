@@ -30,7 +30,9 @@
 #![warn(missing_docs)]
 
 pub mod config;
+pub mod live;
 pub mod logging;
+pub mod operator;
 pub mod record;
 pub mod replay;
 pub use ipc_types::rt_alloc;

@@ -9,7 +9,9 @@
 //!
 //! `run` is the service alone, against whatever plant process serves the rig (plant-proxy or
 //! a DAQ I/O process); it prints the run report and leaves the run folder. `check`
-//! validates the whole scenario, both halves, and exits; a refused configuration or
+//! validates the service's half of a scenario (`[rig]`, `[service]`, `[controller]`,
+//! `[log]`) and exits (the plant half is `plant-proxy check`'s, both against each other
+//! `rig check`'s); a refused configuration or
 //! command-line value exits with code 2, naming the file and the field. The main job (plant-proxy and the service started
 //! together, then the figure) is `rig launch` of the offline tools: this binary runs next
 //! to the hardware and links no plotting. `replay` re-runs the loop offline on a run
@@ -18,7 +20,7 @@
 //! `--scenario` compares another configuration open loop (docs/replay.md).
 
 use clap::{Parser, Subcommand};
-use service::config::{ConfigError, ScenarioCheck, ServiceConfig, WaitMode};
+use service::config::{ConfigError, ServiceConfig, WaitMode};
 use service::rt_alloc::RtAwareAllocator;
 use service::runtime::{RunOptions, run};
 use std::path::{Path, PathBuf};
@@ -102,8 +104,8 @@ enum Command {
         #[arg(long)]
         comparison: Option<PathBuf>,
     },
-    /// Validate the whole scenario, both halves (the service's tables and plant-proxy's
-    /// [rig], [plant] and [proxy], when the file has a [plant] table), and exit.
+    /// Validate the service's half of a scenario ([rig], [service], [controller], [log]) and
+    /// exit; `plant-proxy check` validates the plant half, `rig check` both together.
     Check {
         /// Scenario / configuration TOML file.
         config: PathBuf,
@@ -183,14 +185,16 @@ fn main() -> ExitCode {
             }
         }
         Command::Check { config, controller } => {
-            match ScenarioCheck::load(&config, controller.as_deref()) {
-                Ok(c) if c.service.throttled_busy_poll().is_some() => refused(ConfigError {
-                    file: c.service.origin.clone(),
-                    field: "service.wait".into(),
-                    message: c.service.throttled_busy_poll().unwrap_or_default(),
-                }),
+            let checked = ServiceConfig::load_scenario(&config, controller.as_deref())
+                .and_then(|c| c.check_this_machine().map(|()| c));
+            match checked {
                 Ok(c) => {
-                    println!("{}: ok ({})", config.display(), c.summary());
+                    println!(
+                        "{}: ok ({}; the service half: `plant-proxy check` checks the plant \
+                         half, `rig check` both against each other)",
+                        config.display(),
+                        c.summary()
+                    );
                     ExitCode::SUCCESS
                 }
                 Err(e) => refused(e),

@@ -20,6 +20,8 @@
 //! - [`EntryKind::WentSilent`]: the time at which `on_idle` declared the plant silent (the
 //!   next sample is then a resume or a new session, which may reset the controller);
 //!   the calls of `on_idle` that change nothing are not recorded;
+//! - [`EntryKind::Operator`]: an operator command the loop applied (or refused) before
+//!   the next entry ([`LoopCore::apply_command`](crate::runtime::LoopCore::apply_command));
 //! - [`EntryKind::Publish`]: each actuation published (status, seq, reply-to, sample time,
 //!   `u`, plan length and plan rows), with what the publisher returned: sent or not, and
 //!   the time after it (the response time, so the deadline misses and the safe state).
@@ -30,7 +32,7 @@
 //! safe-state entries and the open-loop phase follow from these inputs, so the replay
 //! reproduces them rather than reading them.
 //!
-//! ## Format (version 1)
+//! ## Format (version 2; version 1 is the same without `Operator` entries)
 //!
 //! All numbers little-endian; `f64` as its IEEE-754 bits.
 //!
@@ -46,6 +48,7 @@
 //!                        u64 t_sample  u64 compute_ns  4×u16 counts  u32 timing
 //!                        u32 plan_len  f64 u[n_u]  f64 plan[plan_length][n_u]
 //!   6 End                (nothing; its index is the number of entries the loop offered)
+//!   7 Operator           u64 request_id  u32 command  u32 tunable index  f64 value
 //! ```
 //!
 //! The index counts every entry the loop offered: one dropped by a full queue, or lost

@@ -28,6 +28,7 @@ pub mod summary;
 
 use crate::config::{ConfigError, ServiceConfig};
 use crate::record::{Entry, RecordError, RecordHeader, RecordReader, config_fingerprint};
+use crate::runtime::operator::{Command, Queued};
 use crate::runtime::{LoopCore, checkpoint};
 use comparison::Comparison;
 use outbox::{Compare, ReplayOutbox, Stop};
@@ -197,6 +198,7 @@ pub fn replay(opts: &ReplayOptions) -> Result<ReplaySummary, ReplayError> {
         samples_handled: 0,
         samples_observed: 0,
         sessions: (0, 0),
+        commands: 0,
         actuations: 0,
         stop: None,
         last_seq: None,
@@ -244,6 +246,29 @@ pub fn replay(opts: &ReplayOptions) -> Result<ReplaySummary, ReplayError> {
                 core.on_idle(now_ns);
                 summary.sessions.1 += 1;
             }
+            Entry::Operator {
+                request_id,
+                command,
+                index,
+                value,
+            } => match Command::from_code(command, index as usize, value) {
+                Some(command) => {
+                    core.apply_command(Queued {
+                        request_id,
+                        command,
+                    });
+                    summary.commands += 1;
+                }
+                None => {
+                    out.stop = Some(Stop::Record(crate::record::RecordError::NotARecord {
+                        path: path.display().to_string(),
+                        why: format!(
+                            "entry {} is an operator command of unknown code {command}",
+                            next.index
+                        ),
+                    }));
+                }
+            },
             Entry::End => break,
             Entry::Publish { act, .. } => {
                 // Not taken by the loop's publications of the previous input.

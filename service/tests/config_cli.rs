@@ -1,113 +1,45 @@
-//! `service check` validates both halves of a scenario, and the command-line values of
+//! `service check` validates the service's half of a scenario, and the command-line values of
 //! `service run` are checked as the file's values are: a refusal names the file and the
 //! field and exits with code 2, before anything starts.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+#[path = "support/edited_scenario.rs"]
+mod edited_scenario;
+
+use edited_scenario::{Edited, scenario_path};
 
 const BIN: &str = env!("CARGO_BIN_EXE_service");
 
-fn scenario_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenarios")
-        .join(name)
-}
-
 fn service(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(BIN).args(args).output().unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// A temporary copy of the scenario `name` with `from` replaced by `to`, next to the
-/// original (so that relative file names still resolve).
-struct Edited(PathBuf);
-
-impl Edited {
-    fn new(name: &str, from: &str, to: &str) -> Self {
-        let src = scenario_path(name);
-        let text = std::fs::read_to_string(&src).unwrap();
-        assert!(text.contains(from), "{name}: '{from}'");
-        static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let path = src.with_file_name(format!("config-cli-{}-{n}.toml", std::process::id()));
-        std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
-        Self(path)
-    }
-
-    fn path(&self) -> &str {
-        self.0.to_str().unwrap()
-    }
-}
-
-impl Drop for Edited {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
-    }
+    edited_scenario::run(BIN, args)
 }
 
 #[test]
-fn config_check_accepts_every_scenario_and_summarizes_both_halves() {
-    for name in [
-        "acoustic-rig.toml",
-        "truss/harmonic.toml",
-        "truss/broadband-25hz.toml",
-        "truss/broadband-50hz-aliasing.toml",
-    ] {
-        let (code, out, err) = service(&["check", scenario_path(name).to_str().unwrap()]);
-        assert_eq!(code, Some(0), "{name}: {err}");
-        assert!(
-            out.contains(": ok (rig '") && out.contains("; plant "),
-            "{name}: {out}"
-        );
-    }
-    // With a controller file.
-    let (code, out, err) = service(&[
-        "check",
-        scenario_path("acoustic-rig.toml").to_str().unwrap(),
-        "--controller",
-        scenario_path("rcac/acoustic-rls.toml").to_str().unwrap(),
-    ]);
-    assert_eq!(code, Some(0), "{err}");
-    assert!(out.contains("controller rcac"), "{out}");
-    // A plant-only scenario has no service half.
-    let (code, _, err) = service(&[
-        "check",
-        scenario_path("first-order-lockstep.toml").to_str().unwrap(),
-    ]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("field 'controller'"), "{err}");
-}
-
-#[test]
-fn config_check_refuses_the_plant_half_naming_the_field() {
-    let bad = Edited::new("acoustic-rig.toml", "duration = 10.0", "duration = 1e300");
-    let (code, _, err) = service(&["check", bad.path()]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(
-        err.contains(bad.path()) && err.contains("field 'rig.duration'"),
-        "{err}"
+fn config_check_accepts_every_scenario_and_summarizes_the_service_half() {
+    edited_scenario::assert_check_accepts(
+        BIN,
+        &["acoustic-rig.toml", "truss/harmonic.toml"],
+        "the service half",
     );
-    let bad = Edited::new("acoustic-rig.toml", "deadline = 0.0", "deadline = 2.0");
-    let (code, _, err) = service(&["check", bad.path()]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("field 'proxy.deadline'"), "{err}");
-    // The halves must meet: a plant that latches its inputs at the sample instant needs a
-    // service that sends them ahead.
+}
+
+#[test]
+fn config_check_refuses_the_service_half_naming_the_field() {
     let bad = Edited::new(
         "acoustic-rig.toml",
         "timing = \"send-ahead\"",
-        "timing = \"answer-first\"",
+        "timing = \"sideways\"",
     );
     let (code, _, err) = service(&["check", bad.path()]);
     assert_eq!(code, Some(2), "{err}");
     assert!(
-        err.contains("field 'proxy.deadline'") && err.contains("only a service that sends ahead"),
+        err.contains(bad.path()) && err.contains("field 'service.timing'"),
         "{err}"
     );
+    // The [rig] table is both halves': the schema's reader refuses it here too.
+    let bad = Edited::new("acoustic-rig.toml", "duration = 10.0", "duration = 1e300");
+    let (code, _, err) = service(&["check", bad.path()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("field 'rig.duration'"), "{err}");
 }
 
 #[test]

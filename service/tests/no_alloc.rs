@@ -73,6 +73,18 @@ fn parse_config(
     ServiceConfig::parse(&text, rig).unwrap()
 }
 
+/// The signal log's layout of the tests' rig (`y = 2, z = 1, u = 2`), every sample logged,
+/// with the controller's `internal_names`.
+fn log_layout(internal_names: Vec<String>) -> service::logging::LogLayout {
+    service::logging::LogLayout {
+        n_y: 2,
+        n_z: 1,
+        n_u: 2,
+        internal_names,
+        decimation: 1,
+    }
+}
+
 /// Asserts that this thread is counted by the allocator and allocated nothing since
 /// `before`, neither from the RT pool nor from the system allocator; `what` says which run
 /// (called only on failure, so that building the message is not counted).
@@ -136,13 +148,7 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     let (tele_rt, mut reporter) =
         service::telemetry::channel(cfg.budget_ns, cfg.histogram_interval_cycles, 4, &folder)
             .unwrap();
-    let layout = service::logging::LogLayout {
-        n_y: 2,
-        n_z: 1,
-        n_u: 2,
-        internal_names: controller.internal_names(),
-        decimation: 1,
-    };
+    let layout = log_layout(controller.internal_names());
     let (producer, writer) = service::logging::channel(cfg.log.queue_capacity, layout);
     let writer = writer.spawn(folder.join("signals.csv")).unwrap();
     let (events_tx, mut events_rx) = rtrb::RingBuffer::new(64);
@@ -152,7 +158,14 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     let record_writer = record_writer
         .spawn(&folder.join(service::record::FILE_NAME))
         .unwrap();
-    let mut core = core.with_recorder(recorder);
+    // The live view's ring, drained by a reader thread, and the operator's rings, fed by
+    // it: the loop takes commands at its sample boundaries.
+    let (tap, mut live_rx) = service::runtime::live_tap::channel(4096, 8, 80);
+    let (mut operator, inbox) = service::runtime::operator::channel();
+    let mut core = core
+        .with_recorder(recorder)
+        .with_live(tap)
+        .with_operator(inbox);
 
     // The plant: a thread that answers in lockstep with a simple first-order response.
     const STEPS: u64 = 30_000;
@@ -166,6 +179,42 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
                 std::thread::sleep(Duration::from_millis(5));
             }
             reporter
+        })
+    };
+    let reader_stop = Arc::new(AtomicBool::new(false));
+    let reader = {
+        let stop = reader_stop.clone();
+        std::thread::spawn(move || {
+            use service::runtime::operator::{Command, Queued};
+            let (mut samples, mut states, mut results) = (0u64, 0u64, 0u64);
+            let commands = [
+                Command::EnterSafeState,
+                Command::LeaveSafeState,
+                Command::FreezeAdaptation,
+            ];
+            let mut sent = 0;
+            while !stop.load(Ordering::Acquire) {
+                while let Ok(item) = live_rx.pop() {
+                    match item {
+                        service::runtime::live_tap::LiveItem::Sample(_) => samples += 1,
+                        service::runtime::live_tap::LiveItem::State(_) => states += 1,
+                    }
+                }
+                // One command each time the loop is some thousand samples further.
+                if sent < commands.len() && samples > (WARM_UP + 5_000 * (sent as u64 + 1)) {
+                    let q = Queued {
+                        request_id: sent as u64,
+                        command: commands[sent],
+                    };
+                    operator.commands.push(q).unwrap();
+                    sent += 1;
+                }
+                while operator.results.pop().is_ok() {
+                    results += 1;
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            (samples, states, results)
         })
     };
     let plant_rig = rig.clone();
@@ -262,14 +311,26 @@ fn steady_state_cycles_of_the_rt_loop_do_not_allocate() {
     assert_eq!(summary.response.count, STEPS - 1, "{summary:?}"); // all but the first sample
     let stats = writer.finish().unwrap();
     assert_eq!(stats.written + stats.dropped, STEPS);
-    // One measurement and one actuation per sample went to the record.
+    // One measurement and one actuation per sample went to the record, and the three
+    // operator commands.
     let record = record_writer.finish().unwrap();
-    assert_eq!(record.entries, 2 * STEPS, "{record:?}");
+    assert_eq!(record.entries, 2 * STEPS + 3, "{record:?}");
     assert_eq!(
         record.written + record.dropped,
         record.entries,
         "{record:?}"
     );
+    // Every sample went to the live view, or was counted as dropped.
+    reader_stop.store(true, Ordering::Release);
+    let (samples, states, results) = reader.join().unwrap();
+    assert!(states > 0);
+    assert_eq!(samples + core.stats.telemetry_dropped.min(samples), samples);
+    assert!(samples > WARM_UP, "{samples}");
+    // The commands were applied in the counted phase (the LTI controller refuses to
+    // freeze: it does not adapt).
+    assert_eq!(results, 3);
+    assert_eq!(core.stats.commands_applied, 2);
+    assert_eq!(core.stats.commands_refused, 1);
     while events_rx.pop().is_ok() {}
     let _ = std::fs::remove_dir_all(&folder);
 }
@@ -335,20 +396,20 @@ fn loop_core_run(cfg: &ServiceConfig, timing: ipc_types::Timing) {
     let controller = cfg.controller.build(cfg.counts).unwrap();
     let (tele_rt, mut reporter) =
         service::telemetry::channel(cfg.budget_ns, 100, 2, &folder).unwrap();
-    let layout = service::logging::LogLayout {
-        n_y: 2,
-        n_z: 1,
-        n_u: 2,
-        internal_names: controller.internal_names(),
-        decimation: 1,
-    };
+    let layout = log_layout(controller.internal_names());
     let (producer, writer) = service::logging::channel(64, layout);
     let (events_tx, _events_rx) = rtrb::RingBuffer::new(64);
     let core = LoopCore::new(cfg, controller, tele_rt, Some(producer), events_tx);
     // The record's queue, never drained: it fills and then drops, allocating nothing.
     let header = RecordHeader::for_run(cfg, "lti", core.timing(), core.plan_length(), None);
     let (recorder, _record_writer) = service::record::channel(&header, 64);
-    let mut core = core.with_recorder(recorder);
+    // The live view's ring, never drained: it fills, then drops and counts.
+    let (tap, _live_rx) = service::runtime::live_tap::channel(64, 10, 100);
+    let (mut operator, inbox) = service::runtime::operator::channel();
+    let mut core = core
+        .with_recorder(recorder)
+        .with_live(tap)
+        .with_operator(inbox);
     assert_eq!(core.timing(), timing);
     let mut m = Measurement::zeroed(cfg.counts);
     let mut out = KeepLast(Actuation::zeroed(cfg.counts));
@@ -370,6 +431,7 @@ fn loop_core_run(cfg: &ServiceConfig, timing: ipc_types::Timing) {
         }
         m.u_applied[..2].copy_from_slice(&out.0.u[..2]);
         let t_recv = ipc_types::clock::monotonic_ns();
+        core.take_commands();
         if k % 100 == 30 {
             // Received too late: a newer sample was waiting.
             core.observe(&m, &mut out);
@@ -385,10 +447,39 @@ fn loop_core_run(cfg: &ServiceConfig, timing: ipc_types::Timing) {
     let before = thread_stats();
     // The reporter is not polled now: the RT side runs out of spare boxes and keeps
     // recording (missed swaps), and the log queue fills and drops; neither may allocate.
+    // Operator commands of every kind arrive meanwhile.
+    use service::runtime::operator::{Command, Queued};
+    let commands = [
+        (10_000, Command::EnterSafeState),
+        (10_100, Command::LeaveSafeState),
+        (20_000, Command::FreezeAdaptation),
+        (30_000, Command::ResumeAdaptation),
+        (
+            40_000,
+            Command::SetTunable {
+                index: 0,
+                value: 0.5,
+            },
+        ),
+    ];
     for k in 1000..50_000 {
+        if let Some((_, command)) = commands.iter().find(|(at, _)| *at == k) {
+            let q = Queued {
+                request_id: k,
+                command: *command,
+            };
+            operator.commands.push(q).unwrap();
+        }
         cycle(&mut core, k);
     }
     assert_nothing_allocated_since(&before, || format!("{timing:?}"));
+    assert_eq!(
+        core.stats.commands_applied + core.stats.commands_refused,
+        5,
+        "{timing:?}"
+    );
+    assert!(core.stats.telemetry_dropped > 0, "{timing:?}");
+    while operator.results.pop().is_ok() {}
     assert_eq!(core.stats.rejected_non_finite, 50, "{timing:?}");
     assert!(core.stats.controller_steps > 45_000, "{timing:?}");
     assert_eq!(core.stats.caught_up, 500, "{timing:?}");
@@ -477,41 +568,21 @@ fn an_rls_update_with_each_forgetting_rule_does_not_allocate() {
 }
 
 /// An RCAC scenario of the acoustic rig's shape (`l_u = 2`, `l_y = l_z = 1`, 8 kHz) with a
-/// dereverberated target model with delays 9 and 16; `update` holds the update-law keys.
+/// dereverberated target model with delays 9 and 16 (the fixture
+/// `rcac-acoustic-shape-controller.toml`); `update` holds the update-law keys.
 fn rcac_config(update: &str) -> ServiceConfig {
+    let controller = include_str!("../../tests/fixtures/rcac-acoustic-shape-controller.toml")
+        .replacen(
+            "\n[controller.target-model]\n",
+            &format!("\n{update}\n[controller.target-model]\n"),
+            1,
+        );
     parse_config(
         "unit-noalloc-rcac",
         "sample-rate-hz = 8000",
         "y = 1, z = 1, u = 2",
         "",
-        &format!(
-            r#"[controller]
-kind = "rcac"
-nc = 50
-kw = 100
-u-min = -2.0
-u-max = 2.0
-{update}
-[controller.target-model]
-form = "transfer-function"
-sample-period = 1.25e-4
-outputs = 1
-inputs = 2
-beta = 0.8
-[[controller.target-model.channel]]
-output = 0
-input = 0
-delay = 9
-num = [0.012, 0.0045]
-den = [1.0, -0.71, 0.2]
-[[controller.target-model.channel]]
-output = 0
-input = 1
-delay = 16
-num = [-0.008]
-den = [1.0, -0.5]
-"#
-        ),
+        &controller,
     )
 }
 

@@ -89,29 +89,11 @@ pub fn mount_or_skip(name: &str, size: &str) -> Option<Tmpfs> {
     }
 }
 
-/// Every line of `text` has the header's number of fields and `text` ends with a line
-/// end; returns the `seq` column.
+/// The `seq` column of the `signals.csv` at `path`, whose rows must all be whole
+/// ([`service::logging::whole_rows`]).
 pub fn whole_rows(path: &Path) -> Vec<u64> {
     let text = std::fs::read_to_string(path).unwrap();
-    assert!(
-        text.ends_with('\n'),
-        "{} ends in a torn row: {:?}",
-        path.display(),
-        &text[text.len().saturating_sub(80)..]
-    );
-    let mut lines = text.lines();
-    let columns = lines.next().unwrap().split(',').count();
-    lines
-        .map(|l| {
-            let fields: Vec<&str> = l.split(',').collect();
-            assert_eq!(fields.len(), columns, "torn row {l:?}");
-            for f in &fields[4..] {
-                f.parse::<f64>()
-                    .unwrap_or_else(|e| panic!("field {f:?} of {l:?}: {e}"));
-            }
-            fields[0].parse().unwrap()
-        })
-        .collect()
+    service::logging::whole_rows(&text).unwrap_or_else(|e| panic!("{} {e}", path.display()))
 }
 
 /// An interval log parses completely and ends with a line end; returns its intervals.

@@ -307,6 +307,21 @@ pub fn test_service_tables(extra_service: &str, controller: &str) -> String {
     )
 }
 
+/// The tone plant of `scenarios/rcac-tone.toml` at 1 kHz under rig `rig`, with RCAC's
+/// gradient update (`fixtures/rcac-gradient-tone-1khz-controller.toml`) whose `α` an
+/// operator may set within [0.1, 1.0]: the run of the operator and monitor tests, written
+/// into `dir` as `scenario.toml`.
+pub fn operator_tone_scenario(dir: &TestDir, rig: &str) -> PathBuf {
+    let plant = with_rig_name(&scenario_text("rcac-tone.toml"), rig)
+        .replace("sample-period = 0.01\n", "sample-period = 0.001\n");
+    let text = plant
+        + &test_service_tables(
+            "[service.operator]\ntunables = { alpha = [0.1, 1.0] }\n",
+            &fixture("rcac-gradient-tone-1khz-controller.toml"),
+        );
+    dir.write("scenario.toml", &text)
+}
+
 /// A scenario file from the repository's `scenarios/` folder.
 pub fn scenario_text(name: &str) -> String {
     read_text(

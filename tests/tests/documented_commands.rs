@@ -156,6 +156,9 @@ fn the_examples_close_their_loops_as_the_readmes_write_them() {
         1,
         "the C plant against the service: {c_loops:?}"
     );
+    // The Python environment first (a fresh one installs iceoryx2 from PyPI, which can take
+    // longer than a peer waits for the other side), then the loops as written.
+    let _ = python();
 
     // The service as the controller of the Python plant.
     let dir = workdir("documented-python-service");
@@ -172,4 +175,188 @@ fn the_examples_close_their_loops_as_the_readmes_write_them() {
     assert_static_gain_run(&dir.path);
     let (_, trace) = read_csv(&dir.path.join("trace.csv"));
     assert_eq!(trace.len(), 2000, "the C plant's trace");
+}
+
+/// The documents whose `sh` blocks are checked against the code.
+fn documents() -> Vec<PathBuf> {
+    let mut docs = vec![
+        repo().join("README.md"),
+        repo().join("ipc-types/python/README.md"),
+        repo().join("ipc-types/c/README.md"),
+    ];
+    let mut pages: Vec<PathBuf> = std::fs::read_dir(repo().join("docs"))
+        .expect("docs/")
+        .map(|e| e.expect("a docs entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    pages.sort();
+    docs.extend(pages);
+    docs
+}
+
+/// The folder of a workspace package, for `cargo test -p P --test T`.
+fn package_dir(package: &str) -> PathBuf {
+    let dir = match package {
+        "control" => "service/control",
+        "rig-tools" => "service/tools",
+        "rig-tests" => "tests",
+        "plant-side" => "plant-proxy/plant-side",
+        "rig-scenario" => "ipc-types/scenario",
+        "adaptive-rig-c" => "ipc-types/c",
+        other => other,
+    };
+    repo().join(dir)
+}
+
+/// `name` (a glob with `*` at most at its end) matches at least one `<dir>/<name>.rs`.
+fn target_exists(dir: &Path, name: &str) -> bool {
+    let name = name.trim_matches('\'');
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return false;
+    };
+    entries.filter_map(|e| e.ok()).any(|e| {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let stem = file.strip_suffix(".rs").unwrap_or("");
+        match name.strip_suffix('*') {
+            Some(prefix) => stem.starts_with(prefix),
+            None => stem == name,
+        }
+    })
+}
+
+/// The binary and its arguments of a documented line that runs one of the workspace's
+/// programs (`target/release/B …` or `cargo run … [-p P] [--bin B] -- …`).
+fn program_of(words: &[&str]) -> Option<(String, Vec<String>)> {
+    let owned = |w: &[&str]| w.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    if let Some(b) = words.first()?.strip_prefix("target/release/") {
+        return (!b.contains('.')).then(|| (b.to_string(), owned(&words[1..])));
+    }
+    if words.len() >= 2 && words[0] == "cargo" && words[1] == "run" {
+        let flag = |f: &str| words.iter().position(|w| *w == f).map(|i| words[i + 1]);
+        // An example is built next to the binaries, in `examples/`.
+        let name = match flag("--example") {
+            Some(e) => format!("examples/{e}"),
+            None => flag("--bin").or(flag("-p"))?.to_string(),
+        };
+        let args = words
+            .iter()
+            .position(|w| *w == "--")
+            .map_or(&[][..], |i| &words[i + 1..]);
+        return Some((name, owned(args)));
+    }
+    None
+}
+
+/// Checks one documented line against the code; returns what is wrong with it.
+fn line_problems(line: &str) -> Vec<String> {
+    let mut problems = Vec::new();
+    let line = line.split(" #").next().unwrap_or(line).trim();
+    let line = line.trim_end_matches('&').trim();
+    let words: Vec<&str> = line.split_whitespace().collect();
+    // Every repository file the line reads exists (what it writes, after `>`, need not).
+    for w in words.iter().take_while(|w| **w != ">") {
+        let w = w.trim_matches(|c| matches!(c, '\'' | '"' | ',' | '[' | ']'));
+        let named = ["scenarios/", "tests/fixtures/", "ipc-types/", "docs/"]
+            .iter()
+            .any(|p| w.starts_with(p));
+        let placeholder = w.contains(['<', '$', '*', '{']);
+        if named && !placeholder && !repo().join(w).exists() {
+            problems.push(format!("no file {w}"));
+        }
+    }
+    // A test or bench target exists in its package.
+    if words.len() > 1 && words[0] == "cargo" && matches!(words[1], "test" | "bench") {
+        let package = words.iter().position(|w| *w == "-p").map(|i| words[i + 1]);
+        for (flag, folder) in [("--test", "tests"), ("--bench", "benches")] {
+            for (i, _) in words.iter().enumerate().filter(|(_, w)| **w == flag) {
+                let dir = package_dir(package.unwrap_or("rig-tests")).join(folder);
+                if !target_exists(&dir, words[i + 1]) {
+                    problems.push(format!("no {flag} {} in {}", words[i + 1], dir.display()));
+                }
+            }
+        }
+    }
+    // A program's subcommand exists and takes every option the line gives (an example
+    // reads plain arguments, which its own test runs).
+    if let Some((program, args)) = program_of(&words).filter(|(p, _)| !p.starts_with("examples/")) {
+        let sub = args
+            .first()
+            .filter(|a| !a.starts_with('-') && !a.contains(['/', '.', '<', '$']));
+        let mut help = Command::new(bin(&program));
+        help.args(sub).arg("--help");
+        match help.output() {
+            Ok(out) if out.status.success() => {
+                let text = String::from_utf8_lossy(&out.stdout);
+                for a in args.iter().filter(|a| a.starts_with("--") && a.len() > 2) {
+                    let option = a.split('=').next().unwrap_or(a);
+                    if !text.contains(option) {
+                        problems.push(format!(
+                            "{program} {} has no option {option}",
+                            sub.map_or("", |s| s)
+                        ));
+                    }
+                }
+            }
+            Ok(out) => problems.push(format!(
+                "`{program} {} --help` failed: {}",
+                sub.map_or("", |s| s),
+                String::from_utf8_lossy(&out.stderr)
+            )),
+            Err(e) => problems.push(format!("{program} did not start: {e}")),
+        }
+    }
+    problems
+}
+
+#[test]
+fn every_documented_command_names_existing_files_targets_and_options() {
+    let mut checked = 0;
+    let mut problems = Vec::new();
+    for doc in documents() {
+        let text =
+            std::fs::read_to_string(&doc).unwrap_or_else(|e| panic!("{}: {e}", doc.display()));
+        for line in sh_blocks(&text).into_iter().flatten() {
+            let p = line_problems(&line);
+            checked += 1;
+            problems.extend(
+                p.into_iter()
+                    .map(|p| format!("{}: `{line}`: {p}", doc.display())),
+            );
+        }
+    }
+    assert!(checked > 40, "only {checked} documented commands");
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn the_documented_checks_run_as_written() {
+    for doc in documents() {
+        let text = std::fs::read_to_string(&doc).expect("the document");
+        for line in sh_blocks(&text).into_iter().flatten() {
+            let line = line.split(" #").next().unwrap_or(&line).trim().to_string();
+            let words: Vec<&str> = line.split_whitespace().collect();
+            let runs_a_check = matches!(
+                words.get(..2),
+                Some(["target/release/service" | "target/release/rig", "check"])
+                    | Some(["target/release/plant-proxy", "describe" | "check"])
+            );
+            if runs_a_check
+                && words
+                    .iter()
+                    .all(|w| !w.contains(['<', '$']) && !w.starts_with("my-"))
+            {
+                let out = Command::new(bin(words[0].trim_start_matches("target/release/")))
+                    .args(&words[1..])
+                    .current_dir(repo())
+                    .output()
+                    .expect("the check starts");
+                assert!(
+                    out.status.success(),
+                    "{}: `{line}`: {}",
+                    doc.display(),
+                    String::from_utf8_lossy(&out.stderr)
+                );
+            }
+        }
+    }
 }

@@ -184,6 +184,12 @@ fn the_python_unit_tests_pass() {
     );
 }
 
+/// The options that make a plant write its trace and its report to `trace` and `report`.
+fn trace_and_report<'a>(trace: &'a Path, report: &'a Path) -> [&'a str; 4] {
+    let path = |p: &'a Path| p.to_str().expect("a UTF-8 path");
+    ["--trace", path(trace), "--report", path(report)]
+}
+
 #[test]
 fn a_python_plant_against_the_service_matches_the_all_rust_loop() {
     let dir = TestDir::new("py-plant");
@@ -201,15 +207,10 @@ fn a_python_plant_against_the_service_matches_the_all_rust_loop() {
         "python plant",
         "first_order_plant.py",
         &[
-            "--rig",
-            &rig,
-            "--steps",
-            &STEPS.to_string(),
-            "--trace",
-            trace.to_str().unwrap(),
-            "--report",
-            report.to_str().unwrap(),
-        ],
+            &["--rig", &rig, "--steps", &STEPS.to_string()][..],
+            &trace_and_report(&trace, &report),
+        ]
+        .concat(),
     );
     plant.wait_success(Duration::from_secs(300));
     service.wait_success(Duration::from_secs(60));
@@ -276,17 +277,7 @@ fn plant_proxy_against_python_and_rust_controllers(
     let mut args = vec!["--rig", rig.as_str()];
     args.extend_from_slice(py_args);
     let mut controller = start_example("python controller", "static_gain_controller.py", &args);
-    let mut plant = start_lockstep_plant(
-        "plant",
-        &sc,
-        STEPS,
-        &[
-            "--trace",
-            trace.to_str().unwrap(),
-            "--report",
-            report.to_str().unwrap(),
-        ],
-    );
+    let mut plant = start_lockstep_plant("plant", &sc, STEPS, &trace_and_report(&trace, &report));
     plant.wait_success(Duration::from_secs(300));
     controller.wait_success(Duration::from_secs(60));
 
@@ -390,23 +381,36 @@ fn refused_by_the_service(
     )
 }
 
+/// [`refused_by_the_service`] for the Python example plant started with `args` after
+/// `--rig rig`, against the first-order service of rig `rig`.
+fn python_plant_refused(dir: &TestDir, rig: &str, args: &[&str]) -> (String, String) {
+    let mut all = vec!["--rig", rig];
+    all.extend_from_slice(args);
+    refused_by_the_service(
+        dir,
+        rig,
+        &first_order_scenario(dir, rig, "py.toml"),
+        || start_example("python plant", "first_order_plant.py", &all),
+        "python plant: ",
+    )
+}
+
+/// The Python plant's refusal is `plant_text`, and both refusals (the plant's and the
+/// service's) are the same for the Python and the Rust plant.
+fn assert_same_refusals(py: (&str, &str), rust: (&str, &str), plant_text: &str) {
+    assert_eq!(py.0, plant_text);
+    assert_eq!(py.0, rust.0, "the plant's refusal, Python vs Rust");
+    assert_eq!(
+        py.1, rust.1,
+        "the service's refusal of a Python vs a Rust plant"
+    );
+}
+
 #[test]
 fn a_plant_of_another_contract_version_is_refused_with_the_texts_of_a_rust_plant() {
     let dir = TestDir::new("py-version");
     let (py_rig, rust_rig) = (rig_name("py-version"), rig_name("rust-version"));
-    let (py_plant, py_service) = refused_by_the_service(
-        &dir,
-        &py_rig,
-        &first_order_scenario(&dir, &py_rig, "py.toml"),
-        || {
-            start_example(
-                "python plant",
-                "first_order_plant.py",
-                &["--rig", &py_rig, "--contract-version", "2"],
-            )
-        },
-        "python plant: ",
-    );
+    let (py_plant, py_service) = python_plant_refused(&dir, &py_rig, &["--contract-version", "2"]);
     let (rust_plant, rust_service) = refused_by_the_service(
         &dir,
         &rust_rig,
@@ -420,20 +424,16 @@ fn a_plant_of_another_contract_version_is_refused_with_the_texts_of_a_rust_plant
         },
         "contract_plant: ",
     );
-    assert_eq!(
-        py_plant,
+    assert_same_refusals(
+        (&py_plant, &py_service),
+        (&rust_plant, &rust_service),
         "contract mismatch on 'adaptive-rig/<rig>/actuation' (defined by the service), \
-         refusing to connect:\n  - contract version: service has 3, plant has 2"
+         refusing to connect:\n  - contract version: service has 3, plant has 2",
     );
-    assert_eq!(py_plant, rust_plant, "the plant's refusal, Python vs Rust");
     assert_eq!(
         py_service,
         "contract mismatch on 'adaptive-rig/<rig>/measurement' (defined by the plant), \
          refusing to connect:\n  - contract version: plant has 2, service has 3"
-    );
-    assert_eq!(
-        py_service, rust_service,
-        "the service's refusal of a Python vs a Rust plant"
     );
 }
 
@@ -455,19 +455,7 @@ fn a_plant_with_another_measurement_count_is_refused_with_the_texts_of_plant_pro
         );
         dir.write("rust-plant.toml", &text)
     };
-    let (py_plant, py_service) = refused_by_the_service(
-        &dir,
-        &py_rig,
-        &first_order_scenario(&dir, &py_rig, "py.toml"),
-        || {
-            start_example(
-                "python plant",
-                "first_order_plant.py",
-                &["--rig", &py_rig, "--n-y", "2"],
-            )
-        },
-        "python plant: ",
-    );
+    let (py_plant, py_service) = python_plant_refused(&dir, &py_rig, &["--n-y", "2"]);
     let plant_scenario = two_y(&rust_rig);
     let (rust_plant, rust_service) = refused_by_the_service(
         &dir,
@@ -476,23 +464,16 @@ fn a_plant_with_another_measurement_count_is_refused_with_the_texts_of_plant_pro
         || start_lockstep_plant("plant-proxy", &plant_scenario, 100, &[]),
         "plant-proxy: ",
     );
-    assert_eq!(
-        py_plant,
+    assert_same_refusals(
+        (&py_plant, &py_service),
+        (&rust_plant, &rust_service),
         "contract mismatch on 'adaptive-rig/<rig>/actuation' (defined by the service), \
-         refusing to connect:\n  - measurement channels (y): service uses 1, plant uses 2"
-    );
-    assert_eq!(
-        py_plant, rust_plant,
-        "the plant's refusal, Python vs plant-proxy"
+         refusing to connect:\n  - measurement channels (y): service uses 1, plant uses 2",
     );
     assert_eq!(
         py_service,
         "contract mismatch on 'adaptive-rig/<rig>/measurement' (defined by the plant), \
          refusing to connect:\n  - measurement channels (y): plant uses 2, service uses 1"
-    );
-    assert_eq!(
-        py_service, rust_service,
-        "the service's refusal of a Python plant vs plant-proxy"
     );
 }
 
@@ -502,31 +483,21 @@ fn a_plant_differing_in_every_respect_is_refused_with_every_difference_as_a_rust
     let (py_rig, rust_rig) = (rig_name("py-every"), rig_name("rust-every"));
     // Version 2, two measurement channels, a 2 ms period, inputs applied at the sample
     // instant (real time, deadline 0) against a compute-first service of 1 ms.
-    let (py_plant, py_service) = refused_by_the_service(
+    let (py_plant, py_service) = python_plant_refused(
         &dir,
         &py_rig,
-        &first_order_scenario(&dir, &py_rig, "py.toml"),
-        || {
-            start_example(
-                "python plant",
-                "first_order_plant.py",
-                &[
-                    "--rig",
-                    &py_rig,
-                    "--contract-version",
-                    "2",
-                    "--n-y",
-                    "2",
-                    "--period",
-                    "0.002",
-                    "--mode",
-                    "real-time",
-                    "--deadline",
-                    "0",
-                ],
-            )
-        },
-        "python plant: ",
+        &[
+            "--contract-version",
+            "2",
+            "--n-y",
+            "2",
+            "--period",
+            "0.002",
+            "--mode",
+            "real-time",
+            "--deadline",
+            "0",
+        ],
     );
     let (rust_plant, rust_service) = refused_by_the_service(
         &dir,
@@ -550,20 +521,16 @@ fn a_plant_differing_in_every_respect_is_refused_with_every_difference_as_a_rust
         },
         "contract_plant: ",
     );
-    assert_eq!(
-        py_plant,
+    assert_same_refusals(
+        (&py_plant, &py_service),
+        (&rust_plant, &rust_service),
         "contract mismatch on 'adaptive-rig/<rig>/actuation' (defined by the service), \
          refusing to connect:\n  - contract version: service has 3, plant has 2\n  - \
          measurement channels (y): service uses 1, plant uses 2\n  - sample period: service \
          runs at 1000000 ns (1000.000 Hz), plant at 2000000 ns (500.000 Hz)\n  - timing: the \
          plant applies each input at its sample instant (its deadline is 0), which only a \
          service that sends ahead can meet; the service answers compute-first (set \
-         service.timing = \"send-ahead\", or give the plant a deadline inside the period)"
-    );
-    assert_eq!(py_plant, rust_plant, "the plant's refusal, Python vs Rust");
-    assert_eq!(
-        py_service, rust_service,
-        "the service's refusal of a Python vs a Rust plant"
+         service.timing = \"send-ahead\", or give the plant a deadline inside the period)",
     );
     assert_eq!(py_service.lines().count(), 5, "{py_service}");
 }

@@ -15,30 +15,13 @@ use std::process::Command;
 use std::time::Duration;
 
 /// An RCAC controller (RLS, `n_c = 4`) for the one-input plant of `rcac-tone.toml` at
-/// 1 kHz, with an inline target model; `lambda` is its forgetting factor.
+/// 1 kHz, with an inline target model (the fixture `rcac-tone-1khz-controller.toml`);
+/// `lambda` is its forgetting factor.
 fn rcac_controller(lambda: f64) -> String {
-    format!(
-        r#"[controller]
-kind = "rcac"
-update = "rls"
-nc = 4
-p0 = 10.0
-u-min = -1.0
-u-max = 1.0
-lambda = {lambda:?}
-[controller.target-model]
-form = "transfer-function"
-sample-period = 0.001
-outputs = 1
-inputs = 1
-beta = 0.8
-[[controller.target-model.channel]]
-output = 0
-input = 0
-delay = 1
-num = [0.5]
-den = [1.0]
-"#
+    fixture("rcac-tone-1khz-controller.toml").replacen(
+        "lambda = 0.999\n",
+        &format!("lambda = {lambda:?}\n"),
+        1,
     )
 }
 

@@ -5,6 +5,7 @@
 - :mod:`adaptive_rig.ports`: connecting as the plant or as the service, with the same
   services, settings, attributes, verification and error texts as ``ipc_types::ports``.
 - :mod:`adaptive_rig.peer`: the pinned peer publisher.
+- :mod:`adaptive_rig.timing_rules`: the rules of the timing protocol (``ipc_types::timing_rules``).
 - :mod:`adaptive_rig.book`: which input a plant applies for each sample.
 - :mod:`adaptive_rig.plant`: the plant side (clock master; lockstep or real time).
 - :mod:`adaptive_rig.controller`: the controller side (compute-first).

@@ -13,13 +13,13 @@ and late policy (``late_policy.rs``):
 - :meth:`ActuationBook.answers` tells whether the service answered (or acknowledged)
   measurement ``k``: a lockstep plant waits for that.
 
-Valid means: this contract version, the plant's ``n_u``, ``plan_len <= MAX_PLAN``, finite
-``u`` and plan entries.
+Every rule is a call of :mod:`adaptive_rig.timing_rules` (validity and what an arriving
+actuation is, the newest plan, the input of a miss, the measurement an actuation answers);
+the book keeps the state. ``ipc-types/tests/vectors/timing.json`` holds the cases both this
+book and the Rust one are tested against.
 """
 
-import math
-
-from .contract import CONTRACT_VERSION, MAX_PLAN, Timing, actuation_status
+from . import timing_rules as rules
 
 KEPT = "kept"
 KEPT_DROPPING = "kept-dropping"
@@ -31,12 +31,23 @@ STALL_ACK = "stall-ack"
 class Decision:
     """The input of one sample: ``kind`` is ``"answered"``, ``"plan"``, ``"hold"`` or ``"safe"``."""
 
-    def __init__(self, kind: str, u=None, status: int = 0, timing: int = 0):
-        """A decision of ``kind`` with its input ``u`` (answered or plan), status and timing."""
+    def __init__(self, kind: str, u=None, status: int = 0, timing: int = 0, from_seq=None, row=None):
+        """A decision of ``kind`` with its input ``u`` (answered or plan), status and timing;
+        for a plan, the ``seq`` of the actuation whose plan it is and the row."""
         self.kind = kind
         self.u = u
         self.status = status
         self.timing = timing
+        self.from_seq = from_seq
+        self.row = row
+
+    @property
+    def miss_input(self):
+        """The miss's input as :func:`adaptive_rig.timing_rules.on_miss` gives it; ``None``
+        when answered."""
+        if self.kind == "answered":
+            return None
+        return ("plan-row", self.row) if self.kind == "plan" else self.kind
 
     @property
     def is_miss(self) -> bool:
@@ -65,35 +76,23 @@ class ActuationBook:
         self.plan_source = None
         self.answered = None
         self.acknowledged = None
-
-    def _header_ok(self, a) -> bool:
-        return a.contract_version == CONTRACT_VERSION and a.counts.n_u == self.n_u
-
-    def _valid(self, a) -> bool:
-        n = self.n_u
-        if not self._header_ok(a) or a.plan_len > MAX_PLAN:
-            return False
-        if not all(math.isfinite(v) for v in a.u[:n]):
-            return False
-        return all(math.isfinite(v) for e in a.plan[: a.plan_len] for v in e[:n])
+        self.dropped_seq = None
 
     def _consider_plan(self, a) -> None:
-        if self.plan_source is None or a.seq >= self.plan_source.seq:
+        if rules.plan_supersedes(None if self.plan_source is None else self.plan_source.seq, a.seq):
             self.plan_source = a
 
     def offer(self, a, k: int) -> str:
         """Takes actuation ``a`` received while the plant is at sample ``k``; returns what it did."""
-        if a.status & actuation_status.STALL_ACK:
-            if not self._header_ok(a):
-                return INVALID
+        arrival = rules.arrival(a, self.n_u, k)
+        if arrival == "stall-ack":
             self.acknowledged = a.reply_to if self.acknowledged is None else max(self.acknowledged, a.reply_to)
             return STALL_ACK
-        if not self._valid(a):
+        if arrival == "invalid":
             return INVALID
-        t = Timing.from_wire(a.timing)
-        answered = max(a.reply_to, a.seq - (t.lead if t is not None else 0))
+        answered = rules.answered_measurement(a.seq, a.reply_to, a.timing)
         self.answered = answered if self.answered is None else max(self.answered, answered)
-        if a.seq < k:
+        if arrival == "late":
             self._consider_plan(a)
             return LATE
         self.arrivals += 1
@@ -101,6 +100,7 @@ class ActuationBook:
         if a.seq not in self.held and len(self.held) >= self.capacity:
             oldest = min(self.held, key=lambda s: self.held[s][0])
             del self.held[oldest]
+            self.dropped_seq = oldest
             outcome = KEPT_DROPPING
         self.held[a.seq] = (self.arrivals, a)
         return outcome
@@ -115,13 +115,12 @@ class ActuationBook:
                 answer = a
         if answer is not None:
             return Decision("answered", list(answer.u[: self.n_u]), answer.status, answer.timing)
-        if self.policy != "plan":
-            return Decision(self.policy)
         p = self.plan_source
-        entry = p.input_for(k) if p is not None and p.seq < k else None
-        if entry is not None:
-            return Decision("plan", entry)
-        return Decision(self.plan_fallback)
+        row = rules.plan_row(p.seq, p.plan_len, k) if p is not None else None
+        miss = rules.on_miss(self.policy, self.plan_fallback, row)
+        if isinstance(miss, tuple):
+            return Decision("plan", list(p.plan[row][: self.n_u]), from_seq=p.seq, row=row)
+        return Decision(miss)
 
     def answers(self, k: int) -> bool:
         """True when the service answered measurement ``k`` (or a later one) or acknowledged it."""

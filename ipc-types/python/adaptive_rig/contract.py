@@ -138,36 +138,60 @@ class ChannelCounts(ctypes.Structure):
     def __repr__(self) -> str:
         return f"ChannelCounts(n_y={self.n_y}, n_z={self.n_z}, n_r={self.n_r}, n_u={self.n_u})"
 
-
-class Measurement(ctypes.Structure):
-    """One sample of the plant, published at the start of period ``seq``."""
-
-    _fields_ = [
-        ("contract_version", ctypes.c_uint32),
-        ("flags", ctypes.c_uint32),
-        ("seq", ctypes.c_uint64),
-        ("t_sample_ns", ctypes.c_uint64),
-        ("period_ns", ctypes.c_uint64),
-        ("deadline_ns", ctypes.c_uint64),
-        ("counts", ChannelCounts),
-        ("y", ctypes.c_double * MAX_Y),
-        ("z", ctypes.c_double * MAX_Z),
-        ("r", ctypes.c_double * MAX_R),
-        ("u_applied", ctypes.c_double * MAX_U),
-    ]
-
     @staticmethod
-    def type_name() -> str:
-        """The Rust type name iceoryx2 compares."""
-        return "adaptive_rig::Measurement.v3"
+    def add_arguments(parser, peer_timeout_s: float = 30.0) -> None:
+        """Adds the options of a peer process to an ``argparse`` parser: ``--rig``,
+        ``--period`` (s), the counts ``--n-y``, ``--n-z``, ``--n-r``, ``--n-u`` (1, 1, 0, 1),
+        ``--peer-timeout`` (s) and ``--contract-version`` (for tests of the refusal)."""
+        parser.add_argument("--rig", required=True)
+        parser.add_argument("--period", type=float, default=0.001, help="sample period T, s")
+        for name, default in (("y", 1), ("z", 1), ("r", 0), ("u", 1)):
+            parser.add_argument(f"--n-{name}", type=int, default=default)
+        parser.add_argument("--peer-timeout", type=float, default=peer_timeout_s, help="s")
+        parser.add_argument("--contract-version", type=int, default=None, help="state another version (tests)")
 
     @classmethod
-    def zeroed(cls, counts: ChannelCounts) -> "Measurement":
-        """An all-zero sample of this contract version with the given counts."""
-        m = cls()
-        m.contract_version = CONTRACT_VERSION
-        m.counts = counts
-        return m
+    def from_arguments(cls, args) -> "ChannelCounts":
+        """The counts of the options :meth:`add_arguments` added (raises ``ValueError``)."""
+        return cls.new(args.n_y, args.n_z, args.n_r, args.n_u)
+
+
+def _fields(kind, *names) -> list:
+    """``(name, kind)`` for each name: consecutive fields of one C type."""
+    return [(n, kind) for n in names]
+
+
+class _Payload(ctypes.Structure):
+    """What both payloads have: the Rust type name iceoryx2 compares (``_TYPE_NAME``) and an
+    all-zero value of this contract version with given counts."""
+
+    _TYPE_NAME = ""
+
+    @classmethod
+    def type_name(cls) -> str:
+        """The Rust type name iceoryx2 compares."""
+        return cls._TYPE_NAME
+
+    @classmethod
+    def zeroed(cls, counts: ChannelCounts):
+        """An all-zero payload of this contract version with the given counts."""
+        p = cls()
+        p.contract_version = CONTRACT_VERSION
+        p.counts = counts
+        return p
+
+
+class Measurement(_Payload):
+    """One sample of the plant, published at the start of period ``seq``."""
+
+    _TYPE_NAME = "adaptive_rig::Measurement.v3"
+
+    _fields_ = [
+        *_fields(ctypes.c_uint32, "contract_version", "flags"),
+        *_fields(ctypes.c_uint64, "seq", "t_sample_ns", "period_ns", "deadline_ns"),
+        ("counts", ChannelCounts),
+        *[(n, ctypes.c_double * cap) for n, cap in (("y", MAX_Y), ("z", MAX_Z), ("r", MAX_R), ("u_applied", MAX_U))],
+    ]
 
     def used_y(self) -> list:
         """The used part of ``y``."""
@@ -188,35 +212,24 @@ class Measurement(ctypes.Structure):
         return list(self.u_applied[: min(self.counts.n_u, MAX_U)])
 
 
-class Actuation(ctypes.Structure):
+class Actuation(_Payload):
     """The service's answer: the input for the period that starts at sample ``seq``, and a plan."""
 
+    _TYPE_NAME = "adaptive_rig::Actuation.v3"
+
     _fields_ = [
-        ("contract_version", ctypes.c_uint32),
-        ("status", ctypes.c_uint32),
-        ("seq", ctypes.c_uint64),
-        ("reply_to", ctypes.c_uint64),
-        ("t_sample_ns", ctypes.c_uint64),
-        ("t_publish_ns", ctypes.c_uint64),
-        ("compute_ns", ctypes.c_uint64),
+        *_fields(ctypes.c_uint32, "contract_version", "status"),
+        *_fields(ctypes.c_uint64, "seq", "reply_to", "t_sample_ns", "t_publish_ns", "compute_ns"),
         ("counts", ChannelCounts),
-        ("timing", ctypes.c_uint32),
-        ("plan_len", ctypes.c_uint32),
+        *_fields(ctypes.c_uint32, "timing", "plan_len"),
         ("u", ctypes.c_double * MAX_U),
         ("plan", (ctypes.c_double * MAX_U) * MAX_PLAN),
     ]
 
-    @staticmethod
-    def type_name() -> str:
-        """The Rust type name iceoryx2 compares."""
-        return "adaptive_rig::Actuation.v3"
-
     @classmethod
     def zeroed(cls, counts: ChannelCounts) -> "Actuation":
         """An all-zero actuation of this contract version (compute-first) with the given counts."""
-        a = cls()
-        a.contract_version = CONTRACT_VERSION
-        a.counts = counts
+        a = super().zeroed(counts)
         a.timing = Timing.COMPUTE_FIRST
         return a
 

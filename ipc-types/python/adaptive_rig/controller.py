@@ -30,6 +30,7 @@ import math
 import sys
 import time
 
+from . import timing_rules
 from .contract import Actuation, Timing, actuation_status, measurement_flags
 from .peer import NEW_PEER
 from .ports import ContractInfo, Ports, Side, connect
@@ -85,7 +86,7 @@ class Controller:
         """Publishes the actuation answering measurement ``m`` with input ``u`` and notifies."""
         n_u = self.counts.n_u
         a = Actuation.zeroed(self.counts)
-        a.seq = m.seq + 1 if self.timing == Timing.SEND_AHEAD else m.seq
+        a.seq = timing_rules.answer_seq(m.seq, self.timing)
         a.reply_to = m.seq
         a.t_sample_ns = m.t_sample_ns
         a.compute_ns = compute_ns
@@ -151,7 +152,7 @@ class Controller:
                 self.acknowledge_stall(m)
                 self.stall_acks += 1
                 continue
-            if self.timing == Timing.SEND_AHEAD and self._sent_ahead_for != m.seq:
+            if timing_rules.answers_sample_itself(self.timing, self._sent_ahead_for == m.seq):
                 self._answer_now(m, self.initial_input)
             t0 = _now_ns()
             u = list(law(m))
@@ -161,7 +162,7 @@ class Controller:
                 continue
             self.answer(m, u, compute_ns=dt)
             if self.timing == Timing.SEND_AHEAD:
-                self._sent_ahead_for = m.seq + 1
+                self._sent_ahead_for = timing_rules.answer_seq(m.seq, self.timing)
             self.answered += 1
         return self.answered
 

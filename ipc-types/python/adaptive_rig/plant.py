@@ -35,6 +35,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import book as bk
+from . import timing_rules
 from .contract import Measurement, measurement_flags
 from .peer import NEW_PEER
 from .ports import Applies, ContractInfo, Ports, Side, cleanup_dead_nodes, connect
@@ -131,12 +132,8 @@ class Plant:
         self.lockstep_timeout_s = lockstep_timeout_s
         self.peer_timeout_s = peer_timeout_s
         self.verbose = verbose
-        if mode == "lockstep":
-            self.applies = Applies.LOCKSTEP
-            self.deadline_ns = 0
-        else:
-            self.applies = Applies.AT_SAMPLE if deadline == 0.0 else Applies.AT_DEADLINE
-            self.deadline_ns = int(deadline * self.period_ns)
+        self.applies = timing_rules.applies(mode == "lockstep", deadline)
+        self.deadline_ns = timing_rules.deadline_offset_ns(mode == "lockstep", deadline, self.period_ns)
         own = ContractInfo(Side.PLANT, counts, self.period_ns, applies=self.applies)
         if contract_version is not None:
             own.version = contract_version
@@ -155,8 +152,7 @@ class Plant:
         self._misses = 0
         self._tripped = False
         self._tripped_at = None
-        self._previous_missed = False
-        self._previous_plan = False
+        self._previous = "answered"
         self._t0 = _now_ns() + 2 * max(self.period_ns, 1_000_000)
         self._wall = time.monotonic()
         self.last_status = None
@@ -190,12 +186,7 @@ class Plant:
         if len(y) != n_y or len(z) != n_z or len(r) != n_r:
             raise ValueError(f"sample {k}: expected {n_y} y, {n_z} z, {n_r} r values")
         flags = measurement_flags.LOCKSTEP if self.mode == "lockstep" else 0
-        if self._tripped:
-            flags |= measurement_flags.PLANT_SAFE_OUTPUT
-        if self._previous_missed:
-            flags |= measurement_flags.PREVIOUS_ACTUATION_MISSED
-        if self._previous_plan:
-            flags |= measurement_flags.PLAN_APPLIED
+        flags |= timing_rules.report_flags(self._previous)
         if last:
             flags |= measurement_flags.LAST_SAMPLE
         decision = None
@@ -223,7 +214,7 @@ class Plant:
         self.report.samples += 1
 
         if decision is None and self.mode == "real-time":
-            t_d = t_k + self.deadline_ns
+            t_d = timing_rules.application_instant(t_k, self.deadline_ns)
             while _now_ns() < t_d:
                 time.sleep(max((t_d - _now_ns()) * 1e-9, 0.0))
             self._drain(k)
@@ -251,20 +242,16 @@ class Plant:
             rep.actuations_applied += 1
             self._misses = 0
             self._tripped_at = None
-            self._previous_missed = self._previous_plan = False
             if self._tripped:
                 self._tripped = False
                 rep.watchdog_recoveries += 1
                 self._log(f"valid actuation again at seq {k}: leaving the safe output")
-            self.u_applied = list(d.u[: self.n_u])
             self.last_status = d.status
         else:
             rep.misses += 1
             self._misses += 1
-            self._previous_missed = True
-            self._previous_plan = False
             self.last_status = None
-            if not self._tripped and self._misses >= self.watchdog_periods:
+            if timing_rules.watchdog_trips(self._tripped, self._misses, self.watchdog_periods):
                 self._tripped = True
                 rep.watchdog_trips += 1
                 self._log(
@@ -274,22 +261,24 @@ class Plant:
                 cleanup_dead_nodes()
                 if self.mode == "lockstep":
                     self._tripped_at = time.monotonic()
-            if d.kind == "plan" and not self._tripped:
-                self.u_applied = list(d.u[: self.n_u])
-                self._previous_plan = True
-                rep.plan_entries_applied += 1
-            else:
-                if d.kind == "safe":
-                    self.u_applied = list(self.safe_input)
-                rep.misses_held_or_safe += 1
-            if self._tripped_at is not None and time.monotonic() - self._tripped_at >= self.peer_timeout_s:
-                raise PlantGaveUp(
-                    f"WATCHDOG: giving up in lockstep at seq {k}: no valid actuation for "
-                    f"{self._misses} samples, and none for {self.peer_timeout_s:.1f} s since the "
-                    "watchdog tripped"
-                )
-        if self._tripped:
+        # The watchdog's safe output overrides a plan as it overrides the rest.
+        applied = timing_rules.applied(d.miss_input, self._tripped)
+        self._previous = applied
+        if applied in ("answered", "plan"):
+            self.u_applied = list(d.u[: self.n_u])
+        elif applied in ("safe", "watchdog-safe"):
             self.u_applied = list(self.safe_input)
+        if applied == "plan":
+            rep.plan_entries_applied += 1
+        elif applied != "answered":
+            rep.misses_held_or_safe += 1
+        if d.is_miss and self._tripped_at is not None and time.monotonic() - self._tripped_at >= self.peer_timeout_s:
+            raise PlantGaveUp(
+                f"WATCHDOG: giving up in lockstep at seq {k}: no valid actuation for "
+                f"{self._misses} samples, and none for {self.peer_timeout_s:.1f} s since the "
+                "watchdog tripped"
+            )
+        if applied == "watchdog-safe":
             rep.safe_output_samples += 1
 
     def close(self) -> None:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import iceoryx2 as iox
 
+from . import timing_rules
 from .contract import CONTRACT_VERSION, Actuation, ChannelCounts, Measurement, Timing
 from .peer import FOREIGN, NEW_PEER, PeerPin
 
@@ -256,9 +257,9 @@ class ContractInfo:
         plant, service = (self, other) if self.side == Side.PLANT else (other, self)
         if (
             plant.side != service.side
-            and plant.applies == Applies.AT_SAMPLE
+            and plant.applies is not None
             and service.timing is not None
-            and service.timing != Timing.SEND_AHEAD
+            and not timing_rules.timings_meet(plant.applies, service.timing)
         ):
             out.append(
                 "timing: the plant applies each input at its sample instant (its deadline is "
@@ -634,33 +635,29 @@ def connect(
 
     own_event = _open_event(node, own_name)
     peer_event = _open_event(node, peer_name)
-    notifier = _exclusive_port(
-        lambda: own_event.notifier_builder().create(),
-        "ExceedsMaxSupportedNotifiers",
-        lambda: _holders(own_event, node, None),
-        lambda holder: ConnectError(
-            "SlotTaken",
-            service=f"{own_name} (event)",
-            port="notifier",
-            reserved_for=own.side,
-            holder=holder,
-        ),
-        ("creating the notifier of", own_name),
+
+    def event_port(event, name: str, port: str, create, full_variant: str):
+        return _exclusive_port(
+            create,
+            full_variant,
+            lambda: _holders(event, node, None),
+            lambda holder: ConnectError(
+                "SlotTaken", service=f"{name} (event)", port=port, reserved_for=own.side, holder=holder
+            ),
+            (f"creating the {port} of", name),
+        )
+
+    notifier = event_port(
+        own_event, own_name, "notifier", lambda: own_event.notifier_builder().create(), "ExceedsMaxSupportedNotifiers"
     )
     listener = None
     if listen:
-        listener = _exclusive_port(
+        listener = event_port(
+            peer_event,
+            peer_name,
+            "listener",
             lambda: peer_event.listener_builder().create(),
             "ExceedsMaxSupportedListeners",
-            lambda: _holders(peer_event, node, None),
-            lambda holder: ConnectError(
-                "SlotTaken",
-                service=f"{peer_name} (event)",
-                port="listener",
-                reserved_for=own.side,
-                holder=holder,
-            ),
-            ("creating the listener of", peer_name),
         )
     # The subscriber comes last: a peer that sees it knows this side's listener exists.
     subscriber = _exclusive_port(

@@ -25,19 +25,12 @@ from adaptive_rig.plant import Plant, PlantGaveUp
 def main() -> int:
     """Runs the plant; returns the exit status."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rig", required=True)
+    ChannelCounts.add_arguments(ap)
     ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--period", type=float, default=0.001, help="sample period T, s")
     ap.add_argument("--pole", type=float, default=5.0, help="p of 1/(s + p)")
     ap.add_argument("--x0", type=float, default=1.0)
-    ap.add_argument("--n-y", type=int, default=1)
-    ap.add_argument("--n-z", type=int, default=1)
-    ap.add_argument("--n-r", type=int, default=0)
-    ap.add_argument("--n-u", type=int, default=1)
     ap.add_argument("--mode", default="lockstep", choices=["lockstep", "real-time"])
     ap.add_argument("--deadline", type=float, default=0.5, help="real time: input applied at t_k + dT")
-    ap.add_argument("--peer-timeout", type=float, default=30.0, help="s")
-    ap.add_argument("--contract-version", type=int, default=None, help="state another version (tests)")
     ap.add_argument("--trace", default=None)
     ap.add_argument("--report", default=None)
     args = ap.parse_args()
@@ -47,7 +40,7 @@ def main() -> int:
     b = (1.0 - a) / p
     period_ns = round(t * 1e9)
     try:
-        counts = ChannelCounts.new(args.n_y, args.n_z, args.n_r, args.n_u)
+        counts = ChannelCounts.from_arguments(args)
         plant = Plant(
             args.rig,
             counts,

@@ -20,20 +20,13 @@ from adaptive_rig.controller import Controller
 def main() -> int:
     """Runs the controller; returns the exit status."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rig", required=True)
+    ChannelCounts.add_arguments(ap)
     ap.add_argument("--gain", type=float, default=2.0, help="K of u = -K y")
-    ap.add_argument("--period", type=float, default=0.001, help="sample period T, s")
-    ap.add_argument("--n-y", type=int, default=1)
-    ap.add_argument("--n-z", type=int, default=1)
-    ap.add_argument("--n-r", type=int, default=0)
-    ap.add_argument("--n-u", type=int, default=1)
-    ap.add_argument("--peer-timeout", type=float, default=30.0, help="s")
     ap.add_argument("--send-ahead", action="store_true", help="u_{k+1} = -K y_k, sent ahead")
-    ap.add_argument("--contract-version", type=int, default=None, help="state another version (tests)")
     args = ap.parse_args()
     d = -args.gain
     try:
-        counts = ChannelCounts.new(args.n_y, args.n_z, args.n_r, args.n_u)
+        counts = ChannelCounts.from_arguments(args)
         ctl = Controller(
             args.rig,
             counts,

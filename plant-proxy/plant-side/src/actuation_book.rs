@@ -1,7 +1,7 @@
 //! The plant's book of actuations: which input it applies for each sample.
 //!
 //! The service's answers do not arrive one per sample in order. A service that sends ahead
-//! ([`Timing::SendAhead`]) publishes the input for sample `k + 1` as soon as it has taken
+//! ([`ipc_types::Timing::SendAhead`]) publishes the input for sample `k + 1` as soon as it has taken
 //! measurement `k` in, so it reaches the plant before measurement `k + 1` exists; an answer
 //! can also come after its deadline, or carry a plan for the samples after its own
 //! ([`Actuation::plan`]). The book keeps what the plant needs of them, and decides the
@@ -19,9 +19,11 @@
 //! - [`ActuationBook::answers`] tells whether the service has answered (or acknowledged)
 //!   measurement `k`: the lockstep plant waits for that before it publishes `k + 1`.
 //!
-//! **Valid** means: this contract's version, the plant's `n_u`, `plan_len ≤ MAX_PLAN`, and a
-//! finite `u` and finite plan entries (the used channels of the first `plan_len` entries).
-//! Whether the actuation comes from the pinned service is the caller's check
+//! **Valid** means [`timing_rules::actuation_valid`]; what an arriving actuation is,
+//! [`timing_rules::arrival`]; which plan a miss uses, [`timing_rules::plan_supersedes`] and
+//! [`timing_rules::plan_row`]; what it then applies, [`timing_rules::on_miss`]; which
+//! measurement an actuation answers, [`timing_rules::answered_measurement`]. The book keeps
+//! the state those rules need and calls them. Whether the actuation comes from the pinned service is the caller's check
 //! ([`ipc_types::ports::Ports::admit`]) before it offers it.
 //!
 //! The book is pure: no IPC, no clock, no allocation after [`ActuationBook::new`], no panic.
@@ -42,11 +44,12 @@
 //! assert!(book.answers(4) && !book.answers(5));
 //! assert!(matches!(book.decide(4), Decision::Hold)); // nothing for sample 4
 //! assert!(matches!(book.decide(5), Decision::Answered { u, .. } if u[0] == 0.5));
-//! assert!(matches!(book.decide(6), Decision::Plan { u, from_seq: 5 } if u[0] == 0.25));
+//! assert!(matches!(book.decide(6), Decision::Plan { u, from_seq: 5, .. } if u[0] == 0.25));
 //! ```
 
-use crate::late_policy::{MissPolicy, PlanFallback};
-use ipc_types::{Actuation, CONTRACT_VERSION, MAX_PLAN, MAX_U, Timing, actuation_status};
+use crate::late_policy::MissPolicy;
+use ipc_types::timing_rules::{self, Arrival, MissInput};
+use ipc_types::{Actuation, MAX_U};
 
 /// The capacity plant-proxy gives its book: actuations held for the current and later
 /// samples. A service that sends ahead holds one or two there; more is a service running
@@ -71,7 +74,7 @@ pub enum Offer {
     /// Refused: another contract version, another `n_u`, `plan_len` past the capacity, or a
     /// non-finite `u` or plan entry (for an acknowledgement: version or `n_u`).
     Invalid,
-    /// A stall acknowledgement ([`actuation_status::STALL_ACK`]): it ends the lockstep
+    /// A stall acknowledgement ([`ipc_types::actuation_status::STALL_ACK`]): it ends the lockstep
     /// plant's wait for its `reply_to`; never an input.
     StallAck,
 }
@@ -94,6 +97,8 @@ pub enum Decision {
         u: [f64; MAX_U],
         /// The `seq` of the actuation whose plan it is.
         from_seq: u64,
+        /// The plan row (`k − from_seq − 1`).
+        row: usize,
     },
     /// A miss: hold the input applied for the previous sample.
     Hold,
@@ -105,6 +110,16 @@ impl Decision {
     /// True unless the actuation for the sample was there ([`Decision::Answered`]).
     pub const fn is_miss(&self) -> bool {
         !matches!(self, Decision::Answered { .. })
+    }
+
+    /// The miss's input by [`timing_rules::on_miss`]; `None` for [`Decision::Answered`].
+    pub const fn miss_input(&self) -> Option<MissInput> {
+        match self {
+            Decision::Answered { .. } => None,
+            Decision::Plan { row, .. } => Some(MissInput::PlanRow(*row)),
+            Decision::Hold => Some(MissInput::Hold),
+            Decision::Safe => Some(MissInput::Safe),
+        }
     }
 }
 
@@ -165,19 +180,19 @@ impl<const N: usize> ActuationBook<N> {
     /// Takes the actuation `a` received while the plant is at sample `k` (the sample whose
     /// input [`ActuationBook::decide`] gives next). See [`Offer`].
     pub fn offer(&mut self, a: &Actuation, k: u64) -> Offer {
-        if a.status & actuation_status::STALL_ACK != 0 {
-            if !self.header_ok(a) {
-                return Offer::Invalid;
+        let arrival = timing_rules::arrival(a, self.n_u, k);
+        match arrival {
+            Arrival::StallAck => {
+                self.acknowledged = self.acknowledged.max(Some(a.reply_to));
+                return Offer::StallAck;
             }
-            self.acknowledged = self.acknowledged.max(Some(a.reply_to));
-            return Offer::StallAck;
+            Arrival::Invalid => return Offer::Invalid,
+            Arrival::Late | Arrival::InTime => {}
         }
-        if !self.valid(a) {
-            return Offer::Invalid;
-        }
-        self.answered = self.answered.max(Some(answered_measurement(a)));
+        let answered = timing_rules::answered_measurement(a.seq, a.reply_to, a.timing);
+        self.answered = self.answered.max(Some(answered));
         self.sends_ahead = a.timing().is_some_and(|t| t.lead() > 0);
-        if a.seq < k {
+        if arrival == Arrival::Late {
             self.consider_plan(a);
             return Offer::Late;
         }
@@ -228,25 +243,18 @@ impl<const N: usize> ActuationBook<N> {
                 timing: a.timing,
             };
         }
-        match self.policy {
-            MissPolicy::Hold => Decision::Hold,
-            MissPolicy::Safe => Decision::Safe,
-            MissPolicy::Plan(fallback) => {
-                let entry = self
-                    .plan_source
-                    .as_ref()
-                    .filter(|p| p.seq < k)
-                    .and_then(|p| p.input_for(k).map(|u| (p.seq, u)));
-                match (entry, fallback) {
-                    (Some((from_seq, u)), _) => {
-                        let mut out = [0.0; MAX_U];
-                        out[..u.len()].copy_from_slice(u);
-                        Decision::Plan { u: out, from_seq }
-                    }
-                    (None, PlanFallback::Hold) => Decision::Hold,
-                    (None, PlanFallback::Safe) => Decision::Safe,
-                }
-            }
+        let row = self
+            .plan_source
+            .as_ref()
+            .and_then(|p| timing_rules::plan_row(p.seq, p.plan_len, k));
+        match (timing_rules::on_miss(self.policy, row), &self.plan_source) {
+            (MissInput::PlanRow(j), Some(p)) => Decision::Plan {
+                u: self.used(&p.plan[j]),
+                from_seq: p.seq,
+                row: j,
+            },
+            (MissInput::Safe, _) => Decision::Safe,
+            _ => Decision::Hold,
         }
     }
 
@@ -263,7 +271,7 @@ impl<const N: usize> ActuationBook<N> {
     }
 
     /// True when the newest valid actuation came from a service that sends each input one
-    /// sample ahead ([`Timing::SendAhead`]).
+    /// sample ahead ([`ipc_types::Timing::SendAhead`]).
     pub fn sends_ahead(&self) -> bool {
         self.sends_ahead
     }
@@ -288,22 +296,8 @@ impl<const N: usize> ActuationBook<N> {
         self.plan_source.as_ref().map(|p| p.seq)
     }
 
-    fn header_ok(&self, a: &Actuation) -> bool {
-        a.contract_version == CONTRACT_VERSION && a.counts.n_u as usize == self.n_u
-    }
-
-    fn valid(&self, a: &Actuation) -> bool {
-        let n = self.n_u;
-        self.header_ok(a)
-            && (a.plan_len as usize) <= MAX_PLAN
-            && a.u[..n].iter().all(|v| v.is_finite())
-            && a.plan[..a.plan_len as usize]
-                .iter()
-                .all(|e| e[..n].iter().all(|v| v.is_finite()))
-    }
-
     fn consider_plan(&mut self, a: &Actuation) {
-        if self.plan_source.as_ref().is_none_or(|p| a.seq >= p.seq) {
+        if timing_rules::plan_supersedes(self.plan_source.map(|p| p.seq), a.seq) {
             self.plan_source = Some(*a);
         }
     }
@@ -315,17 +309,12 @@ impl<const N: usize> ActuationBook<N> {
     }
 }
 
-/// The measurement `a` answers: `reply_to`, or `seq − lead` when larger (see
-/// [`ActuationBook::answers`]).
-fn answered_measurement(a: &Actuation) -> u64 {
-    let lead = a.timing().map_or(0, Timing::lead);
-    a.reply_to.max(a.seq.saturating_sub(lead))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::late_policy::PlanFallback;
     use ipc_types::ChannelCounts;
+    use ipc_types::{CONTRACT_VERSION, MAX_PLAN, Timing, actuation_status};
 
     fn act(seq: u64, reply_to: u64, u: f64, plan: &[f64]) -> Actuation {
         let mut a = Actuation::zeroed(ChannelCounts::new(1, 1, 0, 1).unwrap());
@@ -353,7 +342,7 @@ mod tests {
 
     fn planned(d: Decision) -> Option<(f64, u64)> {
         match d {
-            Decision::Plan { u, from_seq } => Some((u[0], from_seq)),
+            Decision::Plan { u, from_seq, .. } => Some((u[0], from_seq)),
             _ => None,
         }
     }

@@ -14,6 +14,10 @@
 //!   [`PLAN_APPLIED`](ipc_types::measurement_flags::PLAN_APPLIED) beside
 //!   [`PREVIOUS_ACTUATION_MISSED`](ipc_types::measurement_flags::PREVIOUS_ACTUATION_MISSED).
 //!
+//! The rule itself is [`ipc_types::timing_rules::on_miss`] (with [`MissPolicy`] and
+//! [`PlanFallback`], defined beside it in the contract); this module reads the
+//! configuration into them.
+//!
 //! A plan entry is still a miss: the watchdog counts it as one, and its safe output, once
 //! tripped, overrides the plan as it overrides every other input.
 
@@ -40,48 +44,15 @@ impl LatePolicy {
             LatePolicy::Plan => "plan",
         }
     }
-}
 
-/// What the plant applies on a miss that no plan covers, under [`LatePolicy::Plan`]
-/// (`proxy.plan-fallback`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PlanFallback {
-    /// Keep the last applied input (the default).
-    #[default]
-    Hold,
-    /// Apply the safe input.
-    Safe,
-}
-
-impl PlanFallback {
-    /// The name used in the configuration (`"hold"`, `"safe"`).
-    pub const fn name(self) -> &'static str {
+    /// The resolved policy of a miss (with `fallback` read only for [`LatePolicy::Plan`]).
+    pub const fn with_fallback(self, fallback: PlanFallback) -> MissPolicy {
         match self {
-            PlanFallback::Hold => "hold",
-            PlanFallback::Safe => "safe",
-        }
-    }
-}
-
-/// The resolved policy of a miss: [`LatePolicy`] with its [`PlanFallback`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MissPolicy {
-    /// Hold the last applied input.
-    Hold,
-    /// Apply the safe input.
-    Safe,
-    /// Apply the newest plan's entry, else the fallback.
-    Plan(PlanFallback),
-}
-
-impl MissPolicy {
-    /// The policy of `late` (with `fallback` read only for [`LatePolicy::Plan`]).
-    pub const fn new(late: LatePolicy, fallback: PlanFallback) -> Self {
-        match late {
             LatePolicy::Hold => MissPolicy::Hold,
             LatePolicy::Safe => MissPolicy::Safe,
             LatePolicy::Plan => MissPolicy::Plan(fallback),
         }
     }
 }
+
+pub use ipc_types::timing_rules::{MissPolicy, PlanFallback};

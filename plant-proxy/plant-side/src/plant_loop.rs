@@ -55,6 +55,8 @@ use crate::plant_side::{Input, InputKind, PlantError, PlantSide, Wait};
 use crate::policy::Mode;
 use crate::sample_clock::SampleClock;
 use ipc_types::clock::monotonic_ns;
+use ipc_types::ports::Applies;
+use ipc_types::timing_rules::application_instant;
 use ipc_types::{MAX_R, MAX_Y, MAX_Z, measurement_flags};
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -141,7 +143,7 @@ pub fn run<Io: PlantIo>(
         period_ns,
         policy.overrun,
     );
-    let latch_at_sample = policy.mode == Mode::RealTime && policy.deadline == 0.0;
+    let latch_at_sample = policy.applies() == Applies::AtSample;
     let deadline_ns = side.deadline_offset_ns();
     let (mut y, mut z, mut r) = ([0.0; MAX_Y], [0.0; MAX_Z], [0.0; MAX_R]);
     let io_err = |what: &str, k: u64, e: &dyn fmt::Display| {
@@ -204,7 +206,9 @@ pub fn run<Io: PlantIo>(
                     Some(i)
                 }
                 (None, Mode::RealTime) if latch_at_sample => None,
-                (None, Mode::RealTime) => side.take(k, Wait::At(t_k + deadline_ns))?,
+                (None, Mode::RealTime) => {
+                    side.take(k, Wait::At(application_instant(t_k, deadline_ns)))?
+                }
                 (None, Mode::Lockstep) => side.take(k, Wait::Lockstep)?,
             };
             previous_published = !lost;

@@ -42,6 +42,7 @@ use hdrhistogram::Histogram;
 use ipc_types::clock::{monotonic_ns, sleep_until_ns};
 use ipc_types::peer::Origin;
 use ipc_types::ports::{ConnectError, ConnectOptions, ContractInfo, PlantPorts, Side};
+use ipc_types::timing_rules;
 use ipc_types::{ChannelCounts, MAX_U, MAX_Z, Measurement, Timing, measurement_flags};
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -115,27 +116,9 @@ pub struct Input {
     pub published_flags: u32,
 }
 
-/// Where the input of a sample comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InputKind {
-    /// The service's actuation for the sample.
-    Answered,
-    /// A miss covered by the newest plan's entry.
-    Plan,
-    /// A miss: the input of the previous sample, held.
-    Held,
-    /// A miss: the safe input (late policy `safe`, or the plan's fallback).
-    Safe,
-    /// The watchdog holds the safe output.
-    WatchdogSafe,
-}
-
-impl InputKind {
-    /// True unless the service's actuation for the sample was there.
-    pub const fn is_miss(self) -> bool {
-        !matches!(self, InputKind::Answered)
-    }
-}
+/// Where the input of a sample comes from: [`ipc_types::timing_rules::Applied`] (the rule
+/// [`ipc_types::timing_rules::applied`]).
+pub use ipc_types::timing_rules::Applied as InputKind;
 
 /// What one side says when it connects, besides its policy.
 #[derive(Debug, Clone, Copy)]
@@ -166,9 +149,7 @@ impl<'a> PlantSideOptions<'a> {
 #[derive(Debug, Clone, Copy)]
 struct Period {
     u: [f64; MAX_U],
-    missed: bool,
-    plan: bool,
-    safe_output: bool,
+    kind: InputKind,
 }
 
 /// The plant side of one connection to the service. See the [module documentation](self).
@@ -238,9 +219,7 @@ impl<'a> PlantSide<'a> {
         u0[..n_u].copy_from_slice(&policy.safe_input);
         let initial = Period {
             u: u0,
-            missed: false,
-            plan: false,
-            safe_output: false,
+            kind: InputKind::Answered,
         };
         let report = PlantReport {
             rig: rig.to_string(),
@@ -321,10 +300,11 @@ impl<'a> PlantSide<'a> {
     /// The deadline offset carried in each measurement, ns: `d·T` in real time, 0 in
     /// lockstep.
     pub fn deadline_offset_ns(&self) -> u64 {
-        match self.policy.mode {
-            Mode::RealTime => (self.policy.deadline * self.period_ns as f64) as u64,
-            Mode::Lockstep => 0,
-        }
+        timing_rules::deadline_offset_ns(
+            self.policy.mode == Mode::Lockstep,
+            self.policy.deadline,
+            self.period_ns,
+        )
     }
 
     /// Publishes measurement `k` taken at `t_sample_ns` (`CLOCK_MONOTONIC`) with the sensor
@@ -362,15 +342,7 @@ impl<'a> PlantSide<'a> {
             Mode::Lockstep => measurement_flags::LOCKSTEP,
             Mode::RealTime => 0,
         };
-        if reported.safe_output {
-            flags |= measurement_flags::PLANT_SAFE_OUTPUT;
-        }
-        if reported.missed {
-            flags |= measurement_flags::PREVIOUS_ACTUATION_MISSED;
-        }
-        if reported.plan {
-            flags |= measurement_flags::PLAN_APPLIED;
-        }
+        flags |= timing_rules::report_flags(reported.kind);
         flags |= extra_flags & measurement_flags::LAST_SAMPLE;
         let stalled = self.policy.mode == Mode::Lockstep
             && extra_flags & measurement_flags::INJECTED_STALL != 0;
@@ -494,75 +466,68 @@ impl<'a> PlantSide<'a> {
     fn resolve(&mut self, k: u64, decision: Decision) -> Result<Input, PlantError> {
         let n_u = self.counts.n_u as usize;
         let mut u = self.latest.u;
-        let mut plan = false;
-        let (mut kind, status) = match decision {
-            Decision::Answered {
-                u: answer,
-                status,
-                timing,
-            } => {
-                self.report.actuations_applied += 1;
-                self.tripped_at = None;
-                self.consecutive_misses = 0;
-                if self.tripped {
-                    self.tripped = false;
-                    self.report.watchdog_recoveries += 1;
-                    eprintln!(
-                        "[{}] valid actuation again at seq {k}: leaving the safe output",
-                        self.label
-                    );
-                }
-                u[..n_u].copy_from_slice(&answer[..n_u]);
-                self.last_timing = Some(timing);
-                (InputKind::Answered, Some(status))
+        let mut status = None;
+        if let Decision::Answered {
+            u: answer,
+            status: s,
+            timing,
+        } = decision
+        {
+            self.report.actuations_applied += 1;
+            self.tripped_at = None;
+            self.consecutive_misses = 0;
+            if self.tripped {
+                self.tripped = false;
+                self.report.watchdog_recoveries += 1;
+                eprintln!(
+                    "[{}] valid actuation again at seq {k}: leaving the safe output",
+                    self.label
+                );
             }
-            miss => {
-                self.report.misses += 1;
-                self.consecutive_misses += 1;
-                if !self.tripped && self.consecutive_misses >= self.policy.watchdog_periods {
-                    self.trip(k);
-                }
-                // The watchdog's safe output overrides a plan as it overrides the rest.
-                let kind = match (miss, self.tripped) {
-                    (Decision::Plan { u: entry, .. }, false) => {
-                        u[..n_u].copy_from_slice(&entry[..n_u]);
-                        plan = true;
-                        self.report.plan_entries_applied += 1;
-                        InputKind::Plan
-                    }
-                    (Decision::Safe, _) => {
-                        u[..n_u].copy_from_slice(&self.policy.safe_input);
-                        self.report.misses_held_or_safe += 1;
-                        InputKind::Safe
-                    }
-                    _ => {
-                        self.report.misses_held_or_safe += 1;
-                        InputKind::Held
-                    }
-                };
-                if self.report.actuations_applied == 0 && !plan {
-                    self.report.misses_before_first_answer += 1;
-                }
-                if let Some(t) = self.tripped_at
-                    && t.elapsed() >= self.policy.peer_timeout
-                {
-                    return Err(self.give_up(k));
-                }
-                (kind, None)
+            u[..n_u].copy_from_slice(&answer[..n_u]);
+            self.last_timing = Some(timing);
+            status = Some(s);
+        } else {
+            self.report.misses += 1;
+            self.consecutive_misses += 1;
+            if timing_rules::watchdog_trips(
+                self.tripped,
+                self.consecutive_misses,
+                self.policy.watchdog_periods,
+            ) {
+                self.trip(k);
             }
-        };
-        if self.tripped {
-            u[..n_u].copy_from_slice(&self.policy.safe_input);
+        }
+        // The watchdog's safe output overrides a plan as it overrides the rest.
+        let kind = timing_rules::applied(decision.miss_input(), self.tripped);
+        match (kind, decision) {
+            (InputKind::Plan, Decision::Plan { u: entry, .. }) => {
+                u[..n_u].copy_from_slice(&entry[..n_u]);
+                self.report.plan_entries_applied += 1;
+            }
+            (InputKind::Safe | InputKind::WatchdogSafe, _) => {
+                u[..n_u].copy_from_slice(&self.policy.safe_input);
+            }
+            _ => {}
+        }
+        if kind.is_miss() && kind != InputKind::Plan {
+            self.report.misses_held_or_safe += 1;
+        }
+        if kind.is_miss() {
+            if self.report.actuations_applied == 0 && kind != InputKind::Plan {
+                self.report.misses_before_first_answer += 1;
+            }
+            if let Some(t) = self.tripped_at
+                && t.elapsed() >= self.policy.peer_timeout
+            {
+                return Err(self.give_up(k));
+            }
+        }
+        if kind == InputKind::WatchdogSafe {
             self.report.safe_output_samples += 1;
-            kind = InputKind::WatchdogSafe;
         }
         self.before = self.latest;
-        self.latest = Period {
-            u,
-            missed: kind.is_miss(),
-            plan,
-            safe_output: self.tripped,
-        };
+        self.latest = Period { u, kind };
         self.latest_k = Some(k);
         let published_flags = match self.published {
             Some((p, flags)) if p == k => flags,

@@ -86,18 +86,14 @@ impl PlantPolicy {
 
     /// The policy of a miss.
     pub const fn miss_policy(&self) -> MissPolicy {
-        MissPolicy::new(self.late_policy, self.plan_fallback)
+        self.late_policy.with_fallback(self.plan_fallback)
     }
 
     /// When the plant applies an input, as it states at connect: at the sample instant (real
     /// time, deadline 0), at a deadline inside the period (real time, deadline > 0), or in
     /// lockstep.
     pub fn applies(&self) -> Applies {
-        match self.mode {
-            Mode::Lockstep => Applies::Lockstep,
-            Mode::RealTime if self.deadline == 0.0 => Applies::AtSample,
-            Mode::RealTime => Applies::AtDeadline,
-        }
+        ipc_types::timing_rules::applies(self.mode == Mode::Lockstep, self.deadline)
     }
 
     /// The late policy in words: `"hold"`, `"safe"`, or `"plan (else hold)"`.

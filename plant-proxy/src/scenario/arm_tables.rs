@@ -9,25 +9,60 @@ use crate::arm::{
     ArmPlantParams, ContactModel, GuidanceParams, IntegratorParams, SecondSampling, Surface,
     contact,
 };
+use rig_scenario::spacecraft::{self, SpacecraftTable};
 use serde::Deserialize;
 
+/// `[plant.sampling-arm]`: the spacecraft's fields ([`SpacecraftTable`], the schema's) and
+/// where the arm starts.
+#[derive(Default)]
+pub(super) struct RawSamplingArm {
+    spacecraft: SpacecraftTable,
+    start: RawStart,
+}
+
+/// The fields of `[plant.sampling-arm]` that are the plant's own: the initial angles, the
+/// sampler's height and the descent speed.
 #[derive(Deserialize, Default)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-pub(super) struct RawSamplingArm {
-    m_sc: Option<f64>,
-    m1: Option<f64>,
-    m2: Option<f64>,
-    m_s: Option<f64>,
-    l1: Option<f64>,
-    l2: Option<f64>,
-    r1: Option<f64>,
-    r2: Option<f64>,
-    i1: Option<f64>,
-    i2: Option<f64>,
+struct RawStart {
     theta1: Option<f64>,
     theta2: Option<f64>,
     initial_height: Option<f64>,
     descent_speed: Option<f64>,
+}
+
+/// The keys of [`RawStart`].
+const START_KEYS: [&str; 4] = ["theta1", "theta2", "initial-height", "descent-speed"];
+
+impl<'de> Deserialize<'de> for RawSamplingArm {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let mut spacecraft = toml::Table::deserialize(d)?;
+        let mut start = toml::Table::new();
+        for k in START_KEYS {
+            if let Some(v) = spacecraft.remove(k) {
+                start.insert(k.to_string(), v);
+            }
+        }
+        if let Some(k) = spacecraft
+            .keys()
+            .find(|k| !spacecraft::KEYS.contains(&k.as_str()))
+        {
+            return Err(D::Error::custom(format!(
+                "unknown field `{k}`, expected one of {}",
+                spacecraft::KEYS
+                    .iter()
+                    .chain(&START_KEYS)
+                    .map(|k| format!("`{k}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+        Ok(Self {
+            spacecraft: spacecraft.try_into().map_err(D::Error::custom)?,
+            start: start.try_into().map_err(D::Error::custom)?,
+        })
+    }
 }
 
 #[derive(Deserialize)]
@@ -153,22 +188,13 @@ pub(super) fn arm_params(cx: &Cx<'_>, raw: RawArmTables) -> Result<ArmPlantParam
     });
     p.surface = surface(cx, s, "plant.surface")?;
     let a = raw.sampling_arm.unwrap_or_default();
-    let sc = &mut p.spacecraft;
+    p.spacecraft = a.spacecraft.params();
+    let start = a.start;
     for (dst, v) in [
-        (&mut sc.m_sc, a.m_sc),
-        (&mut sc.m1, a.m1),
-        (&mut sc.m2, a.m2),
-        (&mut sc.m_s, a.m_s),
-        (&mut sc.l1, a.l1),
-        (&mut sc.l2, a.l2),
-        (&mut sc.r1, a.r1),
-        (&mut sc.r2, a.r2),
-        (&mut sc.i1, a.i1),
-        (&mut sc.i2, a.i2),
-        (&mut p.theta1, a.theta1),
-        (&mut p.theta2, a.theta2),
-        (&mut p.initial_height, a.initial_height),
-        (&mut p.descent_speed, a.descent_speed),
+        (&mut p.theta1, start.theta1),
+        (&mut p.theta2, start.theta2),
+        (&mut p.initial_height, start.initial_height),
+        (&mut p.descent_speed, start.descent_speed),
     ] {
         if let Some(v) = v {
             *dst = v;

@@ -39,16 +39,16 @@ fn refused(text: &str) -> ScenarioError {
     parse(text, "bad.toml").expect_err("must be refused")
 }
 
-/// For each `(from, to, field)`: `from` occurs in `base`; with its first occurrence
-/// replaced by `to` the file is refused naming `field`, as `bad.toml: field '<field>': …`.
-fn assert_refused_naming(base: &str, cases: &[(&str, &str, &str)]) {
-    for (from, to, field) in cases {
-        assert!(base.contains(from), "{from}");
-        let e = refused(&base.replacen(from, to, 1));
-        assert_eq!(e.field(), Some(*field), "{from} → {to}: {e}");
+/// For each case of the refusal-case file `cases` (`tests/fixtures/refusals/`): `from`
+/// occurs in `base`; with its first occurrence replaced by `to` the file is refused naming
+/// `field`, as `bad.toml: field '<field>': …`.
+fn assert_refused_naming(base: &str, cases: &str) {
+    for c in rig_scenario::refusal_cases::parse(cases).unwrap() {
+        let e = refused(&c.edit(base).unwrap());
+        assert_eq!(e.field(), Some(c.field.as_str()), "{c:?}: {e}");
         let m = e.to_string();
         assert!(
-            m.starts_with(&format!("bad.toml: field '{field}': ")),
+            m.starts_with(&format!("bad.toml: field '{}': ", c.field)),
             "{m}"
         );
     }
@@ -91,88 +91,7 @@ fn a_good_file_gives_typed_parameters_and_other_tables_are_ignored() {
 
 #[test]
 fn bad_values_are_refused_naming_the_file_and_the_field() {
-    let cases: &[(&str, &str, &str)] = &[
-        (
-            "den = [1.0, 2.0] }, 0 ]]",
-            "den = [1.0, 2.0] }, { num = [1.0], den = [0.0, 1.0] } ]]",
-            "plant.tf.yu[0][1].den",
-        ),
-        (
-            "den = [1.0, 2.0] }, 0 ]]",
-            "den = [1.0, 2.0] } ]]",
-            "plant.tf.yu[0]",
-        ),
-        (
-            "den = [1.0, 2.0] }, 0 ]]",
-            "den = [1.0, 2.0] }, 1 ]]",
-            "plant.tf.yu[0][1]",
-        ),
-        (
-            "num = [2.0], den",
-            "num = [2.0, 1.0, 0.0, 0.0], den",
-            "plant.tf.yw[0][0]",
-        ),
-        (
-            "num = [2.0], den",
-            "num = [2.0], dem = [1.0], den",
-            "plant.tf.yw[0][0].dem",
-        ),
-        (
-            "input-delays = [0, 3]",
-            "input-delays = [0]",
-            "plant.input-delays",
-        ),
-        (
-            "input-delays = [0, 3]",
-            "initial-state = [1.0]",
-            "plant.initial-state",
-        ),
-        (
-            "{ input = 0,",
-            "{ input = 1,",
-            "plant.disturbance.tones[0].input",
-        ),
-        (
-            "frequency-rad-s = 3.0",
-            "frequency-rad-s = 3.0, frequency-hz = 1.0",
-            "plant.disturbance.tones[0].frequency-hz",
-        ),
-        (
-            "white-std = 0.1",
-            "white-std = [0.1, 0.2]",
-            "plant.disturbance.white-std",
-        ),
-        (
-            "white-std = 0.1",
-            "white-std = -0.1",
-            "plant.disturbance.white-std[0]",
-        ),
-        ("y-std = [0.01]", "y-std = \"loud\"", "plant.noise.y-std"),
-        ("duration = 2.0", "", "rig.duration"),
-        (
-            "sample-rate-hz = 100.0",
-            "sample-rate-hz = 100.0\nsample-period = 0.01",
-            "rig.sample-period",
-        ),
-        (
-            "sample-rate-hz = 100.0",
-            "sample-rate-hz = -1.0",
-            "rig.sample-rate-hz",
-        ),
-        ("name = \"unit_rig-1\"", "name = \"a/b\"", "rig.name"),
-        (
-            "kind = \"transfer-function\"",
-            "kind = \"zpk\"",
-            "plant.kind",
-        ),
-        (
-            "kind = \"transfer-function\"",
-            "kind = \"modal\"",
-            "plant.tf",
-        ),
-        ("inputs = 2", "inputs = 9", "plant.inputs"),
-        ("outputs-z = 1", "", "plant.outputs-z"),
-    ];
+    let cases = include_str!("../../../tests/fixtures/refusals/plant-tf.toml");
     assert_refused_naming(GOOD, cases);
 }
 
@@ -222,11 +141,7 @@ d-yu = [[0.5]]
     );
     assert_refused_naming(
         ss,
-        &[
-            ("b-u = [[0.0], [1.0]]", "b-u = [[0.0]]", "plant.ss.b-u"),
-            ("c-y = [[1.0, 0.0]]", "c-y = [[1.0]]", "plant.ss.c-y[0]"),
-            ("c-y = [[1.0, 0.0]]\n", "", "plant.ss.c-y"),
-        ],
+        include_str!("../../../tests/fixtures/refusals/plant-state-space.toml"),
     );
 
     let modal = r#"
@@ -250,19 +165,7 @@ modes = [ { frequency-hz = 50.0, damping = 0.02, b-u = [1.0], c-y = [2.0], c-z-v
     assert_eq!((m.c_y[(0, 0)], m.c_z[(0, 1)]), (2.0, 0.5));
     assert_refused_naming(
         modal,
-        &[
-            (
-                "b-u = [1.0]",
-                "b-u = [1.0, 2.0]",
-                "plant.modal.modes[0].b-u",
-            ),
-            (
-                "damping = 0.02",
-                "damping = -0.02",
-                "plant.modal.modes[0].damping",
-            ),
-            ("modes = [ {", "modes = [] #", "plant.modal.modes"),
-        ],
+        include_str!("../../../tests/fixtures/refusals/plant-modal.toml"),
     );
 }
 
@@ -503,37 +406,6 @@ fn a_band_limited_disturbance_has_its_rms_and_correlation_at_any_sample_rate() {
 #[test]
 fn bad_band_limited_entries_are_refused() {
     let good = band_file(0.01, 1.0, 5.0, 2);
-    let cases = [
-        (
-            "input = 0, rms",
-            "input = 1, rms",
-            "plant.disturbance.band-limited[0].input",
-        ),
-        (
-            "order = 2",
-            "order = 0",
-            "plant.disturbance.band-limited[0].order",
-        ),
-        (
-            "order = 2",
-            "order = 13",
-            "plant.disturbance.band-limited[0].order",
-        ),
-        (
-            "rms = 1",
-            "rms = -1",
-            "plant.disturbance.band-limited[0].rms",
-        ),
-        (
-            "cutoff-hz = 5",
-            "cutoff-hz = 0",
-            "plant.disturbance.band-limited[0].cutoff-hz",
-        ),
-        (
-            "cutoff-hz = 5",
-            "cutoff-rad-s = 3.0, cutoff-hz = 5",
-            "plant.disturbance.band-limited[0].cutoff-hz",
-        ),
-    ];
-    assert_refused_naming(&good, &cases);
+    let cases = include_str!("../../../tests/fixtures/refusals/plant-band-limited.toml");
+    assert_refused_naming(&good, cases);
 }

@@ -171,6 +171,43 @@ pub trait Controller: Send {
     fn adaptation(&self) -> Option<Adaptation> {
         None
     }
+    /// Freezes (`on` false) or resumes (`on` true) the adaptation on an operator's command:
+    /// a frozen controller keeps computing its law with what it has learned and keeps its
+    /// data histories up to date, but does not update its estimate; the steps it skips are
+    /// counted in [`Adaptation::frozen`], not as suspensions. Returns false, changing
+    /// nothing, for a controller that does not adapt (the default). Same real-time rules
+    /// as `step`.
+    fn set_adaptation(&mut self, _on: bool) -> bool {
+        false
+    }
+    /// The parameters an operator may change while the controller runs, in a fixed order
+    /// ([`Tunable`]); the default declares none.
+    fn tunables(&self) -> &'static [Tunable] {
+        &[]
+    }
+    /// The value of tunable `index` of [`Controller::tunables`] in force (`None` for an
+    /// index out of range, or a tunable this configuration does not use).
+    fn tunable(&self, _index: usize) -> Option<f64> {
+        None
+    }
+    /// Sets tunable `index` to `value`, which the caller checked with [`Tunable::admits`];
+    /// returns false, changing nothing, when this configuration does not use it. Takes
+    /// effect from the next step. Same real-time rules as `step`.
+    fn set_tunable(&mut self, _index: usize, _value: f64) -> bool {
+        false
+    }
+}
+
+/// A parameter an operator may change while a controller runs
+/// ([`Controller::tunables`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Tunable {
+    /// Its name in the configuration (`"alpha"`).
+    pub name: &'static str,
+    /// The values the law admits, as written in the docs (`"(0, 1]"`).
+    pub range: &'static str,
+    /// Whether the law admits `value` (the same check as the parameter's at build time).
+    pub admits: fn(f64) -> bool,
 }
 
 /// How often an adaptive controller's update ran and why it did not
@@ -183,6 +220,9 @@ pub struct Adaptation {
     /// Closed-loop steps whose update was suspended, per cause (a short phrase: "a gap in
     /// its data", "a bad sample").
     pub suspended: Vec<(&'static str, u64)>,
+    /// Closed-loop steps whose update the operator froze ([`Controller::set_adaptation`]):
+    /// neither updated nor suspended.
+    pub frozen: u64,
 }
 
 impl Adaptation {

@@ -59,6 +59,18 @@ impl ExcitationParams {
     /// The seed when a configuration gives none.
     pub const DEFAULT_SEED: u64 = 1;
 
+    /// The parameters for the standard deviations `std` (one per input), with the seed
+    /// [`Self::DEFAULT_SEED`] and no saturation, the defaults of the service's
+    /// `[controller]` table for `kind = "excitation"` (the source checks them,
+    /// [`ExcitationParams::validate`]).
+    pub fn new(std: Vec<f64>) -> Self {
+        Self {
+            std,
+            seed: Self::DEFAULT_SEED,
+            limits: None,
+        }
+    }
+
     /// Checks the parameters against the rig's channels without building anything.
     ///
     /// # Errors
@@ -115,7 +127,12 @@ impl ExcitationSource {
         seed: u64,
         limits: Option<OutputLimits>,
     ) -> Result<Self, ParamError> {
-        Self::from_params(&ExcitationParams { std, seed, limits }, counts)
+        let params = ExcitationParams {
+            seed,
+            limits,
+            ..ExcitationParams::new(std)
+        };
+        Self::from_params(&params, counts)
     }
 
     /// A source for `counts.n_u` inputs, after [`ExcitationParams::validate`].
@@ -255,10 +272,7 @@ mod tests {
 
     #[test]
     fn the_ahead_form_gives_the_inputs_of_step_and_its_plan_is_exact() {
-        let lim = OutputLimits {
-            min: vec![-1.0, -1.0],
-            max: vec![1.0, 1.0],
-        };
+        let lim = OutputLimits::symmetric(1.0, 2);
         let mut a = source(vec![2.0, 0.5], 3, Some(lim.clone())).unwrap();
         let mut b = source(vec![2.0, 0.5], 3, Some(lim)).unwrap();
         let input = zero_input();
@@ -326,10 +340,7 @@ mod tests {
 
     #[test]
     fn reset_repeats_the_sequence_and_limits_clip() {
-        let l = OutputLimits {
-            min: vec![-1.0; 2],
-            max: vec![1.0; 2],
-        };
+        let l = OutputLimits::symmetric(1.0, 2);
         let mut src = source(vec![3.0, 3.0], 1, Some(l)).unwrap();
         let input = zero_input();
         let mut first = Vec::new();

@@ -239,6 +239,16 @@ impl ForgettingRule {
     /// No forgetting, `λ = 1`: the rule when a configuration gives none.
     pub const DEFAULT: ForgettingRule = ForgettingRule::Constant { lambda: 1.0 };
 
+    /// The [`ForgettingRule::FTest`] of the dissertation's PCAC examples: `τ_n = 40`,
+    /// `τ_d = 200`, `η = 0.1`, `α = 0.001`, the settings of the truss (§6) and of the
+    /// sampling arm (§7.3) alike.
+    pub const PCAC_EXAMPLES: ForgettingRule = ForgettingRule::FTest {
+        tau_n: 40,
+        tau_d: 200,
+        eta: 0.1,
+        alpha: 0.001,
+    };
+
     /// Checks the rule for `p` outputs without building anything.
     ///
     /// # Errors

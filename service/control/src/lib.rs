@@ -35,6 +35,28 @@
 //! - [`output_limits`]: [`OutputLimits`] and the one rule that bounds every controller's
 //!   inputs, with the meaning of its `SATURATED` and `CONTROLLER_FAULT` bits.
 //! - [`ParamError`]: what a kernel says when it refuses a parameter.
+//!
+//! # Parameters and their defaults
+//!
+//! Every kernel's parameters start from one place that holds its defaults (those the
+//! service's configuration uses when a table leaves a field out, each documented with
+//! where it comes from), and are checked by the kernel, which names a refused field in a
+//! [`ParamError`]:
+//!
+//! | parameters | from the required settings, defaults for the rest | checked by |
+//! | --- | --- | --- |
+//! | [`pcac::PcacParams`] | [`pcac::PcacParams::builder`]; the dissertation's examples [`pcac::PcacParams::chapter_6`], [`pcac::PcacParams::chapter_7`] | [`pcac::PcacParams::validate`] |
+//! | [`RcacParams`] | [`RcacParams::builder`] ([`RcacBuilder`]), [`RcacParams::new`] | [`RcacBuilder::build`], [`RcacParams::validate`] |
+//! | [`mrac::AppcParams`], [`mrac::RcMracParams`] | their `new`, then [`mrac::MracParams::into_builder`] | [`mrac::MracBuilder::build`], their `validate` |
+//! | [`lti::LtiParams`] | [`lti::LtiParams::builder`] | [`lti::LtiBuilder::build`], [`lti::LtiParams::validate`] |
+//! | [`rls::RlsConfig`] | [`rls::RlsConfig::new`] | [`rls::RlsConfig::checked`] |
+//! | [`arm::controller::ArmControllerParams`] | [`arm::controller::ArmControllerParams::robust_only`] | [`arm::controller::ArmControllerParams::validate`] |
+//! | `excitation::ExcitationParams` | `ExcitationParams::new` | `ExcitationParams::validate` |
+//! | [`mpc::qp::QpSettings`] | [`Default`] | (its limits are the solver's) |
+//! | [`forgetting::ForgettingRule`] | [`forgetting::ForgettingRule::DEFAULT`]; [`forgetting::ForgettingRule::PCAC_EXAMPLES`] | [`forgetting::ForgettingRule::validate`] |
+//!
+//! The small settings structs take the struct update syntax from their defaults
+//! (`RlsConfig { rule, ..RlsConfig::new(n, p, p0) }`).
 
 #![warn(missing_docs)]
 
@@ -69,4 +91,6 @@ pub use excitation::ExcitationSource;
 pub use lti::{ControllerInput, LtiController};
 pub use output_limits::limit_output;
 pub use param_error::ParamError;
-pub use rcac::{GapBridge, GapRule, Rcac, RcacParams, RcacUpdate, StepSize, TargetFilter};
+pub use rcac::{
+    GapBridge, GapRule, Rcac, RcacBuilder, RcacParams, RcacUpdate, StepSize, TargetFilter,
+};

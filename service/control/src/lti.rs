@@ -38,15 +38,30 @@ use crate::controller::{Controller, Dimensions, MAX_INTERNALS, OutputLimits, Ste
 use crate::output_limits::limit_output;
 use nalgebra::{DMatrix, DVector};
 
+pub mod builder;
+
+pub use builder::LtiBuilder;
+
 /// What feeds an [`LtiController`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ControllerInput {
-    /// `e_k = y_k` (disturbance rejection, regulation).
+    /// `e_k = y_k` (disturbance rejection, regulation); the default, as in the service's
+    /// configuration.
+    #[default]
     Y,
     /// `e_k = r_k − y_k` (tracking; needs `n_r = n_y`).
     Error,
     /// `e_k = [y_k; r_k]` (two-degree-of-freedom).
     YAndR,
+}
+
+impl ControllerInput {
+    /// Every kind of controller input.
+    pub const ALL: [ControllerInput; 3] = [
+        ControllerInput::Y,
+        ControllerInput::Error,
+        ControllerInput::YAndR,
+    ];
 }
 
 /// A discrete-time LTI controller in state space, see the module docs.
@@ -191,15 +206,10 @@ impl LtiController {
         counts: Dimensions,
         limits: Option<OutputLimits>,
     ) -> Result<Self, ParamError> {
-        let params = LtiParams {
-            a,
-            b,
-            c,
-            d,
-            x0: None,
-            input,
-            limits,
-        };
+        let params = LtiParams::builder(a, b, c, d)
+            .input(input)
+            .limits(limits)
+            .build(counts)?;
         Self::from_params(&params, counts)
     }
 
@@ -419,17 +429,19 @@ mod tests {
         }
     }
 
+    /// Sample `seq` with the measurements `y` (also the performance `z`) and commands `r`.
+    fn sample<'a>(seq: usize, y: &'a [f64], r: &'a [f64]) -> StepInput<'a> {
+        StepInput {
+            seq: seq as u64,
+            y,
+            z: y,
+            r,
+            ..Default::default()
+        }
+    }
+
     fn step(c: &mut LtiController, y: &[f64], r: &[f64], u: &mut [f64]) -> u32 {
-        c.step(
-            &StepInput {
-                seq: 0,
-                y,
-                z: y,
-                r,
-                ..Default::default()
-            },
-            u,
-        )
+        c.step(&sample(0, y, r), u)
     }
 
     /// The static gain `u = d e` (no states) of one input to one output.
@@ -449,6 +461,19 @@ mod tests {
             limits,
         )
         .unwrap()
+    }
+
+    #[test]
+    fn the_builder_starts_at_the_defaults_and_names_a_refused_field() {
+        let one = || DMatrix::from_element(1, 1, 1.0);
+        let p = LtiParams::builder(one(), one(), one(), one())
+            .build(counts(1, 0, 1))
+            .unwrap();
+        assert_eq!((p.x0, p.input, p.limits), (None, ControllerInput::Y, None));
+        let refused = LtiParams::builder(one(), one(), one(), one())
+            .x0(Some(DVector::zeros(2)))
+            .build(counts(1, 0, 1));
+        assert_eq!(refused.unwrap_err().field, "x0");
     }
 
     #[test]
@@ -477,10 +502,7 @@ mod tests {
 
     #[test]
     fn the_error_input_uses_r_minus_y_and_limits_clip() {
-        let limits = OutputLimits {
-            min: vec![-1.0],
-            max: vec![1.0],
-        };
+        let limits = OutputLimits::symmetric(1.0, 1);
         let mut c = static_gain(10.0, ControllerInput::Error, counts(1, 1, 1), Some(limits));
         let mut u = [0.0];
         assert_eq!(step(&mut c, &[0.0], &[0.05], &mut u), status::OK);
@@ -518,10 +540,7 @@ mod tests {
 
     #[test]
     fn a_non_finite_output_within_limits_is_a_fault_not_a_saturation() {
-        let limits = OutputLimits {
-            min: vec![-1.0],
-            max: vec![1.0],
-        };
+        let limits = OutputLimits::symmetric(1.0, 1);
         let mut c = static_gain(1.0, ControllerInput::Y, counts(1, 0, 1), Some(limits));
         let mut u = [0.0];
         let s = step(&mut c, &[f64::NAN], &[], &mut u);
@@ -533,20 +552,26 @@ mod tests {
     /// A second-order controller with `D = 0`, saturated to ±1, fed by `input`.
     fn strictly_proper(input: ControllerInput, counts: Dimensions) -> LtiController {
         let n_e = LtiParams::input_len(input, counts);
-        let params = LtiParams {
-            a: DMatrix::from_row_slice(2, 2, &[0.9, 0.2, -0.1, 0.7]),
-            b: DMatrix::from_fn(2, n_e, |i, j| 0.5 - 0.3 * i as f64 + 0.2 * j as f64),
-            c: DMatrix::from_row_slice(1, 2, &[1.5, -0.8]),
-            d: DMatrix::zeros(1, n_e),
-            x0: Some(DVector::from_vec(vec![0.1, -0.2])),
-            input,
-            limits: Some(OutputLimits {
-                min: vec![-1.0],
-                max: vec![1.0],
-            }),
-        };
+        let params = LtiParams::builder(
+            DMatrix::from_row_slice(2, 2, &[0.9, 0.2, -0.1, 0.7]),
+            DMatrix::from_fn(2, n_e, |i, j| 0.5 - 0.3 * i as f64 + 0.2 * j as f64),
+            DMatrix::from_row_slice(1, 2, &[1.5, -0.8]),
+            DMatrix::zeros(1, n_e),
+        )
+        .x0(Some(DVector::from_vec(vec![0.1, -0.2])))
+        .input(input)
+        .limits(Some(OutputLimits::symmetric(1.0, 1)))
+        .build(counts)
+        .unwrap();
         assert!(params.answers_ahead());
         LtiController::from_params(&params, counts).unwrap()
+    }
+
+    /// Two equal [`strictly_proper`] controllers fed by `input`, on a rig with one
+    /// measurement, command and input.
+    fn twins(input: ControllerInput) -> (LtiController, LtiController) {
+        let dims = counts(1, 1, 1);
+        (strictly_proper(input, dims), strictly_proper(input, dims))
     }
 
     /// A deterministic test signal.
@@ -559,25 +584,13 @@ mod tests {
     /// included.
     #[test]
     fn the_ahead_inputs_equal_the_step_inputs_for_a_strictly_proper_controller() {
-        for input in [
-            ControllerInput::Y,
-            ControllerInput::Error,
-            ControllerInput::YAndR,
-        ] {
-            let dims = counts(1, 1, 1);
-            let mut stepped = strictly_proper(input, dims);
-            let mut ahead = strictly_proper(input, dims);
+        for input in ControllerInput::ALL {
+            let (mut stepped, mut ahead) = twins(input);
             let (mut u, mut v) = ([0.0], [0.0]);
             let mut saturated = 0;
             for k in 0..500 {
                 let (y, r) = ([wave(k, 0.11)], [0.5 * wave(k, 0.03)]);
-                let sample = StepInput {
-                    seq: k as u64,
-                    y: &y,
-                    z: &y,
-                    r: &r,
-                    ..Default::default()
-                };
+                let sample = sample(k, &y, &r);
                 let s = stepped.step(&sample, &mut u);
                 let a = ahead.ahead().expect("D = 0 answers ahead");
                 let t = a.ready(&mut v);
@@ -608,25 +621,13 @@ mod tests {
     /// predicted state that overflows ends the plan early.
     #[test]
     fn the_plan_is_the_response_with_the_controller_input_at_its_set_point() {
-        for input in [
-            ControllerInput::Y,
-            ControllerInput::Error,
-            ControllerInput::YAndR,
-        ] {
-            let dims = counts(1, 1, 1);
-            let mut planner = strictly_proper(input, dims);
-            let mut follower = strictly_proper(input, dims);
+        for input in ControllerInput::ALL {
+            let (mut planner, mut follower) = twins(input);
             let mut u = [0.0];
             let r_k = [0.4];
             for k in 0..50 {
                 let (y, r) = ([wave(k, 0.11)], if k == 49 { r_k } else { [0.1] });
-                let sample = StepInput {
-                    seq: k as u64,
-                    y: &y,
-                    z: &y,
-                    r: &r,
-                    ..Default::default()
-                };
+                let sample = sample(k, &y, &r);
                 for c in [&mut planner, &mut follower] {
                     c.ready(&mut u);
                     c.advance(&sample, &u, true);

@@ -31,6 +31,14 @@ pub struct OutputLimits {
 }
 
 impl OutputLimits {
+    /// `|u_i| ≤ bound` on each of `n_u` inputs.
+    pub fn symmetric(bound: f64, n_u: usize) -> Self {
+        Self {
+            min: vec![-bound; n_u],
+            max: vec![bound; n_u],
+        }
+    }
+
     /// Checks that there are `n_u` lower and upper limits with `u-min ≤ u-max` (no NaN)
     /// for every input; the error names the field `u-min`.
     pub fn validate(&self, n_u: usize) -> Result<(), ParamError> {

@@ -73,6 +73,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::ParamError;
 use crate::forgetting::{Forgetting, ForgettingRule, cholesky_in_place};
 use crate::linalg::{axpy, dot};
 
@@ -100,35 +101,82 @@ pub struct RlsConfig {
 }
 
 impl RlsConfig {
-    fn validate(&self) -> Result<(), String> {
+    /// The trace limit when a configuration gives none is this many times
+    /// `tr P_0 = n · p0`, as for the RLS inside RCAC and PCAC
+    /// ([`crate::RcacParams::TRACE_LIMIT_FACTOR`]).
+    pub const TRACE_LIMIT_FACTOR: f64 = 1e6;
+
+    /// The configuration for `n` parameters, `p` outputs and `P_0 = p0 · I`, with
+    /// `θ_0 = 0`, no forgetting ([`ForgettingRule::DEFAULT`]) and the trace limit
+    /// [`Self::TRACE_LIMIT_FACTOR`] `· n · p0`; change them with the struct update syntax
+    /// and check the result with [`RlsConfig::checked`].
+    pub fn new(n: usize, p: usize, p0: f64) -> Self {
+        Self {
+            n,
+            p,
+            theta0: vec![0.0; n],
+            p0,
+            rule: ForgettingRule::DEFAULT,
+            trace_limit: Self::TRACE_LIMIT_FACTOR * n as f64 * p0,
+        }
+    }
+
+    /// The configuration, checked.
+    ///
+    /// # Errors
+    ///
+    /// The first refused field: `"n"` (`n = 0` or `p = 0`), `"theta0"` (not `n` finite
+    /// values), `"p0"` (not positive and finite), `"trace-limit"` (not above
+    /// `tr P_0 = n · p0`), or the forgetting rule's field ([`ForgettingRule::validate`]).
+    pub fn checked(self) -> Result<Self, ParamError> {
+        self.check()?;
+        self.rule.validate(self.p)?;
+        Ok(self)
+    }
+
+    /// The checks of [`RlsConfig::checked`] but the forgetting rule's.
+    fn check(&self) -> Result<(), ParamError> {
         if self.n == 0 || self.p == 0 {
-            return Err(format!(
-                "rls: n = {} and p = {} must be positive",
-                self.n, self.p
+            return Err(ParamError::new(
+                "n",
+                format!("n = {} and p = {} must be positive", self.n, self.p),
             ));
         }
         if self.theta0.len() != self.n {
-            return Err(format!(
-                "rls: theta0 has length {}, expected n = {}",
-                self.theta0.len(),
-                self.n
+            return Err(ParamError::new(
+                "theta0",
+                format!(
+                    "theta0 has length {}, expected n = {}",
+                    self.theta0.len(),
+                    self.n
+                ),
             ));
         }
         if self.theta0.iter().any(|x| !x.is_finite()) {
-            return Err("rls: theta0 must be finite".into());
+            return Err(ParamError::new("theta0", "theta0 must be finite"));
         }
         if !(self.p0 > 0.0 && self.p0.is_finite()) {
-            return Err(format!("rls: p0 = {} must be positive and finite", self.p0));
+            return Err(ParamError::new(
+                "p0",
+                format!("p0 = {} must be positive and finite", self.p0),
+            ));
         }
         let trace0 = self.n as f64 * self.p0;
         if self.trace_limit.is_nan() || self.trace_limit <= trace0 {
-            return Err(format!(
-                "rls: trace_limit = {} must exceed tr(P0) = {}",
-                self.trace_limit,
-                self.n as f64 * self.p0
+            return Err(ParamError::new(
+                "trace-limit",
+                format!(
+                    "trace_limit = {} must exceed tr(P0) = {}",
+                    self.trace_limit, trace0
+                ),
             ));
         }
         Ok(())
+    }
+
+    /// [`RlsConfig::check`] as the constructors report it (`"rls: "` and the message).
+    fn validate(&self) -> Result<(), String> {
+        self.check().map_err(|e| format!("rls: {}", e.message))
     }
 }
 
@@ -297,16 +345,13 @@ impl Rls {
         // step) and G = P_k φᵀ, in one sweep over the packed upper triangle of P. The sweep
         // also checks every new entry: a non-finite off-diagonal entry of P_k (its diagonal
         // was checked in the previous step) is caught here.
-        let finite = simd::fused_pass(
-            self.level,
-            &mut self.cov,
-            &self.w_pend,
-            self.beta_pend,
-            phi,
-            &mut self.g,
+        let pending = simd::Pending {
+            w: &self.w_pend,
+            beta: self.beta_pend,
             n,
             p,
-        );
+        };
+        let finite = simd::fused_pass(self.level, &mut self.cov, pending, phi, &mut self.g);
         if !finite {
             return self.fail(lambda, error_norm);
         }
@@ -355,8 +400,16 @@ impl Rls {
 
         // P_{k+1} = β P_k − W Wᵀ is deferred to the next sweep; its diagonal (O(n p)) is
         // computed now, exactly as the sweep will store it, for the guard and tr(P).
-        let (trace, min_diag, diag_ok) =
-            simd::next_diag(self.level, &self.cov, &self.g, beta, n, p);
+        let (trace, min_diag, diag_ok) = simd::next_diag(
+            self.level,
+            &self.cov,
+            simd::Pending {
+                w: &self.g,
+                beta,
+                n,
+                p,
+            },
+        );
         if !guard_passes(&self.theta, diag_ok, min_diag, trace, self.trace_limit) {
             return self.fail(lambda, error_norm);
         }
@@ -596,13 +649,38 @@ mod tests {
 
     fn cfg(n: usize, p: usize, p0: f64, rule: ForgettingRule) -> RlsConfig {
         RlsConfig {
-            n,
-            p,
-            theta0: vec![0.0; n],
-            p0,
             rule,
             trace_limit: f64::INFINITY,
+            ..RlsConfig::new(n, p, p0)
         }
+    }
+
+    #[test]
+    fn the_configuration_starts_at_the_defaults_and_names_a_refused_field() {
+        let c = RlsConfig::new(4, 2, 10.0);
+        assert_eq!(
+            (c.theta0.clone(), c.rule.clone()),
+            (vec![0.0; 4], ForgettingRule::DEFAULT)
+        );
+        assert_eq!(c.trace_limit, 1e6 * 4.0 * 10.0);
+        assert_eq!(c.checked().map(|c| c.n), Ok(4));
+        let field = |c: RlsConfig| c.checked().unwrap_err().field;
+        assert_eq!(field(RlsConfig::new(0, 1, 1.0)), "n");
+        assert_eq!(field(RlsConfig::new(2, 1, -1.0)), "p0");
+        let tight = RlsConfig {
+            trace_limit: 2.0,
+            ..RlsConfig::new(2, 1, 1.0)
+        };
+        assert_eq!(field(tight), "trace-limit");
+        let forgetting = RlsConfig {
+            rule: ForgettingRule::Constant { lambda: 0.0 },
+            ..RlsConfig::new(2, 1, 1.0)
+        };
+        assert_eq!(field(forgetting), "forgetting.lambda");
+        assert_eq!(
+            Rls::new(&RlsConfig::new(0, 1, 1.0)).unwrap_err(),
+            "rls: n = 0 and p = 1 must be positive"
+        );
     }
 
     fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
@@ -813,10 +891,13 @@ mod tests {
                 // The sweep itself reports it (S would also fail to factor, as ∞·0 = NaN).
                 let mut pk = rls.cov.clone();
                 let mut gg = vec![0.0; n * p];
-                let (w, beta) = (&rls.w_pend, rls.beta_pend);
-                assert!(!simd::fused_pass(
-                    level, &mut pk, w, beta, &phi, &mut gg, n, p
-                ));
+                let pending = simd::Pending {
+                    w: &rls.w_pend,
+                    beta: rls.beta_pend,
+                    n,
+                    p,
+                };
+                assert!(!simd::fused_pass(level, &mut pk, pending, &phi, &mut gg));
                 let st = rls.update(&phi, &vec![1.0; p]);
                 assert!(st.reset, "level {level:?}, p = {p}: {st:?}");
                 assert_eq!(rls.resets(), 1);

@@ -91,10 +91,7 @@ pub fn siso_mpc_spec(horizon: usize, q: f64, r: f64, u_max: f64, du_max: f64) ->
         r: Weight::Scalar(r),
         u_min: vec![-u_max],
         u_max: vec![u_max],
-        move_bounds: Some(MoveBounds {
-            min: vec![-du_max],
-            max: vec![du_max],
-        }),
+        move_bounds: Some(MoveBounds::symmetric(du_max, 1)),
         output_constraints: None,
     }
 }

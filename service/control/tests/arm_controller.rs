@@ -47,14 +47,7 @@ fn robust_and_pcac_drive_chi_to_zero_on_the_linear_surface() {
     let k = test_gain();
     assert!(closed_loop_radius(&k, surface.k_s, surface.c_s) < 1.0);
     let mut robust = ArmController::new(&ArmControllerParams::robust_only(k), rig()).unwrap();
-    let mut augmented = ArmController::new(
-        &ArmControllerParams {
-            pcac: Some(chapter_pcac()),
-            ..ArmControllerParams::robust_only(k)
-        },
-        rig(),
-    )
-    .unwrap();
+    let mut augmented = augmented_with(k);
     let samples = 4000; // the 2 s contact phase
     for (name, c) in [("robust", &mut robust), ("robust + PCAC", &mut augmented)] {
         let chi = contact_run(c, surface, samples);
@@ -105,14 +98,7 @@ fn out_of_contact_the_joints_hold_the_latched_angles() {
 #[test]
 fn a_bad_sample_holds_the_last_torques_and_teaches_pcac_nothing() {
     let k = test_gain();
-    let mut c = ArmController::new(
-        &ArmControllerParams {
-            pcac: Some(chapter_pcac()),
-            ..ArmControllerParams::robust_only(k)
-        },
-        rig(),
-    )
-    .unwrap();
+    let mut c = augmented_with(k);
     let sc = Spacecraft::at_contact(Surface {
         k_s: 2.0e5,
         c_s: 5.0,
@@ -178,10 +164,7 @@ fn torque_limits_clip_and_pcac_learns_from_the_clipped_input() {
     let k = test_gain();
     let params = ArmControllerParams {
         pcac: Some(chapter_pcac()),
-        limits: Some(OutputLimits {
-            min: vec![-20.0; 2],
-            max: vec![20.0; 2],
-        }),
+        limits: Some(OutputLimits::symmetric(20.0, 2)),
         ..ArmControllerParams::robust_only(k)
     };
     let mut c = ArmController::new(&params, rig()).unwrap();
@@ -216,14 +199,7 @@ fn torque_limits_clip_and_pcac_learns_from_the_clipped_input() {
 #[test]
 fn a_second_contact_with_another_surface_makes_lambda_drop_at_once() {
     let k = test_gain();
-    let mut c = ArmController::new(
-        &ArmControllerParams {
-            pcac: Some(chapter_pcac()),
-            ..ArmControllerParams::robust_only(k)
-        },
-        rig(),
-    )
-    .unwrap();
+    let mut c = augmented_with(k);
     // §7.3.3: first surface k_s = 2·10⁵, c_s = 5; the second k_s = 200, c_s = 500.
     let first = Surface {
         k_s: 2.0e5,
@@ -311,14 +287,11 @@ fn with_the_lmi_gain_pcac_reaches_the_force_the_robust_controller_misses_on_a_so
     };
     let mut medians = Vec::new();
     for pcac in [false, true] {
-        let mut c = ArmController::new(
-            &ArmControllerParams {
-                pcac: pcac.then(chapter_pcac),
-                ..ArmControllerParams::robust_only(k)
-            },
-            rig(),
-        )
-        .unwrap();
+        let params = ArmControllerParams {
+            pcac: pcac.then(chapter_pcac),
+            ..ArmControllerParams::robust_only(k)
+        };
+        let mut c = ArmController::new(&params, rig()).unwrap();
         let chi = contact_run(&mut c, surface, 4000);
         let mut force: Vec<f64> = chi.iter().map(|c| c[2] + F_D).collect();
         force.sort_by(f64::total_cmp);

@@ -55,12 +55,11 @@
 #![allow(clippy::needless_range_loop)]
 
 use control::arm::controller::{ArmController, ArmControllerParams, JointHold};
-use control::arm::dynamics::ArmParams;
 use control::forgetting::ForgettingRule;
 use control::mpc::condense::{MoveBounds, Weight};
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
 use control::pcac::{OutputFeedback, Pcac, PcacParams, PcacTiming};
-use control::rcac::{Rcac, RcacParams, RcacUpdate, StepSize};
+use control::rcac::{Rcac, RcacParams, RcacUpdate};
 use control::target::{TargetForm, TargetModel};
 use control::{
     Controller, ControllerInput, Dimensions, LtiController, MAX_INTERNALS, OutputLimits, StepInput,
@@ -112,10 +111,7 @@ const TS: f64 = 0.01;
 const U_MAX: f64 = 1.5;
 
 fn limits() -> Option<OutputLimits> {
-    Some(OutputLimits {
-        min: vec![-U_MAX],
-        max: vec![U_MAX],
-    })
+    Some(OutputLimits::symmetric(U_MAX, 1))
 }
 
 const LIMITS: Option<(&[f64], &[f64])> = Some((&[-U_MAX], &[U_MAX]));
@@ -158,28 +154,23 @@ fn excitation() -> Box<dyn Controller> {
     Box::new(c)
 }
 
-/// SISO RCAC parameters: `n_c = 4`, target `G_f = 0.1 z^{−1}` (the plant's first Markov
-/// parameter), `R_z = 1`, `R_u = 0`.
-fn rcac_params(update: RcacUpdate, limits: Option<OutputLimits>) -> RcacParams {
-    RcacParams {
-        nc: 4,
-        kw: None,
-        target: TargetModel {
-            sample_period: TS,
-            outputs: 1,
-            inputs: 1,
-            beta: 1.0,
-            source: "conformance".into(),
-            form: TargetForm::Markov(vec![DMatrix::zeros(1, 1), DMatrix::from_element(1, 1, 0.1)]),
-        },
-        rz: DMatrix::identity(1, 1),
-        ru: DMatrix::zeros(1, 1),
-        theta0: None,
-        update,
-        limits,
+/// SISO RCAC: `n_c = 4`, target `G_f = 0.1 z^{−1}` (the plant's first Markov
+/// parameter), `R_z = 1`, `R_u = 0` (the defaults), with `update` and `limits`.
+fn rcac(update: RcacUpdate, limits: Option<OutputLimits>) -> Box<dyn Controller> {
+    let target = TargetModel {
         sample_period: TS,
-        gap_rule: RcacParams::DEFAULT_GAP_RULE,
-    }
+        outputs: 1,
+        inputs: 1,
+        beta: 1.0,
+        source: "conformance".into(),
+        form: TargetForm::Markov(vec![DMatrix::zeros(1, 1), DMatrix::from_element(1, 1, 0.1)]),
+    };
+    let counts = Dimensions::new(1, 1, 0, 1);
+    let params = RcacParams::builder(target, 4, update)
+        .limits(limits)
+        .build(counts)
+        .expect("valid RCAC parameters");
+    Box::new(Rcac::new(&params, counts).expect("valid RCAC parameters"))
 }
 
 /// RCAC with RLS (F-test forgetting), saturated.
@@ -194,21 +185,12 @@ fn rcac_rls() -> Box<dyn Controller> {
         },
         trace_limit: 1e6,
     };
-    let c = Rcac::new(&rcac_params(update, limits()), Dimensions::new(1, 1, 0, 1))
-        .expect("valid RCAC parameters");
-    Box::new(c)
+    rcac(update, limits())
 }
 
 /// RCAC with the gradient update (`μ_Exp`, α = 0.5), without limits.
 fn rcac_gradient() -> Box<dyn Controller> {
-    let update = RcacUpdate::Gradient {
-        step_size: StepSize::Exp,
-        alpha: 0.5,
-        r: 0.0,
-    };
-    let c = Rcac::new(&rcac_params(update, None), Dimensions::new(1, 1, 0, 1))
-        .expect("valid RCAC parameters");
-    Box::new(c)
+    rcac(RcacUpdate::gradient(0.5), None)
 }
 
 /// SISO PCAC: `n̂ = 4`, F-test forgetting, horizon 10, input and move bounds, tracking
@@ -243,10 +225,7 @@ fn pcac_params(timing: PcacTiming) -> PcacParams {
         .q(Weight::Scalar(1e2))
         .r(Weight::Scalar(1.0))
         .input_bounds(vec![-U_MAX], vec![U_MAX])
-        .move_bounds(Some(MoveBounds {
-            min: vec![-0.3],
-            max: vec![0.3],
-        }))
+        .move_bounds(Some(MoveBounds::symmetric(0.3, 1)))
         .timing(timing)
         .build()
 }
@@ -277,17 +256,13 @@ const ARM_LIMITS: Option<(&[f64], &[f64])> =
 fn arm_params(pcac: bool) -> ArmControllerParams {
     let pcac = pcac.then(arm_support::chapter_pcac);
     ArmControllerParams {
-        arm: ArmParams::CHAPTER_7,
-        robust_gain: [-0.3, 0.0, 0.0, 0.0, -0.3, 0.01],
         hold: JointHold {
             kp: [0.5, 0.5],
             kd: [0.2, 0.2],
         },
         pcac,
-        limits: Some(OutputLimits {
-            min: vec![-ARM_TAU_MAX; 2],
-            max: vec![ARM_TAU_MAX; 2],
-        }),
+        limits: Some(OutputLimits::symmetric(ARM_TAU_MAX, 2)),
+        ..ArmControllerParams::robust_only([-0.3, 0.0, 0.0, 0.0, -0.3, 0.01])
     }
 }
 
@@ -451,9 +426,12 @@ const BAD_VALUES: [f64; 6] = [
     1e150,
 ];
 
+/// The signals `(y, z, r)` of a sample.
+type Signals = (Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// `(y, z, r)` with the bad value `v` in every signal (`everywhere`), or in `y` only with
 /// good `z` and `r`.
-fn bad_signals(counts: Dimensions, v: f64, everywhere: bool) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+fn bad_signals(counts: Dimensions, v: f64, everywhere: bool) -> Signals {
     if everywhere {
         (
             vec![v; counts.n_y],
@@ -467,6 +445,24 @@ fn bad_signals(counts: Dimensions, v: f64, everywhere: bool) -> (Vec<f64>, Vec<f
             vec![0.0; counts.n_r],
         )
     }
+}
+
+/// Sample `i` of the burst after the bad values: 20 NaN samples, then alternating
+/// `±10³⁰⁰`, in `y` and `z` (`r = 0`); returns the value and `(y, z, r)`.
+fn burst_sample(counts: Dimensions, i: usize) -> (f64, Signals) {
+    let v = if i < 20 {
+        f64::NAN
+    } else if i.is_multiple_of(2) {
+        1e300
+    } else {
+        -1e300
+    };
+    let signals = (
+        vec![v; counts.n_y],
+        vec![v; counts.n_z],
+        vec![0.0; counts.n_r],
+    );
+    (v, signals)
 }
 
 /// The signals of sample `seq`, answered on time: no sample lost, no applied input
@@ -528,16 +524,7 @@ fn bad_measurements_leave_u_finite(kind: &Kind) {
     }
     // A burst of NaN samples, then alternating huge values.
     for i in 0..40 {
-        let v = if i < 20 {
-            f64::NAN
-        } else if i % 2 == 0 {
-            1e300
-        } else {
-            -1e300
-        };
-        let y = vec![v; counts.n_y];
-        let z = vec![v; counts.n_z];
-        let r = vec![0.0; counts.n_r];
+        let (v, (y, z, r)) = burst_sample(counts, i);
         c.step(&on_time(seq, &y, &z, &r), &mut u);
         assert_admissible(kind, &u, &format!("burst sample {i} (y = {v})"));
         seq += 1;
@@ -826,18 +813,7 @@ fn bad_measurements_leave_the_ready_input_and_the_plan_finite(kind: &Kind) {
         seq += 1;
     }
     for i in 0..40 {
-        let v = if i < 20 {
-            f64::NAN
-        } else if i % 2 == 0 {
-            1e300
-        } else {
-            -1e300
-        };
-        let (y, z, r) = (
-            vec![v; counts.n_y],
-            vec![v; counts.n_z],
-            vec![0.0; counts.n_r],
-        );
+        let (v, (y, z, r)) = burst_sample(counts, i);
         let (_, _, rows) = ahead_cycle(
             c.as_mut(),
             &on_time(seq, &y, &z, &r),

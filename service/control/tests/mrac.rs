@@ -166,6 +166,22 @@ struct Run {
     statuses: Vec<u32>,
 }
 
+/// One step of the SISO controller `c` at sample `k` with `y` and `r`, on time (no loss,
+/// no reported input); returns `u` and the status.
+fn step_on_time(c: &mut dyn Controller, k: usize, y: f64, r: f64) -> ([f64; 1], u32) {
+    let mut u = [0.0];
+    let input = StepInput {
+        seq: k as u64,
+        y: &[y],
+        z: &[y],
+        r: &[r],
+        u_applied: None,
+        lost: 0,
+    };
+    let st = c.step(&input, &mut u);
+    (u, st)
+}
+
 fn run(
     c: &mut dyn Controller,
     plant: &mut Plant,
@@ -193,18 +209,7 @@ fn run(
     for k in 0..steps {
         let y = plant.output();
         let r = command(k);
-        let mut u = [0.0];
-        let st = c.step(
-            &StepInput {
-                seq: k as u64,
-                y: &[y],
-                z: &[y],
-                r: &[r],
-                u_applied: None,
-                lost: 0,
-            },
-            &mut u,
-        );
+        let (u, st) = step_on_time(c, k, y, r);
         plant.apply(u[0]);
         c.internals(&mut internals);
         out.y.push(y);
@@ -364,6 +369,41 @@ fn rc_mrac_theta_star(ex: &Example) -> Vec<f64> {
 // True coefficients: the performance variables are zero and the closed loop is (4.20),
 // (4.56).
 
+/// A run started at the true coefficients `θ*` (relative to `scale`): the performance
+/// `z.0` (from the recorded signals, by equation `z.1`) and `ẑ` vanish and every status is
+/// OK; `θ̂` stays at `θ*`; `y` is the closed loop's `want` and `e` vanishes.
+fn assert_exact(
+    out: &Run,
+    z: (&[f64], &str),
+    theta_hat: &[f64],
+    theta: &[f64],
+    want: &[f64],
+    scale: f64,
+) {
+    let (z, eq) = z;
+    for k in 0..200 {
+        assert!(z[k].abs() < 1e-12 * scale, "{eq} z_{k} = {:e}", z[k]);
+        assert!(
+            out.zhat[k].abs() < 1e-10 * scale,
+            "ẑ_{k} = {:e}",
+            out.zhat[k]
+        );
+        assert_eq!(out.statuses[k], status::OK);
+    }
+    for (t, w) in theta_hat.iter().zip(theta) {
+        assert!((t - w).abs() < 1e-9, "θ̂ {t} vs θ* {w}");
+    }
+    for k in 0..200 {
+        assert!(
+            (out.y[k] - want[k]).abs() < 1e-10 * scale,
+            "y_{k}: {} vs {}",
+            out.y[k],
+            want[k]
+        );
+        assert!(out.e[k].abs() < 1e-10 * scale, "e_{k} = {:e}", out.e[k]);
+    }
+}
+
 #[test]
 fn appc_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_20() {
     for ex in [
@@ -390,31 +430,12 @@ fn appc_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4_20
         let ncy = fir(&nc, &out.y);
         let dcu = fir(&dc, &out.u);
         let scale = max_abs(&out.u).max(max_abs(&out.y));
-        for k in 0..200 {
-            let z = lhs[k] - (out.u[k] - ncy[k] - dcu[k]);
-            assert!(z.abs() < 1e-12 * scale, "(4.33) z_{k} = {z:e}");
-            assert!(
-                out.zhat[k].abs() < 1e-10 * scale,
-                "ẑ_{k} = {:e}",
-                out.zhat[k]
-            );
-            assert_eq!(out.statuses[k], status::OK);
-        }
-        // The estimate stays at θ*.
-        for (t, w) in c.theta().iter().zip(&theta) {
-            assert!((t - w).abs() < 1e-9, "θ̂ {t} vs θ* {w}");
-        }
+        let z: Vec<f64> = (0..200)
+            .map(|k| lhs[k] - (out.u[k] - ncy[k] - dcu[k]))
+            .collect();
         // The closed loop is y = N/D_m r (4.20), so e = 0 with N_m = N.
         let want = tf(&ex.num, &ex.d_m, &out.r);
-        for k in 0..200 {
-            assert!(
-                (out.y[k] - want[k]).abs() < 1e-10 * scale,
-                "y_{k}: {} vs {}",
-                out.y[k],
-                want[k]
-            );
-            assert!(out.e[k].abs() < 1e-10 * scale, "e_{k} = {:e}", out.e[k]);
-        }
+        assert_exact(&out, (&z, "(4.33)"), c.theta(), &theta, &want, scale);
     }
 }
 
@@ -446,31 +467,11 @@ fn rc_mrac_with_the_true_coefficients_has_zero_performance_and_the_closed_loop_4
         let nuq = [&[0.0][..], &ex.n_u[..]].concat(); // N_{n_r} N_u q^{−1}
         let second = fir(&nuq, &bracket);
         let scale = max_abs(&out.u).max(max_abs(&out.y)).max(1.0);
-        for k in 0..200 {
-            let z = zf[k] - second[k];
-            assert!(z.abs() < 1e-12 * scale, "(4.66) z_{k} = {z:e}");
-            assert!(
-                out.zhat[k].abs() < 1e-10 * scale,
-                "ẑ_{k} = {:e}",
-                out.zhat[k]
-            );
-            assert_eq!(out.statuses[k], status::OK);
-        }
-        for (t, w) in c.theta().iter().zip(&theta) {
-            assert!((t - w).abs() < 1e-9, "θ̂ {t} vs θ* {w}");
-        }
+        let z: Vec<f64> = (0..200).map(|k| zf[k] - second[k]).collect();
         // (4.56): y = N_{n_r} N_u R_c q^{−n_r} / D_m r = N/D_m r.
         let num_cl = poly::mul(&nuq, &ex.n_s);
         let want = tf(&num_cl, &ex.d_m, &out.r);
-        for k in 0..200 {
-            assert!(
-                (out.y[k] - want[k]).abs() < 1e-10 * scale,
-                "y_{k}: {} vs {}",
-                out.y[k],
-                want[k]
-            );
-            assert!(out.e[k].abs() < 1e-10 * scale, "e_{k} = {:e}", out.e[k]);
-        }
+        assert_exact(&out, (&z, "(4.66)"), c.theta(), &theta, &want, scale);
     }
 }
 
@@ -739,18 +740,7 @@ fn a_non_finite_sample_holds_the_input_with_a_fault_and_the_loop_goes_on() {
             if k == 150 {
                 r = f64::INFINITY;
             }
-            let mut u = [0.0];
-            let st = c.step(
-                &StepInput {
-                    seq: k as u64,
-                    y: &[y],
-                    z: &[y],
-                    r: &[r],
-                    u_applied: None,
-                    lost: 0,
-                },
-                &mut u,
-            );
+            let (u, st) = step_on_time(c.as_mut(), k, y, r);
             if k == 120 || k == 150 {
                 assert_eq!(st, status::CONTROLLER_FAULT, "{} at {k}", c.kind());
                 assert_eq!(u[0], last, "{}: the input is held", c.kind());
@@ -853,18 +843,7 @@ fn example3_e_norm(n: usize, n_s: usize) -> f64 {
     let mut internals = [0.0; control::MAX_INTERNALS];
     for k in 0..201 {
         let y = plant.output();
-        let mut u = [0.0];
-        let st = c.step(
-            &StepInput {
-                seq: k as u64,
-                y: &[y],
-                z: &[y],
-                r: &[1.0],
-                u_applied: None,
-                lost: 0,
-            },
-            &mut u,
-        );
+        let (u, st) = step_on_time(&mut c, k, y, 1.0);
         assert_eq!(st, status::OK);
         plant.apply(u[0] + (0.35 * k as f64).sin());
         c.internals(&mut internals);

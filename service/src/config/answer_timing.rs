@@ -18,9 +18,12 @@
 //! A controller whose input for sample `k` needs `y_k` (an LTI controller with `D ≠ 0`,
 //! PCAC's same-step timing) has no ahead form ([`control::ahead`]) and can only answer
 //! compute-first; asking it for another timing, or for a plan, is refused naming the
-//! field. Plans come with the ahead timings: compute-first sends none.
+//! field. Plans come with the ahead timings: compute-first sends none. The rules are
+//! [`timing_rules::resolve_timing`] and [`timing_rules::plan_length`]; this module reads the
+//! fields and words the refusals.
 
 use super::{ConfigError, ControllerConfig, ErrFn};
+use ipc_types::timing_rules::{self, PlanLengthRefusal, TimingChoice};
 use ipc_types::{MAX_PLAN, Timing};
 
 /// When the service answers and how long its plans are, validated against the controller.
@@ -41,24 +44,10 @@ pub(super) fn parse(
     err: &ErrFn<'_>,
 ) -> Result<AnswerTiming, ConfigError> {
     let ahead = controller.answers_ahead();
-    let timing = match timing.unwrap_or("compute-first") {
-        "auto" if ahead => Timing::SendAhead,
-        "auto" => Timing::ComputeFirst,
+    let choice = match timing.unwrap_or("compute-first") {
+        "auto" => TimingChoice::Auto,
         name => match Timing::from_name(name) {
-            Some(t) if t == Timing::ComputeFirst || ahead => t,
-            Some(t) => {
-                return Err(err(
-                    "service.timing",
-                    format!(
-                        "\"{}\" needs a controller whose input for sample k is ready before \
-                         sample k arrives; this {} controller needs y_k for u_k ({}), so it \
-                         answers \"compute-first\" (or use \"auto\")",
-                        t.name(),
-                        controller.kind_name(),
-                        controller.why_not_ahead()
-                    ),
-                ));
-            }
+            Some(t) => TimingChoice::Fixed(t),
             None => {
                 return Err(err(
                     "service.timing",
@@ -70,24 +59,35 @@ pub(super) fn parse(
             }
         },
     };
-    let plan_length = plan_length.unwrap_or(0);
-    if plan_length > MAX_PLAN as u64 {
-        return Err(err(
+    let timing = timing_rules::resolve_timing(choice, ahead).map_err(|t| {
+        err(
+            "service.timing",
+            format!(
+                "\"{}\" needs a controller whose input for sample k is ready before \
+                 sample k arrives; this {} controller needs y_k for u_k ({}), so it \
+                 answers \"compute-first\" (or use \"auto\")",
+                t.name(),
+                controller.kind_name(),
+                controller.why_not_ahead()
+            ),
+        )
+    })?;
+    let requested = plan_length.unwrap_or(0);
+    let plan_length = timing_rules::plan_length(requested, timing).map_err(|r| match r {
+        PlanLengthRefusal::PastCapacity => err(
             "service.plan-length",
-            format!("{plan_length} entries: an actuation carries at most {MAX_PLAN}"),
-        ));
-    }
-    if plan_length > 0 && timing == Timing::ComputeFirst {
-        return Err(err(
+            format!("{requested} entries: an actuation carries at most {MAX_PLAN}"),
+        ),
+        PlanLengthRefusal::ComputeFirst => err(
             "service.plan-length",
             "plans come with the timings \"answer-first\" and \"send-ahead\"; this service \
              answers \"compute-first\", so it sends none (set plan-length = 0)"
                 .into(),
-        ));
-    }
+        ),
+    })?;
     Ok(AnswerTiming {
         timing,
-        plan_length: plan_length as usize,
+        plan_length,
     })
 }
 
@@ -137,29 +137,9 @@ mod tests {
 
     #[test]
     fn timings_and_plans_the_controller_cannot_give_are_refused_naming_the_field() {
-        let cases = &[(
-            "[service]",
-            "[service]\ntiming = \"send-ahead\"",
-            "service.timing",
-        )];
+        let cases = include_str!("../../../tests/fixtures/refusals/service-timing.toml");
         assert_refused_naming_fields(FEEDTHROUGH, "t.toml", cases);
-        let cases = &[
-            (
-                "[service]",
-                "[service]\ntiming = \"ahead\"",
-                "service.timing",
-            ),
-            (
-                "[service]",
-                "[service]\nplan-length = 65",
-                "service.plan-length",
-            ),
-            (
-                "[service]",
-                "[service]\ntiming = \"compute-first\"\nplan-length = 4",
-                "service.plan-length",
-            ),
-        ];
+        let cases = include_str!("../../../tests/fixtures/refusals/service-timing-next-step.toml");
         assert_refused_naming_fields(NEXT_STEP, "t.toml", cases);
         let m = ServiceConfig::parse(&with(FEEDTHROUGH, "timing = \"answer-first\""), "t.toml")
             .expect_err("refused")

@@ -47,9 +47,9 @@ use super::robust_gain_file::RobustGainFile;
 use super::values::{ScalarOrVec, magnitudes, per_channel};
 use super::{ConfigError, ErrFn};
 use control::arm::controller::{ArmControllerParams, JointHold};
-use control::arm::dynamics::ArmParams;
 use control::arm::feedback_linearization::{ContactPrior, FeedbackLinearization};
 use control::{Dimensions, ParamError};
+use rig_scenario::spacecraft::SpacecraftTable;
 use serde::Deserialize;
 use std::path::Path;
 
@@ -59,7 +59,7 @@ pub(super) struct RawArm {
     #[allow(dead_code)]
     kind: String,
     robust_gain: Option<RawGain>,
-    arm: Option<RawSpacecraft>,
+    arm: Option<SpacecraftTable>,
     hold: Option<RawHold>,
     pcac: Option<toml::Value>,
     u_min: Option<ScalarOrVec>,
@@ -72,21 +72,6 @@ pub(super) struct RawArm {
 enum RawGain {
     File(String),
     Inline(Vec<Vec<f64>>),
-}
-
-#[derive(Deserialize, Default)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
-struct RawSpacecraft {
-    m_sc: Option<f64>,
-    m1: Option<f64>,
-    m2: Option<f64>,
-    m_s: Option<f64>,
-    l1: Option<f64>,
-    l2: Option<f64>,
-    r1: Option<f64>,
-    r2: Option<f64>,
-    i1: Option<f64>,
-    i2: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -116,7 +101,7 @@ pub(super) fn parse(
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
     let robust_gain = robust_gain(raw.robust_gain, rig, err)?;
-    let arm = spacecraft(raw.arm.unwrap_or_default());
+    let arm = raw.arm.unwrap_or_default().params();
     let hold = raw.hold.unwrap_or_default();
     let d = JointHold::DEFAULT;
     let hold = JointHold {
@@ -194,23 +179,6 @@ fn robust_gain(
             }
             Ok(file.gain())
         }
-    }
-}
-
-/// The spacecraft: §7.3's values where the table gives none.
-fn spacecraft(raw: RawSpacecraft) -> ArmParams {
-    let d = ArmParams::CHAPTER_7;
-    ArmParams {
-        m_sc: raw.m_sc.unwrap_or(d.m_sc),
-        m1: raw.m1.unwrap_or(d.m1),
-        m2: raw.m2.unwrap_or(d.m2),
-        m_s: raw.m_s.unwrap_or(d.m_s),
-        l1: raw.l1.unwrap_or(d.l1),
-        l2: raw.l2.unwrap_or(d.l2),
-        r1: raw.r1.unwrap_or(d.r1),
-        r2: raw.r2.unwrap_or(d.r2),
-        i1: raw.i1.unwrap_or(d.i1),
-        i2: raw.i2.unwrap_or(d.i2),
     }
 }
 
@@ -359,6 +327,7 @@ mod tests {
     use super::super::refusal_cases::assert_refused_naming_fields;
     use super::super::{RobustGainFile, ServiceConfig};
     use super::*;
+    use control::arm::dynamics::ArmParams;
     use control::mpc::condense::Weight;
     use control::pcac::PcacTiming;
     use std::path::PathBuf;
@@ -480,86 +449,8 @@ mod tests {
         let dir = folder("refused");
         let o = origin(&dir);
         let base = format!("{RIG}{PCAC_FILE}");
-        let cases = [
-            (
-                "robust-gain = \"robust-gain.toml\"",
-                "robust-gain = \"nope.toml\"",
-                "controller.robust-gain",
-            ),
-            (
-                "robust-gain = \"robust-gain.toml\"",
-                "robust-gain = \"other-gain.toml\"",
-                "controller.robust-gain",
-            ),
-            (
-                "robust-gain = \"robust-gain.toml\"",
-                "robust-gain = [[1.0, 2.0], [3.0, 4.0]]",
-                "controller.robust-gain",
-            ),
-            (
-                "robust-gain = \"robust-gain.toml\"",
-                "",
-                "controller.robust-gain",
-            ),
-            ("l1 = 2.0", "l1 = -2.0", "controller.arm.l1"),
-            ("l1 = 2.0", "l1 = 2.0\nl3 = 1.0", "controller"),
-            ("kp = 1000.0", "kp = -1.0", "controller.hold.kp"),
-            ("kd = 200.0", "kd = [1.0, 2.0, 3.0]", "controller.hold.kd"),
-            ("horizon = 50", "horizon = 1", "controller.pcac.horizon"),
-            ("horizon = 50", "horizn = 50", "controller.pcac"),
-            ("n-hat = 1", "n-hat = 2", "controller.pcac.theta0"),
-            (
-                "theta0 = \"contact-model\"",
-                "theta0 = \"flat\"",
-                "controller.pcac.theta0",
-            ),
-            (
-                "theta0 = \"contact-model\"",
-                "theta0 = 1e-10",
-                "controller.pcac.prior",
-            ),
-            ("k-s = 100.0", "k-s = -100.0", "controller.pcac.prior.k-s"),
-            (
-                "qd = [0.0, 0.0, 0.0, -0.1]",
-                "qd = [0.0, -0.1]",
-                "controller.pcac.prior.qd",
-            ),
-            (
-                "c-s = 1000.0",
-                "c-s = 1000.0\nmu = 0.5",
-                "controller.pcac.prior",
-            ),
-            ("tau-d = 200", "tau-d = 5", "controller.pcac.forgetting"),
-            ("p0 = 10.0", "p0 = -1.0", "controller.pcac.p0"),
-            (
-                "q = [1000.0, 100.0, 1.0]",
-                "q = [1.0, 2.0]",
-                "controller.pcac.q",
-            ),
-            ("du-max = 50.0", "du-max = -50.0", "controller.pcac.du-max"),
-            (
-                "n-hat = 1",
-                "n-hat = 1\nkind = \"pcac\"",
-                "controller.pcac.kind",
-            ),
-            (
-                "tracking = [[0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]",
-                "tracking = [[1.0, 0.0]]",
-                "controller.pcac.tracking",
-            ),
-            (
-                "kind = \"sampling-arm\"",
-                "kind = \"sampling-arm\"\nu-min = 5.0\nu-max = -5.0",
-                "controller.u-min",
-            ),
-            (
-                "kind = \"sampling-arm\"",
-                "kind = \"sampling-arm\"\nbogus = 1",
-                "controller",
-            ),
-            ("r = 1, u = 2", "r = 0, u = 2", "controller"),
-        ];
-        assert_refused_naming_fields(&base, &o, &cases);
+        let cases = include_str!("../../../tests/fixtures/refusals/controller-sampling-arm.toml");
+        assert_refused_naming_fields(&base, &o, cases);
         // The sample period's refusal names the file and its field.
         let m = params(
             &base.replace("\"robust-gain.toml\"", "\"other-gain.toml\""),

@@ -3,10 +3,10 @@
 //! A value beyond its bound is refused naming the field, so that no configuration makes
 //! the service panic, abort on an allocation or run forever.
 //!
-//! Durations within a run are bounded by the longest run, [`MAX_DURATION_S`] (plant-proxy's
-//! bound of `rig.duration`); counts of cycles by the cycles of that run at the rig's rate.
+//! Durations within a run are bounded by the longest run, [`MAX_DURATION_S`] (the scenario
+//! schema's bound of `rig.duration`); counts of cycles by the cycles of that run at the rig's rate.
 
-pub use plant_proxy::scenario::{MAX_DURATION_S, MAX_SAMPLE_PERIOD_S, MIN_SAMPLE_PERIOD_S};
+pub use rig_scenario::bounds::{MAX_DURATION_S, MAX_SAMPLE_PERIOD_S, MIN_SAMPLE_PERIOD_S};
 
 /// The longest wait, s (one day): `service.peer-timeout`, `service.histogram-interval`.
 pub const MAX_WAIT_S: f64 = 86_400.0;

@@ -147,10 +147,10 @@ pub(super) fn parse(
     })
 }
 
-/// Realizes an `n_u × n_e` matrix of discrete transfer functions with plant-proxy's
-/// realization code.
+/// Realizes an `n_u × n_e` matrix of discrete transfer functions with the scenario
+/// schema's realization ([`rig_scenario::lti::realize_tf_matrix`]).
 fn realize_tf_entries(entries: &[Vec<RawTfEntry>], n_u: usize, n_e: usize) -> Result<Abcd, String> {
-    use plant_proxy::lti::{Tf, realize_tf_matrix};
+    use rig_scenario::lti::{Tf, realize_tf_matrix};
     if entries.len() != n_u {
         return Err(format!(
             "{} rows, expected one per input u ({n_u})",

@@ -16,6 +16,7 @@
 //! | `[service]`, `[service.channels]` | [`service_table`] | [`RtRequest`], [`WaitMode`], [`DeadlinePolicy`], [`MeasurementLimits`], … |
 //! | `service.timing`, `service.plan-length` | [`answer_timing`] | [`AnswerTiming`] |
 //! | `[service.report]` | [`tone_report`] | [`ToneReportConfig`] |
+//! | `[service.telemetry]`, `[service.operator]` | [`live`] | [`LiveConfig`] |
 //! | `[log]` | [`log`] | [`LogConfig`] |
 //! | `[controller]` | [`controller`] (the `kind` dispatch) | [`ControllerConfig`] |
 //! | `kind = "lti"` | [`lti`] | [`ControllerConfig::Lti`] |
@@ -27,8 +28,10 @@
 //!
 //! The shared value shapes (a scalar or one value per channel, a scalar or a matrix,
 //! bounded durations and counts, "one of" names) are in `values`; the bound of every size,
-//! count and duration is in [`bounds`]. [`ScenarioCheck`] validates both halves of a
-//! scenario (this one and plant-proxy's), as `service check` does.
+//! count and duration is in [`bounds`]. What both sides read of the file (`[rig]`, the
+//! spacecraft table, the facts of `[plant]` used here, the LTI realization) is read by the
+//! scenario schema, the `rig-scenario` crate; the check of both halves against each other
+//! is `rig check` of the tools, which link the simulator this crate does not.
 //!
 //! A minimal file:
 //!
@@ -51,8 +54,9 @@
 //!
 //! [`ServiceConfig::load_with_controller`] replaces the `[controller]` (and `[log]`)
 //! tables of a scenario by those of another file; the scenario's acceptance criterion
-//! (`service.report.min-suppression-db`, stated for its own controller) is dropped, and
-//! the keys of the file's own `[service.report]`, if it has one, replace the scenario's.
+//! (`service.report.min-suppression-db`) and its tunables (`service.operator.tunables`),
+//! stated for its own controller, are dropped, and the keys of the file's own
+//! `[service.report]` and `[service.operator]`, if it has them, replace the scenario's.
 
 pub mod answer_timing;
 pub mod arm;
@@ -60,6 +64,7 @@ pub mod bounds;
 pub mod controller;
 pub mod excitation;
 pub mod forgetting;
+pub mod live;
 pub mod log;
 pub mod lti;
 pub mod mrac;
@@ -69,7 +74,6 @@ pub mod rcac;
 mod refusal_cases;
 pub mod rig;
 pub mod robust_gain_file;
-pub mod scenario_check;
 pub mod service_table;
 pub mod target_model_file;
 pub mod tone_report;
@@ -77,9 +81,9 @@ mod values;
 
 pub use answer_timing::AnswerTiming;
 pub use controller::ControllerConfig;
+pub use live::{DeclaredTunable, LiveConfig};
 pub use log::LogConfig;
 pub use robust_gain_file::RobustGainFile;
-pub use scenario_check::ScenarioCheck;
 pub use service_table::{
     DeadlinePolicy, MeasurementLimits, MissSource, TimingFaultReset, WaitMode,
 };
@@ -166,6 +170,9 @@ pub struct ServiceConfig {
     pub open_loop_cycles: u64,
     /// The per-tone suppression report.
     pub tone_report: ToneReportConfig,
+    /// The live view and the operator's commands (`[service.telemetry]`,
+    /// `[service.operator]`).
+    pub live: LiveConfig,
     /// Cycles between checkpoints of what the controller learned (`service.checkpoint-every`;
     /// 0: only at the end of the run).
     pub checkpoint_every_cycles: u64,
@@ -276,54 +283,60 @@ impl ServiceConfig {
             controller_file.display()
         );
         let mut over = over;
-        let report = match over.remove("service") {
-            None => None,
+        // Of [service], a controller file may hold what belongs to its controller: its
+        // acceptance criterion ([service.report]) and its tunables ([service.operator]).
+        let own_tables = match over.remove("service") {
+            None => Vec::new(),
             Some(toml::Value::Table(mut service)) => {
-                let report = service.remove("report");
+                let own: Vec<(&str, toml::Value)> = ["report", "operator"]
+                    .into_iter()
+                    .filter_map(|k| service.remove(k).map(|v| (k, v)))
+                    .collect();
                 if let Some(key) = service.keys().next() {
                     return Err(ConfigError {
                         file: controller_file.display().to_string(),
                         field: format!("service.{key}"),
                         message: "of [service], a controller file may hold only \
-                                  [service.report] (the controller's acceptance criterion)"
+                                  [service.report] (the controller's acceptance criterion) \
+                                  and [service.operator] (its tunables)"
                             .into(),
                     });
                 }
-                match report {
-                    Some(toml::Value::Table(r)) => Some(r),
-                    _ => None,
-                }
+                own
             }
-            Some(_) => None,
+            Some(_) => Vec::new(),
         };
         for key in over.keys() {
             if key != "controller" && key != "log" {
                 return Err(ConfigError {
                     file: controller_file.display().to_string(),
                     field: key.clone(),
-                    message: "a controller file may hold only [controller], [log] and \
-                              [service.report]"
+                    message: "a controller file may hold only [controller], [log], \
+                              [service.report] and [service.operator]"
                         .into(),
                 });
             }
         }
-        // The scenario's acceptance criterion was stated for its own controller: another
-        // controller is judged by its own file's (none when it states none). The other
-        // [service.report] keys of the controller file replace the scenario's, key by key.
-        if let Some(toml::Value::Table(service)) = base.get_mut("service")
-            && let Some(toml::Value::Table(r)) = service.get_mut("report")
-        {
-            r.remove("min-suppression-db");
+        // The scenario's acceptance criterion and tunables were stated for its own
+        // controller: another controller is judged by its own file's and offers its own
+        // file's tunables (none when it states none). The other keys of the controller
+        // file's tables replace the scenario's, key by key.
+        if let Some(toml::Value::Table(service)) = base.get_mut("service") {
+            for (table, key) in [("report", "min-suppression-db"), ("operator", "tunables")] {
+                if let Some(toml::Value::Table(t)) = service.get_mut(table) {
+                    t.remove(key);
+                }
+            }
         }
-        if let Some(report) = report
-            && let Some(toml::Value::Table(service)) = base.get_mut("service")
-        {
-            let entry = service
-                .entry("report")
-                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-            if let toml::Value::Table(base_report) = entry {
-                for (k, v) in report {
-                    base_report.insert(k, v);
+        if let Some(toml::Value::Table(service)) = base.get_mut("service") {
+            for (name, table) in own_tables {
+                let entry = service
+                    .entry(name)
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                if let (toml::Value::Table(base_table), toml::Value::Table(t)) = (entry, table) {
+                    for (k, v) in t {
+                        base_table.insert(k, v);
+                    }
                 }
             }
         }
@@ -349,6 +362,20 @@ impl ServiceConfig {
         Self::parse_in(&text, &origin, &base_dir)
     }
 
+    /// One line: the rig, its rate, the channels and the controller.
+    pub fn summary(&self) -> String {
+        format!(
+            "rig '{}', {} Hz, channels y={} z={} r={} u={}, controller {}",
+            self.rig,
+            1e9 / self.sample_period_ns as f64,
+            self.counts.n_y,
+            self.counts.n_z,
+            self.counts.n_r,
+            self.counts.n_u,
+            self.controller.kind_name()
+        )
+    }
+
     /// The reason this configuration will not hold real time on this machine, if it is a
     /// `SCHED_FIFO` thread that busy-polls while the kernel's RT throttling is on: the
     /// kernel then stalls it for `1 − runtime/period` of every second
@@ -358,6 +385,24 @@ impl ServiceConfig {
         (self.wait == WaitMode::BusyPoll && self.rt.fifo_priority.is_some())
             .then(ipc_types::rt::busy_poll_throttling_warning)
             .flatten()
+    }
+
+    /// The refusal `service check` and `rig check` give a configuration that cannot hold
+    /// real time on this machine ([`ServiceConfig::throttled_busy_poll`]), naming
+    /// `service.wait`.
+    ///
+    /// # Errors
+    ///
+    /// The throttled busy-poll, as a refusal of `service.wait`.
+    pub fn check_this_machine(&self) -> Result<(), ConfigError> {
+        match self.throttled_busy_poll() {
+            Some(message) => Err(ConfigError {
+                file: self.origin.clone(),
+                field: "service.wait".into(),
+                message,
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Checks the command-line overrides of `service run` as the file's values are
@@ -445,6 +490,14 @@ impl ServiceConfig {
             base_dir,
         };
         let controller = controller::parse(controller_value, &rig_of_controller, &err)?;
+        let live = live::parse(
+            raw_service.telemetry.take().unwrap_or_default(),
+            raw_service.operator.take().unwrap_or_default(),
+            period,
+            &controller,
+            s.counts,
+            &err,
+        )?;
         let answer = answer_timing::parse(
             raw_service.timing.as_deref(),
             raw_service.plan_length,
@@ -473,6 +526,7 @@ impl ServiceConfig {
             rms_settle_cycles: s.rms_settle_cycles,
             open_loop_cycles: s.open_loop_cycles,
             tone_report,
+            live,
             checkpoint_every_cycles: s.checkpoint_every_cycles,
             answer,
             source: ConfigSource {
@@ -515,18 +569,7 @@ mod tests {
 
     #[test]
     fn bad_values_are_refused_naming_file_and_field() {
-        let cases: &[(&str, &str, &str)] = &[
-            ("y-max = 5.0", "y-max = -6.0", "service.y-min"),
-            ("d = [[-2.0]]", "d = [[-2.0, 1.0]]", "controller"),
-            ("kind = \"lti\"", "kind = \"pid\"", "controller.kind"),
-            ("[rig]", "[rigg]\n[rig]", "rigg"),
-            (
-                "sample-period = 0.001",
-                "sample-period = -1.0",
-                "rig.sample-period",
-            ),
-            ("name = \"unit\"", "name = \"a/b\"", "rig.name"),
-        ];
+        let cases = include_str!("../../../tests/fixtures/refusals/service-basics.toml");
         assert_refused_naming_fields(GOOD, "bad.toml", cases);
         let m = refused(&GOOD.replace("d = [[-2.0]]", "d = [[-2.0, 1.0]]"));
         assert!(m.contains("d is 1×2, expected 1×1"), "{m}");
@@ -538,6 +581,26 @@ mod tests {
         assert!(m.contains("wiat"), "{m}");
         let m = refused("[rig\nname=");
         assert!(m.starts_with("bad.toml: not valid TOML"), "{m}");
+    }
+
+    #[test]
+    fn another_controller_file_drops_the_scenarios_tunables_with_its_acceptance_criterion() {
+        let scenarios = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+        let main = ServiceConfig::load(&scenarios.join("acoustic-rig.toml")).unwrap();
+        assert_eq!(main.live.tunables.len(), 1);
+        assert_eq!(main.live.tunables[0].name, "alpha");
+        assert_eq!(
+            (main.live.tunables[0].min, main.live.tunables[0].max),
+            (0.01, 0.2)
+        );
+        // Full-RLS RCAC has no α: the scenario's declaration goes with its controller.
+        let rls = ServiceConfig::load_with_controller(
+            &scenarios.join("acoustic-rig.toml"),
+            &scenarios.join("rcac/acoustic-rls.toml"),
+        )
+        .unwrap();
+        assert!(rls.live.tunables.is_empty());
+        assert_eq!(rls.tone_report.min_suppression_db, Some(40.0));
     }
 
     #[test]

@@ -43,15 +43,16 @@ use super::{ConfigError, ErrFn};
 use control::mrac::{AppcParams, RcMracParams};
 use serde::Deserialize;
 
+/// The table of either kind as read: the fields of both; each kind refuses the fields
+/// that are only the other's ([`RawMrac::refuse_others`]).
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
-pub(super) struct RawAppc {
+pub(super) struct RawMrac {
     #[allow(dead_code)]
     kind: String,
     n: Option<u64>,
     d_m: Option<Vec<f64>>,
     n_m: Option<Vec<f64>>,
-    h: Option<Vec<f64>>,
     r_theta: Option<ScalarOrVec>,
     theta0: Option<Vec<f64>>,
     lambda: Option<f64>,
@@ -59,54 +60,32 @@ pub(super) struct RawAppc {
     trace_limit: Option<f64>,
     u_min: Option<ScalarOrVec>,
     u_max: Option<ScalarOrVec>,
-}
-
-#[derive(Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
-pub(super) struct RawRcMrac {
-    #[allow(dead_code)]
-    kind: String,
-    n: Option<u64>,
+    /// APPC's only.
+    h: Option<Vec<f64>>,
+    /// RC-MRAC's only, as the next four.
     relative_degree: Option<u64>,
     leading_coefficient: Option<f64>,
     n_u: Option<Vec<f64>>,
     n_s: Option<u64>,
     f: Option<Vec<f64>>,
-    d_m: Option<Vec<f64>>,
-    n_m: Option<Vec<f64>>,
-    r_theta: Option<ScalarOrVec>,
-    theta0: Option<Vec<f64>>,
-    lambda: Option<f64>,
-    forgetting: Option<RawForgetting>,
-    trace_limit: Option<f64>,
-    u_min: Option<ScalarOrVec>,
-    u_max: Option<ScalarOrVec>,
 }
 
-/// The fields both kinds share (the estimator and the saturation), as read.
-struct RawCommon<'a> {
-    r_theta: &'a Option<ScalarOrVec>,
-    theta0: &'a Option<Vec<f64>>,
-    lambda: Option<f64>,
-    forgetting: Option<&'a RawForgetting>,
-    trace_limit: Option<f64>,
-    u_min: &'a Option<ScalarOrVec>,
-    u_max: &'a Option<ScalarOrVec>,
-}
-
-/// The shared fields of a raw table of either kind.
-macro_rules! raw_common {
-    ($raw:expr) => {
-        RawCommon {
-            r_theta: &$raw.r_theta,
-            theta0: &$raw.theta0,
-            lambda: $raw.lambda,
-            forgetting: $raw.forgetting.as_ref(),
-            trace_limit: $raw.trace_limit,
-            u_min: &$raw.u_min,
-            u_max: &$raw.u_max,
+impl RawMrac {
+    /// Refuses the first of `fields` (name, given) that the table gives: a field of the
+    /// kind `other`, not of this one.
+    fn refuse_others(
+        fields: &[(&str, bool)],
+        other: &str,
+        err: &ErrFn<'_>,
+    ) -> Result<(), ConfigError> {
+        match fields.iter().find(|(_, given)| *given) {
+            Some((name, _)) => Err(err(
+                &format!("controller.{name}"),
+                format!("is a field of kind = \"{other}\", not of this kind"),
+            )),
+            None => Ok(()),
         }
-    };
+    }
 }
 
 /// The estimator and saturation fields, read for `theta_len` coefficients.
@@ -119,7 +98,7 @@ struct Common {
 }
 
 fn common(
-    raw: &RawCommon<'_>,
+    raw: &RawMrac,
     theta_len: usize,
     default_r_theta: f64,
     rig: &Rig<'_>,
@@ -130,16 +109,16 @@ fn common(
     }
     Ok(Common {
         r_theta: per_channel(
-            raw.r_theta,
+            &raw.r_theta,
             theta_len,
             default_r_theta,
             "controller.r-theta",
             err,
         )?,
         theta0: raw.theta0.clone(),
-        rule: forgetting_rule(raw.lambda, raw.forgetting, "controller", err)?,
+        rule: forgetting_rule(raw.lambda, raw.forgetting.as_ref(), "controller", err)?,
         trace_limit: raw.trace_limit.unwrap_or(f64::INFINITY),
-        limits: output_limits(raw.u_min, raw.u_max, rig.counts.n_u as usize, err)?,
+        limits: output_limits(&raw.u_min, &raw.u_max, rig.counts.n_u as usize, err)?,
     })
 }
 
@@ -192,15 +171,26 @@ fn reference_model(
 
 /// Reads `kind = "appc"` into [`AppcParams`] and validates them for the rig's channels.
 pub(super) fn parse_appc(
-    raw: RawAppc,
+    raw: RawMrac,
     rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
+    RawMrac::refuse_others(
+        &[
+            ("relative-degree", raw.relative_degree.is_some()),
+            ("leading-coefficient", raw.leading_coefficient.is_some()),
+            ("n-u", raw.n_u.is_some()),
+            ("n-s", raw.n_s.is_some()),
+            ("f", raw.f.is_some()),
+        ],
+        "rc-mrac",
+        err,
+    )?;
     let n = order(raw.n, err)?;
-    let (d_m, n_m) = reference_model(raw.d_m, raw.n_m, err)?;
-    let h = polynomial(raw.h.or(Some(vec![1.0])), "controller.h", "H", err)?;
+    let (d_m, n_m) = reference_model(raw.d_m.clone(), raw.n_m.clone(), err)?;
+    let h = polynomial(raw.h.clone().or(Some(vec![1.0])), "controller.h", "H", err)?;
     let c = common(
-        &raw_common!(raw),
+        &raw,
         AppcParams::theta_len(n),
         AppcParams::DEFAULT_R_THETA,
         rig,
@@ -226,10 +216,11 @@ pub(super) fn parse_appc(
 /// Reads `kind = "rc-mrac"` into [`RcMracParams`] and validates them for the rig's
 /// channels.
 pub(super) fn parse_rc_mrac(
-    raw: RawRcMrac,
+    raw: RawMrac,
     rig: &Rig<'_>,
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
+    RawMrac::refuse_others(&[("h", raw.h.is_some())], "appc", err)?;
     let n = order(raw.n, err)?;
     let n_r = raw.relative_degree.ok_or_else(|| {
         err(
@@ -251,11 +242,16 @@ pub(super) fn parse_rc_mrac(
         )
     })?;
     let n_s = count(n_s, 0, n as u64, "controller.n-s", err)? as usize;
-    let n_u = polynomial(raw.n_u.or(Some(vec![1.0])), "controller.n-u", "N_u", err)?;
-    let f = polynomial(raw.f.or(Some(vec![1.0])), "controller.f", "F", err)?;
-    let (d_m, n_m) = reference_model(raw.d_m, raw.n_m, err)?;
+    let n_u = polynomial(
+        raw.n_u.clone().or(Some(vec![1.0])),
+        "controller.n-u",
+        "N_u",
+        err,
+    )?;
+    let f = polynomial(raw.f.clone().or(Some(vec![1.0])), "controller.f", "F", err)?;
+    let (d_m, n_m) = reference_model(raw.d_m.clone(), raw.n_m.clone(), err)?;
     let c = common(
-        &raw_common!(raw),
+        &raw,
         RcMracParams::theta_len(n, n_s),
         RcMracParams::DEFAULT_R_THETA,
         rig,
@@ -317,51 +313,12 @@ mod tests {
         assert_refused_naming_fields(
             &file(RC_MRAC),
             "bad.toml",
-            &[
-                ("f = [1.0, 0.5]", "f = [1.0, 1.5]", "controller.f"),
-                ("n-u = [1.0]", "n-u = [1.0, -0.5]", "controller.n-u"),
-                ("n-s = 1", "n-s = 2", "controller.n-s"),
-                ("\nn = 2\n", "\nn = 0\n", "controller.n"),
-                (
-                    "relative-degree = 1",
-                    "relative-degree = 3",
-                    "controller.relative-degree",
-                ),
-                (
-                    "r-theta = 1e-5",
-                    "r-theta = [1e-5, 1e-5]",
-                    "controller.r-theta",
-                ),
-                ("lambda = 1.0", "lambda = 1.5", "controller.lambda"),
-                (
-                    "d-m = [1.0, 0.0, 0.25]",
-                    "d-m = [1.0, 0.0, 1.44]",
-                    "controller.d-m",
-                ),
-                (
-                    "leading-coefficient = 1.0",
-                    "",
-                    "controller.leading-coefficient",
-                ),
-            ],
+            include_str!("../../../tests/fixtures/refusals/controller-rc-mrac.toml"),
         );
         assert_refused_naming_fields(
             &file(APPC),
             "bad.toml",
-            &[
-                (
-                    "h = [1.0, 0.0, -0.25]",
-                    "h = [0.5, 0.0, -0.25]",
-                    "controller.h",
-                ),
-                (
-                    "h = [1.0, 0.0, -0.25]",
-                    "h = [1.0, 0.0, -1.21]",
-                    "controller.h",
-                ),
-                ("\nn = 2\n", "\nn = 65\n", "controller.n"),
-                ("lambda = 1.0", "lambda = 1.0\nbogus = 1", "controller"),
-            ],
+            include_str!("../../../tests/fixtures/refusals/controller-appc.toml"),
         );
         // The rig must carry the command: without r the kernels refuse the channels.
         let no_r = file(APPC).replace("r = 1, ", "");

@@ -243,34 +243,8 @@ mod tests {
 
     #[test]
     fn bad_pcac_settings_are_refused_naming_the_field() {
-        let cases = [
-            ("n-hat = 25", "n-hat = 0", "controller.n-hat"),
-            ("theta0 = 1e-10", "theta0 = [1.0, 2.0]", "controller.theta0"),
-            ("p0 = 1.0", "p0 = -1.0", "controller.p0"),
-            ("horizon = 40", "horizon = 1", "controller.horizon"),
-            (
-                "tracking = [[0.0, 0.0, 0.0, 1.0]]",
-                "tracking = [[0.0, 1.0]]",
-                "controller.tracking",
-            ),
-            ("r = 1.0", "r = 0.0", "controller.r"),
-            ("q = 1e6", "q = [1.0, 2.0]", "controller.q"),
-            ("u-min = -10.0", "u-min = 20.0", "controller.u-min"),
-            ("du-max = 3.0", "du-max = -3.0", "controller.du-max"),
-            (
-                "timing = \"next-step\"",
-                "timing = \"later\"",
-                "controller.timing",
-            ),
-            ("tau-d = 200", "tau-d = 5", "controller.forgetting"),
-            (
-                "d = [-5.0]",
-                "d = [-5.0, 1.0]",
-                "controller.output-constraints.d",
-            ),
-            ("horizon = 40", "horizon = 40\nhorizn = 3", "controller"),
-        ];
-        assert_refused_naming_fields(GOOD, "pcac.toml", &cases);
+        let cases = include_str!("../../../tests/fixtures/refusals/controller-pcac.toml");
+        assert_refused_naming_fields(GOOD, "pcac.toml", cases);
         // Commands must match the tracked outputs.
         let m = params(&GOOD.replace("r = 0, u = 2", "r = 2, u = 2")).unwrap_err();
         assert!(m.contains("2 commands r"), "{m}");

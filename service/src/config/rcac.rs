@@ -457,102 +457,39 @@ mod tests {
 
     #[test]
     fn bad_rcac_settings_are_refused_naming_file_and_field() {
-        let cases: &[(&str, &str, &str)] = &[
-            ("nc = 4", "nc = 0", "controller.nc"),
-            ("outputs = 1", "outputs = 2", "controller.target-model"),
-            (
-                "sample-period = 0.01\noutputs",
-                "sample-period = 0.001\noutputs",
-                "controller.target-model.sample-period",
-            ),
-            ("beta = 0.8", "beta = 1.8", "controller.target-model.beta"),
-            (
-                "lambda = 0.999",
-                "lambda = 0.999\nrz = -1.0",
-                "controller.rz",
-            ),
-            (
-                "lambda = 0.999",
-                "lambda = 0.999\nrz = [[1.0, 0.0]]",
-                "controller.rz",
-            ),
-            (
-                "lambda = 0.999",
-                "lambda = 0.999\nru = [[1.0, 2.0], [2.0, 1.0]]",
-                "controller.ru",
-            ),
-            ("lambda = 0.999", "lambda = 1.5", "controller.lambda"),
-            ("p0 = 10.0\n", "", "controller.p0"),
-            (
-                "lambda = 0.999",
-                "lambda = 0.999\nalpha = 0.5",
-                "controller.alpha",
-            ),
-            (
-                "lambda = 0.999",
-                "lambda = 0.999\ntheta0 = [1.0, 2.0]",
-                "controller.theta0",
-            ),
-            ("update = \"rls\"", "update = \"lms\"", "controller.update"),
-            (
-                "kind = \"rcac\"",
-                "kind = \"rcac\"\ninput = \"error\"",
-                "controller.input",
-            ),
-            (
-                "den = [1.0, -0.5]",
-                "den = [1.0, -1.5]",
-                "controller.target-model",
-            ),
-            (
-                "delay = 1\nnum = [0.5]",
-                "delay = 0\nnum = [0.5, 0.1]",
-                "controller.target-model",
-            ),
-            ("u-max = 1.0", "u-max = -1.5", "controller.u-min"),
-            (
-                "lambda = 0.999",
-                "[controller.forgetting]\nrule = \"rms-ratio\"\ntau-n = 10\neta = 1.0",
-                "controller.forgetting.tau-d",
-            ),
-            (
-                "lambda = 0.999",
-                "[controller.forgetting]\nrule = \"rms-ratio\"\ntau-n = 10\ntau-d = 5\neta = 1.0",
-                "controller.forgetting",
-            ),
-            (
-                "lambda = 0.999",
-                "[controller.forgetting]\nrule = \"newton\"",
-                "controller.forgetting.rule",
-            ),
-            (
-                "kind = \"rcac\"",
-                "kind = \"rcac\"\ntarget-model-file = \"x.toml\"",
-                "controller.target-model",
-            ),
-        ];
+        let cases = include_str!("../../../tests/fixtures/refusals/controller-rcac.toml");
         assert_refused_naming_fields(RCAC, "bad.toml", cases);
         let grad = RCAC
             .replace("update = \"rls\"", "update = \"gradient\"")
             .replace("p0 = 10.0\n", "alpha = 0.5\n")
             .replace("lambda = 0.999\n", "");
-        let cases: &[(&str, &str, &str)] = &[
-            ("alpha = 0.5", "alpha = 1.5", "controller.alpha"),
-            ("alpha = 0.5", "alpha = 0.0", "controller.alpha"),
-            ("alpha = 0.5", "", "controller.alpha"),
-            (
-                "alpha = 0.5",
-                "alpha = 0.5\nstep-size = \"fast\"",
-                "controller.step-size",
-            ),
-            ("alpha = 0.5", "alpha = 0.5\nr = -1.0", "controller.r"),
-            (
-                "alpha = 0.5",
-                "alpha = 0.5\nlambda = 0.9",
-                "controller.lambda",
-            ),
-        ];
+        let cases = include_str!("../../../tests/fixtures/refusals/controller-rcac-gradient.toml");
         assert_refused_naming_fields(&grad, "bad.toml", cases);
+    }
+
+    #[test]
+    fn the_gradient_updates_alpha_is_offered_to_the_operator_within_its_declared_bounds() {
+        let grad = RCAC
+            .replace("update = \"rls\"", "update = \"gradient\"")
+            .replace("p0 = 10.0\n", "alpha = 0.5\n")
+            .replace("lambda = 0.999\n", "")
+            .replace(
+                "channels = { y = 1, z = 1, u = 2 }",
+                "channels = { y = 1, z = 1, u = 2 }\n[service.operator]\n\
+                 tunables = { alpha = [0.1, 0.9] }",
+            );
+        let c = ServiceConfig::parse(&grad, "g.toml").unwrap();
+        assert_eq!(
+            c.live.tunables,
+            vec![crate::config::DeclaredTunable {
+                name: "alpha".into(),
+                index: 0,
+                min: 0.1,
+                max: 0.9,
+                initial: 0.5,
+            }]
+        );
+        assert!(c.live.commands && c.live.telemetry);
     }
 
     #[test]
@@ -628,23 +565,7 @@ mod tests {
                 pause: None
             }
         );
-        let cases: &[(&str, &str, &str)] = &[
-            (
-                "nc = 4",
-                "nc = 4\ngap-rule = \"skip\"",
-                "controller.gap-rule",
-            ),
-            (
-                "nc = 4",
-                "nc = 4\ngap-rule = \"suspend\"\ngap-pause = 2",
-                "controller.gap-pause",
-            ),
-            (
-                "nc = 4",
-                "nc = 4\ngap-pause = 100000",
-                "controller.gap-pause",
-            ),
-        ];
+        let cases = include_str!("../../../tests/fixtures/refusals/controller-rcac-gap-rule.toml");
         assert_refused_naming_fields(RCAC, "bad.toml", cases);
     }
 }

@@ -2,19 +2,25 @@
 
 use super::ServiceConfig;
 
-/// For each `(from, to, field)`: `from` occurs once in `base`; with it replaced by `to`
+/// For each case of the refusal-case file `cases` (`tests/fixtures/refusals/`,
+/// [`rig_scenario::refusal_cases`]): `from` occurs once in `base`; with it replaced by `to`
 /// the file is refused, and the error starts with `<origin>: field '<field>'`.
-pub(super) fn assert_refused_naming_fields(base: &str, origin: &str, cases: &[(&str, &str, &str)]) {
-    for (from, to, field) in cases {
-        assert_eq!(base.matches(from).count(), 1, "'{from}' must occur once");
-        let text = base.replacen(from, to, 1);
-        let m = ServiceConfig::parse(&text, origin)
+pub(super) fn assert_refused_naming_fields(base: &str, origin: &str, cases: &str) {
+    for c in rig_scenario::refusal_cases::parse(cases).unwrap() {
+        assert_eq!(
+            base.matches(&c.from).count(),
+            1,
+            "'{}' must occur once",
+            c.from
+        );
+        let m = ServiceConfig::parse(&c.edit(base).unwrap(), origin)
             .err()
-            .unwrap_or_else(|| panic!("accepted: {to}"))
+            .unwrap_or_else(|| panic!("accepted: {}", c.to))
             .to_string();
         assert!(
-            m.starts_with(&format!("{origin}: field '{field}'")),
-            "{to}: {m}"
+            m.starts_with(&format!("{origin}: field '{}'", c.field)),
+            "{}: {m}",
+            c.to
         );
     }
 }

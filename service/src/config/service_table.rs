@@ -66,6 +66,7 @@ use super::values::{ScalarOrVec, count, per_channel, seconds};
 use super::{ConfigError, ErrFn};
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtRequest;
+use rig_scenario::plant_outline::PlantOutline;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -224,6 +225,10 @@ pub(super) struct RawService {
     pub plan_length: Option<u64>,
     /// `[service.report]`, read by the tone_report module.
     pub report: Option<super::tone_report::RawReport>,
+    /// `[service.telemetry]`, read by the live module.
+    pub telemetry: Option<super::live::RawTelemetry>,
+    /// `[service.operator]`, read by the live module.
+    pub operator: Option<super::live::RawOperator>,
     channels: Option<RawChannels>,
 }
 
@@ -472,24 +477,20 @@ fn check_noise(
     limits: &MeasurementLimits,
     err: &ErrFn<'_>,
 ) -> Result<(), ConfigError> {
-    let noise = plant.and_then(|p| p.get("noise"));
+    let Some(plant) = plant.map(PlantOutline::new) else {
+        return Ok(());
+    };
     let ranges = [
         ("y", &limits.y_min, &limits.y_max),
         ("z", &limits.z_min, &limits.z_max),
     ];
     for (signal, min, max) in ranges {
-        let key = format!("{signal}-std");
-        let std = |i: usize| -> Option<f64> {
-            let v = noise?.get(&key)?;
-            let v = v.as_array().map_or(Some(v), |a| a.get(i))?;
-            v.as_float().or(v.as_integer().map(|n| n as f64))
-        };
         for (i, (lo, hi)) in min.iter().zip(max.iter()).enumerate() {
-            if let Some(sigma) = std(i)
+            if let Some(sigma) = plant.noise_std(signal, i)
                 && sigma > hi - lo
             {
                 return Err(err(
-                    &format!("plant.noise.{key}"),
+                    &format!("plant.noise.{signal}-std"),
                     format!(
                         "channel {i}: a noise of standard deviation {sigma} is wider than the \
                          accepted range [{lo}, {hi}] (service.{signal}-min, \
@@ -502,26 +503,12 @@ fn check_noise(
     Ok(())
 }
 
-/// The channel counts from the plant proxy's `[plant]` table.
+/// The channel counts from the plant proxy's `[plant]` table ([`PlantOutline`]).
 fn channels_from_plant(plant: Option<&toml::Value>) -> Result<ChannelCounts, String> {
     let plant = plant.ok_or(
         "neither [service.channels] nor a [plant] table says how many channels the rig has",
     )?;
-    let get = |k: &str, default: Option<i64>| -> Result<usize, String> {
-        match plant.get(k).and_then(|v| v.as_integer()).or(default) {
-            Some(n) if n >= 0 => Ok(n as usize),
-            Some(n) => Err(format!("plant.{k} = {n} is negative")),
-            None => Err(format!(
-                "plant.{k} is missing, and [service.channels] is not given"
-            )),
-        }
-    };
-    ChannelCounts::new(
-        get("outputs-y", None)?,
-        get("outputs-z", None)?,
-        get("commands", Some(0))?,
-        get("inputs", None)?,
-    )
+    PlantOutline::new(plant).channel_counts()
 }
 
 #[cfg(test)]
@@ -545,23 +532,7 @@ mod tests {
         assert_eq!(latency(""), Some(0));
         assert_eq!(latency("cpu-latency = 20"), Some(20));
         assert_eq!(latency("cpu-latency = \"off\""), None);
-        let cases = &[
-            (
-                "[service]",
-                "[service]\ncpu-latency = -1",
-                "service.cpu-latency",
-            ),
-            (
-                "[service]",
-                "[service]\ncpu-latency = \"low\"",
-                "service.cpu-latency",
-            ),
-            (
-                "[service]",
-                "[service]\ncpu-latency = 1e3",
-                "service.cpu-latency",
-            ),
-        ];
+        let cases = include_str!("../../../tests/fixtures/refusals/service-cpu-latency.toml");
         assert_refused_naming_fields(BASE, "t.toml", cases);
     }
 }

@@ -28,6 +28,7 @@
 use super::bounds::{self, MAX_DURATION_S, MAX_REPORT_TONES, MAX_REPORT_WINDOW_CYCLES};
 use super::values::seconds;
 use super::{ConfigError, ErrFn};
+use rig_scenario::plant_outline::PlantOutline;
 use serde::Deserialize;
 
 /// What the run report measures tone by tone (`[service.report]`).
@@ -211,19 +212,5 @@ fn force_regulation(
 
 /// The distinct `frequency-hz` of `[[plant.disturbance.tones]]`, in order.
 fn plant_tones(plant: Option<&toml::Value>) -> Vec<f64> {
-    let tones = plant
-        .and_then(|p| p.get("disturbance"))
-        .and_then(|d| d.get("tones"))
-        .and_then(|t| t.as_array());
-    let mut hz = Vec::new();
-    for t in tones.into_iter().flatten() {
-        if let Some(f) = t
-            .get("frequency-hz")
-            .and_then(|f| f.as_float().or(f.as_integer().map(|i| i as f64)))
-            && !hz.contains(&f)
-        {
-            hz.push(f);
-        }
-    }
-    hz
+    plant.map_or_else(Vec::new, |p| PlantOutline::new(p).tone_frequencies_hz())
 }

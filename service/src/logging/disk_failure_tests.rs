@@ -201,21 +201,9 @@ fn record(seq: u64) -> LogRecord {
     r
 }
 
-/// Every line has the header's number of fields and the file ends with a line end.
+/// The `seq` column of `text`, whose rows must all be whole ([`super::whole_rows`]).
 fn assert_whole_rows(text: &str) -> Vec<u64> {
-    assert!(text.ends_with('\n'), "torn last row");
-    let mut lines = text.lines();
-    let columns = lines.next().unwrap().split(',').count();
-    lines
-        .map(|l| {
-            let fields: Vec<&str> = l.split(',').collect();
-            assert_eq!(fields.len(), columns, "torn row {l:?}");
-            for f in &fields[4..] {
-                f.parse::<f64>().unwrap();
-            }
-            fields[0].parse().unwrap()
-        })
-        .collect()
+    super::whole_rows(text).unwrap_or_else(|e| panic!("signals.csv {e}"))
 }
 
 #[test]

@@ -81,6 +81,7 @@
 //! ```
 
 mod record_file;
+mod whole_rows;
 mod writer;
 
 #[cfg(test)]
@@ -98,6 +99,7 @@ use ipc_types::{MAX_U, MAX_Y, MAX_Z};
 use rtrb::{Consumer, Producer, RingBuffer};
 
 pub use record_file::{RecordFile, RecordTarget, WriteHealth};
+pub use whole_rows::whole_rows;
 pub(crate) use writer::drop_realtime_priority;
 pub use writer::{LogStats, LogWriter, LogWriterHandle, RETRY_EVERY};
 

@@ -34,6 +34,17 @@ pub enum Entry {
     },
     /// The end mark; its index is the number of entries the loop offered.
     End,
+    /// An operator command applied before the next entry.
+    Operator {
+        /// The request's id.
+        request_id: u64,
+        /// Its wire code ([`ipc_types::operator::command`]).
+        command: u32,
+        /// The tunable's index (`set-tunable`).
+        index: u32,
+        /// The value (`set-tunable`).
+        value: f64,
+    },
     /// An actuation the loop published.
     Publish {
         /// The actuation (plan rows past the record's plan length are zero).
@@ -55,6 +66,7 @@ impl Entry {
             Entry::WentSilent { .. } => EntryKind::WentSilent,
             Entry::Publish { .. } => EntryKind::Publish,
             Entry::End => EntryKind::End,
+            Entry::Operator { .. } => EntryKind::Operator,
         }
     }
 
@@ -76,6 +88,12 @@ impl Entry {
             Entry::Publish { act, ok, t_pub_ns } => {
                 encode_publish(layout, index, act, *ok, *t_pub_ns, buf)
             }
+            Entry::Operator {
+                request_id,
+                command,
+                index: tunable,
+                value,
+            } => encode_operator(index, *request_id, *command, *tunable, *value, buf),
         }
     }
 }
@@ -160,6 +178,25 @@ pub fn encode_marker(kind: EntryKind, index: u64, time: Option<u64>, buf: &mut [
     if let Some(t) = time {
         p.u64(t);
     }
+    p.at
+}
+
+/// Encodes an `Operator` entry.
+pub fn encode_operator(
+    index: u64,
+    request_id: u64,
+    command: u32,
+    tunable: u32,
+    value: f64,
+    buf: &mut [u8],
+) -> usize {
+    let mut p = Put { buf, at: 0 };
+    p.u8(EntryKind::Operator as u8);
+    p.u64(index);
+    p.u64(request_id);
+    p.u32(command);
+    p.u32(tunable);
+    p.f64s(&[value]);
     p.at
 }
 
@@ -266,6 +303,19 @@ pub fn decode(layout: &RecordLayout, kind: EntryKind, bytes: &[u8]) -> (u64, Ent
         EntryKind::NewPeer => Entry::NewPeer,
         EntryKind::End => Entry::End,
         EntryKind::WentSilent => Entry::WentSilent { now_ns: g.u64() },
+        EntryKind::Operator => {
+            let request_id = g.u64();
+            let command = g.u32();
+            let index = g.u32();
+            let mut value = [0.0];
+            g.f64s(&mut value);
+            Entry::Operator {
+                request_id,
+                command,
+                index,
+                value: value[0],
+            }
+        }
         EntryKind::Publish => {
             let ok = g.u8() != 0;
             let t_pub_ns = g.u64();

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 pub const MAGIC: &[u8; 8] = b"ARRECORD";
 
 /// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 /// What a record says about its run: enough to rebuild the loop that wrote it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

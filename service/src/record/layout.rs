@@ -6,6 +6,9 @@ use ipc_types::{ChannelCounts, MAX_PLAN, MAX_R, MAX_U, MAX_Y, MAX_Z};
 /// Bytes every entry starts with: its kind (1 byte) and its index (`u64`).
 pub const ENTRY_HEAD_BYTES: usize = 1 + 8;
 
+/// Bytes of an `Operator` entry's body: request id, command code, tunable index, value.
+pub const OPERATOR_BODY_BYTES: usize = 8 + 4 + 4 + 8;
+
 /// The kind of an entry: its first byte.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
@@ -26,6 +29,9 @@ pub enum EntryKind {
     /// The end mark, written by the writer when the run ends: its index is the number of
     /// entries the loop offered, so entries lost at the end show as a gap before it.
     End = 6,
+    /// An operator command, applied before the next entry
+    /// ([`LoopCore::apply_command`](crate::runtime::LoopCore::apply_command)).
+    Operator = 7,
 }
 
 impl EntryKind {
@@ -38,6 +44,7 @@ impl EntryKind {
             4 => Some(Self::WentSilent),
             5 => Some(Self::Publish),
             6 => Some(Self::End),
+            7 => Some(Self::Operator),
             _ => None,
         }
     }
@@ -113,6 +120,7 @@ impl RecordLayout {
             EntryKind::NewPeer | EntryKind::End => ENTRY_HEAD_BYTES,
             EntryKind::WentSilent => ENTRY_HEAD_BYTES + 8,
             EntryKind::Publish => self.publish_bytes(),
+            EntryKind::Operator => ENTRY_HEAD_BYTES + OPERATOR_BODY_BYTES,
         }
     }
 
@@ -120,6 +128,6 @@ impl RecordLayout {
     pub fn max_entry_bytes(&self) -> usize {
         self.measurement_bytes()
             .max(self.publish_bytes())
-            .max(ENTRY_HEAD_BYTES + 8)
+            .max(ENTRY_HEAD_BYTES + OPERATOR_BODY_BYTES)
     }
 }

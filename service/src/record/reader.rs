@@ -100,7 +100,7 @@ impl fmt::Display for RecordError {
             RecordError::NotARecord { path, why } => write!(f, "{path}: not a record file: {why}"),
             RecordError::Version { path, found } => write!(
                 f,
-                "{path}: record format version {found}, this service reads version {FORMAT_VERSION}"
+                "{path}: record format version {found}, this service reads versions 1 to {FORMAT_VERSION}"
             ),
             RecordError::Truncated {
                 path,
@@ -196,7 +196,8 @@ impl RecordReader {
             )));
         }
         let version = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
-        if version != FORMAT_VERSION {
+        // Version 1 is version 2 without operator entries.
+        if !(1..=FORMAT_VERSION).contains(&version) {
             return Err(RecordError::Version {
                 path: name,
                 found: version,

@@ -2,7 +2,7 @@
 //! and copies it into a bounded lock-free byte ring; when the ring is full the entry is
 //! dropped and counted, and its index is used anyway so that a reader sees the gap.
 
-use super::entry::{encode_marker, encode_measurement, encode_publish};
+use super::entry::{encode_marker, encode_measurement, encode_operator, encode_publish};
 use super::layout::{EntryKind, RecordLayout};
 use ipc_types::{Actuation, Measurement};
 use std::sync::Arc;
@@ -102,6 +102,24 @@ impl Recorder {
             EntryKind::WentSilent,
             self.index,
             Some(now_ns),
+            &mut self.scratch,
+        );
+        self.commit(n);
+    }
+
+    /// Records operator command `q`, applied before the next entry.
+    #[inline]
+    pub fn operator(&mut self, q: &crate::runtime::operator::Queued) {
+        let (index, value) = match q.command {
+            crate::runtime::operator::Command::SetTunable { index, value } => (index as u32, value),
+            _ => (0, 0.0),
+        };
+        let n = encode_operator(
+            self.index,
+            q.request_id,
+            q.command.code(),
+            index,
+            value,
             &mut self.scratch,
         );
         self.commit(n);

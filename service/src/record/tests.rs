@@ -89,6 +89,12 @@ fn entries() -> Vec<Entry> {
             ok: false,
             t_pub_ns: 8_000,
         },
+        Entry::Operator {
+            request_id: 9,
+            command: ipc_types::operator::command::SET_TUNABLE,
+            index: 1,
+            value: 0.25,
+        },
     ]
 }
 
@@ -102,6 +108,20 @@ fn write(path: &std::path::Path, samples: usize, entries: &[Entry]) -> RecordSta
             Entry::NewPeer => rec.new_peer(),
             Entry::WentSilent { now_ns } => rec.went_silent(*now_ns),
             Entry::Publish { act, ok, t_pub_ns } => rec.publish(act, *ok, *t_pub_ns),
+            Entry::Operator {
+                request_id,
+                command,
+                index,
+                value,
+            } => rec.operator(&crate::runtime::operator::Queued {
+                request_id: *request_id,
+                command: crate::runtime::operator::Command::from_code(
+                    *command,
+                    *index as usize,
+                    *value,
+                )
+                .unwrap(),
+            }),
             Entry::End => {}
         }
     }
@@ -120,7 +140,7 @@ fn every_entry_reads_back_bit_for_bit_through_the_recorder_and_the_writer() {
     let path = temp("round-trip");
     let stats = write(&path, 16, &entries());
     assert!(stats.complete, "{stats:?}");
-    assert_eq!((stats.entries, stats.written), (6, 6));
+    assert_eq!((stats.entries, stats.written), (7, 7));
     let mut r = RecordReader::open(&path).unwrap();
     assert_eq!(r.header(), &header());
     let layout = *r.layout();
@@ -197,7 +217,7 @@ fn entries_dropped_by_a_full_queue_show_as_a_gap_at_their_place() {
     let stats = write(&path, 1, &entries());
     assert!(!stats.complete);
     assert!(stats.dropped > 0);
-    assert_eq!(stats.written + stats.dropped, 6);
+    assert_eq!(stats.written + stats.dropped, 7);
     let mut r = RecordReader::open(&path).unwrap();
     let first = r.next_entry().unwrap().unwrap();
     assert_eq!(first.index, 0);
@@ -238,7 +258,30 @@ fn another_format_version_is_refused_with_both_versions() {
             found: FORMAT_VERSION + 1
         }
     );
-    assert!(e.to_string().contains(&format!("version {FORMAT_VERSION}")));
+    assert!(
+        e.to_string()
+            .contains(&format!("versions 1 to {FORMAT_VERSION}"))
+    );
+    std::fs::remove_file(&path).unwrap();
+}
+
+#[test]
+fn a_version_1_record_without_operator_entries_is_still_read() {
+    let path = temp("version-1");
+    let old: Vec<Entry> = entries()
+        .into_iter()
+        .filter(|e| !matches!(e, Entry::Operator { .. }))
+        .collect();
+    write(&path, 16, &old);
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let mut r = RecordReader::open(&path).unwrap();
+    let mut n = 0;
+    while r.next_entry().unwrap().is_some() {
+        n += 1;
+    }
+    assert_eq!(n, old.len());
     std::fs::remove_file(&path).unwrap();
 }
 

@@ -19,6 +19,8 @@ pub struct ReplaySummary {
     pub samples_observed: u64,
     /// Publisher changes and silences replayed.
     pub sessions: (u64, u64),
+    /// Operator commands replayed.
+    pub commands: u64,
     /// Actuations compared equal (bit for bit) or paired (open loop).
     pub actuations: u64,
     /// Why the replay stopped early, if it did.
@@ -64,12 +66,13 @@ impl ReplaySummary {
         let _ = writeln!(out, "configuration: {}", self.configuration);
         let _ = writeln!(
             out,
-            "inputs: {} samples handled, {} taken in late, {} publisher changes, {} silences; \
-             {:.3} s, {:.0} samples/s",
+            "inputs: {} samples handled, {} taken in late, {} publisher changes, {} silences, \
+             {} operator commands; {:.3} s, {:.0} samples/s",
             self.samples_handled,
             self.samples_observed,
             self.sessions.0,
             self.sessions.1,
+            self.commands,
             self.elapsed_s,
             self.samples_per_s()
         );

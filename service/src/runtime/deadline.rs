@@ -215,7 +215,8 @@ impl DeadlineMonitor {
 
     /// Judges the answer to the sample last given to [`DeadlineMonitor::on_sample`].
     pub fn on_answer(&mut self, a: Answer) -> Verdict {
-        let late = a.timestamp_ok && a.deadline_ns > 0 && a.response_ns > a.deadline_ns;
+        let late =
+            ipc_types::timing_rules::answer_late(a.timestamp_ok, a.deadline_ns, a.response_ns);
         if late {
             self.counts.late += 1;
         }
@@ -288,6 +289,13 @@ impl DeadlineMonitor {
             w.clear();
         }
         was
+    }
+
+    /// The operator releases the safe state ([`crate::runtime::operator`]): as at a new
+    /// session, the latch, the run of misses and the recovery window start afresh; the
+    /// counters stay. Returns true when this left the safe state.
+    pub fn release(&mut self) -> bool {
+        self.new_session()
     }
 
     /// The longest run of on-time answers since the safe state was last entered.

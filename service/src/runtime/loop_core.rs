@@ -5,6 +5,8 @@
 use super::checkpoint_slot::{CheckpointMark, CheckpointSlot, Offered};
 use super::deadline::DeadlineMonitor;
 use super::gate::MeasurementGate;
+use super::live_tap::LiveTap;
+use super::operator::OperatorInbox;
 use super::reset::{ControllerResetPolicy, ResetCause, TimingFaultReset};
 use super::sent::SentLog;
 use super::session::{Arrival, Idle, SessionTracker};
@@ -16,6 +18,7 @@ use crate::logging::{LogProducer, LogRecord};
 use crate::record::Recorder;
 use crate::telemetry::TelemetryRt;
 use control::controller::{Controller, MAX_INTERNALS, StepInput};
+use ipc_types::timing_rules::{self, Reported};
 use ipc_types::{
     Actuation, CONTRACT_VERSION, ChannelCounts, MAX_PLAN, MAX_U, MAX_Z, Measurement, Timing,
     actuation_status, measurement_flags,
@@ -23,6 +26,8 @@ use ipc_types::{
 use std::sync::Arc;
 
 mod answer;
+mod command;
+mod live;
 
 // Every plan row the contract carries can be filled by a controller's plan.
 const _: () = assert!(control::ahead::MAX_PLAN_ROWS >= MAX_PLAN);
@@ -104,6 +109,18 @@ pub struct LoopCore {
     recorder: Option<Recorder>,
     /// Refused samples already accounted for by [`LoopCore::count_past_startup`].
     refusals_counted: u64,
+    /// Where operator commands come from and their results go ([`operator`](super::operator)).
+    operator: Option<OperatorInbox>,
+    /// The operator holds the loop in its safe state.
+    operator_safe: bool,
+    /// The operator froze the controller's adaptation.
+    adaptation_frozen: bool,
+    /// The operator asked the run to end.
+    stop_requested: bool,
+    /// Where the live view's samples and state go ([`live_tap`](super::live_tap)).
+    live: Option<LiveTap>,
+    /// The last sample came from a lockstep plant.
+    lockstep: bool,
 }
 
 /// What [`LoopCore::handle`] did with one sample.
@@ -195,10 +212,8 @@ impl LoopCore {
         let mut safe_input = [0.0; MAX_U];
         safe_input[..cfg.safe_input.len()].copy_from_slice(&cfg.safe_input);
         let mut controller = controller;
-        let timing = match controller.ahead() {
-            Some(_) => cfg.answer.timing,
-            None => Timing::ComputeFirst,
-        };
+        let timing =
+            timing_rules::effective_timing(cfg.answer.timing, controller.ahead().is_some());
         let mut core = Self {
             controller,
             telemetry,
@@ -220,11 +235,7 @@ impl LoopCore {
             last_u: safe_input,
             scratch_u: [0.0; MAX_U],
             timing,
-            plan_length: if timing == Timing::ComputeFirst {
-                0
-            } else {
-                cfg.answer.plan_length.min(MAX_PLAN)
-            },
+            plan_length: timing_rules::effective_plan_length(timing, cfg.answer.plan_length),
             prepared: Actuation::zeroed(cfg.counts),
             plan_pending: false,
             outgoing: Actuation::zeroed(cfg.counts),
@@ -266,6 +277,12 @@ impl LoopCore {
             cycles_since_checkpoint: 0,
             recorder: None,
             refusals_counted: 0,
+            operator: None,
+            operator_safe: false,
+            adaptation_frozen: false,
+            stop_requested: false,
+            live: None,
+            lockstep: false,
         };
         core.refresh_prepared();
         core
@@ -310,6 +327,19 @@ impl LoopCore {
     /// with `checkpoint-every = 0`, none is taken during the run.
     pub fn with_checkpoints(mut self, slot: Arc<CheckpointSlot>) -> Self {
         self.checkpoints = (!slot.is_empty() && self.checkpoint_every > 0).then_some(slot);
+        self
+    }
+
+    /// Takes operator commands from `inbox` at sample boundaries
+    /// ([`LoopCore::take_commands`]).
+    pub fn with_operator(mut self, inbox: OperatorInbox) -> Self {
+        self.operator = Some(inbox);
+        self
+    }
+
+    /// Feeds the live view through `tap` ([`live_tap`](super::live_tap)).
+    pub fn with_live(mut self, tap: LiveTap) -> Self {
+        self.live = Some(tap);
         self
     }
 
@@ -473,9 +503,7 @@ impl LoopCore {
     /// the service sent for it; raises [`LoopEvent::ForeignActuation`] at the first
     /// mismatch of a run.
     fn check_u_applied(&mut self, m: &Measurement) {
-        let on_time = m.flags
-            & (measurement_flags::PREVIOUS_ACTUATION_MISSED | measurement_flags::PLANT_SAFE_OUTPUT)
-            == 0;
+        let on_time = timing_rules::reported(m.flags) == Reported::OnTime;
         let Some(applied) = m.u_applied() else {
             return;
         };
@@ -527,15 +555,11 @@ impl LoopCore {
         // A hold counts against the loop only when the service had sent an input for that
         // period: after a refused or lost sample the plant holds by design, and that is
         // counted as what it is.
-        let f = m.flags;
         let answered = !refused_before
             && m.seq
                 .checked_sub(1)
                 .is_some_and(|k| self.sent.input_for(k).is_some());
-        let held = answered
-            && ((f & measurement_flags::PREVIOUS_ACTUATION_MISSED != 0
-                && f & measurement_flags::PLAN_APPLIED == 0)
-                || f & measurement_flags::PLANT_SAFE_OUTPUT != 0);
+        let held = answered && timing_rules::reported(m.flags) == Reported::HeldOrSafe;
         let s = &mut self.stats;
         s.samples_past_startup += 1 + lost;
         s.lost_past_startup += lost;
@@ -617,6 +641,7 @@ impl LoopCore {
                 self.sync_stats();
                 let periods = self.silent_periods;
                 self.event(LoopEvent::PlantSilent { last_seq, periods });
+                self.push_live_state();
                 true
             }
         }

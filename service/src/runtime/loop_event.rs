@@ -72,6 +72,15 @@ pub enum LoopEvent {
         /// How many nodes.
         count: u64,
     },
+    /// An operator command was applied or refused ([`crate::runtime::operator`]).
+    Operator {
+        /// It took effect before the sample with this index.
+        before_seq: u64,
+        /// The command's name.
+        command: &'static str,
+        /// Why it was refused; `None`: applied.
+        refused: Option<&'static str>,
+    },
 }
 
 impl fmt::Display for LoopEvent {
@@ -110,6 +119,19 @@ impl fmt::Display for LoopEvent {
             ),
             LoopEvent::SafeStateLeft { seq } => write!(f, "safe state left at seq {seq}"),
             LoopEvent::PlantEnded { seq } => write!(f, "plant ended its run at seq {seq}"),
+            LoopEvent::Operator {
+                before_seq,
+                command,
+                refused: None,
+            } => write!(f, "OPERATOR: {command} applied before seq {before_seq}"),
+            LoopEvent::Operator {
+                before_seq,
+                command,
+                refused: Some(why),
+            } => write!(
+                f,
+                "OPERATOR: {command} refused before seq {before_seq}: {why}"
+            ),
             LoopEvent::DeadNodesCleaned { count } => {
                 write!(
                     f,

@@ -91,4 +91,10 @@ pub struct LoopStats {
     pub held_past_startup: u64,
     /// Closed-loop answers whose input differs from the safe input.
     pub inputs_off_safe: u64,
+    /// Operator commands applied ([`crate::runtime::operator`]).
+    pub commands_applied: u64,
+    /// Operator commands refused (nothing changed).
+    pub commands_refused: u64,
+    /// Samples and states the live view did not get because its ring was full.
+    pub telemetry_dropped: u64,
 }

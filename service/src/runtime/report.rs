@@ -92,6 +92,10 @@ pub struct RunReport {
     /// How often an adaptive controller's update ran in closed loop and why it did not
     /// ([`Controller::adaptation`](control::controller::Controller::adaptation)); `None` for a controller that does not adapt.
     pub adaptation: Option<AdaptationReport>,
+    /// Every operator command of the run and what became of it ([`crate::operator`]).
+    pub operator_commands: Vec<crate::operator::CommandRecord>,
+    /// CPU time of the telemetry thread (histogram logs and the live view), s.
+    pub telemetry_cpu_s: f64,
 }
 
 /// An adaptive controller's closed-loop updates, for the run report.
@@ -101,6 +105,8 @@ pub struct AdaptationReport {
     pub updated: u64,
     /// Steps whose update was suspended, per cause.
     pub suspended: Vec<(String, u64)>,
+    /// Steps whose update the operator froze (not suspensions).
+    pub frozen: u64,
 }
 
 impl From<control::Adaptation> for AdaptationReport {
@@ -112,6 +118,7 @@ impl From<control::Adaptation> for AdaptationReport {
                 .into_iter()
                 .map(|(c, n)| (c.to_string(), n))
                 .collect(),
+            frozen: a.frozen,
         }
     }
 }
@@ -194,11 +201,46 @@ impl RunReport {
                 .iter()
                 .map(|(c, n)| format!("{n} for {c}"))
                 .collect();
+            let frozen = if a.frozen > 0 {
+                format!("; {} more frozen by the operator", a.frozen)
+            } else {
+                String::new()
+            };
             out += &format!(
-                "adaptation: {} of {total} closed-loop steps updated; suspended: {}\n",
+                "adaptation: {} of {total} closed-loop steps updated; suspended: {}{frozen}\n",
                 a.updated,
                 causes.join(", ")
             );
+        }
+        out += &format!(
+            "telemetry thread: {:.3} s CPU{}\n",
+            self.telemetry_cpu_s,
+            self.scheduling
+                .loop_s
+                .filter(|l| *l > 0.0)
+                .map(|l| format!(
+                    " ({:.2} % of the loop's {l:.1} s)",
+                    100.0 * self.telemetry_cpu_s / l
+                ))
+                .unwrap_or_default()
+        );
+        if !self.operator_commands.is_empty() {
+            let lines: Vec<String> = self
+                .operator_commands
+                .iter()
+                .map(|c| {
+                    let what = match &c.tunable {
+                        Some((name, v)) => format!("{} {name} = {v}", c.command),
+                        None => c.command.clone(),
+                    };
+                    match (c.before_seq, &c.message) {
+                        (Some(k), _) => format!("{what} applied before seq {k}"),
+                        (None, Some(m)) => format!("{what} {}: {m}", c.outcome),
+                        (None, None) => format!("{what} {}", c.outcome),
+                    }
+                })
+                .collect();
+            out += &format!("operator: {}\n", lines.join("; "));
         }
         out += &format!(
             "deadline: {} misses (service-measured), {} reported by the plant ({} covered by \

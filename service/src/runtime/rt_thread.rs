@@ -25,6 +25,8 @@ pub enum StopReason {
     PlantEnded,
     /// The configured maximum number of cycles was reached.
     MaxCycles,
+    /// An operator sent `stop-run` ([`crate::runtime::operator`]).
+    Operator,
 }
 
 /// Blocks in the RT thread's allocation pool (iceoryx2 holds at most a few at once).
@@ -174,6 +176,11 @@ pub fn rt_loop(
         if n > 0 {
             let t_recv = monotonic_ns();
             last_rx_ns = t_recv;
+            // Operator commands take effect at this sample boundary, before the samples.
+            core.take_commands();
+            if core.stop_requested() {
+                return StopReason::Operator;
+            }
             // Late samples first (a newer one is waiting): observed, not answered.
             let first = n.saturating_sub(PENDING);
             if (first..n).any(|i| new_peer[i % PENDING]) {
@@ -240,6 +247,10 @@ pub fn rt_loop(
             // counted real-time work, rather than in the receive or publish of the new
             // plant's first sample. Without a change this allocates nothing.
             crate::rt_alloc::outside_rt(|| ports.update_connections());
+        }
+        core.take_commands();
+        if core.stop_requested() {
+            return StopReason::Operator;
         }
         // A failing look counts as "none waiting": the silence check must stay reachable,
         // or a dead plant would never be declared silent and never cleaned up after.

@@ -6,14 +6,16 @@ use super::checkpoint::Checkpoint;
 use super::checkpoint_slot::{CheckpointMark, CheckpointSlot};
 use super::rt_thread::rt_thread_main;
 use super::{AdaptationReport, CheckpointReport, LoopCore, LoopEvent, RunReport, ServiceError};
-use super::{checkpoint, verdict};
+use super::{checkpoint, live_tap, operator, verdict};
 use crate::config::{ServiceConfig, WaitMode};
+use crate::live::{FinalFigures, LiveThread};
 use crate::logging::{self, LogLayout};
+use crate::operator::OperatorThread;
 use crate::record::{self, RecordHeader};
 use crate::telemetry;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 /// Options of one run that do not belong in the configuration file.
@@ -111,29 +113,40 @@ pub fn run(
         ),
         None => None,
     };
-    let reporter_stop = Arc::new(AtomicBool::new(false));
-    let reporter_thread = {
-        let stop = reporter_stop.clone();
-        let mut reporter = tele_reporter;
-        std::thread::Builder::new()
-            .name("histograms".into())
-            .spawn(move || {
-                while !stop.load(Ordering::Acquire) {
-                    if let Err(e) = reporter.poll() {
-                        eprintln!("[service] histogram log write failed: {e}");
-                    }
-                    std::thread::sleep(Duration::from_millis(50));
-                }
-                reporter
-            })
-            .map_err(|error| ServiceError::Io {
-                what: "starting the histogram thread".into(),
-                error,
-            })?
+    // The live view's ring: half a second of samples, at least 8192 (a lockstep plant
+    // runs faster than real time); the state every 10 ms of plant time.
+    let rate = 1e9 / cfg.sample_period_ns as f64;
+    let (live_tap, live_rx) = if cfg.live.telemetry {
+        let (tap, rx) = live_tap::channel(
+            ((rate * 0.5) as usize).clamp(8192, 1 << 15),
+            cfg.live.point_every,
+            (rate / 100.0).round().max(1.0) as u64,
+        );
+        (Some(tap), Some(rx))
+    } else {
+        (None, None)
     };
+    let live = LiveThread::spawn(&cfg, &folder, controller_kind, tele_reporter, live_rx).map_err(
+        |error| ServiceError::Io {
+            what: "starting the telemetry thread".into(),
+            error,
+        },
+    )?;
+    let (operator_outbox, operator_inbox) = operator::channel();
+    let operator_thread =
+        OperatorThread::spawn(&cfg, operator_outbox).map_err(|error| ServiceError::Io {
+            what: "starting the operator thread".into(),
+            error,
+        })?;
 
     let mut core = LoopCore::new(&cfg, controller, tele_rt, log_producer, event_tx)
         .with_checkpoints(checkpoint_slot.clone());
+    if let Some(tap) = live_tap {
+        core = core.with_live(tap);
+    }
+    if cfg.live.commands {
+        core = core.with_operator(operator_inbox);
+    }
     let record_handle = if cfg.log.record {
         // The warm start's checkpoint goes with the record: checkpoint.json is overwritten
         // by this run.
@@ -212,11 +225,14 @@ pub fn run(
         .map_err(|_| ServiceError::RtThread("panicked".into()))?;
     drain(&mut events);
     let scheduling = sched_watch.finish();
-    reporter_stop.store(true, Ordering::Release);
-    let reporter = reporter_thread
-        .join()
-        .map_err(|_| ServiceError::RtThread("histogram thread panicked".into()))?;
-    let (mut core, setup, stop_reason) = rt_result?;
+    let operator_commands = operator_thread.finish();
+    let (mut core, setup, stop_reason) = match rt_result {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = live.finish_histograms();
+            return Err(e);
+        }
+    };
     core.flush_telemetry();
     if !checkpoint_slot.is_empty() {
         // The final state, whatever the periodic ones were.
@@ -231,7 +247,8 @@ pub fn run(
             checkpoints.note_failure("the final learned state is not finite; not written".into());
         }
     }
-    let latency = reporter.finish().map_err(|error| ServiceError::Io {
+    let (latency, telemetry_cpu_s) = live.finish_histograms();
+    let latency = latency.map_err(|error| ServiceError::Io {
         what: "writing histogram files".into(),
         error,
     })?;
@@ -311,13 +328,7 @@ pub fn run(
     let verdict = verdict::judge(&verdict::VerdictInputs {
         stats: core.stats,
         safe_state_at_end: core.safe_state_at_end(),
-        limits: verdict::Limits {
-            max_safe_state_share: cfg.policy.max_safe_state_share,
-            max_lost_share: cfg.policy.max_lost_share,
-            max_held_share: cfg.policy.max_held_share,
-            max_suspended_share: cfg.policy.max_suspended_share,
-            min_suppression_db: cfg.tone_report.min_suppression_db,
-        },
+        limits: verdict::Limits::of(&cfg),
         open_loop_cycles: cfg.open_loop_cycles,
         log_dropped: log.dropped + log.lost_to_disk,
         adaptation: adaptation.clone(),
@@ -394,7 +405,13 @@ pub fn run(
             .into_iter()
             .map(|(k, v)| (k.to_string(), v))
             .collect(),
+        operator_commands,
+        telemetry_cpu_s,
     };
+    live.end(FinalFigures {
+        stats: report.stats,
+        verdict: report.verdict.clone(),
+    });
     Ok(report)
 }
 

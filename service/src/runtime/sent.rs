@@ -6,9 +6,11 @@
 //! tell an ahead controller which input the plant applies for a sample it takes in
 //! ([`SentLog::expected_input`]): the input sent for that sample, else the entry of the
 //! newest plan that covers it (what a plant with `late-policy = "plan"` applies), else the
-//! newest input sent before it (what a holding plant applies). The plant's own report in
+//! newest input sent before it (what a holding plant applies): the rule
+//! [`timing_rules::expected_input`]. The plant's own report in
 //! the next sample corrects the guess when it differs. Fixed capacity, no allocation.
 
+use ipc_types::timing_rules::{self, Expected};
 use ipc_types::{Actuation, MAX_U};
 
 /// Inputs remembered, by sample.
@@ -74,20 +76,23 @@ impl SentLog {
     }
 
     /// Writes into `out` (length `n_u`) what the plant applies for sample `seq`, as far as
-    /// the service knows (module docs); `fallback` (the safe input) when nothing was sent.
+    /// the service knows (module docs); `fallback` (the safe input) when nothing was sent
+    /// ([`timing_rules::expected_input`]).
     pub fn expected_input(&self, seq: u64, fallback: &[f64], out: &mut [f64]) {
         let n = out.len();
-        if let Some(s) = self.slot(seq) {
-            out.copy_from_slice(&s.u[..n]);
-            return;
-        }
-        match self.newest.as_ref().filter(|a| a.seq < seq) {
-            Some(a) => match a.input_for(seq) {
-                Some(p) if p.len() >= n => out.copy_from_slice(&p[..n]),
-                _ => out.copy_from_slice(&a.u[..n]),
-            },
-            None => out.copy_from_slice(&fallback[..n]),
-        }
+        let newest = self.newest.as_ref();
+        let rule = timing_rules::expected_input(
+            self.slot(seq).is_some(),
+            newest.map(|a| (a.seq, a.plan_len)),
+            seq,
+        );
+        let source = match (rule, self.slot(seq), newest) {
+            (Expected::Sent, Some(s), _) => &s.u[..],
+            (Expected::PlanRow(j), _, Some(a)) => &a.plan[j][..],
+            (Expected::Held, _, Some(a)) => &a.u[..],
+            _ => fallback,
+        };
+        out.copy_from_slice(&source[..n]);
     }
 
     /// Forgets everything (a new plant session).

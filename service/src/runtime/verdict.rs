@@ -67,6 +67,19 @@ pub struct Limits {
     pub min_suppression_db: Option<f64>,
 }
 
+impl Limits {
+    /// The limits `cfg` sets.
+    pub fn of(cfg: &crate::config::ServiceConfig) -> Self {
+        Self {
+            max_safe_state_share: cfg.policy.max_safe_state_share,
+            max_lost_share: cfg.policy.max_lost_share,
+            max_held_share: cfg.policy.max_held_share,
+            max_suspended_share: cfg.policy.max_suspended_share,
+            min_suppression_db: cfg.tone_report.min_suppression_db,
+        }
+    }
+}
+
 impl Default for Limits {
     /// The configuration's defaults.
     fn default() -> Self {
@@ -513,6 +526,7 @@ mod tests {
         let adaptation = |updated, gap| Adaptation {
             updated,
             suspended: vec![("a gap in its data", gap), ("a bad sample", 0)],
+            frozen: 0,
         };
         let mut i = inputs(clean());
         i.adaptation = Some(adaptation(500, 500));

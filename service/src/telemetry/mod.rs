@@ -104,7 +104,8 @@ pub use histograms::{
     SIGNIFICANT_FIGURES, WORST_K, WorstCycles,
 };
 pub use report::{
-    LatencySummary, TICKS_PER_HALF_DISTANCE, TelemetrySummary, write_percentile_distribution,
+    LatencySummary, TICKS_PER_HALF_DISTANCE, TelemetrySummary, latency_snapshot,
+    write_percentile_distribution,
 };
 pub use swap::{TelemetryReporter, TelemetryRt, channel, channel_in_memory};
 

@@ -268,3 +268,29 @@ pub fn write_percentile_distribution<W: Write>(
     )?;
     Ok(())
 }
+
+/// The live view's snapshot of `h` ([`ipc_types::telemetry::LatencySnapshot`]): the
+/// percentiles of [`LatencySummary::from_histogram`], the sum from the mean, and the
+/// cumulative counts at [`ipc_types::telemetry::LATENCY_BUCKET_BOUNDS_NS`].
+pub fn latency_snapshot(h: &Histogram<u64>) -> ipc_types::telemetry::LatencySnapshot {
+    let s = LatencySummary::from_histogram("", h);
+    let mut buckets = [0u64; ipc_types::telemetry::LATENCY_BUCKETS];
+    if !h.is_empty() {
+        for (b, bound) in buckets
+            .iter_mut()
+            .zip(ipc_types::telemetry::LATENCY_BUCKET_BOUNDS_NS)
+        {
+            *b = h.count_between(0, bound);
+        }
+    }
+    ipc_types::telemetry::LatencySnapshot {
+        count: s.count,
+        sum_ns: s.mean * s.count as f64,
+        p50_ns: s.p50,
+        p90_ns: s.p90,
+        p99_ns: s.p99,
+        p999_ns: s.p99_9,
+        max_ns: s.max,
+        buckets,
+    }
+}

@@ -16,7 +16,7 @@ use ipc_types::clock::monotonic_ns;
 use rtrb::{Consumer, Producer, RingBuffer};
 
 use super::CycleTiming;
-use super::histograms::LoopHistograms;
+use super::histograms::{HistogramKind, LoopHistograms};
 use super::interval_logs::IntervalLogs;
 #[cfg(test)]
 use super::interval_logs::LogTarget;
@@ -339,6 +339,12 @@ impl TelemetryReporter {
     /// Cumulative totals of everything drained so far.
     pub fn totals(&self) -> &LoopHistograms {
         &self.totals
+    }
+
+    /// The live view's snapshots of the totals drained so far, in
+    /// [`ipc_types::telemetry::latency_index`] order.
+    pub fn snapshots(&self) -> [ipc_types::telemetry::LatencySnapshot; 4] {
+        HistogramKind::ALL.map(|k| super::report::latency_snapshot(self.totals.histogram(k)))
     }
 
     /// Number of non-empty intervals drained so far.

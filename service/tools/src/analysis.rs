@@ -22,14 +22,25 @@ pub struct Psd {
     pub density: Vec<f64>,
 }
 
+/// A PSD that cannot be estimated.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PsdError {
+    /// Fewer than 8 samples per segment (the signal, or the segment, is too short).
+    #[error("a PSD needs at least 8 samples per segment, got {samples}")]
+    TooShort {
+        /// The samples of a segment.
+        samples: usize,
+    },
+}
+
+message_from!(PsdError);
+
 /// Welch PSD of `x` sampled at `fs` Hz with segments of `segment` samples (50 % overlap).
 /// When `x` is shorter than one segment the segment is shortened to `x.len()`.
-pub fn psd(x: &[f64], fs: f64, segment: usize) -> Result<Psd, String> {
+pub fn psd(x: &[f64], fs: f64, segment: usize) -> Result<Psd, PsdError> {
     let l = segment.min(x.len());
     if l < 8 {
-        return Err(format!(
-            "a PSD needs at least 8 samples per segment, got {l}"
-        ));
+        return Err(PsdError::TooShort { samples: l });
     }
     let hop = (l / 2).max(1);
     let segments = (x.len() - l) / hop + 1;

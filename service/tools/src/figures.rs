@@ -31,7 +31,8 @@ use std::path::Path;
 use plotters::style::RGBColor;
 
 use crate::analysis;
-use crate::plot::{Mark, PALETTE, Panel, Series, VLine, figure};
+use crate::analysis::PsdError;
+use crate::plot::{Mark, PALETTE, Panel, PlotError, Series, VLine, figure};
 use crate::simulate::Trace;
 
 /// Largest number of points a time series is drawn with.
@@ -163,6 +164,20 @@ fn line(label: &str, x: &[f64], dt: f64, color: RGBColor) -> Series {
     }
 }
 
+/// A figure of an adaptive run that cannot be made: a PSD of too few samples, or the
+/// drawing.
+#[derive(Debug, thiserror::Error)]
+pub enum FigureError {
+    /// A PSD cannot be estimated.
+    #[error(transparent)]
+    Psd(#[from] PsdError),
+    /// The figure cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+message_from!(FigureError);
+
 /// PSD series of every `z` channel of `t` from time `from` on (an error when fewer than 8
 /// samples are left).
 fn psd_series(
@@ -171,7 +186,7 @@ fn psd_series(
     segment: usize,
     what: &str,
     color: impl Fn(usize) -> RGBColor,
-) -> Result<Vec<Series>, String> {
+) -> Result<Vec<Series>, FigureError> {
     let k0 = ((from / t.sample_period).round() as usize).min(t.len());
     let mut out = Vec::new();
     for (c, z) in t.z.iter().enumerate() {
@@ -195,7 +210,7 @@ fn psd_series(
 
 /// Writes the four-panel figure of an adaptive run (see the module docs) into the PNG
 /// `path`.
-pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), String> {
+pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), FigureError> {
     let c = run.closed;
     let dt = c.sample_period;
     let closed_color = |i: usize| PALETTE[i % (PALETTE.len() - 1)];
@@ -286,14 +301,14 @@ pub fn adaptive_run_figure(path: &Path, run: &AdaptiveRun<'_>) -> Result<(), Str
             ..Default::default()
         },
     ];
-    figure(path, &run.title, (2, 2), (1500, 1000), &panels)
+    Ok(figure(path, &run.title, (2, 2), (1500, 1000), &panels)?)
 }
 
 /// Writes `run.png` into the run folder `folder` of a service run (see [`run`]) and
 /// returns its path. Errors name the file at fault: no `report.json` or `signals.csv`
 /// (logging off), a report without a sample period, a log without `seq` or `z`, a bad
 /// sequence number.
-pub fn run_folder_figure(folder: &Path) -> Result<std::path::PathBuf, String> {
+pub fn run_folder_figure(folder: &Path) -> Result<std::path::PathBuf, run::RunFigureError> {
     run::write(folder)
 }
 

@@ -29,13 +29,84 @@
 //! The edited scenario and controller files are written into a temporary folder, with
 //! their relative file names resolved first, never next to the originals.
 
+use crate::file_error::{FileError, FileOp};
+use crate::launch::LaunchError;
 use crate::launch::{LaunchOptions, launch};
+use crate::scenario_toml::{self, ScenarioTomlError};
 use rand::SeedableRng;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Why the gap campaign failed, naming the rule, the run (its slug and folder) or the file
+/// at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum GapsError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// A rule's pause that is not a number.
+    #[error("'{rule}': the pause '{pause}' is not a number")]
+    Pause {
+        /// The rule as given.
+        rule: String,
+        /// The pause.
+        pause: String,
+    },
+    /// The scenario or a controller file cannot be read or lacks the sample period.
+    #[error(transparent)]
+    ScenarioFile(#[from] ScenarioTomlError),
+    /// A run's scenario cannot be written as TOML.
+    #[error("writing the scenario: {0}")]
+    Scenario(#[source] toml::ser::Error),
+    /// A run's controller file cannot be written as TOML.
+    #[error("writing the controller: {0}")]
+    Controller(#[source] toml::ser::Error),
+    /// A run failed and left no report.
+    #[error("{run} ({}): {source}", folder.display())]
+    Launch {
+        /// The run.
+        run: String,
+        /// Its folder.
+        folder: PathBuf,
+        /// Why.
+        #[source]
+        source: LaunchError,
+    },
+    /// A run left no readable report.
+    #[error("{run} ({}): report.json: {source}", folder.display())]
+    NoReport {
+        /// The run.
+        run: String,
+        /// Its folder.
+        folder: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A run's report is not JSON.
+    #[error("{run}: report.json: {source}")]
+    Report {
+        /// The run.
+        run: String,
+        /// Why.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A run's report has no tones.
+    #[error("{run}: report.json has no tones")]
+    NoTones {
+        /// The run.
+        run: String,
+    },
+    /// A run's thread panicked.
+    #[error("a run panicked")]
+    Panicked,
+}
+
+message_from!(GapsError);
 
 /// Lost shares of the closed-loop samples.
 pub const SHARES: [f64; 6] = [0.0, 0.001, 0.003, 0.01, 0.03, 0.10];
@@ -61,7 +132,7 @@ impl Rule {
     /// # Errors
     ///
     /// A pause that is not a number.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, GapsError> {
         match s.split_once(':') {
             None => Ok(Self {
                 rule: s.to_string(),
@@ -69,10 +140,10 @@ impl Rule {
             }),
             Some((r, p)) => Ok(Self {
                 rule: r.to_string(),
-                pause: Some(
-                    p.parse()
-                        .map_err(|_| format!("'{s}': the pause '{p}' is not a number"))?,
-                ),
+                pause: Some(p.parse().map_err(|_| GapsError::Pause {
+                    rule: s.into(),
+                    pause: p.into(),
+                })?),
             }),
         }
     }
@@ -189,19 +260,10 @@ pub fn run(
     rules: &[Rule],
     runs: &Path,
     jobs: usize,
-) -> Result<GapCampaign, String> {
-    let base = read_toml(scenario)?;
+) -> Result<GapCampaign, GapsError> {
+    let base = scenario_toml::read(scenario)?;
     let dir = scenario.parent().unwrap_or(Path::new("."));
-    let period = base
-        .get("rig")
-        .and_then(|r| r.get("sample-period"))
-        .and_then(|v| v.as_float())
-        .ok_or_else(|| {
-            format!(
-                "{}: field 'rig.sample-period' is missing",
-                scenario.display()
-            )
-        })?;
+    let period = scenario_toml::sample_period(&base, scenario)?;
     let open_loop = base
         .get("service")
         .and_then(|s| s.get("open-loop"))
@@ -216,7 +278,9 @@ pub fn run(
         .map(|v| {
             v.controller
                 .as_ref()
-                .map(|f| read_toml(f).map(|t| (t, f.parent().unwrap_or(Path::new(".")).into())))
+                .map(|f| {
+                    scenario_toml::read(f).map(|t| (t, f.parent().unwrap_or(Path::new(".")).into()))
+                })
                 .transpose()
         })
         .collect::<Result<_, _>>()?;
@@ -242,9 +306,10 @@ pub fn run(
         }
     }
     let tmp = std::env::temp_dir().join(format!("rig-gaps-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::create_dir_all(&tmp)
+        .map_err(|source| FileError::new(FileOp::Access, tmp.clone(), source))?;
     let next = AtomicUsize::new(0);
-    let done: Mutex<Vec<(usize, Result<Cell, String>)>> = Mutex::new(Vec::new());
+    let done: Mutex<Vec<(usize, Result<Cell, GapsError>)>> = Mutex::new(Vec::new());
     std::thread::scope(|s| {
         for _ in 0..jobs.max(1) {
             s.spawn(|| {
@@ -290,9 +355,7 @@ pub fn run(
         }
     });
     let _ = std::fs::remove_dir_all(&tmp);
-    let mut done = done
-        .into_inner()
-        .map_err(|_| "a run panicked".to_string())?;
+    let mut done = done.into_inner().map_err(|_| GapsError::Panicked)?;
     done.sort_by_key(|(i, _)| *i);
     let cells = done
         .into_iter()
@@ -304,13 +367,6 @@ pub fn run(
         rules: rules.to_vec(),
         cells,
     })
-}
-
-/// A TOML file as a table.
-fn read_toml(path: &Path) -> Result<toml::Table, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read the file: {e}", path.display()))?;
-    toml::from_str(&text).map_err(|e| format!("{}: not valid TOML: {e}", path.display()))
 }
 
 /// The sub-table `name` of `t` (empty when absent).
@@ -363,7 +419,7 @@ fn set_rule(controller: &mut toml::Table, rule: Option<&Rule>) {
 }
 
 /// One lockstep run with the lost samples `spec.lost`; reads its report.
-fn one_run(spec: RunSpec<'_>) -> Result<Cell, String> {
+fn one_run(spec: RunSpec<'_>) -> Result<Cell, GapsError> {
     let mut t = spec.base.clone();
     let mut rig = table(&t, "rig");
     let name = rig.get("name").and_then(|v| v.as_str()).unwrap_or("rig");
@@ -401,8 +457,9 @@ fn one_run(spec: RunSpec<'_>) -> Result<Cell, String> {
         spec.burst
     );
     let file = spec.tmp.join(format!("{slug}.toml"));
-    let text = toml::to_string(&t).map_err(|e| format!("writing the scenario: {e}"))?;
-    std::fs::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))?;
+    let text = toml::to_string(&t).map_err(GapsError::Scenario)?;
+    std::fs::write(&file, text)
+        .map_err(|source| FileError::new(FileOp::Access, file.clone(), source))?;
     let controller_file = match spec.controller {
         None => None,
         Some((c, cdir)) => {
@@ -412,8 +469,9 @@ fn one_run(spec: RunSpec<'_>) -> Result<Cell, String> {
             set_rule(&mut ct, spec.rule);
             c.insert("controller".into(), ct.into());
             let f = spec.tmp.join(format!("{slug}-controller.toml"));
-            let text = toml::to_string(&c).map_err(|e| format!("writing the controller: {e}"))?;
-            std::fs::write(&f, text).map_err(|e| format!("{}: {e}", f.display()))?;
+            let text = toml::to_string(&c).map_err(GapsError::Controller)?;
+            std::fs::write(&f, text)
+                .map_err(|source| FileError::new(FileOp::Access, f.clone(), source))?;
             Some(f)
         }
     };
@@ -433,16 +491,30 @@ fn one_run(spec: RunSpec<'_>) -> Result<Cell, String> {
     if let Some(f) = controller_file {
         let _ = std::fs::remove_file(f);
     }
-    let report =
-        std::fs::read_to_string(folder.join("report.json")).map_err(|e| match &launched {
-            Err(l) => format!("{slug} ({}): {l}", folder.display()),
-            Ok(_) => format!("{slug} ({}): report.json: {e}", folder.display()),
-        })?;
-    let r: serde_json::Value =
-        serde_json::from_str(&report).map_err(|e| format!("{slug}: report.json: {e}"))?;
+    let report = match std::fs::read_to_string(folder.join("report.json")) {
+        Ok(report) => report,
+        Err(source) => {
+            return Err(match launched {
+                Err(source) => GapsError::Launch {
+                    run: slug,
+                    folder,
+                    source,
+                },
+                Ok(_) => GapsError::NoReport {
+                    run: slug,
+                    folder,
+                    source,
+                },
+            });
+        }
+    };
+    let r: serde_json::Value = match serde_json::from_str(&report) {
+        Ok(r) => r,
+        Err(source) => return Err(GapsError::Report { run: slug, source }),
+    };
     let tones = r["tones"]["tones"]
         .as_array()
-        .ok_or_else(|| format!("{slug}: report.json has no tones"))?;
+        .ok_or_else(|| GapsError::NoTones { run: slug.clone() })?;
     let min_suppression_db = tones
         .iter()
         .filter_map(|t| t["suppression_db"].as_f64())

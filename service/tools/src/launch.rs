@@ -90,21 +90,18 @@ fn output_into(cmd: &mut Command, path: &Path) -> Result<(), LaunchError> {
 pub const PLANT_TRACE_FILE: &str = "plant-trace.csv";
 
 /// Why a launch failed.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum LaunchError {
     /// The configuration was refused (exit code 2).
+    #[error("configuration refused: {0}")]
     Config(String),
-    /// A process could not be started, or the run failed (exit code 1).
+    /// A process could not be started, or the run failed (exit code 1): what failed, with
+    /// the process or the file.
+    #[error("{0}")]
     Run(String),
-}
-
-impl std::fmt::Display for LaunchError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            LaunchError::Config(m) => write!(f, "configuration refused: {m}"),
-            LaunchError::Run(m) => f.write_str(m),
-        }
-    }
+    /// The launch record could not be written (exit code 1).
+    #[error("recording how the children ended: {0}")]
+    Record(#[source] ipc_types::files::AtomicWriteError),
 }
 
 /// What a finished launch left.
@@ -556,7 +553,7 @@ pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicUsize>) -> Result<Launched, 
     if let Some(f) = failure {
         return Err(LaunchError::Run(f));
     }
-    written.map_err(LaunchError::Run)?;
+    written?;
     Ok(Launched {
         folder,
         figure,
@@ -566,13 +563,13 @@ pub fn launch(opts: &LaunchOptions, stop: Arc<AtomicUsize>) -> Result<Launched, 
 
 /// Writes `record` as [`LAUNCH_RECORD_FILE`] into `folder` (atomically); a failure is
 /// printed and returned.
-fn finish_record(record: &LaunchRecord, folder: &Path) -> Result<(), String> {
+fn finish_record(record: &LaunchRecord, folder: &Path) -> Result<(), LaunchError> {
     let path = folder.join(LAUNCH_RECORD_FILE);
     let text = serde_json::to_string_pretty(record).expect("a launch record is plain data");
     ipc_types::files::write_atomic(&path, format!("{text}\n")).map_err(|e| {
-        let m = format!("recording how the children ended: {e}");
-        eprintln!("[launch] {m}");
-        m
+        let e = LaunchError::Record(e);
+        eprintln!("[launch] {e}");
+        e
     })
 }
 

@@ -10,11 +10,57 @@
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use std::path::Path;
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
-/// Font family under which the embedded font is registered.
-const FONT: &str = "sans-serif";
+/// A figure that cannot be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The embedded font cannot be registered.
+    #[error("cannot load the embedded DejaVu Sans font")]
+    Font,
+    /// Drawing into the PNG failed: the file and plotters' message (or that of the step
+    /// that failed, [`PlotError::Backend`]).
+    #[error("drawing {}: {message}", path.display())]
+    Draw {
+        /// The PNG file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+    /// Writing the PNG file failed (plotters' message).
+    #[error("{}: {message}", path.display())]
+    File {
+        /// The PNG file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+    /// A step of plotters failed (within a panel, before the file is known).
+    #[error("{0}")]
+    Backend(String),
+}
+
+impl PlotError {
+    /// Drawing into `path` failed with `e`.
+    pub fn drawing(path: &Path, e: &dyn Display) -> Self {
+        PlotError::Draw {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        }
+    }
+
+    /// A step of plotters failed with `e`.
+    pub fn backend(e: impl Display) -> Self {
+        PlotError::Backend(e.to_string())
+    }
+}
+
+message_from!(PlotError);
+
+/// Font family under which the embedded font is registered ([`register_font`]).
+pub const FONT: &str = "sans-serif";
 
 /// A palette of distinguishable colors, in the order series usually take them.
 pub const PALETTE: [RGBColor; 6] = [
@@ -133,12 +179,14 @@ pub struct Panel {
     pub vlines: Vec<VLine>,
 }
 
-fn register_font() -> Result<(), String> {
+/// Registers the embedded DejaVu Sans (the `dejavu` crate) as [`FONT`], once per process,
+/// so that no system font is needed.
+pub fn register_font() -> Result<(), PlotError> {
     static ONCE: Once = Once::new();
     let mut result = Ok(());
     ONCE.call_once(|| {
         result = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
-            .map_err(|_| "cannot load the embedded DejaVu Sans font".to_string());
+            .map_err(|_| PlotError::Font);
     });
     result
 }
@@ -207,7 +255,7 @@ fn snap(v: f64, lo: f64, hi: f64, log: bool) -> f64 {
     }
 }
 
-fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result<(), String> {
+fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result<(), PlotError> {
     let pts = || p.series.iter().flat_map(|s| s.points.iter());
     let (mut x0, mut x1) = p
         .x_range
@@ -230,7 +278,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
     // The four axis kinds give four chart types; one macro body serves them.
     macro_rules! body {
         ($chart:expr) => {{
-            let mut chart = $chart.map_err(|e| e.to_string())?;
+            let mut chart = $chart.map_err(PlotError::backend)?;
             chart
                 .configure_mesh()
                 .x_desc(p.x_label.as_str())
@@ -239,7 +287,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                 .x_label_formatter(&|v: &f64| tick_label(&snap(*v, x0, x1, p.x_log)))
                 .y_label_formatter(&|v: &f64| tick_label(&snap(*v, y0, y1, p.y_log)))
                 .draw()
-                .map_err(|e| e.to_string())?;
+                .map_err(PlotError::backend)?;
             if p.unit_circle {
                 let circle: Vec<(f64, f64)> = (0..=200)
                     .map(|i| {
@@ -254,7 +302,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                         4,
                         ShapeStyle::from(&BLACK.mix(0.5)),
                     ))
-                    .map_err(|e| e.to_string())?;
+                    .map_err(PlotError::backend)?;
             }
             for band in &p.bands {
                 let (lo, hi) = (band.from.min(band.to), band.from.max(band.to));
@@ -269,7 +317,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                 let fill = band.color.mix(alpha).filled();
                 let anno = chart
                     .draw_series(std::iter::once(Rectangle::new([(lo, y0), (hi, y1)], fill)))
-                    .map_err(|e| e.to_string())?;
+                    .map_err(PlotError::backend)?;
                 if !band.label.is_empty() {
                     anno.label(band.label.as_str())
                         .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], fill));
@@ -306,7 +354,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                         chart.draw_series(clipped.into_iter().map(|q| Circle::new(q, 5, style)))
                     }
                 }
-                .map_err(|e| e.to_string())?;
+                .map_err(PlotError::backend)?;
                 if !s.label.is_empty() {
                     anno.label(s.label.as_str()).legend(move |(x, y)| {
                         PathElement::new(
@@ -328,7 +376,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                         4,
                         style,
                     ))
-                    .map_err(|e| e.to_string())?;
+                    .map_err(PlotError::backend)?;
                 if !v.label.is_empty() {
                     anno.label(v.label.as_str())
                         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], style));
@@ -345,7 +393,7 @@ fn draw_panel(area: &DrawingArea<BitMapBackend<'_>, Shift>, p: &Panel) -> Result
                     .label_font((FONT, 12))
                     .position(SeriesLabelPosition::UpperRight)
                     .draw()
-                    .map_err(|e| e.to_string())?;
+                    .map_err(PlotError::backend)?;
             }
         }};
     }
@@ -366,9 +414,9 @@ pub fn figure(
     (rows, cols): (usize, usize),
     (width, height): (u32, u32),
     panels: &[Panel],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     register_font()?;
-    let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
+    let fail = |e: &dyn Display| PlotError::drawing(path, e);
     let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let root = root.titled(title, (FONT, 20)).map_err(|e| fail(&e))?;
@@ -390,9 +438,9 @@ pub fn column_figure(
     notes: &[Note],
     columns: &[Vec<Panel>],
     (width, height): (u32, u32),
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     register_font()?;
-    let fail = |e: &dyn std::fmt::Display| format!("drawing {}: {e}", path.display());
+    let fail = |e: &dyn Display| PlotError::drawing(path, e);
     let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let root = root.titled(title, (FONT, 22)).map_err(|e| fail(&e))?;

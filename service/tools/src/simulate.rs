@@ -15,6 +15,59 @@ use plant_proxy::sim::PlantSim;
 
 use control::{Controller, MAX_INTERNALS, StepInput};
 
+/// A simulation that cannot run, or a signal log that cannot be read as a trace, naming
+/// the log (and its row) or the sample.
+#[derive(Debug, thiserror::Error)]
+pub enum SimulateError {
+    /// The log lacks a column.
+    #[error(transparent)]
+    Log(#[from] crate::design::csvlog::LogError),
+    /// The log has no rows.
+    #[error("{origin}: the log has no rows")]
+    NoRows {
+        /// The log.
+        origin: String,
+    },
+    /// The log's sequence numbers do not increase from first to last.
+    #[error("{origin}: sequence numbers not increasing")]
+    NotIncreasing {
+        /// The log.
+        origin: String,
+    },
+    /// A row out of order.
+    #[error("{origin}: row {row}: sequence number {seq} out of order")]
+    OutOfOrder {
+        /// The log.
+        origin: String,
+        /// The row, from 0.
+        row: usize,
+        /// Its sequence number.
+        seq: f64,
+    },
+    /// The plant cannot be simulated.
+    #[error("plant: {0}")]
+    Plant(#[source] plant_proxy::sim::SimError),
+    /// The controller's signal counts are not the plant's.
+    #[error("the controller has (n_y, n_z, n_r, n_u) = {controller:?}, the plant {plant:?}")]
+    Counts {
+        /// The controller's `(n_y, n_z, n_r, n_u)`.
+        controller: (usize, usize, usize, usize),
+        /// The plant's.
+        plant: (usize, usize, usize, usize),
+    },
+    /// The plant refused a sample (non-finite input or state).
+    #[error("plant at sample {k}: {source}")]
+    Sample {
+        /// The sample.
+        k: usize,
+        /// Why.
+        #[source]
+        source: plant_proxy::sim::SimError,
+    },
+}
+
+message_from!(SimulateError);
+
 /// Signals of one run, one vector per channel, one entry per sample.
 #[derive(Debug, Clone, Default)]
 pub struct Trace {
@@ -44,16 +97,20 @@ impl Trace {
     pub fn from_signal_log(
         log: &crate::design::csvlog::Log,
         sample_period: f64,
-    ) -> Result<(Trace, Vec<bool>, Vec<u32>), String> {
+    ) -> Result<(Trace, Vec<bool>, Vec<u32>), SimulateError> {
         let seq = log.column("seq")?;
         let status = log.column("status")?;
         if seq.is_empty() {
-            return Err(format!("{}: the log has no rows", log.origin));
+            return Err(SimulateError::NoRows {
+                origin: log.origin.clone(),
+            });
         }
         let first = seq[0];
         let last = seq[seq.len() - 1];
         if !(first.is_finite() && last >= first) {
-            return Err(format!("{}: sequence numbers not increasing", log.origin));
+            return Err(SimulateError::NotIncreasing {
+                origin: log.origin.clone(),
+            });
         }
         let n = (last - first) as usize + 1;
         let fixed = ["seq", "t_sample_ns", "status", "flags"];
@@ -80,15 +137,16 @@ impl Trace {
         let idx: Vec<usize> = seq.iter().map(|s| (s - first) as usize).collect();
         for (r, &k) in idx.iter().enumerate() {
             if k >= n || (r > 0 && k <= idx[r - 1]) {
-                return Err(format!(
-                    "{}: row {r}: sequence number {} out of order",
-                    log.origin, seq[r]
-                ));
+                return Err(SimulateError::OutOfOrder {
+                    origin: log.origin.clone(),
+                    row: r,
+                    seq: seq[r],
+                });
             }
             logged[k] = true;
             st[k] = status[r] as u32;
         }
-        let fill = |name: &str| -> Result<Vec<f64>, String> {
+        let fill = |name: &str| -> Result<Vec<f64>, SimulateError> {
             let col = log.column(name)?;
             let mut out = vec![f64::NAN; n];
             for (&k, v) in idx.iter().zip(col) {
@@ -101,7 +159,7 @@ impl Trace {
             }
             Ok(out)
         };
-        let cols = |names: &[&str]| -> Result<Vec<Vec<f64>>, String> {
+        let cols = |names: &[&str]| -> Result<Vec<Vec<f64>>, SimulateError> {
             names.iter().map(|n| fill(n)).collect()
         };
         let trace = Trace {
@@ -163,7 +221,7 @@ pub fn plant_dimensions(plant: &PlantParams) -> control::Dimensions {
 }
 
 /// Runs `steps` samples of the plant without control (`u ≡ 0`).
-pub fn open_loop(plant: &PlantParams, ts: f64, steps: usize) -> Result<Trace, String> {
+pub fn open_loop(plant: &PlantParams, ts: f64, steps: usize) -> Result<Trace, SimulateError> {
     closed_loop::<control::Rcac>(plant, ts, None, steps, None)
 }
 
@@ -175,17 +233,18 @@ pub fn closed_loop<C: Controller + ?Sized>(
     mut controller: Option<&mut C>,
     steps: usize,
     theta: Option<ThetaProbe<'_, C>>,
-) -> Result<Trace, String> {
-    let mut sim = PlantSim::new(plant, ts).map_err(|e| format!("plant: {e}"))?;
+) -> Result<Trace, SimulateError> {
+    let mut sim = PlantSim::new(plant, ts).map_err(SimulateError::Plant)?;
     let (n_y, n_z, n_r, n_u) = (sim.n_y(), sim.n_z(), sim.n_r(), sim.n_u());
     if let Some(c) = controller.as_deref() {
         let counts = c.counts();
         let want = (n_y, n_z, n_r, n_u);
         let got = (counts.n_y, counts.n_z, counts.n_r, counts.n_u);
         if want != got {
-            return Err(format!(
-                "the controller has (n_y, n_z, n_r, n_u) = {got:?}, the plant {want:?}"
-            ));
+            return Err(SimulateError::Counts {
+                controller: got,
+                plant: want,
+            });
         }
     }
     let names = controller
@@ -206,7 +265,7 @@ pub fn closed_loop<C: Controller + ?Sized>(
     let mut internals = [0.0; MAX_INTERNALS];
     for k in 0..steps {
         sim.sample(&mut y, &mut z, &mut r)
-            .map_err(|e| format!("plant at sample {k}: {e}"))?;
+            .map_err(|source| SimulateError::Sample { k, source })?;
         if let Some(c) = controller.as_deref_mut() {
             c.step(
                 &StepInput {
@@ -238,7 +297,7 @@ pub fn closed_loop<C: Controller + ?Sized>(
             dst.push(*v);
         }
         sim.advance(&u)
-            .map_err(|e| format!("plant at sample {k}: {e}"))?;
+            .map_err(|source| SimulateError::Sample { k, source })?;
     }
     Ok(t)
 }

@@ -42,9 +42,10 @@ pub mod row;
 pub mod summary;
 
 use crate::launch::{LaunchOptions, launch};
+use crate::scenario_toml;
 use hog::Hog;
 use machine::Machine;
-use row::RunRow;
+use row::{RowError, RunRow};
 use service::config::ServiceConfig;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -286,10 +287,7 @@ pub fn plan(opts: &SoakOptions) -> Result<SoakPlan, SoakError> {
             "--duration: {d} is not a positive number of seconds"
         )));
     }
-    let text = std::fs::read_to_string(scenario)
-        .map_err(|e| usage(format!("{}: cannot read the file: {e}", scenario.display())))?;
-    let table: toml::Table = toml::from_str(&text)
-        .map_err(|e| usage(format!("{}: not valid TOML: {e}", scenario.display())))?;
+    let table = scenario_toml::read(scenario).map_err(|e| usage(e.to_string()))?;
     let base = ServiceConfig::load(scenario).map_err(|e| usage(e.to_string()))?;
 
     let files: Vec<PathBuf> = if opts.controllers.is_empty() {
@@ -589,7 +587,7 @@ pub fn run(plan: SoakPlan, command: String, stop: Arc<AtomicUsize>) -> Result<Ca
             seq: i + 1,
             folder: name.clone(),
             criterion_db: arm.criterion_db,
-            outcome: Err(String::new()),
+            outcome: Err(RowError::Pending),
             launch_error: None,
         };
         eprintln!("[soak] run {}/{total}: {name}", i + 1);
@@ -600,7 +598,7 @@ pub fn run(plan: SoakPlan, command: String, stop: Arc<AtomicUsize>) -> Result<Ca
             .collect();
         match hogs {
             Err(e) => {
-                row.outcome = Err(format!("not run: {e}"));
+                row.outcome = Err(RowError::NotRun(e));
             }
             Ok(hogs) => {
                 if !hogs.is_empty() {

@@ -37,11 +37,46 @@
 //! applied a plan entry for.
 
 use crate::design::csvlog;
-use crate::launch::{LaunchOptions, PLANT_TRACE_FILE, launch};
+use crate::file_error::{FileError, FileOp};
+use crate::launch::{LaunchError, LaunchOptions, PLANT_TRACE_FILE, launch};
+use crate::scenario_toml::{self, ScenarioTomlError};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicUsize;
+
+/// Why the stall study failed, naming the scenario, the run's folder or the file at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum StallsError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The scenario file cannot be read or lacks the sample period.
+    #[error(transparent)]
+    ScenarioFile(#[from] ScenarioTomlError),
+    /// A run's scenario cannot be written as TOML.
+    #[error("writing the scenario: {0}")]
+    Scenario(#[source] toml::ser::Error),
+    /// A run failed.
+    #[error("{case} ({}): {source}", folder.display())]
+    Run {
+        /// The case.
+        case: String,
+        /// Its run folder.
+        folder: PathBuf,
+        /// Why.
+        #[source]
+        source: LaunchError,
+    },
+    /// A run's plant trace cannot be read, or lacks a column.
+    #[error(transparent)]
+    Log(#[from] csvlog::LogError),
+    /// A case's timing has no baseline run.
+    #[error("no baseline")]
+    NoBaseline,
+}
+
+message_from!(StallsError);
 
 /// The injected stalls: (time of the first stalled sample in s, periods).
 pub const STALLS: [(f64, u64); 6] = [
@@ -142,21 +177,13 @@ pub struct StallStudy {
 /// # Errors
 ///
 /// A run that failed (naming its folder) or a log that could not be read.
-pub fn run(scenario: &Path, plan_lengths: &[usize], runs: &Path) -> Result<StallStudy, String> {
-    let text = std::fs::read_to_string(scenario)
-        .map_err(|e| format!("{}: cannot read the file: {e}", scenario.display()))?;
-    let base: toml::Table = toml::from_str(&text)
-        .map_err(|e| format!("{}: not valid TOML: {e}", scenario.display()))?;
-    let period = base
-        .get("rig")
-        .and_then(|r| r.get("sample-period"))
-        .and_then(|v| v.as_float())
-        .ok_or_else(|| {
-            format!(
-                "{}: field 'rig.sample-period' is missing",
-                scenario.display()
-            )
-        })?;
+pub fn run(
+    scenario: &Path,
+    plan_lengths: &[usize],
+    runs: &Path,
+) -> Result<StallStudy, StallsError> {
+    let base = scenario_toml::read(scenario)?;
+    let period = scenario_toml::sample_period(&base, scenario)?;
     let stalls: Vec<(u64, u64)> = STALLS
         .iter()
         .map(|(t, n)| ((t / period).round() as u64, *n))
@@ -187,7 +214,7 @@ pub fn run(scenario: &Path, plan_lengths: &[usize], runs: &Path) -> Result<Stall
         let z_base = &baselines
             .iter()
             .find(|(t, _)| *t == case.timing)
-            .ok_or("no baseline")?
+            .ok_or(StallsError::NoBaseline)?
             .1;
         for &(at, periods) in &stalls {
             let k0 = at as usize;
@@ -250,7 +277,7 @@ fn one_run(
     case: Case,
     stalls: &[(u64, u64)],
     what: &str,
-) -> Result<PathBuf, String> {
+) -> Result<PathBuf, StallsError> {
     let mut t = base.clone();
     let table = |t: &toml::Table, name: &str| -> toml::Table {
         t.get(name)
@@ -306,8 +333,9 @@ fn one_run(
     crate::gaps::resolve_files(&mut controller, dir);
     t.insert("controller".into(), controller.into());
     let file = std::env::temp_dir().join(format!("rig-stalls-{slug}-{}.toml", std::process::id()));
-    let text = toml::to_string(&t).map_err(|e| format!("writing the scenario: {e}"))?;
-    std::fs::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))?;
+    let text = toml::to_string(&t).map_err(StallsError::Scenario)?;
+    std::fs::write(&file, text)
+        .map_err(|source| FileError::new(FileOp::Access, file.clone(), source))?;
     let folder = runs.join(&slug);
     let opts = LaunchOptions {
         config: file.clone(),
@@ -320,13 +348,17 @@ fn one_run(
     };
     let done = launch(&opts, Arc::new(AtomicUsize::new(0)));
     let _ = std::fs::remove_file(&file);
-    done.map_err(|e| format!("{} ({}): {e}", case.name(), folder.display()))?;
+    done.map_err(|source| StallsError::Run {
+        case: case.name(),
+        folder: folder.clone(),
+        source,
+    })?;
     Ok(folder)
 }
 
 /// `z0` of every sample of a run, from the plant's trace (the service's log has no row for
 /// a stalled sample).
-fn z_of(folder: &Path) -> Result<Vec<f64>, String> {
+fn z_of(folder: &Path) -> Result<Vec<f64>, StallsError> {
     let trace = csvlog::read(&folder.join(PLANT_TRACE_FILE))?;
     Ok(trace.column("z0")?.to_vec())
 }

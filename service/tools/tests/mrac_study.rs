@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
 use control::{Controller, Dimensions, StepInput};
+use rig_tools::study::mrac::setup::{CommandKind, Example, Method};
+use rig_tools::study::mrac::summary::Verdict;
 use rig_tools::study::mrac::{self, Options};
-use rig_tools::study::mrac_setup::{CommandKind, Example, Method};
-use rig_tools::study::mrac_summary::Verdict;
 
 /// ‖e‖ (4.85) of `c` on Example 1's plant at `ρ = 0.5`, `ν = π/4` with the unit step:
 /// `y_{k+1} = u_k − 0.5 u_{k−1} + 2ρ cos ν y_k − ρ² y_{k−1}`, samples `k = 0 … 200`.
@@ -26,17 +26,15 @@ fn direct_e_norm(c: &mut dyn Controller) -> f64 {
         .expect("e");
     for k in 0..=200u64 {
         let mut u = [0.0];
-        c.step(
-            &StepInput {
-                seq: k,
-                y: &[y],
-                z: &[y],
-                r: &[1.0],
-                u_applied: None,
-                lost: 0,
-            },
-            &mut u,
-        );
+        // A step command, nothing lost, the input applied as computed (the defaults).
+        let input = StepInput {
+            seq: k,
+            y: &[y],
+            z: &[y],
+            r: &[1.0],
+            ..StepInput::default()
+        };
+        c.step(&input, &mut u);
         c.internals(&mut internals);
         if k >= 101 {
             sum += internals[ie] * internals[ie];
@@ -181,16 +179,20 @@ fn a_small_study_writes_its_files_and_repeats_the_kernel_tests_single_runs() {
 #[test]
 fn example_three_without_the_step_is_refused_naming_the_arguments() {
     let options = Options::parse("3", "two,four", 3).expect("parses");
-    let err = mrac::run(&options, &out_dir("empty"), "").unwrap_err();
+    let err = mrac::run(&options, &out_dir("empty"), "")
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("--example/--command"), "{err}");
     assert!(
         Options::parse("1", "step", 0)
             .unwrap_err()
+            .to_string()
             .contains("--grid")
     );
     assert!(
         Options::parse("1,5", "all", 3)
             .unwrap_err()
+            .to_string()
             .contains("--example")
     );
 }

@@ -315,13 +315,18 @@ fn bad_run_folders_are_errors_naming_the_file() {
     let dir = std::env::temp_dir().join(format!("run-figure-bad-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let e = run::read(&dir).unwrap_err();
+    let e = run::read(&dir).unwrap_err().to_string();
     assert!(e.contains("report.json"), "{e}");
     std::fs::write(dir.join("report.json"), "{ not json").unwrap();
-    assert!(run::read(&dir).unwrap_err().contains("report.json"));
+    assert!(
+        run::read(&dir)
+            .unwrap_err()
+            .to_string()
+            .contains("report.json")
+    );
     std::fs::write(dir.join("report.json"), json!({"rig": "r"}).to_string()).unwrap();
     std::fs::write(dir.join("signals.csv"), "seq,z0\n0,1\n").unwrap();
-    let e = run::read(&dir).unwrap_err();
+    let e = run::read(&dir).unwrap_err().to_string();
     assert!(
         e.contains("report.json") && e.contains("sample period"),
         "{e}"
@@ -332,11 +337,21 @@ fn bad_run_folders_are_errors_naming_the_file() {
     )
     .unwrap();
     std::fs::write(dir.join("signals.csv"), "seq,z0\n0,1\nx,2\n").unwrap();
-    assert!(run::read(&dir).unwrap_err().contains("signals.csv"));
+    assert!(
+        run::read(&dir)
+            .unwrap_err()
+            .to_string()
+            .contains("signals.csv")
+    );
     std::fs::write(dir.join("signals.csv"), "seq,z0\n0,1\n1e300,2\n").unwrap();
-    assert!(run::read(&dir).unwrap_err().contains("signals.csv"));
+    assert!(
+        run::read(&dir)
+            .unwrap_err()
+            .to_string()
+            .contains("signals.csv")
+    );
     std::fs::write(dir.join("signals.csv"), "seq,y0\n0,1\n1,2\n").unwrap();
-    let e = run::read(&dir).unwrap_err();
+    let e = run::read(&dir).unwrap_err().to_string();
     assert!(e.contains("signals.csv") && e.contains("z0"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use rig_tools::study::arm_run;
+use rig_tools::study::arm::closed_loop;
 use rig_tools::study::reproduction::{self, Verdict};
 
 fn out_dir() -> PathBuf {
@@ -29,7 +29,7 @@ fn contact_median(csv: &str) -> f64 {
         "a 2 s contact phase at 2 kHz: {}",
         forces.len()
     );
-    arm_run::median(&forces)
+    closed_loop::median(&forces)
 }
 
 #[test]

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use rig_tools::study::all::{self, Options, STUDIES, Size, StudyEntry};
+use rig_tools::study::reproduction::report::{self, Links};
 use rig_tools::study::reproduction::{self, Verdict};
-use rig_tools::study::reproduction_report::{self, Links};
 
 fn out_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("study-all-{name}-{}", std::process::id()));
@@ -138,14 +138,14 @@ fn a_study_that_cannot_run_is_reported_and_a_stale_claims_file_does_not_stand_in
     let failed = run.failed();
     assert_eq!(failed.len(), 1);
     assert_eq!(failed[0].entry.name, "no-such-study");
-    let err = failed[0].claims.as_ref().unwrap_err();
+    let err = failed[0].claims.as_ref().unwrap_err().to_string();
     assert!(err.contains("exited with"), "{err}");
     assert!(stale.join(all::LOG_FILE).is_file());
-    let report = reproduction_report::render(&run, Links::Relative);
+    let report = report::render(&run, Links::Relative);
     assert!(report.contains("**Failed to run**"), "{report}");
     assert!(report.contains("| 1 of 2 |"), "{report}");
     // In the copy for docs/results the files are paths under the output folder.
-    let copy = reproduction_report::render(&run, Links::Paths);
+    let copy = report::render(&run, Links::Paths);
     assert!(copy.contains(&format!(
         "`{}`",
         out.join("mrac").join("summary.md").display()

@@ -121,7 +121,11 @@ pub struct ArmControllerParams {
 }
 
 impl ArmControllerParams {
-    /// The robust controller alone with the spacecraft of §7.3 and the default hold.
+    /// The robust controller alone with the spacecraft of §7.3 ([`ArmParams::CHAPTER_7`]),
+    /// the default hold ([`JointHold::DEFAULT`]) and no torque limits: the defaults of the
+    /// service's `[controller]` table for `kind = "sampling-arm"`. Change them with the
+    /// struct update syntax (`ArmControllerParams { pcac, ..robust_only(k) }`); the
+    /// controller checks them ([`ArmControllerParams::validate`]).
     pub fn robust_only(robust_gain: [f64; 6]) -> Self {
         Self {
             arm: ArmParams::CHAPTER_7,
@@ -622,6 +626,11 @@ impl Controller for ArmController {
     /// PCAC's identification over the steps it ran (the contact phases).
     fn adaptation(&self) -> Option<crate::controller::Adaptation> {
         self.pcac.as_ref().and_then(Controller::adaptation)
+    }
+
+    /// Freezes or resumes the PCAC augmentation's identification; false without it.
+    fn set_adaptation(&mut self, on: bool) -> bool {
+        self.pcac.as_mut().is_some_and(|p| p.set_adaptation(on))
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

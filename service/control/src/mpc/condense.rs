@@ -131,7 +131,7 @@
 //! ignored test `condense_timing` (`cargo test --release -p control --lib condense_timing
 //! -- --ignored --nocapture`) times it against the dense product.
 
-use super::qp::{ConstraintId, QpProblem};
+use super::qp::{ConstraintId, QpData, QpProblem};
 use crate::linalg::dot_in_order as dot;
 
 #[cfg(test)]
@@ -158,6 +158,16 @@ pub struct MoveBounds {
     pub min: Vec<f64>,
     /// `Δu_max` (`m`), each `≥ 0`.
     pub max: Vec<f64>,
+}
+
+impl MoveBounds {
+    /// `|Δu_i| ≤ bound` on each of `m` inputs.
+    pub fn symmetric(bound: f64, m: usize) -> Self {
+        Self {
+            min: vec![-bound; m],
+            max: vec![bound; m],
+        }
+    }
 }
 
 /// The output constraints (2.49) `C_c y_{i|k} + 𝓓 ≤ 0` at every step `i = 1..ℓ`.
@@ -304,12 +314,8 @@ pub struct Condenser {
     /// `2 Q_i e_i` (`ℓ·p_t`).
     qe: Vec<f64>,
     cost_const: f64,
-    hess: Vec<f64>,
-    f: Vec<f64>,
-    lb: Vec<f64>,
-    ub: Vec<f64>,
-    g: Vec<f64>,
-    h: Vec<f64>,
+    /// The condensed problem.
+    qp: QpData,
 }
 
 fn expand_weight(
@@ -490,17 +496,12 @@ impl Condenser {
             kc: vec![0.0; ell.saturating_sub(1) * nc * m],
             qe: vec![0.0; ell * pt],
             cost_const: 0.0,
-            hess: vec![0.0; n * n],
-            f: vec![0.0; n],
-            lb: vec![0.0; n],
-            ub: vec![0.0; n],
-            g: vec![0.0; n_ineq * n],
-            h: vec![0.0; n_ineq],
+            qp: QpData::zeros(n, n_ineq),
         };
         // Input bounds (2.50).
         for i in 0..ell {
-            s.lb[i * m..(i + 1) * m].copy_from_slice(&s.u_min);
-            s.ub[i * m..(i + 1) * m].copy_from_slice(&s.u_max);
+            s.qp.lb[i * m..(i + 1) * m].copy_from_slice(&s.u_min);
+            s.qp.ub[i * m..(i + 1) * m].copy_from_slice(&s.u_max);
         }
         // Move-bound rows (2.51): the rows of D and −D; h without u_k.
         if n_move_rows > 0 {
@@ -508,14 +509,14 @@ impl Condenser {
                 let j = k % m;
                 let up = k * n;
                 let lo = (n + k) * n;
-                s.g[up + k] = 1.0;
-                s.g[lo + k] = -1.0;
+                s.qp.g[up + k] = 1.0;
+                s.qp.g[lo + k] = -1.0;
                 if k >= m {
-                    s.g[up + k - m] = -1.0;
-                    s.g[lo + k - m] = 1.0;
+                    s.qp.g[up + k - m] = -1.0;
+                    s.qp.g[lo + k - m] = 1.0;
                 }
-                s.h[k] = s.du_max[j];
-                s.h[n + k] = -s.du_min[j];
+                s.qp.h[k] = s.du_max[j];
+                s.qp.h[n + k] = -s.du_min[j];
             }
         }
         Ok(s)
@@ -578,14 +579,7 @@ impl Condenser {
 
     /// The condensed problem of the last [`build`](Self::build) (all zero before the first).
     pub fn problem(&self) -> QpProblem<'_> {
-        QpProblem {
-            hess: &self.hess,
-            f: &self.f,
-            lb: &self.lb,
-            ub: &self.ub,
-            g: &self.g,
-            h: &self.h,
-        }
+        self.qp.problem()
     }
 
     /// Builds the QP for the current step; allocation-free.
@@ -688,9 +682,9 @@ impl Condenser {
         self.build_hessian();
 
         // f_a = Σ_{i>a} G_{i−a}ᵀ (2 Q_i e_i) − [a = 0] 2 R_1 u_k.
-        self.f.fill(0.0);
+        self.qp.f.fill(0.0);
         for a in 0..ell {
-            let fa = &mut self.f[a * m..(a + 1) * m];
+            let fa = &mut self.qp.f[a * m..(a + 1) * m];
             for i in a + 1..ell {
                 let gs = &self.gt[(i - a - 1) * pt * m..(i - a) * pt * m];
                 let w = &self.qe[i * pt..(i + 1) * pt];
@@ -699,15 +693,15 @@ impl Condenser {
                 }
             }
         }
-        for ((fj, r), u) in self.f.iter_mut().zip(&self.r).zip(u_k) {
+        for ((fj, r), u) in self.qp.f.iter_mut().zip(&self.r).zip(u_k) {
             *fj -= 2.0 * r * u;
         }
 
         // Move-bound rows: only the first step's h carries u_k.
         if self.n_move_rows > 0 {
             for (j, u) in u_k.iter().enumerate() {
-                self.h[j] = self.du_max[j] + u;
-                self.h[n + j] = -self.du_min[j] - u;
+                self.qp.h[j] = self.du_max[j] + u;
+                self.qp.h[n + j] = -self.du_min[j] - u;
             }
         }
 
@@ -717,22 +711,22 @@ impl Condenser {
             let y = &free_response[i * p..(i + 1) * p];
             for r in 0..nc {
                 let row_idx = base + i * nc + r;
-                let row = &mut self.g[row_idx * n..(row_idx + 1) * n];
+                let row = &mut self.qp.g[row_idx * n..(row_idx + 1) * n];
                 // Blocks j < i: K_{i−j}[r, :], i.e. [K_i[r]; …; K_1[r]] (the rest stays zero).
                 let krev = &self.kc[r * (ell - 1) * m..(r + 1) * (ell - 1) * m];
                 row[..i * m].copy_from_slice(&krev[(ell - 1 - i) * m..]);
-                self.h[row_idx] = -self.dd[r] - dot(&self.cc[r * p..(r + 1) * p], y);
+                self.qp.h[row_idx] = -self.dd[r] - dot(&self.cc[r * p..(r + 1) * p], y);
             }
         }
         Ok(self.problem())
     }
 
-    /// `H = 2 (T_tᵀ Q T_t + Dᵀ R D)` into `self.hess` from `self.gt`.
+    /// `H = 2 (T_tᵀ Q T_t + Dᵀ R D)` into `self.qp.hess` from `self.gt`.
     fn build_hessian(&mut self) {
         let (ell, m, pt, n) = (self.ell, self.m, self.pt, self.n);
         let (gt, qgt) = (&self.gt, &self.qgt);
         let q2 = &self.q2;
-        let hess = &mut self.hess;
+        let hess = &mut self.qp.hess;
         // G_sᵀ with s = 1..ℓ−1 lives at (s−1)·m·p_t.
         let g_of = |s: usize| &gt[(s - 1) * pt * m..s * pt * m];
         let qg_of = |s: usize| &qgt[(s - 1) * pt * m..s * pt * m];

@@ -171,6 +171,50 @@ pub struct QpProblem<'a> {
     pub h: &'a [f64],
 }
 
+/// The vectors of a [`QpProblem`], owned: what a condenser fills and lends to the solver
+/// ([`QpData::problem`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct QpData {
+    /// `H` (`n × n`, row-major).
+    pub hess: Vec<f64>,
+    /// `f` (`n`).
+    pub f: Vec<f64>,
+    /// `lb` (`n`).
+    pub lb: Vec<f64>,
+    /// `ub` (`n`).
+    pub ub: Vec<f64>,
+    /// `G` (`n_ineq × n`, row-major).
+    pub g: Vec<f64>,
+    /// `h` (`n_ineq`).
+    pub h: Vec<f64>,
+}
+
+impl QpData {
+    /// All zero, for `n` variables and `n_ineq` rows of `G U ≤ h`.
+    pub fn zeros(n: usize, n_ineq: usize) -> Self {
+        Self {
+            hess: vec![0.0; n * n],
+            f: vec![0.0; n],
+            lb: vec![0.0; n],
+            ub: vec![0.0; n],
+            g: vec![0.0; n_ineq * n],
+            h: vec![0.0; n_ineq],
+        }
+    }
+
+    /// The problem these vectors state.
+    pub fn problem(&self) -> QpProblem<'_> {
+        QpProblem {
+            hess: &self.hess,
+            f: &self.f,
+            lb: &self.lb,
+            ub: &self.ub,
+            g: &self.g,
+            h: &self.h,
+        }
+    }
+}
+
 /// The outcome of [`DenseQpSolver::solve`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum QpStatus {
@@ -205,6 +249,9 @@ pub struct QpSettings {
     pub dependence_tol: f64,
 }
 
+/// At most 1000 active-set changes per solve (the service's `qp-max-iterations` when a
+/// configuration gives none), feasibility and dependence tolerances `10⁻¹⁰` (relative,
+/// near the rounding of the dense factorizations; not configurable in the service).
 impl Default for QpSettings {
     fn default() -> Self {
         Self {

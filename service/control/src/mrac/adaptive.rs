@@ -20,12 +20,53 @@ use super::signals::{Signals, Suspension};
 use crate::controller::{OutputLimits, StepInput, status};
 use crate::output_limits::limit_output;
 
+/// The accessors that APPC and RC-MRAC share over their [`Adaptive`] (the field
+/// `core`): `θ̂_k` (the method's ordering given as the first argument), `y_{m,k}`, `e_k`,
+/// `ẑ_k` (its equation the second), the regressor (its equations the third) and the
+/// estimator's resets.
+macro_rules! adaptive_accessors {
+    ($theta:literal, $zhat:literal, $regressor:literal) => {
+        #[doc = concat!("`θ̂_k` ", $theta, ".")]
+        pub fn theta(&self) -> &[f64] {
+            self.core.est.theta()
+        }
+
+        /// `y_{m,k}` of the last sample (NaN after a bad one).
+        pub fn y_m(&self) -> f64 {
+            self.core.sig.y_m
+        }
+
+        /// `e_k = y_k − y_{m,k}` of the last sample (NaN after a bad one).
+        pub fn e(&self) -> f64 {
+            self.core.sig.e_k
+        }
+
+        #[doc = concat!("`ẑ_k(θ̂_k)` ", $zhat, " of the last sample, with the updated estimate.")]
+        pub fn zhat(&self) -> f64 {
+            self.core.zhat
+        }
+
+        #[doc = concat!($regressor, " of the last sample.")]
+        pub fn regressor(&self) -> &[f64] {
+            &self.core.phi
+        }
+
+        /// Guard resets of the estimator since construction.
+        pub fn resets(&self) -> u64 {
+            self.core.est.resets()
+        }
+    };
+}
+pub(super) use adaptive_accessors;
+
 /// What a closed-loop step did with its update (the index of its counter).
 #[derive(Debug, Clone, Copy)]
 enum Outcome {
     Updated = 0,
     Gap = 1,
     BadSample = 2,
+    /// Frozen by the operator: counted apart, not as a suspension.
+    Frozen = 3,
 }
 
 /// The part of a method that differs: its regression and its law.
@@ -56,6 +97,10 @@ pub(super) struct Adaptive {
     /// Closed-loop steps: updated, suspended for a gap, suspended for a bad sample (indexed
     /// by [`Outcome`]).
     adapted: [u64; 3],
+    /// The operator froze the update ([`Controller::set_adaptation`]).
+    pub frozen: bool,
+    /// Closed-loop steps while frozen.
+    frozen_steps: u64,
 }
 
 impl Adaptive {
@@ -71,6 +116,8 @@ impl Adaptive {
             lambda: 1.0,
             theta_norm: 0.0,
             adapted: [0; 3],
+            frozen: false,
+            frozen_steps: 0,
         };
         s.reset();
         s
@@ -97,6 +144,7 @@ impl Adaptive {
                 (Adaptation::BRIDGED_GAP, gap),
                 (Adaptation::BAD_SAMPLE, bad),
             ],
+            frozen: self.frozen_steps,
         }
     }
 
@@ -119,8 +167,9 @@ impl Adaptive {
                 st |= status::CONTROLLER_FAULT;
                 self.zhat = f64::NAN;
             } else {
-                let learn = self.sig.learn();
+                let learn = self.sig.learn() && !self.frozen;
                 outcome = match self.sig.suspension {
+                    _ if self.frozen => Outcome::Frozen,
                     _ if learn => Outcome::Updated,
                     Suspension::Gap => Outcome::Gap,
                     Suspension::BadSample => Outcome::BadSample,
@@ -141,7 +190,10 @@ impl Adaptive {
             self.zhat = f64::NAN;
         }
         if closed_loop {
-            self.adapted[outcome as usize] += 1;
+            match outcome {
+                Outcome::Frozen => self.frozen_steps += 1,
+                o => self.adapted[o as usize] += 1,
+            }
         }
         st |= limit_output(self.limits.as_ref(), std::slice::from_mut(&mut out));
         self.sig.push_u(out);
@@ -231,6 +283,11 @@ macro_rules! adaptive_controller {
 
             fn adaptation(&self) -> Option<crate::controller::Adaptation> {
                 Some(self.core.adaptation())
+            }
+
+            fn set_adaptation(&mut self, on: bool) -> bool {
+                self.core.frozen = !on;
+                true
             }
 
             fn reset(&mut self) {

@@ -58,7 +58,7 @@
 //! `lambda` (`λ_k`), `resets` (guard resets), then `theta[i]`, the first entries of
 //! `θ̂_k = [θ̂_1; θ̂_2]` (up to [`MAX_INTERNALS`] signals in all).
 
-use super::adaptive::{Adaptive, Law, adaptive_controller};
+use super::adaptive::{Adaptive, Law, adaptive_accessors, adaptive_controller};
 use super::checks;
 use super::estimator::Estimator;
 use super::poly;
@@ -202,35 +202,11 @@ impl Appc {
         })
     }
 
-    /// `θ̂_k = [θ̂_1; θ̂_2]` (4.35)–(4.36): `[N_{c,1..n}, D_{c,1..n}, B_{1..n}, C_{1..n}]`.
-    pub fn theta(&self) -> &[f64] {
-        self.core.est.theta()
-    }
-
-    /// `y_{m,k}` of the last sample (NaN after a bad one).
-    pub fn y_m(&self) -> f64 {
-        self.core.sig.y_m
-    }
-
-    /// `e_k = y_k − y_{m,k}` of the last sample (NaN after a bad one).
-    pub fn e(&self) -> f64 {
-        self.core.sig.e_k
-    }
-
-    /// `ẑ_k(θ̂_k)` (4.41) of the last sample, with the updated estimate.
-    pub fn zhat(&self) -> f64 {
-        self.core.zhat
-    }
-
-    /// `[Φ_k Φ_{f,k}]` of the last sample (4.38)–(4.39).
-    pub fn regressor(&self) -> &[f64] {
-        &self.core.phi
-    }
-
-    /// Guard resets of the estimator since construction.
-    pub fn resets(&self) -> u64 {
-        self.core.est.resets()
-    }
+    adaptive_accessors!(
+        "= `[θ̂_1; θ̂_2]` (4.35)–(4.36): `[N_{c,1..n}, D_{c,1..n}, B_{1..n}, C_{1..n}]`",
+        "(4.41)",
+        "`[Φ_k Φ_{f,k}]` (4.38)–(4.39)"
+    );
 }
 
 impl Law for AppcLaw {

@@ -17,6 +17,8 @@
 //!   the factorization (4.46) of the known part of `N` (`N_{n_r}`, `n_r`, `N_u`), the
 //!   filtered regression (4.68)–(4.75) (`2n + n_s + 1` entries), RLS on (4.76), the input
 //!   (4.77).
+//! - [`MracBuilder`]: either method's parameters with the estimation settings at the
+//!   chapter's defaults, checked when built.
 //! - [`ReferenceModel`]: (4.4) as a difference equation.
 //! - [`poly`]: polynomials in `q⁻¹` (products, Schur–Cohn stability, roots, division),
 //!   for the parameter checks and tests.
@@ -78,6 +80,7 @@
 
 mod adaptive;
 pub mod appc;
+pub mod builder;
 mod checks;
 mod estimator;
 mod history;
@@ -87,6 +90,7 @@ pub mod reference;
 mod signals;
 
 pub use appc::{Appc, AppcParams};
+pub use builder::{MracBuilder, MracParams};
 pub use rc_mrac::{RcMrac, RcMracParams};
 pub use reference::ReferenceModel;
 

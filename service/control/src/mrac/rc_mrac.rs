@@ -70,7 +70,7 @@
 //! with the updated estimate), `theta_norm`, `trace_p` (`tr(R_θ^{1/2} P_k R_θ^{1/2})`),
 //! `lambda`, `resets`, then `theta[i]`, the first entries of `θ̂_k`.
 
-use super::adaptive::{Adaptive, Law, adaptive_controller};
+use super::adaptive::{Adaptive, Law, adaptive_accessors, adaptive_controller};
 use super::checks;
 use super::estimator::Estimator;
 use super::poly;
@@ -358,35 +358,11 @@ impl RcMrac {
         })
     }
 
-    /// `θ̂_k` (4.68): `[N_{c,1..n}, D_{c,1..n}, R_{c,0..n_s}]`.
-    pub fn theta(&self) -> &[f64] {
-        self.core.est.theta()
-    }
-
-    /// `y_{m,k}` of the last sample (NaN after a bad one).
-    pub fn y_m(&self) -> f64 {
-        self.core.sig.y_m
-    }
-
-    /// `e_k = y_k − y_{m,k}` of the last sample (NaN after a bad one).
-    pub fn e(&self) -> f64 {
-        self.core.sig.e_k
-    }
-
-    /// `ẑ_k(θ̂_k)` (4.75) of the last sample, with the updated estimate.
-    pub fn zhat(&self) -> f64 {
-        self.core.zhat
-    }
-
-    /// `Φ_{f,k}` of the last sample (4.72).
-    pub fn regressor(&self) -> &[f64] {
-        &self.core.phi
-    }
-
-    /// Guard resets of the estimator since construction.
-    pub fn resets(&self) -> u64 {
-        self.core.est.resets()
-    }
+    adaptive_accessors!(
+        "(4.68): `[N_{c,1..n}, D_{c,1..n}, R_{c,0..n_s}]`",
+        "(4.75)",
+        "`Φ_{f,k}` (4.72)"
+    );
 
     /// `n_s`.
     pub fn n_s(&self) -> usize {

@@ -21,6 +21,9 @@
 //! | warm start | [`PcacParams::DEFAULT_WARM_START`] |
 //! | augmentation (7.53)–(7.57) | none |
 //!
+//! [`PcacParams::chapter_6`] and [`PcacParams::chapter_7`] start from the settings of the
+//! dissertation's examples instead: the truss (§6.2) and the sampling arm (§7.3).
+//!
 //! [`PcacBuilder::build`] returns the parameters unchecked; [`PcacParams::validate`] (which
 //! [`super::Pcac::new`] calls) names the field of a bad setting.
 
@@ -75,6 +78,46 @@ impl PcacParams {
                 augmentation: None,
             },
         }
+    }
+
+    /// `u_max = −u_min` of the sampling arm's PCAC (§7.3).
+    pub const CHAPTER_7_U_MAX: f64 = 100.0;
+
+    /// The builder at the PCAC settings of the truss (§6.2): `p = 4` outputs, `m = 2`
+    /// inputs, the cold start `θ_0 = 10⁻¹⁰ 1_{600}`, `n̂ = 25`, `P_0 = I`, the F-test
+    /// forgetting [`ForgettingRule::PCAC_EXAMPLES`], `ℓ = 40`, `C_t = [0_{1×3} 1]`,
+    /// `Q = 10⁶` and `R = I`. Input bounds and timing are the caller's (the chapter gives
+    /// none; defaults: unbounded, [`PcacTiming::SameStep`]).
+    pub fn chapter_6() -> PcacBuilder {
+        const N_HAT: usize = 25;
+        const P: usize = 4;
+        const M: usize = 2;
+        PcacParams::builder(N_HAT, P, M, 1.0, 40)
+            .theta0(vec![1e-10; PcacParams::theta_len(N_HAT, P, M)])
+            .forgetting(ForgettingRule::PCAC_EXAMPLES)
+            .tracking(1, vec![0.0, 0.0, 0.0, 1.0])
+            .q(Weight::PerChannel(vec![1e6]))
+    }
+
+    /// The builder at the PCAC settings of the sampling arm (§7.3): `p = 5` outputs `ζ`,
+    /// `m = 2` inputs, `n̂ = 1`, `P_0 = 10 I`, the F-test forgetting
+    /// [`ForgettingRule::PCAC_EXAMPLES`], `ℓ = 50`, `C_t = [0_{3×2} I_3]`,
+    /// `Q = diag(1000, 100, 1)`, `R = I` and `u_max = −u_min =` [`Self::CHAPTER_7_U_MAX`].
+    /// The chapter's prior `w_0` ([`PcacBuilder::theta0`]), move bounds and timing are the
+    /// caller's (defaults: `θ_0 = 0`, none, [`PcacTiming::SameStep`]).
+    pub fn chapter_7() -> PcacBuilder {
+        const P: usize = 5;
+        const M: usize = 2;
+        // C_t = [0_{3×2} I_3]: the tracked outputs are χ = [ẋ, ẏ, e].
+        let tracking = (0..3 * P)
+            .map(|i| if i % P == 2 + i / P { 1.0 } else { 0.0 })
+            .collect();
+        let u_max = PcacParams::CHAPTER_7_U_MAX;
+        PcacParams::builder(1, P, M, 10.0, 50)
+            .forgetting(ForgettingRule::PCAC_EXAMPLES)
+            .tracking(3, tracking)
+            .q(Weight::PerChannel(vec![1000.0, 100.0, 1.0]))
+            .input_bounds(vec![-u_max; M], vec![u_max; M])
     }
 }
 
@@ -192,6 +235,42 @@ mod tests {
         assert!(p.warm_start && p.augmentation.is_none());
         p.validate(Dimensions::new(2, 0, 0, 1)).unwrap();
         p.validate(Dimensions::new(2, 0, 2, 1)).unwrap();
+    }
+
+    #[test]
+    fn chapter_7_is_the_setting_of_section_7_3() {
+        let p = PcacParams::chapter_7().build();
+        assert_eq!((p.model.n_hat, p.model.p, p.model.m), (1, 5, 2));
+        assert_eq!((p.model.p0, p.mpc.horizon), (10.0, 50));
+        assert_eq!(p.model.rule, ForgettingRule::PCAC_EXAMPLES);
+        let mut c_t = vec![0.0; 15];
+        for i in 0..3 {
+            c_t[i * 5 + 2 + i] = 1.0;
+        }
+        assert_eq!((p.mpc.n_tracked, &p.mpc.tracking), (3, &c_t));
+        assert_eq!(p.mpc.q, Weight::PerChannel(vec![1000.0, 100.0, 1.0]));
+        assert_eq!(p.mpc.r, Weight::PerChannel(vec![1.0; 2]));
+        assert_eq!(
+            (&p.mpc.u_min, &p.mpc.u_max),
+            (&vec![-100.0; 2], &vec![100.0; 2])
+        );
+        p.validate(Dimensions::new(5, 0, 0, 2)).unwrap();
+    }
+
+    #[test]
+    fn chapter_6_is_the_setting_of_section_6_2() {
+        let p = PcacParams::chapter_6().build();
+        assert_eq!((p.model.n_hat, p.model.p, p.model.m), (25, 4, 2));
+        assert_eq!((&p.model.theta0, p.model.p0), (&vec![1e-10; 600], 1.0));
+        assert_eq!(p.model.rule, ForgettingRule::PCAC_EXAMPLES);
+        assert_eq!(p.mpc.horizon, 40);
+        assert_eq!(
+            (p.mpc.n_tracked, &p.mpc.tracking),
+            (1, &vec![0.0, 0.0, 0.0, 1.0])
+        );
+        assert_eq!(p.mpc.q, Weight::PerChannel(vec![1e6]));
+        assert_eq!(p.mpc.r, Weight::PerChannel(vec![1.0; 2]));
+        p.validate(Dimensions::new(4, 0, 0, 2)).unwrap();
     }
 
     #[test]

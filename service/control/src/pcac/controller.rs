@@ -153,6 +153,9 @@ const RESTART: usize = 3;
 
 /// What a closed-loop step did with its identification, as the report names it
 /// ([`Adaptation`]), indexed by [`IDENTIFIED`], [`GAP`], [`BAD_SAMPLE`], [`RESTART`].
+/// Index of the steps the operator froze ([`Controller::set_adaptation`]); not a
+/// suspension.
+const FROZEN: usize = 4;
 const SUSPENSION_CAUSES: [&str; 4] = [
     "identified",
     Adaptation::BRIDGED_GAP,
@@ -204,8 +207,10 @@ pub struct Pcac {
     /// Why it is suspended: [`GAP`], [`BAD_SAMPLE`] or [`RESTART`].
     suspend_cause: usize,
     /// Closed-loop steps (a step, or an advance with adaptation): identified (index 0),
-    /// and suspended per cause of [`SUSPENSION_CAUSES`].
-    adapted: [u64; 4],
+    /// suspended per cause of [`SUSPENSION_CAUSES`], and frozen (index [`FROZEN`]).
+    adapted: [u64; 5],
+    /// The operator froze the identification ([`Controller::set_adaptation`]).
+    frozen: bool,
     last_status: Option<QpStatus>,
     last_iterations: usize,
     last_active: usize,
@@ -529,7 +534,8 @@ impl Pcac {
             n_shifted: 0,
             suspend: 0,
             suspend_cause: GAP,
-            adapted: [0; 4],
+            adapted: [0; 5],
+            frozen: false,
             last_status: None,
             last_iterations: 0,
             last_active: 0,
@@ -664,6 +670,10 @@ impl Pcac {
             self.suspend -= 1;
             self.store_sample(false);
             return self.suspend_cause;
+        }
+        if self.frozen {
+            self.store_sample(false);
+            return FROZEN;
         }
         if self.store_sample(true) {
             self.counters.id_resets += 1;
@@ -927,7 +937,14 @@ impl Controller for Pcac {
                 .zip(&self.adapted[GAP..])
                 .map(|(c, n)| (*c, *n))
                 .collect(),
+            frozen: self.adapted[FROZEN],
         })
+    }
+
+    /// Freezes or resumes the identification; the MPC keeps planning with the model.
+    fn set_adaptation(&mut self, on: bool) -> bool {
+        self.frozen = !on;
+        true
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

@@ -232,16 +232,18 @@
 //! performance with the updated coefficients), `lambda` (`λ_k`; 1 for the gradient) and
 //! `resets` (guard resets of `θ` since construction).
 
+pub mod builder;
 mod filter;
 #[cfg(test)]
 mod tests;
 
+pub use builder::RcacBuilder;
 pub use filter::TargetFilter;
 
 use crate::ParamError;
 use crate::ahead::{Ahead, MAX_PLAN_ROWS};
 use crate::controller::{Controller, OutputLimits, StepInput};
-use crate::controller::{Dimensions, status};
+use crate::controller::{Dimensions, Tunable, status};
 use crate::forgetting::ForgettingRule;
 use crate::linalg::{axpy, dot};
 use crate::output_limits::limit_output;
@@ -362,6 +364,21 @@ enum Law {
     },
 }
 
+/// Whether the gradient update admits the step-size factor `α`: `α ∈ (0, 1]`.
+fn alpha_admits(alpha: f64) -> bool {
+    alpha > 0.0 && alpha <= 1.0
+}
+
+/// Index of `α` in [`TUNABLES`].
+const ALPHA: usize = 0;
+
+/// What an operator may change while RCAC runs ([`Controller::tunables`]).
+static TUNABLES: [Tunable; 1] = [Tunable {
+    name: "alpha",
+    range: "(0, 1]",
+    admits: alpha_admits,
+}];
+
 /// The RCAC controller (see the module docs).
 pub struct Rcac {
     counts: Dimensions,
@@ -405,6 +422,10 @@ pub struct Rcac {
     /// Steps asked to adapt (from `k_w` on): updated, suspended for a bridged gap in the
     /// windows, suspended for a bad sample ([`Controller::adaptation`]).
     adapted: [u64; 3],
+    /// The operator froze the update ([`Controller::set_adaptation`]).
+    frozen: bool,
+    /// Steps asked to adapt (from `k_w` on) while frozen.
+    frozen_steps: u64,
     limits: Option<OutputLimits>,
     /// [`RcacParams::answers_ahead`], computed once at construction.
     ahead: bool,
@@ -704,7 +725,7 @@ impl RcacParams {
                 rule.validate(lz + ru_rows)?;
             }
             RcacUpdate::Gradient { alpha, r, .. } => {
-                if !(*alpha > 0.0 && *alpha <= 1.0) {
+                if !alpha_admits(*alpha) {
                     return Err(ParamError::new(
                         "alpha",
                         format!("{alpha} is outside (0, 1]"),
@@ -808,6 +829,8 @@ impl Rcac {
             y_zero: vec![0.0; ly],
             gaps: 0,
             adapted: [0; 3],
+            frozen: false,
+            frozen_steps: 0,
             limits: params.limits.clone(),
             ahead: params.answers_ahead(),
             ready_u: vec![0.0; lu],
@@ -969,7 +992,12 @@ impl Rcac {
         let ok = y_ok && z_ok && filt_ok;
         let learn = self.k >= self.kw && self.k >= self.update_from;
         self.z0 = input.z.first().copied().unwrap_or(f64::NAN);
-        // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows).
+        // (2) θ_k → θ_{k+1} (from k = k_w on, not while a bridged gap is in the windows,
+        // not while the operator holds it frozen).
+        if adapt && self.frozen && self.k >= self.kw {
+            self.frozen_steps += 1;
+        }
+        let adapt = adapt && !self.frozen;
         if adapt && self.k >= self.kw {
             let i = if !ok {
                 2
@@ -1411,7 +1439,36 @@ impl Controller for Rcac {
                 (gap_cause, gap),
                 (crate::controller::Adaptation::BAD_SAMPLE, bad),
             ],
+            frozen: self.frozen_steps,
         })
+    }
+
+    fn set_adaptation(&mut self, on: bool) -> bool {
+        self.frozen = !on;
+        true
+    }
+
+    /// `α`, the gradient update's step-size factor (3.53); with the RLS update
+    /// [`Controller::tunable`] gives `None` for it.
+    fn tunables(&self) -> &'static [Tunable] {
+        &TUNABLES
+    }
+
+    fn tunable(&self, index: usize) -> Option<f64> {
+        match (&self.law, index) {
+            (Law::Gradient { alpha, .. }, ALPHA) => Some(*alpha),
+            _ => None,
+        }
+    }
+
+    fn set_tunable(&mut self, index: usize, value: f64) -> bool {
+        match (&mut self.law, index) {
+            (Law::Gradient { alpha, .. }, ALPHA) if alpha_admits(value) => {
+                *alpha = value;
+                true
+            }
+            _ => false,
+        }
     }
 
     fn internal_names(&self) -> Vec<String> {

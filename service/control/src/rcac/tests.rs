@@ -193,22 +193,38 @@ fn grad(step_size: StepSize, alpha: f64, r: f64) -> RcacUpdate {
     }
 }
 
-/// MISO (2 inputs, 1 output, 2 measurements): `u_k = Φ_k θ_{k+1}` with `φ_k` built from
-/// the applied inputs and the measurements, for both update laws and with saturation.
-#[test]
-fn the_input_is_the_updated_coefficients_times_the_regressor_of_applied_data() {
+/// The MISO case (2 inputs, 1 output, 2 measurements) of order `nc` with `update`:
+/// `G_f = [0.4 z⁻¹/(1 − 0.3 z⁻¹), −0.2 z⁻⁴]`, `k_w = 5`, `|u| ≤ 0.5`.
+fn miso_saturated(nc: usize, update: RcacUpdate) -> RcacParams {
     let target = miso_tf_target(vec![
         tf(0, 0, 1, &[0.4], &[1.0, -0.3]),
         tf(0, 1, 4, &[-0.2], &[1.0]),
     ]);
+    RcacParams::builder(target, nc, update)
+        .kw(Some(5))
+        .limits(Some(OutputLimits::symmetric(0.5, 2)))
+        .build(counts(2, 1, 2))
+        .unwrap()
+}
+
+/// Input `j` of [`miso_saturated`] at sample `k` from the coefficients `theta` and the
+/// regressor `phi`: `sat(φ θ_j)`, and 0 before `k_w = 5`.
+fn miso_input(theta: &[f64], phi: &[f64], j: usize, k: usize) -> f64 {
+    let raw: f64 = theta[j * phi.len()..(j + 1) * phi.len()]
+        .iter()
+        .zip(phi)
+        .map(|(a, b)| a * b)
+        .sum();
+    if k < 5 { 0.0 } else { raw.clamp(-0.5, 0.5) }
+}
+
+/// MISO (2 inputs, 1 output, 2 measurements): `u_k = Φ_k θ_{k+1}` with `φ_k` built from
+/// the applied inputs and the measurements, for both update laws and with saturation.
+#[test]
+fn the_input_is_the_updated_coefficients_times_the_regressor_of_applied_data() {
     for update in [rls(0.1, 0.999), grad(StepSize::Sigma, 0.5, 0.0)] {
         let nc = 3;
-        let mut p = params(target.clone(), nc, update);
-        p.kw = Some(5);
-        p.limits = Some(OutputLimits {
-            min: vec![-0.5, -0.5],
-            max: vec![0.5, 0.5],
-        });
+        let p = miso_saturated(nc, update);
         let mut c = Rcac::new(&p, counts(2, 1, 2)).unwrap();
         assert_eq!(c.theta_len(), 2 * nc * 4);
         let mut g = Gauss::new(8);
@@ -229,15 +245,9 @@ fn the_input_is_the_updated_coefficients_times_the_regressor_of_applied_data() {
                 &mut u,
             );
             let phi = phi_direct(&us, &ys, k as isize, nc, (2, 2));
-            let th = c.theta();
-            for j in 0..2 {
-                let raw: f64 = th[j * phi.len()..(j + 1) * phi.len()]
-                    .iter()
-                    .zip(&phi)
-                    .map(|(a, b)| a * b)
-                    .sum();
-                let want = if k < 5 { 0.0 } else { raw.clamp(-0.5, 0.5) };
-                assert!((u[j] - want).abs() < 1e-12, "k = {k}: {} vs {want}", u[j]);
+            for (j, uj) in u.iter().enumerate() {
+                let want = miso_input(c.theta(), &phi, j, k);
+                assert!((uj - want).abs() < 1e-12, "k = {k}: {uj} vs {want}");
             }
             saturated += usize::from(s & status::SATURATED != 0);
             assert_eq!(s & status::CONTROLLER_FAULT, 0);
@@ -783,6 +793,30 @@ fn the_defaults_are_those_the_constructor_uses() {
     assert_eq!(c.theta_len(), RcacParams::theta_len(4, dims));
 }
 
+#[test]
+fn the_builder_starts_at_the_defaults_and_names_a_refused_field() {
+    let dims = counts(1, 1, 1);
+    let update = RcacUpdate::rls(10.0, 4, dims);
+    let built = RcacParams::builder(siso_target(), 4, update.clone())
+        .build(dims)
+        .unwrap();
+    assert_eq!(built, params(siso_target(), 4, update.clone()));
+    assert_eq!(
+        update,
+        RcacUpdate::Rls {
+            p0: 10.0,
+            rule: ForgettingRule::DEFAULT,
+            trace_limit: 1e6 * 8.0 * 10.0,
+        }
+    );
+    let refused = RcacParams::builder(siso_target(), 4, RcacUpdate::gradient(1.5)).build(dims);
+    assert_eq!(refused.unwrap_err().field, "alpha");
+    let refused = RcacParams::builder(siso_target(), 4, update)
+        .theta0(Some(vec![0.0; 3]))
+        .build(dims);
+    assert_eq!(refused.unwrap_err().field, "theta0");
+}
+
 /// Runs `c` for `steps` samples of a new data stream on a fresh plant (the tone and noise
 /// of [`run_loop`], seed 29) and returns every input and the tone's amplitude in `z` over
 /// samples `[from, steps)`.
@@ -896,18 +930,9 @@ fn sample<'a>(k: usize, y: &'a [f64], z: &'a [f64]) -> StepInput<'a> {
 /// `y_k, y_{k−1}, …` and `θ_{k+1}` read from [`Rcac::theta`], and 0 while `k + 1 < k_w`.
 #[test]
 fn the_ready_input_is_the_current_coefficients_times_the_next_regressor() {
-    let target = miso_tf_target(vec![
-        tf(0, 0, 1, &[0.4], &[1.0, -0.3]),
-        tf(0, 1, 4, &[-0.2], &[1.0]),
-    ]);
     for update in [rls(0.1, 0.999), grad(StepSize::Sigma, 0.5, 0.0)] {
         let nc = 3;
-        let mut p = params(target.clone(), nc, update);
-        p.kw = Some(5);
-        p.limits = Some(OutputLimits {
-            min: vec![-0.5, -0.5],
-            max: vec![0.5, 0.5],
-        });
+        let p = miso_saturated(nc, update);
         assert!(p.answers_ahead());
         let mut c = Rcac::new(&p, counts(2, 1, 2)).unwrap();
         let mut g = Gauss::new(8);
@@ -930,20 +955,13 @@ fn the_ready_input_is_the_current_coefficients_times_the_next_regressor() {
             assert_eq!(a.ready(&mut ready), s, "advance returns the ready status");
             assert_eq!(s & status::CONTROLLER_FAULT, 0);
             let phi = phi_direct(&us, &ys, k as isize + 1, nc, (2, 2));
-            let th = c.theta();
-            for j in 0..2 {
-                let raw: f64 = th[j * phi.len()..(j + 1) * phi.len()]
-                    .iter()
-                    .zip(&phi)
-                    .map(|(a, b)| a * b)
-                    .sum();
-                let want = if k + 1 < 5 { 0.0 } else { raw.clamp(-0.5, 0.5) };
+            for (j, uj) in ready.iter().enumerate() {
+                let want = miso_input(c.theta(), &phi, j, k + 1);
                 assert!(
-                    (ready[j] - want).abs() < 1e-12,
-                    "k = {k}: u_(k+1) = {} vs Φ_(k+1) θ_(k+1) = {want}",
-                    ready[j]
+                    (uj - want).abs() < 1e-12,
+                    "k = {k}: u_(k+1) = {uj} vs Φ_(k+1) θ_(k+1) = {want}"
                 );
-                active += usize::from(raw != 0.0 && k + 1 >= 5);
+                active += usize::from(want != 0.0);
             }
             saturated += usize::from(s & status::SATURATED != 0);
         }
@@ -1007,10 +1025,7 @@ fn the_plan_is_what_the_controller_would_give_if_the_coming_measurements_were_ze
     for update in [rls(0.1, 0.999), grad(StepSize::Sigma, 0.5, 0.0)] {
         let mut p = params(target.clone(), nc, update);
         p.kw = Some(5);
-        p.limits = Some(OutputLimits {
-            min: vec![-0.8, -0.8],
-            max: vec![0.8, 0.8],
-        });
+        p.limits = Some(OutputLimits::symmetric(0.8, 2));
         cases.push((p, 300));
     }
     let mut start = params(target, nc, rls(0.1, 1.0));

@@ -54,45 +54,51 @@ impl Level {
     }
 }
 
-/// Applies the pending update `P ← β P − W Wᵀ` to the packed triangle `pk` and computes
-/// `G = P φᵀ` with the new `P` (column `l` of `W`, `φ`ᵀ and `G` at `[l n .. (l+1) n]`).
-/// Returns whether every new entry of `P` is finite.
-#[allow(clippy::too_many_arguments)]
+/// The pending update `P ← β P − W Wᵀ` of the previous step: `W` (`n × p`, column `l`
+/// at `[l n .. (l+1) n]`) and `β`, for `n` parameters and `p` outputs.
+#[derive(Clone, Copy)]
+pub(super) struct Pending<'a> {
+    /// `W`.
+    pub w: &'a [f64],
+    /// `β`.
+    pub beta: f64,
+    /// Parameters.
+    pub n: usize,
+    /// Outputs.
+    pub p: usize,
+}
+
+/// Applies the pending update to the packed upper triangle `pk` of `P` (`n(n+1)/2`) and
+/// computes `G = P φᵀ` (`n × p`) with the new `P` for the regressor `φ` (`p × n`; column
+/// `l` of `φ`ᵀ and `G` at `[l n .. (l+1) n]`). Returns whether every new entry of `P` is
+/// finite.
 pub(super) fn fused_pass(
     level: Level,
     pk: &mut [f64],
-    w: &[f64],
-    beta: f64,
+    pending: Pending<'_>,
     phi: &[f64],
     g: &mut [f64],
-    n: usize,
-    p: usize,
 ) -> bool {
+    let Pending { w, n, p, .. } = pending;
     assert!(pk.len() == n * (n + 1) / 2 && w.len() == n * p && phi.len() == n * p);
     assert!(g.len() == n * p);
     match level {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Avx2Fma` is only produced by `detect` after checking AVX2 and FMA.
-        Level::Avx2Fma => unsafe { x86::fused_pass(pk, w, beta, phi, g, n, p) },
-        _ => fused_portable::<false>(pk, w, beta, phi, g, n, p),
+        Level::Avx2Fma => unsafe { x86::fused_pass(pk, pending, phi, g) },
+        _ => fused_portable::<false>(pk, pending, phi, g),
     }
 }
 
-/// The diagonal of `β P − W Wᵀ` (not stored): `(trace, min, all finite)`, each entry
-/// computed exactly as [`fused_pass`] will compute it.
-pub(super) fn next_diag(
-    level: Level,
-    pk: &[f64],
-    w: &[f64],
-    beta: f64,
-    n: usize,
-    p: usize,
-) -> (f64, f64, bool) {
+/// The diagonal of the pending update's `β P − W Wᵀ` (not stored) for the packed
+/// triangle `pk` of `P`: `(trace, min, all finite)`, each entry computed exactly as
+/// [`fused_pass`] will compute it.
+pub(super) fn next_diag(level: Level, pk: &[f64], pending: Pending<'_>) -> (f64, f64, bool) {
     match level {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `fused_pass`.
-        Level::Avx2Fma => unsafe { x86::next_diag(pk, w, beta, n, p) },
-        _ => next_diag_impl::<false>(pk, w, beta, n, p),
+        Level::Avx2Fma => unsafe { x86::next_diag(pk, pending) },
+        _ => next_diag_impl::<false>(pk, pending),
     }
 }
 
@@ -115,13 +121,8 @@ pub(super) fn entry<const FMA: bool>(
 }
 
 #[inline(always)]
-fn next_diag_impl<const FMA: bool>(
-    pk: &[f64],
-    w: &[f64],
-    beta: f64,
-    n: usize,
-    p: usize,
-) -> (f64, f64, bool) {
+fn next_diag_impl<const FMA: bool>(pk: &[f64], pending: Pending<'_>) -> (f64, f64, bool) {
+    let Pending { w, beta, n, p } = pending;
     let (mut trace, mut min, mut finite) = (0.0, f64::INFINITY, true);
     let mut off = 0;
     for i in 0..n {
@@ -139,13 +140,11 @@ fn next_diag_impl<const FMA: bool>(
 #[inline(always)]
 pub(super) fn fused_portable<const FMA: bool>(
     pk: &mut [f64],
-    w: &[f64],
-    beta: f64,
+    pending: Pending<'_>,
     phi: &[f64],
     g: &mut [f64],
-    n: usize,
-    p: usize,
 ) -> bool {
+    let Pending { w, beta, n, p } = pending;
     let g = &mut g[..n * p];
     g.fill(0.0);
     let mut finite = true;
@@ -180,43 +179,35 @@ pub(super) fn fused_portable<const FMA: bool>(
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
+    use super::Pending;
     use core::arch::x86_64::*;
 
     /// [`super::fused_pass`] with AVX2+FMA.
     #[target_feature(enable = "avx2,fma")]
     pub(super) fn fused_pass(
         pk: &mut [f64],
-        w: &[f64],
-        beta: f64,
+        pending: Pending<'_>,
         phi: &[f64],
         g: &mut [f64],
-        n: usize,
-        p: usize,
     ) -> bool {
-        let s = beta != 1.0;
-        match (p, s) {
-            (1, false) => fused_fixed::<1, false>(pk, w, beta, phi, g, n),
-            (1, true) => fused_fixed::<1, true>(pk, w, beta, phi, g, n),
-            (2, false) => fused_fixed::<2, false>(pk, w, beta, phi, g, n),
-            (2, true) => fused_fixed::<2, true>(pk, w, beta, phi, g, n),
-            (3, false) => fused_fixed::<3, false>(pk, w, beta, phi, g, n),
-            (3, true) => fused_fixed::<3, true>(pk, w, beta, phi, g, n),
-            (4, false) => fused_fixed::<4, false>(pk, w, beta, phi, g, n),
-            (4, true) => fused_fixed::<4, true>(pk, w, beta, phi, g, n),
-            _ => super::fused_portable::<true>(pk, w, beta, phi, g, n, p),
+        let s = pending.beta != 1.0;
+        match (pending.p, s) {
+            (1, false) => fused_fixed::<1, false>(pk, pending, phi, g),
+            (1, true) => fused_fixed::<1, true>(pk, pending, phi, g),
+            (2, false) => fused_fixed::<2, false>(pk, pending, phi, g),
+            (2, true) => fused_fixed::<2, true>(pk, pending, phi, g),
+            (3, false) => fused_fixed::<3, false>(pk, pending, phi, g),
+            (3, true) => fused_fixed::<3, true>(pk, pending, phi, g),
+            (4, false) => fused_fixed::<4, false>(pk, pending, phi, g),
+            (4, true) => fused_fixed::<4, true>(pk, pending, phi, g),
+            _ => super::fused_portable::<true>(pk, pending, phi, g),
         }
     }
 
     /// [`super::next_diag`] with FMA.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) fn next_diag(
-        pk: &[f64],
-        w: &[f64],
-        beta: f64,
-        n: usize,
-        p: usize,
-    ) -> (f64, f64, bool) {
-        super::next_diag_impl::<true>(pk, w, beta, n, p)
+    pub(super) fn next_diag(pk: &[f64], pending: Pending<'_>) -> (f64, f64, bool) {
+        super::next_diag_impl::<true>(pk, pending)
     }
 
     /// The new value of one entry, scalar: the same operations as the vector loop.
@@ -258,12 +249,11 @@ mod x86 {
     #[inline]
     fn fused_fixed<const P: usize, const SCALE: bool>(
         pk: &mut [f64],
-        w: &[f64],
-        beta: f64,
+        pending: Pending<'_>,
         phi: &[f64],
         g: &mut [f64],
-        n: usize,
     ) -> bool {
+        let Pending { w, beta, n, .. } = pending;
         assert!(pk.len() == n * (n + 1) / 2 && w.len() == P * n);
         assert!(phi.len() == P * n && g.len() == P * n);
         g.fill(0.0);

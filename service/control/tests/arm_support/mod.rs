@@ -8,8 +8,7 @@
 use control::arm::controller::{ArmController, ArmControllerParams, N_R, N_U, N_Y};
 use control::arm::dynamics::{ArmModel, ArmParams};
 use control::arm::feedback_linearization::{ContactPrior, FeedbackLinearization, zoh};
-use control::forgetting::ForgettingRule;
-use control::mpc::condense::{MoveBounds, Weight};
+use control::mpc::condense::MoveBounds;
 use control::pcac::PcacParams;
 use control::{Controller, Dimensions, StepInput};
 use nalgebra::{DMatrix, Vector2, Vector4};
@@ -41,14 +40,10 @@ pub fn lqr_gain(k_s: f64, c_s: f64, q: [f64; 3], r: f64) -> [f64; 6] {
     }
     let btp = bd.transpose() * &p;
     let k = -(&rm + &btp * &bd).try_inverse().unwrap() * &btp * &ad;
-    [
-        k[(0, 0)],
-        k[(0, 1)],
-        k[(0, 2)],
-        k[(1, 0)],
-        k[(1, 1)],
-        k[(1, 2)],
-    ]
+    // Row-major: the column-major storage of Kᵀ.
+    let mut gain = [0.0; 6];
+    gain.copy_from_slice(k.transpose().as_slice());
+    gain
 }
 
 /// The spectral radius of `A_d + B_d K` for the χ-dynamics at `(k_s, c_s)`.
@@ -71,26 +66,9 @@ pub fn closed_loop_radius(k: &[f64; 6], k_s: f64, c_s: f64) -> f64 {
 pub fn chapter_pcac() -> PcacParams {
     let fl = FeedbackLinearization::new(ArmParams::CHAPTER_7);
     let theta0 = fl.pcac_prior(&ContactPrior::CHAPTER_7, TS).unwrap();
-    let mut tracking = vec![0.0; 3 * 5];
-    for i in 0..3 {
-        tracking[i * 5 + 2 + i] = 1.0;
-    }
-    PcacParams::builder(1, 5, 2, 10.0, 50)
+    PcacParams::chapter_7()
         .theta0(theta0)
-        .forgetting(ForgettingRule::FTest {
-            tau_n: 40,
-            tau_d: 200,
-            eta: 0.1,
-            alpha: 0.001,
-        })
-        .tracking(3, tracking)
-        .q(Weight::PerChannel(vec![1000.0, 100.0, 1.0]))
-        .r(Weight::Scalar(1.0))
-        .input_bounds(vec![-100.0; 2], vec![100.0; 2])
-        .move_bounds(Some(MoveBounds {
-            min: vec![-50.0; 2],
-            max: vec![50.0; 2],
-        }))
+        .move_bounds(Some(MoveBounds::symmetric(50.0, 2)))
         .build()
 }
 
@@ -105,6 +83,15 @@ pub fn chapter_pcac() -> PcacParams {
 /// that a gentle robust gain leaves to `u_aug`.
 pub fn test_gain() -> [f64; 6] {
     lqr_gain(2.0e5, 5.0, [1000.0, 100.0, 1.0], 100.0)
+}
+
+/// Algorithm 3 with the robust gain `k` and [`chapter_pcac`], on [`rig`].
+pub fn augmented_with(k: [f64; 6]) -> ArmController {
+    let params = ArmControllerParams {
+        pcac: Some(chapter_pcac()),
+        ..ArmControllerParams::robust_only(k)
+    };
+    ArmController::new(&params, rig()).unwrap()
 }
 
 pub fn rig() -> Dimensions {
@@ -213,14 +200,7 @@ pub fn step(c: &mut ArmController, sc: &Spacecraft, k: u64, f_d: f64) -> ([f64; 
 
 /// The augmented controller of §7.3 with the committed LMI gain ([`committed_gain`]).
 pub fn augmented() -> ArmController {
-    ArmController::new(
-        &ArmControllerParams {
-            pcac: Some(chapter_pcac()),
-            ..ArmControllerParams::robust_only(committed_gain())
-        },
-        rig(),
-    )
-    .expect("valid parameters")
+    augmented_with(committed_gain())
 }
 
 /// `K` of the committed robust-gain file `scenarios/arm/robust-gain.toml` (the LMI

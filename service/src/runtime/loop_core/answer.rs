@@ -9,7 +9,9 @@ use crate::runtime::{CycleDecision, LoopCore, LoopEvent, Outbox};
 use crate::telemetry::CycleTiming;
 use control::controller::StepInput;
 use ipc_types::clock::monotonic_ns;
-use ipc_types::{MAX_PLAN, MAX_U, Measurement, Timing, actuation_status, measurement_flags};
+use ipc_types::{
+    MAX_PLAN, MAX_U, Measurement, Timing, actuation_status, measurement_flags, timing_rules,
+};
 
 impl LoopCore {
     /// An ahead controller takes sample `k` in with `applied`, adapting when `adapt`, and
@@ -210,7 +212,7 @@ impl LoopCore {
         let input = step_input(m, lost);
         let mode = if !self.admissible(m) {
             Mode::Rejected
-        } else if self.deadline.in_safe_state() {
+        } else if self.deadline.in_safe_state() || self.operator_safe {
             self.stats.safe_state_cycles += 1;
             Mode::Safe(actuation_status::SAFE_STATE)
         } else if self.session.session_cycle() <= self.open_loop_cycles {
@@ -249,7 +251,8 @@ impl LoopCore {
         out: &mut dyn Outbox,
     ) -> Published {
         let n_u = self.counts.n_u as usize;
-        header(&mut self.outgoing, m.seq, m, self.counts, self.timing);
+        let seq = timing_rules::answer_seq(m.seq, self.timing);
+        header(&mut self.outgoing, seq, m, self.counts, self.timing);
         let mut compute_ns = 0;
         match mode {
             Mode::Rejected | Mode::Safe(_) => {
@@ -295,7 +298,8 @@ impl LoopCore {
         out: &mut dyn Outbox,
     ) -> Published {
         let n_u = self.counts.n_u as usize;
-        header(&mut self.outgoing, m.seq, m, self.counts, self.timing);
+        let seq = timing_rules::answer_seq(m.seq, self.timing);
+        header(&mut self.outgoing, seq, m, self.counts, self.timing);
         self.fill(mode, status);
         let (ok, t_pub) = self.send(out, true);
         let answered = self.outgoing.status;
@@ -320,7 +324,7 @@ impl LoopCore {
         out: &mut dyn Outbox,
     ) -> Published {
         let n_u = self.counts.n_u as usize;
-        if !self.sent.contains(m.seq) {
+        if timing_rules::answers_sample_itself(self.timing, self.sent.contains(m.seq)) {
             header(&mut self.outgoing, m.seq, m, self.counts, self.timing);
             self.fill(mode, status);
             let _ = self.send(out, false);
@@ -331,7 +335,7 @@ impl LoopCore {
         let compute_ns = self.take_in(mode, input, &applied[..n_u]);
         header(
             &mut self.outgoing,
-            m.seq.wrapping_add(1),
+            timing_rules::answer_seq(m.seq, self.timing),
             m,
             self.counts,
             self.timing,
@@ -372,12 +376,12 @@ impl LoopCore {
         let response_ns = answer.t_pub.saturating_sub(m.t_sample_ns);
         let cycle = self.session.connection_cycle();
         // The plant's deadline for this answer: with send-ahead it is the next sample's.
-        let deadline_ns = if m.flags & measurement_flags::LOCKSTEP != 0 {
-            0
-        } else {
-            m.deadline_ns
-                .saturating_add(self.timing.lead().saturating_mul(m.period_ns))
-        };
+        let deadline_ns = timing_rules::answer_deadline_ns(
+            m.flags & measurement_flags::LOCKSTEP != 0,
+            m.deadline_ns,
+            m.period_ns,
+            self.timing,
+        );
         let verdict = self.deadline.on_answer(Answer {
             cycle,
             open_loop: self.session.session_cycle() <= self.open_loop_cycles,
@@ -410,12 +414,13 @@ impl LoopCore {
                 period_jitter_ns: jitter,
             });
         }
+        // The row of sample k holds the input the service gave for sample k.
+        let (u, status) = match self.sent.input_for(m.seq) {
+            Some((u, status)) => (*u, status),
+            None => (self.last_u, answer.status),
+        };
+        self.push_live_sample(m, &u, status);
         if let Some(log) = self.log.as_mut() {
-            // The row of sample k holds the input the service gave for sample k.
-            let (u, status) = match self.sent.input_for(m.seq) {
-                Some((u, status)) => (*u, status),
-                None => (self.last_u, answer.status),
-            };
             let r = &mut self.record;
             r.seq = m.seq;
             r.t_sample_ns = m.t_sample_ns;

@@ -29,13 +29,15 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use control::target::{TargetChannel, TargetForm, TargetModel};
 use rig_tools::design::csvlog;
 use rig_tools::design::dtf;
-use rig_tools::design::frf_file::FrfFile;
-use rig_tools::design::markov::FirTarget;
-use rig_tools::design::model::{DiscreteModel, OutputSet};
+use rig_tools::design::frf_file::{FrfFile, FrfFileError};
+use rig_tools::design::markov::{FirTarget, MarkovError};
+use rig_tools::design::model::{DiscreteModel, ModelError, OutputSet};
 use rig_tools::design::plots::{Curve, PoleZero, bode_figure, coherence_figure};
 use rig_tools::design::target_response::TargetResponse;
 use rig_tools::design::welch::{self, WelchOptions};
-use rig_tools::design::{C64, Frf, grid};
+use rig_tools::design::{C64, Frf, GridError, grid};
+use rig_tools::file_error::{FileError, FileOp};
+use rig_tools::plot::PlotError;
 use service::config::TargetModelFile;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -241,6 +243,65 @@ enum Command {
     },
 }
 
+/// Why a command of `rig-design` failed: a library step's own error (naming the file, the
+/// step or the channel), or a refusal of the command itself (naming the option).
+#[derive(Debug, thiserror::Error)]
+enum CommandError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The command line asks for what cannot be done (the message names the option).
+    #[error("{0}")]
+    Usage(String),
+    /// A designed gain failed a check (the message says which).
+    #[cfg(feature = "sdp")]
+    #[error("{0}")]
+    Refused(String),
+    /// A scenario cannot be read.
+    #[error(transparent)]
+    Scenario(#[from] plant_proxy::scenario::ScenarioError),
+    /// The plant cannot be modelled.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// A frequency grid cannot be made.
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    /// Markov parameters cannot be taken.
+    #[error(transparent)]
+    Markov(#[from] MarkovError),
+    /// A DTF cannot be designed.
+    #[error(transparent)]
+    Dtf(#[from] dtf::DtfError),
+    /// A frequency-response file cannot be read or written.
+    #[error(transparent)]
+    FrfFile(#[from] FrfFileError),
+    /// A signal log cannot be read.
+    #[error(transparent)]
+    Log(#[from] csvlog::LogError),
+    /// The Welch estimate of a log failed.
+    #[error("{}: {source}", log.display())]
+    Welch {
+        /// The log.
+        log: PathBuf,
+        /// Why.
+        #[source]
+        source: welch::WelchError,
+    },
+    /// A figure cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// A target-model file cannot be read, checked or written (the service's message).
+    #[error("{0}")]
+    Target(String),
+    /// A robust gain file cannot be read or written.
+    #[error(transparent)]
+    RobustGainFile(#[from] rig_tools::design::robust_gain_file::RobustGainFileError),
+    /// The robust gain cannot be designed.
+    #[cfg(feature = "sdp")]
+    #[error(transparent)]
+    RobustGain(#[from] rig_tools::design::robust_gain::RobustGainError),
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -260,6 +321,7 @@ fn main() -> ExitCode {
         } => markov(&scenario, output, count, first_nonzero, beta, &out),
         Command::Frf { log, frf, out } => measured_frf(&log, &frf, &out).map(|_| ()),
         Command::Dtf { frf_file, dtf, out } => FrfFile::load(&frf_file)
+            .map_err(CommandError::from)
             .and_then(|f| design_dtf(&f, &dtf, &out, &frf_file.display().to_string())),
         Command::Identify { log, frf, dtf, out } => measured_frf(&log, &frf, &out)
             .and_then(|f| design_dtf(&f, &dtf, &out, &log.display().to_string())),
@@ -286,20 +348,26 @@ fn main() -> ExitCode {
     }
 }
 
-fn out_dir(out: &Path) -> Result<(), String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("creating {}: {e}", out.display()))
+fn out_dir(out: &Path) -> Result<(), CommandError> {
+    std::fs::create_dir_all(out)
+        .map_err(|source| FileError::new(FileOp::Creating, out, source).into())
 }
 
-fn load_model(scenario: &Path, output: Output) -> Result<DiscreteModel, String> {
-    let sc = plant_proxy::scenario::load(scenario).map_err(|e| e.to_string())?;
-    DiscreteModel::from_scenario(&sc, output.into())
+fn load_model(scenario: &Path, output: Output) -> Result<DiscreteModel, CommandError> {
+    let sc = plant_proxy::scenario::load(scenario)?;
+    Ok(DiscreteModel::from_scenario(&sc, output.into())?)
 }
 
 fn channel_name(f: &Frf, c: usize) -> String {
     format!("output {} ← input {}", c / f.n_inputs, c % f.n_inputs)
 }
 
-fn model_frf(scenario: &Path, output: Output, points: usize, out: &Path) -> Result<(), String> {
+fn model_frf(
+    scenario: &Path,
+    output: Output,
+    points: usize,
+    out: &Path,
+) -> Result<(), CommandError> {
     out_dir(out)?;
     let model = load_model(scenario, output)?;
     let theta = grid(0.0, std::f64::consts::PI, points, false)?;
@@ -343,13 +411,17 @@ fn markov(
     first_nonzero: bool,
     beta: f64,
     out: &Path,
-) -> Result<(), String> {
+) -> Result<(), CommandError> {
     out_dir(out)?;
     let model = load_model(scenario, output)?;
     let fir = match (count, first_nonzero) {
         (_, true) => FirTarget::first_nonzero_per_channel(&model, 1e-9)?,
         (Some(n), false) if n >= 1 => FirTarget::from_model(&model, n - 1),
-        _ => return Err("give --count N (N ≥ 1) or --first-nonzero".into()),
+        _ => {
+            return Err(CommandError::Usage(
+                "give --count N (N ≥ 1) or --first-nonzero".into(),
+            ));
+        }
     };
     let (p, m) = (model.n_outputs(), model.n_inputs());
     let mut csv = String::from("i");
@@ -369,7 +441,7 @@ fn markov(
         csv.push('\n');
     }
     let csv_path = out.join("markov.csv");
-    std::fs::write(&csv_path, csv).map_err(|e| format!("writing {}: {e}", csv_path.display()))?;
+    rig_tools::study::common::files::write(&csv_path, &csv)?;
     let target = TargetModel {
         sample_period: model.ts,
         outputs: p,
@@ -384,8 +456,9 @@ fn markov(
     };
     let tm_path = out.join("target-model.toml");
     // Validate what is written by reading it back.
-    TargetModel::parse(&target.to_toml(), &tm_path.display().to_string())?;
-    target.save(&tm_path)?;
+    TargetModel::parse(&target.to_toml(), &tm_path.display().to_string())
+        .map_err(CommandError::Target)?;
+    target.save(&tm_path).map_err(CommandError::Target)?;
     let first = fir
         .markov
         .iter()
@@ -414,17 +487,16 @@ fn format_matrix(h: &nalgebra::DMatrix<f64>) -> String {
 
 /// The sample period: `--sample-period`, or `rig.sample-period` of `--scenario`. (The
 /// log's `t_sample_ns` column is wall-clock time, which a lockstep run compresses.)
-fn sample_period(a: &FrfArgs) -> Result<f64, String> {
+fn sample_period(a: &FrfArgs) -> Result<f64, CommandError> {
     match (a.sample_period, &a.scenario) {
         (Some(t), _) if t > 0.0 && t.is_finite() => Ok(t),
-        (Some(t), _) => Err(format!("--sample-period {t} is not a period")),
-        (None, Some(s)) => Ok(plant_proxy::scenario::load(s)
-            .map_err(|e| e.to_string())?
-            .rig
-            .sample_period),
-        (None, None) => {
-            Err("give --sample-period T or --scenario FILE (for rig.sample-period)".into())
-        }
+        (Some(t), _) => Err(CommandError::Usage(format!(
+            "--sample-period {t} is not a period"
+        ))),
+        (None, Some(s)) => Ok(plant_proxy::scenario::load(s)?.rig.sample_period),
+        (None, None) => Err(CommandError::Usage(
+            "give --sample-period T or --scenario FILE (for rig.sample-period)".into(),
+        )),
     }
 }
 
@@ -432,7 +504,7 @@ fn names(v: &[String]) -> Vec<&str> {
     v.iter().map(|s| s.as_str()).collect()
 }
 
-fn measured_frf(log_path: &Path, a: &FrfArgs, out: &Path) -> Result<FrfFile, String> {
+fn measured_frf(log_path: &Path, a: &FrfArgs, out: &Path) -> Result<FrfFile, CommandError> {
     out_dir(out)?;
     let log = csvlog::read(log_path)?;
     let ts = sample_period(a)?;
@@ -443,8 +515,10 @@ fn measured_frf(log_path: &Path, a: &FrfArgs, out: &Path) -> Result<FrfFile, Str
         overlap: a.overlap,
         ..WelchOptions::default()
     };
-    let est =
-        welch::estimate(&u, &y, ts, &opts).map_err(|e| format!("{}: {e}", log_path.display()))?;
+    let est = welch::estimate(&u, &y, ts, &opts).map_err(|source| CommandError::Welch {
+        log: log_path.to_path_buf(),
+        source,
+    })?;
     for w in &est.warnings {
         eprintln!("rig-design: warning: {w}");
     }
@@ -465,7 +539,7 @@ fn measured_frf(log_path: &Path, a: &FrfArgs, out: &Path) -> Result<FrfFile, Str
     )?;
     let model = match (&a.scenario, a.compare) {
         (Some(s), true) => {
-            let sc = plant_proxy::scenario::load(s).map_err(|e| e.to_string())?;
+            let sc = plant_proxy::scenario::load(s)?;
             Some((
                 DiscreteModel::from_scenario(&sc, OutputSet::Y)?.frf(&file.frf.theta)?,
                 sc.plant.input_delays.clone(),
@@ -533,7 +607,7 @@ fn measured_frf(log_path: &Path, a: &FrfArgs, out: &Path) -> Result<FrfFile, Str
 }
 
 /// Builds the DTF of every channel of `f` (delays removed) and writes the target model.
-fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), String> {
+fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), CommandError> {
     out_dir(out)?;
     let frf = welch::remove_delays(&f.frf, &f.delays);
     let ts = frf.ts;
@@ -555,9 +629,11 @@ fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), 
         let g: Vec<C64> = keep.iter().map(|&k| frf.response[c][k]).collect();
         let (fit, averaged) = match a.method {
             Method::Average => {
-                let delta_hz = a
-                    .delta_hz
-                    .ok_or("--method average needs --delta-hz (half-width Δ of the window, Hz)")?;
+                let delta_hz = a.delta_hz.ok_or_else(|| {
+                    CommandError::Usage(
+                        "--method average needs --delta-hz (half-width Δ of the window, Hz)".into(),
+                    )
+                })?;
                 let delta = delta_hz * 2.0 * std::f64::consts::PI * ts;
                 // The window needs the whole response from 0 to π; the fit uses the band.
                 let full = dtf::windowed_average(&frf.theta, &frf.response[c], delta)?;
@@ -641,14 +717,15 @@ fn design_dtf(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), 
         form: TargetForm::TransferFunction(channels),
     };
     let path = out.join("target-model.toml");
-    TargetModel::parse(&target.to_toml(), &path.display().to_string())?;
-    target.save(&path)?;
+    TargetModel::parse(&target.to_toml(), &path.display().to_string())
+        .map_err(CommandError::Target)?;
+    target.save(&path).map_err(CommandError::Target)?;
     println!("wrote {} (β = {})", path.display(), a.beta);
     Ok(())
 }
 
 /// The FIR target model (3.39) from the measured impulse response.
-fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), String> {
+fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<(), CommandError> {
     let fir = FirTarget::from_measured(&f.frf, &f.delays, a.count)?;
     let target = TargetModel {
         sample_period: f.frf.ts,
@@ -662,8 +739,9 @@ fn measured_fir(f: &FrfFile, a: &DtfArgs, out: &Path, origin: &str) -> Result<()
         form: TargetForm::Markov(fir.markov),
     };
     let path = out.join("target-model.toml");
-    TargetModel::parse(&target.to_toml(), &path.display().to_string())?;
-    target.save(&path)?;
+    TargetModel::parse(&target.to_toml(), &path.display().to_string())
+        .map_err(CommandError::Target)?;
+    target.save(&path).map_err(CommandError::Target)?;
     let theta: Vec<f64> = f.frf.theta.iter().copied().filter(|t| *t > 0.0).collect();
     let skip = f.frf.theta.len() - theta.len();
     let hz: Vec<f64> = theta
@@ -709,11 +787,11 @@ fn dtf_figure(
     hz: &[f64],
     curves: &[Curve<'_>],
     sets: &[(&str, &dtf::Dtf)],
-) -> Result<(), String> {
+) -> Result<(), CommandError> {
     let roots = sets
         .iter()
         .map(|(l, d)| Ok((*l, d.poles()?, d.zeros()?)))
-        .collect::<Result<Vec<_>, String>>()?;
+        .collect::<Result<Vec<_>, CommandError>>()?;
     let pz: Vec<PoleZero<'_>> = roots
         .iter()
         .map(|(label, poles, zeros)| PoleZero {
@@ -722,14 +800,14 @@ fn dtf_figure(
             zeros,
         })
         .collect();
-    bode_figure(path, title, hz, curves, &pz)
+    Ok(bode_figure(path, title, hz, curves, &pz)?)
 }
 
-fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result<(), String> {
-    let tm = TargetModel::load(target)?;
+fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result<(), CommandError> {
+    let tm = TargetModel::load(target).map_err(CommandError::Target)?;
     let model = load_model(scenario, output)?;
     if (tm.outputs, tm.inputs) != (model.n_outputs(), model.n_inputs()) {
-        return Err(format!(
+        return Err(CommandError::Usage(format!(
             "{} is {}×{} but the plant of {} is {}×{}",
             target.display(),
             tm.outputs,
@@ -737,11 +815,13 @@ fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result
             scenario.display(),
             model.n_outputs(),
             model.n_inputs()
-        ));
+        )));
     }
     let nyquist = 0.5 / model.ts;
     if let Some(f) = hz.iter().find(|f| !(**f > 0.0 && **f < nyquist)) {
-        return Err(format!("--hz {f} is outside (0, {nyquist}) Hz"));
+        return Err(CommandError::Usage(format!(
+            "--hz {f} is outside (0, {nyquist}) Hz"
+        )));
     }
     let theta: Vec<f64> = hz
         .iter()
@@ -767,13 +847,13 @@ fn compare(target: &Path, scenario: &Path, hz: &[f64], output: Output) -> Result
     Ok(())
 }
 
-fn example_3_41(out: &Path) -> Result<(), String> {
+fn example_3_41(out: &Path) -> Result<(), CommandError> {
     out_dir(out)?;
     let ex = dtf::example_3_41()?;
     let report = ex.report();
     print!("{report}");
     let path = out.join("summary.txt");
-    std::fs::write(&path, &report).map_err(|e| format!("writing {}: {e}", path.display()))?;
+    rig_tools::study::common::files::write(&path, &report)?;
     let hz = |th: &[f64]| {
         th.iter()
             .map(|t| t / (2.0 * std::f64::consts::PI * ex.ts))
@@ -831,12 +911,12 @@ fn example_3_41(out: &Path) -> Result<(), String> {
 
 /// `rig-design robust-gain` without the SDP solver.
 #[cfg(not(feature = "sdp"))]
-fn robust_gain(_: Option<f64>, _: Option<f64>, _: usize, _: &Path) -> Result<(), String> {
-    Err(
+fn robust_gain(_: Option<f64>, _: Option<f64>, _: usize, _: &Path) -> Result<(), CommandError> {
+    Err(CommandError::Usage(
         "robust-gain needs the SDP solver: build rig-tools with `--features sdp` (it links \
          the system's OpenBLAS: apt-get install libopenblas-dev)"
             .into(),
-    )
+    ))
 }
 
 /// `rig-design robust-gain`: solve, report, check, write.
@@ -846,7 +926,7 @@ fn robust_gain(
     force_scale: Option<f64>,
     grid: usize,
     out: &Path,
-) -> Result<(), String> {
+) -> Result<(), CommandError> {
     use control::arm::robust::RobustBox;
     use rig_tools::design::robust_gain::{self as rg, MARGIN_TOLERANCE};
     use rig_tools::design::robust_gain_file::RobustGainFile;
@@ -859,9 +939,11 @@ fn robust_gain(
     };
     design
         .validate()
-        .map_err(|e| format!("--decay-rate: {e}"))?;
+        .map_err(|e| CommandError::Usage(format!("--decay-rate: {e}")))?;
     if grid < 2 {
-        return Err(format!("--grid {grid}: at least 2 points per axis"));
+        return Err(CommandError::Usage(format!(
+            "--grid {grid}: at least 2 points per axis"
+        )));
     }
     let sol = match force_scale {
         Some(e) => rg::solve(&design, e)?,
@@ -936,7 +1018,7 @@ fn robust_gain(
     );
     if !sol.certified() {
         print!("{r}");
-        return Err(format!(
+        return Err(CommandError::Refused(format!(
             "λ = {} /s is not certified over the box: the normalized (7.41) has s = {:.3e} ≤ {MARGIN_TOLERANCE:e} \
              (no common quadratic Lyapunov function gives that decay at every (k_s, c_s)); {}",
             design.decay_rate,
@@ -949,7 +1031,7 @@ fn robust_gain(
                 ),
                 (None, None) => "not even λ = 0 does: the box is too wide".into(),
             }
-        ));
+        )));
     }
     let m = sol.margins();
     let l = sol.lyapunov_margins();
@@ -1018,11 +1100,11 @@ fn robust_gain(
     );
     print!("{r}");
     if !check.passed() {
-        return Err(format!(
+        return Err(CommandError::Refused(format!(
             "the gain fails the independent check: worst radius {:.9} ≥ {:.9}",
             check.worst_grid.radius.max(check.worst_vertex.radius),
             check.bound
-        ));
+        )));
     }
     let file = RobustGainFile {
         gain: k,
@@ -1031,7 +1113,10 @@ fn robust_gain(
     };
     file.save(out, &r)?;
     if RobustGainFile::load(out)? != file {
-        return Err(format!("{} does not read back as written", out.display()));
+        return Err(CommandError::Refused(format!(
+            "{} does not read back as written",
+            out.display()
+        )));
     }
     println!("wrote {}", out.display());
     Ok(())

@@ -10,6 +10,10 @@
 //!          [--wait MODE]... [--duration S] [--out DIR] [--results FILE.md]
 //! rig gaps <scenario.toml> [--rls FILE] [--rules R,R,…] [--jobs N] [--runs DIR]
 //!          [--results FILE] [--json FILE]
+//! rig check <scenario.toml> [--controller FILE]
+//! rig monitor --rig NAME [--rig NAME ...] [--listen 127.0.0.1:9187] [--allow-commands]
+//!             [--foxglove 127.0.0.1:8765]
+//! rig command --rig NAME <command> [--tunable NAME --value X] [--timeout S]
 //! ```
 //!
 //! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
@@ -27,9 +31,18 @@
 //! campaign ran, whatever the runs' verdicts, 2 on a refused option or configuration, 1
 //! when it was interrupted or its results could not be written. `gaps` runs the gap campaign of `rig_tools::gaps` (RCAC's suppression
 //! against the share of samples lost, per gap rule, in lockstep) and writes its tables.
+//! `check` validates both halves of a scenario and the two against each other
+//! (`rig_tools::scenario_check`): exit 0 when accepted, 2 when refused, naming the file and
+//! the field. `monitor` watches running rigs (`rig_tools::monitor`, docs/monitor.md): it
+//! prints `rig monitor: listening on http://ADDR/` (and `rig monitor: foxglove on
+//! ws://ADDR`) once it serves, and runs until SIGINT or SIGTERM; exit 2 when an option is
+//! refused, 1 when the server fails. `command` sends one operator command to a rig's
+//! service and prints its reply: exit 0 when applied, 1 when refused or unanswered, 2 on a
+//! malformed command.
 
 use clap::{Parser, Subcommand};
 use rig_tools::launch::{LaunchError, LaunchOptions, launch};
+use rig_tools::scenario_check::ScenarioCheck;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -159,6 +172,51 @@ enum Command {
         /// A run folder (holds signals.csv and report.json).
         run_folder: PathBuf,
     },
+    /// Watch running rigs: a web page with a live scope, JSON, Prometheus metrics and
+    /// optionally Foxglove (docs/monitor.md).
+    Monitor {
+        /// A rig to watch; repeatable.
+        #[arg(long = "rig", required = true)]
+        rigs: Vec<String>,
+        /// HTTP address (port 0: any free port; loopback unless you mean otherwise).
+        #[arg(long, default_value = rig_tools::monitor::DEFAULT_LISTEN)]
+        listen: String,
+        /// Forward operator commands from the page and Foxglove to the services.
+        #[arg(long)]
+        allow_commands: bool,
+        /// Also serve Foxglove's WebSocket protocol on this address (e.g. 127.0.0.1:8765).
+        #[arg(long)]
+        foxglove: Option<String>,
+    },
+    /// Send one operator command to a rig's service and print its reply.
+    #[command(name = "command")]
+    Operator {
+        /// The rig.
+        #[arg(long)]
+        rig: String,
+        /// freeze-adaptation, resume-adaptation, enter-safe-state, leave-safe-state,
+        /// stop-run or set-tunable.
+        command: String,
+        /// For set-tunable: the tunable's name.
+        #[arg(long)]
+        tunable: Option<String>,
+        /// For set-tunable: the new value.
+        #[arg(long, allow_negative_numbers = true)]
+        value: Option<f64>,
+        /// Seconds to wait for the reply.
+        #[arg(long, default_value_t = 2.0)]
+        timeout: f64,
+    },
+    /// Validate the whole scenario, both halves (the service's tables as `service check`
+    /// reads them and plant-proxy's rig, plant and proxy tables, when the file has a plant
+    /// table) and the two against each other, and exit (2 when refused).
+    Check {
+        /// Scenario / configuration TOML file.
+        config: PathBuf,
+        /// Replace the scenario's controller (and log) table by this file's.
+        #[arg(long)]
+        controller: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -231,30 +289,13 @@ fn main() -> ExitCode {
             let command = format!("rig stalls {}{lengths}", config.display());
             let table = rig_tools::stalls::render_markdown(&study, &command);
             println!("{table}");
-            let mut ok = true;
-            if let Some(path) = results {
-                let text = format!(
-                    "# Stall study\n\nWritten by `rig stalls`: do not edit by hand. What it \
-                     runs and how to read it: `service/tools/src/stalls.rs` and \
-                     [timing-protocol.md](../timing-protocol.md#plans-and-the-late-policy).\n\n{table}"
-                );
-                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
-                    eprintln!("rig: stalls: {}: {e}", path.display());
-                    ok = false;
-                }
-            }
-            if let Some(path) = json {
-                let text = serde_json::to_string_pretty(&study).unwrap_or_default();
-                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
-                    eprintln!("rig: stalls: {}: {e}", path.display());
-                    ok = false;
-                }
-            }
-            if ok {
-                ExitCode::SUCCESS
-            } else {
-                ExitCode::FAILURE
-            }
+            let page = rig_tools::results_page::head(
+                "Stall study",
+                "rig stalls",
+                "service/tools/src/stalls.rs",
+                "[timing-protocol.md](../timing-protocol.md#plans-and-the-late-policy)",
+            ) + &table;
+            write_campaign("stalls", results.map(|p| (p, page)), json, &study)
         }
         Command::Soak {
             config,
@@ -320,30 +361,13 @@ fn main() -> ExitCode {
             command += &format!(" --rules {rules}");
             let table = rig_tools::gaps::render_markdown(&campaign, &command);
             println!("{table}");
-            let mut ok = true;
-            if let Some(path) = results {
-                let text = format!(
-                    "# Gap campaign\n\nWritten by `rig gaps`: do not edit by hand. What it \
-                     runs and how to read it: `service/tools/src/gaps.rs` and \
-                     [rcac.md](../rcac.md#lost-samples-and-the-gap-rule).\n\n{table}"
-                );
-                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
-                    eprintln!("rig: gaps: {}: {e}", path.display());
-                    ok = false;
-                }
-            }
-            if let Some(path) = json {
-                let text = serde_json::to_string_pretty(&campaign).unwrap_or_default();
-                if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
-                    eprintln!("rig: gaps: {}: {e}", path.display());
-                    ok = false;
-                }
-            }
-            if ok {
-                ExitCode::SUCCESS
-            } else {
-                ExitCode::FAILURE
-            }
+            let page = rig_tools::results_page::head(
+                "Gap campaign",
+                "rig gaps",
+                "service/tools/src/gaps.rs",
+                "[rcac.md](../rcac.md#lost-samples-and-the-gap-rule)",
+            ) + &table;
+            write_campaign("gaps", results.map(|p| (p, page)), json, &campaign)
         }
         Command::Plot { run_folder } => match rig_tools::figures::run_folder_figure(&run_folder) {
             Ok(path) => {
@@ -355,6 +379,124 @@ fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
+        Command::Monitor {
+            rigs,
+            listen,
+            allow_commands,
+            foxglove,
+        } => monitor(rig_tools::monitor::MonitorOptions {
+            rigs,
+            listen,
+            allow_commands,
+            foxglove,
+            ..Default::default()
+        }),
+        Command::Operator {
+            rig,
+            command,
+            tunable,
+            value,
+            timeout,
+        } => send_command(rig, command, tunable, value, timeout),
+        Command::Check { config, controller } => {
+            let checked = ScenarioCheck::load(&config, controller.as_deref())
+                .and_then(|c| c.service.check_this_machine().map(|()| c));
+            match checked {
+                Ok(c) => {
+                    println!("{}: ok ({})", config.display(), c.summary());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("rig: configuration refused: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
+    }
+}
+
+/// `rig monitor`: starts it, says where it listens, and runs until a signal.
+fn monitor(opts: rig_tools::monitor::MonitorOptions) -> ExitCode {
+    use std::io::Write;
+    let mut m = match rig_tools::monitor::Monitor::start(&opts) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("rig: monitor: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let commands = if opts.allow_commands {
+        "commands allowed"
+    } else {
+        "commands disabled"
+    };
+    println!(
+        "rig monitor: listening on http://{}/ (rigs: {}; {commands})",
+        m.http_addr(),
+        opts.rigs.join(", ")
+    );
+    if let Some(a) = m.foxglove_addr() {
+        println!("rig monitor: foxglove on ws://{a}");
+    }
+    if opts.allow_commands && !m.http_addr().ip().is_loopback() {
+        eprintln!(
+            "rig monitor: warning: commands are allowed and {} is not a loopback address: \
+             anyone who reaches it can stop the run",
+            m.http_addr()
+        );
+    }
+    let _ = std::io::stdout().flush();
+    let waited = m.wait_for_signal();
+    m.shutdown();
+    match waited {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("rig: monitor: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `rig command`: sends one command, prints the reply; 0 only when it applied.
+fn send_command(
+    rig: String,
+    command: String,
+    tunable: Option<String>,
+    value: Option<f64>,
+    timeout: f64,
+) -> ExitCode {
+    use rig_tools::monitor::commands::{self, CommandReply, CommandRequest};
+    if !(timeout.is_finite() && timeout > 0.0 && timeout <= 3600.0) {
+        eprintln!("rig: command: --timeout {timeout}: give seconds in (0, 3600]");
+        return ExitCode::from(2);
+    }
+    let req = CommandRequest {
+        rig: rig.clone(),
+        command,
+        tunable,
+        value,
+    };
+    let request = match req.to_request(commands::next_request_id()) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("rig: command: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    match commands::send(&rig, &request, std::time::Duration::from_secs_f64(timeout)) {
+        Ok(reply) => {
+            let view = CommandReply::of(&rig, &request, &reply);
+            println!("{}", view.line());
+            if view.applied {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            }
+        }
+        Err(e) => {
+            eprintln!("rig: command: rig '{rig}': {}: {e}", req.command);
+            ExitCode::FAILURE
+        }
     }
 }
 
@@ -367,6 +509,31 @@ fn unix_secs() -> u64 {
 }
 
 /// `rig soak`: checks the options, runs the campaign, prints its summary and writes the
+/// Writes what a campaign (`rig {name}`) was asked to: its results page (`--results`: the
+/// file and its text) and its record as JSON (`--json`). A file that cannot be written is
+/// reported as `rig: {name}: {file}: {error}` and the others are still written; the exit
+/// code is a failure if any was not.
+fn write_campaign(
+    name: &str,
+    results: Option<(PathBuf, String)>,
+    json: Option<PathBuf>,
+    record: &impl serde::Serialize,
+) -> ExitCode {
+    let json = json.map(|p| (p, serde_json::to_string_pretty(record).unwrap_or_default()));
+    let mut ok = true;
+    for (path, text) in results.into_iter().chain(json) {
+        if let Err(e) = ipc_types::files::write_atomic(&path, text.as_bytes()) {
+            eprintln!("rig: {name}: {}: {e}", path.display());
+            ok = false;
+        }
+    }
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
+}
+
 /// results file.
 fn soak(opts: rig_tools::soak::SoakOptions, results: Option<PathBuf>) -> ExitCode {
     use rig_tools::soak::{self, SoakError};

@@ -17,7 +17,7 @@
 //!
 //! `rcac-siso` and `rcac-miso` are the chapter 3 studies of RCAC with dereverberated
 //! target models (§3.3.1 on the structure (3.50), Figures 3.5–3.10; §3.3.2 on a 4-mode
-//! MISO structure, Figures 3.11–3.17); see the `rcac_siso`, `rcac_miso` and `rcac_common`
+//! MISO structure, Figures 3.11–3.17); see the `rig_tools::study::rcac`
 //! modules for the equations, the settings and what they write.
 //!
 //! `pcac-truss` is the chapter 6 study of PCAC on the 4-bay truss under harmonic and
@@ -27,35 +27,22 @@
 //! `forgetting` is the chapter 5 study of RLS with F-test variable-rate forgetting
 //! (RLS/FTVRF, Algorithm 1) against constant-rate forgetting (RLS/CRF, `λ = 0.99`) and
 //! RMS-ratio forgetting (RLS/RMSVRF) on the time-varying mass-spring-damper (5.8), in the
-//! three cases of §5.3 (noiseless, noisy, non-persistent input). It writes, into `--out`:
-//!
-//! - `case{c}_{case}_{method}.csv`: one run (`k, θ_k, true θ, tr(P_k), λ_k, e_k`);
-//! - `case{c}_{case}_{method}_mc.csv`: 5th/50th/95th percentile bands over the Monte Carlo;
-//! - `case{c}_{case}_ftvrf_vs_crf.png`, `case2_noisy_ftvrf_vs_rmsvrf.png`: single runs in
-//!   the manner of Figures 5.1, 5.3, 5.5, 5.7;
-//! - `case{c}_{case}_{method}_mc.png`: bands in the manner of Figures 5.2, 5.4, 5.6, 5.8;
-//! - `summary.txt`: the printed summary table;
-//! - `claims.json`: the chapter's claims checked on the Monte Carlo
-//!   (`rig_tools::study::reproduction_forgetting`).
-//!
-//! The plant derivation is documented in the `plant` module.
+//! three cases of §5.3 (noiseless, noisy, non-persistent input); see the
+//! `rig_tools::study::forgetting` module for the plant and the files it writes.
 
 #![warn(missing_docs)]
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, Subcommand};
-use plotters::style::RGBColor;
 
-use rig_tools::study::experiment::{Case, Method, run, run_seed};
-use rig_tools::study::montecarlo::{Summary, monte_carlo};
-use rig_tools::study::plant::{Msd, PRINTED, Plant, SAMPLE_PERIOD};
-use rig_tools::study::{
-    experiment, mrac, output, pcac_truss, plant, rcac_common, rcac_miso, rcac_siso, rcac_study,
-};
+use rig_tools::file_error::{FileError, FileOp};
+use rig_tools::study::arm::ArmError;
+use rig_tools::study::mrac::MracError;
+use rig_tools::study::rcac::{RcacError, common, driver, miso, siso};
+use rig_tools::study::{forgetting, mrac, pcac_truss};
 
 /// Command line.
 #[derive(Debug, Parser)]
@@ -187,48 +174,52 @@ enum Study {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.study {
-        Study::Forgetting { runs, out, seed } => forgetting(runs, &out, seed),
+    let result: Result<(), Box<dyn std::error::Error>> = match cli.study {
+        Study::Forgetting { runs, out, seed } => {
+            forgetting::run(runs, &out, seed).map_err(Into::into)
+        }
         Study::RcacSiso {
             out,
             points,
             update,
-        } => rcac(rcac_siso::run, &out, points, &update),
+        } => rcac(siso::run, &out, points, &update).map_err(Into::into),
         Study::RcacMiso {
             out,
             points,
             update,
-        } => rcac(rcac_miso::run, &out, points, &update),
+        } => rcac(miso::run, &out, points, &update).map_err(Into::into),
         Study::PcacTruss {
             out,
             duration,
             experiments,
             settings,
-        } => pcac_truss::Experiment::parse_set(&experiments).and_then(|experiments| {
-            pcac_truss::Setting::parse_set(&settings).and_then(|settings| {
-                pcac_truss::run(
-                    &out,
-                    &pcac_truss::Options {
-                        duration,
-                        experiments,
-                        settings,
-                    },
-                )
+        } => pcac_truss::Experiment::parse_set(&experiments)
+            .and_then(|experiments| {
+                pcac_truss::Setting::parse_set(&settings).and_then(|settings| {
+                    pcac_truss::run(
+                        &out,
+                        &pcac_truss::Options {
+                            duration,
+                            experiments,
+                            settings,
+                        },
+                    )
+                })
             })
-        }),
+            .map_err(Into::into),
         Study::Mrac {
             example,
             command,
             grid,
             out,
             results,
-        } => mrac_study(&example, &command, grid, &out, results.as_deref()),
+        } => mrac_study(&example, &command, grid, &out, results.as_deref()).map_err(Into::into),
         Study::SamplingArm {
             grid,
             out,
             quick,
             results,
-        } => sampling_arm(grid, quick, &out, results.as_deref()),
+        } => sampling_arm(grid, quick, &out, results.as_deref()).map_err(Into::into),
         Study::All {
             out,
             quick,
@@ -247,7 +238,8 @@ fn main() -> ExitCode {
                 .chain(std::env::args().skip(1))
                 .collect::<Vec<_>>()
                 .join(" "),
-        ),
+        )
+        .map_err(Into::into),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -261,219 +253,13 @@ fn main() -> ExitCode {
 /// Runs the RCAC study `run` into `out` with `points` sweep points and the update laws of
 /// `update`.
 fn rcac(
-    run: fn(&Path, &rcac_study::Options) -> Result<(), String>,
+    run: fn(&Path, &driver::Options) -> Result<(), RcacError>,
     out: &Path,
     points: usize,
     update: &UpdateArg,
-) -> Result<(), String> {
-    let updates = rcac_common::Update::parse_set(&update.update)?;
-    run(out, &rcac_study::Options { points, updates })
-}
-
-/// Formats a settling statistic (`+∞` as "never").
-fn steps(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:.0}")
-    } else {
-        "never".into()
-    }
-}
-
-/// Prints the (5.8) derivation and returns the discretized plant.
-fn derive_plant(report: &mut String) -> Result<Plant, String> {
-    let _ = writeln!(
-        report,
-        "Plant (5.8): ZOH discretization at T = {SAMPLE_PERIOD} s of G(s) = 1/(s^2 + (C/M) s + K/M) = M/(M s^2 + C s + K)"
-    );
-    for (i, (num, den)) in PRINTED.iter().enumerate() {
-        let inv = Msd::from_discrete(*num, *den, SAMPLE_PERIOD);
-        let m = Msd::chapter(i == 1);
-        let (n, d) = m.discretize(SAMPLE_PERIOD)?;
-        let _ = writeln!(
-            report,
-            "  {}: solved from (5.8): C/M = {:.5}, K/M = {:.5}, gain = {:.4}; used M = 5, C = {}, K = {} \
-             (C/M = {}, K/M = {}, gain 1)",
-            if i == 0 { "k <  100" } else { "k >= 100" },
-            inv.c_over_m,
-            inv.k_over_m,
-            inv.gain,
-            m.c_over_m * plant::MASS,
-            m.k_over_m * plant::MASS,
-            m.c_over_m,
-            m.k_over_m
-        );
-        let _ = writeln!(
-            report,
-            "    printed (5.8): ({:.4} q + {:.4}) / (q^2 {:+.4} q {:+.4})",
-            num[0], num[1], den[1], den[2]
-        );
-        let _ = writeln!(
-            report,
-            "    c2d_zoh:       ({:.4} q + {:.4}) / (q^2 {:+.4} q {:+.4})   [b0 = {:.1e}]",
-            n[1], n[2], d[1], d[2], n[0]
-        );
-    }
-    let p = Plant::chapter()?;
-    let round = |v: [f64; 5]| v.map(|x| (x * 1e6).round() / 1e6);
-    let _ = writeln!(report, "  true theta, k <  100: {:?}", round(p.before));
-    let _ = writeln!(report, "  true theta, k >= 100: {:?}", round(p.after));
-    Ok(p)
-}
-
-/// The methods compared in a case's single-run figure(s).
-fn comparisons(case: Case) -> Vec<(Method, Method)> {
-    match case {
-        Case::Noisy => vec![
-            (Method::Ftvrf, Method::Crf),
-            (Method::Ftvrf, Method::Rmsvrf),
-        ],
-        _ => vec![(Method::Ftvrf, Method::Crf)],
-    }
-}
-
-/// Median color of a method's band plot (red for FTVRF and blue for RMSVRF, as in the
-/// chapter).
-fn band_color(m: Method) -> RGBColor {
-    match m {
-        Method::Ftvrf => RGBColor(200, 0, 0),
-        Method::Crf => RGBColor(0, 120, 0),
-        Method::Rmsvrf => RGBColor(0, 70, 200),
-    }
-}
-
-/// The chapter 5 study.
-fn forgetting(runs: usize, out: &Path, seed: u64) -> Result<(), String> {
-    let t_start = Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    output::register_font()?;
-    let mut report = String::new();
-    let plant = derive_plant(&mut report)?;
-    let _ = writeln!(
-        report,
-        "RLS: theta0 = 0, P0 = 100 I, tau_n = {}, tau_d = {}, eta = {}, alpha = {}, CRF lambda = {}, noise variance {}",
-        experiment::TAU_N,
-        experiment::TAU_D,
-        experiment::ETA,
-        experiment::ALPHA,
-        experiment::LAMBDA_CRF,
-        experiment::NOISE_VAR
-    );
-    print!("{report}");
-
-    let mut table = String::new();
-    let _ = writeln!(
-        table,
-        "\nMonte Carlo: {runs} runs per case and method, seed {seed}. settle = steps after k = 100 until \
-         ||theta_k - theta_true|| / ||theta_true|| stays < 1 % to the end of the run\n\
-         (never = not below at the end; 10%: the same with a 10 % threshold);\n\
-         forget k<100 = runs with lambda_k < 1 for {} <= k < 100.",
-        experiment::TAU_D + 1
-    );
-    let _ = writeln!(
-        table,
-        "{:<15} {:<11} {:>6} {:>13} {:>10} {:>7} {:>14} {:>13} {:>12} {:>12} {:>13}",
-        "case",
-        "method",
-        "steps",
-        "settle median",
-        "settle p95",
-        "never",
-        "10%: med/p95",
-        "forget k<100",
-        "max trP med",
-        "max trP max",
-        "final trP med"
-    );
-    let mut mc_time = 0.0;
-    let mut results = Vec::new();
-    for case in Case::ALL {
-        let n_steps = case.steps();
-        let stem = format!("case{}_{}", case.number(), case.name());
-        // One run per method (run 0 of the Monte Carlo's seeds).
-        let mut singles = Vec::new();
-        for method in Method::ALL {
-            let (_, trace) = run(&plant, case, method, n_steps, run_seed(seed, case, 0), true)?;
-            let trace = trace.ok_or("no trace recorded")?;
-            output::write_trace_csv(&out.join(format!("{stem}_{}.csv", method.name())), &trace)?;
-            singles.push((method, trace));
-        }
-        for (a, b) in comparisons(case) {
-            let ta = &singles.iter().find(|s| s.0 == a).ok_or("missing run")?.1;
-            let tb = &singles.iter().find(|s| s.0 == b).ok_or("missing run")?.1;
-            output::plot_runs(
-                &out.join(format!("{stem}_{}_vs_{}.png", a.name(), b.name())),
-                &format!("Case {} ({}), one run", case.number(), case.name()),
-                &[(a.label(), ta), (b.label(), tb)],
-            )?;
-        }
-        for method in Method::ALL {
-            let t0 = Instant::now();
-            let mc = monte_carlo(&plant, case, method, n_steps, runs, seed, true)?;
-            mc_time += t0.elapsed().as_secs_f64();
-            let s: Summary = mc.summary;
-            results.push((case, method, s));
-            output::write_bands_csv(
-                &out.join(format!("{stem}_{}_mc.csv", method.name())),
-                &mc.bands,
-            )?;
-            output::plot_bands(
-                &out.join(format!("{stem}_{}_mc.png", method.name())),
-                &format!(
-                    "Case {} ({}), {}: median, 5th/95th percentiles of {} runs",
-                    case.number(),
-                    case.name(),
-                    method.label(),
-                    runs
-                ),
-                &mc.bands,
-                band_color(method),
-            )?;
-            let _ = writeln!(
-                table,
-                "{:<15} {:<11} {:>6} {:>13} {:>10} {:>6.1}% {:>14} {:>12.1}% {:>12.3e} {:>12.3e} {:>13.3e}",
-                format!("{} {}", case.number(), case.name()),
-                method.label(),
-                n_steps,
-                steps(s.settle_median),
-                steps(s.settle_p95),
-                100.0 * s.never_fraction,
-                format!(
-                    "{}/{}",
-                    steps(s.settle_loose_median),
-                    steps(s.settle_loose_p95)
-                ),
-                100.0 * s.early_forget_fraction,
-                s.max_trace_median,
-                s.max_trace_max,
-                s.final_trace_median
-            );
-            if s.resets > 0 {
-                let _ = writeln!(table, "    ({} guard resets)", s.resets);
-            }
-        }
-    }
-    let _ = writeln!(
-        table,
-        "\nMonte Carlo time (simulation and bands, {} threads): {:.2} s; total {:.2} s; files in {}",
-        rayon::current_num_threads(),
-        mc_time,
-        t_start.elapsed().as_secs_f64(),
-        out.display()
-    );
-    print!("{table}");
-    report.push_str(&table);
-    std::fs::write(out.join("summary.txt"), report).map_err(|e| e.to_string())?;
-    // The chapter's claims, for `study all`.
-    use rig_tools::study::{reproduction, reproduction_forgetting};
-    reproduction::write(
-        out,
-        &reproduction::Claims {
-            study: "forgetting".into(),
-            chapter: 5,
-            run: format!("study forgetting --runs {runs} --seed {seed}"),
-            claims: reproduction_forgetting::claims(&results),
-        },
-    )
+) -> Result<(), RcacError> {
+    let updates = common::Update::parse_set(&update.update)?;
+    run(out, &driver::Options { points, updates })
 }
 
 /// `study mrac`: runs, prints the summary, writes `--results` if given.
@@ -483,7 +269,7 @@ fn mrac_study(
     grid: usize,
     out: &Path,
     results: Option<&Path>,
-) -> Result<(), String> {
+) -> Result<(), MracError> {
     let t0 = Instant::now();
     let options = mrac::Options::parse(example, command, grid)?;
     let line = format!("study mrac --example {example} --command {command} --grid {grid}");
@@ -509,7 +295,7 @@ fn sampling_arm(
     quick: bool,
     out: &Path,
     results: Option<&Path>,
-) -> Result<(), String> {
+) -> Result<(), ArmError> {
     use rig_tools::study::arm;
     let n = grid.unwrap_or(if quick {
         arm::QUICK_GRID
@@ -527,7 +313,7 @@ fn sampling_arm(
     );
     if let Some(path) = results {
         ipc_types::files::write_atomic(path, report.markdown.as_bytes())
-            .map_err(|e| format!("--results {}: {e}", path.display()))?;
+            .map_err(|source| FileError::new(FileOp::Results, path, source))?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -27,7 +27,7 @@
 //! The whole file is read into memory and parsed column-wise in one pass; a 10 s log at
 //! 8 kHz (80 000 rows) takes a few tens of milliseconds.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A CSV log read into columns.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,21 +43,121 @@ pub struct Log {
     lines: Vec<usize>,
 }
 
+/// A CSV log that cannot be read or parsed, naming the file (its origin) and, for its
+/// content, the line and the column.
+#[derive(Debug, thiserror::Error)]
+pub enum LogError {
+    /// The file cannot be read.
+    #[error("{}: cannot read the log: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// No header line.
+    #[error("{origin}: no header line (the file is empty or all comments)")]
+    NoHeader {
+        /// The log.
+        origin: String,
+    },
+    /// A column of the header has no name.
+    #[error("{origin}: line {line}: column {column} of the header has no name")]
+    Unnamed {
+        /// The log.
+        origin: String,
+        /// The header's line.
+        line: usize,
+        /// The column, from 1.
+        column: usize,
+    },
+    /// A column name appears twice.
+    #[error("{origin}: line {line}: column name `{name}` appears twice in the header")]
+    Twice {
+        /// The log.
+        origin: String,
+        /// The header's line.
+        line: usize,
+        /// The name.
+        name: String,
+    },
+    /// A field is not a number.
+    #[error("{origin}: line {line}, column {column} (`{name}`): `{field}` is not a number")]
+    NotANumber {
+        /// The log.
+        origin: String,
+        /// The line.
+        line: usize,
+        /// The column, from 1.
+        column: usize,
+        /// The column's name.
+        name: String,
+        /// The field.
+        field: String,
+    },
+    /// A row has more or fewer fields than the header.
+    #[error("{origin}: line {line}: {count} fields, the header has {width} columns")]
+    Fields {
+        /// The log.
+        origin: String,
+        /// The line.
+        line: usize,
+        /// Its fields.
+        count: usize,
+        /// The header's columns.
+        width: usize,
+    },
+    /// No column of that name.
+    #[error("{origin}: no column `{name}`; the columns are: {columns}")]
+    NoColumn {
+        /// The log.
+        origin: String,
+        /// The name asked for.
+        name: String,
+        /// The columns there are, comma-separated.
+        columns: String,
+    },
+    /// A NaN or infinite value in a column an analysis needs finite.
+    #[error(
+        "{origin}: line {line}: column `{name}` is {value} (row {row}); the analysis needs \
+         finite values (cut the record or fix the acquisition)"
+    )]
+    NotFinite {
+        /// The log.
+        origin: String,
+        /// The line.
+        line: usize,
+        /// The column.
+        name: String,
+        /// The value.
+        value: f64,
+        /// The row, from 0.
+        row: usize,
+    },
+}
+
+message_from!(LogError);
+
 /// Reads and parses the CSV log at `path` (see the module documentation for the format).
 /// Errors name the file and, for content errors, the line and column.
-pub fn read(path: &Path) -> Result<Log, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read the log: {e}", path.display()))?;
+pub fn read(path: &Path) -> Result<Log, LogError> {
+    let text = std::fs::read_to_string(path).map_err(|source| LogError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
     parse(&text, &path.display().to_string())
 }
 
 /// Parses CSV `text` (see the module documentation); `origin` names the source in errors.
-pub fn parse(text: &str, origin: &str) -> Result<Log, String> {
+pub fn parse(text: &str, origin: &str) -> Result<Log, LogError> {
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
     let (header_line, header) = lines
         .by_ref()
         .find(|(_, l)| !l.is_empty() && !l.starts_with('#'))
-        .ok_or_else(|| format!("{origin}: no header line (the file is empty or all comments)"))?;
+        .ok_or_else(|| LogError::NoHeader {
+            origin: origin.into(),
+        })?;
     let names: Vec<String> = header
         .split(',')
         .map(|n| {
@@ -71,15 +171,18 @@ pub fn parse(text: &str, origin: &str) -> Result<Log, String> {
         .collect();
     for (c, n) in names.iter().enumerate() {
         if n.is_empty() {
-            return Err(format!(
-                "{origin}: line {header_line}: column {} of the header has no name",
-                c + 1
-            ));
+            return Err(LogError::Unnamed {
+                origin: origin.into(),
+                line: header_line,
+                column: c + 1,
+            });
         }
         if names[..c].contains(n) {
-            return Err(format!(
-                "{origin}: line {header_line}: column name `{n}` appears twice in the header"
-            ));
+            return Err(LogError::Twice {
+                origin: origin.into(),
+                line: header_line,
+                name: n.clone(),
+            });
         }
     }
     let width = names.len();
@@ -97,20 +200,23 @@ pub fn parse(text: &str, origin: &str) -> Result<Log, String> {
                 break;
             }
             let field = field.trim();
-            let v: f64 = field.parse().map_err(|_| {
-                format!(
-                    "{origin}: line {line_no}, column {} (`{}`): `{field}` is not a number",
-                    c + 1,
-                    names[c]
-                )
+            let v: f64 = field.parse().map_err(|_| LogError::NotANumber {
+                origin: origin.into(),
+                line: line_no,
+                column: c + 1,
+                name: names[c].clone(),
+                field: field.into(),
             })?;
             columns[c].push(v);
             count = c + 1;
         }
         if count != width {
-            return Err(format!(
-                "{origin}: line {line_no}: {count} fields, the header has {width} columns"
-            ));
+            return Err(LogError::Fields {
+                origin: origin.into(),
+                line: line_no,
+                count,
+                width,
+            });
         }
         row_lines.push(line_no);
     }
@@ -135,30 +241,32 @@ impl Log {
 
     /// The column called `name` (all rows, non-finite values included). The error names
     /// the file and the missing column and lists the available ones.
-    pub fn column(&self, name: &str) -> Result<&[f64], String> {
+    pub fn column(&self, name: &str) -> Result<&[f64], LogError> {
         match self.names.iter().position(|n| n == name) {
             Some(c) => Ok(&self.columns[c]),
-            None => Err(format!(
-                "{}: no column `{name}`; the columns are: {}",
-                self.origin,
-                self.names.join(", ")
-            )),
+            None => Err(LogError::NoColumn {
+                origin: self.origin.clone(),
+                name: name.into(),
+                columns: self.names.join(", "),
+            }),
         }
     }
 
     /// The columns called `names`, in that order, for an analysis that needs finite
     /// numbers: besides a missing column (as [`Log::column`]), a NaN or infinite value in
     /// a selected column is an error naming the file, the column and the line.
-    pub fn select(&self, names: &[&str]) -> Result<Vec<&[f64]>, String> {
+    pub fn select(&self, names: &[&str]) -> Result<Vec<&[f64]>, LogError> {
         let mut out = Vec::with_capacity(names.len());
         for &name in names {
             let col = self.column(name)?;
             if let Some(r) = col.iter().position(|v| !v.is_finite()) {
-                return Err(format!(
-                    "{}: line {}: column `{name}` is {} (row {}); the analysis needs finite \
-                     values (cut the record or fix the acquisition)",
-                    self.origin, self.lines[r], col[r], r
-                ));
+                return Err(LogError::NotFinite {
+                    origin: self.origin.clone(),
+                    line: self.lines[r],
+                    name: name.into(),
+                    value: col[r],
+                    row: r,
+                });
             }
             out.push(col);
         }
@@ -222,7 +330,7 @@ mod tests {
             ("a,,b\n", "column 2 of the header has no name"),
             ("a,b,a\n", "`a` appears twice"),
         ] {
-            let e = parse(text, "f.csv").unwrap_err();
+            let e = parse(text, "f.csv").unwrap_err().to_string();
             assert!(e.contains(want), "{text:?}: {e}");
         }
     }
@@ -230,13 +338,13 @@ mod tests {
     #[test]
     fn missing_column_lists_the_available_ones() {
         let log = parse(SERVICE_LOG, "run.csv").unwrap();
-        let e = log.column("y3").unwrap_err();
+        let e = log.column("y3").unwrap_err().to_string();
         assert!(e.contains("run.csv: no column `y3`"), "{e}");
         assert!(
             e.contains("seq, t_sample_ns, status, flags, y0, z0, u0, u1"),
             "{e}"
         );
-        let e = log.select(&["z0", "nope"]).unwrap_err();
+        let e = log.select(&["z0", "nope"]).unwrap_err().to_string();
         assert!(e.contains("no column `nope`"), "{e}");
     }
 
@@ -246,9 +354,9 @@ mod tests {
         let cols = log.select(&["z0", "seq"]).unwrap();
         assert_eq!(cols[0], &[0.0121, 0.0119, 0.0]);
         assert_eq!(cols[1], &[0.0, 1.0, 2.0]);
-        let e = log.select(&["z0", "y0"]).unwrap_err();
+        let e = log.select(&["z0", "y0"]).unwrap_err().to_string();
         assert!(e.contains("run.csv: line 4: column `y0` is NaN"), "{e}");
-        let e = log.select(&["u1"]).unwrap_err();
+        let e = log.select(&["u1"]).unwrap_err().to_string();
         assert!(e.contains("line 4: column `u1` is -inf"), "{e}");
     }
 
@@ -272,7 +380,7 @@ mod tests {
         // Generous: a debug build takes a few hundred ms, a release build a few tens.
         assert!(took.as_secs_f64() < 5.0, "{took:?}");
         std::fs::remove_dir_all(&dir).unwrap();
-        let e = read(&dir.join("missing.csv")).unwrap_err();
+        let e = read(&dir.join("missing.csv")).unwrap_err().to_string();
         assert!(e.contains("missing.csv: cannot read the log"), "{e}");
     }
 }

@@ -87,7 +87,7 @@
 
 use super::{C64, Frf, eval_tf};
 use nalgebra::{DMatrix, DVector};
-use plant_proxy::lti::{Tf, eigenvalues};
+use plant_proxy::lti::{LtiError, Tf, eigenvalues};
 use std::f64::consts::PI;
 
 #[cfg(test)]
@@ -121,12 +121,186 @@ pub struct Dtf {
     pub den: Vec<f64>,
 }
 
+/// A DTF that cannot be designed or analysed, naming the step (`what`) and the bad input.
+#[derive(Debug, thiserror::Error)]
+pub enum DtfError {
+    /// A transfer function, realization or eigenvalue problem of `plant_proxy::lti`.
+    #[error(transparent)]
+    Lti(#[from] LtiError),
+    /// A frequency grid that cannot be made.
+    #[error(transparent)]
+    Grid(#[from] super::GridError),
+    /// Roots of the zero polynomial.
+    #[error("the zero polynomial has no roots")]
+    ZeroPolynomial,
+    /// A window half-width outside `(0, π]`.
+    #[error("window half-width Δ = {0} rad/sample must be in (0, π]")]
+    Delta(f64),
+    /// Log weights on a grid from 0.
+    #[error("log weights: the grid must start above θ = 0")]
+    LogFromZero,
+    /// The least-squares solve failed (nalgebra's message).
+    #[error("least squares: {0}")]
+    LeastSquares(String),
+    /// A step's input is not usable.
+    #[error("{what}: {problem}")]
+    Input {
+        /// The step (`DTF fit`, `windowed average`, …).
+        what: &'static str,
+        /// What is wrong.
+        problem: Problem,
+    },
+    /// A step failed for another reason.
+    #[error("{what}: {source}")]
+    In {
+        /// The step.
+        what: &'static str,
+        /// Why.
+        #[source]
+        source: Box<DtfError>,
+    },
+    /// One channel of a multi-channel design failed.
+    #[error("channel {channel}: {source}")]
+    Channel {
+        /// The channel (channel-major).
+        channel: usize,
+        /// Why.
+        #[source]
+        source: Box<DtfError>,
+    },
+    /// The optimization's Nelder–Mead failed.
+    #[error("Nelder–Mead: {0}")]
+    NelderMead(String),
+    /// The optimization's Nelder–Mead returned no point.
+    #[error("Nelder–Mead returned no point")]
+    NoPoint,
+}
+
+impl DtfError {
+    /// This error, in channel `channel`.
+    pub fn in_channel(self, channel: usize) -> Self {
+        DtfError::Channel {
+            channel,
+            source: Box::new(self),
+        }
+    }
+}
+
+message_from!(DtfError);
+
+/// What is wrong with the input of a step of the DTF design.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Problem {
+    /// Fewer than 2 grid points.
+    #[error("the grid needs at least 2 points, got {0}")]
+    GridPoints(usize),
+    /// A grid point outside `[0, π]`.
+    #[error("θ[{k}] = {theta} is not within [0, π]")]
+    OutOfRange {
+        /// Its index.
+        k: usize,
+        /// Its value.
+        theta: f64,
+    },
+    /// The grid does not increase at `k`.
+    #[error("the grid must increase strictly (θ[{k}] = {at} ≥ θ[{}] = {next})", k + 1)]
+    NotIncreasing {
+        /// The index.
+        k: usize,
+        /// `θ[k]`.
+        at: f64,
+        /// `θ[k + 1]`.
+        next: f64,
+    },
+    /// Not one response value per frequency.
+    #[error("{values} response values for {frequencies} frequencies")]
+    ResponseLength {
+        /// The values.
+        values: usize,
+        /// The frequencies.
+        frequencies: usize,
+    },
+    /// A NaN or infinite response value.
+    #[error("the response at θ = {0} is not finite")]
+    NotFinite(f64),
+    /// A window reaches beyond the grid.
+    #[error(
+        "the window [{:.6}, {:.6}] rad/sample at θ = {theta:.6} reaches beyond the grid \
+         [{:.6}, {:.6}]; give the response from 0 to π",
+        window.0, window.1, grid.0, grid.1
+    )]
+    Beyond {
+        /// The window.
+        window: (f64, f64),
+        /// Its centre.
+        theta: f64,
+        /// The grid's ends.
+        grid: (f64, f64),
+    },
+    /// Too few grid points in a window.
+    #[error(
+        "only {inside} grid points in the window [{:.6}, {:.6}] at θ = {theta:.6} (Δ = {delta} \
+         rad/sample); at least {MIN_POINTS_PER_WINDOW} are needed: use a grid finer than \
+         {:.3e} rad/sample",
+        window.0, window.1, delta / (MIN_POINTS_PER_WINDOW - 1) as f64
+    )]
+    Sparse {
+        /// The points inside.
+        inside: usize,
+        /// The window.
+        window: (f64, f64),
+        /// Its centre.
+        theta: f64,
+        /// Its half-width.
+        delta: f64,
+    },
+    /// More zeros than poles.
+    #[error("{zeros} zeros exceed {poles} poles (the DTF must be proper)")]
+    Improper {
+        /// The zeros.
+        zeros: usize,
+        /// The poles.
+        poles: usize,
+    },
+    /// Fewer equations than coefficients.
+    #[error(
+        "{frequencies} frequencies give {} equations for {unknowns} coefficients",
+        2 * frequencies
+    )]
+    Equations {
+        /// The frequencies.
+        frequencies: usize,
+        /// The coefficients.
+        unknowns: usize,
+    },
+    /// Weights of the wrong number or sign.
+    #[error("weights must be {0} finite, nonnegative numbers")]
+    Weights(usize),
+    /// `n̂_max = 0`.
+    #[error("n̂_max must be at least 1")]
+    NoOrder,
+    /// Negative optimization options (their debug form).
+    #[error("min_gain and min_separation must be nonnegative, got {0}")]
+    Options(String),
+    /// A zero response.
+    #[error("the response is zero")]
+    ZeroResponse,
+    /// No structure satisfies the zero count (its debug form).
+    #[error("no structure with n̂ ≤ {n_max} satisfies {zeros}")]
+    NoStructure {
+        /// The largest order.
+        n_max: usize,
+        /// The zero count.
+        zeros: String,
+    },
+}
+
 impl Dtf {
     /// A normalized transfer function: the denominator is made monic, leading zeros of the
     /// numerator dropped; an error for a zero leading denominator coefficient, a non-finite
     /// coefficient or an improper ratio.
-    pub fn new(num: Vec<f64>, den: Vec<f64>) -> Result<Self, String> {
-        let tf = Tf::new(num, den).map_err(|e| e.to_string())?;
+    pub fn new(num: Vec<f64>, den: Vec<f64>) -> Result<Self, DtfError> {
+        let tf = Tf::new(num, den)?;
         let a0 = tf.den()[0];
         Ok(Self {
             num: tf.num().iter().map(|b| b / a0).collect(),
@@ -140,8 +314,8 @@ impl Dtf {
         ss: &plant_proxy::lti::StateSpace,
         output: usize,
         input: usize,
-    ) -> Result<Self, String> {
-        let (num, den) = ss.channel_tf(output, input).map_err(|e| e.to_string())?;
+    ) -> Result<Self, DtfError> {
+        let (num, den) = ss.channel_tf(output, input)?;
         Self::new(num, den)
     }
 
@@ -177,12 +351,12 @@ impl Dtf {
     }
 
     /// The poles (roots of `den`, eigenvalues of its companion matrix).
-    pub fn poles(&self) -> Result<Vec<C64>, String> {
+    pub fn poles(&self) -> Result<Vec<C64>, DtfError> {
         roots(&self.den)
     }
 
     /// The zeros (roots of `num`); none for a constant or zero numerator.
-    pub fn zeros(&self) -> Result<Vec<C64>, String> {
+    pub fn zeros(&self) -> Result<Vec<C64>, DtfError> {
         if self.num.iter().all(|&b| b == 0.0) {
             return Ok(Vec::new());
         }
@@ -190,12 +364,12 @@ impl Dtf {
     }
 
     /// The largest pole magnitude (0 for a constant).
-    pub fn spectral_radius(&self) -> Result<f64, String> {
+    pub fn spectral_radius(&self) -> Result<f64, DtfError> {
         Ok(self.poles()?.iter().fold(0.0_f64, |a, p| a.max(p.norm())))
     }
 
     /// True when every pole is strictly inside the unit circle.
-    pub fn is_stable(&self) -> Result<bool, String> {
+    pub fn is_stable(&self) -> Result<bool, DtfError> {
         Ok(self.spectral_radius()? < 1.0)
     }
 
@@ -206,11 +380,11 @@ impl Dtf {
 }
 
 /// Roots of a polynomial in descending powers (leading zeros ignored).
-fn roots(coeffs: &[f64]) -> Result<Vec<C64>, String> {
+fn roots(coeffs: &[f64]) -> Result<Vec<C64>, DtfError> {
     let first = coeffs
         .iter()
         .position(|&c| c != 0.0)
-        .ok_or("the zero polynomial has no roots")?;
+        .ok_or(DtfError::ZeroPolynomial)?;
     let c = &coeffs[first..];
     let n = c.len() - 1;
     if n == 0 {
@@ -225,7 +399,7 @@ fn roots(coeffs: &[f64]) -> Result<Vec<C64>, String> {
             0.0
         }
     });
-    eigenvalues(&comp).map_err(|e| e.to_string())
+    Ok(eigenvalues(&comp)?)
 }
 
 /// `Π (z − r_i)` for complex roots in conjugate pairs (real part of the expansion).
@@ -234,50 +408,40 @@ fn poly_from_roots(r: &[C64]) -> Vec<f64> {
 }
 
 /// A grid must be finite, strictly increasing and within `[0, π]`.
-fn check_grid(theta: &[f64], what: &str) -> Result<(), String> {
+fn check_grid(theta: &[f64], what: &'static str) -> Result<(), DtfError> {
+    let bad = |problem| DtfError::Input { what, problem };
     if theta.len() < 2 {
-        return Err(format!(
-            "{what}: the grid needs at least 2 points, got {}",
-            theta.len()
-        ));
+        return Err(bad(Problem::GridPoints(theta.len())));
     }
     if let Some(k) = theta
         .iter()
         .position(|t| !(t.is_finite() && (0.0..=PI + 1e-12).contains(t)))
     {
-        return Err(format!(
-            "{what}: θ[{k}] = {} is not within [0, π]",
-            theta[k]
-        ));
+        return Err(bad(Problem::OutOfRange { k, theta: theta[k] }));
     }
     if let Some(k) = theta.windows(2).position(|w| w[1] <= w[0]) {
-        return Err(format!(
-            "{what}: the grid must increase strictly (θ[{}] = {} ≥ θ[{}] = {})",
+        return Err(bad(Problem::NotIncreasing {
             k,
-            theta[k],
-            k + 1,
-            theta[k + 1]
-        ));
+            at: theta[k],
+            next: theta[k + 1],
+        }));
     }
     Ok(())
 }
 
-fn check_response(theta: &[f64], g: &[C64], what: &str) -> Result<(), String> {
+fn check_response(theta: &[f64], g: &[C64], what: &'static str) -> Result<(), DtfError> {
+    let bad = |problem| DtfError::Input { what, problem };
     if g.len() != theta.len() {
-        return Err(format!(
-            "{what}: {} response values for {} frequencies",
-            g.len(),
-            theta.len()
-        ));
+        return Err(bad(Problem::ResponseLength {
+            values: g.len(),
+            frequencies: theta.len(),
+        }));
     }
     if let Some(k) = g
         .iter()
         .position(|v| !(v.re.is_finite() && v.im.is_finite()))
     {
-        return Err(format!(
-            "{what}: the response at θ = {} is not finite",
-            theta[k]
-        ));
+        return Err(bad(Problem::NotFinite(theta[k])));
     }
     Ok(())
 }
@@ -287,13 +451,11 @@ fn window(theta: f64, delta: f64) -> (f64, f64) {
     ((theta - delta).max(0.0), (theta + delta).min(PI))
 }
 
-fn check_delta(delta: f64) -> Result<(), String> {
+fn check_delta(delta: f64) -> Result<(), DtfError> {
     if delta.is_finite() && delta > 0.0 && delta <= PI {
         Ok(())
     } else {
-        Err(format!(
-            "window half-width Δ = {delta} rad/sample must be in (0, π]"
-        ))
+        Err(DtfError::Delta(delta))
     }
 }
 
@@ -328,7 +490,7 @@ fn integrate_linear(theta: &[f64], g: &[C64], lo: f64, hi: f64) -> C64 {
 /// Errors: a grid that does not cover some window `[max(0, θ − Δ), min(π, θ + Δ)]` (so a
 /// grid meant for averaging must run from 0 to π, or the windows be clipped by the caller),
 /// or one with fewer than [`MIN_POINTS_PER_WINDOW`] points in some window.
-pub fn windowed_average(theta: &[f64], g: &[C64], delta: f64) -> Result<Vec<C64>, String> {
+pub fn windowed_average(theta: &[f64], g: &[C64], delta: f64) -> Result<Vec<C64>, DtfError> {
     let what = "windowed average";
     check_grid(theta, what)?;
     check_response(theta, g, what)?;
@@ -340,10 +502,14 @@ pub fn windowed_average(theta: &[f64], g: &[C64], delta: f64) -> Result<Vec<C64>
         .map(|&t| {
             let (lo, hi) = window(t, delta);
             if lo < first - tol || hi > last + tol {
-                return Err(format!(
-                    "{what}: the window [{lo:.6}, {hi:.6}] rad/sample at θ = {t:.6} reaches \
-                     beyond the grid [{first:.6}, {last:.6}]; give the response from 0 to π"
-                ));
+                return Err(DtfError::Input {
+                    what,
+                    problem: Problem::Beyond {
+                        window: (lo, hi),
+                        theta: t,
+                        grid: (first, last),
+                    },
+                });
             }
             let (lo, hi) = (lo.max(first), hi.min(last));
             let inside = theta
@@ -351,12 +517,15 @@ pub fn windowed_average(theta: &[f64], g: &[C64], delta: f64) -> Result<Vec<C64>
                 .filter(|&&v| v >= lo - tol && v <= hi + tol)
                 .count();
             if inside < MIN_POINTS_PER_WINDOW {
-                return Err(format!(
-                    "{what}: only {inside} grid points in the window [{lo:.6}, {hi:.6}] at \
-                     θ = {t:.6} (Δ = {delta} rad/sample); at least {MIN_POINTS_PER_WINDOW} \
-                     are needed: use a grid finer than {:.3e} rad/sample",
-                    delta / (MIN_POINTS_PER_WINDOW - 1) as f64
-                ));
+                return Err(DtfError::Input {
+                    what,
+                    problem: Problem::Sparse {
+                        inside,
+                        window: (lo, hi),
+                        theta: t,
+                        delta,
+                    },
+                });
             }
             Ok(integrate_linear(theta, g, lo, hi) / (hi - lo))
         })
@@ -373,7 +542,7 @@ pub fn windowed_average_of(
     theta: &[f64],
     delta: f64,
     intervals: usize,
-) -> Result<Vec<C64>, String> {
+) -> Result<Vec<C64>, DtfError> {
     check_grid(theta, "windowed average")?;
     check_delta(delta)?;
     let n = intervals.max(2).next_multiple_of(2);
@@ -405,10 +574,10 @@ fn trapezoid_weights(x: &[f64]) -> Vec<f64> {
 
 /// Trapezoid weights in `log θ` of a grid with `θ_0 > 0`: `Σ w_k f(θ_k) ≈ ∫ f d(log θ)`,
 /// the discretization of (3.44).
-pub fn log_weights(theta: &[f64]) -> Result<Vec<f64>, String> {
+pub fn log_weights(theta: &[f64]) -> Result<Vec<f64>, DtfError> {
     check_grid(theta, "log weights")?;
     if theta[0] <= 0.0 {
-        return Err("log weights: the grid must start above θ = 0".into());
+        return Err(DtfError::LogFromZero);
     }
     let lt: Vec<f64> = theta.iter().map(|t| t.ln()).collect();
     Ok(trapezoid_weights(&lt))
@@ -422,7 +591,7 @@ pub fn default_log_grid() -> Vec<f64> {
 }
 
 /// Weighted linear least squares `min ‖diag(√w)(A x − b)‖` with column scaling, by SVD.
-fn weighted_ls(a: DMatrix<f64>, b: DVector<f64>) -> Result<DVector<f64>, String> {
+fn weighted_ls(a: DMatrix<f64>, b: DVector<f64>) -> Result<DVector<f64>, DtfError> {
     let mut a = a;
     let scale: Vec<f64> = a
         .column_iter()
@@ -437,7 +606,7 @@ fn weighted_ls(a: DMatrix<f64>, b: DVector<f64>) -> Result<DVector<f64>, String>
     let x = a
         .svd(true, true)
         .solve(&b, 1e-14)
-        .map_err(|e| format!("least squares: {e}"))?;
+        .map_err(|e| DtfError::LeastSquares(e.to_string()))?;
     Ok(DVector::from_iterator(
         x.len(),
         x.iter().zip(&scale).map(|(v, s)| v / s),
@@ -454,7 +623,7 @@ pub fn fit(
     weights: Option<&[f64]>,
     n: usize,
     m: usize,
-) -> Result<Dtf, String> {
+) -> Result<Dtf, DtfError> {
     fit_iterations(theta, target, weights, n, m, SK_ITERATIONS)
 }
 
@@ -467,30 +636,25 @@ pub fn fit_iterations(
     n: usize,
     m: usize,
     iterations: usize,
-) -> Result<Dtf, String> {
+) -> Result<Dtf, DtfError> {
     let what = "DTF fit";
+    let bad = |problem| DtfError::Input { what, problem };
     check_grid(theta, what)?;
     check_response(theta, target, what)?;
     if m > n {
-        return Err(format!(
-            "{what}: {m} zeros exceed {n} poles (the DTF must be proper)"
-        ));
+        return Err(bad(Problem::Improper { zeros: m, poles: n }));
     }
     let unknowns = m + 1 + n;
     if 2 * theta.len() < unknowns {
-        return Err(format!(
-            "{what}: {} frequencies give {} equations for {unknowns} coefficients",
-            theta.len(),
-            2 * theta.len()
-        ));
+        return Err(bad(Problem::Equations {
+            frequencies: theta.len(),
+            unknowns,
+        }));
     }
     let w: Vec<f64> = match weights {
         Some(w) => {
             if w.len() != theta.len() || w.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-                return Err(format!(
-                    "{what}: weights must be {} finite, nonnegative numbers",
-                    theta.len()
-                ));
+                return Err(bad(Problem::Weights(theta.len())));
             }
             w.to_vec()
         }
@@ -564,7 +728,7 @@ pub fn fit_iterations(
 
 /// The relative weighted RMS error `√(Σ w |Ĝ − G|² / Σ w |G|²)` with trapezoid weights in
 /// `θ` (the measure [`fit`] minimizes, normalized).
-pub fn linear_fit_error(theta: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, String> {
+pub fn linear_fit_error(theta: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, DtfError> {
     check_grid(theta, "fit error")?;
     check_response(theta, g, "fit error")?;
     let w = trapezoid_weights(theta);
@@ -580,14 +744,14 @@ pub fn linear_fit_error(theta: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, Stri
 /// (3.40) with half-width `delta` rad/sample on the FRF's own grid ([`windowed_average`],
 /// so the grid must run from 0 to π), then [`fit`] with `n` poles and `m` zeros.
 /// Channel-major, like [`Frf::response`].
-pub fn averaged_dtfs(frf: &Frf, delta: f64, n: usize, m: usize) -> Result<Vec<Dtf>, String> {
+pub fn averaged_dtfs(frf: &Frf, delta: f64, n: usize, m: usize) -> Result<Vec<Dtf>, DtfError> {
     frf.response
         .iter()
         .enumerate()
         .map(|(c, g)| {
-            let avg =
-                windowed_average(&frf.theta, g, delta).map_err(|e| format!("channel {c}: {e}"))?;
-            fit(&frf.theta, &avg, None, n, m).map_err(|e| format!("channel {c}: {e}"))
+            windowed_average(&frf.theta, g, delta)
+                .and_then(|avg| fit(&frf.theta, &avg, None, n, m))
+                .map_err(|e| e.in_channel(c))
         })
         .collect()
 }
@@ -596,7 +760,7 @@ pub fn averaged_dtfs(frf: &Frf, delta: f64, n: usize, m: usize) -> Result<Vec<Dt
 /// §3.2.2), on the FRF's grid without its points at `θ = 0` (where `log θ` is undefined);
 /// the grid should be logarithmic (e.g. [`default_log_grid`]) for the trapezoid weights in
 /// `log θ` to approximate (3.44) well. Channel-major.
-pub fn optimized_dtfs(frf: &Frf, n_max: usize, zeros: ZeroCount) -> Result<Vec<Dtf>, String> {
+pub fn optimized_dtfs(frf: &Frf, n_max: usize, zeros: ZeroCount) -> Result<Vec<Dtf>, DtfError> {
     let keep: Vec<usize> = (0..frf.theta.len())
         .filter(|&k| frf.theta[k] > 0.0)
         .collect();
@@ -606,7 +770,7 @@ pub fn optimized_dtfs(frf: &Frf, n_max: usize, zeros: ZeroCount) -> Result<Vec<D
         .enumerate()
         .map(|(c, g)| {
             let g: Vec<C64> = keep.iter().map(|&k| g[k]).collect();
-            optimize(&theta, &g, n_max, zeros).map_err(|e| format!("channel {c}: {e}"))
+            optimize(&theta, &g, n_max, zeros).map_err(|e| e.in_channel(c))
         })
         .collect()
 }

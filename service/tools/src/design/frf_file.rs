@@ -12,6 +12,7 @@
 //! model (3.49). The coherence columns are present for a measured response.
 
 use super::{C64, Frf};
+use crate::file_error::{FileError, FileOp};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -28,9 +29,110 @@ pub struct FrfFile {
     pub source: String,
 }
 
+/// A frequency-response file that cannot be written, read or parsed, naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum FrfFileError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The file cannot be read.
+    #[error("{origin}: cannot read the frequency response: {source}")]
+    Read {
+        /// The file.
+        origin: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file's content is not a frequency response.
+    #[error("{origin}: {problem}")]
+    Content {
+        /// The file.
+        origin: String,
+        /// What is wrong, and where.
+        problem: FrfProblem,
+    },
+}
+
+message_from!(FrfFileError);
+
+/// What is wrong in a frequency-response file, with its line.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FrfProblem {
+    /// No line at all.
+    #[error("empty file")]
+    Empty,
+    /// The first line is not the file's header.
+    #[error("line 1: not a frequency-response file (written by rig-design frf or model-frf)")]
+    NotFrf,
+    /// A header value of the wrong kind.
+    #[error("line 1: {key} = '{value}' is not {what}")]
+    Bad {
+        /// The header key.
+        key: String,
+        /// Its value.
+        value: String,
+        /// What it must be.
+        what: &'static str,
+    },
+    /// A header key is missing.
+    #[error("line 1: {0}= is missing")]
+    Missing(&'static str),
+    /// The sample period or a count is not positive.
+    #[error("line 1: sample-period, outputs and inputs must be positive")]
+    NotPositive,
+    /// Not one delay per input.
+    #[error("line 1: {delays} delays for {inputs} inputs")]
+    Delays {
+        /// The delays given.
+        delays: usize,
+        /// The inputs.
+        inputs: usize,
+    },
+    /// No column header.
+    #[error("the column header is missing")]
+    NoColumns,
+    /// The column header does not fit the counts.
+    #[error(
+        "line 2: {found} columns, expected {} (or {} with coherence) for {outputs} outputs × {inputs} inputs",
+        2 + 2 * outputs * inputs,
+        2 + 2 * outputs * inputs + outputs
+    )]
+    Columns {
+        /// The columns there are.
+        found: usize,
+        /// The outputs.
+        outputs: usize,
+        /// The inputs.
+        inputs: usize,
+    },
+    /// A value that is not a number.
+    #[error("line {0}: a value is not a number")]
+    NotANumber(usize),
+    /// A row of the wrong length.
+    #[error("line {line}: {found} values, expected {expected}")]
+    Values {
+        /// The line.
+        line: usize,
+        /// Its values.
+        found: usize,
+        /// The columns.
+        expected: usize,
+    },
+    /// A NaN or infinite value.
+    #[error("line {0}: NaN or infinite value")]
+    NotFinite(usize),
+    /// Fewer than 2 rows.
+    #[error("fewer than 2 frequencies")]
+    TooFew,
+    /// The frequencies do not increase within `[0, π]`.
+    #[error("theta must increase within [0, π]")]
+    Theta,
+}
+
 impl FrfFile {
     /// Writes the CSV file.
-    pub fn save(&self, path: &Path) -> Result<(), String> {
+    pub fn save(&self, path: &Path) -> Result<(), FrfFileError> {
         let f = &self.frf;
         let (p, m) = (f.n_outputs, f.n_inputs);
         let delays: Vec<String> = self.delays.iter().map(|d| d.to_string()).collect();
@@ -64,33 +166,42 @@ impl FrfFile {
             }
             s.push('\n');
         }
-        std::fs::write(path, s).map_err(|e| format!("writing {}: {e}", path.display()))
+        std::fs::write(path, s)
+            .map_err(|source| FileError::new(FileOp::Writing, path.to_path_buf(), source).into())
     }
 
     /// Reads a file written by [`FrfFile::save`].
-    pub fn load(path: &Path) -> Result<Self, String> {
+    pub fn load(path: &Path) -> Result<Self, FrfFileError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("{origin}: cannot read the frequency response: {e}"))?;
+        let text = match std::fs::read_to_string(path) {
+            Ok(text) => text,
+            Err(source) => return Err(FrfFileError::Read { origin, source }),
+        };
         Self::parse(&text, &origin)
     }
 
     /// Parses the text of a frequency-response file; `origin` names it in errors.
-    pub fn parse(text: &str, origin: &str) -> Result<Self, String> {
+    pub fn parse(text: &str, origin: &str) -> Result<Self, FrfFileError> {
+        let fail = |problem| FrfFileError::Content {
+            origin: origin.into(),
+            problem,
+        };
         let mut lines = text.lines().enumerate();
-        let (_, head) = lines
-            .next()
-            .ok_or_else(|| format!("{origin}: empty file"))?;
+        let (_, head) = lines.next().ok_or_else(|| fail(FrfProblem::Empty))?;
         let head = head
             .strip_prefix("# frequency-response")
-            .ok_or_else(|| {
-                format!("{origin}: line 1: not a frequency-response file (written by rig-design frf or model-frf)")
-            })?;
+            .ok_or_else(|| fail(FrfProblem::NotFrf))?;
         let (mut ts, mut p, mut m, mut delays, mut source) =
             (None, None, None, Vec::new(), String::new());
         for kv in head.split_whitespace() {
             let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
-            let bad = |what: &str| format!("{origin}: line 1: {k} = '{v}' is not {what}");
+            let bad = |what| {
+                fail(FrfProblem::Bad {
+                    key: k.into(),
+                    value: v.into(),
+                    what,
+                })
+            };
             match k {
                 "sample-period" => ts = Some(v.parse::<f64>().map_err(|_| bad("a number"))?),
                 "outputs" => p = Some(v.parse::<usize>().map_err(|_| bad("a count"))?),
@@ -106,38 +217,34 @@ impl FrfFile {
                 _ => {}
             }
         }
-        let missing = |k: &str| format!("{origin}: line 1: {k}= is missing");
+        let missing = |k| fail(FrfProblem::Missing(k));
         let ts = ts.ok_or_else(|| missing("sample-period"))?;
         let (p, m) = (
             p.ok_or_else(|| missing("outputs"))?,
             m.ok_or_else(|| missing("inputs"))?,
         );
         if !(ts > 0.0 && ts.is_finite()) || p == 0 || m == 0 {
-            return Err(format!(
-                "{origin}: line 1: sample-period, outputs and inputs must be positive"
-            ));
+            return Err(fail(FrfProblem::NotPositive));
         }
         if delays.is_empty() {
             delays = vec![0; m];
         } else if delays.len() != m {
-            return Err(format!(
-                "{origin}: line 1: {} delays for {m} inputs",
-                delays.len()
-            ));
+            return Err(fail(FrfProblem::Delays {
+                delays: delays.len(),
+                inputs: m,
+            }));
         }
-        let (_, cols) = lines
-            .next()
-            .ok_or_else(|| format!("{origin}: the column header is missing"))?;
+        let (_, cols) = lines.next().ok_or_else(|| fail(FrfProblem::NoColumns))?;
         let ncol = cols.split(',').count();
         let with_coh = match ncol {
             n if n == 2 + 2 * p * m => false,
             n if n == 2 + 2 * p * m + p => true,
             n => {
-                return Err(format!(
-                    "{origin}: line 2: {n} columns, expected {} (or {} with coherence) for {p} outputs × {m} inputs",
-                    2 + 2 * p * m,
-                    2 + 2 * p * m + p
-                ));
+                return Err(fail(FrfProblem::Columns {
+                    found: n,
+                    outputs: p,
+                    inputs: m,
+                }));
             }
         };
         let mut theta = Vec::new();
@@ -151,16 +258,16 @@ impl FrfFile {
                 .split(',')
                 .map(|x| x.trim().parse::<f64>())
                 .collect::<Result<_, _>>()
-                .map_err(|_| format!("{origin}: line {}: a value is not a number", i + 1))?;
+                .map_err(|_| fail(FrfProblem::NotANumber(i + 1)))?;
             if v.len() != ncol {
-                return Err(format!(
-                    "{origin}: line {}: {} values, expected {ncol}",
-                    i + 1,
-                    v.len()
-                ));
+                return Err(fail(FrfProblem::Values {
+                    line: i + 1,
+                    found: v.len(),
+                    expected: ncol,
+                }));
             }
             if v.iter().any(|x| !x.is_finite()) {
-                return Err(format!("{origin}: line {}: NaN or infinite value", i + 1));
+                return Err(fail(FrfProblem::NotFinite(i + 1)));
             }
             theta.push(v[1]);
             for c in 0..p * m {
@@ -171,13 +278,13 @@ impl FrfFile {
             }
         }
         if theta.len() < 2 {
-            return Err(format!("{origin}: fewer than 2 frequencies"));
+            return Err(fail(FrfProblem::TooFew));
         }
         if theta.windows(2).any(|w| w[1] <= w[0])
             || theta[0] < 0.0
             || *theta.last().unwrap() > std::f64::consts::PI + 1e-12
         {
-            return Err(format!("{origin}: theta must increase within [0, π]"));
+            return Err(fail(FrfProblem::Theta));
         }
         Ok(Self {
             frf: Frf {
@@ -231,12 +338,16 @@ mod tests {
         assert_eq!(back.coherence, f.coherence);
         assert_eq!(back.source, "unit_test");
         let text = std::fs::read_to_string(&path).unwrap();
-        let e = FrfFile::parse(&text.replace("delays=9,16", "delays=9"), "x.csv").unwrap_err();
+        let e = FrfFile::parse(&text.replace("delays=9,16", "delays=9"), "x.csv")
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("x.csv") && e.contains("1 delays for 2 inputs"),
             "{e}"
         );
-        let e = FrfFile::parse(&text.replacen("0.5", "NaN", 1), "x.csv").unwrap_err();
+        let e = FrfFile::parse(&text.replacen("0.5", "NaN", 1), "x.csv")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 4"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -51,23 +51,68 @@ fn largest_entry(h: &[DMatrix<f64>]) -> f64 {
         .fold(0.0_f64, |acc, v| acc.max(v.abs()))
 }
 
+/// Markov parameters that cannot be taken as a target model.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MarkovError {
+    /// A relative tolerance outside `[0, 1)`.
+    #[error("relative tolerance {0} must be in [0, 1)")]
+    Tolerance(f64),
+    /// Every Markov parameter is zero.
+    #[error("every Markov parameter of the model is zero")]
+    AllZero,
+    /// None exceeds the tolerance.
+    #[error("no Markov parameter exceeds the tolerance")]
+    BelowTolerance,
+    /// Every channel is zero.
+    #[error("the model is zero")]
+    ZeroModel,
+    /// Not one delay per input.
+    #[error("{delays} delays for {inputs} inputs")]
+    Delays {
+        /// The delays given.
+        delays: usize,
+        /// The inputs.
+        inputs: usize,
+    },
+    /// The measured response has no impulse response.
+    #[error(transparent)]
+    Impulse(#[from] super::welch::ImpulseError),
+    /// More Markov parameters than the impulse response holds reliably.
+    #[error(
+        "{count} Markov parameters from an impulse response of {samples} samples: use 1 … {} \
+         (or a longer Welch segment)",
+        samples - samples / 4
+    )]
+    Count {
+        /// The parameters asked for.
+        count: usize,
+        /// The impulse response's length.
+        samples: usize,
+    },
+}
+
+message_from!(MarkovError);
+
 /// The first nonzero Markov parameter of `model`, matrix-wise (see the module docs):
 /// the smallest `d` such that some entry of `H_d` exceeds `rel_tol` times the largest entry
 /// of `H_0 … H_{d_max + n + 1}` (`d_max` the largest input delay, `n` the number of states),
 /// and `H_d` itself. An error when the model is zero to that tolerance or `rel_tol` is not
 /// in `[0, 1)`.
-pub fn first_nonzero(model: &DiscreteModel, rel_tol: f64) -> Result<(usize, DMatrix<f64>), String> {
+pub fn first_nonzero(
+    model: &DiscreteModel,
+    rel_tol: f64,
+) -> Result<(usize, DMatrix<f64>), MarkovError> {
     check_tol(rel_tol)?;
     let h = model.markov(search_length(model));
     let scale = largest_entry(&h);
     if scale == 0.0 {
-        return Err("every Markov parameter of the model is zero".into());
+        return Err(MarkovError::AllZero);
     }
     let threshold = rel_tol * scale;
     h.into_iter()
         .enumerate()
         .find(|(_, m)| m.iter().any(|v| v.abs() > threshold))
-        .ok_or_else(|| "no Markov parameter exceeds the tolerance".to_string())
+        .ok_or(MarkovError::BelowTolerance)
 }
 
 /// The first nonzero Markov parameter of each channel, channel-major
@@ -77,7 +122,7 @@ pub fn first_nonzero(model: &DiscreteModel, rel_tol: f64) -> Result<(usize, DMat
 pub fn first_nonzero_per_channel(
     model: &DiscreteModel,
     rel_tol: f64,
-) -> Result<Vec<Option<(usize, f64)>>, String> {
+) -> Result<Vec<Option<(usize, f64)>>, MarkovError> {
     check_tol(rel_tol)?;
     let h = model.markov(search_length(model));
     let (p, m) = (model.n_outputs(), model.n_inputs());
@@ -98,11 +143,11 @@ pub fn first_nonzero_per_channel(
     Ok(out)
 }
 
-fn check_tol(rel_tol: f64) -> Result<(), String> {
+fn check_tol(rel_tol: f64) -> Result<(), MarkovError> {
     if (0.0..1.0).contains(&rel_tol) {
         Ok(())
     } else {
-        Err(format!("relative tolerance {rel_tol} must be in [0, 1)"))
+        Err(MarkovError::Tolerance(rel_tol))
     }
 }
 
@@ -112,7 +157,10 @@ impl FirTarget {
     /// `G_f(q)_{o,j} = H_{d_oj}(o, j) q^{−d_oj}` (see [`first_nonzero_per_channel`]); for a
     /// MIMO plant whose inputs have different delays this keeps every channel, where the
     /// matrix-wise rule keeps only the earliest ones.
-    pub fn first_nonzero_per_channel(model: &DiscreteModel, rel_tol: f64) -> Result<Self, String> {
+    pub fn first_nonzero_per_channel(
+        model: &DiscreteModel,
+        rel_tol: f64,
+    ) -> Result<Self, MarkovError> {
         let firsts = first_nonzero_per_channel(model, rel_tol)?;
         let (p, m) = (model.n_outputs(), model.n_inputs());
         let last = firsts
@@ -120,7 +168,7 @@ impl FirTarget {
             .flatten()
             .map(|(d, _)| *d)
             .max()
-            .ok_or("the model is zero")?;
+            .ok_or(MarkovError::ZeroModel)?;
         let mut markov = vec![DMatrix::zeros(p, m); last + 1];
         for (c, f) in firsts.iter().enumerate() {
             if let Some((d, h)) = f {
@@ -138,19 +186,18 @@ impl FirTarget {
     /// set to zero for `i ≤ d_j` (the pure delay of input `j` and the sample of the hold,
     /// where the estimate is noise). `count` must leave the last quarter of the impulse
     /// response out (that part is estimation noise for a causal plant).
-    pub fn from_measured(frf: &Frf, delays: &[usize], count: usize) -> Result<Self, String> {
+    pub fn from_measured(frf: &Frf, delays: &[usize], count: usize) -> Result<Self, MarkovError> {
         let (p, m) = (frf.n_outputs, frf.n_inputs);
         if delays.len() != m {
-            return Err(format!("{} delays for {m} inputs", delays.len()));
+            return Err(MarkovError::Delays {
+                delays: delays.len(),
+                inputs: m,
+            });
         }
         let h = super::welch::impulse_response(frf)?;
         let l = h.first().map_or(0, |c| c.len());
         if count == 0 || count > l - l / 4 {
-            return Err(format!(
-                "{count} Markov parameters from an impulse response of {l} samples: use 1 … {} \
-                 (or a longer Welch segment)",
-                l - l / 4
-            ));
+            return Err(MarkovError::Count { count, samples: l });
         }
         let markov = (0..count)
             .map(|i| {
@@ -175,7 +222,7 @@ impl FirTarget {
     /// The minimum-phase case of (3.39): only the first nonzero Markov parameter
     /// (matrix-wise, see [`first_nonzero`]) is kept, `G_f(q) = H_d q^{−d}`; `markov` holds
     /// `d` zero matrices followed by `H_d`.
-    pub fn first_nonzero(model: &DiscreteModel, rel_tol: f64) -> Result<Self, String> {
+    pub fn first_nonzero(model: &DiscreteModel, rel_tol: f64) -> Result<Self, MarkovError> {
         let (d, hd) = first_nonzero(model, rel_tol)?;
         let mut markov = vec![DMatrix::zeros(hd.nrows(), hd.ncols()); d];
         markov.push(hd);

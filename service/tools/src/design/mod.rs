@@ -119,9 +119,30 @@ impl Frf {
     }
 }
 
+/// A frequency grid that cannot be made, naming the bad value.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    /// The ends are not `0 ≤ low < high ≤ π`.
+    #[error("frequency grid [{low}, {high}] rad/sample must satisfy 0 ≤ low < high ≤ π")]
+    Range {
+        /// The lower end.
+        low: f64,
+        /// The upper end.
+        high: f64,
+    },
+    /// Fewer than 2 points.
+    #[error("frequency grid needs at least 2 points, got {0}")]
+    Points(usize),
+    /// A logarithmic grid from 0.
+    #[error("a logarithmic frequency grid needs a lower end above 0")]
+    LogFromZero,
+}
+
+message_from!(GridError);
+
 /// A grid of `points` frequencies over `[θ_lo, θ_hi]` rad/sample, linear or logarithmic
 /// (a logarithmic grid needs `θ_lo > 0`). Errors name the bad value.
-pub fn grid(theta_lo: f64, theta_hi: f64, points: usize, log: bool) -> Result<Vec<f64>, String> {
+pub fn grid(theta_lo: f64, theta_hi: f64, points: usize, log: bool) -> Result<Vec<f64>, GridError> {
     let pi = std::f64::consts::PI;
     if !(theta_lo.is_finite()
         && theta_hi.is_finite()
@@ -129,17 +150,16 @@ pub fn grid(theta_lo: f64, theta_hi: f64, points: usize, log: bool) -> Result<Ve
         && theta_lo < theta_hi
         && theta_hi <= pi)
     {
-        return Err(format!(
-            "frequency grid [{theta_lo}, {theta_hi}] rad/sample must satisfy 0 ≤ low < high ≤ π"
-        ));
+        return Err(GridError::Range {
+            low: theta_lo,
+            high: theta_hi,
+        });
     }
     if points < 2 {
-        return Err(format!(
-            "frequency grid needs at least 2 points, got {points}"
-        ));
+        return Err(GridError::Points(points));
     }
     if log && theta_lo <= 0.0 {
-        return Err("a logarithmic frequency grid needs a lower end above 0".into());
+        return Err(GridError::LogFromZero);
     }
     let last = (points - 1) as f64;
     Ok((0..points)

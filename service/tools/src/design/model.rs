@@ -15,7 +15,7 @@
 
 use super::{C64, Frf};
 use nalgebra::DMatrix;
-use plant_proxy::lti::StateSpace;
+use plant_proxy::lti::{LtiError, StateSpace};
 use plant_proxy::scenario::Scenario;
 
 /// Which outputs of the plant a response is taken to.
@@ -38,21 +38,60 @@ pub struct DiscreteModel {
     pub ts: f64,
 }
 
+/// A scenario's plant that cannot be modelled, naming the scenario (or the frequency).
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// The plant's state-space matrices are refused.
+    #[error("{origin}: plant: {source}")]
+    Plant {
+        /// The scenario.
+        origin: String,
+        /// Why.
+        #[source]
+        source: LtiError,
+    },
+    /// The plant cannot be discretized.
+    #[error("{origin}: discretizing the plant: {source}")]
+    Discretize {
+        /// The scenario.
+        origin: String,
+        /// Why.
+        #[source]
+        source: LtiError,
+    },
+    /// The response at a frequency cannot be computed.
+    #[error("model response at θ = {theta}: {source}")]
+    Response {
+        /// The frequency, rad/sample.
+        theta: f64,
+        /// Why.
+        #[source]
+        source: LtiError,
+    },
+}
+
+message_from!(ModelError);
+
 impl DiscreteModel {
     /// The model of `scenario`'s plant from `u` to `outputs`, discretized at the
     /// scenario's sample period.
-    pub fn from_scenario(scenario: &Scenario, outputs: OutputSet) -> Result<Self, String> {
+    pub fn from_scenario(scenario: &Scenario, outputs: OutputSet) -> Result<Self, ModelError> {
         let p = &scenario.plant.model;
         let (c, d) = match outputs {
             OutputSet::Y => (p.c_y.clone(), p.d_yu.clone()),
             OutputSet::Z => (p.c_z.clone(), p.d_zu.clone()),
         };
         let ts = scenario.rig.sample_period;
-        let cont = StateSpace::new(p.a.clone(), p.b_u.clone(), c, d)
-            .map_err(|e| format!("{}: plant: {e}", scenario.origin))?;
-        let ss = cont
-            .c2d_zoh(ts)
-            .map_err(|e| format!("{}: discretizing the plant: {e}", scenario.origin))?;
+        let cont = StateSpace::new(p.a.clone(), p.b_u.clone(), c, d).map_err(|source| {
+            ModelError::Plant {
+                origin: scenario.origin.clone(),
+                source,
+            }
+        })?;
+        let ss = cont.c2d_zoh(ts).map_err(|source| ModelError::Discretize {
+            origin: scenario.origin.clone(),
+            source,
+        })?;
         Ok(Self {
             ss,
             delays: scenario.plant.input_delays.clone(),
@@ -71,14 +110,14 @@ impl DiscreteModel {
     }
 
     /// `G_d(e^{jθ})` on the grid `theta` (rad/sample).
-    pub fn frf(&self, theta: &[f64]) -> Result<Frf, String> {
+    pub fn frf(&self, theta: &[f64]) -> Result<Frf, ModelError> {
         let (p, m) = (self.n_outputs(), self.n_inputs());
         Frf::try_from_fn(self.ts, theta, (p, m), |th| {
             let z = C64::from_polar(1.0, th);
             let g = self
                 .ss
                 .freq_response(z)
-                .map_err(|e| format!("model response at θ = {th}: {e}"))?;
+                .map_err(|source| ModelError::Response { theta: th, source })?;
             let zinv = z.inv();
             Ok(DMatrix::from_fn(p, m, |o, i| {
                 let v = g[(o, i)] - C64::new(self.ss.d[(o, i)], 0.0)

@@ -5,7 +5,7 @@
 //! grid, frequencies in Hz on a logarithmic axis (the bin at θ = 0 is left out).
 
 use super::C64;
-use crate::plot::{Mark, PALETTE, Panel, Series, figure};
+use crate::plot::{Mark, PALETTE, Panel, PlotError, Series, figure};
 use std::path::Path;
 
 /// A named response on the figure's grid.
@@ -109,7 +109,7 @@ pub fn bode_figure(
     hz: &[f64],
     curves: &[Curve<'_>],
     pz: &[PoleZero<'_>],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let keep: Vec<usize> = (0..hz.len()).filter(|&k| hz[k] > 0.0).collect();
     let x: Vec<f64> = keep.iter().map(|&k| hz[k]).collect();
     let mut mag = hz_panel("magnitude", "dB");
@@ -164,7 +164,7 @@ pub fn coherence_figure(
     title: &str,
     hz: &[f64],
     coherence: &[Vec<f64>],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let keep: Vec<usize> = (0..hz.len()).filter(|&k| hz[k] > 0.0).collect();
     let x: Vec<f64> = keep.iter().map(|&k| hz[k]).collect();
     let series = coherence

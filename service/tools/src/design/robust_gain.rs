@@ -35,9 +35,46 @@
 //! `s(λ)` decreases with `λ`; [`largest_certified_decay`] bisects for the largest `λ` with
 //! `s > `[`MARGIN_TOLERANCE`], which the tool prints beside the requested one.
 
-use super::sdp::{self, SdpSolution, Tolerances};
+use super::sdp::{self, SdpError, SdpSolution, Tolerances};
 use control::arm::robust::{LmiCertificate, LmiMargins, RobustBox, Vertex};
 use nalgebra::{DMatrix, Matrix2x3, Matrix3, Vector3};
+
+/// A robust gain that cannot be designed or certified, naming the decay rate at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RobustGainError {
+    /// The box is refused (`RobustBox::validate`'s message).
+    #[error("{0}")]
+    Box(String),
+    /// A force scale that is not positive.
+    #[error("force scale {0} must be positive")]
+    ForceScale(f64),
+    /// The program (7.41) at a decay rate has no solution.
+    #[error("(7.41) at λ = {decay_rate} /s: {source}")]
+    Sdp {
+        /// The decay rate, 1/s.
+        decay_rate: f64,
+        /// Why.
+        #[source]
+        source: SdpError,
+    },
+    /// The solution's `Q` is singular.
+    #[error("(7.41) at λ = {decay_rate} /s: Q is singular")]
+    Singular {
+        /// The decay rate, 1/s.
+        decay_rate: f64,
+    },
+    /// The program (7.41) for a given gain has no solution.
+    #[error("(7.41) for a given K at λ = {decay_rate} /s: {source}")]
+    GivenGain {
+        /// The decay rate, 1/s.
+        decay_rate: f64,
+        /// Why.
+        #[source]
+        source: SdpError,
+    },
+}
+
+message_from!(RobustGainError);
 
 /// The margin `s` a design must exceed to count as a strict certificate (well above
 /// clarabel's default feasibility tolerance of 10⁻⁸).
@@ -150,9 +187,26 @@ fn sym3(x: &[f64]) -> Matrix3<f64> {
     Matrix3::new(x[0], x[1], x[3], x[1], x[2], x[4], x[3], x[4], x[5])
 }
 
+/// The blocks of the normalized (7.41) at `cert` that must be positive semidefinite (the
+/// maps of [`sdp::affine_lmis`]): `L` of one vertex of `vertices` each (with `α =
+/// alpha`), then `Q̃ − s I` and `I − Q̃`.
+fn lmi_blocks(cert: &LmiCertificate, vertices: &[Vertex], alpha: f64) -> Vec<DMatrix<f64>> {
+    let to_d = |m: Matrix3<f64>| DMatrix::from_fn(3, 3, |i, j| m[(i, j)]);
+    let mut out: Vec<DMatrix<f64>> = vertices
+        .iter()
+        .map(|v| {
+            let l = cert.vertex_matrix(v, alpha);
+            DMatrix::from_fn(6, 6, |i, j| l[(i, j)])
+        })
+        .collect();
+    out.push(to_d(cert.q - Matrix3::identity() * cert.s));
+    out.push(to_d(Matrix3::identity() - cert.q));
+    out
+}
+
 /// Solves the normalized (7.41) for `design` in the coordinates scaled by `e_0 =
 /// force_scale`. Variables: the six entries of `Q̃`, the six of `Ỹ` (row-major), `s`.
-pub fn solve(design: &RobustBox, force_scale: f64) -> Result<RobustDesign, String> {
+pub fn solve(design: &RobustBox, force_scale: f64) -> Result<RobustDesign, RobustGainError> {
     solve_with(design, force_scale, &Tolerances::DEFAULT)
 }
 
@@ -161,31 +215,21 @@ pub fn solve_with(
     design: &RobustBox,
     force_scale: f64,
     tol: &Tolerances,
-) -> Result<RobustDesign, String> {
-    design.validate()?;
+) -> Result<RobustDesign, RobustGainError> {
+    design.validate().map_err(RobustGainError::Box)?;
     if !(force_scale.is_finite() && force_scale > 0.0) {
-        return Err(format!("force scale {force_scale} must be positive"));
+        return Err(RobustGainError::ForceScale(force_scale));
     }
     let d = scale(force_scale);
     let vertices = design.vertices().map(|v| v.scaled(&d));
     let alpha = design.contraction().powi(2);
-    let to_d = |m: Matrix3<f64>| DMatrix::from_fn(3, 3, |i, j| m[(i, j)]);
     let lmis = sdp::affine_lmis(13, |x| {
         let cert = LmiCertificate {
             q: sym3(&x[0..6]),
             y: Matrix2x3::from_row_slice(&x[6..12]),
             s: x[12],
         };
-        let mut out: Vec<DMatrix<f64>> = vertices
-            .iter()
-            .map(|v| {
-                let l = cert.vertex_matrix(v, alpha);
-                DMatrix::from_fn(6, 6, |i, j| l[(i, j)])
-            })
-            .collect();
-        out.push(to_d(cert.q - Matrix3::identity() * cert.s));
-        out.push(to_d(Matrix3::identity() - cert.q));
-        out
+        lmi_blocks(&cert, &vertices, alpha)
     });
     let mut c = vec![0.0; 13];
     c[12] = -1.0;
@@ -196,17 +240,18 @@ pub fn solve_with(
         full_accuracy,
         iterations,
         ..
-    } = sdp::minimize_with(&c, &lmis, tol)
-        .map_err(|e| format!("(7.41) at λ = {} /s: {e}", design.decay_rate))?;
+    } = sdp::minimize_with(&c, &lmis, tol).map_err(|source| RobustGainError::Sdp {
+        decay_rate: design.decay_rate,
+        source,
+    })?;
     let certificate = LmiCertificate {
         q: sym3(&x[0..6]),
         y: Matrix2x3::from_row_slice(&x[6..12]),
         s: x[12],
     };
-    let gain = certificate
-        .gain()
-        .ok_or_else(|| format!("(7.41) at λ = {} /s: Q is singular", design.decay_rate))?
-        * Matrix3::from_diagonal(&d);
+    let gain = certificate.gain().ok_or(RobustGainError::Singular {
+        decay_rate: design.decay_rate,
+    })? * Matrix3::from_diagonal(&d);
     Ok(RobustDesign {
         design: *design,
         force_scale,
@@ -227,16 +272,15 @@ pub fn certify_gain(
     design: &RobustBox,
     gain: &Matrix2x3<f64>,
     force_scale: f64,
-) -> Result<RobustDesign, String> {
-    design.validate()?;
+) -> Result<RobustDesign, RobustGainError> {
+    design.validate().map_err(RobustGainError::Box)?;
     if !(force_scale.is_finite() && force_scale > 0.0) {
-        return Err(format!("force scale {force_scale} must be positive"));
+        return Err(RobustGainError::ForceScale(force_scale));
     }
     let d = scale(force_scale);
     let k_scaled = gain * Matrix3::from_diagonal(&d.map(|v| 1.0 / v));
     let vertices = design.vertices().map(|v| v.scaled(&d));
     let alpha = design.contraction().powi(2);
-    let to_d = |m: Matrix3<f64>| DMatrix::from_fn(3, 3, |i, j| m[(i, j)]);
     let cert_of = |x: &[f64]| {
         let q = sym3(&x[0..6]);
         LmiCertificate {
@@ -245,23 +289,13 @@ pub fn certify_gain(
             s: x[6],
         }
     };
-    let lmis = sdp::affine_lmis(7, |x| {
-        let cert = cert_of(x);
-        let mut out: Vec<DMatrix<f64>> = vertices
-            .iter()
-            .map(|v| {
-                let l = cert.vertex_matrix(v, alpha);
-                DMatrix::from_fn(6, 6, |i, j| l[(i, j)])
-            })
-            .collect();
-        out.push(to_d(cert.q - Matrix3::identity() * cert.s));
-        out.push(to_d(Matrix3::identity() - cert.q));
-        out
-    });
+    let lmis = sdp::affine_lmis(7, |x| lmi_blocks(&cert_of(x), &vertices, alpha));
     let mut c = vec![0.0; 7];
     c[6] = -1.0;
-    let sol = sdp::minimize(&c, &lmis)
-        .map_err(|e| format!("(7.41) for a given K at λ = {} /s: {e}", design.decay_rate))?;
+    let sol = sdp::minimize(&c, &lmis).map_err(|source| RobustGainError::GivenGain {
+        decay_rate: design.decay_rate,
+        source,
+    })?;
     Ok(RobustDesign {
         design: *design,
         force_scale,
@@ -278,12 +312,15 @@ pub const FORCE_SCALE_BRACKET: f64 = 0.01;
 
 /// [`solve`] at the `e_0 ∈ [1, 10⁵]` N s/m that maximizes the margin `s` (golden-section
 /// search over `log₁₀ e_0`, to [`FORCE_SCALE_BRACKET`] decades).
-pub fn best_force_scale(design: &RobustBox) -> Result<RobustDesign, String> {
+pub fn best_force_scale(design: &RobustBox) -> Result<RobustDesign, RobustGainError> {
     best_force_scale_with(design, &Tolerances::DEFAULT)
 }
 
 /// [`best_force_scale`] with the solver's stopping tolerances `tol`.
-pub fn best_force_scale_with(design: &RobustBox, tol: &Tolerances) -> Result<RobustDesign, String> {
+pub fn best_force_scale_with(
+    design: &RobustBox,
+    tol: &Tolerances,
+) -> Result<RobustDesign, RobustGainError> {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let at = |l: f64| solve_with(design, 10f64.powf(l), tol);
     let (mut a, mut b) = (0.0_f64, 5.0_f64);
@@ -312,8 +349,8 @@ pub fn best_force_scale_with(design: &RobustBox, tol: &Tolerances) -> Result<Rob
 pub fn largest_certified_decay(
     design: &RobustBox,
     force_scale: f64,
-) -> Result<Option<f64>, String> {
-    let ok = |l: f64| -> Result<bool, String> {
+) -> Result<Option<f64>, RobustGainError> {
+    let ok = |l: f64| -> Result<bool, RobustGainError> {
         let d = RobustBox {
             decay_rate: l,
             ..*design

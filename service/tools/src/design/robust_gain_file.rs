@@ -15,9 +15,48 @@
 //! Comments above the table say how the file was produced and what its verification
 //! printed; they are not read back.
 
+use crate::file_error::{FileError, FileOp};
 use control::arm::robust::RobustBox;
 use nalgebra::Matrix2x3;
 use std::path::Path;
+
+/// A robust gain file that cannot be read, parsed or written, naming the file and the
+/// field.
+#[derive(Debug, thiserror::Error)]
+pub enum RobustGainFileError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The service's reader refused the file (its message names the file).
+    #[error("{0}")]
+    Config(String),
+    /// A field a designed gain records is missing.
+    #[error("{origin}: field 'robust-gain.{field}': missing (a designed gain records it)")]
+    Missing {
+        /// The file.
+        origin: String,
+        /// The field.
+        field: &'static str,
+    },
+    /// The recorded box is refused.
+    #[error("{origin}: [robust-gain] {message}")]
+    Box {
+        /// The file.
+        origin: String,
+        /// `RobustBox::validate`'s message.
+        message: String,
+    },
+    /// The recorded margin is not finite.
+    #[error("{origin}: [robust-gain] margin {margin} is not finite")]
+    Margin {
+        /// The file.
+        origin: String,
+        /// The margin.
+        margin: f64,
+    },
+}
+
+message_from!(RobustGainFileError);
 
 /// The contents of a robust gain file.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,10 +73,12 @@ impl RobustGainFile {
     /// Parses the TOML text of a robust gain file with the service's reader
     /// ([`service::config::RobustGainFile`]), then requires what a designed gain records:
     /// its box (a valid [`RobustBox`]) and a finite margin. `origin` names it in errors.
-    pub fn parse(text: &str, origin: &str) -> Result<RobustGainFile, String> {
-        let f = service::config::RobustGainFile::parse(text, origin)?;
-        let need = |name: &str| {
-            format!("{origin}: field 'robust-gain.{name}': missing (a designed gain records it)")
+    pub fn parse(text: &str, origin: &str) -> Result<RobustGainFile, RobustGainFileError> {
+        let f = service::config::RobustGainFile::parse(text, origin)
+            .map_err(RobustGainFileError::Config)?;
+        let need = |field| RobustGainFileError::Missing {
+            origin: origin.into(),
+            field,
         };
         let design = RobustBox {
             sample_period: f.sample_period,
@@ -47,12 +88,16 @@ impl RobustGainFile {
         };
         design
             .validate()
-            .map_err(|e| format!("{origin}: [robust-gain] {e}"))?;
+            .map_err(|message| RobustGainFileError::Box {
+                origin: origin.into(),
+                message,
+            })?;
         let margin = f.margin.ok_or_else(|| need("margin"))?;
         if !margin.is_finite() {
-            return Err(format!(
-                "{origin}: [robust-gain] margin {margin} is not finite"
-            ));
+            return Err(RobustGainFileError::Margin {
+                origin: origin.into(),
+                margin,
+            });
         }
         let k = f.gain();
         Ok(RobustGainFile {
@@ -63,9 +108,9 @@ impl RobustGainFile {
     }
 
     /// Reads and parses `path`.
-    pub fn load(path: &Path) -> Result<RobustGainFile, String> {
+    pub fn load(path: &Path) -> Result<RobustGainFile, RobustGainFileError> {
         let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("reading {}: {e}", path.display()))?;
+            .map_err(|source| FileError::new(FileOp::Reading, path.to_path_buf(), source))?;
         Self::parse(&text, &path.display().to_string())
     }
 
@@ -109,12 +154,13 @@ impl RobustGainFile {
     }
 
     /// Writes [`RobustGainFile::to_toml`] to `path` (creating its folder).
-    pub fn save(&self, path: &Path, comment: &str) -> Result<(), String> {
+    pub fn save(&self, path: &Path, comment: &str) -> Result<(), RobustGainFileError> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+            std::fs::create_dir_all(dir)
+                .map_err(|source| FileError::new(FileOp::Creating, dir.to_path_buf(), source))?;
         }
         std::fs::write(path, self.to_toml(comment))
-            .map_err(|e| format!("writing {}: {e}", path.display()))
+            .map_err(|source| FileError::new(FileOp::Writing, path.to_path_buf(), source).into())
     }
 }
 
@@ -145,18 +191,28 @@ mod tests {
     fn errors_name_the_file_and_the_field() {
         let text = sample().to_toml("");
         let bad = text.replace("damping = [0.35, 1000.0]", "damping = [1000.0, 0.35]");
-        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        let e = RobustGainFile::parse(&bad, "g.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("g.toml") && e.contains("damping"), "{e}");
         let bad = text.replace("margin", "margn");
-        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        let e = RobustGainFile::parse(&bad, "g.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("g.toml") && e.contains("margn"), "{e}");
         let bad = text.replace("k = [[", "k = [[1.0, ");
-        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        let e = RobustGainFile::parse(&bad, "g.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("g.toml") && e.contains("K must be 2 × 3"), "{e}");
         let bad = text.replace("stiffness = [300.0,", "stiffness = [1.0, 300.0,");
-        let e = RobustGainFile::parse(&bad, "g.toml").unwrap_err();
+        let e = RobustGainFile::parse(&bad, "g.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("g.toml") && e.contains("stiffness"), "{e}");
-        let e = RobustGainFile::load(Path::new("/nonexistent/robust-gain.toml")).unwrap_err();
+        let e = RobustGainFile::load(Path::new("/nonexistent/robust-gain.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("/nonexistent/robust-gain.toml"), "{e}");
     }
 }

@@ -43,6 +43,55 @@ use clarabel::solver::{
 };
 use nalgebra::DMatrix;
 
+/// A semidefinite program that cannot be set up or solved, naming the inequality at fault
+/// or clarabel's status.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SdpError {
+    /// An inequality's constant or coefficient count does not fit.
+    #[error(
+        "inequality {inequality}: F_0 is {rows}×{cols} with {coefficients} coefficients for \
+         {variables} variables"
+    )]
+    Shape {
+        /// The inequality, from 0.
+        inequality: usize,
+        /// Rows of `F_0`.
+        rows: usize,
+        /// Columns of `F_0`.
+        cols: usize,
+        /// Its coefficient matrices.
+        coefficients: usize,
+        /// The variables.
+        variables: usize,
+    },
+    /// A coefficient matrix of the wrong size.
+    #[error("inequality {inequality}: F_{index} is not {dim}×{dim}")]
+    Coefficient {
+        /// The inequality, from 0.
+        inequality: usize,
+        /// The coefficient, from 1.
+        index: usize,
+        /// The inequality's size.
+        dim: usize,
+    },
+    /// clarabel refused the settings (its message).
+    #[error("clarabel settings: {0}")]
+    Settings(String),
+    /// clarabel refused the problem (its error, debug form).
+    #[error("clarabel rejected the problem: {0}")]
+    Rejected(String),
+    /// clarabel stopped without a solution.
+    #[error("clarabel stopped with status {status} after {iterations} iterations")]
+    Stopped {
+        /// Its status (debug form).
+        status: String,
+        /// Its iterations.
+        iterations: u32,
+    },
+}
+
+message_from!(SdpError);
+
 /// One inequality `F(x) = constant + Σ_i x_i coefficients[i] ⪰ 0`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Lmi {
@@ -167,12 +216,12 @@ pub fn affine_lmis(n: usize, f: impl Fn(&[f64]) -> Vec<DMatrix<f64>>) -> Vec<Lmi
 /// Minimizes `cᵀ x` subject to `lmis` with clarabel's interior-point method at
 /// [`Tolerances::DEFAULT`]. `Err` when an inequality is malformed or the solver does not
 /// report `Solved`/`AlmostSolved`.
-pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, String> {
+pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, SdpError> {
     minimize_with(c, lmis, &Tolerances::DEFAULT)
 }
 
 /// [`minimize`] with the stopping tolerances `tol`.
-pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSolution, String> {
+pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSolution, SdpError> {
     let n = c.len();
     let mut b = Vec::new();
     let mut columns: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
@@ -180,18 +229,23 @@ pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSol
     for (l, lmi) in lmis.iter().enumerate() {
         let dim = lmi.constant.nrows();
         if lmi.constant.ncols() != dim || lmi.coefficients.len() != n {
-            return Err(format!(
-                "inequality {l}: F_0 is {}×{} with {} coefficients for {n} variables",
-                dim,
-                lmi.constant.ncols(),
-                lmi.coefficients.len()
-            ));
+            return Err(SdpError::Shape {
+                inequality: l,
+                rows: dim,
+                cols: lmi.constant.ncols(),
+                coefficients: lmi.coefficients.len(),
+                variables: n,
+            });
         }
         let row0 = b.len();
         b.extend(svec(&lmi.constant));
         for (i, fi) in lmi.coefficients.iter().enumerate() {
             if fi.shape() != (dim, dim) {
-                return Err(format!("inequality {l}: F_{} is not {dim}×{dim}", i + 1));
+                return Err(SdpError::Coefficient {
+                    inequality: l,
+                    index: i + 1,
+                    dim,
+                });
             }
             for (r, v) in svec(fi).into_iter().enumerate() {
                 if v != 0.0 {
@@ -220,9 +274,9 @@ pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSol
         .tol_gap_rel(tol.gap_rel)
         .tol_feas(tol.feas)
         .build()
-        .map_err(|e| format!("clarabel settings: {e}"))?;
+        .map_err(|e| SdpError::Settings(e.to_string()))?;
     let mut solver = DefaultSolver::new(&p, c, &a, &b, &cones, settings)
-        .map_err(|e| format!("clarabel rejected the problem: {e:?}"))?;
+        .map_err(|e| SdpError::Rejected(format!("{e:?}")))?;
     solver.solve();
     let status = solver.solution.status;
     match status {
@@ -234,10 +288,10 @@ pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSol
             full_accuracy: status == SolverStatus::Solved,
             iterations: solver.solution.iterations,
         }),
-        other => Err(format!(
-            "clarabel stopped with status {other:?} after {} iterations",
-            solver.solution.iterations
-        )),
+        other => Err(SdpError::Stopped {
+            status: format!("{other:?}"),
+            iterations: solver.solution.iterations,
+        }),
     }
 }
 
@@ -307,7 +361,7 @@ mod tests {
     fn an_infeasible_program_is_an_error() {
         // −1 − x² ... as an LMI: [[−1, 0], [0, x]] ⪰ 0 has no solution.
         let lmis = affine_lmis(1, |x| vec![sym(&[&[-1.0, 0.0], &[0.0, x[0]]])]);
-        let e = minimize(&[1.0], &lmis).unwrap_err();
+        let e = minimize(&[1.0], &lmis).unwrap_err().to_string();
         assert!(e.contains("Infeasible"), "{e}");
     }
 }

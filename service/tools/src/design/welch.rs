@@ -113,6 +113,111 @@ use nalgebra::DMatrix;
 use rustfft::FftPlanner;
 use std::f64::consts::PI;
 
+/// Records whose frequency response cannot be estimated, naming the record (`u0`, `y1`)
+/// or the option at fault and saying what would do.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WelchError {
+    /// No input or no output record.
+    #[error(
+        "frequency-response estimate needs at least one input and one output record, got \
+         {inputs} inputs and {outputs} outputs"
+    )]
+    NoRecords {
+        /// The input records.
+        inputs: usize,
+        /// The output records.
+        outputs: usize,
+    },
+    /// A sample period that is not positive.
+    #[error("sample period {0} s must be finite and positive")]
+    SamplePeriod(f64),
+    /// Segments shorter than 16 samples.
+    #[error("segment length {0} is too short: use at least 16 samples")]
+    Segment(usize),
+    /// An overlap outside `[0, 1)`.
+    #[error("segment overlap {0} must be in [0, 1) (a fraction of the segment; 0.5 is usual)")]
+    Overlap(f64),
+    /// A coherence threshold outside `[0, 1]`.
+    #[error("min_coherence {0} must be in [0, 1]")]
+    MinCoherence(f64),
+    /// Records of different lengths.
+    #[error("records have different lengths: u0 has {samples} samples, {record} has {length}")]
+    Lengths {
+        /// The samples of `u0`.
+        samples: usize,
+        /// The record that differs.
+        record: String,
+        /// Its samples.
+        length: usize,
+    },
+    /// A NaN or infinite sample.
+    #[error(
+        "{record}[{index}] is {value}: the records must be finite (cut the record or fix the \
+         acquisition)"
+    )]
+    NotFinite {
+        /// The record.
+        record: String,
+        /// The sample.
+        index: usize,
+        /// Its value.
+        value: f64,
+    },
+    /// Too few samples for the segments.
+    #[error(
+        "too few samples: {samples}; {inputs} input(s) with segments of {segment} samples and \
+         {:.0} % overlap need at least {needed} samples ({segments} segments), and many more \
+         for a low-variance estimate",
+        overlap * 100.0
+    )]
+    TooFew {
+        /// The samples.
+        samples: usize,
+        /// The inputs.
+        inputs: usize,
+        /// The segment length.
+        segment: usize,
+        /// The overlap, a fraction.
+        overlap: f64,
+        /// The samples needed.
+        needed: usize,
+        /// The segments needed.
+        segments: usize,
+    },
+    /// A constant record.
+    #[error("{record} is constant (zero variance): {what}")]
+    Constant {
+        /// The record.
+        record: String,
+        /// What that means for it.
+        what: &'static str,
+    },
+    /// Too many bins cannot be resolved: the inputs are not independent.
+    #[error(
+        "{unresolved}H1 = S_yu S_uu⁻¹ needs inputs that are independent of each other and \
+         excite every frequency: drive each input with its own independent broadband signal \
+         (or estimate one input at a time)"
+    )]
+    Dependent {
+        /// How many bins, and an example with why.
+        unresolved: String,
+    },
+    /// An output that does not respond to the inputs.
+    #[error(
+        "y{output}: median coherence with the inputs is {median:.3} (below {INCOHERENT}): \
+         incoherent data, the output does not respond to the inputs; check the channel \
+         selection, wiring and excitation level"
+    )]
+    Incoherent {
+        /// The output.
+        output: usize,
+        /// Its median coherence.
+        median: f64,
+    },
+}
+
+message_from!(WelchError);
+
 /// Threshold of the delay rule, in RMS values of the impulse-response tail (see the module
 /// documentation).
 pub const ONSET_FACTOR: f64 = 6.0;
@@ -181,33 +286,26 @@ pub fn estimate(
     y: &[&[f64]],
     ts: f64,
     opts: &WelchOptions,
-) -> Result<FrfEstimate, String> {
+) -> Result<FrfEstimate, WelchError> {
     let (m, p) = (u.len(), y.len());
     if m == 0 || p == 0 {
-        return Err(format!(
-            "frequency-response estimate needs at least one input and one output record, got {m} inputs and {p} outputs"
-        ));
+        return Err(WelchError::NoRecords {
+            inputs: m,
+            outputs: p,
+        });
     }
     if !(ts.is_finite() && ts > 0.0) {
-        return Err(format!("sample period {ts} s must be finite and positive"));
+        return Err(WelchError::SamplePeriod(ts));
     }
     let l = opts.segment;
     if l < 16 {
-        return Err(format!(
-            "segment length {l} is too short: use at least 16 samples"
-        ));
+        return Err(WelchError::Segment(l));
     }
     if !(opts.overlap.is_finite() && (0.0..1.0).contains(&opts.overlap)) {
-        return Err(format!(
-            "segment overlap {} must be in [0, 1) (a fraction of the segment; 0.5 is usual)",
-            opts.overlap
-        ));
+        return Err(WelchError::Overlap(opts.overlap));
     }
     if !(0.0..=1.0).contains(&opts.min_coherence) {
-        return Err(format!(
-            "min_coherence {} must be in [0, 1]",
-            opts.min_coherence
-        ));
+        return Err(WelchError::MinCoherence(opts.min_coherence));
     }
     let named = |is_u: bool, i: usize| {
         if is_u {
@@ -225,30 +323,34 @@ pub fn estimate(
     let n = u[0].len();
     for (name, r) in &records {
         if r.len() != n {
-            return Err(format!(
-                "records have different lengths: u0 has {n} samples, {name} has {}",
-                r.len()
-            ));
+            return Err(WelchError::Lengths {
+                samples: n,
+                record: name.clone(),
+                length: r.len(),
+            });
         }
     }
     for (name, r) in &records {
         if let Some(i) = r.iter().position(|v| !v.is_finite()) {
-            return Err(format!(
-                "{name}[{i}] is {}: the records must be finite (cut the record or fix the acquisition)",
-                r[i]
-            ));
+            return Err(WelchError::NotFinite {
+                record: name.clone(),
+                index: i,
+                value: r[i],
+            });
         }
     }
     let hop = (l - (opts.overlap * l as f64).round() as usize).max(1);
     let min_segments = 2 * m;
     let needed = l + (min_segments - 1) * hop;
     if n < needed {
-        return Err(format!(
-            "too few samples: {n}; {m} input(s) with segments of {l} samples and {:.0} % overlap \
-             need at least {needed} samples ({min_segments} segments), and many more for a \
-             low-variance estimate",
-            opts.overlap * 100.0
-        ));
+        return Err(WelchError::TooFew {
+            samples: n,
+            inputs: m,
+            segment: l,
+            overlap: opts.overlap,
+            needed,
+            segments: min_segments,
+        });
     }
     for (name, r) in &records {
         let mean = r.iter().sum::<f64>() / n as f64;
@@ -258,7 +360,10 @@ pub fn estimate(
             } else {
                 "it carries no response"
             };
-            return Err(format!("{name} is constant (zero variance): {what}"));
+            return Err(WelchError::Constant {
+                record: name.clone(),
+                what,
+            });
         }
     }
     let nb = l / 2 + 1;
@@ -323,11 +428,7 @@ pub fn estimate(
             hz(*k0)
         );
         if ill.len() as f64 > ILL_SHARE * nb as f64 {
-            return Err(format!(
-                "{msg}H1 = S_yu S_uu⁻¹ needs inputs that are independent of each other and \
-                 excite every frequency: drive each input with its own independent broadband \
-                 signal (or estimate one input at a time)"
-            ));
+            return Err(WelchError::Dependent { unresolved: msg });
         }
         warnings.push(format!(
             "{msg}they were computed with a regularized S_uu and their coherence set to 0"
@@ -341,11 +442,7 @@ pub fn estimate(
         let median = v[v.len() / 2];
         let below = v.iter().filter(|&&g| g < opts.min_coherence).count();
         if median < INCOHERENT {
-            return Err(format!(
-                "y{o}: median coherence with the inputs is {median:.3} (below {INCOHERENT}): \
-                 incoherent data, the output does not respond to the inputs; check the channel \
-                 selection, wiring and excitation level"
-            ));
+            return Err(WelchError::Incoherent { output: o, median });
         }
         if median < opts.min_coherence {
             warnings.push(format!(
@@ -519,17 +616,28 @@ fn onset(h: &[f64]) -> Option<(usize, f64, f64)> {
         .map(|i0| (i0, sigma, peak))
 }
 
+/// A frequency response whose impulse response cannot be taken.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ImpulseError {
+    /// Fewer than 3 bins.
+    #[error("an impulse response needs at least 3 bins, got {0}")]
+    Bins(usize),
+    /// Not the bins of a Welch estimate (`L` given).
+    #[error("an impulse response needs the bins 2πk/L, k = 0 … L/2 (L = {0}) of a Welch estimate")]
+    NotWelch(usize),
+}
+
+message_from!(ImpulseError);
+
 /// The impulse response of every channel of an estimate on the bins `θ_k = 2πk/L`,
 /// `k = 0 … L/2` (as [`estimate`] returns it, `L` even): the inverse FFT of the response
 /// extended to the full circle by `G(e^{−jθ}) = conj G(e^{jθ})`, `L` samples per channel,
 /// channel-major. Its first samples estimate the Markov parameters `H_0, H_1, …` (the FIR
 /// target model (3.39) from data); the last quarter is estimation noise for a causal plant.
-pub fn impulse_response(frf: &Frf) -> Result<Vec<Vec<f64>>, String> {
+pub fn impulse_response(frf: &Frf) -> Result<Vec<Vec<f64>>, ImpulseError> {
     let nb = frf.theta.len();
     if nb < 3 {
-        return Err(format!(
-            "an impulse response needs at least 3 bins, got {nb}"
-        ));
+        return Err(ImpulseError::Bins(nb));
     }
     let l = 2 * (nb - 1);
     let uniform = frf
@@ -538,9 +646,7 @@ pub fn impulse_response(frf: &Frf) -> Result<Vec<Vec<f64>>, String> {
         .enumerate()
         .all(|(k, t)| (t - 2.0 * std::f64::consts::PI * k as f64 / l as f64).abs() < 1e-9);
     if !uniform {
-        return Err(format!(
-            "an impulse response needs the bins 2πk/L, k = 0 … L/2 (L = {l}) of a Welch estimate"
-        ));
+        return Err(ImpulseError::NotWelch(l));
     }
     Ok(inverse_fft(frf, l))
 }

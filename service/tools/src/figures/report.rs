@@ -10,6 +10,8 @@
 
 use serde::Deserialize;
 
+use super::run::RunFigureError;
+
 /// The fields of `report.json` the figure uses.
 #[derive(Debug, Clone, Default, Deserialize)]
 pub struct ReportView {
@@ -135,9 +137,11 @@ pub enum Event {
 
 impl ReportView {
     /// Parses the text of `report.json`; `origin` (the path) names the file in errors.
-    pub fn parse(text: &str, origin: &str) -> Result<Self, String> {
-        serde_json::from_str(text)
-            .map_err(|e| format!("{origin}: not a run report this figure can read: {e}"))
+    pub fn parse(text: &str, origin: &str) -> Result<Self, RunFigureError> {
+        serde_json::from_str(text).map_err(|source| RunFigureError::Report {
+            origin: origin.into(),
+            source,
+        })
     }
 
     /// The sample period `T` in s (`sample_period_s`, else `budget_ns`), if positive.
@@ -186,7 +190,8 @@ mod tests {
         assert!((old.sample_period().unwrap() - 1.25e-4).abs() < 1e-15);
         assert!(old.verdict.is_none());
         let err = ReportView::parse(r#"{"events":[{"event":"plant-silent"}]}"#, "x/report.json")
-            .unwrap_err();
+            .unwrap_err()
+            .to_string();
         assert!(err.starts_with("x/report.json: "), "{err}");
     }
 }

@@ -37,9 +37,82 @@ use plotters::style::RGBColor;
 use super::report::{Event, ReportView};
 use super::timeline::{Interval, IntervalKind, Timeline};
 use super::{MAX_LINE_POINTS, OPEN_COLOR, envelope_xy};
-use crate::analysis;
-use crate::design::csvlog::Log;
-use crate::plot::{Band, Mark, Note, PALETTE, Panel, Series, VLine, column_figure};
+use crate::analysis::{self, PsdError};
+use crate::design::csvlog::{Log, LogError};
+use crate::plot::{Band, Mark, Note, PALETTE, Panel, PlotError, Series, VLine, column_figure};
+
+/// A run folder whose figure cannot be made, naming the file at fault (the report or the
+/// signal log) and, for the log, the row.
+#[derive(Debug, thiserror::Error)]
+pub enum RunFigureError {
+    /// `report.json` cannot be read.
+    #[error("{origin}: cannot read the run report: {source}")]
+    ReadReport {
+        /// The report file.
+        origin: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `report.json` is not a run report.
+    #[error("{origin}: not a run report this figure can read: {source}")]
+    Report {
+        /// The report file.
+        origin: String,
+        /// Why.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// The report gives no sample period.
+    #[error("{origin}: no sample period (a positive sample_period_s or budget_ns)")]
+    NoSamplePeriod {
+        /// The report file.
+        origin: String,
+    },
+    /// The signal log cannot be read, or lacks a column.
+    #[error(transparent)]
+    Log(#[from] LogError),
+    /// The signal log has no rows.
+    #[error("{origin}: the log has no rows")]
+    NoRows {
+        /// The log.
+        origin: String,
+    },
+    /// A sample period that is not positive.
+    #[error("{origin}: sample period {period} s is not positive")]
+    SamplePeriod {
+        /// The log.
+        origin: String,
+        /// The period, s.
+        period: f64,
+    },
+    /// A sequence number that is not a sample number.
+    #[error("{origin}: data row {row}: sequence number `{value}` is not a sample number")]
+    Sequence {
+        /// The log.
+        origin: String,
+        /// The data row, from 1.
+        row: usize,
+        /// The value.
+        value: f64,
+    },
+    /// No performance column.
+    #[error("{origin}: no performance column z0…; the columns are: {columns}")]
+    NoPerformance {
+        /// The log.
+        origin: String,
+        /// Its columns, comma-separated.
+        columns: String,
+    },
+    /// A PSD cannot be estimated.
+    #[error(transparent)]
+    Psd(#[from] PsdError),
+    /// The figure cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+message_from!(RunFigureError);
 
 /// Window of the PSDs when the report has no tone window, s.
 pub const DEFAULT_WINDOW_S: f64 = 0.5;
@@ -158,7 +231,7 @@ pub struct RunFigure {
 }
 
 /// The columns named `prefix` and digits (`z0`, `z1`, …), in channel order.
-fn channels(log: &Log, prefix: char) -> Result<Vec<Channel>, String> {
+fn channels(log: &Log, prefix: char) -> Result<Vec<Channel>, RunFigureError> {
     let mut named: Vec<(u32, &String)> = log
         .names
         .iter()
@@ -401,10 +474,16 @@ fn psd_plan(
 /// (`report_origin` names the file in errors) and its signal log. Errors: no sample
 /// period in the report, a log without `seq` or without any `z` column, bad sequence
 /// numbers.
-pub fn prepare(report: &ReportView, report_origin: &str, log: &Log) -> Result<RunFigure, String> {
-    let ts = report.sample_period().ok_or_else(|| {
-        format!("{report_origin}: no sample period (a positive sample_period_s or budget_ns)")
-    })?;
+pub fn prepare(
+    report: &ReportView,
+    report_origin: &str,
+    log: &Log,
+) -> Result<RunFigure, RunFigureError> {
+    let ts = report
+        .sample_period()
+        .ok_or_else(|| RunFigureError::NoSamplePeriod {
+            origin: report_origin.into(),
+        })?;
     let seq = log.column("seq")?;
     let t_ns = log.column("t_sample_ns").ok();
     let status = log.column("status").ok();
@@ -412,11 +491,10 @@ pub fn prepare(report: &ReportView, report_origin: &str, log: &Log) -> Result<Ru
     let tl = Timeline::new(seq, t_ns, &report.events, ts, &log.origin)?;
     let z = channels(log, 'z')?;
     if z.is_empty() {
-        return Err(format!(
-            "{}: no performance column z0…; the columns are: {}",
-            log.origin,
-            log.names.join(", ")
-        ));
+        return Err(RunFigureError::NoPerformance {
+            origin: log.origin.clone(),
+            columns: log.names.join(", "),
+        });
     }
     let u = channels(log, 'u')?;
     let theta_norm = log.column("theta_norm").ok().map(<[f64]>::to_vec);
@@ -600,11 +678,13 @@ pub fn prepare(report: &ReportView, report_origin: &str, log: &Log) -> Result<Ru
 
 /// Reads `report.json` and `signals.csv` of the run folder `folder` and [`prepare`]s its
 /// figure. Errors name the file at fault.
-pub fn read(folder: &Path) -> Result<RunFigure, String> {
+pub fn read(folder: &Path) -> Result<RunFigure, RunFigureError> {
     let report_path = folder.join("report.json");
     let origin = report_path.display().to_string();
-    let text = std::fs::read_to_string(&report_path)
-        .map_err(|e| format!("{origin}: cannot read the run report: {e}"))?;
+    let text = match std::fs::read_to_string(&report_path) {
+        Ok(text) => text,
+        Err(source) => return Err(RunFigureError::ReadReport { origin, source }),
+    };
     let report = ReportView::parse(&text, &origin)?;
     let log = crate::design::csvlog::read(&folder.join("signals.csv"))?;
     prepare(&report, &origin, &log)
@@ -771,7 +851,7 @@ fn psd_series(
     c: usize,
     label: String,
     color: RGBColor,
-) -> Result<Series, String> {
+) -> Result<Series, RunFigureError> {
     let p = analysis::psd(&w.z[c], fig.psd.sample_rate_hz, fig.psd.segment)?;
     Ok(Series {
         label,
@@ -787,52 +867,59 @@ fn psd_series(
     })
 }
 
+/// The [`time_panel`] of the channel `ch`, titled `({letter}) {what} {name}{note}` and
+/// labelled with its name and the plant's units.
+fn channel_panel(
+    fig: &RunFigure,
+    letter: Option<char>,
+    (what, note): (&str, &str),
+    ch: &Channel,
+    windows: bool,
+) -> Panel {
+    time_panel(
+        fig,
+        format!("({}) {what} {}{note}", letter.unwrap_or('?'), ch.name),
+        format!("{} ({PLANT_UNITS})", ch.name),
+        windows,
+    )
+}
+
 /// Draws `fig` into the PNG `path` (see the module docs).
-pub fn draw(fig: &RunFigure, path: &Path) -> Result<(), String> {
+pub fn draw(fig: &RunFigure, path: &Path) -> Result<(), RunFigureError> {
     let mut letter = (b'a'..=b'z').map(|c| c as char).cycle();
     let mut left = Vec::new();
     let n_z = fig.z.len();
     for (i, ch) in fig.z.iter().enumerate() {
         let color = channel_color(i);
-        let mut p = time_panel(
+        let mut p = channel_panel(
             fig,
-            format!(
-                "({}) performance {}: open loop grey, closed loop in color",
-                letter.next().unwrap_or('?'),
-                ch.name
-            ),
-            format!("{} ({PLANT_UNITS})", ch.name),
+            letter.next(),
+            ("performance", ": open loop grey, closed loop in color"),
+            ch,
             true,
         );
         let open: Vec<Range<usize>> = fig.phases.iter().map(|p| p.open_rows.clone()).collect();
         let closed: Vec<Range<usize>> = fig.phases.iter().map(|p| p.closed_rows.clone()).collect();
-        p.series.extend(lines_of(
-            fig,
-            &ch.values,
-            &open,
-            &format!("{} open loop", ch.name),
-            OPEN_COLOR,
-        ));
-        p.series.extend(lines_of(
-            fig,
-            &ch.values,
-            &closed,
-            &format!("{} closed loop", ch.name),
-            color,
-        ));
+        for (rows, phase, c) in [
+            (&open, "open loop", OPEN_COLOR),
+            (&closed, "closed loop", color),
+        ] {
+            let label = format!("{} {phase}", ch.name);
+            p.series.extend(lines_of(fig, &ch.values, rows, &label, c));
+        }
         left.push(p);
     }
     let whole = 0..fig.timeline.t.len();
     let all = std::slice::from_ref(&whole);
     for (j, ch) in fig.u.iter().enumerate() {
-        let mut p = time_panel(
+        let mut p = channel_panel(
             fig,
-            format!(
-                "({}) control input {} (the safe input in the open loop and the safe state)",
-                letter.next().unwrap_or('?'),
-                ch.name
+            letter.next(),
+            (
+                "control input",
+                " (the safe input in the open loop and the safe state)",
             ),
-            format!("{} ({PLANT_UNITS})", ch.name),
+            ch,
             false,
         );
         p.series = lines_of(fig, &ch.values, all, &ch.name, channel_color(n_z + j));
@@ -924,12 +1011,18 @@ pub fn draw(fig: &RunFigure, path: &Path) -> Result<(), String> {
     }
     let rows = left.len().max(right.len()) as u32;
     let height = (60 + 22 * notes.len() as u32 + 300 * rows).clamp(1000, 4000);
-    column_figure(path, &fig.title, &notes, &[left, right], (1600, height))
+    Ok(column_figure(
+        path,
+        &fig.title,
+        &notes,
+        &[left, right],
+        (1600, height),
+    )?)
 }
 
 /// Writes `run.png` into the run folder `folder` ([`read`], then [`draw`]) and returns
 /// its path.
-pub fn write(folder: &Path) -> Result<PathBuf, String> {
+pub fn write(folder: &Path) -> Result<PathBuf, RunFigureError> {
     let fig = read(folder)?;
     let path = folder.join("run.png");
     draw(&fig, &path)?;

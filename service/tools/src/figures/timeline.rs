@@ -32,6 +32,7 @@ use std::ops::Range;
 use ipc_types::{actuation_status, measurement_flags};
 
 use super::report::Event;
+use super::run::RunFigureError;
 
 /// Largest silence between two sessions drawn at its clock length, in multiples of the
 /// number of logged rows (a broken clock must not squash the figure).
@@ -128,22 +129,26 @@ impl Timeline {
         events: &[Event],
         sample_period: f64,
         origin: &str,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, RunFigureError> {
         if seq.is_empty() {
-            return Err(format!("{origin}: the log has no rows"));
+            return Err(RunFigureError::NoRows {
+                origin: origin.into(),
+            });
         }
         if !(sample_period.is_finite() && sample_period > 0.0) {
-            return Err(format!(
-                "{origin}: sample period {sample_period} s is not positive"
-            ));
+            return Err(RunFigureError::SamplePeriod {
+                origin: origin.into(),
+                period: sample_period,
+            });
         }
         let mut s = Vec::with_capacity(seq.len());
         for (r, v) in seq.iter().enumerate() {
             if !(v.is_finite() && *v >= 0.0 && v.fract() == 0.0 && *v < 9.0e15) {
-                return Err(format!(
-                    "{origin}: data row {}: sequence number `{v}` is not a sample number",
-                    r + 1
-                ));
+                return Err(RunFigureError::Sequence {
+                    origin: origin.into(),
+                    row: r + 1,
+                    value: *v,
+                });
             }
             s.push(*v as u64);
         }
@@ -542,7 +547,9 @@ mod tests {
     #[test]
     fn bad_sequence_numbers_are_errors_naming_the_file() {
         for bad in [f64::NAN, -1.0, 2.5] {
-            let e = Timeline::new(&[0.0, bad], None, &[], T, "x/signals.csv").unwrap_err();
+            let e = Timeline::new(&[0.0, bad], None, &[], T, "x/signals.csv")
+                .unwrap_err()
+                .to_string();
             assert!(e.starts_with("x/signals.csv: data row 2"), "{e}");
         }
         assert!(Timeline::new(&[], None, &[], T, "x").is_err());

@@ -36,6 +36,16 @@ fn cell(s: &str) -> String {
     s.replace('|', "\\|").replace('\n', " ")
 }
 
+/// The first cells of a row of the summary and the ratio tables, `| controller | wait |
+/// condition |`.
+fn row_head(
+    controller: &str,
+    wait: &impl std::fmt::Display,
+    condition: &impl std::fmt::Display,
+) -> String {
+    format!("| {} | {wait} | {condition} |", cell(controller))
+}
+
 /// The summary table: one row per combination.
 pub fn summary_table(cells: &[CellSummary]) -> String {
     let mut out = String::from(
@@ -63,10 +73,8 @@ pub fn summary_table(cells: &[CellSummary]) -> String {
             supp += &format!(" ({} not measured)", c.unmeasured);
         }
         out += &format!(
-            "| {} | {} | {} | {runs} | {met} | {supp} | {} / {} | {} | {}/{} | {} |\n",
-            cell(&c.controller),
-            c.wait,
-            c.condition,
+            "{} {runs} | {met} | {supp} | {} / {} | {} | {}/{} | {} |\n",
+            row_head(&c.controller, &c.wait, &c.condition),
             pct(c.lost_share_median),
             pct(c.lost_share_max),
             pct(c.held_share_max),
@@ -89,10 +97,8 @@ pub fn ratio_table(ratios: &[LoadRatio]) -> String {
     for r in ratios {
         let (i, l) = (&r.idle, &r.loaded);
         out += &format!(
-            "| {} | {} | {} | {} → {} | {} | {} → {} | {} | {} → {} | {} → {} | {} → {} |\n",
-            cell(&r.controller),
-            r.wait,
-            r.condition,
+            "{} {} → {} | {} | {} → {} | {} | {} → {} | {} → {} | {} → {} |\n",
+            row_head(&r.controller, &r.wait, &r.condition),
             us(i.response_p99_ns),
             us(l.response_p99_ns),
             times(r.response_ratio()),
@@ -147,7 +153,7 @@ pub fn run_table(rows: &[RunRow]) -> String {
             Err(e) => {
                 let why = match &r.launch_error {
                     Some(l) => format!("{e} (launch: {l})"),
-                    None => e.clone(),
+                    None => e.to_string(),
                 };
                 out += &format!(
                     "| {} | `{}` | — | {crit} | — | — | — | — | — | — | — | — | — | RUN FAILED, NO \
@@ -164,14 +170,13 @@ pub fn run_table(rows: &[RunRow]) -> String {
 
 /// The whole results file.
 pub fn render(c: &Campaign, cells: &[CellSummary], ratios: &[LoadRatio]) -> String {
-    let mut out = String::from("# Real time under load\n\n");
-    out += &format!(
-        "Written by `rig soak`: do not edit by hand. What it runs and how to read it: \
-         `service/tools/src/soak.rs` and docs/deployment.md (\"Measuring real time under \
-         load: rig soak\").\n\nCommand: `{}`\n\n{}\n\n",
-        c.command,
-        c.machine.line()
+    let mut out = crate::results_page::head(
+        "Real time under load",
+        "rig soak",
+        "service/tools/src/soak.rs",
+        "docs/deployment.md (\"Measuring real time under load: rig soak\")",
     );
+    out += &format!("Command: `{}`\n\n{}\n\n", c.command, c.machine.line());
     out += &format!("{}\n\n", c.description());
     if let Some(why) = &c.interrupted {
         out += &format!("**INTERRUPTED**: {why}.\n\n");

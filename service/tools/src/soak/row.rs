@@ -7,7 +7,7 @@
 //! (a `/proc` file it could not read) stays `None`.
 
 use serde_json::Value;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What one run's reports say.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,9 +71,53 @@ pub struct RunRow {
     /// The acceptance criterion it is judged by (`service.report.min-suppression-db`).
     pub criterion_db: Option<f64>,
     /// What its reports say, or why they could not be read.
-    pub outcome: Result<RunFigures, String>,
+    pub outcome: Result<RunFigures, RowError>,
     /// Why `rig launch` failed, when it did (a failed verdict is one such failure).
     pub launch_error: Option<String>,
+}
+
+/// Why a run of the soak has no figures: its report cannot be read or lacks a field
+/// (naming the file and the field), or it did not run. Messages of the system and of the
+/// JSON parser are kept as text, so that a row compares and clones.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RowError {
+    /// The run has not been made yet.
+    #[error("")]
+    Pending,
+    /// The run could not be started (why).
+    #[error("not run: {0}")]
+    NotRun(String),
+    /// `report.json` cannot be read.
+    #[error("{}: cannot be read: {message}", path.display())]
+    Unreadable {
+        /// The report.
+        path: PathBuf,
+        /// The system's message.
+        message: String,
+    },
+    /// What is wrong inside `report.json`.
+    #[error("{}: {error}", path.display())]
+    In {
+        /// The report.
+        path: PathBuf,
+        /// What.
+        error: Box<RowError>,
+    },
+    /// The report is not JSON (the parser's message).
+    #[error("report.json is not JSON: {0}")]
+    NotJson(String),
+    /// A field is missing.
+    #[error("field '{0}' is missing")]
+    Missing(String),
+    /// A field is not a non-negative integer.
+    #[error("field '{0}' is not a non-negative integer")]
+    NotCount(String),
+    /// A field is not a boolean.
+    #[error("field '{0}' is not a boolean")]
+    NotBool(&'static str),
+    /// A field is not a list.
+    #[error("field '{0}' is not a list")]
+    NotList(&'static str),
 }
 
 impl RunRow {
@@ -89,34 +133,29 @@ impl RunRow {
     }
 }
 
-fn at<'a>(v: &'a Value, pointer: &str) -> Result<&'a Value, String> {
+fn at<'a>(v: &'a Value, pointer: &str) -> Result<&'a Value, RowError> {
     v.pointer(pointer)
-        .ok_or_else(|| format!("field '{}' is missing", field_name(pointer)))
+        .ok_or_else(|| RowError::Missing(field_name(pointer)))
 }
 
 fn field_name(pointer: &str) -> String {
     pointer.trim_start_matches('/').replace('/', ".")
 }
 
-fn u64_at(v: &Value, pointer: &str) -> Result<u64, String> {
-    at(v, pointer)?.as_u64().ok_or_else(|| {
-        format!(
-            "field '{}' is not a non-negative integer",
-            field_name(pointer)
-        )
-    })
+fn u64_at(v: &Value, pointer: &str) -> Result<u64, RowError> {
+    at(v, pointer)?
+        .as_u64()
+        .ok_or_else(|| RowError::NotCount(field_name(pointer)))
 }
 
 /// A field that may be `null` (or absent): `None` then, an error for another type.
-fn opt_u64_at(v: &Value, pointer: &str) -> Result<Option<u64>, String> {
+fn opt_u64_at(v: &Value, pointer: &str) -> Result<Option<u64>, RowError> {
     match v.pointer(pointer) {
         None | Some(Value::Null) => Ok(None),
-        Some(x) => x.as_u64().map(Some).ok_or_else(|| {
-            format!(
-                "field '{}' is not a non-negative integer",
-                field_name(pointer)
-            )
-        }),
+        Some(x) => x
+            .as_u64()
+            .map(Some)
+            .ok_or_else(|| RowError::NotCount(field_name(pointer))),
     }
 }
 
@@ -150,18 +189,17 @@ fn min_suppression(report: &Value) -> Option<f64> {
 ///
 /// The report is not JSON, or a field of [`RunFigures`] is missing or of another type
 /// (the message names it).
-pub fn parse_reports(report: &str, plant: Option<&str>) -> Result<RunFigures, String> {
-    let r: Value =
-        serde_json::from_str(report).map_err(|e| format!("report.json is not JSON: {e}"))?;
+pub fn parse_reports(report: &str, plant: Option<&str>) -> Result<RunFigures, RowError> {
+    let r: Value = serde_json::from_str(report).map_err(|e| RowError::NotJson(e.to_string()))?;
     let samples = u64_at(&r, "/stats/samples_past_startup")?;
     let lost = u64_at(&r, "/stats/lost_past_startup")?;
     let held = u64_at(&r, "/stats/held_past_startup")?;
     let verdict_ok = at(&r, "/verdict/ok")?
         .as_bool()
-        .ok_or("field 'verdict.ok' is not a boolean")?;
+        .ok_or(RowError::NotBool("verdict.ok"))?;
     let failures = at(&r, "/verdict/failures")?
         .as_array()
-        .ok_or("field 'verdict.failures' is not a list")?
+        .ok_or(RowError::NotList("verdict.failures"))?
         .iter()
         .map(|f| {
             f.as_str()
@@ -195,12 +233,17 @@ pub fn parse_reports(report: &str, plant: Option<&str>) -> Result<RunFigures, St
 /// # Errors
 ///
 /// `report.json` cannot be read or parsed ([`parse_reports`]); the message names the file.
-pub fn read_run(folder: &Path) -> Result<RunFigures, String> {
+pub fn read_run(folder: &Path) -> Result<RunFigures, RowError> {
     let path = folder.join("report.json");
-    let report = std::fs::read_to_string(&path)
-        .map_err(|e| format!("{}: cannot be read: {e}", path.display()))?;
+    let report = std::fs::read_to_string(&path).map_err(|e| RowError::Unreadable {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
     let plant = std::fs::read_to_string(folder.join("plant-report.json")).ok();
-    parse_reports(&report, plant.as_deref()).map_err(|e| format!("{}: {e}", path.display()))
+    parse_reports(&report, plant.as_deref()).map_err(|e| RowError::In {
+        path,
+        error: Box::new(e),
+    })
 }
 
 #[cfg(test)]
@@ -276,15 +319,16 @@ pub(crate) mod tests {
         assert!(
             parse_reports("{ torn", None)
                 .unwrap_err()
+                .to_string()
                 .contains("not JSON")
         );
         let no_stats = report("61.0", true, &[]).replace("\"caught_up\": 5,", "");
         assert_eq!(
-            parse_reports(&no_stats, None).unwrap_err(),
+            parse_reports(&no_stats, None).unwrap_err().to_string(),
             "field 'stats.caught_up' is missing"
         );
         let dir = std::env::temp_dir().join(format!("soak-row-{}", std::process::id()));
-        let e = read_run(&dir).unwrap_err();
+        let e = read_run(&dir).unwrap_err().to_string();
         assert!(e.contains("report.json: cannot be read"), "{e}");
     }
 }

@@ -212,7 +212,7 @@ impl LoadRatio {
 
 #[cfg(test)]
 mod tests {
-    use super::super::row::{RunRow, parse_reports, tests::report};
+    use super::super::row::{RowError, RunRow, parse_reports, tests::report};
     use super::*;
 
     fn row(min_db: &str, ok: bool, failures: &[&str], criterion: Option<f64>) -> RunRow {
@@ -231,7 +231,10 @@ mod tests {
 
     fn unreadable() -> RunRow {
         RunRow {
-            outcome: Err("report.json: cannot be read".into()),
+            outcome: Err(RowError::Unreadable {
+                path: "report.json".into(),
+                message: String::new(),
+            }),
             ..row("0", false, &[], Some(60.0))
         }
     }

@@ -1,6 +1,6 @@
 //! `study all`: every study of the dissertation in one command, each into its own folder,
 //! several at a time, and one reproduction report beside them
-//! ([`crate::study::reproduction_report`]).
+//! ([`crate::study::reproduction::report`]).
 //!
 //! # The table of studies
 //!
@@ -19,6 +19,7 @@
 //! inside do not oversubscribe the cores. A study fails to run when its process exits
 //! non-zero or leaves no readable `claims.json`; a FAIL claim is a result, not a failure.
 
+use crate::file_error::{AtomicFileError, FileError, FileOp};
 use std::collections::VecDeque;
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -26,8 +27,8 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use crate::study::reproduction::{self, Claims, Verdict};
-use crate::study::reproduction_report::{self, Links};
+use crate::study::reproduction::report::{self, Links};
+use crate::study::reproduction::{self, Claims, ClaimsError, Verdict};
 
 /// How large the runs are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -54,7 +55,7 @@ pub struct StudyEntry {
     /// The summary file it writes into its folder.
     pub summary: &'static str,
     /// Reads its claims from its folder.
-    pub claims: fn(&Path) -> Result<Claims, String>,
+    pub claims: fn(&Path) -> Result<Claims, ClaimsError>,
     /// Relative cost of the full run (seconds on one core, roughly): the most expensive
     /// start first.
     pub cost: u32,
@@ -174,11 +175,11 @@ pub struct Options {
 impl Options {
     /// `jobs` studies at once (default: the number of cores), each with
     /// `max(1, cores / jobs)` threads.
-    pub fn new(size: Size, jobs: Option<usize>, command: String) -> Result<Self, String> {
+    pub fn new(size: Size, jobs: Option<usize>, command: String) -> Result<Self, AllError> {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let jobs = jobs.unwrap_or(cores);
         if jobs == 0 {
-            return Err("--jobs 0: at least one study must run at a time".into());
+            return Err(AllError::NoJobs);
         }
         Ok(Self {
             size,
@@ -189,8 +190,55 @@ impl Options {
     }
 }
 
+/// Why `study all` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum AllError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// A file that could not be written atomically.
+    #[error(transparent)]
+    Written(#[from] AtomicFileError),
+    /// `--jobs 0`.
+    #[error("--jobs 0: at least one study must run at a time")]
+    NoJobs,
+    /// The running executable cannot be found (to run the studies with).
+    #[error("the study executable: {0}")]
+    Executable(#[source] std::io::Error),
+    /// Studies failed to run (their names; the report says why).
+    #[error(
+        "{} failed to run: {}",
+        if .0.len() == 1 { "a study" } else { "studies" },
+        .0.join(", ")
+    )]
+    Failed(Vec<&'static str>),
+}
+
+message_from!(AllError);
+
+/// Why one study of `study all` failed to run.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The study exited with a failure.
+    #[error("`study {study}` exited with {status}; see {}", log.display())]
+    Exited {
+        /// The study.
+        study: &'static str,
+        /// Its exit status.
+        status: std::process::ExitStatus,
+        /// Its log.
+        log: PathBuf,
+    },
+    /// Its claims file cannot be read.
+    #[error(transparent)]
+    Claims(#[from] ClaimsError),
+}
+
 /// How one study went.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct StudyRun {
     /// The table's entry.
     pub entry: StudyEntry,
@@ -201,7 +249,7 @@ pub struct StudyRun {
     /// Wall time, s.
     pub wall: f64,
     /// Its claims, or why it failed to run.
-    pub claims: Result<Claims, String>,
+    pub claims: Result<Claims, RunError>,
 }
 
 impl StudyRun {
@@ -212,7 +260,7 @@ impl StudyRun {
 }
 
 /// What `study all` did.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct AllRun {
     /// Where.
     pub out: PathBuf,
@@ -247,17 +295,18 @@ fn run_one(
 ) -> StudyRun {
     let t0 = Instant::now();
     let claims = (|| {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir).map_err(|e| FileError::new(FileOp::Access, dir, e))?;
         // A claims file of an earlier run must not stand in for this one's.
         let old = dir.join(reproduction::CLAIMS_FILE);
         if old.exists() {
-            std::fs::remove_file(&old).map_err(|e| format!("{}: {e}", old.display()))?;
+            std::fs::remove_file(&old).map_err(|e| FileError::new(FileOp::Access, &old, e))?;
         }
         let log_path = dir.join(LOG_FILE);
-        let log = File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
+        let log =
+            File::create(&log_path).map_err(|e| FileError::new(FileOp::Access, &log_path, e))?;
         let err = log
             .try_clone()
-            .map_err(|e| format!("{}: {e}", log_path.display()))?;
+            .map_err(|e| FileError::new(FileOp::Access, &log_path, e))?;
         let status = Command::new(exe)
             .arg(entry.name)
             .arg("--out")
@@ -268,15 +317,15 @@ fn run_one(
             .stdout(log)
             .stderr(err)
             .status()
-            .map_err(|e| format!("{}: {e}", exe.display()))?;
+            .map_err(|e| FileError::new(FileOp::Access, exe, e))?;
         if !status.success() {
-            return Err(format!(
-                "`study {}` exited with {status}; see {}",
-                entry.name,
-                log_path.display()
-            ));
+            return Err(RunError::Exited {
+                study: entry.name,
+                status,
+                log: log_path,
+            });
         }
-        (entry.claims)(dir)
+        Ok((entry.claims)(dir)?)
     })();
     StudyRun {
         entry: *entry,
@@ -350,10 +399,11 @@ pub fn command(
     jobs: Option<usize>,
     results: Option<&Path>,
     command: String,
-) -> Result<(), String> {
+) -> Result<(), AllError> {
     let options = Options::new(size, jobs, command)?;
-    let exe = std::env::current_exe().map_err(|e| format!("the study executable: {e}"))?;
-    std::fs::create_dir_all(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    let exe = std::env::current_exe().map_err(AllError::Executable)?;
+    std::fs::create_dir_all(out)
+        .map_err(|source| FileError::new(FileOp::Out, out.to_path_buf(), source))?;
     println!(
         "study all: {} studies into {}, {} at a time, {} thread(s) each{}",
         STUDIES.len(),
@@ -368,17 +418,11 @@ pub fn command(
     );
     let all = run(&exe, out, STUDIES, &options);
     let report = out.join(REPORT_FILE);
-    ipc_types::files::write_atomic(
-        &report,
-        reproduction_report::render(&all, Links::Relative).as_bytes(),
-    )
-    .map_err(|e| format!("{}: {e}", report.display()))?;
+    ipc_types::files::write_atomic(&report, report::render(&all, Links::Relative).as_bytes())
+        .map_err(|source| FileError::new(FileOp::Access, report.clone(), source))?;
     if let Some(path) = results {
-        ipc_types::files::write_atomic(
-            path,
-            reproduction_report::render(&all, Links::Paths).as_bytes(),
-        )
-        .map_err(|e| format!("--results {}: {e}", path.display()))?;
+        ipc_types::files::write_atomic(path, report::render(&all, Links::Paths).as_bytes())
+            .map_err(|source| FileError::new(FileOp::Results, path.to_path_buf(), source))?;
     }
     println!(
         "study all: {} of {} studies ran in {:.1} s; claims: {} PASS, {} FAIL, {} NOT CHECKED; report {}{}",
@@ -395,18 +439,8 @@ pub fn command(
     if failed.is_empty() {
         Ok(())
     } else {
-        Err(format!(
-            "{} failed to run: {}",
-            if failed.len() == 1 {
-                "a study"
-            } else {
-                "studies"
-            },
-            failed
-                .iter()
-                .map(|r| r.entry.name)
-                .collect::<Vec<_>>()
-                .join(", ")
+        Err(AllError::Failed(
+            failed.iter().map(|r| r.entry.name).collect::<Vec<_>>(),
         ))
     }
 }

@@ -7,29 +7,27 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-/// An owned QP (the tests' counterpart of [`QpProblem`]).
+/// An owned QP of `n` variables (its vectors reached through `Deref`).
 #[derive(Clone, Debug)]
 struct Owned {
     n: usize,
-    hess: Vec<f64>,
-    f: Vec<f64>,
-    lb: Vec<f64>,
-    ub: Vec<f64>,
-    g: Vec<f64>,
-    h: Vec<f64>,
+    qp: QpData,
+}
+
+impl std::ops::Deref for Owned {
+    type Target = QpData;
+    fn deref(&self) -> &QpData {
+        &self.qp
+    }
+}
+
+impl std::ops::DerefMut for Owned {
+    fn deref_mut(&mut self) -> &mut QpData {
+        &mut self.qp
+    }
 }
 
 impl Owned {
-    fn problem(&self) -> QpProblem<'_> {
-        QpProblem {
-            hess: &self.hess,
-            f: &self.f,
-            lb: &self.lb,
-            ub: &self.ub,
-            g: &self.g,
-            h: &self.h,
-        }
-    }
     fn n_ineq(&self) -> usize {
         self.h.len()
     }
@@ -95,12 +93,14 @@ fn random_problem(ell: usize, m: usize, n_out: usize, active: bool, rng: &mut Ch
     }
     Owned {
         n,
-        hess,
-        f,
-        lb,
-        ub,
-        g,
-        h,
+        qp: QpData {
+            hess,
+            f,
+            lb,
+            ub,
+            g,
+            h,
+        },
     }
 }
 
@@ -178,12 +178,14 @@ fn pcac_problem(
     }
     Owned {
         n,
-        hess,
-        f,
-        lb,
-        ub,
-        g,
-        h,
+        qp: QpData {
+            hess,
+            f,
+            lb,
+            ub,
+            g,
+            h,
+        },
     }
 }
 
@@ -469,12 +471,14 @@ fn an_unconstrained_problem_returns_the_newton_point() {
     let f: Vec<f64> = (0..n).map(|_| normal(&mut rng)).collect();
     let p = Owned {
         n,
-        hess,
-        f,
-        lb: vec![f64::NEG_INFINITY; n],
-        ub: vec![f64::INFINITY; n],
-        g: vec![],
-        h: vec![],
+        qp: QpData {
+            hess,
+            f,
+            lb: vec![f64::NEG_INFINITY; n],
+            ub: vec![f64::INFINITY; n],
+            g: vec![],
+            h: vec![],
+        },
     };
     let mut s = DenseQpSolver::new(n, 0, QpSettings::default());
     assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Solved);
@@ -607,12 +611,14 @@ fn fixed_bounds_from_any_warm_start_reach_clarabels_solution() {
 fn a_fixed_bound_is_freed_inside_a_dual_step() {
     let p = Owned {
         n: 2,
-        hess: vec![2.0, -1.0, -1.0, 2.0],
-        f: vec![-1.0, 0.0],
-        lb: vec![f64::NEG_INFINITY; 2],
-        ub: vec![0.0, f64::INFINITY],
-        g: vec![0.0, 1.0],
-        h: vec![-3.0],
+        qp: QpData {
+            hess: vec![2.0, -1.0, -1.0, 2.0],
+            f: vec![-1.0, 0.0],
+            lb: vec![f64::NEG_INFINITY; 2],
+            ub: vec![0.0, f64::INFINITY],
+            g: vec![0.0, 1.0],
+            h: vec![-3.0],
+        },
     };
     let mut s = DenseQpSolver::new(2, 1, QpSettings::default());
     let warm = [ConstraintId::Upper(0)];
@@ -630,12 +636,14 @@ fn a_fixed_bound_is_freed_inside_a_dual_step() {
     // until one is freed. min ½|u|² − 2(u₀ + u₁), u ≤ 1 fixed, u₀ + u₁ ≤ 1.
     let p = Owned {
         n: 2,
-        hess: vec![1.0, 0.0, 0.0, 1.0],
-        f: vec![-2.0, -2.0],
-        lb: vec![-1.0; 2],
-        ub: vec![1.0; 2],
-        g: vec![1.0, 1.0],
-        h: vec![1.0],
+        qp: QpData {
+            hess: vec![1.0, 0.0, 0.0, 1.0],
+            f: vec![-2.0, -2.0],
+            lb: vec![-1.0; 2],
+            ub: vec![1.0; 2],
+            g: vec![1.0, 1.0],
+            h: vec![1.0],
+        },
     };
     let warm = [ConstraintId::Upper(0), ConstraintId::Upper(1)];
     assert_eq!(
@@ -654,14 +662,16 @@ fn contradictory_constraints_are_reported_infeasible() {
     let n = 4;
     let base = Owned {
         n,
-        hess: (0..n * n)
-            .map(|k| if k % (n + 1) == 0 { 2.0 } else { 0.0 })
-            .collect(),
-        f: vec![1.0, -1.0, 0.5, 0.0],
-        lb: vec![-1.0; n],
-        ub: vec![1.0; n],
-        g: vec![],
-        h: vec![],
+        qp: QpData {
+            hess: (0..n * n)
+                .map(|k| if k % (n + 1) == 0 { 2.0 } else { 0.0 })
+                .collect(),
+            f: vec![1.0, -1.0, 0.5, 0.0],
+            lb: vec![-1.0; n],
+            ub: vec![1.0; n],
+            g: vec![],
+            h: vec![],
+        },
     };
     let mut s = DenseQpSolver::new(n, 0, QpSettings::default());
     // Crossed bounds.
@@ -748,12 +758,14 @@ fn bad_data_give_a_status_not_a_panic() {
     let n = 3;
     let good = Owned {
         n,
-        hess: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        f: vec![1.0; n],
-        lb: vec![-1.0; n],
-        ub: vec![1.0; n],
-        g: vec![1.0; n],
-        h: vec![f64::INFINITY],
+        qp: QpData {
+            hess: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            f: vec![1.0; n],
+            lb: vec![-1.0; n],
+            ub: vec![1.0; n],
+            g: vec![1.0; n],
+            h: vec![f64::INFINITY],
+        },
     };
     let mut s = DenseQpSolver::new(n, 1, QpSettings::default());
     assert_eq!(s.solve(&good.problem(), WarmStart::Cold), QpStatus::Solved);

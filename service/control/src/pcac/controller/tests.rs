@@ -267,10 +267,7 @@ fn an_iteration_cap_that_is_too_small_gives_a_fallback_within_the_bounds() {
     let mut p = params(PcacTiming::SameStep);
     p.qp.max_iterations = 1;
     // Tight move bounds so that many constraints are active once the command steps.
-    p.mpc.move_bounds = Some(MoveBounds {
-        min: vec![-0.01],
-        max: vec![0.01],
-    });
+    p.mpc.move_bounds = Some(MoveBounds::symmetric(0.01, 1));
     let mut c = Pcac::new(&p, counts(1)).unwrap();
     let mut capped = 0;
     let command = Command {

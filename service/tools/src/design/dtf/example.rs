@@ -41,7 +41,7 @@
 //! phase trend, poles near the resonance frequency) rather than the printed coefficients.
 
 use super::{
-    Dtf, ZeroCount, default_log_grid, fit, fit_iterations, linear_fit_error, log_cost,
+    Dtf, DtfError, ZeroCount, default_log_grid, fit, fit_iterations, linear_fit_error, log_cost,
     optimize_all, windowed_average_of,
 };
 use crate::design::C64;
@@ -95,11 +95,11 @@ pub struct Example341 {
 }
 
 /// Runs both examples (see the module docs).
-pub fn example_3_41() -> Result<Example341, String> {
+pub fn example_3_41() -> Result<Example341, DtfError> {
     let ts = 0.01;
     let wn = 20.0 * PI;
-    let g = Tf::new(vec![wn * wn], vec![1.0, 2.0 * PI, wn * wn]).map_err(|e| e.to_string())?;
-    let ss = g.realize().c2d_zoh(ts).map_err(|e| e.to_string())?;
+    let g = Tf::new(vec![wn * wn], vec![1.0, 2.0 * PI, wn * wn])?;
+    let ss = g.realize().c2d_zoh(ts)?;
     let gd = Dtf::from_state_space(&ss, 0, 0)?;
     let printed_3_42 = Dtf::new(vec![0.1871, 0.1831], vec![1.0, -1.569, 0.9391])?;
     let printed_3_43 = Dtf::new(vec![0.1842, 0.181], vec![1.0, -1.333, 0.6814])?;
@@ -190,8 +190,14 @@ pub fn format_roots(r: &[C64]) -> String {
 }
 
 fn line(name: &str, d: &Dtf) -> String {
-    let poles = d.poles().map(|r| format_roots(&r)).unwrap_or_else(|e| e);
-    let zeros = d.zeros().map(|r| format_roots(&r)).unwrap_or_else(|e| e);
+    let poles = d
+        .poles()
+        .map(|r| format_roots(&r))
+        .unwrap_or_else(|e| e.to_string());
+    let zeros = d
+        .zeros()
+        .map(|r| format_roots(&r))
+        .unwrap_or_else(|e| e.to_string());
     format!(
         "  {name:<22} ({}) / ({})\n  {:<22} poles [{poles}], zeros [{zeros}], DC gain {:.4}\n",
         format_poly(&d.num),

@@ -1,7 +1,7 @@
 //! The optimization DTF (3.44)–(3.47) of §3.2.2; the method is described on
 //! [`optimize_with`].
 
-use super::{C64, Dtf, MAX_ROOT, check_response, log_weights, poly_from_roots};
+use super::{C64, Dtf, DtfError, MAX_ROOT, Problem, check_response, log_weights, poly_from_roots};
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use rayon::prelude::*;
@@ -294,7 +294,7 @@ fn nelder_mead(
     step: f64,
     sd_tolerance: f64,
     max_iters: u64,
-) -> Result<Run, String> {
+) -> Result<Run, DtfError> {
     let d = x0.len();
     let mut simplex = vec![x0.to_vec()];
     for i in 0..d {
@@ -303,7 +303,7 @@ fn nelder_mead(
         simplex.push(v);
     }
     let df = d.max(2) as f64;
-    let nm_err = |e: ArgminError| format!("Nelder–Mead: {e}");
+    let nm_err = |e: ArgminError| DtfError::NelderMead(e.to_string());
     let solver = NelderMead::new(simplex)
         .with_sd_tolerance(sd_tolerance)
         .and_then(|s| s.with_gamma(1.0 + 2.0 / df))
@@ -314,10 +314,7 @@ fn nelder_mead(
         .run()
         .map_err(nm_err)?;
     let state = res.state();
-    let x = state
-        .get_best_param()
-        .cloned()
-        .ok_or("Nelder–Mead returned no point")?;
+    let x = state.get_best_param().cloned().ok_or(DtfError::NoPoint)?;
     let evaluations = state
         .get_func_counts()
         .get("cost_count")
@@ -446,7 +443,7 @@ pub fn optimize(
     g: &[C64],
     n_max: usize,
     zeros: ZeroCount,
-) -> Result<Dtf, String> {
+) -> Result<Dtf, DtfError> {
     optimize_all(theta_log_grid, g, n_max, zeros).map(|o| o.best)
 }
 
@@ -456,7 +453,7 @@ pub fn optimize_all(
     g: &[C64],
     n_max: usize,
     zeros: ZeroCount,
-) -> Result<Optimized, String> {
+) -> Result<Optimized, DtfError> {
     optimize_with(theta_log_grid, g, n_max, zeros, &OptimizeOptions::default())
 }
 
@@ -519,22 +516,24 @@ pub fn optimize_with(
     n_max: usize,
     zeros: ZeroCount,
     options: &OptimizeOptions,
-) -> Result<Optimized, String> {
+) -> Result<Optimized, DtfError> {
     let what = "DTF optimization";
+    let bad = |problem| DtfError::Input { what, problem };
     let theta = theta_log_grid;
     check_response(theta, g, what)?;
-    let w = log_weights(theta).map_err(|e| format!("{what}: {e}"))?;
+    let w = log_weights(theta).map_err(|e| DtfError::In {
+        what,
+        source: Box::new(e),
+    })?;
     if n_max == 0 {
-        return Err(format!("{what}: n̂_max must be at least 1"));
+        return Err(bad(Problem::NoOrder));
     }
     if !(options.min_gain >= 0.0 && options.min_separation >= 0.0) {
-        return Err(format!(
-            "{what}: min_gain and min_separation must be nonnegative, got {options:?}"
-        ));
+        return Err(bad(Problem::Options(format!("{options:?}"))));
     }
     let norm: f64 = (0..g.len()).map(|k| w[k] * g[k].norm_sqr()).sum();
     if norm == 0.0 {
-        return Err(format!("{what}: the response is zero"));
+        return Err(bad(Problem::ZeroResponse));
     }
     let full = full_points(theta, g, &w);
     let cells = lumped_points(theta, g, &w, options.cells);
@@ -578,7 +577,7 @@ pub fn optimize_with(
                 )
                 .map(|r| (*m, r))
             })
-            .collect::<Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>, DtfError>>()?;
         // Polish the best run of each structure on the full grid, in parallel.
         let polished = ms
             .par_iter()
@@ -630,7 +629,7 @@ pub fn optimize_with(
                     },
                 ))
             })
-            .collect::<Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>, DtfError>>()?;
         // Parsimony: the incumbent changes only for a clear gain.
         let mut replaced = incumbent.is_none();
         for (c, _) in &polished {
@@ -658,9 +657,12 @@ pub fn optimize_with(
             break;
         }
     }
-    let best = incumbent
-        .map(|i| candidates[i].clone())
-        .ok_or_else(|| format!("{what}: no structure with n̂ ≤ {n_max} satisfies {zeros:?}"))?;
+    let best = incumbent.map(|i| candidates[i].clone()).ok_or_else(|| {
+        bad(Problem::NoStructure {
+            n_max,
+            zeros: format!("{zeros:?}"),
+        })
+    })?;
     Ok(Optimized {
         best: best.dtf,
         relative_cost: best.relative_cost,
@@ -673,7 +675,7 @@ pub fn optimize_with(
 
 /// The relative cost (3.44) of any `dtf` against `g` on a logarithmic grid (the measure of
 /// [`Candidate::relative_cost`]), to compare a printed DTF with an optimized one.
-pub fn log_cost(theta_log_grid: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, String> {
+pub fn log_cost(theta_log_grid: &[f64], g: &[C64], dtf: &Dtf) -> Result<f64, DtfError> {
     check_response(theta_log_grid, g, "log cost")?;
     let w = log_weights(theta_log_grid)?;
     let (mut e, mut n) = (0.0, 0.0);

@@ -412,7 +412,9 @@ fn bad_input_is_refused_with_a_reason() {
     let u = white(&mut rng, 4096, 1.0);
     let y = filter(&[0.0, 1.0, 0.5], &[1.0, -0.5], &u);
     let opts = WelchOptions::default();
-    let err = |u: &[&[f64]], y: &[&[f64]], o: &WelchOptions| estimate(u, y, 1e-3, o).unwrap_err();
+    let err = |u: &[&[f64]], y: &[&[f64]], o: &WelchOptions| {
+        estimate(u, y, 1e-3, o).unwrap_err().to_string()
+    };
 
     // Too few samples: one input needs 2 segments of 1024 at 50 % overlap = 1536 samples.
     let e = err(&[&u[..1000]], &[&y[..1000]], &opts);
@@ -459,7 +461,7 @@ fn bad_input_is_refused_with_a_reason() {
             "{e}"
         );
     }
-    let e = estimate(&[&u], &[&y], 0.0, &opts).unwrap_err();
+    let e = estimate(&[&u], &[&y], 0.0, &opts).unwrap_err().to_string();
     assert!(e.contains("sample period 0 s"), "{e}");
     let e = err(&[], &[&y], &opts);
     assert!(e.contains("at least one input"), "{e}");
@@ -484,7 +486,7 @@ fn incoherent_and_noisy_data() {
     };
     // y independent of u: refused.
     let y = white(&mut rng, n, 1.0);
-    let e = estimate(&[&u], &[&y], 1e-3, &opts).unwrap_err();
+    let e = estimate(&[&u], &[&y], 1e-3, &opts).unwrap_err().to_string();
     assert!(
         e.contains("y0: median coherence") && e.contains("incoherent data"),
         "{e}"
@@ -515,7 +517,9 @@ fn correlated_inputs_are_refused() {
         segment: 256,
         ..Default::default()
     };
-    let e = estimate(&[&u0, &u1], &[&y], 1e-3, &opts).unwrap_err();
+    let e = estimate(&[&u0, &u1], &[&y], 1e-3, &opts)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("cannot be resolved") && e.contains("independent"),
         "{e}"

@@ -1,0 +1,304 @@
+//! `study forgetting`: chapter 5, RLS with F-test variable-rate forgetting (FTVRF) against
+//! constant-rate (CRF) and RMS-based variable-rate forgetting (RMSVRF) on the time-varying
+//! mass-spring-damper (5.8), one seeded run per case and method and a Monte Carlo over
+//! seeded runs (Figures 5.1–5.8).
+//!
+//! - [`plant`]: the plant (5.8) derived from the mass-spring-damper and discretized.
+//! - [`experiment`]: the three cases of §5.3, the three estimators and one run.
+//! - [`montecarlo`]: the Monte Carlo in parallel, percentile bands, summary statistics.
+//! - [`output`]: the CSV files and the PNG figures.
+//! - [`claims`]: the chapter's claims checked on the Monte Carlo statistics.
+//!
+//! It writes, into `--out`:
+//!
+//! - `case{c}_{case}_{method}.csv`: one run (`k, θ_k, true θ, tr(P_k), λ_k, e_k`);
+//! - `case{c}_{case}_{method}_mc.csv`: 5th/50th/95th percentile bands over the Monte Carlo;
+//! - `case{c}_{case}_ftvrf_vs_crf.png`, `case2_noisy_ftvrf_vs_rmsvrf.png`: single runs in
+//!   the manner of Figures 5.1, 5.3, 5.5, 5.7;
+//! - `case{c}_{case}_{method}_mc.png`: bands in the manner of Figures 5.2, 5.4, 5.6, 5.8;
+//! - `summary.txt`: the printed summary table;
+//! - `claims.json`: the chapter's claims checked on the Monte Carlo ([`claims`]).
+
+pub mod claims;
+pub mod experiment;
+pub mod montecarlo;
+pub mod output;
+pub mod plant;
+
+use crate::file_error::{FileError, FileOp};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use plotters::style::RGBColor;
+
+use crate::plot::PlotError;
+use crate::study::reproduction::{self, ClaimsError};
+use experiment::{Case, Method, run_seed};
+use montecarlo::{Summary, monte_carlo};
+use plant::{Msd, PRINTED, Plant, SAMPLE_PERIOD};
+
+/// Why `study forgetting` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ForgettingError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The mass-spring-damper cannot be discretized (`plant_proxy::lti`).
+    #[error(transparent)]
+    Lti(#[from] plant_proxy::lti::LtiError),
+    /// The discretized plant is not of second order.
+    #[error("unexpected orders: num {num:?}, den {den:?}")]
+    Orders {
+        /// Its numerator.
+        num: Vec<f64>,
+        /// Its denominator.
+        den: Vec<f64>,
+    },
+    /// The estimator's settings are refused (`control::rls`).
+    #[error("{0}")]
+    Rls(String),
+    /// A single run recorded no trace.
+    #[error("no trace recorded")]
+    NoTrace,
+    /// A method of a comparison figure has no single run.
+    #[error("missing run")]
+    MissingRun(Method),
+    /// `summary.txt` cannot be written (the message is the system's alone).
+    #[error("{source}")]
+    Summary {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A figure cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// The claims cannot be written.
+    #[error(transparent)]
+    Claims(#[from] ClaimsError),
+}
+
+message_from!(ForgettingError);
+
+/// Formats a settling statistic (`+∞` as "never").
+fn steps(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.0}")
+    } else {
+        "never".into()
+    }
+}
+
+/// Prints the (5.8) derivation and returns the discretized plant.
+fn derive_plant(report: &mut String) -> Result<Plant, ForgettingError> {
+    let _ = writeln!(
+        report,
+        "Plant (5.8): ZOH discretization at T = {SAMPLE_PERIOD} s of G(s) = 1/(s^2 + (C/M) s + K/M) = M/(M s^2 + C s + K)"
+    );
+    for (i, (num, den)) in PRINTED.iter().enumerate() {
+        let inv = Msd::from_discrete(*num, *den, SAMPLE_PERIOD);
+        let m = Msd::chapter(i == 1);
+        let (n, d) = m.discretize(SAMPLE_PERIOD)?;
+        let _ = writeln!(
+            report,
+            "  {}: solved from (5.8): C/M = {:.5}, K/M = {:.5}, gain = {:.4}; used M = 5, C = {}, K = {} \
+             (C/M = {}, K/M = {}, gain 1)",
+            if i == 0 { "k <  100" } else { "k >= 100" },
+            inv.c_over_m,
+            inv.k_over_m,
+            inv.gain,
+            m.c_over_m * plant::MASS,
+            m.k_over_m * plant::MASS,
+            m.c_over_m,
+            m.k_over_m
+        );
+        let _ = writeln!(
+            report,
+            "    printed (5.8): ({:.4} q + {:.4}) / (q^2 {:+.4} q {:+.4})",
+            num[0], num[1], den[1], den[2]
+        );
+        let _ = writeln!(
+            report,
+            "    c2d_zoh:       ({:.4} q + {:.4}) / (q^2 {:+.4} q {:+.4})   [b0 = {:.1e}]",
+            n[1], n[2], d[1], d[2], n[0]
+        );
+    }
+    let p = Plant::chapter()?;
+    let round = |v: [f64; 5]| v.map(|x| (x * 1e6).round() / 1e6);
+    let _ = writeln!(report, "  true theta, k <  100: {:?}", round(p.before));
+    let _ = writeln!(report, "  true theta, k >= 100: {:?}", round(p.after));
+    Ok(p)
+}
+
+/// The methods compared in a case's single-run figure(s).
+fn comparisons(case: Case) -> Vec<(Method, Method)> {
+    match case {
+        Case::Noisy => vec![
+            (Method::Ftvrf, Method::Crf),
+            (Method::Ftvrf, Method::Rmsvrf),
+        ],
+        _ => vec![(Method::Ftvrf, Method::Crf)],
+    }
+}
+
+/// Median color of a method's band plot (red for FTVRF and blue for RMSVRF, as in the
+/// chapter).
+fn band_color(m: Method) -> RGBColor {
+    match m {
+        Method::Ftvrf => RGBColor(200, 0, 0),
+        Method::Crf => RGBColor(0, 120, 0),
+        Method::Rmsvrf => RGBColor(0, 70, 200),
+    }
+}
+
+/// `study forgetting`: the chapter 5 study, `runs` Monte Carlo runs per case and method
+/// from the master seed `seed`, into `out` (the files above); prints the summary.
+pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
+    let t_start = Instant::now();
+    std::fs::create_dir_all(out)
+        .map_err(|source| FileError::new(FileOp::Access, out.to_path_buf(), source))?;
+    crate::plot::register_font()?;
+    let mut report = String::new();
+    let plant = derive_plant(&mut report)?;
+    let _ = writeln!(
+        report,
+        "RLS: theta0 = 0, P0 = 100 I, tau_n = {}, tau_d = {}, eta = {}, alpha = {}, CRF lambda = {}, noise variance {}",
+        experiment::TAU_N,
+        experiment::TAU_D,
+        experiment::ETA,
+        experiment::ALPHA,
+        experiment::LAMBDA_CRF,
+        experiment::NOISE_VAR
+    );
+    print!("{report}");
+
+    let mut table = String::new();
+    let _ = writeln!(
+        table,
+        "\nMonte Carlo: {runs} runs per case and method, seed {seed}. settle = steps after k = 100 until \
+         ||theta_k - theta_true|| / ||theta_true|| stays < 1 % to the end of the run\n\
+         (never = not below at the end; 10%: the same with a 10 % threshold);\n\
+         forget k<100 = runs with lambda_k < 1 for {} <= k < 100.",
+        experiment::TAU_D + 1
+    );
+    let _ = writeln!(
+        table,
+        "{:<15} {:<11} {:>6} {:>13} {:>10} {:>7} {:>14} {:>13} {:>12} {:>12} {:>13}",
+        "case",
+        "method",
+        "steps",
+        "settle median",
+        "settle p95",
+        "never",
+        "10%: med/p95",
+        "forget k<100",
+        "max trP med",
+        "max trP max",
+        "final trP med"
+    );
+    let mut mc_time = 0.0;
+    let mut results = Vec::new();
+    for case in Case::ALL {
+        let n_steps = case.steps();
+        let stem = format!("case{}_{}", case.number(), case.name());
+        // One run per method (run 0 of the Monte Carlo's seeds).
+        let mut singles = Vec::new();
+        for method in Method::ALL {
+            let (_, trace) =
+                experiment::run(&plant, case, method, n_steps, run_seed(seed, case, 0), true)?;
+            let trace = trace.ok_or(ForgettingError::NoTrace)?;
+            output::write_trace_csv(&out.join(format!("{stem}_{}.csv", method.name())), &trace)?;
+            singles.push((method, trace));
+        }
+        for (a, b) in comparisons(case) {
+            let ta = &singles
+                .iter()
+                .find(|s| s.0 == a)
+                .ok_or(ForgettingError::MissingRun(a))?
+                .1;
+            let tb = &singles
+                .iter()
+                .find(|s| s.0 == b)
+                .ok_or(ForgettingError::MissingRun(b))?
+                .1;
+            output::plot_runs(
+                &out.join(format!("{stem}_{}_vs_{}.png", a.name(), b.name())),
+                &format!("Case {} ({}), one run", case.number(), case.name()),
+                &[(a.label(), ta), (b.label(), tb)],
+            )?;
+        }
+        for method in Method::ALL {
+            let t0 = Instant::now();
+            let mc = monte_carlo(&plant, case, method, n_steps, runs, seed, true)?;
+            mc_time += t0.elapsed().as_secs_f64();
+            let s: Summary = mc.summary;
+            results.push((case, method, s));
+            output::write_bands_csv(
+                &out.join(format!("{stem}_{}_mc.csv", method.name())),
+                &mc.bands,
+            )?;
+            output::plot_bands(
+                &out.join(format!("{stem}_{}_mc.png", method.name())),
+                &format!(
+                    "Case {} ({}), {}: median, 5th/95th percentiles of {} runs",
+                    case.number(),
+                    case.name(),
+                    method.label(),
+                    runs
+                ),
+                &mc.bands,
+                band_color(method),
+            )?;
+            let _ = writeln!(
+                table,
+                "{:<15} {:<11} {:>6} {:>13} {:>10} {:>6.1}% {:>14} {:>12.1}% {:>12.3e} {:>12.3e} {:>13.3e}",
+                format!("{} {}", case.number(), case.name()),
+                method.label(),
+                n_steps,
+                steps(s.settle_median),
+                steps(s.settle_p95),
+                100.0 * s.never_fraction,
+                format!(
+                    "{}/{}",
+                    steps(s.settle_loose_median),
+                    steps(s.settle_loose_p95)
+                ),
+                100.0 * s.early_forget_fraction,
+                s.max_trace_median,
+                s.max_trace_max,
+                s.final_trace_median
+            );
+            if s.resets > 0 {
+                let _ = writeln!(table, "    ({} guard resets)", s.resets);
+            }
+        }
+    }
+    let _ = writeln!(
+        table,
+        "\nMonte Carlo time (simulation and bands, {} threads): {:.2} s; total {:.2} s; files in {}",
+        rayon::current_num_threads(),
+        mc_time,
+        t_start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    print!("{table}");
+    report.push_str(&table);
+    let summary = out.join("summary.txt");
+    std::fs::write(&summary, report).map_err(|source| ForgettingError::Summary {
+        path: summary,
+        source,
+    })?;
+    // The chapter's claims, for `study all`.
+    Ok(reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: "forgetting".into(),
+            chapter: 5,
+            run: format!("study forgetting --runs {runs} --seed {seed}"),
+            claims: claims::claims(&results),
+        },
+    )?)
+}

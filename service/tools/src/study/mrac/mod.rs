@@ -1,0 +1,367 @@
+//! `study mrac`: chapter 4, APPC against RC-MRAC on the examples of §4.5–4.7 (Figures
+//! 4.2–4.14), with the kernels of `control::mrac` on plant-proxy's difference equations.
+//!
+//! For each example, command and method ([`crate::study::mrac::setup`]) it sweeps the
+//! plant poles over the grid of [`crate::study::mrac::grid`] (one 200-step run per point,
+//! [`crate::study::mrac::closed_loop`]), runs the response at `ρ = 0.5`, `ν = π/4`, and checks the
+//! chapter's claims ([`crate::study::mrac::summary`]). It writes into `--out`:
+//!
+//! - `grid.csv`: `example, command, method, rho, nu, e_norm, unstable, diverged_at,
+//!   peak_y` ([`grid::write_csv`]);
+//! - `single-ex{e}-{command}-{method}.csv`: `k, r, y, y_m, e, u` and `θ̂_k` (named as
+//!   [`crate::study::mrac::setup::theta_names`]) of the run at `ρ = 0.5`, `ν = π/4`;
+//! - `map-ex{e}-{command}-{method}.png`: the heat map ([`figures::heat_map`]);
+//! - `single-ex{e}-{command}-{method}.png`: the four panels
+//!   ([`figures::single_run`]);
+//! - `summary.md`: the summary table, the single runs and the claims;
+//! - `claims.json`: the claims in the reproduction's record ([`claims`]).
+
+pub mod claims;
+pub mod closed_loop;
+pub mod figures;
+pub mod grid;
+pub mod setup;
+pub mod summary;
+
+use crate::file_error::{AtomicFileError, FileError, FileOp};
+use std::f64::consts::PI;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::plot::PlotError;
+use crate::study::reproduction::{self, ClaimsError};
+use closed_loop::RunTrace;
+use grid::{Grid, Sweep};
+use setup::{CommandKind, Example, Method, theta_names};
+use summary::{Claim, SweepStats};
+
+/// A refused option of `study mrac`, naming it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ArgError {
+    /// A name that is not one of the option's.
+    #[error("{option}: {value:?} is not {known}")]
+    Unknown {
+        /// The option (`--example`).
+        option: &'static str,
+        /// What was given.
+        value: String,
+        /// What it may be.
+        known: &'static str,
+    },
+    /// `--grid 0`.
+    #[error("--grid: 0 points; give at least 1")]
+    NoGrid,
+    /// No example and command to run.
+    #[error("--example/--command: nothing to run (Example 3 runs with the step only)")]
+    NothingToRun,
+}
+
+/// Why `study mrac` failed, naming the option, the case or the file at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum MracError {
+    /// A file or folder that could not be read, written or made.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// A file that could not be written atomically.
+    #[error(transparent)]
+    Written(#[from] AtomicFileError),
+    /// A refused option.
+    #[error(transparent)]
+    Arg(#[from] ArgError),
+    /// The example's plant at a pole location is refused.
+    #[error("Example {} at rho = {rho}, nu = {nu}: {source}", example.number())]
+    Plant {
+        /// The example.
+        example: Example,
+        /// The pole radius.
+        rho: f64,
+        /// The pole angle.
+        nu: f64,
+        /// Why.
+        #[source]
+        source: plant_proxy::mrac_examples::MracExampleError,
+    },
+    /// The controller's parameters are refused.
+    #[error("{} on Example {}: {source}", method.label(*example), example.number())]
+    Controller {
+        /// The example.
+        example: Example,
+        /// The method.
+        method: Method,
+        /// Why.
+        #[source]
+        source: control::ParamError,
+    },
+    /// The single run recorded no trace.
+    #[error("the single run was not recorded")]
+    NotRecorded,
+    /// A figure cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// The claims cannot be written.
+    #[error(transparent)]
+    Claims(#[from] ClaimsError),
+}
+
+message_from!(ArgError, MracError);
+
+/// The pole of the single runs (the b panels): `ρ = 0.5`, `ν = π/4`.
+pub const SINGLE_POLE: (f64, f64) = (0.5, PI / 4.0);
+
+/// The default grid size `N` (`N × N` points).
+pub const DEFAULT_GRID: usize = 15;
+
+/// What to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// The examples.
+    pub examples: Vec<Example>,
+    /// The commands (Example 3 runs only with the step).
+    pub commands: Vec<CommandKind>,
+    /// `N` of the `N × N` grid.
+    pub grid: usize,
+    /// Draw the PNG figures.
+    pub figures: bool,
+}
+
+impl Options {
+    /// Parses `--example` (`all`, or a comma-separated list of 1, 2, 3) and `--command`
+    /// (`all`, or a list of step, two, four).
+    pub fn parse(examples: &str, commands: &str, grid: usize) -> Result<Self, ArgError> {
+        let examples = if examples.trim() == "all" {
+            Example::ALL.to_vec()
+        } else {
+            examples
+                .split(',')
+                .map(Example::parse)
+                .collect::<Result<_, _>>()?
+        };
+        let commands = if commands.trim() == "all" {
+            CommandKind::ALL.to_vec()
+        } else {
+            commands
+                .split(',')
+                .map(CommandKind::parse)
+                .collect::<Result<_, _>>()?
+        };
+        Grid::new(grid)?;
+        Ok(Self {
+            examples,
+            commands,
+            grid,
+            figures: true,
+        })
+    }
+
+    /// The `(example, command, method)` triples to run, in order.
+    pub fn cases(&self) -> Vec<(Example, CommandKind, Method)> {
+        let mut v = Vec::new();
+        for &e in &Example::ALL {
+            if !self.examples.contains(&e) {
+                continue;
+            }
+            for &c in e.commands() {
+                if !self.commands.contains(&c) {
+                    continue;
+                }
+                for &m in e.methods() {
+                    v.push((e, c, m));
+                }
+            }
+        }
+        v
+    }
+}
+
+/// The single run at [`SINGLE_POLE`] of one case.
+#[derive(Debug, Clone)]
+pub struct SingleRun {
+    /// The example.
+    pub example: Example,
+    /// The command.
+    pub command: CommandKind,
+    /// The method.
+    pub method: Method,
+    /// ‖e‖ (4.85) (`+∞` if it diverged).
+    pub e_norm: f64,
+}
+
+/// What the study found.
+#[derive(Debug, Clone)]
+pub struct MracReport {
+    /// Per case, the grid statistics.
+    pub stats: Vec<SweepStats>,
+    /// Per case, the single run.
+    pub singles: Vec<SingleRun>,
+    /// The claims.
+    pub claims: Vec<Claim>,
+    /// The summary as Markdown (also `summary.md`).
+    pub markdown: String,
+}
+
+/// The file stem of a case: `ex{e}-{command}-{method}`.
+fn stem(e: Example, c: CommandKind, m: Method) -> String {
+    format!("ex{}-{}-{}", e.number(), c.name(), m.name())
+}
+
+/// Runs the study into `out` (created if missing); `command` is the command line shown in
+/// the summary.
+pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, MracError> {
+    std::fs::create_dir_all(out)
+        .map_err(|source| FileError::new(FileOp::Out, out.to_path_buf(), source))?;
+    let grid = Grid::new(options.grid)?;
+    let cases = options.cases();
+    if cases.is_empty() {
+        return Err(ArgError::NothingToRun.into());
+    }
+    let mut sweeps: Vec<Sweep> = Vec::new();
+    let mut singles = Vec::new();
+    let mut traces: Vec<RunTrace> = Vec::new();
+    for &(e, c, m) in &cases {
+        sweeps.push(grid::sweep(e, c, m, &grid)?);
+        let single = closed_loop::run(e, c, m, SINGLE_POLE, true)?;
+        let trace = single.trace.ok_or(MracError::NotRecorded)?;
+        write_single_csv(
+            &out.join(format!("single-{}.csv", stem(e, c, m))),
+            e,
+            m,
+            &trace,
+        )?;
+        singles.push(SingleRun {
+            example: e,
+            command: c,
+            method: m,
+            e_norm: single.e_norm,
+        });
+        traces.push(trace);
+    }
+    grid::write_csv(&out.join("grid.csv"), &sweeps)?;
+    let stats: Vec<SweepStats> = sweeps.iter().map(SweepStats::of).collect();
+    if options.figures {
+        let range = color_range(&sweeps);
+        for ((sw, single), trace) in sweeps.iter().zip(&singles).zip(&traces) {
+            let (e, c, m) = (sw.example, sw.command, sw.method);
+            let name = format!("Example {}, {}, {}", e.number(), m.label(e), c.label());
+            figures::heat_map(
+                &out.join(format!("map-{}.png", stem(e, c, m))),
+                &format!(
+                    "{name}: log10 ‖e‖ (4.85) over the plant poles ρe^(±jν), {n}×{n} grid",
+                    n = options.grid
+                ),
+                sw,
+                &grid,
+                range,
+            )?;
+            figures::single_run(
+                &out.join(format!("single-{}.png", stem(e, c, m))),
+                &format!("{name}, ρ = 0.5, ν = π/4: ‖e‖ = {:.3e}", single.e_norm),
+                e,
+                m,
+                trace,
+            )?;
+        }
+    }
+    let claims = summary::claims(&stats);
+    let preamble = format!(
+        "Command: `{command}` (deterministic: every run of it gives these numbers).\n\n\
+         Grid: {n} × {n} plants, ρ = i/{n1} (i = 1…{n}), ν = (j − 1/2)π/{n} (j = 1…{n}); \
+         200 steps each; ‖e‖ (4.85) over steps 101–200; a run is unstable when y or u is \
+         not finite, |y| > {lim:e} or the controller faults. Median over all points \
+         (an unstable point counts as +∞), worst over the stable points.\n",
+        n = options.grid,
+        n1 = options.grid + 1,
+        lim = closed_loop::DIVERGENCE_LIMIT
+    );
+    let mut markdown = summary::render_markdown(&stats, &claims, &preamble);
+    let _ = writeln!(
+        markdown,
+        "\nSingle runs at ρ = 0.5, ν = π/4 (the b panels):\n"
+    );
+    let _ = writeln!(markdown, "| example | command | method | ‖e‖ |");
+    let _ = writeln!(markdown, "| --- | --- | --- | --- |");
+    for s in &singles {
+        let _ = writeln!(
+            markdown,
+            "| {} | {} | {} | {:.3e} |",
+            s.example.number(),
+            s.command.label(),
+            s.method.label(s.example),
+            s.e_norm
+        );
+    }
+    let path = out.join("summary.md");
+    std::fs::write(&path, &markdown)
+        .map_err(|source| FileError::new(FileOp::Access, &path, source))?;
+    reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: "mrac".into(),
+            chapter: 4,
+            run: command.into(),
+            claims: claims::claims(&claims),
+        },
+    )?;
+    Ok(MracReport {
+        stats,
+        singles,
+        claims,
+        markdown,
+    })
+}
+
+/// The common color scale of the heat maps: the range of the finite `log₁₀‖e‖` over
+/// every sweep (`(0, 1)` when none is finite).
+fn color_range(sweeps: &[Sweep]) -> (f64, f64) {
+    let logs = sweeps
+        .iter()
+        .flat_map(|s| s.points.iter())
+        .filter(|p| !p.unstable() && p.e_norm > 0.0)
+        .map(|p| p.e_norm.log10());
+    let (lo, hi) = logs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
+    if lo.is_finite() && hi.is_finite() {
+        (lo.floor(), hi.ceil().max(lo.floor() + 1.0))
+    } else {
+        (0.0, 1.0)
+    }
+}
+
+/// Writes a single run: `k, r, y, y_m, e, u`, then `θ̂_k` by name.
+fn write_single_csv(
+    path: &Path,
+    example: Example,
+    method: Method,
+    t: &RunTrace,
+) -> Result<(), MracError> {
+    let mut s = String::from("k,r,y,y_m,e,u");
+    for n in theta_names(example, method) {
+        let _ = write!(s, ",{n}");
+    }
+    s.push('\n');
+    for k in 0..t.e.len() {
+        let _ = write!(
+            s,
+            "{k},{:.10e},{:.10e},{:.10e},{:.10e},{:.10e}",
+            t.r[k], t.y[k], t.y_m[k], t.e[k], t.u[k]
+        );
+        for v in &t.theta[k] {
+            let _ = write!(s, ",{v:.10e}");
+        }
+        s.push('\n');
+    }
+    std::fs::write(path, s).map_err(|source| FileError::new(FileOp::Access, path, source).into())
+}
+
+/// Writes the results file (`--results`, e.g. `docs/results/mrac.md`): a header saying
+/// where it comes from, then the summary.
+pub fn write_results(path: &Path, report: &MracReport) -> Result<(), MracError> {
+    let text = crate::results_page::head(
+        "Chapter 4 study: APPC and RC-MRAC",
+        "study mrac",
+        "service/tools/src/study/mrac/mod.rs",
+        "[studies.md](../studies.md#chapter-4-appc-and-rc-mrac)",
+    ) + &report.markdown;
+    ipc_types::files::write_atomic(path, text.as_bytes())
+        .map_err(|source| FileError::new(FileOp::Results, path.to_path_buf(), source).into())
+}

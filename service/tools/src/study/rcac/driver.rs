@@ -1,0 +1,584 @@
+//! The driver of the two RCAC studies of chapter 3 (`rcac-siso`, §3.3.1, and `rcac-miso`,
+//! §3.3.2): both design dereverberated target models, sweep a family of plants in
+//! parallel, draw one error-plane figure per method and update law (Figures 3.5/3.8 and
+//! 3.12/3.15), and show one single run per method and update law with its Bode plot
+//! (Figures 3.6/3.7, 3.9/3.10, 3.13/3.14 and 3.16/3.17).
+//!
+//! A study ([`RcacStudy`]) says only what is its own: its plants and where the sweep goes
+//! ([`RcacStudy::setup`]), its designs, texts, figures and summary. [`run`] does the rest in
+//! this order:
+//!
+//! 1. the header and the designs (written to the report by the study);
+//! 2. every sweep point in parallel ([`RcacStudy::sweep_points`]): the open loop, then per
+//!    DTM the error `G_f / G_{zu,d}` at each tone (`θ_j` of channel `j`, [`tone_errors`])
+//!    and one closed-loop run per update law ([`run_closed`]), into [`Row`]s;
+//! 3. the CSV files, the error-plane figures, the single runs;
+//! 4. the study's summary, the time taken, the report printed and written to
+//!    `summary.txt`;
+//! 5. the chapter's claims ([`RcacStudy::claims`]) written to `claims.json`
+//!    ([`crate::study::reproduction`]).
+//!
+//! `N` is the number of tones, one per input channel: the tone `θ_j` of channel `j`
+//! (output 0, input `j`) is measured in `z_0`.
+
+use crate::file_error::{FileError, FileOp};
+use crate::study::rcac::RcacError;
+use std::borrow::Cow;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+use crate::design::C64;
+use crate::design::model::DiscreteModel;
+use crate::design::target_response::TargetResponse;
+use crate::plot::{Panel, figure};
+use crate::study::common::files::write;
+use crate::study::rcac::common::{
+    Dtm, Method, Point, RUN_SECONDS, TS, Update, WINDOW_SECONDS, Window, model_error, rcac_params,
+    run_closed, run_open, single_run_figure,
+};
+use crate::study::reproduction::{self, Claim};
+use control::tones::suppression_db;
+use plant_proxy::scenario::Scenario;
+use rayon::prelude::*;
+
+const PI: f64 = std::f64::consts::PI;
+
+/// Options of a study.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Sweep points: per case (`rcac-siso`), or damping values (`rcac-miso`).
+    pub points: usize,
+    /// Update laws to run.
+    pub updates: Vec<Update>,
+}
+
+/// One point of a study: the plant that runs, the model the errors of `G_f` are taken
+/// against, the target models and the tones.
+#[derive(Debug, Clone)]
+pub struct Setup<'d, const N: usize> {
+    /// The scenario that runs (plant and disturbance).
+    pub scenario: Scenario,
+    /// `G_{zu,d}` of the plant that runs.
+    pub model: Cow<'d, DiscreteModel>,
+    /// The target models RCAC runs with, one per method.
+    pub dtms: &'d [(Method, Dtm)],
+    /// The tone of each input channel, rad/sample.
+    pub thetas: [f64; N],
+}
+
+/// One sweep point with one DTM and one update law.
+#[derive(Debug, Clone)]
+pub struct Row<At, const N: usize> {
+    /// Where in the sweep.
+    pub at: At,
+    /// The method of the target model.
+    pub method: Method,
+    /// The update law.
+    pub update: Update,
+    /// Per input channel `j`: `(magnitude error dB, phase error °)` of `G_f` at `θ_j`.
+    pub error: [(f64, f64); N],
+    /// Open-loop amplitude of each tone in `z`.
+    pub open_amp: [f64; N],
+    /// Closed-loop amplitude of each tone on the last window (NaN when diverged).
+    pub closed_amp: [f64; N],
+    /// The same on the window before.
+    pub closed_amp_prev: [f64; N],
+    /// Open-loop peak `|z|` on the window.
+    pub open_peak: f64,
+    /// Closed-loop peak `|z|` on the last window (NaN when diverged).
+    pub closed_peak: f64,
+    /// Stayed finite, bounded, no guard reset.
+    pub finite: bool,
+    /// Settling time after RCAC starts, s (see `common::Point::settle`).
+    pub settle: Option<f64>,
+}
+
+impl<At, const N: usize> Row<At, N> {
+    /// Suppression of tone `j`, dB (−∞ when diverged).
+    pub fn suppression(&self, j: usize) -> f64 {
+        if self.finite {
+            suppression_db(self.open_amp[j], self.closed_amp[j])
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+
+    /// The smallest suppression over the tones, dB (−∞ when diverged).
+    pub fn worst_suppression(&self) -> f64 {
+        (1..N).fold(self.suppression(0), |m, j| m.min(self.suppression(j)))
+    }
+
+    /// Whether the row is a run with the DTM of `method` and the update law `update`.
+    pub fn is(&self, method: Method, update: Update) -> bool {
+        self.method == method && self.update == update
+    }
+
+    /// Suppression of the peak `|z|` on the window, dB (−∞ when diverged).
+    pub fn peak_suppression(&self) -> f64 {
+        if self.finite {
+            suppression_db(self.open_peak, self.closed_peak)
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+}
+
+/// The dissertation's figure numbers of one method in chapter 3: the error plane (its
+/// number within the chapter), then the Bode plot and the single run, which follow it.
+#[derive(Debug, Clone, Copy)]
+pub struct FigureNumbers {
+    /// The error plane's number within chapter 3 (5 for Figure 3.5).
+    pub plane_number: u8,
+}
+
+impl FigureNumbers {
+    /// The error plane over the sweep (e.g. "3.5").
+    pub fn plane(self) -> String {
+        format!("3.{}", self.plane_number)
+    }
+
+    /// The Bode plot of `G_{zu,d}` and `G_f` (e.g. "3.6").
+    pub fn bode(self) -> String {
+        format!("3.{}", self.plane_number + 1)
+    }
+
+    /// The single run (e.g. "3.7").
+    pub fn run(self) -> String {
+        format!("3.{}", self.plane_number + 2)
+    }
+}
+
+/// What a study's error-plane figures say beside their panels: the parts of the title
+/// (`{structure}, {DTM with β}{dtm_from}, RCAC {update}: {shows}`), the panel layout and
+/// the size.
+#[derive(Debug, Clone, Copy)]
+pub struct PlaneFigure {
+    /// The plant structure, first in the title (`(3.50)`).
+    pub structure: &'static str,
+    /// What follows the DTM in the title (` from ζ = 0.1`, or nothing).
+    pub dtm_from: &'static str,
+    /// What the panels show, last in the title.
+    pub shows: &'static str,
+    /// `(rows, columns)` of panels.
+    pub layout: (usize, usize),
+    /// `(width, height)`, pixels.
+    pub size: (u32, u32),
+}
+
+impl PlaneFigure {
+    /// The title of the figure of `method` and `update`.
+    pub fn title(&self, method: Method, update: Update) -> String {
+        format!(
+            "{}, {}{}, RCAC {}: {}",
+            self.structure,
+            method.label_with_beta(),
+            self.dtm_from,
+            update.name(),
+            self.shows
+        )
+    }
+}
+
+/// The responses of a Bode plot of the single runs, channel by channel
+/// (`[channel][frequency]`).
+#[derive(Debug, Clone, Copy)]
+pub struct Bode<'a> {
+    /// The method of the target model.
+    pub method: Method,
+    /// The target model.
+    pub dtm: &'a Dtm,
+    /// The frequencies, Hz.
+    pub hz: &'a [f64],
+    /// `G_{zu,d}` of the single runs' plant.
+    pub g: &'a [Vec<C64>],
+    /// `G_f` of the target model.
+    pub gf: &'a [Vec<C64>],
+    /// `G_f / G_{zu,d}`.
+    pub ratio: &'a [Vec<C64>],
+}
+
+/// What a single run measured, for its report line and figure title.
+#[derive(Debug, Clone, Copy)]
+pub struct SingleRun<'a, const N: usize> {
+    /// The method of the target model.
+    pub method: Method,
+    /// The update law.
+    pub update: Update,
+    /// Per input channel: `(magnitude error dB, phase error °)` of `G_f` at its tone.
+    pub error: [(f64, f64); N],
+    /// Suppression of each tone, dB (−∞ where it was not measured).
+    pub suppression: [f64; N],
+    /// The closed loop's measurements on the late windows.
+    pub closed: &'a Window,
+    /// Settling time after RCAC starts, s.
+    pub settle: Option<f64>,
+}
+
+/// What a single run achieved, for the claims.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SingleOutcome<const N: usize> {
+    /// The method of the target model.
+    pub method: Method,
+    /// The update law.
+    pub update: Update,
+    /// Stayed finite, bounded, no guard reset.
+    pub finite: bool,
+    /// Suppression of each tone, dB (−∞ when diverged).
+    pub suppression: [f64; N],
+}
+
+/// What one RCAC study of chapter 3 has of its own; [`run`] drives it.
+pub trait RcacStudy<const N: usize>: Sync {
+    /// Where a sweep point lies (a case and a tone frequency, a damping ratio).
+    type At: Copy + Send + Sync;
+    /// The target models and whatever else is designed once before the sweep.
+    type Designs: Sync;
+
+    /// The study's `study` subcommand.
+    const NAME: &'static str;
+    /// Step factor `α` of `μ_Exp` (3.63).
+    const ALPHA: f64;
+    /// Whether the time line of the report gives the time of the designs.
+    const REPORTS_DESIGN_TIME: bool;
+    /// The number within chapter 3 of the error-plane figure of the windowed-average and of
+    /// the optimization DTM (in the order of [`Method::ALL`]; [`FigureNumbers`]).
+    const FIGURES: [u8; 2];
+    /// The error-plane figures' titles, layout and size.
+    const PLANE: PlaneFigure;
+
+    /// Writes the report's first lines: the study and its settings.
+    fn header(&self, points: usize, report: &mut String);
+
+    /// Designs the target models (and writes them to the report, files to `out`).
+    fn design(&self, out: &Path, report: &mut String) -> Result<Self::Designs, RcacError>;
+
+    /// The sweep of `points` points (per case).
+    fn sweep_points(&self, points: usize) -> Vec<Self::At>;
+
+    /// The plant, model, target models and tones of the sweep point `at`.
+    fn setup<'d>(
+        &self,
+        designs: &'d Self::Designs,
+        at: Self::At,
+    ) -> Result<Setup<'d, N>, RcacError>;
+
+    /// The sweep point of the single runs.
+    fn single_at(&self) -> Self::At;
+
+    /// Writes the sweep's CSV files into `out`.
+    fn write_csv(&self, out: &Path, rows: &[Row<Self::At, N>]) -> Result<(), RcacError>;
+
+    /// The panels of the error-plane figure of `method` and `update` over the sweep (see
+    /// `common::error_plane_panel`).
+    fn plane_panels(
+        &self,
+        designs: &Self::Designs,
+        rows: &[Row<Self::At, N>],
+        method: Method,
+        update: Update,
+    ) -> Result<Vec<Panel>, RcacError>;
+
+    /// The report line of the single runs' open loop.
+    fn single_open_line(&self, open: &Window) -> String;
+
+    /// Draws the Bode plot of the single runs' plant and a target model into `path`.
+    fn bode_figure(&self, path: &Path, bode: &Bode<'_>) -> Result<(), RcacError>;
+
+    /// What the report says of a single run after its method and update law.
+    fn single_line(&self, run: &SingleRun<'_, N>) -> String;
+
+    /// The title of a single run's figure.
+    fn single_title(&self, run: &SingleRun<'_, N>) -> String;
+
+    /// Writes the sweep's summary tables to the report.
+    fn summary(&self, rows: &[Row<Self::At, N>], updates: &[Update], report: &mut String);
+
+    /// The chapter's claims checked on the sweep `rows` and the single runs `singles`.
+    fn claims(
+        &self,
+        rows: &[Row<Self::At, N>],
+        singles: &[SingleOutcome<N>],
+        updates: &[Update],
+    ) -> Vec<Claim>;
+}
+
+/// Samples per run and per measurement window.
+fn steps_and_window() -> (usize, usize) {
+    (
+        (RUN_SECONDS / TS).round() as usize,
+        (WINDOW_SECONDS / TS).round() as usize,
+    )
+}
+
+/// The figure numbers of `method` in study `S`.
+fn figure_numbers<S: RcacStudy<N>, const N: usize>(method: Method) -> FigureNumbers {
+    match method {
+        Method::Average => FigureNumbers {
+            plane_number: S::FIGURES[0],
+        },
+        Method::Optimize => FigureNumbers {
+            plane_number: S::FIGURES[1],
+        },
+    }
+}
+
+/// RCAC with `dtm` and `update` (step factor `alpha`) against the plant of `s`, measured
+/// against the open-loop peak `reference`; `every > 0` keeps the trace with `θ` recorded
+/// every that many samples.
+fn rcac_run<const N: usize>(
+    s: &Setup<'_, N>,
+    dtm: &Dtm,
+    update: Update,
+    alpha: f64,
+    reference: f64,
+    every: usize,
+) -> Result<Point, RcacError> {
+    let (steps, window) = steps_and_window();
+    run_closed(
+        &s.scenario,
+        &rcac_params(&dtm.target, update, alpha),
+        steps,
+        window,
+        &s.thetas,
+        reference,
+        every > 0,
+        every,
+    )
+}
+
+/// `(magnitude error dB, phase error °)` of `G_f` against `model` for each channel
+/// `j = 0 … N−1` (output 0, input `j`) at its tone `thetas[j]` (rad/sample).
+pub fn tone_errors<const N: usize>(
+    model: &DiscreteModel,
+    dtm: &Dtm,
+    thetas: &[f64; N],
+) -> Result<[(f64, f64); N], RcacError> {
+    let g = model.frf(thetas)?;
+    let gf = dtm.target.frf(thetas);
+    Ok(std::array::from_fn(|j| {
+        model_error(g.response[j][j], gf.response[j][j])
+    }))
+}
+
+/// The study (see the module docs); writes into `out` and prints the summary.
+pub fn run<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    out: &Path,
+    opts: &Options,
+) -> Result<(), RcacError> {
+    let t0 = Instant::now();
+    std::fs::create_dir_all(out).map_err(|source| FileError::new(FileOp::Access, out, source))?;
+    let mut report = String::new();
+    study.header(opts.points, &mut report);
+    let designs = study.design(out, &mut report)?;
+    let t_design = t0.elapsed().as_secs_f64();
+    let sweep = study.sweep_points(opts.points);
+    let t1 = Instant::now();
+    let rows: Vec<Row<S::At, N>> = sweep
+        .par_iter()
+        .map(|&at| sweep_point(study, &designs, at, &opts.updates))
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter()
+        .flatten()
+        .collect();
+    let t_sweep = t1.elapsed().as_secs_f64();
+    study.write_csv(out, &rows)?;
+    let t2 = Instant::now();
+    for method in Method::ALL {
+        for &update in &opts.updates {
+            let panels = study.plane_panels(&designs, &rows, method, update)?;
+            figure(
+                &out.join(format!(
+                    "figure-{}-{}-{}.png",
+                    figure_numbers::<S, N>(method).plane(),
+                    method.name(),
+                    update.name()
+                )),
+                &S::PLANE.title(method, update),
+                S::PLANE.layout,
+                S::PLANE.size,
+                &panels,
+            )?;
+        }
+    }
+    let singles = single_runs(study, out, &designs, &opts.updates, &mut report)?;
+    let t_fig = t2.elapsed().as_secs_f64();
+    study.summary(&rows, &opts.updates, &mut report);
+    let designs_time = if S::REPORTS_DESIGN_TIME {
+        format!("designs {t_design:.1} s, ")
+    } else {
+        String::new()
+    };
+    let _ = writeln!(
+        report,
+        "\ntime: {designs_time}sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), figures and single runs {t_fig:.1} s, total {:.1} s; files in {}",
+        sweep.len() * (1 + Method::ALL.len() * opts.updates.len()),
+        (RUN_SECONDS / TS).round(),
+        rayon::current_num_threads(),
+        t0.elapsed().as_secs_f64(),
+        out.display()
+    );
+    print!("{report}");
+    write(&out.join("summary.txt"), &report)?;
+    let update = match opts.updates.as_slice() {
+        [one] => one.name(),
+        _ => "both",
+    };
+    Ok(reproduction::write(
+        out,
+        &reproduction::Claims {
+            study: S::NAME.into(),
+            chapter: 3,
+            run: format!(
+                "study {} --points {} --update {update}",
+                S::NAME,
+                opts.points
+            ),
+            claims: study.claims(&rows, &singles, &opts.updates),
+        },
+    )?)
+}
+
+/// Runs one sweep point: the open loop and every method × update.
+fn sweep_point<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    designs: &S::Designs,
+    at: S::At,
+    updates: &[Update],
+) -> Result<Vec<Row<S::At, N>>, RcacError> {
+    let s = study.setup(designs, at)?;
+    let (steps, window) = steps_and_window();
+    let (open, _) = run_open(&s.scenario, steps, window, &s.thetas)?;
+    let per_tone =
+        |v: &[f64]| -> [f64; N] { std::array::from_fn(|j| v.get(j).copied().unwrap_or(f64::NAN)) };
+    let mut rows = Vec::new();
+    for (method, dtm) in s.dtms {
+        let error = tone_errors(&s.model, dtm, &s.thetas)?;
+        for &update in updates {
+            let p = rcac_run(&s, dtm, update, S::ALPHA, open.peak, 0)?;
+            let finite = p.finite();
+            let w = p.closed.unwrap_or_default();
+            rows.push(Row {
+                at,
+                method: *method,
+                update,
+                error,
+                open_amp: per_tone(&open.amp),
+                closed_amp: per_tone(&w.amp),
+                closed_amp_prev: per_tone(&w.amp_prev),
+                open_peak: open.peak,
+                closed_peak: if finite { w.peak } else { f64::NAN },
+                finite,
+                settle: p.settle,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// The single runs at [`RcacStudy::single_at`]: per method the Bode plot, per update law
+/// the run's report line and figure; returns what each achieved.
+fn single_runs<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    out: &Path,
+    designs: &S::Designs,
+    updates: &[Update],
+    report: &mut String,
+) -> Result<Vec<SingleOutcome<N>>, RcacError> {
+    let mut outcomes = Vec::new();
+    let s = study.setup(designs, study.single_at())?;
+    let (steps, window) = steps_and_window();
+    let (open_w, open) = run_open(&s.scenario, steps, window, &s.thetas)?;
+    let _ = writeln!(report, "{}", study.single_open_line(&open_w));
+    let grid: Vec<f64> = crate::design::grid(1e-3 * PI, PI, 2000, true)?;
+    let hz: Vec<f64> = grid.iter().map(|t| t / (2.0 * PI * TS)).collect();
+    let g = s.model.frf(&grid)?;
+    for (method, dtm) in s.dtms {
+        let gf = dtm.target.frf(&grid);
+        let ratio: Vec<Vec<C64>> = (0..N)
+            .map(|j| {
+                gf.response[j]
+                    .iter()
+                    .zip(&g.response[j])
+                    .map(|(a, b)| a / b)
+                    .collect()
+            })
+            .collect();
+        let numbers = figure_numbers::<S, N>(*method);
+        study.bode_figure(
+            &out.join(format!(
+                "figure-{}-{}-bode.png",
+                numbers.bode(),
+                method.name()
+            )),
+            &Bode {
+                method: *method,
+                dtm,
+                hz: &hz,
+                g: &g.response,
+                gf: &gf.response,
+                ratio: &ratio,
+            },
+        )?;
+        let error = tone_errors(&s.model, dtm, &s.thetas)?;
+        for &update in updates {
+            let every = 10;
+            let p = rcac_run(&s, dtm, update, S::ALPHA, open_w.peak, every)?;
+            let Some(closed) = p.trace.as_ref().filter(|_| p.finite()) else {
+                outcomes.push(SingleOutcome {
+                    method: *method,
+                    update,
+                    finite: false,
+                    suppression: [f64::NEG_INFINITY; N],
+                });
+                let _ = writeln!(
+                    report,
+                    "  {:<22} {:<8}: diverged (no figure)",
+                    method.label(),
+                    update.name()
+                );
+                continue;
+            };
+            let w = p.closed.clone().unwrap_or_default();
+            let run = SingleRun {
+                method: *method,
+                update,
+                error,
+                suppression: std::array::from_fn(|j| {
+                    w.amp
+                        .get(j)
+                        .map_or(f64::NEG_INFINITY, |a| suppression_db(open_w.amp[j], *a))
+                }),
+                closed: &w,
+                settle: p.settle,
+            };
+            outcomes.push(SingleOutcome {
+                method: *method,
+                update,
+                finite: true,
+                suppression: run.suppression,
+            });
+            let _ = writeln!(
+                report,
+                "  {:<22} {:<8}: {}",
+                method.label(),
+                update.name(),
+                study.single_line(&run)
+            );
+            single_run_figure(
+                &out.join(format!(
+                    "figure-{}-{}-{}.png",
+                    numbers.run(),
+                    method.name(),
+                    update.name()
+                )),
+                study.single_title(&run),
+                &open,
+                closed,
+                every,
+            )?;
+        }
+    }
+    Ok(outcomes)
+}

@@ -1,0 +1,286 @@
+//! The reproduction report of `study all` (`reproduction.md`): per chapter, each study's
+//! claims ([`crate::study::reproduction::Claim`]) as a table, the dissertation's statement
+//! beside our number, the criterion and the verdict, with links to the study's summary and
+//! figures and its wall time; at the top one row per study with its counts and the wall
+//! time of the whole.
+//!
+//! It is generated from the studies' `claims.json` files only ([`crate::study::all`]
+//! reads them), never from their printed summaries.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::study::all::{AllRun, CHAPTERS, Size, StudyRun};
+use crate::study::reproduction::{CLAIMS_FILE, Verdict};
+
+/// How the report refers to the files of the studies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Links {
+    /// Markdown links relative to the output folder (the report written into it).
+    Relative,
+    /// Paths as text, under the output folder as given (a copy kept elsewhere, e.g. in
+    /// `docs/results/`, where the figures are not).
+    Paths,
+}
+
+/// A table cell: no line breaks, `|` escaped.
+fn cell(s: &str) -> String {
+    s.replace('\n', " ").replace('|', "\\|")
+}
+
+/// Seconds with one decimal.
+fn secs(t: f64) -> String {
+    format!("{t:.1} s")
+}
+
+/// Orders file names with their digit runs compared as numbers (`figure-3.5` before
+/// `figure-3.10`).
+fn natural_key(name: &str) -> Vec<(u8, u64, String)> {
+    let mut key = Vec::new();
+    let mut rest = name;
+    while !rest.is_empty() {
+        let digits = rest.chars().take_while(char::is_ascii_digit).count();
+        if digits > 0 {
+            let (d, r) = rest.split_at(digits);
+            key.push((0, d.parse().unwrap_or(u64::MAX), String::new()));
+            rest = r;
+        } else {
+            let text = rest.chars().take_while(|c| !c.is_ascii_digit()).count();
+            let (t, r) =
+                rest.split_at(rest.char_indices().nth(text).map_or(rest.len(), |(i, _)| i));
+            key.push((1, 0, t.to_string()));
+            rest = r;
+        }
+    }
+    key
+}
+
+/// The PNG figures in `dir`, in natural order.
+fn figures(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".png"))
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort_by_key(|n| natural_key(n));
+    names
+}
+
+/// A reference to `file` of the study `name`.
+fn file_ref(out: &Path, name: &str, file: &str, links: Links) -> String {
+    match links {
+        Links::Relative => format!("[{file}]({name}/{file})"),
+        Links::Paths => format!("`{}`", out.join(name).join(file).display()),
+    }
+}
+
+/// The verdict cell: the word in bold, the reason after it.
+fn verdict_cell(v: Verdict, reason: Option<&str>) -> String {
+    match reason {
+        Some(r) if v == Verdict::NotChecked => format!("**{}**: {}", v.word(), cell(r)),
+        _ => format!("**{}**", v.word()),
+    }
+}
+
+/// One study's section.
+fn study_section(s: &mut String, all: &AllRun, r: &StudyRun, links: Links) {
+    let e = &r.entry;
+    let _ = writeln!(s, "<a id=\"{}\"></a>\n", anchor(r));
+    let _ = writeln!(s, "### `{}`: {}\n", e.name, e.title);
+    let command = std::iter::once(format!(
+        "study {} --out {}",
+        e.name,
+        all.out.join(e.name).display()
+    ))
+    .chain(r.args.iter().cloned())
+    .collect::<Vec<_>>()
+    .join(" ");
+    let _ = writeln!(s, "Ran `{command}` in {}.", secs(r.wall));
+    let claims = match &r.claims {
+        Ok(c) => c,
+        Err(err) => {
+            let _ = writeln!(
+                s,
+                "\n**Failed to run**: {}. Log: {}.\n",
+                cell(&err.to_string()),
+                file_ref(&all.out, e.name, crate::study::all::LOG_FILE, links)
+            );
+            return;
+        }
+    };
+    let figs = figures(&r.dir);
+    let figures_text = match links {
+        Links::Relative => figs
+            .iter()
+            .map(|f| file_ref(&all.out, e.name, f, links))
+            .collect::<Vec<_>>()
+            .join(", "),
+        Links::Paths => format!(
+            "{} PNG files in `{}`",
+            figs.len(),
+            all.out.join(e.name).display()
+        ),
+    };
+    let _ = writeln!(
+        s,
+        "The numbers come from `{}`. Summary: {}; claims: {}; figures: {}.\n",
+        claims.run,
+        file_ref(&all.out, e.name, e.summary, links),
+        file_ref(&all.out, e.name, CLAIMS_FILE, links),
+        if figs.is_empty() {
+            "none".into()
+        } else {
+            figures_text
+        }
+    );
+    let _ = writeln!(
+        s,
+        "| # | the dissertation | ours | criterion | verdict |\n| --- | --- | --- | --- | --- |"
+    );
+    for c in &claims.claims {
+        let ours = if c.ours.is_empty() { "–" } else { &c.ours };
+        let _ = writeln!(
+            s,
+            "| {} | {}: {} | {} | {} | {} |",
+            cell(&c.id),
+            cell(&c.source),
+            cell(&c.claim),
+            cell(ours),
+            cell(&c.criterion),
+            verdict_cell(c.verdict, c.reason.as_deref())
+        );
+    }
+    s.push('\n');
+}
+
+/// The report of `all`, referring to the studies' files as `links` says.
+pub fn render(all: &AllRun, links: Links) -> String {
+    let mut s = String::new();
+    let docs = match links {
+        Links::Relative => {
+            "`docs/studies.md` (section \"Every chapter in one command\")".to_string()
+        }
+        Links::Paths => {
+            "[studies.md](../studies.md#every-chapter-in-one-command-study-all)".to_string()
+        }
+    };
+    let _ = writeln!(
+        s,
+        "# Reproduction of the dissertation's numerical results\n\n\
+         Written by `study all` from the studies' `claims.json`: do not edit by hand. How it is made and \
+         how to read it: {docs}.\n"
+    );
+    let _ = writeln!(s, "Command: `{}`.", all.options.command);
+    match all.options.size {
+        Size::Full => {
+            let _ = writeln!(
+                s,
+                "Full reproduction: every study with its default options."
+            );
+        }
+        Size::Quick => {
+            let _ = writeln!(
+                s,
+                "**Quick run** (`--quick`): reduced sizes; the verdicts below are those of the reduced runs, \
+                 not the reproduction's."
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "{} at a time, each with `RAYON_NUM_THREADS={}`, on a machine with {} core(s). Wall time of the whole: \
+         **{}** (wall times vary with the machine's load).\n",
+        all.options.jobs,
+        all.options.threads,
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        secs(all.wall)
+    );
+    let _ = writeln!(
+        s,
+        "A claim is what the dissertation states, quoted, with where it says it; *ours* is what the study \
+         measured; the *criterion* is the test on our numbers that decides the verdict: **PASS**, **FAIL**, or \
+         **NOT CHECKED** with the reason.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| chapter | study | wall time | ran | PASS | FAIL | NOT CHECKED |\n| --- | --- | --- | --- | --- | --- | --- |"
+    );
+    for r in &all.runs {
+        let _ = writeln!(
+            s,
+            "| {} | [`{}`](#{}) | {} | {} | {} | {} | {} |",
+            r.entry.chapter,
+            r.entry.name,
+            anchor(r),
+            secs(r.wall),
+            if r.claims.is_ok() { "yes" } else { "**no**" },
+            r.count(Verdict::Pass),
+            r.count(Verdict::Fail),
+            r.count(Verdict::NotChecked)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "| | **all** | **{}** | {} of {} | {} | {} | {} |\n",
+        secs(all.wall),
+        all.runs.len() - all.failed().len(),
+        all.runs.len(),
+        all.count(Verdict::Pass),
+        all.count(Verdict::Fail),
+        all.count(Verdict::NotChecked)
+    );
+    for (chapter, title) in CHAPTERS {
+        let runs: Vec<&StudyRun> = all
+            .runs
+            .iter()
+            .filter(|r| r.entry.chapter == *chapter)
+            .collect();
+        if runs.is_empty() {
+            continue;
+        }
+        let _ = writeln!(s, "## Chapter {chapter}: {title}\n");
+        for r in runs {
+            study_section(&mut s, all, r, links);
+        }
+    }
+    s
+}
+
+/// The anchor of `r`'s section.
+fn anchor(r: &StudyRun) -> String {
+    format!("study-{}", r.entry.name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn figure_names_sort_with_their_numbers_as_numbers() {
+        let mut v = vec![
+            "figure-3.10-b.png",
+            "figure-3.5-a.png",
+            "figure-3.9.png",
+            "figure-3.5-b.png",
+        ];
+        v.sort_by_key(|n| natural_key(n));
+        assert_eq!(
+            v,
+            [
+                "figure-3.5-a.png",
+                "figure-3.5-b.png",
+                "figure-3.9.png",
+                "figure-3.10-b.png"
+            ]
+        );
+    }
+
+    #[test]
+    fn cells_keep_the_table_intact() {
+        assert_eq!(cell("|u| ≤ 10 N\nok"), "\\|u\\| ≤ 10 N ok");
+    }
+}
