@@ -5,7 +5,11 @@
 //!   `SCHED_OTHER` process spins on the service's core: the service preempts it when a
 //!   sample is due, so (almost) no sample is lost, and the controller acts and adapts.
 //!   This is the one test that runs the real-time loop across processes; it asserts what
-//!   the loop did (samples lost, inputs, adaptation), not how fast it was.
+//!   the loop did (samples lost, inputs, adaptation), not how fast it was. Samples that
+//!   were due while the hypervisor did not run the RT core (steal time, which no priority
+//!   on the box prevents) are allowed on top of the 1 %; when they push the loss over it,
+//!   the verdict must fail naming the loss and the report must warn of the steal. With RT
+//!   throttling on, the pacer's awake-share cap must have been set and measured.
 //! - A lockstep run whose plant loses samples on purpose (`[proxy.faults] lost`) fails its
 //!   verdict naming the loss when it exceeds `service.max-lost-share`, and passes below it.
 
@@ -70,18 +74,48 @@ fn the_main_job_loses_no_samples_and_controls_with_a_process_spinning_on_the_ser
     let past = stat(&report, "samples_past_startup");
     let lost = stat(&report, "lost_past_startup");
     assert!(past > 20_000, "{past} samples past start-up");
+    let rate = 1.0 / report["sample_period_s"].as_f64().expect("sample_period_s");
+    let steal_s = report["scheduling"]["steal"]["rt_core_s"]
+        .as_f64()
+        .unwrap_or(0.0);
+    let stolen_samples = steal_s * rate;
     assert!(
-        lost as f64 <= 0.01 * past as f64,
-        "{lost} of {past} samples lost with a hog on the RT core:\n{}",
+        lost as f64 <= 0.01 * past as f64 + stolen_samples,
+        "{lost} of {past} samples lost with a hog on the RT core ({stolen_samples:.0} were due \
+         while the host stole it):\n{}",
         launch.output()
     );
-    assert!(
-        !failures(&report)
+    let lost_failure = failures(&report)
+        .iter()
+        .any(|f| f.starts_with("SAMPLES LOST"));
+    if lost as f64 <= 0.01 * past as f64 {
+        assert!(!lost_failure, "{:?}", failures(&report));
+    } else {
+        // Over the limit because of the steal: the run must say both.
+        assert!(lost_failure, "{:?}", failures(&report));
+        let warned = report["warnings"]
+            .as_array()
+            .expect("warnings")
             .iter()
-            .any(|f| f.starts_with("SAMPLES LOST")),
-        "{:?}",
-        failures(&report)
-    );
+            .any(|w| {
+                w.as_str()
+                    .unwrap_or_default()
+                    .starts_with("HYPERVISOR STEAL")
+            });
+        assert!(warned, "{}", launch.output());
+    }
+    // The pacer's awake-share cap sits 10 % under the throttling budget, when there is one.
+    if let Some((runtime, period)) = ipc_types::rt::rt_throttling() {
+        let cap = report["pacing"]["awake_cap"]
+            .as_f64()
+            .expect("pacing.awake_cap");
+        let rho = runtime as f64 / period as f64;
+        assert!((cap - (rho - 0.10)).abs() < 1e-9, "cap {cap}, budget {rho}");
+        let windows = report["pacing"]["windows"]
+            .as_u64()
+            .expect("pacing.windows");
+        assert!(windows > 50, "{windows} windows measured");
+    }
     // The controller acted and learned.
     let steps = stat(&report, "controller_steps");
     assert!(steps > 20_000, "{steps} controller steps");

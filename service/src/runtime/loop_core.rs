@@ -101,6 +101,8 @@ pub struct LoopCore {
     recover_tolerance: u64,
     /// Allocations made on the RT thread during the loop (filled in when it ends).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
+    /// What the pacer's awake-share cap did (filled in when the loop ends).
+    pub pacing: super::pacing::PacingReport,
     /// Where checkpoints go to the writer (`None`: none are taken during the run).
     checkpoints: Option<Arc<CheckpointSlot>>,
     checkpoint_every: u64,
@@ -272,6 +274,7 @@ impl LoopCore {
             recover_after: cfg.policy.recover_after,
             recover_tolerance: cfg.policy.recover_tolerance,
             rt_allocations: Default::default(),
+            pacing: Default::default(),
             checkpoints: None,
             checkpoint_every: cfg.checkpoint_every_cycles,
             cycles_since_checkpoint: 0,

@@ -69,6 +69,8 @@ pub struct RunReport {
     /// Allocations on the RT thread during the loop: served by its pool (iceoryx2's
     /// per-sample loan state) and from the system allocator (should be 0).
     pub rt_allocations: crate::rt_alloc::RtAllocStats,
+    /// What the pacer's awake-share cap did ([`super::pacing`]).
+    pub pacing: super::pacing::PacingReport,
     /// Per-tone amplitudes of `z` at the end of the open-loop phase and at the end of the
     /// run (`[service.report]`), when tones are known.
     pub tones: Option<ToneReport>,
@@ -167,6 +169,7 @@ impl RunReport {
                 ""
             }
         );
+        out += &format!("{}\n", self.pacing.line(&self.wait));
         for w in &self.warnings {
             out += &format!("WARNING: {w}\n");
         }

@@ -84,15 +84,19 @@ pub(super) fn rt_thread_main(
     crate::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
     let before = crate::rt_alloc::thread_stats();
     crate::rt_alloc::outside_rt(|| probe.loop_starts());
+    let fifo = setup.fifo == ipc_types::rt::StepOutcome::Done;
+    let mut pacer = Pacer::new(cfg.wait, cfg.sample_period_ns, cfg.poll_window_ns)
+        .with_throttling_budget(Pacer::throttling_budget(fifo));
     let stop = rt_loop(
         &ports,
         &mut core,
         &shutdown,
-        Pacer::new(cfg.wait, cfg.sample_period_ns, cfg.poll_window_ns),
+        &mut pacer,
         max_cycles,
         exit_with_plant,
     );
     core.rt_allocations = crate::rt_alloc::thread_stats().since(&before);
+    core.pacing = pacer.report();
     crate::rt_alloc::outside_rt(|| probe.loop_ends());
     Ok((core, setup, stop))
 }
@@ -153,7 +157,7 @@ pub fn rt_loop(
     ports: &ServicePorts,
     core: &mut LoopCore,
     shutdown: &AtomicBool,
-    mut pacer: Pacer,
+    pacer: &mut Pacer,
     max_cycles: Option<u64>,
     exit_with_plant: bool,
 ) -> StopReason {
@@ -220,26 +224,33 @@ pub fn rt_loop(
             }
             continue;
         }
-        match (
-            pacer.next(monotonic_ns(), ports.listener.is_some()),
-            &ports.listener,
-        ) {
+        let asked = monotonic_ns();
+        let slept = match (pacer.next(asked, ports.listener.is_some()), &ports.listener) {
             (WaitStep::Block(timeout), Some(listener)) => {
                 let _ = listener.timed_wait(|_| {}, timeout);
+                true
             }
-            (WaitStep::SleepUntil(t), _) => ipc_types::clock::sleep_until_ns(t),
+            (WaitStep::SleepUntil(t), _) => {
+                ipc_types::clock::sleep_until_ns(t);
+                true
+            }
             _ => {
                 core::hint::spin_loop();
                 spins = spins.wrapping_add(1);
                 if !spins.is_multiple_of(256) {
                     continue;
                 }
+                false
             }
-        }
+        };
         // The time first, then the look for waiting samples: had this thread itself been
         // stopped in between, the samples that came meanwhile are found and it does not
         // take its own stall for a silent plant.
         let now = monotonic_ns();
+        if slept {
+            // The awake share of the pacer's cap counts this as time given back.
+            pacer.slept(asked, now);
+        }
         if now.saturating_sub(last_rx_ns) > late_ns {
             // The plant is late by half a period: there is nothing to answer now. A plant
             // that replaces the last one connects while the old one is gone, and iceoryx2

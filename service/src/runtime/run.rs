@@ -340,6 +340,9 @@ pub fn run(
         rt_core_steal: scheduling.steal.rt_core_s.zip(scheduling.loop_s),
     });
     warnings.extend(verdict.warnings.iter().cloned());
+    if let Some(w) = core.pacing.throttling_risk() {
+        warnings.push(w);
+    }
     if let Some(e) = &checkpoints.first_error {
         warnings.push(format!(
             "checkpoint: {} of {} writes failed: {e}",
@@ -382,6 +385,7 @@ pub fn run(
         sample_period_s: cfg.sample_period_ns as f64 * 1e-9,
         open_loop_s: cfg.open_loop_cycles as f64 * cfg.sample_period_ns as f64 * 1e-9,
         rt_allocations: core.rt_allocations,
+        pacing: core.pacing,
         tones,
         adaptation: adaptation.map(AdaptationReport::from),
         model_following: core.following.report(),
