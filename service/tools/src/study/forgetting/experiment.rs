@@ -3,6 +3,7 @@
 use control::forgetting::ForgettingRule;
 use control::rls::{Rls, RlsConfig};
 
+use crate::study::common::convergence::{convergence_time, rms};
 use crate::study::forgetting::ForgettingError;
 use crate::study::forgetting::plant::{CHANGE_STEP, Plant, dot, regressor};
 use rand::{Rng, RngCore, SeedableRng};
@@ -171,6 +172,22 @@ pub struct RunSummary {
     pub final_trace: f64,
     /// Number of guard resets of the estimator.
     pub resets: u64,
+    /// Steps after the change until the prior error `e_k` has converged
+    /// ([`error_settle`]); `None` when it has not by the end.
+    pub error_settle: Option<usize>,
+}
+
+/// Trailing window of the prior error's convergence ([`error_settle`]), steps.
+pub const ERROR_WINDOW: usize = 10;
+
+/// Steps after the change until the prior error `errs[k]` (one per step from 0) has
+/// converged: [`convergence_time`] of `e_k` from the change on, trailing windows of
+/// [`ERROR_WINDOW`] steps, against twice its RMS over the last third of the run (the level
+/// the noise leaves). `None` when it has not converged by the end.
+pub fn error_settle(errs: &[f64]) -> Option<usize> {
+    let after = errs.get(CHANGE_STEP..)?;
+    let late = rms(&errs[errs.len() - errs.len() / 3..]);
+    convergence_time(after, 1.0, ERROR_WINDOW, late).map(|t| t.round() as usize)
 }
 
 /// A recorded trajectory: row `i` is step `ks[i]`, with the estimate after the update that
@@ -234,6 +251,7 @@ pub fn run(
     let mut early_forget = false;
     let mut max_trace = rls.trace_p();
     let mut resets = 0;
+    let mut errs = Vec::with_capacity(steps);
     for k in 0..steps {
         let z: f64 = rng.sample(StandardNormal);
         let v: f64 = rng.sample(StandardNormal);
@@ -247,6 +265,7 @@ pub fn run(
         if step.reset {
             resets += 1;
         }
+        errs.push(rls.prior_error()[0]);
         let th = rls.theta();
         let tr = rls.trace_p();
         max_trace = max_trace.max(tr);
@@ -283,6 +302,7 @@ pub fn run(
             max_trace,
             final_trace: rls.trace_p(),
             resets,
+            error_settle: error_settle(&errs),
         },
         trace,
     ))

@@ -77,6 +77,9 @@ pub struct Summary {
     pub final_trace_median: f64,
     /// Total guard resets over all runs.
     pub resets: u64,
+    /// Median of the steps after the change until the prior error has converged
+    /// ([`super::experiment::error_settle`]; `+∞`: "never").
+    pub error_settle_median: f64,
 }
 
 /// Summarizes per-run results.
@@ -88,6 +91,10 @@ pub fn summarize(runs: &[RunSummary]) -> Summary {
     let mut loose: Vec<f64> = runs
         .iter()
         .map(|r| r.settle_loose.map_or(f64::INFINITY, |s| s as f64))
+        .collect();
+    let mut error_settle: Vec<f64> = runs
+        .iter()
+        .map(|r| r.error_settle.map_or(f64::INFINITY, |s| s as f64))
         .collect();
     let mut max_tr: Vec<f64> = runs.iter().map(|r| r.max_trace).collect();
     let mut final_tr: Vec<f64> = runs.iter().map(|r| r.final_trace).collect();
@@ -106,6 +113,7 @@ pub fn summarize(runs: &[RunSummary]) -> Summary {
         max_trace_max: max_tr.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         final_trace_median: percentile(&mut final_tr, 0.5),
         resets: runs.iter().map(|r| r.resets).sum(),
+        error_settle_median: percentile(&mut error_settle, 0.5),
     }
 }
 
@@ -250,6 +258,7 @@ mod tests {
             max_trace: tr,
             final_trace: tr / 2.0,
             resets: 0,
+            error_settle: settle,
         };
         let runs = [
             r(Some(10), false, 500.0),
@@ -268,6 +277,7 @@ mod tests {
         assert_eq!(s.early_forget_fraction, 0.25);
         assert_eq!(s.max_trace_median, 650.0);
         assert_eq!(s.max_trace_max, 800.0);
+        assert_eq!(s.error_settle_median, 25.0);
     }
 
     /// The chapter's qualitative finding (§5.3.1, Figures 5.1–5.2): without noise,

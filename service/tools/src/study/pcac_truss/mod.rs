@@ -92,16 +92,20 @@
 //!   ([`claims`]).
 
 pub mod claims;
+pub mod settling;
+pub mod spectral;
 
 use crate::file_error::{FileError, FileOp};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::analysis::{PsdError, psd};
+use crate::analysis::PsdError;
 use crate::figures::{OPEN_COLOR, envelope};
 use crate::plot::{Panel, PlotError, Series, figure};
 use crate::simulate::{self, SimulateError, Trace};
+pub use crate::study::common::convergence::convergence_time;
+use crate::study::common::convergence::rms;
 use control::pcac::{Pcac, PcacCounters, PcacParams};
 use control::tones::{suppression_db, tone_amplitudes};
 use plant_proxy::scenario::{self, Scenario};
@@ -416,6 +420,8 @@ pub struct Outcome {
     /// Harmonic case: the tone frequencies (Hz) and their open-loop amplitudes in `z` of
     /// node 8 over the late window.
     pub tones: Vec<(f64, f64)>,
+    /// The truss modes below the Nyquist frequency, Hz ([`in_band_modes`]).
+    pub in_band_modes: Vec<f64>,
     /// The closed loops, one per setting run.
     pub closed: Vec<Closed>,
 }
@@ -430,38 +436,6 @@ impl Outcome {
     #[cfg_attr(not(test), allow(dead_code))]
     pub fn of(&self, setting: Setting) -> Option<&Closed> {
         self.closed.iter().find(|c| c.setting == setting)
-    }
-}
-
-/// RMS of `x` (NaN when empty).
-fn rms(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return f64::NAN;
-    }
-    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
-}
-
-/// The time to converge of the module docs: `z` sampled every `ts` s, trailing windows of
-/// `window` samples, `target` the final level (twice it is the bound). `None` when the
-/// last trailing window is above the bound.
-pub fn convergence_time(z: &[f64], ts: f64, window: usize, target: f64) -> Option<f64> {
-    let w = window.max(1);
-    if z.len() < w || !target.is_finite() {
-        return None;
-    }
-    let bound = 2.0 * target;
-    let mut last_violation: Option<usize> = None;
-    for k in (w - 1)..z.len() {
-        // Recomputed rather than updated so that round-off cannot accumulate.
-        let r = rms(&z[k + 1 - w..=k]);
-        if r.is_nan() || r > bound {
-            last_violation = Some(k);
-        }
-    }
-    match last_violation {
-        None => Some((w - 1) as f64 * ts),
-        Some(k) if k + 1 < z.len() => Some((k + 1) as f64 * ts),
-        Some(_) => None,
     }
 }
 
@@ -492,6 +466,23 @@ fn tone_frequencies(table: &toml::Table) -> Vec<f64> {
 /// The truss modes (Hz) of an experiment's scenario above its Nyquist frequency, each with
 /// the frequency it folds to under sampling: `|f − k f_s|` for the nearest integer `k`.
 pub fn aliases(exp: Experiment) -> Result<Vec<(f64, f64)>, TrussError> {
+    let (modes, fs) = modes_and_rate(exp)?;
+    Ok(modes
+        .into_iter()
+        .filter(|f| *f > 0.5 * fs)
+        .map(|f| (f, (f - (f / fs).round() * fs).abs()))
+        .collect())
+}
+
+/// The truss modes (Hz) of an experiment's scenario below its Nyquist frequency: the modes
+/// inside the control bandwidth.
+pub fn in_band_modes(exp: Experiment) -> Result<Vec<f64>, TrussError> {
+    let (modes, fs) = modes_and_rate(exp)?;
+    Ok(modes.into_iter().filter(|f| *f < 0.5 * fs).collect())
+}
+
+/// The truss modes (Hz) of an experiment's scenario and its sample rate (Hz).
+fn modes_and_rate(exp: Experiment) -> Result<(Vec<f64>, f64), TrussError> {
     let table = scenario_table(&exp.path())?;
     let truss = table
         .get("plant")
@@ -509,14 +500,7 @@ pub fn aliases(exp: Experiment) -> Result<Vec<(f64, f64)>, TrussError> {
         .and_then(|r| r.get("sample-period"))
         .and_then(|v| v.as_float())
         .ok_or(TrussError::NoSamplePeriod)?;
-    let fs = 1.0 / ts;
-    Ok(tp
-        .modes
-        .frequencies_hz()
-        .into_iter()
-        .filter(|f| *f > 0.5 * fs)
-        .map(|f| (f, (f - (f / fs).round() * fs).abs()))
-        .collect())
+    Ok((tp.modes.frequencies_hz(), 1.0 / ts))
 }
 
 /// Runs one experiment for `duration` s: the open loop, the closed loop of each of
@@ -596,6 +580,7 @@ pub fn run_experiment(
         late_start,
         rms_open,
         tones,
+        in_band_modes: in_band_modes(exp)?,
         closed,
     })
 }
@@ -941,13 +926,12 @@ fn response_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), PlotError>
 
 fn psd_figure(out: &Path, o: &Outcome, c: &Closed) -> Result<(), TrussError> {
     let [_, fig, _] = o.experiment.figures();
-    let late = o.open.len() - o.late_start;
-    let segment = (late / 4).clamp(64, 2048);
+    let segment = spectral::segment(o.open.len() - o.late_start);
     let fs = 1.0 / o.ts;
     let mut panels = Vec::new();
     for &i in &PANEL_NODE {
-        let a = psd(&o.open.z[i][o.late_start..], fs, segment)?;
-        let b = psd(&c.trace.z[i][o.late_start..], fs, segment)?;
+        let a = spectral::late_psd(&o.open.z[i], o.late_start, fs)?;
+        let b = spectral::late_psd(&c.trace.z[i], o.late_start, fs)?;
         // The DC bin has the mean removed: leave it out of a log axis.
         panels.push(Panel {
             title: format!("node {}", NODES[i]),
@@ -1181,23 +1165,6 @@ mod tests {
         let al = aliases(Experiment::Aliasing).unwrap();
         assert_eq!(al.len(), 14);
         assert!(al.iter().all(|(f, a)| *f > 5.0 && (0.0..=5.0).contains(a)));
-    }
-
-    #[test]
-    fn the_time_to_converge_is_where_the_trailing_rms_last_enters_twice_the_final_level() {
-        // 1.0 for 100 samples, then 0.1: the final level (0.1) doubled is 0.2; a trailing
-        // window of 10 is below it once at most 1 large sample is inside (√(0.01·9 + 1)/√10
-        // = 0.33 > 0.2), i.e. from the window ending at sample 109.
-        let mut z = vec![1.0; 100];
-        z.extend(vec![0.1; 200]);
-        let t = convergence_time(&z, 0.5, 10, 0.1).unwrap();
-        assert_eq!(t, 109.0 * 0.5);
-        // A late burst that does not settle: never.
-        let mut z2 = vec![0.1; 100];
-        z2.extend(vec![5.0; 10]);
-        assert_eq!(convergence_time(&z2, 1.0, 10, 0.1), None);
-        // Always within: the first full window.
-        assert_eq!(convergence_time(&[0.1; 50], 1.0, 10, 0.1), Some(9.0));
     }
 
     /// The study writes its figures, traces, table and summary.
