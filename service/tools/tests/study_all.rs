@@ -23,9 +23,13 @@ fn exe() -> &'static Path {
 #[test]
 fn study_all_quick_reports_every_studys_claims_with_verdicts() {
     let out = out_dir("quick");
+    let committed = out.join("committed").join("reproduction.md");
+    std::fs::create_dir_all(committed.parent().unwrap()).unwrap();
     let output = Command::new(exe())
         .args(["all", "--quick", "--out"])
         .arg(&out)
+        .arg("--results")
+        .arg(&committed)
         .output()
         .expect("study all runs");
     let stdout = String::from_utf8_lossy(&output.stdout);
@@ -36,6 +40,7 @@ fn study_all_quick_reports_every_studys_claims_with_verdicts() {
     );
     let report = std::fs::read_to_string(out.join(all::REPORT_FILE)).expect("the report");
     assert!(report.contains("**Quick run**"), "{report}");
+    let copy = std::fs::read_to_string(&committed).expect("the --results copy");
     let mut totals = [0usize; 3];
     for s in STUDIES {
         let dir = out.join(s.name);
@@ -72,10 +77,35 @@ fn study_all_quick_reports_every_studys_claims_with_verdicts() {
                 .find(|l| l.starts_with(&format!("| {} | ", c.id)))
                 .unwrap_or_else(|| panic!("{}: no row for claim {}", s.name, c.id));
             assert!(
-                row.ends_with(&format!("**{}** |", c.verdict.word()))
+                row.contains(&format!("**{}** |", c.verdict.word()))
                     || row.contains(&format!("**{}**: ", c.verdict.word())),
                 "{row}"
             );
+            // Every claim shows its figures: the study wrote them, the report links them,
+            // and the --results copy has them reduced beside it and links the copies.
+            assert!(!c.figures.is_empty(), "{} {}: no figure", s.name, c.id);
+            for f in &c.figures {
+                assert!(
+                    dir.join(f).is_file(),
+                    "{} {}: {f} not written",
+                    s.name,
+                    c.id
+                );
+                assert!(row.contains(&format!("]({}/{f})", s.name)), "{row}");
+                let copied = committed
+                    .parent()
+                    .unwrap()
+                    .join("reproduction")
+                    .join(s.name)
+                    .join(f);
+                assert!(copied.is_file(), "{}", copied.display());
+                assert!(
+                    copy.contains(&format!("](reproduction/{}/{f})", s.name)),
+                    "{} {}: the copy does not link {f}",
+                    s.name,
+                    c.id
+                );
+            }
             match c.verdict {
                 Verdict::NotChecked => assert!(c.reason.is_some(), "{} {}", s.name, c.id),
                 _ => assert!(!c.ours.is_empty(), "{} {}: no number", s.name, c.id),
@@ -145,7 +175,12 @@ fn a_study_that_cannot_run_is_reported_and_a_stale_claims_file_does_not_stand_in
     assert!(report.contains("**Failed to run**"), "{report}");
     assert!(report.contains("| 1 of 2 |"), "{report}");
     // In the copy for docs/results the files are paths under the output folder.
-    let copy = report::render(&run, Links::Paths);
+    let copy = report::render(
+        &run,
+        Links::Committed {
+            figures: "reproduction",
+        },
+    );
     assert!(copy.contains(&format!(
         "`{}`",
         out.join("mrac").join("summary.md").display()

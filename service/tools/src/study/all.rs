@@ -27,6 +27,7 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::Instant;
 
+use crate::study::reproduction::figures;
 use crate::study::reproduction::report::{self, Links};
 use crate::study::reproduction::{self, Claims, ClaimsError, Verdict};
 
@@ -202,6 +203,9 @@ pub enum AllError {
     /// `--jobs 0`.
     #[error("--jobs 0: at least one study must run at a time")]
     NoJobs,
+    /// A figure of the claims could not be copied beside `--results`.
+    #[error(transparent)]
+    Figure(#[from] figures::FigureError),
     /// The running executable cannot be found (to run the studies with).
     #[error("the study executable: {0}")]
     Executable(#[source] std::io::Error),
@@ -421,7 +425,21 @@ pub fn command(
     ipc_types::files::write_atomic(&report, report::render(&all, Links::Relative).as_bytes())
         .map_err(|source| FileError::new(FileOp::Access, report.clone(), source))?;
     if let Some(path) = results {
-        ipc_types::files::write_atomic(path, report::render(&all, Links::Paths).as_bytes())
+        let (dir, name) = figures::folder_of(path);
+        let copied = figures::copy_claim_figures(&all, &dir)?;
+        for m in &copied.missing {
+            eprintln!(
+                "study all: WARNING: a claim names the figure {m}, which its study did not write"
+            );
+        }
+        println!(
+            "study all: {} figures of the claims, {:.1} MB, copied (reduced) into {}",
+            copied.written,
+            copied.bytes as f64 / 1e6,
+            dir.display()
+        );
+        let links = Links::Committed { figures: &name };
+        ipc_types::files::write_atomic(path, report::render(&all, links).as_bytes())
             .map_err(|source| FileError::new(FileOp::Results, path.to_path_buf(), source))?;
     }
     println!(

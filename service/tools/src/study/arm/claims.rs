@@ -145,6 +145,18 @@ fn range(v: &[&GridPoint]) -> String {
     )
 }
 
+/// The figures of each claim (Figures 7.3–7.8).
+pub const FIGURES: crate::study::reproduction::Figures = &[
+    ("7.1", &["fig7_3_robust.png", "fig7_3_augmented.png"]),
+    ("7.2", &["fig7_3_robust.png", "fig7_3_augmented.png"]),
+    ("7.3", &["fig7_4.png"]),
+    ("7.4", &["fig7_5_robust.png"]),
+    ("7.5", &["fig7_5_augmented.png"]),
+    ("7.6", &["fig7_6.png"]),
+    ("7.7", &["fig7_7.png", "fig7_8.png"]),
+    ("7.8", &["fig7_7.png", "fig7_8.png"]),
+];
+
 /// The claims checked on `e`.
 pub fn claims(e: &Evidence<'_>) -> Vec<Claim> {
     let s = &STATEMENTS;

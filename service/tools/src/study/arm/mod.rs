@@ -332,7 +332,10 @@ pub fn run(n: usize, out: &Path, line: &str) -> Result<Report, ArmError> {
         study: "sampling-arm".into(),
         chapter: 7,
         run: line.to_string(),
-        claims: claims::claims(&evidence),
+        claims: crate::study::reproduction::with_figures(
+            claims::claims(&evidence),
+            claims::FIGURES,
+        ),
     };
     let wall = t0.elapsed().as_secs_f64();
 

@@ -96,6 +96,38 @@ const NOISY_ERROR_SPEED: Statement = Statement {
 /// The range of "8 more steps" that claim 5.9 accepts (a factor of 2 either way).
 const MORE_STEPS: std::ops::RangeInclusive<f64> = 4.0..=16.0;
 
+/// The figures of each claim: the Monte Carlo bands (Figures 5.2, 5.4, 5.6, 5.8) and the
+/// single runs (Figures 5.1, 5.3, 5.5, 5.7).
+pub const FIGURES: crate::study::reproduction::Figures = &[
+    ("5.1", &["case1_noiseless_ftvrf_mc.png"]),
+    (
+        "5.2",
+        &[
+            "case1_noiseless_ftvrf_vs_crf.png",
+            "case1_noiseless_crf_mc.png",
+        ],
+    ),
+    ("5.3", &["case2_noisy_ftvrf_mc.png"]),
+    (
+        "5.4",
+        &["case2_noisy_ftvrf_vs_crf.png", "case2_noisy_crf_mc.png"],
+    ),
+    ("5.5", &["case2_noisy_rmsvrf_mc.png"]),
+    (
+        "5.6",
+        &["case2_noisy_ftvrf_mc.png", "case2_noisy_rmsvrf_mc.png"],
+    ),
+    ("5.7", &["case3_nonpersistent_ftvrf_mc.png"]),
+    (
+        "5.8",
+        &[
+            "case3_nonpersistent_ftvrf_vs_crf.png",
+            "case3_nonpersistent_crf_mc.png",
+        ],
+    ),
+    ("5.9", &["case2_noisy_ftvrf_vs_rmsvrf.png"]),
+];
+
 /// The study's statistics of one case and method.
 fn find(results: &[(Case, Method, Summary)], case: Case, method: Method) -> Option<&Summary> {
     results

@@ -298,7 +298,7 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
             study: "forgetting".into(),
             chapter: 5,
             run: format!("study forgetting --runs {runs} --seed {seed}"),
-            claims: claims::claims(&results),
+            claims: reproduction::with_figures(claims::claims(&results), claims::FIGURES),
         },
     )?)
 }

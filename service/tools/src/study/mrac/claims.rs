@@ -74,6 +74,60 @@ const STATEMENTS: [Statement; 8] = [
     },
 ];
 
+/// The figures of each claim (the maps of `log10‖e‖` over the pole grid; the step
+/// command where one command stands for all).
+pub const FIGURES: crate::study::reproduction::Figures = &[
+    (
+        "4.1",
+        &[
+            "map-ex1-step-appc.png",
+            "map-ex1-step-rc-mrac.png",
+            "map-ex1-four-appc.png",
+            "map-ex1-four-rc-mrac.png",
+        ],
+    ),
+    (
+        "4.2",
+        &["map-ex1-step-appc.png", "map-ex1-step-rc-mrac.png"],
+    ),
+    (
+        "4.3",
+        &["map-ex2-step-appc.png", "map-ex2-step-rc-mrac.png"],
+    ),
+    (
+        "4.4",
+        &[
+            "map-ex2-step-appc.png",
+            "map-ex2-two-appc.png",
+            "map-ex2-four-appc.png",
+        ],
+    ),
+    (
+        "4.5",
+        &[
+            "map-ex1-step-rc-mrac.png",
+            "map-ex2-step-rc-mrac.png",
+            "map-ex3-step-rc-mrac.png",
+        ],
+    ),
+    (
+        "4.6",
+        &["map-ex3-step-rc-mrac.png", "map-ex3-step-rc-mrac-n2.png"],
+    ),
+    (
+        "4.7",
+        &[
+            "map-ex1-step-appc.png",
+            "map-ex1-two-appc.png",
+            "map-ex1-four-appc.png",
+        ],
+    ),
+    (
+        "4.8",
+        &["single-ex1-step-rc-mrac.png", "single-ex2-step-rc-mrac.png"],
+    ),
+];
+
 /// The claims of [`summary::claims`] in the reproduction's record.
 pub fn claims(checked: &[summary::Claim]) -> Vec<Claim> {
     checked

@@ -298,7 +298,7 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
             study: "mrac".into(),
             chapter: 4,
             run: command.into(),
-            claims: claims::claims(&claims),
+            claims: reproduction::with_figures(claims::claims(&claims), claims::FIGURES),
         },
     )?;
     Ok(MracReport {

@@ -172,6 +172,45 @@ const IN_BAND_MODES: Statement = Statement {
                 over nodes 5–8 (late window)",
 };
 
+/// The figures of each claim, printed setting.
+pub const FIGURES: crate::study::reproduction::Figures = &[
+    ("6.1", &["figure-6.2-harmonic-printed-response.png"]),
+    ("6.2", &["figure-6.2-harmonic-printed-response.png"]),
+    ("6.3", &["figure-6.3-harmonic-printed-psd.png"]),
+    ("6.4", &["figure-6.2-harmonic-printed-response.png"]),
+    (
+        "6.5",
+        &[
+            "figure-6.4-harmonic-printed-identification.png",
+            "figure-6.7-broadband-25hz-printed-identification.png",
+            "figure-6.10-broadband-50hz-aliasing-printed-identification.png",
+        ],
+    ),
+    ("6.6", &["figure-6.5-broadband-25hz-printed-response.png"]),
+    ("6.7", &["figure-6.5-broadband-25hz-printed-response.png"]),
+    ("6.8", &["figure-6.5-broadband-25hz-printed-response.png"]),
+    ("6.9", &["figure-6.6-broadband-25hz-printed-psd.png"]),
+    (
+        "6.10",
+        &["figure-6.8-broadband-50hz-aliasing-printed-response.png"],
+    ),
+    (
+        "6.11",
+        &["figure-6.8-broadband-50hz-aliasing-printed-response.png"],
+    ),
+    (
+        "6.12",
+        &[
+            "figure-6.8-broadband-50hz-aliasing-printed-response.png",
+            "figure-6.5-broadband-25hz-printed-response.png",
+        ],
+    ),
+    (
+        "6.13",
+        &["figure-6.9-broadband-50hz-aliasing-printed-psd.png"],
+    ),
+];
+
 /// Node 7's index in `z`.
 const NODE_7: usize = 2;
 

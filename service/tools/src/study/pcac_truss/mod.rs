@@ -646,7 +646,7 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
                     names(opts.settings.iter().map(|s| s.name()).collect())
                 }
             ),
-            claims: claims::claims(&outcomes),
+            claims: reproduction::with_figures(claims::claims(&outcomes), claims::FIGURES),
         },
     )?)
 }

@@ -237,6 +237,8 @@ pub trait RcacStudy<const N: usize>: Sync {
 
     /// The study's `study` subcommand.
     const NAME: &'static str;
+    /// The figures of each claim ([`crate::study::reproduction::with_figures`]).
+    const CLAIM_FIGURES: crate::study::reproduction::Figures;
     /// Step factor `α` of `μ_Exp` (3.63).
     const ALPHA: f64;
     /// Whether the time line of the report gives the time of the designs.
@@ -435,7 +437,10 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
                 S::NAME,
                 opts.points
             ),
-            claims: study.claims(&rows, &singles, &opts.updates),
+            claims: reproduction::with_figures(
+                study.claims(&rows, &singles, &opts.updates),
+                S::CLAIM_FIGURES,
+            ),
         },
     )?)
 }

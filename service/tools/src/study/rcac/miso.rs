@@ -65,7 +65,7 @@ use crate::study::rcac::driver::{
 };
 use crate::study::rcac::sweep_csv;
 use crate::study::rcac::sweep_stats::{POOR_DB, SweepStats, secs};
-use crate::study::reproduction::Claim;
+use crate::study::reproduction::{Claim, Figures};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -189,6 +189,17 @@ impl RcacStudy<2> for Miso {
     type Designs = Vec<(Method, Dtm)>;
 
     const NAME: &'static str = "rcac-miso";
+    const CLAIM_FIGURES: Figures = &[
+        ("3.5", &["figure-3.14-average-gradient.png"]),
+        ("3.6", &["figure-3.17-optimize-gradient.png"]),
+        (
+            "3.7",
+            &[
+                "figure-3.12-average-gradient.png",
+                "figure-3.15-optimize-gradient.png",
+            ],
+        ),
+    ];
     const ALPHA: f64 = ALPHA;
     const REPORTS_DESIGN_TIME: bool = false;
     const FIGURES: [u8; 2] = [12, 15];

@@ -50,7 +50,7 @@ use crate::study::rcac::driver::{
 use crate::study::rcac::sweep_csv;
 pub use crate::study::rcac::sweep_stats::POOR_DB;
 use crate::study::rcac::sweep_stats::{SweepStats, secs};
-use crate::study::reproduction::Claim;
+use crate::study::reproduction::{Claim, Figures};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -211,6 +211,24 @@ impl RcacStudy<1> for Siso {
     type Designs = Vec<(DiscreteModel, Vec<(Method, Dtm)>)>;
 
     const NAME: &'static str = "rcac-siso";
+    const CLAIM_FIGURES: Figures = &[
+        ("3.1", &["figure-3.7-average-gradient.png"]),
+        ("3.2", &["figure-3.10-optimize-gradient.png"]),
+        (
+            "3.3",
+            &[
+                "figure-3.5-average-gradient.png",
+                "figure-3.6-average-bode.png",
+            ],
+        ),
+        (
+            "3.4",
+            &[
+                "figure-3.8-optimize-gradient.png",
+                "figure-3.9-optimize-bode.png",
+            ],
+        ),
+    ];
     const ALPHA: f64 = ALPHA;
     const REPORTS_DESIGN_TIME: bool = true;
     const FIGURES: [u8; 2] = [5, 8];

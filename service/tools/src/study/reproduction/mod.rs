@@ -29,12 +29,17 @@
 //!       "claim": "For minimum-phase systems, RC-MRAC outperforms APPC without the need for persistency.",
 //!       "ours": "median log10‖e‖, step: RC-MRAC -6.23 vs APPC -2.12, …",
 //!       "criterion": "Example 1: RC-MRAC's median log10‖e‖ over the grid below APPC's for every command",
-//!       "verdict": "PASS"
+//!       "verdict": "PASS",
+//!       "figures": ["map-ex1-step-appc.png", "map-ex1-step-rc-mrac.png"]
 //!     }
 //!   ]
 //! }
 //! ```
+//!
+//! `figures` ([`Claim::figures`]) names the study's figures that show what the claim is
+//! about; the report links them, and [`figures`] copies them beside a committed report.
 
+pub mod figures;
 pub mod report;
 
 use crate::file_error::{AtomicFileError, FileError, FileOp};
@@ -95,6 +100,24 @@ pub struct Claim {
     /// Why the claim was not checked (only with [`Verdict::NotChecked`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
+    /// The study's figures (file names in its output folder) that show what the claim is
+    /// about, as the dissertation's figure does ([`with_figures`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub figures: Vec<String>,
+}
+
+/// A study's figures per claim: `(claim id, file names in the study's output folder)`.
+pub type Figures = &'static [(&'static str, &'static [&'static str])];
+
+/// `claims` with the figures `table` names for each (a claim the table does not name keeps
+/// none).
+pub fn with_figures(mut claims: Vec<Claim>, table: Figures) -> Vec<Claim> {
+    for c in &mut claims {
+        if let Some((_, files)) = table.iter().find(|(id, _)| *id == c.id) {
+            c.figures = files.iter().map(|f| f.to_string()).collect();
+        }
+    }
+    claims
 }
 
 /// The fixed text of a claim: everything but our numbers and the verdict.
@@ -138,6 +161,7 @@ impl Statement {
             criterion: self.criterion.into(),
             verdict,
             reason,
+            figures: Vec::new(),
         }
     }
 }

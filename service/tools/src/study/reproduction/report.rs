@@ -15,12 +15,17 @@ use crate::study::reproduction::{CLAIMS_FILE, Verdict};
 
 /// How the report refers to the files of the studies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Links {
+pub enum Links<'a> {
     /// Markdown links relative to the output folder (the report written into it).
     Relative,
     /// Paths as text, under the output folder as given (a copy kept elsewhere, e.g. in
-    /// `docs/results/`, where the figures are not).
-    Paths,
+    /// `docs/results/`, where the studies' folders are not), and links to the claims'
+    /// figures in the folder `figures`, relative to the report, where
+    /// [`super::figures::copy_claim_figures`] put them.
+    Committed {
+        /// The figures' folder, relative to the report.
+        figures: &'a str,
+    },
 }
 
 /// A table cell: no line breaks, `|` escaped.
@@ -74,7 +79,31 @@ fn figures(dir: &Path) -> Vec<String> {
 fn file_ref(out: &Path, name: &str, file: &str, links: Links) -> String {
     match links {
         Links::Relative => format!("[{file}]({name}/{file})"),
-        Links::Paths => format!("`{}`", out.join(name).join(file).display()),
+        Links::Committed { .. } => format!("`{}`", out.join(name).join(file).display()),
+    }
+}
+
+/// The figures cell of a claim: a link to each of its figures that its study wrote.
+fn figures_cell(dir: &Path, name: &str, files: &[String], links: Links) -> String {
+    let base = match links {
+        Links::Relative => name.to_string(),
+        Links::Committed { figures } => format!("{figures}/{name}"),
+    };
+    let cells: Vec<String> = files
+        .iter()
+        .map(|f| {
+            let label = f.trim_end_matches(".png");
+            if dir.join(f).is_file() {
+                format!("[{label}]({base}/{f})")
+            } else {
+                format!("{label} (not written)")
+            }
+        })
+        .collect();
+    if cells.is_empty() {
+        "–".into()
+    } else {
+        cells.join("<br>")
     }
 }
 
@@ -119,7 +148,7 @@ fn study_section(s: &mut String, all: &AllRun, r: &StudyRun, links: Links) {
             .map(|f| file_ref(&all.out, e.name, f, links))
             .collect::<Vec<_>>()
             .join(", "),
-        Links::Paths => format!(
+        Links::Committed { .. } => format!(
             "{} PNG files in `{}`",
             figs.len(),
             all.out.join(e.name).display()
@@ -139,19 +168,20 @@ fn study_section(s: &mut String, all: &AllRun, r: &StudyRun, links: Links) {
     );
     let _ = writeln!(
         s,
-        "| # | the dissertation | ours | criterion | verdict |\n| --- | --- | --- | --- | --- |"
+        "| # | the dissertation | ours | criterion | verdict | figures |\n| --- | --- | --- | --- | --- | --- |"
     );
     for c in &claims.claims {
         let ours = if c.ours.is_empty() { "–" } else { &c.ours };
         let _ = writeln!(
             s,
-            "| {} | {}: {} | {} | {} | {} |",
+            "| {} | {}: {} | {} | {} | {} | {} |",
             cell(&c.id),
             cell(&c.source),
             cell(&c.claim),
             cell(ours),
             cell(&c.criterion),
-            verdict_cell(c.verdict, c.reason.as_deref())
+            verdict_cell(c.verdict, c.reason.as_deref()),
+            figures_cell(&r.dir, e.name, &c.figures, links)
         );
     }
     s.push('\n');
@@ -164,7 +194,7 @@ pub fn render(all: &AllRun, links: Links) -> String {
         Links::Relative => {
             "`docs/studies.md` (section \"Every chapter in one command\")".to_string()
         }
-        Links::Paths => {
+        Links::Committed { .. } => {
             "[studies.md](../studies.md#every-chapter-in-one-command-study-all)".to_string()
         }
     };
