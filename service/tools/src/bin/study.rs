@@ -4,7 +4,7 @@
 //! cargo run --release -p rig-tools --bin study -- forgetting [--runs 1000] [--out DIR] [--seed S]
 //! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
-//! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both]
+//! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE]
 //! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
 //! ```
@@ -116,6 +116,10 @@ enum Study {
         /// PCAC settings: both, printed (§6.2 as printed, y in 10·mm) or metres (the same, y in 10·m).
         #[arg(long, default_value = "both")]
         settings: String,
+        /// Skip the sensitivity of the convergence claims to the choices §6.2 leaves open
+        /// (seed, tone amplitudes and phases, broadband RMS, SNR, P_0, the convergence rule).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 4, §4.5–4.7: APPC against RC-MRAC over the plant's pole plane (ρ, ν), with
     /// the step, two- and four-harmonic commands, and Example 3's harmonic rejection
@@ -193,6 +197,7 @@ fn main() -> ExitCode {
             duration,
             experiments,
             settings,
+            no_sensitivity,
         } => pcac_truss::Experiment::parse_set(&experiments)
             .and_then(|experiments| {
                 pcac_truss::Setting::parse_set(&settings).and_then(|settings| {
@@ -202,6 +207,7 @@ fn main() -> ExitCode {
                             duration,
                             experiments,
                             settings,
+                            sensitivity: !no_sensitivity,
                         },
                     )
                 })

@@ -74,6 +74,11 @@
 //!   `theta_norm`, `trace_p` (the trace of the full 600×600 `P_k`).
 //! - For the aliasing case, the truss modes above the 5 Hz Nyquist frequency and the
 //!   frequency each folds to ([`aliases`]).
+//! - When ‖θ_k‖ and tr P_k settle ([`settling`]), the reductions PSD peak by peak and in-band
+//!   mode by mode ([`spectral`]).
+//! - The **sensitivity** of node 8's convergence to each choice §6.2 leaves open (seed,
+//!   tone amplitudes and phases, broadband RMS, sensor SNR, `P_0`, the convergence rule;
+//!   [`sensitivity`]), printed setting, unless `--no-sensitivity`.
 //!
 //! ## What it writes
 //!
@@ -87,11 +92,14 @@
 //! - `figure-6.4-harmonic-<setting>-identification.png` (6.7, 6.10): `‖θ_k‖` and `tr P_k`;
 //! - `<name>-<setting>-trace.csv`: `t`, `z` OL and CL of the four nodes, `u`, the internals;
 //! - `reductions.csv`: one row per experiment, setting and node (RMS OL, RMS CL, dB);
+//! - `sensitivity.csv`: one row per experiment and alternative choice (node 8's time to
+//!   converge and reduction);
 //! - `summary.txt`: the printed summary;
 //! - `claims.json`: the chapter's claims checked on these measurements
 //!   ([`claims`]).
 
 pub mod claims;
+pub mod sensitivity;
 pub mod settling;
 pub mod spectral;
 
@@ -376,6 +384,8 @@ pub struct Options {
     pub experiments: Vec<Experiment>,
     /// The controller settings to run.
     pub settings: Vec<Setting>,
+    /// Run the [`sensitivity`] of the convergence claims (printed setting).
+    pub sensitivity: bool,
 }
 
 /// The closed loop of one setting and its measurements.
@@ -424,6 +434,9 @@ pub struct Outcome {
     pub in_band_modes: Vec<f64>,
     /// The closed loops, one per setting run.
     pub closed: Vec<Closed>,
+    /// Node 8's convergence under each alternative of the choices §6.2 leaves open
+    /// ([`sensitivity`]; empty when not run).
+    pub sensitivity: Vec<sensitivity::Row>,
 }
 
 impl Outcome {
@@ -510,7 +523,19 @@ pub fn run_experiment(
     settings: &[Setting],
     duration: f64,
 ) -> Result<Outcome, TrussError> {
-    let (sc, _) = load(exp, Setting::Printed)?;
+    run_experiment_with(exp, settings, duration, &|_, _| {})
+}
+
+/// [`run_experiment`] with `change` applied to each loaded scenario and controller (the
+/// open loop's too) before it runs ([`sensitivity`]).
+pub fn run_experiment_with(
+    exp: Experiment,
+    settings: &[Setting],
+    duration: f64,
+    change: &(dyn Fn(&mut Scenario, &mut PcacParams) + Sync),
+) -> Result<Outcome, TrussError> {
+    let (mut sc, mut unused) = load(exp, Setting::Printed)?;
+    change(&mut sc, &mut unused);
     let ts = sc.rig.sample_period;
     let steps = (duration / ts).round() as usize;
     if steps < 4 * (RMS_WINDOW_S / ts).round() as usize {
@@ -534,7 +559,8 @@ pub fn run_experiment(
     let tones = hz.iter().copied().zip(amps(&open)?).collect();
     let mut closed = Vec::new();
     for &setting in settings {
-        let (sc, params) = load(exp, setting)?;
+        let (mut sc, mut params) = load(exp, setting)?;
+        change(&mut sc, &mut params);
         let p = &sc.plant;
         let mut pcac = Pcac::new(&params, simulate::plant_dimensions(p))?;
         let mut trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
@@ -582,6 +608,7 @@ pub fn run_experiment(
         tones,
         in_band_modes: in_band_modes(exp)?,
         closed,
+        sensitivity: Vec::new(),
     })
 }
 
@@ -605,9 +632,19 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
     let mut outcomes = Vec::new();
     for &exp in &opts.experiments {
         let t = Instant::now();
-        let o = run_experiment(exp, &opts.settings, opts.duration)?;
+        let mut o = run_experiment(exp, &opts.settings, opts.duration)?;
+        if opts.sensitivity {
+            o.sensitivity = sensitivity::run(exp, opts.duration)?;
+        }
         let secs = t.elapsed().as_secs_f64();
         summarize(&o, secs, &mut report)?;
+        if !o.sensitivity.is_empty() {
+            let _ = writeln!(
+                report,
+                "  sensitivity (node 8, printed setting; sensitivity.csv): {}",
+                sensitivity::summary(&o.sensitivity, claims::within_s(exp), claims::SUPPRESSED_DB)
+            );
+        }
         for c in &o.closed {
             write_trace_csv(
                 &out.join(format!("{}-{}-trace.csv", exp.name(), c.setting.name())),
@@ -621,6 +658,9 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
         outcomes.push(o);
     }
     write_reductions_csv(&out.join("reductions.csv"), &outcomes)?;
+    if opts.sensitivity {
+        write_sensitivity_csv(&out.join("sensitivity.csv"), &outcomes)?;
+    }
     table(&outcomes, &mut report);
     let _ = writeln!(
         report,
@@ -822,6 +862,25 @@ fn write_trace_csv(path: &Path, o: &Outcome, c: &Closed) -> Result<(), TrussErro
             let _ = write!(s, ",{:.6e}", v[k]);
         }
         s.push('\n');
+    }
+    Ok(write(path, &s)?)
+}
+
+/// `sensitivity.csv`: one row per experiment and alternative ([`sensitivity`]).
+fn write_sensitivity_csv(path: &Path, outcomes: &[Outcome]) -> Result<(), TrussError> {
+    let mut s = String::from("experiment,choice,value,node8_converge_s,node8_reduction_db\n");
+    for o in outcomes {
+        for r in &o.sensitivity {
+            let _ = writeln!(
+                s,
+                "{},{},{},{},{:.2}",
+                o.experiment.name(),
+                r.change.choice(),
+                r.change.value(),
+                r.converge.map_or("never".into(), |t| format!("{t:.2}")),
+                r.reduction_db
+            );
+        }
     }
     Ok(write(path, &s)?)
 }
@@ -1177,9 +1236,16 @@ mod tests {
                 duration: 30.0,
                 experiments: vec![Experiment::Aliasing],
                 settings: Setting::ALL.to_vec(),
+                sensitivity: true,
             },
         )
         .unwrap();
+        let sens = std::fs::read_to_string(dir.join("sensitivity.csv")).unwrap();
+        assert_eq!(
+            sens.lines().count(),
+            1 + sensitivity::alternatives(Experiment::Aliasing).len(),
+            "{sens}"
+        );
         for setting in ["printed", "metres"] {
             for (fig, what) in [
                 ("6.8", "response"),
