@@ -9,7 +9,8 @@
 # service's own HdrHistogram); the table gives them per round, the medians per variant,
 # and B ÷ A of the medians. The watcher runs on the cores of WATCH_CPUS (a taskset list;
 # default: the plant's core 0, off the service's RT core 1 as docs/deployment.md asks of
-# everything else on the box; WATCH_CPUS=all lets it run anywhere). Needs the release
+# everything else on the box; WATCH_CPUS=all starts it anywhere, and the monitor then
+# moves itself off the RT core when the service's telemetry names it). Needs the release
 # binaries (`cargo build --release --workspace --bins`), curl, taskset and python3.
 #
 #   [WATCH_CPUS=0] latency-bench/monitor-attached.sh [ROUNDS_PER_VARIANT] [SECONDS] [OUT]

@@ -17,6 +17,7 @@
 //! - [`metrics`]: `/metrics` (prometheus-client collector).
 //! - [`http`]: the routes.
 //! - [`page`]: the web page.
+//! - [`placement`]: keeping off the services' real-time cores.
 //! - [`commands`]: operator commands by name (also `rig command`).
 //! - [`foxglove`]: the Foxglove WebSocket server.
 
@@ -26,6 +27,7 @@ pub mod foxglove;
 pub mod http;
 pub mod metrics;
 pub mod page;
+pub mod placement;
 pub mod reader;
 pub mod snapshot;
 pub mod state;
@@ -55,6 +57,8 @@ pub struct MonitorOptions {
     pub foxglove: Option<String>,
     /// How long a command waits for its reply.
     pub command_timeout: Duration,
+    /// Stay on any core, even a service's real-time core (`--any-core`; [`placement`]).
+    pub any_core: bool,
 }
 
 impl Default for MonitorOptions {
@@ -65,6 +69,7 @@ impl Default for MonitorOptions {
             allow_commands: false,
             foxglove: None,
             command_timeout: commands::COMMAND_TIMEOUT,
+            any_core: false,
         }
     }
 }
@@ -213,10 +218,16 @@ impl Monitor {
             .collect();
         let mut readers = Vec::new();
         for i in 0..hub.names().len() {
-            let h =
-                reader::spawn(hub.clone(), i, stop.clone(), observers.clone()).map_err(|e| {
-                    MonitorError::Start(format!("the reader of rig '{}': {e}", hub.names()[i]))
-                })?;
+            let h = reader::spawn(
+                hub.clone(),
+                i,
+                stop.clone(),
+                observers.clone(),
+                !opts.any_core,
+            )
+            .map_err(|e| {
+                MonitorError::Start(format!("the reader of rig '{}': {e}", hub.names()[i]))
+            })?;
             readers.push(h);
         }
 

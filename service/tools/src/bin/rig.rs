@@ -187,6 +187,10 @@ enum Command {
         /// Also serve Foxglove's WebSocket protocol on this address (e.g. 127.0.0.1:8765).
         #[arg(long)]
         foxglove: Option<String>,
+        /// Stay on any core: do not move off the services' real-time cores (by default the
+        /// monitor moves its threads off them once a service's telemetry names its pid).
+        #[arg(long)]
+        any_core: bool,
     },
     /// Send one operator command to a rig's service and print its reply.
     #[command(name = "command")]
@@ -384,11 +388,13 @@ fn main() -> ExitCode {
             listen,
             allow_commands,
             foxglove,
+            any_core,
         } => monitor(rig_tools::monitor::MonitorOptions {
             rigs,
             listen,
             allow_commands,
             foxglove,
+            any_core,
             ..Default::default()
         }),
         Command::Operator {

@@ -9,6 +9,7 @@
 //! of shared memory, taken into the state under its lock, then handed to the
 //! [`FrameObserver`]s (the Foxglove bridge) outside it.
 
+use super::placement;
 use super::state::Hub;
 use ipc_types::telemetry::ports::TelemetryReader;
 use ipc_types::telemetry::{TelemetryFrame, TelemetryInfo};
@@ -42,15 +43,48 @@ pub fn spawn(
     rig: usize,
     stop: Arc<AtomicBool>,
     observers: Vec<Arc<dyn FrameObserver>>,
+    keep_off_rt: bool,
 ) -> std::io::Result<JoinHandle<()>> {
     let name = format!("monitor-{}", hub.names()[rig]);
     std::thread::Builder::new()
         .name(name.chars().take(15).collect())
-        .spawn(move || run(&hub, rig, &stop, &observers))
+        .spawn(move || run(&hub, rig, &stop, &observers, keep_off_rt))
 }
 
-fn run(hub: &Hub, i: usize, stop: &AtomicBool, observers: &[Arc<dyn FrameObserver>]) {
+/// How often the real-time cores of a service not yet placed are looked for.
+const PLACE_EVERY: Duration = Duration::from_secs(1);
+
+/// Moves the monitor off the real-time cores of the service `pid` of rig `i`, once they
+/// are known; true once done (or there was nothing to do for a service without them).
+fn place(hub: &Hub, i: usize, pid: u32) -> bool {
+    let cores = placement::real_time_cores(pid);
+    if cores.is_empty() {
+        return false;
+    }
+    let text = match placement::keep_off(&cores) {
+        placement::Placement::Already => format!("off the service's real-time cores {cores:?}"),
+        placement::Placement::Moved(left) => {
+            format!("moved to cores {left:?}, off the service's real-time cores {cores:?}")
+        }
+        placement::Placement::Stayed(why) => {
+            format!("stays on the service's real-time cores {cores:?}: {why}")
+        }
+    };
+    eprintln!("[monitor] rig '{}': {text}", hub.names()[i]);
+    hub.lock(i).placement = Some(text);
+    true
+}
+
+fn run(
+    hub: &Hub,
+    i: usize,
+    stop: &AtomicBool,
+    observers: &[Arc<dyn FrameObserver>],
+    keep_off_rt: bool,
+) {
     let rig = hub.names()[i].clone();
+    let mut placed_pid: Option<u32> = None;
+    let mut next_place = Instant::now();
     let mut reader: Option<TelemetryReader> = None;
     let mut next_try = Instant::now();
     // The newest frame, or the subscription when none came since.
@@ -92,6 +126,15 @@ fn run(hub: &Hub, i: usize, stop: &AtomicBool, observers: &[Arc<dyn FrameObserve
             for f in frames.drain(..) {
                 for o in observers {
                     o.on_frame(i, &f);
+                }
+            }
+            let pid = hub.lock(i).info.as_ref().map(|info| info.service_pid);
+            if let Some(pid) = pid.filter(|p| keep_off_rt && *p != 0 && placed_pid != Some(*p))
+                && now >= next_place
+            {
+                next_place = now + PLACE_EVERY;
+                if place(hub, i, pid) {
+                    placed_pid = Some(pid);
                 }
             }
             if now.saturating_duration_since(last_activity) > REOPEN_AFTER {

@@ -68,6 +68,8 @@ pub struct RigView {
     pub last_frame_age_s: Option<f64>,
     /// Why the monitor cannot subscribe to the rig's telemetry, while it cannot.
     pub reader_error: Option<String>,
+    /// Where the monitor keeps itself relative to the service's real-time cores.
+    pub placement: Option<String>,
     /// Times the monitor subscribed (a stale rig is subscribed afresh now and then).
     pub reader_opens: u64,
     /// Frames received since the monitor started.
@@ -397,6 +399,7 @@ impl RigView {
                 .latest_at
                 .map(|t| now.saturating_duration_since(t).as_secs_f64()),
             reader_error: s.reader_error.clone(),
+            placement: s.placement.clone(),
             reader_opens: s.reader_opens,
             frames_received: s.frames_received,
             frames_lost: s.frames_lost,

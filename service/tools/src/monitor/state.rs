@@ -138,6 +138,9 @@ pub struct RigState {
     pub reader_opens: u64,
     /// Why the reader could not subscribe, while it cannot.
     pub reader_error: Option<String>,
+    /// Where the monitor keeps itself relative to this rig's service's real-time cores
+    /// ([`super::placement`]), once it looked.
+    pub placement: Option<String>,
 }
 
 impl RigState {
@@ -156,6 +159,7 @@ impl RigState {
             runs_seen: 0,
             reader_opens: 0,
             reader_error: None,
+            placement: None,
         }
     }
 
