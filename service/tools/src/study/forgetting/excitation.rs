@@ -30,9 +30,9 @@ impl Excitation {
         }
         let mut gram = [[0.0; N]; N];
         for r in rows {
-            for i in 0..N {
-                for j in 0..N {
-                    gram[i][j] += r[i] * r[j];
+            for (g, ri) in gram.iter_mut().zip(r) {
+                for (gij, rj) in g.iter_mut().zip(r) {
+                    *gij += ri * rj;
                 }
             }
         }
@@ -81,13 +81,13 @@ fn symmetric_eigenvalues(mut a: [[f64; N]; N]) -> [f64; N] {
                 let t = if theta == 0.0 { 1.0 } else { t };
                 let c = 1.0 / (t * t + 1.0).sqrt();
                 let s = t * c;
-                for k in 0..N {
-                    let (akp, akq) = (a[k][p], a[k][q]);
-                    a[k][p] = c * akp - s * akq;
-                    a[k][q] = s * akp + c * akq;
+                for row in a.iter_mut() {
+                    let (akp, akq) = (row[p], row[q]);
+                    row[p] = c * akp - s * akq;
+                    row[q] = s * akp + c * akq;
                 }
-                for k in 0..N {
-                    let (apk, aqk) = (a[p][k], a[q][k]);
+                let (rp, rq) = (a[p], a[q]);
+                for (k, (apk, aqk)) in rp.iter().zip(&rq).enumerate() {
                     a[p][k] = c * apk - s * aqk;
                     a[q][k] = s * apk + c * aqk;
                 }
@@ -140,8 +140,7 @@ mod tests {
         ]);
         eig.sort_by(f64::total_cmp);
         // The tridiagonal block [[4,1,0],[1,3,1],[0,1,2]] has eigenvalues 3 and 3 ± √3.
-        let want = [1.0, 3.0 - 3f64.sqrt(), 3.0, 3.0 + 3f64.sqrt(), 5.0];
-        let mut want = want;
+        let mut want = [1.0, 3.0 - 3f64.sqrt(), 3.0, 3.0 + 3f64.sqrt(), 5.0];
         want.sort_by(f64::total_cmp);
         for (g, w) in eig.iter().zip(want) {
             assert!((g - w).abs() < 1e-10, "{eig:?}");

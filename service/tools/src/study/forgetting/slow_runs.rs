@@ -79,7 +79,7 @@ pub struct RunFeatures {
 pub fn stays_below(ks: &[usize], err: &[f64], threshold: f64) -> Option<usize> {
     let mut settle = Some(0);
     for (&k, &e) in ks.iter().zip(err) {
-        if k >= CHANGE_STEP && !(e < threshold) {
+        if k >= CHANGE_STEP && e.partial_cmp(&threshold) != Some(std::cmp::Ordering::Less) {
             settle = Some(k + 1 - CHANGE_STEP);
         }
     }
@@ -383,11 +383,11 @@ pub fn report(c: &Contrast, runs: usize) -> String {
         "{:<18} {}",
         "feature", "median(all)  median(slowest)  Spearman(settle, feature)"
     );
-    for j in 0..NF {
+    for (j, name) in FEATURES.iter().enumerate() {
         let _ = writeln!(
             s,
             "{:<18} {:>11.4} {:>16.4} {:>26.3}",
-            FEATURES[j], c.median[j], c.slowest_median[j], c.rank_correlation[j]
+            name, c.median[j], c.slowest_median[j], c.rank_correlation[j]
         );
     }
     s
