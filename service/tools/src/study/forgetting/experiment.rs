@@ -207,6 +207,8 @@ pub struct Trace {
     pub lambda: Vec<f64>,
     /// Prior error `e_k` per row.
     pub error: Vec<f64>,
+    /// The regressor `φ_k` (as measured) that the update of the row used.
+    pub phi: Vec<[f64; N]>,
 }
 
 /// Which steps to record: every step up to 400, then every 10th (keeps the long
@@ -237,7 +239,21 @@ pub fn run(
     seed: u64,
     record: bool,
 ) -> Result<(RunSummary, Option<Trace>), ForgettingError> {
-    let mut rls = Rls::new(&method.config()).map_err(ForgettingError::Rls)?;
+    run_with(plant, case, &method.config(), steps, seed, record)
+}
+
+/// [`run`] with the estimator's settings `config` instead of a method's printed ones (the
+/// other readings of §5.3's settings, [`super::readings`]); the input and the plant are
+/// those of `case` and `seed`, so runs with the same seed see the same input.
+pub fn run_with(
+    plant: &Plant,
+    case: Case,
+    config: &RlsConfig,
+    steps: usize,
+    seed: u64,
+    record: bool,
+) -> Result<(RunSummary, Option<Trace>), ForgettingError> {
+    let mut rls = Rls::new(config).map_err(ForgettingError::Rls)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = case.noise_std();
     let mut u = vec![0.0; steps];
@@ -292,6 +308,7 @@ pub fn run(
             t.trace_p.push(tr);
             t.lambda.push(step.lambda);
             t.error.push(rls.prior_error()[0]);
+            t.phi.push(phi_meas);
         }
     }
     Ok((

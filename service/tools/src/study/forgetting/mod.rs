@@ -7,6 +7,11 @@
 //! - [`experiment`]: the three cases of §5.3, the three estimators and one run.
 //! - [`montecarlo`]: the Monte Carlo in parallel, percentile bands, summary statistics.
 //! - [`output`]: the CSV files and the PNG figures.
+//! - [`excitation`]: the singular values of the regressor matrix over a stretch of steps.
+//! - [`slow_runs`]: per noiseless RLS/FTVRF run, its settling, excitation after the change
+//!   and the F-test's response; which runs are slow and what they have in common.
+//! - [`readings`]: the readings of §5.3.1's "converge in less than 20 steps" and the
+//!   slowest run under each.
 //! - [`claims`]: the chapter's claims checked on the Monte Carlo statistics.
 //!
 //! It writes, into `--out`:
@@ -16,14 +21,21 @@
 //! - `case{c}_{case}_ftvrf_vs_crf.png`, `case2_noisy_ftvrf_vs_rmsvrf.png`: single runs in
 //!   the manner of Figures 5.1, 5.3, 5.5, 5.7;
 //! - `case{c}_{case}_{method}_mc.png`: bands in the manner of Figures 5.2, 5.4, 5.6, 5.8;
-//! - `summary.txt`: the printed summary table;
+//! - `case1_noiseless_ftvrf_runs.csv`: per noiseless RLS/FTVRF run its seed, settling
+//!   under each reading, excitation and forgetting ([`slow_runs`]);
+//! - `case1_noiseless_ftvrf_settle_vs_excitation.png`: settling (1 %) against `σ_min` of the
+//!   regressor matrix over the 20 steps after the change, one point per run;
+//! - `summary.txt`: the printed summary table, the slow runs and the readings;
 //! - `claims.json`: the chapter's claims checked on the Monte Carlo ([`claims`]).
 
 pub mod claims;
+pub mod excitation;
 pub mod experiment;
 pub mod montecarlo;
 pub mod output;
 pub mod plant;
+pub mod readings;
+pub mod slow_runs;
 
 use crate::file_error::{FileError, FileOp};
 use std::fmt::Write as _;
@@ -201,6 +213,7 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
     );
     let mut mc_time = 0.0;
     let mut results = Vec::new();
+    let mut noiseless_bands = None;
     for case in Case::ALL {
         let n_steps = case.steps();
         let stem = format!("case{}_{}", case.number(), case.name());
@@ -236,6 +249,9 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
             mc_time += t0.elapsed().as_secs_f64();
             let s: Summary = mc.summary;
             results.push((case, method, s));
+            if (case, method) == (Case::Noiseless, Method::Ftvrf) {
+                noiseless_bands = Some(mc.bands.clone());
+            }
             output::write_bands_csv(
                 &out.join(format!("{stem}_{}_mc.csv", method.name())),
                 &mc.bands,
@@ -276,6 +292,29 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
             }
         }
     }
+    // Claim 5.1: which noiseless RLS/FTVRF runs are slow, why, and the readings of
+    // "converge in less than 20 steps".
+    let t_slow = Instant::now();
+    let features = slow_runs::collect(&plant, runs, seed)?;
+    slow_runs::write_csv(&out.join("case1_noiseless_ftvrf_runs.csv"), &features)?;
+    output::plot_settle_vs_excitation(
+        &out.join("case1_noiseless_ftvrf_settle_vs_excitation.png"),
+        &features,
+    )?;
+    let mut why = String::new();
+    if let Some(c) = slow_runs::contrast(&features, 10) {
+        table.push_str(&slow_runs::report(&c, runs));
+        why = slow_runs::why(&c);
+    }
+    let mut all_readings =
+        readings::measurement_readings(&features, &noiseless_bands.unwrap_or_default());
+    all_readings.extend(readings::setting_readings(&plant, runs, seed)?);
+    table.push_str(&readings::table(&all_readings));
+    let _ = writeln!(
+        table,
+        "(slow runs and readings: {:.2} s)",
+        t_slow.elapsed().as_secs_f64()
+    );
     let _ = writeln!(
         table,
         "\nMonte Carlo time (simulation and bands, {} threads): {:.2} s; total {:.2} s; files in {}",
@@ -298,7 +337,10 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
             study: "forgetting".into(),
             chapter: 5,
             run: format!("study forgetting --runs {runs} --seed {seed}"),
-            claims: reproduction::with_figures(claims::claims(&results), claims::FIGURES),
+            claims: reproduction::with_figures(
+                claims::claims(&results, &all_readings, &why),
+                claims::FIGURES,
+            ),
         },
     )?)
 }

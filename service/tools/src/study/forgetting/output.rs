@@ -305,3 +305,66 @@ pub fn plot_bands(path: &Path, title: &str, b: &Bands, color: RGBColor) -> Resul
     };
     draw_figure(path, title, x_max, &fig)
 }
+
+/// Plots each noiseless RLS/FTVRF run's settling (1 %, steps after the change) against the
+/// smallest singular value of its regressor matrix over the 20 steps after the change
+/// ([`crate::study::forgetting::slow_runs`]); the claim's 20 steps dashed. Runs that never
+/// settle are drawn at the top edge.
+pub fn plot_settle_vs_excitation(
+    path: &Path,
+    runs: &[crate::study::forgetting::slow_runs::RunFeatures],
+) -> Result<(), PlotError> {
+    let pts: Vec<(f64, f64)> = runs
+        .iter()
+        .map(|r| {
+            (
+                r.excitation.sigma_min,
+                r.settle.map_or(f64::INFINITY, |s| s as f64),
+            )
+        })
+        .collect();
+    let x_max = pts.iter().map(|p| p.0).fold(0.0, f64::max).max(1e-3) * 1.05;
+    let finite_max = pts
+        .iter()
+        .map(|p| p.1)
+        .filter(|v| v.is_finite())
+        .fold(20.0, f64::max);
+    let y_max = finite_max * 1.1 + 1.0;
+    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(PlotError::backend)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "Case 1 (noiseless), RLS/FTVRF: settling (1 %) vs σ_min of the regressor matrix, k = 100..119",
+            (FONT, 18),
+        )
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+        .map_err(PlotError::backend)?;
+    chart
+        .configure_mesh()
+        .x_desc("σ_min(Φ) over the 20 steps after the change")
+        .y_desc("steps to settle (1 %)")
+        .label_style((FONT, 13))
+        .draw()
+        .map_err(PlotError::backend)?;
+    chart
+        .draw_series(
+            pts.iter()
+                .map(|&(x, y)| Circle::new((x, y.min(y_max)), 3, RGBColor(200, 0, 0).filled())),
+        )
+        .map_err(PlotError::backend)?;
+    chart
+        .draw_series(DashedLineSeries::new(
+            vec![(0.0, 20.0), (x_max, 20.0)],
+            6,
+            4,
+            ShapeStyle::from(&BLACK).stroke_width(1),
+        ))
+        .map_err(PlotError::backend)?;
+    root.present().map_err(|e| PlotError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
