@@ -177,6 +177,71 @@ fn a_small_study_writes_its_files_and_repeats_the_kernel_tests_single_runs() {
 }
 
 #[test]
+fn the_outward_reading_of_example_two_writes_its_grid_and_maps_and_can_be_turned_off() {
+    let out = out_dir("outward");
+    // A 4 × 4 outward grid to ρ = 2 and the 2 × 2 patch around the zero 1.5.
+    let options = Options::parse("2", "step", 2)
+        .and_then(|o| o.with_outward(2.0, 4))
+        .expect("valid");
+    let report = mrac::run(&options, &out, "outward").expect("runs");
+    let csv = std::fs::read_to_string(out.join("grid-outward.csv")).expect("grid-outward.csv");
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "region,command,method,rho,nu,open_loop_unstable,e_norm,unstable,diverged_at,peak_y,theta_settle"
+        )
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // Two methods on 16 outward points and 4 patch points.
+    assert_eq!(rows.len(), 2 * (16 + 4));
+    assert_eq!(rows.iter().filter(|r| r[0] == "outward").count(), 32);
+    // The outermost ring is at ρ = 2 and open-loop unstable; the patch surrounds 1.5.
+    assert!(rows.iter().any(|r| r[3] == "2.000000" && r[5] == "1"));
+    assert!(
+        rows.iter()
+            .filter(|r| r[0] == "near-zero")
+            .all(|r| r[3] == "1.375000" || r[3] == "1.625000")
+    );
+    for f in [
+        "map-outward-ex2-step-appc.png",
+        "map-outward-ex2-step-rc-mrac.png",
+    ] {
+        let meta = std::fs::metadata(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        assert!(meta.len() > 100, "{f} is nearly empty");
+    }
+    assert!(
+        report
+            .markdown
+            .contains("Outward reading of Figures 4.8a–4.10a")
+    );
+    // Claim 4 needs every command: not checked on the step alone.
+    let c4 = report
+        .claims
+        .iter()
+        .find(|c| c.number == 4)
+        .expect("claim 4");
+    assert_eq!(c4.verdict, Verdict::NotChecked);
+    let _ = std::fs::remove_dir_all(&out);
+
+    // Turned off, no outward file is written.
+    let off = out_dir("outward-off");
+    let options = Options::parse("2", "step", 2)
+        .and_then(|o| o.with_outward(2.0, 0))
+        .expect("valid");
+    mrac::run(&options, &off, "off").expect("runs");
+    assert!(!off.join("grid-outward.csv").exists());
+    let _ = std::fs::remove_dir_all(&off);
+    assert!(
+        Options::parse("2", "step", 2)
+            .and_then(|o| o.with_outward(0.9, 4))
+            .unwrap_err()
+            .to_string()
+            .contains("--outward-rho")
+    );
+}
+
+#[test]
 fn example_three_without_the_step_is_refused_naming_the_arguments() {
     let options = Options::parse("3", "two,four", 3).expect("parses");
     let err = mrac::run(&options, &out_dir("empty"), "")

@@ -19,6 +19,11 @@
 //! a non-finite regression or input). The run stops at the first such sample and its
 //! `‖e‖` is `+∞`.
 //!
+//! # The estimate's settling
+//!
+//! Every run keeps `θ̂_0 … θ̂_200` and reports when it settles
+//! ([`crate::study::mrac::theta_settling`]); a diverged run has none.
+//!
 //! [`setup`]: crate::study::mrac::setup
 
 use crate::study::mrac::MracError;
@@ -72,6 +77,9 @@ pub struct RunOutcome {
     pub diverged: Option<(Divergence, usize)>,
     /// The largest `|y_k|` of the run (up to the divergence).
     pub peak_y: f64,
+    /// The step after which `θ̂_k` stays within 10 % of its largest excursion from
+    /// `θ̂_200` ([`crate::study::mrac::theta_settling`]); `None` when the run diverged.
+    pub theta_settle: Option<usize>,
     /// The signals, when asked for.
     pub trace: Option<RunTrace>,
 }
@@ -92,8 +100,9 @@ pub fn e_norm(e: &[f64]) -> f64 {
         .sqrt()
 }
 
-/// Runs `method` on `example` with `command` at the plant poles `ρ e^{±jν}`; records the
-/// signals when `record`.
+/// Runs `method` on `example` with `command` at the plant poles `ρ e^{±jν}` (the
+/// chapter's range, `0 < ρ < 1`, as the scenario files); records the signals when
+/// `record`.
 pub fn run(
     example: Example,
     command: CommandKind,
@@ -110,6 +119,19 @@ pub fn run(
             nu,
             source,
         })?;
+    run_on(tf, example, command, method, record)
+}
+
+/// Runs `method` on the plant `tf` with `example`'s disturbance and `command`; records
+/// the signals when `record`. `tf` may be any plant of the example's numerator, e.g. one
+/// with poles outside the unit circle ([`crate::study::mrac::outward::plant`]).
+pub fn run_on(
+    tf: plant_proxy::discrete::DiscreteTf,
+    example: Example,
+    command: CommandKind,
+    method: Method,
+    record: bool,
+) -> Result<RunOutcome, MracError> {
     let mut plant = plant_proxy::discrete::DifferenceEquation::new(tf);
     let mut kernel = Kernel::new(example, method)?;
     let cmd = command.command();
@@ -118,6 +140,8 @@ pub fn run(
     let mut e = Vec::with_capacity(STEPS + 1);
     let mut diverged = None;
     let mut peak_y = 0.0_f64;
+    let dim = kernel.theta().len();
+    let mut history = Vec::with_capacity((STEPS + 1) * dim);
     for k in 0..=STEPS {
         let y = plant.output();
         peak_y = peak_y.max(y.abs());
@@ -146,6 +170,7 @@ pub fn run(
             break;
         }
         e.push(kernel.e());
+        history.extend_from_slice(kernel.theta());
         let d = disturbance.map_or(0.0, |h| h.at(k as u64));
         plant.step(u + d);
     }
@@ -154,10 +179,17 @@ pub fn run(
     } else {
         e_norm(&e)
     };
+    // A finite run whose θ̂ is not finite has no settling step either.
+    let theta_settle = if diverged.is_some() {
+        None
+    } else {
+        crate::study::mrac::theta_settling::settling_step(&history, dim).ok()
+    };
     Ok(RunOutcome {
         e_norm,
         diverged,
         peak_y,
+        theta_settle,
         trace: record.then_some(trace),
     })
 }
@@ -196,6 +228,14 @@ mod tests {
         .expect("runs");
         assert_eq!(again.e_norm, out.e_norm);
         assert!(again.trace.is_none());
+        // The settling step is the recorded θ̂'s.
+        let flat: Vec<f64> = t.theta.iter().flatten().copied().collect();
+        assert_eq!(
+            out.theta_settle,
+            crate::study::mrac::theta_settling::settling_step(&flat, 8).ok()
+        );
+        assert_eq!(again.theta_settle, out.theta_settle);
+        assert!(out.theta_settle.is_some_and(|k| k > 0 && k <= STEPS));
     }
 
     #[test]

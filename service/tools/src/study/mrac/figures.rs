@@ -5,7 +5,9 @@
 //!   sector around the pole `ρ_i e^{jν_j}`) with the color of its `log₁₀‖e‖` on a scale
 //!   common to every map of the run (the color bar at the right); an unstable point is
 //!   an empty square at the pole, as in the chapter. The unit circle, the plant's zero
-//!   (when inside the frame) and the reference model's pole `0.5 e^{jπ/2}` are drawn.
+//!   (when inside the frame) and the reference model's pole `0.5 e^{jπ/2}` are drawn. The
+//!   frame is the unit half-disc, or the grid's half-disc when it reaches past the unit
+//!   circle (the outward reading, [`crate::study::mrac::outward`]).
 //! - [`single_run`] (the b panels): `e_k`, `u_k` and the two groups of `θ̂_k`, clockwise
 //!   from the top left as the chapter: `e`, `u`, then `θ̂_2` (Bezout) and `θ̂_1`
 //!   (controller) for APPC, `θ̂` of `r` and `θ̂` of `y`, `u` for RC-MRAC.
@@ -36,11 +38,13 @@ pub fn heat_map(
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let root = root.titled(title, (FONT, 18)).map_err(|e| fail(&e))?;
     let (left, right) = root.split_horizontally(780);
+    // The unit disc's upper half, or the grid's when it reaches past the unit circle.
+    let reach = grid.rho.iter().copied().fold(1.0, f64::max) * 1.05;
     let mut chart = ChartBuilder::on(&left)
         .margin(10)
         .x_label_area_size(36)
         .y_label_area_size(48)
-        .build_cartesian_2d(-1.05..1.05, 0.0..1.05)
+        .build_cartesian_2d(-reach..reach, 0.0..reach)
         .map_err(|e| fail(&e))?;
     chart
         .configure_mesh()
@@ -87,7 +91,7 @@ pub fn heat_map(
         .draw_series(LineSeries::new(circle, BLACK.stroke_width(1)))
         .map_err(|e| fail(&e))?;
     let zero = sweep.example.plant().zero();
-    if zero <= 1.05 {
+    if zero <= reach {
         chart
             .draw_series(std::iter::once(Circle::new(
                 (zero, 0.0),
@@ -109,7 +113,7 @@ pub fn heat_map(
         .legend(|(x, y)| Cross::new((x, y), 5, RED.stroke_width(2)));
     chart
         .draw_series(std::iter::once(Rectangle::new(
-            [(2.0, 2.0), (2.0, 2.0)],
+            [(4.0 * reach, 4.0 * reach), (4.0 * reach, 4.0 * reach)],
             BLACK.stroke_width(2),
         )))
         .map_err(|e| fail(&e))?

@@ -64,6 +64,8 @@ pub struct GridPoint {
     pub diverged: Option<(Divergence, usize)>,
     /// The largest `|y_k|` of the run.
     pub peak_y: f64,
+    /// When `θ̂_k` settles ([`crate::study::mrac::theta_settling`]); `None` when unstable.
+    pub theta_settle: Option<usize>,
 }
 
 impl GridPoint {
@@ -93,23 +95,51 @@ impl Sweep {
     }
 }
 
-/// Runs `method` on `example` with `command` at every point of `grid`, in parallel.
+/// Runs `method` on `example` with `command` at every point of `grid`, in parallel (the
+/// chapter's plants, `0 < ρ < 1`).
 pub fn sweep(
     example: Example,
     command: CommandKind,
     method: Method,
     grid: &Grid,
 ) -> Result<Sweep, MracError> {
+    sweep_with(example, command, method, grid, |rho, nu| {
+        example
+            .plant()
+            .plant(rho, nu)
+            .map_err(|source| MracError::Plant {
+                example,
+                rho,
+                nu,
+                source,
+            })
+    })
+}
+
+/// As [`sweep`], with the plant at `(ρ, ν)` built by `plant` (e.g.
+/// [`crate::study::mrac::outward::plant`], which also builds open-loop unstable plants).
+pub fn sweep_with<P>(
+    example: Example,
+    command: CommandKind,
+    method: Method,
+    grid: &Grid,
+    plant: P,
+) -> Result<Sweep, MracError>
+where
+    P: Fn(f64, f64) -> Result<plant_proxy::discrete::DiscreteTf, MracError> + Sync,
+{
     let points = grid
         .points()
         .into_par_iter()
         .map(|(rho, nu)| {
-            closed_loop::run(example, command, method, (rho, nu), false).map(|o| GridPoint {
+            let tf = plant(rho, nu)?;
+            closed_loop::run_on(tf, example, command, method, false).map(|o| GridPoint {
                 rho,
                 nu,
                 e_norm: o.e_norm,
                 diverged: o.diverged,
                 peak_y: o.peak_y,
+                theta_settle: o.theta_settle,
             })
         })
         .collect::<Result<Vec<_>, MracError>>()?;
@@ -122,15 +152,18 @@ pub fn sweep(
 }
 
 /// Writes every sweep as CSV: `example, command, method, rho, nu, e_norm, unstable,
-/// diverged_at, peak_y` (`e_norm` is `inf` and `diverged_at` the sample for an unstable
-/// point; `peak_y` the largest `|y_k|`).
+/// diverged_at, peak_y, theta_settle` (`e_norm` is `inf` and `diverged_at` the sample for
+/// an unstable point; `peak_y` the largest `|y_k|`; `theta_settle` the step `θ̂` settles,
+/// empty for an unstable point).
 pub fn write_csv(path: &Path, sweeps: &[Sweep]) -> Result<(), MracError> {
-    let mut s = String::from("example,command,method,rho,nu,e_norm,unstable,diverged_at,peak_y\n");
+    let mut s = String::from(
+        "example,command,method,rho,nu,e_norm,unstable,diverged_at,peak_y,theta_settle\n",
+    );
     for sw in sweeps {
         for p in &sw.points {
             let _ = writeln!(
                 s,
-                "{},{},{},{:.6},{:.6},{:.6e},{},{},{:.6e}",
+                "{},{},{},{:.6},{:.6},{:.6e},{},{},{:.6e},{}",
                 sw.example.number(),
                 sw.command.name(),
                 sw.method.name(),
@@ -139,7 +172,8 @@ pub fn write_csv(path: &Path, sweeps: &[Sweep]) -> Result<(), MracError> {
                 p.e_norm,
                 u8::from(p.unstable()),
                 p.diverged.map(|(_, k)| k.to_string()).unwrap_or_default(),
-                p.peak_y
+                p.peak_y,
+                p.theta_settle.map(|k| k.to_string()).unwrap_or_default()
             );
         }
     }

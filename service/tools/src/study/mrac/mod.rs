@@ -13,15 +13,21 @@
 //! - `map-ex{e}-{command}-{method}.png`: the heat map ([`figures::heat_map`]);
 //! - `single-ex{e}-{command}-{method}.png`: the four panels
 //!   ([`figures::single_run`]);
-//! - `summary.md`: the summary table, the single runs and the claims;
+//! - with Example 2 and the outward reading on (the default; [`outward`]):
+//!   `grid-outward.csv` (the outward grid past the unit circle and the patch around the
+//!   zero, [`outward::write_csv`]) and `map-outward-ex2-{command}-{method}.png`;
+//! - `summary.md`: the summary table, the single runs, the outward reading and the claims;
 //! - `claims.json`: the claims in the reproduction's record ([`claims`]).
 
 pub mod claims;
 pub mod closed_loop;
+pub mod empty_squares;
 pub mod figures;
 pub mod grid;
+pub mod outward;
 pub mod setup;
 pub mod summary;
+pub mod theta_settling;
 
 use crate::file_error::{AtomicFileError, FileError, FileOp};
 use std::f64::consts::PI;
@@ -31,12 +37,14 @@ use std::path::Path;
 use crate::plot::PlotError;
 use crate::study::reproduction::{self, ClaimsError};
 use closed_loop::RunTrace;
+use empty_squares::{Reading, ReadingError};
 use grid::{Grid, Sweep};
+use outward::{OutwardOptions, OutwardSweep, Region};
 use setup::{CommandKind, Example, Method, theta_names};
 use summary::{Claim, SweepStats};
 
 /// A refused option of `study mrac`, naming it.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ArgError {
     /// A name that is not one of the option's.
     #[error("{option}: {value:?} is not {known}")]
@@ -51,6 +59,14 @@ pub enum ArgError {
     /// `--grid 0`.
     #[error("--grid: 0 points; give at least 1")]
     NoGrid,
+    /// `--outward-rho` not in `(1, 10]`.
+    #[error(
+        "--outward-rho: {0} is not a pole radius in (1, 10] (the outward grid must reach past the unit circle)"
+    )]
+    OutwardRho(f64),
+    /// `--outward-grid 0` where a grid is wanted.
+    #[error("--outward-grid: 0 points; give at least 1")]
+    NoOutwardGrid,
     /// No example and command to run.
     #[error("--example/--command: nothing to run (Example 3 runs with the step only)")]
     NothingToRun,
@@ -81,6 +97,17 @@ pub enum MracError {
         #[source]
         source: plant_proxy::mrac_examples::MracExampleError,
     },
+    /// A pole of the outward grid that is no pole (`ρ ≤ 0`, `ν` outside `[0, π]`, or not
+    /// finite).
+    #[error("Example {} outward grid: rho = {rho}, nu = {nu} is not a pole (rho finite and > 0, nu in [0, pi])", example.number())]
+    OutwardPole {
+        /// The example.
+        example: Example,
+        /// The pole radius.
+        rho: f64,
+        /// The pole angle.
+        nu: f64,
+    },
     /// The controller's parameters are refused.
     #[error("{} on Example {}: {source}", method.label(*example), example.number())]
     Controller {
@@ -95,6 +122,9 @@ pub enum MracError {
     /// The single run recorded no trace.
     #[error("the single run was not recorded")]
     NotRecorded,
+    /// The empty squares cannot be counted.
+    #[error(transparent)]
+    Reading(#[from] ReadingError),
     /// A figure cannot be drawn.
     #[error(transparent)]
     Plot(#[from] PlotError),
@@ -122,6 +152,8 @@ pub struct Options {
     pub grid: usize,
     /// Draw the PNG figures.
     pub figures: bool,
+    /// The outward reading of Figures 4.8a–4.10a (run when Example 2 is), or `None`.
+    pub outward: Option<OutwardOptions>,
 }
 
 impl Options {
@@ -150,7 +182,19 @@ impl Options {
             commands,
             grid,
             figures: true,
+            outward: Some(OutwardOptions::default()),
         })
+    }
+
+    /// Sets the outward reading: `--outward-rho R --outward-grid N` (see
+    /// [`OutwardOptions::new`]); `N = 0` turns it off.
+    pub fn with_outward(mut self, rho_max: f64, grid: usize) -> Result<Self, ArgError> {
+        self.outward = if grid == 0 {
+            None
+        } else {
+            Some(OutwardOptions::new(rho_max, grid)?)
+        };
+        Ok(self)
     }
 
     /// The `(example, command, method)` triples to run, in order.
@@ -261,7 +305,66 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
             )?;
         }
     }
-    let claims = summary::claims(&stats);
+    let pairs = |sw: &[&Sweep]| -> Vec<(Sweep, Sweep)> {
+        CommandKind::ALL
+            .iter()
+            .filter_map(|&c| {
+                let get = |m| {
+                    sw.iter()
+                        .find(|s| s.example == Example::Two && s.command == c && s.method == m)
+                };
+                Some((
+                    (*get(Method::Appc)?).clone(),
+                    (*get(Method::RcMrac)?).clone(),
+                ))
+            })
+            .collect()
+    };
+    let inside_pairs = pairs(&sweeps.iter().collect::<Vec<_>>());
+    let inside = Reading::of(
+        &format!(
+            "inside the unit circle ({n} × {n}, ρ < 1)",
+            n = options.grid
+        ),
+        &inside_pairs.iter().map(|(a, r)| (a, r)).collect::<Vec<_>>(),
+    )?;
+    let outward_sweeps = match options.outward {
+        Some(o) if options.examples.contains(&Example::Two) => {
+            let commands: Vec<CommandKind> = CommandKind::ALL
+                .into_iter()
+                .filter(|c| options.commands.contains(c))
+                .collect();
+            let sw = outward::sweep(&o, &commands)?;
+            outward::write_csv(&out.join("grid-outward.csv"), &sw)?;
+            if options.figures {
+                draw_outward_maps(out, &o, &sw)?;
+            }
+            Some((o, sw))
+        }
+        _ => None,
+    };
+    let outward_reading = match &outward_sweeps {
+        Some((o, sw)) => {
+            let all: Vec<(&Sweep, &Sweep)> = sw
+                .chunks(2)
+                .filter_map(|p| match p {
+                    [a, r] => Some((&a.sweep, &r.sweep)),
+                    _ => None,
+                })
+                .collect();
+            Some(Reading::of(
+                &format!(
+                    "outward ({n} × {n} to ρ = {r}, and {z} × {z} around the zero 1.5)",
+                    n = o.grid,
+                    r = o.rho_max,
+                    z = o.near_zero
+                ),
+                &all,
+            )?)
+        }
+        None => None,
+    };
+    let claims = summary::claims(&stats, Some(&inside), outward_reading.as_ref());
     let preamble = format!(
         "Command: `{command}` (deterministic: every run of it gives these numbers).\n\n\
          Grid: {n} × {n} plants, ρ = i/{n1} (i = 1…{n}), ν = (j − 1/2)π/{n} (j = 1…{n}); \
@@ -289,6 +392,9 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
             s.e_norm
         );
     }
+    if let Some((o, sw)) = &outward_sweeps {
+        markdown.push_str(&outward_markdown(o, sw));
+    }
     let path = out.join("summary.md");
     std::fs::write(&path, &markdown)
         .map_err(|source| FileError::new(FileOp::Access, &path, source))?;
@@ -307,6 +413,111 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
         claims,
         markdown,
     })
+}
+
+/// The maps of the outward grid (not the patch), on their own common color scale.
+fn draw_outward_maps(
+    out: &Path,
+    o: &OutwardOptions,
+    sweeps: &[OutwardSweep],
+) -> Result<(), MracError> {
+    let outer: Vec<&OutwardSweep> = sweeps
+        .iter()
+        .filter(|s| s.region == Region::Outward)
+        .collect();
+    let range = color_range(&outer.iter().map(|s| s.sweep.clone()).collect::<Vec<_>>());
+    for s in outer {
+        let (e, c, m) = (s.sweep.example, s.sweep.command, s.sweep.method);
+        // The patch's unstable points join the map as empty squares (its stable points
+        // are too fine to draw as cells of this grid).
+        let mut drawn = s.sweep.clone();
+        drawn.points.extend(
+            sweeps
+                .iter()
+                .filter(|z| {
+                    z.region == Region::NearZero && z.sweep.command == c && z.sweep.method == m
+                })
+                .flat_map(|z| z.sweep.points.iter().filter(|p| p.unstable()).copied()),
+        );
+        figures::heat_map(
+            &out.join(format!("map-outward-{}.png", stem(e, c, m))),
+            &format!(
+                "Example 2, {}, {}: log10 ‖e‖ (4.85) to ρ = {}, {n}×{n} grid; □ unstable (with the patch at 1.5)",
+                m.label(e),
+                c.label(),
+                o.rho_max,
+                n = o.grid
+            ),
+            &drawn,
+            &s.grid,
+            range,
+        )?;
+    }
+    Ok(())
+}
+
+/// The outward reading as Markdown: per region, command and method the unstable points
+/// (of them, with `ρ ≥ 1`), the smallest unstable `ρ`, the median `log₁₀‖e‖` and the
+/// median θ̂ settling step.
+fn outward_markdown(o: &OutwardOptions, sweeps: &[OutwardSweep]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\nOutward reading of Figures 4.8a–4.10a (Example 2; `grid-outward.csv`): the \
+         {n} × {n} grid ρ = i·{r}/{n} (i = 1…{n}), ν = (j − 1/2)π/{n}, and the {z} × {z} \
+         patch around the zero, ρ in 1.5 ± {w}, ν in (0, {nz}); plants with ρ ≥ 1 are \
+         open-loop unstable.\n",
+        n = o.grid,
+        r = o.rho_max,
+        z = o.near_zero,
+        w = outward::NEAR_ZERO_HALF_WIDTH,
+        nz = outward::NEAR_ZERO_NU_MAX
+    );
+    let _ = writeln!(
+        s,
+        "| region | command | method | unstable | unstable with ρ ≥ 1 | smallest unstable ρ | median log10‖e‖ | median θ̂ settling step |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- | --- | --- |");
+    for w in sweeps {
+        let st = SweepStats::of(&w.sweep);
+        let outside = w.sweep.points.iter().filter(|p| p.rho >= 1.0).count();
+        let unstable_outside = w
+            .sweep
+            .points
+            .iter()
+            .filter(|p| p.rho >= 1.0 && p.unstable())
+            .count();
+        let smallest = w
+            .sweep
+            .points
+            .iter()
+            .filter(|p| p.unstable())
+            .map(|p| p.rho)
+            .fold(f64::INFINITY, f64::min);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {}/{} | {}/{} | {} | {} | {} |",
+            w.region.name(),
+            w.sweep.command.label(),
+            w.sweep.method.label(w.sweep.example),
+            st.unstable,
+            st.points,
+            unstable_outside,
+            outside,
+            if smallest.is_finite() {
+                format!("{smallest:.3}")
+            } else {
+                "-".into()
+            },
+            if st.median.is_finite() {
+                format!("{:.2}", st.median)
+            } else {
+                "inf".into()
+            },
+            st.theta_settle
+        );
+    }
+    s
 }
 
 /// The common color scale of the heat maps: the range of the finite `log₁₀‖e‖` over
