@@ -281,7 +281,9 @@ impl GainObjective {
     }
 }
 
-/// The options of `rig-design robust-gain` beyond the box.
+/// The options of `rig-design robust-gain` beyond the box (read only with the `sdp`
+/// feature).
+#[cfg_attr(not(feature = "sdp"), allow(dead_code))]
 struct GainOptions {
     objective: GainObjective,
     state_weight: Option<Vec<f64>>,
