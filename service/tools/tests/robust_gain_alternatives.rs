@@ -33,6 +33,9 @@ fn the_minimum_gain_is_smaller_than_the_committed_gain() {
     // Entry by entry on χ = [ẋ, ẏ, e] (the units differ between columns, not designs).
     for j in 0..3 {
         let col = |k: &nalgebra::Matrix2x3<f64>| k.column(j).norm();
-        assert!(col(&small) < col(&margin), "column {j}: {small} vs {margin}");
+        assert!(
+            col(&small) < col(&margin),
+            "column {j}: {small} vs {margin}"
+        );
     }
 }
