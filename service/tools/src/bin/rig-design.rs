@@ -12,6 +12,8 @@
 //! rig-design compare     TARGET.toml SCENARIO --hz F1,F2,… [--output y|z]
 //! rig-design example-3-41 [--out DIR]
 //! rig-design robust-gain [--decay-rate λ] [--force-scale E0] [--grid N] [--out FILE]
+//!                        [--objective margin|min-gain|lqr] [--state-weight WX,WY,WE]
+//!                        [--input-weight R]
 //! ```
 //!
 //! Each writes its results into `--out` (CSV, TOML, PNG) and prints a summary; the
@@ -22,6 +24,9 @@
 //! `robust-gain` solves the sampling arm's normalized (7.41) (crate feature `sdp`), checks
 //! its gain independently (spectral radii at the box's vertices and over a grid) and writes
 //! the gain file the arm controller reads (`scenarios/arm/robust-gain.toml` by default).
+//! `--objective min-gain` or `lqr` designs another gain over the same decay-rate
+//! inequalities (7.40) (`rig_tools::design::robust_gain_objective`) and writes it to
+//! `scenarios/arm/robust-gain-<objective>.toml` unless `--out` says otherwise.
 
 #![warn(missing_docs)]
 
@@ -237,10 +242,52 @@ enum Command {
         /// Grid points per axis (log-spaced) of the independent check.
         #[arg(long, default_value_t = 60)]
         grid: usize,
-        /// The gain file to write.
-        #[arg(long, default_value = "scenarios/arm/robust-gain.toml")]
-        out: PathBuf,
+        /// The gain file to write (default: `scenarios/arm/robust-gain.toml` for the
+        /// margin objective, `scenarios/arm/robust-gain-<objective>.toml` otherwise).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// What the design optimizes over the decay-rate inequalities (7.40): the margin
+        /// s (the committed design), the gain's norm, or an LQR cost bound.
+        #[arg(long, value_enum, default_value_t = GainObjective::Margin)]
+        objective: GainObjective,
+        /// LQR state weights on [ẋ, ẏ, e] in (s/m)², (s/m)², 1/N² (`--objective lqr`;
+        /// default Bryson's rule with 0.1 m/s, 0.1 m/s and 25 N).
+        #[arg(long, value_delimiter = ',')]
+        state_weight: Option<Vec<f64>>,
+        /// LQR input weight on each input (`--objective lqr`; default 0.01).
+        #[arg(long)]
+        input_weight: Option<f64>,
     },
+}
+
+/// The objective of `rig-design robust-gain`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum GainObjective {
+    /// Maximize the margin s under s I ⪯ Q ⪯ I (the committed gain).
+    Margin,
+    /// Minimize the bound t ≥ ‖K̃‖² with Q ⪰ I.
+    MinGain,
+    /// Minimize the trace of an LQR cost bound.
+    Lqr,
+}
+
+impl GainObjective {
+    fn name(self) -> &'static str {
+        match self {
+            GainObjective::Margin => "margin",
+            GainObjective::MinGain => "min-gain",
+            GainObjective::Lqr => "lqr",
+        }
+    }
+}
+
+/// The options of `rig-design robust-gain` beyond the box (read only with the `sdp`
+/// feature).
+#[cfg_attr(not(feature = "sdp"), allow(dead_code))]
+struct GainOptions {
+    objective: GainObjective,
+    state_weight: Option<Vec<f64>>,
+    input_weight: Option<f64>,
 }
 
 /// Why a command of `rig-design` failed: a library step's own error (naming the file, the
@@ -337,7 +384,21 @@ fn main() -> ExitCode {
             force_scale,
             grid,
             out,
-        } => robust_gain(decay_rate, force_scale, grid, &out),
+            objective,
+            state_weight,
+            input_weight,
+        } => {
+            let out = out.unwrap_or_else(|| match objective {
+                GainObjective::Margin => PathBuf::from("scenarios/arm/robust-gain.toml"),
+                o => PathBuf::from(format!("scenarios/arm/robust-gain-{}.toml", o.name())),
+            });
+            let opts = GainOptions {
+                objective,
+                state_weight,
+                input_weight,
+            };
+            robust_gain(decay_rate, force_scale, grid, &out, &opts)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -911,7 +972,13 @@ fn example_3_41(out: &Path) -> Result<(), CommandError> {
 
 /// `rig-design robust-gain` without the SDP solver.
 #[cfg(not(feature = "sdp"))]
-fn robust_gain(_: Option<f64>, _: Option<f64>, _: usize, _: &Path) -> Result<(), CommandError> {
+fn robust_gain(
+    _: Option<f64>,
+    _: Option<f64>,
+    _: usize,
+    _: &Path,
+    _: &GainOptions,
+) -> Result<(), CommandError> {
     Err(CommandError::Usage(
         "robust-gain needs the SDP solver: build rig-tools with `--features sdp` (it links \
          the system's OpenBLAS: apt-get install libopenblas-dev)"
@@ -926,10 +993,12 @@ fn robust_gain(
     force_scale: Option<f64>,
     grid: usize,
     out: &Path,
+    opts: &GainOptions,
 ) -> Result<(), CommandError> {
     use control::arm::robust::RobustBox;
     use rig_tools::design::robust_gain::{self as rg, MARGIN_TOLERANCE};
     use rig_tools::design::robust_gain_file::RobustGainFile;
+    use rig_tools::design::robust_gain_objective::{self as obj, LqrWeights, Objective};
     use std::fmt::Write;
 
     let chapter = RobustBox::CHAPTER_7;
@@ -945,13 +1014,44 @@ fn robust_gain(
             "--grid {grid}: at least 2 points per axis"
         )));
     }
-    let sol = match force_scale {
+    let objective = match opts.objective {
+        GainObjective::Margin | GainObjective::MinGain
+            if opts.state_weight.is_some() || opts.input_weight.is_some() =>
+        {
+            return Err(CommandError::Usage(format!(
+                "--state-weight and --input-weight are for --objective lqr, not {}",
+                opts.objective.name()
+            )));
+        }
+        GainObjective::Margin => Objective::Margin,
+        GainObjective::MinGain => Objective::MinGain,
+        GainObjective::Lqr => {
+            let mut w = LqrWeights::BRYSON;
+            if let Some(v) = &opts.state_weight {
+                w.state = match v.as_slice() {
+                    [a, b, c] => [*a, *b, *c],
+                    _ => {
+                        return Err(CommandError::Usage(format!(
+                            "--state-weight {v:?}: give three weights, on ẋ, ẏ and e"
+                        )));
+                    }
+                };
+            }
+            if let Some(r) = opts.input_weight {
+                w.input = r;
+            }
+            w.validate()
+                .map_err(|e| CommandError::Usage(format!("--state-weight/--input-weight: {e}")))?;
+            Objective::Lqr(w)
+        }
+    };
+    let margin_sol = match force_scale {
         Some(e) => rg::solve(&design, e)?,
         None => rg::best_force_scale(&design)?,
     };
     // λ* with the scale of a certified design: this one, or the best at λ = 0.
-    let star_scale = match (sol.margin() > MARGIN_TOLERANCE, force_scale) {
-        (true, _) => sol.force_scale,
+    let star_scale = match (margin_sol.margin() > MARGIN_TOLERANCE, force_scale) {
+        (true, _) => margin_sol.force_scale,
         (false, Some(e)) => e,
         (false, None) => {
             rg::best_force_scale(&RobustBox {
@@ -962,6 +1062,18 @@ fn robust_gain(
         }
     };
     let star = rg::largest_certified_decay(&design, star_scale)?;
+    // Another objective: solved at the margin design's e_0 and certified at λ.
+    let alternative = match objective {
+        Objective::Margin => None,
+        o if margin_sol.margin() > MARGIN_TOLERANCE => {
+            Some(obj::solve(&design, margin_sol.force_scale, o)?)
+        }
+        _ => None,
+    };
+    let sol = match &alternative {
+        Some(a) => a.certified.clone(),
+        None => margin_sol.clone(),
+    };
     let command: Vec<String> = std::env::args().skip(1).collect();
     let mut r = String::new();
     let w = |r: &mut String, line: String| {
@@ -1002,11 +1114,59 @@ fn robust_gain(
         &mut r,
         format!(
             "{}: s = {:.4e}, cond(Q) = {:.4e}.",
-            sol.solver,
-            sol.margin(),
-            sol.condition()
+            margin_sol.solver,
+            margin_sol.margin(),
+            margin_sol.condition()
         ),
     );
+    if let Some(a) = &alternative {
+        let k = a.gain();
+        w(
+            &mut r,
+            match a.objective {
+                Objective::MinGain => format!(
+                    "Objective min-gain (rig_tools::design::robust_gain_objective): min t s.t. (7.40) at the 4 vertices at λ_p = {} λ, Q ⪰ I, [[t I, Y], [Yᵀ, Q]] ⪰ 0 (‖K̃‖₂² ≤ t), same e_0.",
+                    obj::RATE_MARGIN
+                ),
+                Objective::Lqr(wt) => format!(
+                    "Objective lqr (rig_tools::design::robust_gain_objective): min γ s.t. the LQR cost-bound LMI (J ≤ γ χ̃ᵀQ⁻¹χ̃) at the 4 vertices with W = diag({:e}, {:e}, {:e}) on [ẋ, ẏ, e], R = {:e} I, and the normalized (7.41) with s = σ = {} s* (σ I ⪯ Q ⪯ I), same e_0.",
+                    wt.state[0],
+                    wt.state[1],
+                    wt.state[2],
+                    wt.input,
+                    obj::LQR_MARGIN_FRACTION
+                ),
+                Objective::Margin => String::new(),
+            },
+        );
+        w(
+            &mut r,
+            format!(
+                "{}: objective {:.6e}; the gain certified at λ (normalized (7.41) with Y = K̃ Q, max over Q, s): {}: s = {:.4e}, cond(Q) = {:.4e}.",
+                a.solver,
+                a.value,
+                a.certified.solver,
+                a.certified.margin(),
+                a.certified.condition()
+            ),
+        );
+        if !a.certified.certified() {
+            w(
+                &mut r,
+                format!(
+                    "Its K = [[{:.6e}, {:.6e}, {:.6e}], [{:.6e}, {:.6e}, {:.6e}]], worst spectral radius over the {grid}×{grid} grid {:.9} (bound {:.9}).",
+                    k[(0, 0)],
+                    k[(0, 1)],
+                    k[(0, 2)],
+                    k[(1, 0)],
+                    k[(1, 1)],
+                    k[(1, 2)],
+                    design.check_gain(&k, grid).worst_grid.radius,
+                    design.contraction()
+                ),
+            );
+        }
+    }
     w(
         &mut r,
         match star {
@@ -1016,6 +1176,21 @@ fn robust_gain(
             None => "Not even λ = 0 (robust stability) is certified over the box.".into(),
         },
     );
+    if let Some(a) = alternative.as_ref().filter(|_| !sol.certified()) {
+        print!("{r}");
+        return Err(CommandError::Refused(format!(
+            "the {} design's gain is not certified at λ = {} /s: the normalized (7.41) with Y = K̃ Q has s = {:.3e} ≤ {MARGIN_TOLERANCE:e} \
+             ({}; the margin design is certified: --objective margin)",
+            a.objective.name(),
+            design.decay_rate,
+            sol.margin(),
+            if a.full_accuracy {
+                "the program was solved to full accuracy"
+            } else {
+                "the program stopped at clarabel's reduced accuracy (AlmostSolved)"
+            }
+        )));
+    }
     if !sol.certified() {
         print!("{r}");
         return Err(CommandError::Refused(format!(
@@ -1111,6 +1286,13 @@ fn robust_gain(
         design,
         margin: sol.margin(),
     };
+    if objective != Objective::Margin && alternative.is_none() {
+        return Err(CommandError::Refused(format!(
+            "λ = {} /s is not certified over the box: no {} design",
+            design.decay_rate,
+            opts.objective.name()
+        )));
+    }
     file.save(out, &r)?;
     if RobustGainFile::load(out)? != file {
         return Err(CommandError::Refused(format!(

@@ -12,7 +12,8 @@
 //! ```
 //!
 //! Beside that path, the robust gain of the sampling arm (7.39)–(7.41): the semidefinite
-//! program (`sdp.rs`, `robust_gain.rs`, under the crate feature `sdp`, which links BLAS and
+//! program (`sdp.rs`, `robust_gain.rs`, with the other objectives of
+//! `robust_gain_objective.rs`, under the crate feature `sdp`, which links BLAS and
 //! LAPACK) and its file ([`robust_gain_file`], always built, so the committed gain is
 //! checked by the default tests).
 //!
@@ -37,6 +38,8 @@ pub mod plots;
 #[cfg(feature = "sdp")]
 pub mod robust_gain;
 pub mod robust_gain_file;
+#[cfg(feature = "sdp")]
+pub mod robust_gain_objective;
 #[cfg(feature = "sdp")]
 pub mod sdp;
 pub mod target_response;

@@ -45,6 +45,9 @@ pub enum RobustGainError {
     /// The box is refused (`RobustBox::validate`'s message).
     #[error("{0}")]
     Box(String),
+    /// LQR weights that are not finite and positive (`LqrWeights::validate`'s message).
+    #[error("{0}")]
+    Weights(String),
     /// A force scale that is not positive.
     #[error("force scale {0} must be positive")]
     ForceScale(f64),

@@ -183,6 +183,15 @@ impl Setup {
         })
     }
 
+    /// The same setup with the robust gain `K` (2×3 row-major, `τ_f = K χ`) of both
+    /// controllers replaced (the robust controller alone and the one PCAC augments).
+    pub fn with_gain(&self, gain: [f64; 6]) -> Setup {
+        let mut s = self.clone();
+        s.robust.robust_gain = gain;
+        s.augmented.robust_gain = gain;
+        s
+    }
+
     /// The parameters of `law`.
     pub fn params(&self, law: Law) -> &ArmControllerParams {
         match law {
