@@ -140,6 +140,12 @@ enum Study {
         /// Also write the summary as Markdown into this file (e.g. docs/results/mrac.md).
         #[arg(long)]
         results: Option<PathBuf>,
+        /// Claim 4.4's outward reading: the largest pole radius of the outward grid (1 < R ≤ 10).
+        #[arg(long, default_value_t = mrac::outward::DEFAULT_OUTWARD_RHO)]
+        outward_rho: f64,
+        /// N of the outward reading's N × N grid (0: no outward reading).
+        #[arg(long, default_value_t = mrac::outward::DEFAULT_OUTWARD_GRID)]
+        outward_grid: usize,
     },
     /// Chapter 7, §7.3: the spacecraft sampling arm's force control, the robust controller
     /// alone against the PCAC-augmented one, over linear and Hunt–Crossley surface grids,
@@ -219,7 +225,16 @@ fn main() -> ExitCode {
             grid,
             out,
             results,
-        } => mrac_study(&example, &command, grid, &out, results.as_deref()).map_err(Into::into),
+            outward_rho,
+            outward_grid,
+        } => mrac_study(
+            &example,
+            &command,
+            (grid, outward_rho, outward_grid),
+            &out,
+            results.as_deref(),
+        )
+        .map_err(Into::into),
         Study::SamplingArm {
             grid,
             out,
@@ -272,13 +287,16 @@ fn rcac(
 fn mrac_study(
     example: &str,
     command: &str,
-    grid: usize,
+    (grid, outward_rho, outward_grid): (usize, f64, usize),
     out: &Path,
     results: Option<&Path>,
 ) -> Result<(), MracError> {
     let t0 = Instant::now();
-    let options = mrac::Options::parse(example, command, grid)?;
-    let line = format!("study mrac --example {example} --command {command} --grid {grid}");
+    let options =
+        mrac::Options::parse(example, command, grid)?.with_outward(outward_rho, outward_grid)?;
+    let line = format!(
+        "study mrac --example {example} --command {command} --grid {grid} --outward-rho {outward_rho} --outward-grid {outward_grid}"
+    );
     let report = mrac::run(&options, out, &line)?;
     print!("{}", report.markdown);
     println!(

@@ -380,8 +380,8 @@ pub fn report(c: &Contrast, runs: usize) -> String {
     }
     let _ = writeln!(
         s,
-        "{:<18} {}",
-        "feature", "median(all)  median(slowest)  Spearman(settle, feature)"
+        "{:<18} median(all)  median(slowest)  Spearman(settle, feature)",
+        "feature"
     );
     for (j, name) in FEATURES.iter().enumerate() {
         let _ = writeln!(

@@ -45,7 +45,7 @@ pub fn settling_step(history: &[f64], dim: usize) -> Result<usize, SettlingError
     if dim == 0 || history.is_empty() {
         return Err(SettlingError::Empty);
     }
-    if history.len() % dim != 0 {
+    if !history.len().is_multiple_of(dim) {
         return Err(SettlingError::Ragged {
             len: history.len(),
             dim,
