@@ -385,11 +385,12 @@ pub fn largest_certified_decay(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    /// A box small enough to be certified with a wide margin.
-    const NARROW: RobustBox = RobustBox {
+    /// A box small enough to be certified with a wide margin (also the other objectives'
+    /// test box).
+    pub(crate) const NARROW: RobustBox = RobustBox {
         sample_period: 0.0005,
         decay_rate: 0.05,
         stiffness: [300.0, 3000.0],

@@ -346,15 +346,8 @@ pub fn solve(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::design::robust_gain::tests::NARROW;
     use crate::design::robust_gain::{FEASIBILITY_TOLERANCE, MARGIN_TOLERANCE};
-
-    /// A box small enough to be certified with a wide margin (as in `robust_gain`'s tests).
-    const NARROW: RobustBox = RobustBox {
-        sample_period: 0.0005,
-        decay_rate: 0.05,
-        stiffness: [300.0, 3000.0],
-        damping: [0.35, 5.0],
-    };
 
     const SCALE: f64 = 100.0;
 

@@ -110,7 +110,17 @@ pub fn run(
     (rho, nu): (f64, f64),
     record: bool,
 ) -> Result<RunOutcome, MracError> {
-    let tf = example
+    run_on(plant(example, rho, nu)?, example, command, method, record)
+}
+
+/// The plant of `example` with poles `ρ e^{±jν}` in the chapter's range (`0 < ρ < 1`, as
+/// the scenario files), the error naming the example and the point.
+pub fn plant(
+    example: Example,
+    rho: f64,
+    nu: f64,
+) -> Result<plant_proxy::discrete::DiscreteTf, MracError> {
+    example
         .plant()
         .plant(rho, nu)
         .map_err(|source| MracError::Plant {
@@ -118,8 +128,7 @@ pub fn run(
             rho,
             nu,
             source,
-        })?;
-    run_on(tf, example, command, method, record)
+        })
 }
 
 /// Runs `method` on the plant `tf` with `example`'s disturbance and `command`; records

@@ -73,6 +73,21 @@ impl GridPoint {
     pub fn unstable(&self) -> bool {
         self.diverged.is_some()
     }
+
+    /// The run's outcome as the CSV columns `e_norm, unstable, diverged_at, peak_y,
+    /// theta_settle` (shared by `grid.csv` and `grid-outward.csv`).
+    pub fn csv_outcome(&self) -> String {
+        format!(
+            "{:.6e},{},{},{:.6e},{}",
+            self.e_norm,
+            u8::from(self.unstable()),
+            self.diverged
+                .map(|(_, k)| k.to_string())
+                .unwrap_or_default(),
+            self.peak_y,
+            self.theta_settle.map(|k| k.to_string()).unwrap_or_default()
+        )
+    }
 }
 
 /// The grid of one example, command and method.
@@ -104,15 +119,7 @@ pub fn sweep(
     grid: &Grid,
 ) -> Result<Sweep, MracError> {
     sweep_with(example, command, method, grid, |rho, nu| {
-        example
-            .plant()
-            .plant(rho, nu)
-            .map_err(|source| MracError::Plant {
-                example,
-                rho,
-                nu,
-                source,
-            })
+        closed_loop::plant(example, rho, nu)
     })
 }
 
@@ -163,17 +170,13 @@ pub fn write_csv(path: &Path, sweeps: &[Sweep]) -> Result<(), MracError> {
         for p in &sw.points {
             let _ = writeln!(
                 s,
-                "{},{},{},{:.6},{:.6},{:.6e},{},{},{:.6e},{}",
+                "{},{},{},{:.6},{:.6},{}",
                 sw.example.number(),
                 sw.command.name(),
                 sw.method.name(),
                 p.rho,
                 p.nu,
-                p.e_norm,
-                u8::from(p.unstable()),
-                p.diverged.map(|(_, k)| k.to_string()).unwrap_or_default(),
-                p.peak_y,
-                p.theta_settle.map(|k| k.to_string()).unwrap_or_default()
+                p.csv_outcome()
             );
         }
     }

@@ -207,18 +207,14 @@ pub fn write_csv(path: &Path, sweeps: &[OutwardSweep]) -> Result<(), MracError> 
         for p in &o.sweep.points {
             let _ = writeln!(
                 s,
-                "{},{},{},{:.6},{:.6},{},{:.6e},{},{},{:.6e},{}",
+                "{},{},{},{:.6},{:.6},{},{}",
                 o.region.name(),
                 o.sweep.command.name(),
                 o.sweep.method.name(),
                 p.rho,
                 p.nu,
                 u8::from(p.rho >= 1.0),
-                p.e_norm,
-                u8::from(p.unstable()),
-                p.diverged.map(|(_, k)| k.to_string()).unwrap_or_default(),
-                p.peak_y,
-                p.theta_settle.map(|k| k.to_string()).unwrap_or_default()
+                p.csv_outcome()
             );
         }
     }
