@@ -349,6 +349,7 @@ pub fn run(n: usize, out: &Path, line: &str) -> Result<Report, ArmError> {
             claims::claims(&evidence),
             claims::FIGURES,
         ),
+        sensitivity: Vec::new(),
     };
 
     // The same claims 7.3–7.6 with the alternative gains.

@@ -341,6 +341,7 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
                 claims::claims(&results, &all_readings, &why),
                 claims::FIGURES,
             ),
+            sensitivity: Vec::new(),
         },
     )?)
 }

@@ -405,6 +405,7 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
             chapter: 4,
             run: command.into(),
             claims: reproduction::with_figures(claims::claims(&claims), claims::FIGURES),
+            sensitivity: Vec::new(),
         },
     )?;
     Ok(MracReport {

@@ -687,6 +687,7 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
                 }
             ),
             claims: reproduction::with_figures(claims::claims(&outcomes), claims::FIGURES),
+            sensitivity: sensitivity::record(&outcomes, claims::SUPPRESSED_DB),
         },
     )?)
 }
@@ -868,17 +869,21 @@ fn write_trace_csv(path: &Path, o: &Outcome, c: &Closed) -> Result<(), TrussErro
 
 /// `sensitivity.csv`: one row per experiment and alternative ([`sensitivity`]).
 fn write_sensitivity_csv(path: &Path, outcomes: &[Outcome]) -> Result<(), TrussError> {
-    let mut s = String::from("experiment,choice,value,node8_converge_s,node8_reduction_db\n");
+    let mut s = String::from(
+        "experiment,choice,value,node8_converge_s,node8_reduction_db,theta_norm_settles_s,trace_p_settles_s\n",
+    );
     for o in outcomes {
         for r in &o.sensitivity {
             let _ = writeln!(
                 s,
-                "{},{},{},{},{:.2}",
+                "{},{},{},{},{:.2},{},{}",
                 o.experiment.name(),
                 r.change.choice(),
                 r.change.value(),
                 r.converge.map_or("never".into(), |t| format!("{t:.2}")),
-                r.reduction_db
+                r.reduction_db,
+                r.theta_settles.map_or("-".into(), |t| format!("{t:.2}")),
+                r.p_settles.map_or("-".into(), |t| format!("{t:.2}"))
             );
         }
     }

@@ -441,6 +441,7 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
                 study.claims(&rows, &singles, &opts.updates),
                 S::CLAIM_FIGURES,
             ),
+            sensitivity: Vec::new(),
         },
     )?)
 }

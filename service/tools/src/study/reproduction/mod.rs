@@ -41,6 +41,7 @@
 
 pub mod figures;
 pub mod report;
+pub mod sensitivity;
 
 use crate::file_error::{AtomicFileError, FileError, FileOp};
 use std::path::{Path, PathBuf};
@@ -177,6 +178,10 @@ pub struct Claims {
     pub run: String,
     /// The claims, in the chapter's order.
     pub claims: Vec<Claim>,
+    /// The settings the chapter leaves open, moved to alternatives, with the claims'
+    /// verdicts under each ([`sensitivity`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sensitivity: Vec<sensitivity::Alternative>,
 }
 
 impl Claims {
@@ -216,6 +221,21 @@ pub enum ClaimsError {
         /// The claim's id.
         id: String,
     },
+    /// A sensitivity row that reads a claim the file does not have.
+    #[error(
+        "{}: sensitivity row \"{setting} = {value}\" reads claim {id}, which the file does not have",
+        path.display()
+    )]
+    UnknownClaim {
+        /// The file.
+        path: PathBuf,
+        /// The row's setting.
+        setting: String,
+        /// The row's value.
+        value: String,
+        /// The claim id it names.
+        id: String,
+    },
 }
 
 message_from!(ClaimsError);
@@ -253,6 +273,20 @@ pub fn read(dir: &Path) -> Result<Claims, ClaimsError> {
             id: c.id.clone(),
         });
     }
+    for row in &claims.sensitivity {
+        if let Some(r) = row
+            .readings
+            .iter()
+            .find(|r| !claims.claims.iter().any(|c| c.id == r.claim))
+        {
+            return Err(ClaimsError::UnknownClaim {
+                path,
+                setting: row.setting.clone(),
+                value: row.value.clone(),
+                id: r.claim.clone(),
+            });
+        }
+    }
     Ok(claims)
 }
 
@@ -287,6 +321,13 @@ mod tests {
                 S.check(false, "slowest 34 steps"),
                 S.not_checked("not run"),
             ],
+            sensitivity: vec![sensitivity::Alternative::new(
+                "F-test window",
+                "not given",
+                "10",
+                "20",
+                vec![sensitivity::Reading::of("5.1", false, "slowest 25 steps")],
+            )],
         };
         write(&d, &c).unwrap();
         let text = std::fs::read_to_string(d.join(CLAIMS_FILE)).unwrap();
@@ -326,6 +367,15 @@ mod tests {
         one_claim("7", "NOT CHECKED");
         let e = read(&d).unwrap_err().to_string();
         assert!(e.contains("claim 7") && e.contains("reason"), "{e}");
+        let row = r#"{"setting": "window", "why_open": "", "ours": "1", "value": "2", "readings": [{"claim": "9.9", "verdict": "PASS", "measured": ""}]}"#;
+        let claim = r#"{"chapter": 5, "id": "1", "source": "", "claim": "", "ours": "", "criterion": "", "verdict": "PASS"}"#;
+        std::fs::write(
+            d.join(CLAIMS_FILE),
+            format!(r#"{{"study": "x", "chapter": 5, "run": "", "claims": [{claim}], "sensitivity": [{row}]}}"#),
+        )
+        .unwrap();
+        let e = read(&d).unwrap_err().to_string();
+        assert!(e.contains("window = 2") && e.contains("claim 9.9"), "{e}");
         let e = read(&d.join("missing")).unwrap_err().to_string();
         assert!(e.contains("missing"), "{e}");
     }

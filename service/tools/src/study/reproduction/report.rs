@@ -185,6 +185,68 @@ fn study_section(s: &mut String, all: &AllRun, r: &StudyRun, links: Links) {
         );
     }
     s.push('\n');
+    sensitivity_table(s, &claims.sensitivity);
+}
+
+/// A study's sensitivity table ([`super::sensitivity`]): one row per alternative, one
+/// column per claim the rows bear on, with a line before it that counts, per claim, the
+/// alternatives under which it holds. Nothing when the study has none.
+fn sensitivity_table(s: &mut String, rows: &[super::sensitivity::Alternative]) {
+    if rows.is_empty() {
+        return;
+    }
+    let tally = super::sensitivity::tally(rows);
+    let counts: Vec<String> = tally
+        .iter()
+        .map(|(id, pass, n)| format!("{id} holds under {pass} of {n}"))
+        .collect();
+    let _ = writeln!(
+        s,
+        "**Sensitivity.** The settings the chapter leaves open or states ambiguously, each moved from the \
+         study's value to alternatives, all else as the study ran it; under each, the verdict of the claims it \
+         bears on by their own criteria (a row whose alternative is the study's value is the study's run). \
+         Over the alternatives: {}.\n",
+        counts.join("; ")
+    );
+    let ids: Vec<&str> = tally.iter().map(|(id, _, _)| id.as_str()).collect();
+    let _ = writeln!(
+        s,
+        "| setting | why it is open | ours | alternative |{}\n| --- | --- | --- | --- |{}",
+        ids.iter()
+            .map(|id| format!(" {} |", cell(id)))
+            .collect::<String>(),
+        " --- |".repeat(ids.len())
+    );
+    let mut previous: Option<&str> = None;
+    for row in rows {
+        let why = if previous == Some(row.setting.as_str()) {
+            ""
+        } else {
+            row.why_open.as_str()
+        };
+        previous = Some(row.setting.as_str());
+        let verdicts: String = ids
+            .iter()
+            .map(|id| match row.readings.iter().find(|r| r.claim == *id) {
+                Some(r) => format!(" **{}** {} |", r.verdict.word(), cell(&r.measured)),
+                None => " |".into(),
+            })
+            .collect();
+        let value = if row.is_ours() {
+            format!("*{}* (ours)", cell(&row.value))
+        } else {
+            cell(&row.value)
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} |{verdicts}",
+            cell(&row.setting),
+            cell(why),
+            cell(&row.ours),
+            value
+        );
+    }
+    s.push('\n');
 }
 
 /// The report of `all`, referring to the studies' files as `links` says.
@@ -307,6 +369,51 @@ mod tests {
                 "figure-3.10-b.png"
             ]
         );
+    }
+
+    #[test]
+    fn the_sensitivity_table_has_a_column_per_claim_and_marks_the_studys_row() {
+        use crate::study::reproduction::sensitivity::{Alternative, Reading};
+        let rows = vec![
+            Alternative::new(
+                "P_0",
+                "not given",
+                "1 I",
+                "1 I",
+                vec![Reading::of("6.4", false, "27.6 s")],
+            ),
+            Alternative::new(
+                "P_0",
+                "not given",
+                "1 I",
+                "10 I",
+                vec![
+                    Reading::of("6.4", false, "15.0 s"),
+                    Reading::of("6.5", true, "node 8 4 s"),
+                ],
+            ),
+        ];
+        let mut s = String::new();
+        sensitivity_table(&mut s, &rows);
+        assert!(
+            s.contains("6.4 holds under 0 of 1; 6.5 holds under 1 of 1"),
+            "{s}"
+        );
+        assert!(
+            s.contains("| setting | why it is open | ours | alternative | 6.4 | 6.5 |"),
+            "{s}"
+        );
+        assert!(
+            s.contains("| P_0 | not given | 1 I | *1 I* (ours) | **FAIL** 27.6 s | |"),
+            "{s}"
+        );
+        assert!(
+            s.contains("| P_0 |  | 1 I | 10 I | **FAIL** 15.0 s | **PASS** node 8 4 s |"),
+            "{s}"
+        );
+        let mut empty = String::new();
+        sensitivity_table(&mut empty, &[]);
+        assert!(empty.is_empty());
     }
 
     #[test]
