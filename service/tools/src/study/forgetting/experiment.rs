@@ -180,14 +180,42 @@ pub struct RunSummary {
 /// Trailing window of the prior error's convergence ([`error_settle`]), steps.
 pub const ERROR_WINDOW: usize = 10;
 
+/// The bound of the prior error's convergence ([`error_settle`]), times its late RMS.
+pub const ERROR_BOUND: f64 = 2.0;
+
 /// Steps after the change until the prior error `errs[k]` (one per step from 0) has
 /// converged: [`convergence_time`] of `e_k` from the change on, trailing windows of
-/// [`ERROR_WINDOW`] steps, against twice its RMS over the last third of the run (the level
-/// the noise leaves). `None` when it has not converged by the end.
-pub fn error_settle(errs: &[f64]) -> Option<usize> {
+/// `window` steps (the study's: [`ERROR_WINDOW`]), against `bound` (the study's:
+/// [`ERROR_BOUND`]) times its RMS over the last third of the run (the level the noise
+/// leaves). `None` when it has not converged by the end.
+pub fn error_settle(errs: &[f64], window: usize, bound: f64) -> Option<usize> {
     let after = errs.get(CHANGE_STEP..)?;
     let late = rms(&errs[errs.len() - errs.len() / 3..]);
-    convergence_time(after, 1.0, ERROR_WINDOW, late).map(|t| t.round() as usize)
+    // convergence_time's bound is twice its target.
+    convergence_time(after, 1.0, window, late * bound / 2.0).map(|t| t.round() as usize)
+}
+
+/// What a run may change from its case as the study reads the chapter (the sensitivity
+/// of the claims, [`super::sensitivity`]): the measurement noise and the prior error's
+/// convergence rule.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Variant {
+    /// The standard deviation of the measurement noise (`None`: the case's,
+    /// [`Case::noise_std`]).
+    pub noise_std: Option<f64>,
+    /// The trailing window of [`error_settle`], steps.
+    pub error_window: usize,
+    /// The bound of [`error_settle`], times the late RMS.
+    pub error_bound: f64,
+}
+
+impl Variant {
+    /// The study's reading.
+    pub const STUDY: Variant = Variant {
+        noise_std: None,
+        error_window: ERROR_WINDOW,
+        error_bound: ERROR_BOUND,
+    };
 }
 
 /// A recorded trajectory: row `i` is step `ks[i]`, with the estimate after the update that
@@ -239,23 +267,33 @@ pub fn run(
     seed: u64,
     record: bool,
 ) -> Result<(RunSummary, Option<Trace>), ForgettingError> {
-    run_with(plant, case, &method.config(), steps, seed, record)
+    run_with(
+        plant,
+        case,
+        &method.config(),
+        Variant::STUDY,
+        steps,
+        seed,
+        record,
+    )
 }
 
 /// [`run`] with the estimator's settings `config` instead of a method's printed ones (the
-/// other readings of §5.3's settings, [`super::readings`]); the input and the plant are
-/// those of `case` and `seed`, so runs with the same seed see the same input.
+/// other readings of §5.3's settings, [`super::readings`]) and the `variant` of the noise
+/// and the error's convergence rule; the input and the plant are those of `case` and
+/// `seed`, so runs with the same seed see the same input.
 pub fn run_with(
     plant: &Plant,
     case: Case,
     config: &RlsConfig,
+    variant: Variant,
     steps: usize,
     seed: u64,
     record: bool,
 ) -> Result<(RunSummary, Option<Trace>), ForgettingError> {
     let mut rls = Rls::new(config).map_err(ForgettingError::Rls)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = case.noise_std();
+    let noise = variant.noise_std.unwrap_or(case.noise_std());
     let mut u = vec![0.0; steps];
     let mut y_true = vec![0.0; steps];
     let mut y_meas = vec![0.0; steps];
@@ -319,7 +357,7 @@ pub fn run_with(
             max_trace,
             final_trace: rls.trace_p(),
             resets,
-            error_settle: error_settle(&errs),
+            error_settle: error_settle(&errs, variant.error_window, variant.error_bound),
         },
         trace,
     ))

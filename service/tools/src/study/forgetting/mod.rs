@@ -13,6 +13,8 @@
 //! - [`readings`]: the readings of §5.3.1's "converge in less than 20 steps" and the
 //!   slowest run under each.
 //! - [`claims`]: the chapter's claims checked on the Monte Carlo statistics.
+//! - [`sensitivity`]: the settings §5.3 leaves open, moved to alternatives, and the claims'
+//!   verdicts under each (the report's sensitivity table).
 //!
 //! It writes, into `--out`:
 //!
@@ -26,7 +28,8 @@
 //! - `case1_noiseless_ftvrf_settle_vs_excitation.png`: settling (1 %) against `σ_min` of the
 //!   regressor matrix over the 20 steps after the change, one point per run;
 //! - `summary.txt`: the printed summary table, the slow runs and the readings;
-//! - `claims.json`: the chapter's claims checked on the Monte Carlo ([`claims`]).
+//! - `claims.json`: the chapter's claims checked on the Monte Carlo ([`claims`]), with the
+//!   sensitivity rows ([`sensitivity`]).
 
 pub mod claims;
 pub mod excitation;
@@ -35,6 +38,7 @@ pub mod montecarlo;
 pub mod output;
 pub mod plant;
 pub mod readings;
+pub mod sensitivity;
 pub mod slow_runs;
 
 use crate::file_error::{FileError, FileOp};
@@ -330,18 +334,20 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
         path: summary,
         source,
     })?;
-    // The chapter's claims, for `study all`.
+    // The chapter's claims, for `study all`, with the sensitivity of each.
+    let claims = reproduction::with_figures(
+        claims::claims(&results, &all_readings, &why),
+        claims::FIGURES,
+    );
+    let sensitivity = sensitivity::record(&plant, runs, seed, &results, &claims, &all_readings)?;
     Ok(reproduction::write(
         out,
         &reproduction::Claims {
             study: "forgetting".into(),
             chapter: 5,
             run: format!("study forgetting --runs {runs} --seed {seed}"),
-            claims: reproduction::with_figures(
-                claims::claims(&results, &all_readings, &why),
-                claims::FIGURES,
-            ),
-            sensitivity: Vec::new(),
+            claims,
+            sensitivity,
         },
     )?)
 }

@@ -4,7 +4,9 @@
 use rayon::prelude::*;
 
 use crate::study::forgetting::ForgettingError;
-use crate::study::forgetting::experiment::{Case, Method, N, RunSummary, Trace, run, run_seed};
+use crate::study::forgetting::experiment::{
+    Case, Method, N, RunSummary, Trace, Variant, run, run_seed, run_with,
+};
 use crate::study::forgetting::plant::Plant;
 
 pub use control::linalg::percentile;
@@ -202,6 +204,36 @@ pub fn bands_of(traces: &[&Trace]) -> Bands {
         lambda: per_row.iter().map(|r| r.2).collect(),
         error: per_row.iter().map(|r| r.3).collect(),
     }
+}
+
+/// The summary of `runs` seeded simulations of `method` on `case` under `variant` (no
+/// bands); run `i` uses [`run_seed`]`(seed, case, i)`, as [`monte_carlo`] does, so the
+/// variant meets the same inputs.
+pub fn monte_carlo_variant(
+    plant: &Plant,
+    case: Case,
+    method: Method,
+    variant: Variant,
+    runs: usize,
+    seed: u64,
+) -> Result<Summary, ForgettingError> {
+    let config = method.config();
+    let summaries: Vec<RunSummary> = (0..runs as u64)
+        .into_par_iter()
+        .map(|i| {
+            run_with(
+                plant,
+                case,
+                &config,
+                variant,
+                case.steps(),
+                run_seed(seed, case, i),
+                false,
+            )
+            .map(|r| r.0)
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(summarize(&summaries))
 }
 
 #[cfg(test)]

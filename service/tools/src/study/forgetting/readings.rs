@@ -17,7 +17,9 @@ use control::forgetting::ForgettingRule;
 use rayon::prelude::*;
 
 use crate::study::forgetting::ForgettingError;
-use crate::study::forgetting::experiment::{Case, ETA, Method, TAU_D, TAU_N, run_seed, run_with};
+use crate::study::forgetting::experiment::{
+    Case, ETA, Method, TAU_D, TAU_N, Variant, run_seed, run_with,
+};
 use crate::study::forgetting::montecarlo::{Bands, percentile};
 use crate::study::forgetting::plant::{CHANGE_STEP, Plant};
 use crate::study::forgetting::slow_runs::{RunFeatures, STEPS, VISUAL};
@@ -159,8 +161,16 @@ pub fn setting_readings(
                 .into_par_iter()
                 .map(|i| {
                     let s = run_seed(seed, Case::Noiseless, i);
-                    run_with(plant, Case::Noiseless, &config, STEPS, s, false)
-                        .map(|(r, _)| (i, r.settle))
+                    run_with(
+                        plant,
+                        Case::Noiseless,
+                        &config,
+                        Variant::STUDY,
+                        STEPS,
+                        s,
+                        false,
+                    )
+                    .map(|(r, _)| (i, r.settle))
                 })
                 .collect::<Result<_, _>>()?;
             let mut v: Vec<f64> = settle
