@@ -266,7 +266,12 @@ pub fn record(outcomes: &[Outcome], min_db: f64) -> Vec<Alternative> {
                 readings.push(Reading::of(
                     "6.5",
                     r.suppressed_first() && others_first,
-                    format!("{}: {}", exp.name(), r.identification_text()),
+                    format!(
+                        "{}: {} (node 8 {}first here)",
+                        exp.name(),
+                        r.identification_text(),
+                        if r.suppressed_first() { "" } else { "not " }
+                    ),
                 ));
             }
             rows.push(Alternative::new(
