@@ -5,7 +5,7 @@
 //! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
 //! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both] [--no-sensitivity]
-//! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE]
+//! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
 //! ```
 //!
@@ -146,6 +146,10 @@ enum Study {
         /// N of the outward reading's N × N grid (0: no outward reading).
         #[arg(long, default_value_t = mrac::outward::DEFAULT_OUTWARD_GRID)]
         outward_grid: usize,
+        /// Skip the sensitivity of the claims to the settings §4.5–4.7 leave open (grid,
+        /// divergence limit, run length, convergence rule, Example 3's disturbance, R_θ).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 7, §7.3: the spacecraft sampling arm's force control, the robust controller
     /// alone against the PCAC-augmented one, over linear and Hunt–Crossley surface grids,
@@ -227,10 +231,11 @@ fn main() -> ExitCode {
             results,
             outward_rho,
             outward_grid,
+            no_sensitivity,
         } => mrac_study(
             &example,
             &command,
-            (grid, outward_rho, outward_grid),
+            (grid, outward_rho, outward_grid, !no_sensitivity),
             &out,
             results.as_deref(),
         )
@@ -287,15 +292,17 @@ fn rcac(
 fn mrac_study(
     example: &str,
     command: &str,
-    (grid, outward_rho, outward_grid): (usize, f64, usize),
+    (grid, outward_rho, outward_grid, sensitivity): (usize, f64, usize, bool),
     out: &Path,
     results: Option<&Path>,
 ) -> Result<(), MracError> {
     let t0 = Instant::now();
-    let options =
+    let mut options =
         mrac::Options::parse(example, command, grid)?.with_outward(outward_rho, outward_grid)?;
+    options.sensitivity = sensitivity;
     let line = format!(
-        "study mrac --example {example} --command {command} --grid {grid} --outward-rho {outward_rho} --outward-grid {outward_grid}"
+        "study mrac --example {example} --command {command} --grid {grid} --outward-rho {outward_rho} --outward-grid {outward_grid}{}",
+        if sensitivity { "" } else { " --no-sensitivity" }
     );
     let report = mrac::run(&options, out, &line)?;
     print!("{}", report.markdown);

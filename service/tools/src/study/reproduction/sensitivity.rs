@@ -113,6 +113,30 @@ pub fn tally(rows: &[Alternative]) -> Vec<(String, usize, usize)> {
     out
 }
 
+/// The rows as CSV, one line per alternative and claim it bears on: `setting, ours, value,
+/// claim, verdict, measured` (every field quoted, `"` doubled); a row with no reading
+/// gives one line with the last three empty. This is the `sensitivity.csv` a study writes
+/// beside its `claims.json`.
+pub fn csv(rows: &[Alternative]) -> String {
+    let q = |s: &str| format!("\"{}\"", s.replace('"', "\"\""));
+    let mut out = String::from("setting,ours,value,claim,verdict,measured\n");
+    for row in rows {
+        let head = format!("{},{},{}", q(&row.setting), q(&row.ours), q(&row.value));
+        if row.readings.is_empty() {
+            out.push_str(&format!("{head},,,\n"));
+        }
+        for r in &row.readings {
+            out.push_str(&format!(
+                "{head},{},{},{}\n",
+                q(&r.claim),
+                r.verdict.word(),
+                q(&r.measured)
+            ));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -146,6 +170,16 @@ mod tests {
             ),
         ];
         assert!(rows[0].is_ours() && !rows[1].is_ours());
+        let text = csv(&rows);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 1 + 4);
+        assert_eq!(lines[0], "setting,ours,value,claim,verdict,measured");
+        assert_eq!(lines[2], "\"P_0\",\"I\",\"10 I\",\"6.4\",FAIL,\"15 s\"");
+        let quoted = csv(&[Alternative::new("a \"b\"", "", "1", "2", vec![])]);
+        assert!(
+            quoted.ends_with("\"a \"\"b\"\"\",\"1\",\"2\",,,\n"),
+            "{quoted}"
+        );
         assert_eq!(
             tally(&rows),
             vec![("6.4".to_string(), 1, 2), ("6.11".to_string(), 1, 1)]
