@@ -2,8 +2,8 @@
 //!
 //! ```text
 //! cargo run --release -p rig-tools --bin study -- forgetting [--runs 1000] [--out DIR] [--seed S]
-//! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
-//! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
+//! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both] [--no-sensitivity]
+//! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
@@ -87,6 +87,10 @@ enum Study {
         points: usize,
         #[command(flatten)]
         update: UpdateArg,
+        /// Skip the sensitivity of the claims to the settings §3.3 leaves open (run
+        /// length, window, tone phase, sensor noise).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 3, §3.3.2: RCAC on a 4-mode 2-input 1-output structure whose damping is
     /// swept from 0.01 to 0.5, target models from the ζ = 0.1 model (Figures 3.11–3.17).
@@ -99,6 +103,10 @@ enum Study {
         points: usize,
         #[command(flatten)]
         update: UpdateArg,
+        /// Skip the sensitivity of the claims to the settings §3.3 leaves open (run
+        /// length, window, tone phase, sensor noise, the windowed average's β).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 6, §6.2: PCAC on the 4-bay truss under harmonic and broadband disturbances,
     /// with and without aliasing (Figures 6.2–6.10), open and closed loop.
@@ -196,12 +204,14 @@ fn main() -> ExitCode {
             out,
             points,
             update,
-        } => rcac(siso::run, &out, points, &update).map_err(Into::into),
+            no_sensitivity,
+        } => rcac(siso::run, &out, points, &update, !no_sensitivity).map_err(Into::into),
         Study::RcacMiso {
             out,
             points,
             update,
-        } => rcac(miso::run, &out, points, &update).map_err(Into::into),
+            no_sensitivity,
+        } => rcac(miso::run, &out, points, &update, !no_sensitivity).map_err(Into::into),
         Study::PcacTruss {
             out,
             duration,
@@ -276,16 +286,24 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs the RCAC study `run` into `out` with `points` sweep points and the update laws of
-/// `update`.
+/// Runs the RCAC study `run` into `out` with `points` sweep points, the update laws of
+/// `update` and, when `sensitivity`, the sensitivity table.
 fn rcac(
     run: fn(&Path, &driver::Options) -> Result<(), RcacError>,
     out: &Path,
     points: usize,
     update: &UpdateArg,
+    sensitivity: bool,
 ) -> Result<(), RcacError> {
     let updates = common::Update::parse_set(&update.update)?;
-    run(out, &driver::Options { points, updates })
+    run(
+        out,
+        &driver::Options {
+            points,
+            updates,
+            sensitivity,
+        },
+    )
 }
 
 /// `study mrac`: runs, prints the summary, writes `--results` if given.

@@ -173,6 +173,10 @@ pub fn sweep(points: usize) -> Vec<f64> {
         .collect()
 }
 
+/// Disturbance frequencies per case of the sensitivity table's coarse sweep
+/// ([`crate::study::rcac::sensitivity`]).
+pub const SENSITIVITY_POINTS: usize = 6;
+
 /// Where a sweep point lies: a case of Figure 3.5 and a disturbance frequency.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SweepAt {
@@ -307,6 +311,11 @@ impl RcacStudy<1> for Siso {
             dtms,
             thetas: [at.wd * TS],
         })
+    }
+
+    /// Every case at six `ω_d` from 4π to 50π ([`SENSITIVITY_POINTS`]).
+    fn sensitivity_points(&self) -> Vec<SweepAt> {
+        self.sweep_points(SENSITIVITY_POINTS)
     }
 
     fn single_at(&self) -> SweepAt {
