@@ -434,7 +434,11 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
             study: "mrac".into(),
             chapter: 4,
             run: command.into(),
-            claims: reproduction::with_figures(claims::claims(&claims), claims::FIGURES),
+            claims: {
+                let mut c = reproduction::with_figures(claims::claims(&claims), claims::FIGURES);
+                reproduction::sensitivity::annotate(&mut c, &sensitivity_rows);
+                c
+            },
             sensitivity: sensitivity_rows,
         },
     )?;

@@ -468,10 +468,14 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
                     " --no-sensitivity"
                 }
             ),
-            claims: reproduction::with_figures(
-                study.claims(&rows, &singles, &opts.updates),
-                S::CLAIM_FIGURES,
-            ),
+            claims: {
+                let mut c = reproduction::with_figures(
+                    study.claims(&rows, &singles, &opts.updates),
+                    S::CLAIM_FIGURES,
+                );
+                reproduction::sensitivity::annotate(&mut c, &sensitivity_rows);
+                c
+            },
             sensitivity: sensitivity_rows,
         },
     )?)
