@@ -36,8 +36,8 @@
 //! experiment that says which setting the chapter's figures would need, not a reading of
 //! the printed one. (In the run of this change: from `R_θ = I` on, Example 2's θ̂ settles
 //! two to four times later than Example 1's with the step, as Figure 4.11 says, but
-//! earlier with the two- and four-harmonic commands, against Figures 4.12 and 4.13; so
-//! no `R_θ` gives the three together. `docs/studies.md` has the numbers.)
+//! earlier with the four-harmonic command at every `R_θ` tried, against Figure 4.13; so
+//! no `R_θ` gives the three commands together. `docs/studies.md` has the numbers.)
 
 use std::f64::consts::PI;
 
