@@ -110,6 +110,34 @@ fn a_small_study_writes_its_files_and_repeats_the_kernel_tests_single_runs() {
     }
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
     assert_eq!(summary, report.markdown);
+    // The sensitivity table: only claim 5 is read (the others' runs were not made), under
+    // every alternative that bears on it, the study's own row first; the alternatives
+    // bearing on other claims only have no reading.
+    let sens = std::fs::read_to_string(out.join("sensitivity.csv")).expect("sensitivity.csv");
+    let lines: Vec<&str> = sens.lines().collect();
+    assert_eq!(lines[0], "setting,ours,value,claim,verdict,measured");
+    assert!(
+        lines[1].starts_with("\"the study's choices\",\"–\",\"–\",\"4.5\",PASS,"),
+        "{}",
+        lines[1]
+    );
+    assert!(
+        lines
+            .iter()
+            .skip(1)
+            .all(|l| l.contains(",\"4.5\",") || l.ends_with(",,,")),
+        "{sens}"
+    );
+    assert!(
+        lines.iter().filter(|l| l.contains(",\"4.5\",")).count() > 5,
+        "{sens}"
+    );
+    let claims = rig_tools::study::reproduction::read(&out).expect("claims.json");
+    assert_eq!(
+        claims.sensitivity.len(),
+        mrac::sensitivity::alternatives(3).len()
+    );
+    assert!(summary.contains("Sensitivity (`sensitivity.csv`)"));
 
     // The single runs equal the loop written here on the kernels (same arithmetic), and
     // RC-MRAC's is the value the kernel test measures (1.2·10⁻⁶).

@@ -2,10 +2,10 @@
 //!
 //! ```text
 //! cargo run --release -p rig-tools --bin study -- forgetting [--runs 1000] [--out DIR] [--seed S]
-//! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both]
-//! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both]
+//! cargo run --release -p rig-tools --bin study -- rcac-siso [--out DIR] [--points 47] [--update gradient|rls|both] [--no-sensitivity]
+//! cargo run --release -p rig-tools --bin study -- rcac-miso [--out DIR] [--points 50] [--update gradient|rls|both] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- pcac-truss [--out DIR] [--duration 100] [--experiments all] [--settings both] [--no-sensitivity]
-//! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE]
+//! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
 //! ```
 //!
@@ -87,6 +87,10 @@ enum Study {
         points: usize,
         #[command(flatten)]
         update: UpdateArg,
+        /// Skip the sensitivity of the claims to the settings §3.3 leaves open (run
+        /// length, window, tone phase, sensor noise).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 3, §3.3.2: RCAC on a 4-mode 2-input 1-output structure whose damping is
     /// swept from 0.01 to 0.5, target models from the ζ = 0.1 model (Figures 3.11–3.17).
@@ -99,6 +103,10 @@ enum Study {
         points: usize,
         #[command(flatten)]
         update: UpdateArg,
+        /// Skip the sensitivity of the claims to the settings §3.3 leaves open (run
+        /// length, window, tone phase, sensor noise, the windowed average's β).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 6, §6.2: PCAC on the 4-bay truss under harmonic and broadband disturbances,
     /// with and without aliasing (Figures 6.2–6.10), open and closed loop.
@@ -146,6 +154,10 @@ enum Study {
         /// N of the outward reading's N × N grid (0: no outward reading).
         #[arg(long, default_value_t = mrac::outward::DEFAULT_OUTWARD_GRID)]
         outward_grid: usize,
+        /// Skip the sensitivity of the claims to the settings §4.5–4.7 leave open (grid,
+        /// divergence limit, run length, convergence rule, Example 3's disturbance, R_θ).
+        #[arg(long)]
+        no_sensitivity: bool,
     },
     /// Chapter 7, §7.3: the spacecraft sampling arm's force control, the robust controller
     /// alone against the PCAC-augmented one, over linear and Hunt–Crossley surface grids,
@@ -192,12 +204,14 @@ fn main() -> ExitCode {
             out,
             points,
             update,
-        } => rcac(siso::run, &out, points, &update).map_err(Into::into),
+            no_sensitivity,
+        } => rcac(siso::run, &out, points, &update, !no_sensitivity).map_err(Into::into),
         Study::RcacMiso {
             out,
             points,
             update,
-        } => rcac(miso::run, &out, points, &update).map_err(Into::into),
+            no_sensitivity,
+        } => rcac(miso::run, &out, points, &update, !no_sensitivity).map_err(Into::into),
         Study::PcacTruss {
             out,
             duration,
@@ -227,10 +241,11 @@ fn main() -> ExitCode {
             results,
             outward_rho,
             outward_grid,
+            no_sensitivity,
         } => mrac_study(
             &example,
             &command,
-            (grid, outward_rho, outward_grid),
+            (grid, outward_rho, outward_grid, !no_sensitivity),
             &out,
             results.as_deref(),
         )
@@ -271,31 +286,41 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs the RCAC study `run` into `out` with `points` sweep points and the update laws of
-/// `update`.
+/// Runs the RCAC study `run` into `out` with `points` sweep points, the update laws of
+/// `update` and, when `sensitivity`, the sensitivity table.
 fn rcac(
     run: fn(&Path, &driver::Options) -> Result<(), RcacError>,
     out: &Path,
     points: usize,
     update: &UpdateArg,
+    sensitivity: bool,
 ) -> Result<(), RcacError> {
     let updates = common::Update::parse_set(&update.update)?;
-    run(out, &driver::Options { points, updates })
+    run(
+        out,
+        &driver::Options {
+            points,
+            updates,
+            sensitivity,
+        },
+    )
 }
 
 /// `study mrac`: runs, prints the summary, writes `--results` if given.
 fn mrac_study(
     example: &str,
     command: &str,
-    (grid, outward_rho, outward_grid): (usize, f64, usize),
+    (grid, outward_rho, outward_grid, sensitivity): (usize, f64, usize, bool),
     out: &Path,
     results: Option<&Path>,
 ) -> Result<(), MracError> {
     let t0 = Instant::now();
-    let options =
+    let mut options =
         mrac::Options::parse(example, command, grid)?.with_outward(outward_rho, outward_grid)?;
+    options.sensitivity = sensitivity;
     let line = format!(
-        "study mrac --example {example} --command {command} --grid {grid} --outward-rho {outward_rho} --outward-grid {outward_grid}"
+        "study mrac --example {example} --command {command} --grid {grid} --outward-rho {outward_rho} --outward-grid {outward_grid}{}",
+        if sensitivity { "" } else { " --no-sensitivity" }
     );
     let report = mrac::run(&options, out, &line)?;
     print!("{}", report.markdown);

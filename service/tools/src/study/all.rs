@@ -82,7 +82,7 @@ pub const STUDIES: &[StudyEntry] = &[
         quick: &["--points", "3", "--update", "gradient"],
         summary: "summary.txt",
         claims: reproduction::read,
-        cost: 24,
+        cost: 35,
     },
     StudyEntry {
         name: "rcac-miso",
@@ -92,7 +92,7 @@ pub const STUDIES: &[StudyEntry] = &[
         quick: &["--points", "3", "--update", "gradient"],
         summary: "summary.txt",
         claims: reproduction::read,
-        cost: 15,
+        cost: 23,
     },
     StudyEntry {
         name: "mrac",
@@ -102,7 +102,7 @@ pub const STUDIES: &[StudyEntry] = &[
         quick: &["--grid", "3"],
         summary: "summary.md",
         claims: reproduction::read,
-        cost: 1,
+        cost: 10,
     },
     StudyEntry {
         name: "forgetting",

@@ -24,10 +24,19 @@
 //! Every run keeps `θ̂_0 … θ̂_200` and reports when it settles
 //! ([`crate::study::mrac::theta_settling`]); a diverged run has none.
 //!
+//! # Other settings
+//!
+//! [`run_on_with`] runs under any [`RunSettings`] (another run length, metric window,
+//! divergence limit, settling rule, `R_θ` or Example 3 disturbance: the sensitivity table,
+//! [`crate::study::mrac::sensitivity`]); [`run`] and [`run_on`] are the study's
+//! ([`RunSettings::STUDY`]).
+//!
 //! [`setup`]: crate::study::mrac::setup
 
 use crate::study::mrac::MracError;
+use crate::study::mrac::run_settings::{RunSettings, Signal};
 use crate::study::mrac::setup::{CommandKind, Example, Kernel, Method};
+use crate::study::mrac::theta_settling::settling_step_in;
 use control::status;
 
 /// The chapter's run length: 200 steps after `k = 0`.
@@ -45,7 +54,7 @@ pub const DIVERGENCE_LIMIT: f64 = 1e6;
 pub enum Divergence {
     /// `y_k` or `u_k` not finite.
     NonFinite,
-    /// `|y_k|` above [`DIVERGENCE_LIMIT`].
+    /// `|y_k|` above [`DIVERGENCE_LIMIT`] (or the run's [`RunSettings::divergence_limit`]).
     Large,
     /// The controller reported [`status::CONTROLLER_FAULT`].
     Fault,
@@ -78,7 +87,8 @@ pub struct RunOutcome {
     /// The largest `|y_k|` of the run (up to the divergence).
     pub peak_y: f64,
     /// The step after which `θ̂_k` stays within 10 % of its largest excursion from
-    /// `θ̂_200` ([`crate::study::mrac::theta_settling`]); `None` when the run diverged.
+    /// `θ̂_200` ([`crate::study::mrac::theta_settling`]; under other [`RunSettings`], the
+    /// settling step of their signal and band); `None` when the run diverged.
     pub theta_settle: Option<usize>,
     /// The signals, when asked for.
     pub trace: Option<RunTrace>,
@@ -93,11 +103,12 @@ impl RunOutcome {
 
 /// ‖e‖ of (4.85) over `e_101 … e_200` (`e` has at least 201 samples).
 pub fn e_norm(e: &[f64]) -> f64 {
-    e[METRIC_FROM..=STEPS]
-        .iter()
-        .map(|v| v * v)
-        .sum::<f64>()
-        .sqrt()
+    e_norm_over(e, METRIC_FROM, STEPS)
+}
+
+/// ‖e‖ over `e_from … e_to` (`e` has at least `to + 1` samples).
+pub fn e_norm_over(e: &[f64], from: usize, to: usize) -> f64 {
+    e[from..=to].iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
 /// Runs `method` on `example` with `command` at the plant poles `ρ e^{±jν}` (the
@@ -141,17 +152,32 @@ pub fn run_on(
     method: Method,
     record: bool,
 ) -> Result<RunOutcome, MracError> {
+    run_on_with(tf, example, command, method, record, &RunSettings::STUDY)
+}
+
+/// As [`run_on`], under `settings`: `settings.steps` steps, (4.85) over its window, its
+/// divergence limit, `R_θ` and Example 3 disturbance, and the settling step of its signal
+/// and band.
+pub fn run_on_with(
+    tf: plant_proxy::discrete::DiscreteTf,
+    example: Example,
+    command: CommandKind,
+    method: Method,
+    record: bool,
+    settings: &RunSettings,
+) -> Result<RunOutcome, MracError> {
+    let steps = settings.steps;
     let mut plant = plant_proxy::discrete::DifferenceEquation::new(tf);
-    let mut kernel = Kernel::new(example, method)?;
+    let mut kernel = Kernel::with_r_theta(example, method, settings.r_theta)?;
     let cmd = command.command();
-    let disturbance = example.disturbance();
+    let disturbance = example.disturbance().map(|h| settings.disturbance_of(h));
     let mut trace = RunTrace::default();
-    let mut e = Vec::with_capacity(STEPS + 1);
+    let mut e = Vec::with_capacity(steps + 1);
     let mut diverged = None;
     let mut peak_y = 0.0_f64;
     let dim = kernel.theta().len();
-    let mut history = Vec::with_capacity((STEPS + 1) * dim);
-    for k in 0..=STEPS {
+    let mut history = Vec::with_capacity((steps + 1) * dim);
+    for k in 0..=steps {
         let y = plant.output();
         peak_y = peak_y.max(y.abs());
         let r = cmd.value(k as u64);
@@ -167,7 +193,7 @@ pub fn run_on(
         }
         let why = if !(y.is_finite() && u.is_finite()) {
             Some(Divergence::NonFinite)
-        } else if y.abs() > DIVERGENCE_LIMIT {
+        } else if y.abs() > settings.divergence_limit {
             Some(Divergence::Large)
         } else if st & status::CONTROLLER_FAULT != 0 {
             Some(Divergence::Fault)
@@ -186,13 +212,17 @@ pub fn run_on(
     let e_norm = if diverged.is_some() {
         f64::INFINITY
     } else {
-        e_norm(&e)
+        e_norm_over(&e, settings.metric_from, settings.metric_to.min(steps))
     };
     // A finite run whose θ̂ is not finite has no settling step either.
     let theta_settle = if diverged.is_some() {
         None
     } else {
-        crate::study::mrac::theta_settling::settling_step(&history, dim).ok()
+        match settings.settle_signal {
+            Signal::Theta => settling_step_in(&history, dim, settings.settle_band),
+            Signal::Error => settling_step_in(&e, 1, settings.settle_band),
+        }
+        .ok()
     };
     Ok(RunOutcome {
         e_norm,
@@ -245,6 +275,78 @@ mod tests {
         );
         assert_eq!(again.theta_settle, out.theta_settle);
         assert!(out.theta_settle.is_some_and(|k| k > 0 && k <= STEPS));
+    }
+
+    #[test]
+    fn the_settings_reach_the_run() {
+        let at = |s: &RunSettings| {
+            run_on_with(
+                plant(Example::One, 0.5, PI / 4.0).expect("plant"),
+                Example::One,
+                CommandKind::Step,
+                Method::RcMrac,
+                true,
+                s,
+            )
+            .expect("runs")
+        };
+        let study = at(&RunSettings::STUDY);
+        assert_eq!(
+            study.e_norm,
+            run(
+                Example::One,
+                CommandKind::Step,
+                Method::RcMrac,
+                (0.5, PI / 4.0),
+                false
+            )
+            .expect("runs")
+            .e_norm
+        );
+        // A longer run, another window.
+        let long = at(&RunSettings {
+            steps: 400,
+            ..RunSettings::STUDY
+        });
+        assert_eq!(long.trace.as_ref().map(|t| t.e.len()), Some(401));
+        assert_eq!(long.e_norm, study.e_norm);
+        let whole = at(&RunSettings {
+            metric_from: 0,
+            ..RunSettings::STUDY
+        });
+        let t = study.trace.as_ref().expect("recorded");
+        assert_eq!(whole.e_norm, e_norm_over(&t.e, 0, STEPS));
+        assert!(whole.e_norm > study.e_norm);
+        // A divergence limit below the response's peak stops the run.
+        let low = at(&RunSettings {
+            divergence_limit: 0.1,
+            ..RunSettings::STUDY
+        });
+        assert!(matches!(low.diverged, Some((Divergence::Large, _))));
+        assert!(low.theta_settle.is_none());
+        // The settling of e_k under a fixed band.
+        let e = at(&RunSettings {
+            settle_signal: Signal::Error,
+            settle_band: crate::study::mrac::theta_settling::Band::Absolute(1e-3),
+            ..RunSettings::STUDY
+        });
+        assert_eq!(
+            e.theta_settle,
+            settling_step_in(
+                &t.e,
+                1,
+                crate::study::mrac::theta_settling::Band::Absolute(1e-3)
+            )
+            .ok()
+        );
+        assert_ne!(e.theta_settle, study.theta_settle);
+        // Another R_θ moves θ̂.
+        let slow = at(&RunSettings {
+            r_theta: 1e2,
+            ..RunSettings::STUDY
+        });
+        let ts = slow.trace.as_ref().expect("recorded");
+        assert_ne!(ts.theta[10], t.theta[10]);
     }
 
     #[test]

@@ -17,6 +17,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::study::mrac::closed_loop::{self, Divergence};
+use crate::study::mrac::run_settings::RunSettings;
 use crate::study::mrac::setup::{CommandKind, Example, Method};
 use crate::study::mrac::{ArgError, MracError};
 
@@ -118,18 +119,25 @@ pub fn sweep(
     method: Method,
     grid: &Grid,
 ) -> Result<Sweep, MracError> {
-    sweep_with(example, command, method, grid, |rho, nu| {
-        closed_loop::plant(example, rho, nu)
-    })
+    sweep_with(
+        example,
+        command,
+        method,
+        grid,
+        &RunSettings::STUDY,
+        |rho, nu| closed_loop::plant(example, rho, nu),
+    )
 }
 
-/// As [`sweep`], with the plant at `(ρ, ν)` built by `plant` (e.g.
-/// [`crate::study::mrac::outward::plant`], which also builds open-loop unstable plants).
+/// As [`sweep`], each run under `settings`, with the plant at `(ρ, ν)` built by `plant`
+/// (e.g. [`crate::study::mrac::outward::plant`], which also builds open-loop unstable
+/// plants).
 pub fn sweep_with<P>(
     example: Example,
     command: CommandKind,
     method: Method,
     grid: &Grid,
+    settings: &RunSettings,
     plant: P,
 ) -> Result<Sweep, MracError>
 where
@@ -140,13 +148,15 @@ where
         .into_par_iter()
         .map(|(rho, nu)| {
             let tf = plant(rho, nu)?;
-            closed_loop::run_on(tf, example, command, method, false).map(|o| GridPoint {
-                rho,
-                nu,
-                e_norm: o.e_norm,
-                diverged: o.diverged,
-                peak_y: o.peak_y,
-                theta_settle: o.theta_settle,
+            closed_loop::run_on_with(tf, example, command, method, false, settings).map(|o| {
+                GridPoint {
+                    rho,
+                    nu,
+                    e_norm: o.e_norm,
+                    diverged: o.diverged,
+                    peak_y: o.peak_y,
+                    theta_settle: o.theta_settle,
+                }
             })
         })
         .collect::<Result<Vec<_>, MracError>>()?;

@@ -16,8 +16,14 @@
 //! - with Example 2 and the outward reading on (the default; [`outward`]):
 //!   `grid-outward.csv` (the outward grid past the unit circle and the patch around the
 //!   zero, [`outward::write_csv`]) and `map-outward-ex2-{command}-{method}.png`;
-//! - `summary.md`: the summary table, the single runs, the outward reading and the claims;
-//! - `claims.json`: the claims in the reproduction's record ([`claims`]).
+//! - `summary.md`: the summary table, the single runs, the outward reading, the claims
+//!   and the sensitivity table;
+//! - `sensitivity.csv`: the sensitivity of the claims to each setting the chapter leaves
+//!   open ([`sensitivity`], unless `--no-sensitivity`): one line per alternative and
+//!   claim, `setting, ours, value, claim, verdict, measured`
+//!   ([`crate::study::reproduction::sensitivity::csv`]);
+//! - `claims.json`: the claims in the reproduction's record ([`claims`]), with the
+//!   sensitivity rows.
 
 pub mod claims;
 pub mod closed_loop;
@@ -25,6 +31,8 @@ pub mod empty_squares;
 pub mod figures;
 pub mod grid;
 pub mod outward;
+pub mod run_settings;
+pub mod sensitivity;
 pub mod setup;
 pub mod summary;
 pub mod theta_settling;
@@ -154,6 +162,8 @@ pub struct Options {
     pub figures: bool,
     /// The outward reading of Figures 4.8a–4.10a (run when Example 2 is), or `None`.
     pub outward: Option<OutwardOptions>,
+    /// Run the [`sensitivity`] table (`--no-sensitivity` turns it off).
+    pub sensitivity: bool,
 }
 
 impl Options {
@@ -183,6 +193,7 @@ impl Options {
             grid,
             figures: true,
             outward: Some(OutwardOptions::default()),
+            sensitivity: true,
         })
     }
 
@@ -365,6 +376,22 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
         None => None,
     };
     let claims = summary::claims(&stats, Some(&inside), outward_reading.as_ref());
+    let sensitivity_rows = if options.sensitivity {
+        let study = sensitivity::Evaluation {
+            stats: stats.clone(),
+            inside: Some(inside.clone()),
+            outward: outward_reading.clone(),
+            claims: claims.clone(),
+        };
+        sensitivity::record(&sensitivity::run(options, &study)?, options.grid)
+    } else {
+        Vec::new()
+    };
+    if options.sensitivity {
+        let path = out.join("sensitivity.csv");
+        std::fs::write(&path, reproduction::sensitivity::csv(&sensitivity_rows))
+            .map_err(|source| FileError::new(FileOp::Access, &path, source))?;
+    }
     let preamble = format!(
         "Command: `{command}` (deterministic: every run of it gives these numbers).\n\n\
          Grid: {n} × {n} plants, ρ = i/{n1} (i = 1…{n}), ν = (j − 1/2)π/{n} (j = 1…{n}); \
@@ -395,6 +422,9 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
     if let Some((o, sw)) = &outward_sweeps {
         markdown.push_str(&outward_markdown(o, sw));
     }
+    if !sensitivity_rows.is_empty() {
+        markdown.push_str(&sensitivity_markdown(&sensitivity_rows));
+    }
     let path = out.join("summary.md");
     std::fs::write(&path, &markdown)
         .map_err(|source| FileError::new(FileOp::Access, &path, source))?;
@@ -404,8 +434,12 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
             study: "mrac".into(),
             chapter: 4,
             run: command.into(),
-            claims: reproduction::with_figures(claims::claims(&claims), claims::FIGURES),
-            sensitivity: Vec::new(),
+            claims: {
+                let mut c = reproduction::with_figures(claims::claims(&claims), claims::FIGURES);
+                reproduction::sensitivity::annotate(&mut c, &sensitivity_rows);
+                c
+            },
+            sensitivity: sensitivity_rows,
         },
     )?;
     Ok(MracReport {
@@ -414,6 +448,50 @@ pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, M
         claims,
         markdown,
     })
+}
+
+/// The sensitivity table as Markdown: per alternative the verdicts of the claims it bears
+/// on ([`sensitivity`]), then per claim how many alternatives keep it.
+fn sensitivity_markdown(rows: &[reproduction::sensitivity::Alternative]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\nSensitivity (`sensitivity.csv`): each setting the chapter leaves open moved to \
+         alternatives, all else as above; the verdicts of the claims it bears on, by their own criteria.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| setting | ours | alternative | claim | verdict | measured |"
+    );
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
+    for row in rows {
+        for r in &row.readings {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} |",
+                row.setting,
+                row.ours,
+                if row.is_ours() {
+                    "(ours)"
+                } else {
+                    row.value.as_str()
+                },
+                r.claim,
+                r.verdict.word(),
+                r.measured.replace('|', "\\|")
+            );
+        }
+    }
+    let tally: Vec<String> = reproduction::sensitivity::tally(rows)
+        .iter()
+        .map(|(id, pass, n)| format!("{id} {pass}/{n}"))
+        .collect();
+    let _ = writeln!(
+        s,
+        "\nPASS over the alternatives (the study's own row not counted): {}.",
+        tally.join(", ")
+    );
+    s
 }
 
 /// The maps of the outward grid (not the patch), on their own common color scale.

@@ -32,6 +32,7 @@ use plant_proxy::mrac_examples::{MracExampleError, pole_polynomial};
 
 use crate::file_error::{FileError, FileOp};
 use crate::study::mrac::grid::{self, Grid, Sweep};
+use crate::study::mrac::run_settings::RunSettings;
 use crate::study::mrac::setup::{CommandKind, Example, Method};
 use crate::study::mrac::{ArgError, MracError};
 
@@ -172,6 +173,15 @@ pub fn sweep(
     options: &OutwardOptions,
     commands: &[CommandKind],
 ) -> Result<Vec<OutwardSweep>, MracError> {
+    sweep_with(options, commands, &RunSettings::STUDY)
+}
+
+/// As [`sweep`], each run under `settings` (e.g. another divergence limit or run length).
+pub fn sweep_with(
+    options: &OutwardOptions,
+    commands: &[CommandKind],
+    settings: &RunSettings,
+) -> Result<Vec<OutwardSweep>, MracError> {
     let example = Example::Two;
     let regions = [
         (Region::Outward, options.outward_grid()),
@@ -184,7 +194,9 @@ pub fn sweep(
     for (region, g) in &regions {
         for &c in commands {
             for m in [Method::Appc, Method::RcMrac] {
-                let sweep = grid::sweep_with(example, c, m, g, |rho, nu| plant(example, rho, nu))?;
+                let sweep = grid::sweep_with(example, c, m, g, settings, |rho, nu| {
+                    plant(example, rho, nu)
+                })?;
                 out.push(OutwardSweep {
                     region: *region,
                     grid: g.clone(),

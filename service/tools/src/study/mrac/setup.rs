@@ -227,6 +227,11 @@ pub enum Kernel {
 impl Kernel {
     /// The controller of `method` on `example`, as the chapter sets it.
     pub fn new(example: Example, method: Method) -> Result<Self, MracError> {
+        Self::with_r_theta(example, method, RcMracParams::DEFAULT_R_THETA)
+    }
+
+    /// As [`Kernel::new`] with `R_θ = r_theta · I` (the chapter's is `10⁻⁵ I`).
+    pub fn with_r_theta(example: Example, method: Method, r_theta: f64) -> Result<Self, MracError> {
         let num = example.numerator();
         let fail = |source| MracError::Controller {
             example,
@@ -235,11 +240,13 @@ impl Kernel {
         };
         match method {
             Method::Appc => {
-                let p = AppcParams::new(2, D_M.to_vec(), num, H.to_vec());
+                let mut p = AppcParams::new(2, D_M.to_vec(), num, H.to_vec());
+                p.r_theta.iter_mut().for_each(|r| *r = r_theta);
                 Appc::new(&p, SISO).map(Kernel::Appc).map_err(fail)
             }
             Method::RcMrac | Method::RcMracPlain => {
-                let p = rc_mrac_params(example, method, num);
+                let mut p = rc_mrac_params(example, method, num);
+                p.r_theta.iter_mut().for_each(|r| *r = r_theta);
                 RcMrac::new(&p, SISO).map(Kernel::RcMrac).map_err(fail)
             }
         }

@@ -162,7 +162,7 @@ pub struct Claim {
 }
 
 /// Finds the statistics of one sweep.
-fn find(stats: &[SweepStats], e: Example, c: CommandKind, m: Method) -> Option<&SweepStats> {
+pub fn find(stats: &[SweepStats], e: Example, c: CommandKind, m: Method) -> Option<&SweepStats> {
     stats
         .iter()
         .find(|s| s.example == e && s.command == c && s.method == m)
@@ -427,11 +427,23 @@ fn empty_squares_claim(inside: Option<&Reading>, outward: Option<&Reading>) -> C
 
 /// How much slower claim 8 wants Example 2's θ̂ to settle than Example 1's: twice with
 /// the step and four harmonics ("much slower"), at all with two ("still slower").
-fn slower_by(command: CommandKind) -> f64 {
+pub fn slower_by(command: CommandKind) -> f64 {
     match command {
         CommandKind::Two => 1.0,
         CommandKind::Step | CommandKind::Four => 2.0,
     }
+}
+
+/// Claim 8's test of one command: Example 2's measure `nmp` is at least [`slower_by`]
+/// times Example 1's `mp` (above it when the factor is 1), `mp` finite.
+pub fn is_slower(nmp: f64, mp: f64, command: CommandKind) -> bool {
+    let factor = slower_by(command);
+    mp.is_finite()
+        && if factor > 1.0 {
+            nmp >= factor * mp
+        } else {
+            nmp > mp
+        }
 }
 
 /// Claim 8 (module documentation), on the θ̂ settling step; the (4.85) reading beside it.
@@ -447,13 +459,7 @@ fn slower_convergence_claim(stats: &[SweepStats]) -> Claim {
         ) {
             (Some(n), Some(m)) => {
                 let factor = slower_by(c);
-                let pass = m.theta_settle.is_finite()
-                    && if factor > 1.0 {
-                        n.theta_settle >= factor * m.theta_settle
-                    } else {
-                        n.theta_settle > m.theta_settle
-                    };
-                ok &= pass;
+                ok &= is_slower(n.theta_settle, m.theta_settle, c);
                 let ratio = if m.theta_settle > 0.0 {
                     format!("{:.2}", n.theta_settle / m.theta_settle)
                 } else {

@@ -16,6 +16,14 @@
 //! ([`SETTLE_FRACTION`]) of its largest distance from where it ends. A run that ends
 //! still moving settles late (its last steps are close to `θ̂_K` only because `θ̂_K` is
 //! where it stopped); the 200 steps of the chapter bound the measure.
+//!
+//! # Other readings
+//!
+//! The chapter states no rule, so the band is one of several ([`Band`]): the study's
+//! `0.1 D` ([`Band::OfExcursion`]), a fraction of the final value's size `‖θ̂_K‖`
+//! ([`Band::OfFinal`]), or a fixed distance ([`Band::Absolute`]); the same measure applies
+//! to any signal sampled with the run, e.g. the model-following error `e_k` (`dim = 1`).
+//! [`settling_step_in`] measures under any of them; [`settling_step`] is the study's.
 
 /// The band around `θ̂_K`, as a fraction of the largest excursion `D`.
 pub const SETTLE_FRACTION: f64 = 0.1;
@@ -39,9 +47,41 @@ pub enum SettlingError {
     NonFinite(usize),
 }
 
+/// The band around the final value `x_K` within which a history counts as settled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Band {
+    /// `d_k ≤ f · D`, `D` the largest distance from `x_K` (the study's, `f` =
+    /// [`SETTLE_FRACTION`]).
+    OfExcursion(f64),
+    /// `d_k ≤ f · ‖x_K‖`.
+    OfFinal(f64),
+    /// `d_k ≤ a`.
+    Absolute(f64),
+}
+
+impl Band {
+    /// The study's band: [`SETTLE_FRACTION`] of the largest excursion.
+    pub const STUDY: Band = Band::OfExcursion(SETTLE_FRACTION);
+
+    /// The band as text, e.g. `10 % of the largest excursion`.
+    pub fn text(self) -> String {
+        match self {
+            Band::OfExcursion(f) => format!("{} % of the largest excursion", f * 100.0),
+            Band::OfFinal(f) => format!("{} % of the final value's norm", f * 100.0),
+            Band::Absolute(a) => format!("{a:e} absolute"),
+        }
+    }
+}
+
 /// The settling step of the module documentation for `history`, the samples
 /// `θ̂_0, θ̂_1, …` laid end to end, `dim` coefficients each.
 pub fn settling_step(history: &[f64], dim: usize) -> Result<usize, SettlingError> {
+    settling_step_in(history, dim, Band::STUDY)
+}
+
+/// The first step after which `history` (samples `x_0, x_1, …` laid end to end, `dim`
+/// entries each) stays within `band` of its last sample `x_K`; 0 when it never leaves it.
+pub fn settling_step_in(history: &[f64], dim: usize, band: Band) -> Result<usize, SettlingError> {
     if dim == 0 || history.is_empty() {
         return Err(SettlingError::Empty);
     }
@@ -70,7 +110,11 @@ pub fn settling_step(history: &[f64], dim: usize) -> Result<usize, SettlingError
     if largest == 0.0 {
         return Ok(0);
     }
-    let band = SETTLE_FRACTION * largest;
+    let band = match band {
+        Band::OfExcursion(f) => f * largest,
+        Band::OfFinal(f) => f * last.iter().map(|v| v * v).sum::<f64>().sqrt(),
+        Band::Absolute(a) => a,
+    };
     // The last sample outside the band; the run settles on the next one.
     Ok(distance
         .iter()
@@ -107,6 +151,31 @@ mod tests {
         // A bump inside the band (0.95, 5 % of the excursion away) changes nothing.
         h[150] = 0.95;
         assert_eq!(settling_step(&h, 1), Ok(50));
+    }
+
+    #[test]
+    fn the_other_bands_measure_against_the_final_value_or_a_fixed_distance() {
+        // 2, then 1.5 from k = 10, then 1.05 from k = 20, then 1 from k = 30 to the end:
+        // distances 1, 0.5, 0.05, 0; the largest excursion is 1 and the final value 1.
+        let h: Vec<f64> = (0..=100)
+            .map(|k| match k {
+                0..10 => 2.0,
+                10..20 => 1.5,
+                20..30 => 1.05,
+                _ => 1.0,
+            })
+            .collect();
+        assert_eq!(settling_step_in(&h, 1, Band::OfExcursion(0.6)), Ok(10));
+        assert_eq!(settling_step_in(&h, 1, Band::OfExcursion(0.1)), Ok(20));
+        assert_eq!(settling_step_in(&h, 1, Band::OfFinal(0.1)), Ok(20));
+        assert_eq!(settling_step_in(&h, 1, Band::OfFinal(0.01)), Ok(30));
+        assert_eq!(settling_step_in(&h, 1, Band::Absolute(0.7)), Ok(10));
+        assert_eq!(settling_step_in(&h, 1, Band::Absolute(1e-3)), Ok(30));
+        // Scaled by 10: the relative bands do not move, the absolute one does.
+        let h10: Vec<f64> = h.iter().map(|v| 10.0 * v).collect();
+        assert_eq!(settling_step_in(&h10, 1, Band::OfFinal(0.1)), Ok(20));
+        assert_eq!(settling_step_in(&h10, 1, Band::Absolute(0.7)), Ok(20));
+        assert_eq!(settling_step(&h, 1), settling_step_in(&h, 1, Band::STUDY));
     }
 
     #[test]

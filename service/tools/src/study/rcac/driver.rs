@@ -15,8 +15,12 @@
 //! 3. the CSV files, the error-plane figures, the single runs;
 //! 4. the study's summary, the time taken, the report printed and written to
 //!    `summary.txt`;
-//! 5. the chapter's claims ([`RcacStudy::claims`]) written to `claims.json`
-//!    ([`crate::study::reproduction`]).
+//! 5. unless `--no-sensitivity`, the sensitivity table ([`sensitivity`]): the single runs
+//!    and a coarse subset of the sweep ([`RcacStudy::sensitivity_points`]) again under each
+//!    alternative of [`RcacStudy::sensitivity_changes`], the claims checked on each
+//!    ([`sensitivity_table`]), written to `sensitivity.csv` and the report;
+//! 6. the chapter's claims ([`RcacStudy::claims`]) written to `claims.json`
+//!    ([`crate::study::reproduction`]), with the sensitivity rows.
 //!
 //! `N` is the number of tones, one per input channel: the tone `θ_j` of channel `j`
 //! (output 0, input `j`) is measured in `z_0`.
@@ -34,9 +38,11 @@ use crate::design::target_response::TargetResponse;
 use crate::plot::{Panel, figure};
 use crate::study::common::files::write;
 use crate::study::rcac::common::{
-    Dtm, Method, Point, RUN_SECONDS, TS, Update, WINDOW_SECONDS, Window, model_error, rcac_params,
-    run_closed, run_open, single_run_figure,
+    Dtm, Method, Point, RUN_SECONDS, TS, Update, Window, model_error, rcac_params, run_closed,
+    run_open, single_run_figure,
 };
+use crate::study::rcac::sensitivity::{self, Change};
+use crate::study::reproduction::sensitivity::Alternative;
 use crate::study::reproduction::{self, Claim};
 use control::tones::suppression_db;
 use plant_proxy::scenario::Scenario;
@@ -51,6 +57,8 @@ pub struct Options {
     pub points: usize,
     /// Update laws to run.
     pub updates: Vec<Update>,
+    /// Run the sensitivity table ([`sensitivity`]; `--no-sensitivity` turns it off).
+    pub sensitivity: bool,
 }
 
 /// One point of a study: the plant that runs, the model the errors of `G_f` are taken
@@ -296,6 +304,15 @@ pub trait RcacStudy<const N: usize>: Sync {
     /// Writes the sweep's summary tables to the report.
     fn summary(&self, rows: &[Row<Self::At, N>], updates: &[Update], report: &mut String);
 
+    /// The coarse subset of the sweep the sensitivity table reads the sweep claims on.
+    fn sensitivity_points(&self) -> Vec<Self::At>;
+
+    /// The alternatives of the sensitivity table ([`sensitivity::shared`] unless the study
+    /// has its own).
+    fn sensitivity_changes(&self) -> Vec<Change> {
+        sensitivity::shared()
+    }
+
     /// The chapter's claims checked on the sweep `rows` and the single runs `singles`.
     fn claims(
         &self,
@@ -305,12 +322,9 @@ pub trait RcacStudy<const N: usize>: Sync {
     ) -> Vec<Claim>;
 }
 
-/// Samples per run and per measurement window.
+/// Samples per run and per measurement window under the study's choices.
 fn steps_and_window() -> (usize, usize) {
-    (
-        (RUN_SECONDS / TS).round() as usize,
-        (WINDOW_SECONDS / TS).round() as usize,
-    )
+    Change::Study.steps_and_window()
 }
 
 /// The figure numbers of `method` in study `S`.
@@ -326,17 +340,16 @@ fn figure_numbers<S: RcacStudy<N>, const N: usize>(method: Method) -> FigureNumb
 }
 
 /// RCAC with `dtm` and `update` (step factor `alpha`) against the plant of `s`, measured
-/// against the open-loop peak `reference`; `every > 0` keeps the trace with `θ` recorded
-/// every that many samples.
+/// against the open-loop peak `reference`, `(steps, window)` samples; `every > 0` keeps the
+/// trace with `θ` recorded every that many samples.
 fn rcac_run<const N: usize>(
     s: &Setup<'_, N>,
     dtm: &Dtm,
-    update: Update,
-    alpha: f64,
+    (update, alpha): (Update, f64),
     reference: f64,
+    (steps, window): (usize, usize),
     every: usize,
 ) -> Result<Point, RcacError> {
-    let (steps, window) = steps_and_window();
     run_closed(
         &s.scenario,
         &rcac_params(&dtm.target, update, alpha),
@@ -379,7 +392,7 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     let t1 = Instant::now();
     let rows: Vec<Row<S::At, N>> = sweep
         .par_iter()
-        .map(|&at| sweep_point(study, &designs, at, &opts.updates))
+        .map(|&at| sweep_point(study, &designs, at, &opts.updates, Change::Study))
         .collect::<Result<Vec<_>, _>>()?
         .into_iter()
         .flatten()
@@ -407,6 +420,19 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     let singles = single_runs(study, out, &designs, &opts.updates, &mut report)?;
     let t_fig = t2.elapsed().as_secs_f64();
     study.summary(&rows, &opts.updates, &mut report);
+    let t3 = Instant::now();
+    let sensitivity_rows = if opts.sensitivity {
+        let rows = sensitivity_table(study, &designs)?;
+        write(
+            &out.join("sensitivity.csv"),
+            &reproduction::sensitivity::csv(&rows),
+        )?;
+        report_sensitivity(&rows, &mut report);
+        rows
+    } else {
+        Vec::new()
+    };
+    let t_sens = t3.elapsed().as_secs_f64();
     let designs_time = if S::REPORTS_DESIGN_TIME {
         format!("designs {t_design:.1} s, ")
     } else {
@@ -414,7 +440,7 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     };
     let _ = writeln!(
         report,
-        "\ntime: {designs_time}sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), figures and single runs {t_fig:.1} s, total {:.1} s; files in {}",
+        "\ntime: {designs_time}sweep {t_sweep:.1} s ({} runs of {} steps, {} threads), figures and single runs {t_fig:.1} s, sensitivity {t_sens:.1} s, total {:.1} s; files in {}",
         sweep.len() * (1 + Method::ALL.len() * opts.updates.len()),
         (RUN_SECONDS / TS).round(),
         rayon::current_num_threads(),
@@ -433,36 +459,125 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
             study: S::NAME.into(),
             chapter: 3,
             run: format!(
-                "study {} --points {} --update {update}",
+                "study {} --points {} --update {update}{}",
                 S::NAME,
-                opts.points
+                opts.points,
+                if opts.sensitivity {
+                    ""
+                } else {
+                    " --no-sensitivity"
+                }
             ),
-            claims: reproduction::with_figures(
-                study.claims(&rows, &singles, &opts.updates),
-                S::CLAIM_FIGURES,
-            ),
-            sensitivity: Vec::new(),
+            claims: {
+                let mut c = reproduction::with_figures(
+                    study.claims(&rows, &singles, &opts.updates),
+                    S::CLAIM_FIGURES,
+                );
+                reproduction::sensitivity::annotate(&mut c, &sensitivity_rows);
+                c
+            },
+            sensitivity: sensitivity_rows,
         },
     )?)
 }
 
-/// Runs one sweep point: the open loop and every method × update.
+/// The sensitivity table ([`sensitivity`]): per alternative of the study, the single runs
+/// and the sweep's coarse subset with the gradient update, and the claims checked on them.
+pub fn sensitivity_table<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    designs: &S::Designs,
+) -> Result<Vec<Alternative>, RcacError> {
+    let gradient = [Update::Gradient];
+    let points = study.sensitivity_points();
+    let single_at = study.single_at();
+    study
+        .sensitivity_changes()
+        .into_iter()
+        .map(|change| {
+            // The subset's points, then the single runs' point, in parallel.
+            let mut rows: Vec<Vec<Row<S::At, N>>> = points
+                .iter()
+                .copied()
+                .chain(std::iter::once(single_at))
+                .collect::<Vec<_>>()
+                .par_iter()
+                .map(|&at| sweep_point(study, designs, at, &gradient, change))
+                .collect::<Result<_, _>>()?;
+            let single = rows.pop().unwrap_or_default();
+            let singles: Vec<SingleOutcome<N>> = single
+                .iter()
+                .map(|r| SingleOutcome {
+                    method: r.method,
+                    update: r.update,
+                    finite: r.finite,
+                    suppression: std::array::from_fn(|j| r.suppression(j)),
+                })
+                .collect();
+            let rows: Vec<Row<S::At, N>> = rows.into_iter().flatten().collect();
+            Ok(sensitivity::row(
+                change,
+                &study.claims(&rows, &singles, &gradient),
+            ))
+        })
+        .collect()
+}
+
+/// The sensitivity table in the report: one line per alternative and claim, then per
+/// claim how many alternatives keep it.
+fn report_sensitivity(rows: &[Alternative], report: &mut String) {
+    let _ = writeln!(
+        report,
+        "\nsensitivity (sensitivity.csv; gradient update, single runs and a coarse subset of the sweep):"
+    );
+    for row in rows {
+        for r in &row.readings {
+            let _ = writeln!(
+                report,
+                "  {:<32} {:<12} {:<4} {:<4} {}",
+                row.setting,
+                if row.is_ours() {
+                    "(ours)"
+                } else {
+                    row.value.as_str()
+                },
+                r.claim,
+                r.verdict.word(),
+                r.measured
+            );
+        }
+    }
+    let tally: Vec<String> = reproduction::sensitivity::tally(rows)
+        .iter()
+        .map(|(id, pass, n)| format!("{id} {pass}/{n}"))
+        .collect();
+    let _ = writeln!(
+        report,
+        "  PASS over the alternatives (the study's own row not counted): {}",
+        tally.join(", ")
+    );
+}
+
+/// Runs one sweep point under `change` ([`Change::Study`] for the study's own): the open
+/// loop and every method × update.
 fn sweep_point<S: RcacStudy<N>, const N: usize>(
     study: &S,
     designs: &S::Designs,
     at: S::At,
     updates: &[Update],
+    change: Change,
 ) -> Result<Vec<Row<S::At, N>>, RcacError> {
-    let s = study.setup(designs, at)?;
-    let (steps, window) = steps_and_window();
+    let mut s = study.setup(designs, at)?;
+    change.apply(&mut s.scenario);
+    let (steps, window) = change.steps_and_window();
     let (open, _) = run_open(&s.scenario, steps, window, &s.thetas)?;
     let per_tone =
         |v: &[f64]| -> [f64; N] { std::array::from_fn(|j| v.get(j).copied().unwrap_or(f64::NAN)) };
     let mut rows = Vec::new();
     for (method, dtm) in s.dtms {
-        let error = tone_errors(&s.model, dtm, &s.thetas)?;
+        let dtm = change.dtm(*method, dtm);
+        let error = tone_errors(&s.model, &dtm, &s.thetas)?;
         for &update in updates {
-            let p = rcac_run(&s, dtm, update, S::ALPHA, open.peak, 0)?;
+            let p = rcac_run(&s, &dtm, (update, S::ALPHA), open.peak, (steps, window), 0)?;
             let finite = p.finite();
             let w = p.closed.unwrap_or_default();
             rows.push(Row {
@@ -530,7 +645,14 @@ fn single_runs<S: RcacStudy<N>, const N: usize>(
         let error = tone_errors(&s.model, dtm, &s.thetas)?;
         for &update in updates {
             let every = 10;
-            let p = rcac_run(&s, dtm, update, S::ALPHA, open_w.peak, every)?;
+            let p = rcac_run(
+                &s,
+                dtm,
+                (update, S::ALPHA),
+                open_w.peak,
+                steps_and_window(),
+                every,
+            )?;
             let Some(closed) = p.trace.as_ref().filter(|_| p.finite()) else {
                 outcomes.push(SingleOutcome {
                     method: *method,
@@ -587,4 +709,60 @@ fn single_runs<S: RcacStudy<N>, const N: usize>(
         }
     }
     Ok(outcomes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::rcac::miso::Miso;
+    use crate::study::rcac::siso::{Siso, SweepAt};
+
+    #[test]
+    fn each_change_reaches_the_runs_of_a_sweep_point() {
+        let study = Siso;
+        let designs = study
+            .design(Path::new("."), &mut String::new())
+            .expect("designs");
+        let at = SweepAt {
+            case: 0,
+            wd: 10.0 * PI,
+        };
+        let g = [Update::Gradient];
+        let rows = |c| sweep_point(&study, &designs, at, &g, c).expect("runs");
+        let study_rows = rows(Change::Study);
+        assert_eq!(study_rows.len(), Method::ALL.len());
+        for c in sensitivity::shared().into_iter().skip(1) {
+            let moved = rows(c);
+            // Every change moves the measured closed-loop tone of the average DTM's run.
+            assert_ne!(moved[0].closed_amp[0], study_rows[0].closed_amp[0], "{c:?}");
+        }
+        // The noise reaches the open loop as well.
+        let noisy = rows(Change::Noise(0.1));
+        assert_ne!(noisy[0].open_amp[0], study_rows[0].open_amp[0]);
+    }
+
+    #[test]
+    fn the_average_dtms_beta_moves_only_the_average_dtm() {
+        let study = Miso;
+        let dir = std::env::temp_dir().join(format!("rcac-driver-beta-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temporary folder");
+        let designs = study.design(&dir, &mut String::new()).expect("designs");
+        let _ = std::fs::remove_dir_all(&dir);
+        let s = study.setup(&designs, 0.1).expect("setup");
+        for (method, dtm) in s.dtms {
+            let moved = Change::AverageBeta(0.8).dtm(*method, dtm);
+            let e0 = tone_errors(&s.model, dtm, &s.thetas).expect("errors");
+            let e1 = tone_errors(&s.model, &moved, &s.thetas).expect("errors");
+            match method {
+                // 20 log10(0.8) dB on every channel's magnitude error, the phase kept.
+                Method::Average => {
+                    for j in 0..2 {
+                        assert!((e1[j].0 - e0[j].0 - 20.0 * 0.8_f64.log10()).abs() < 1e-9);
+                        assert!((e1[j].1 - e0[j].1).abs() < 1e-9);
+                    }
+                }
+                Method::Optimize => assert_eq!(e0, e1),
+            }
+        }
+    }
 }

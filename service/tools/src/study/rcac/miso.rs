@@ -39,6 +39,12 @@
 //! 0.1). RCAC: `n_c = 20`, `θ_0 = 0`, `k_w = 5 n_c`, gradient `μ_Exp` with `α = 0.2`,
 //! `R = 0`, and RLS (`P_0 = I`, `λ = 1`); runs and measurements as in `common`.
 //! [`driver`] drives the runs.
+//!
+//! Besides the sweep, the figures and `summary.txt`, it writes the sensitivity table
+//! (`sensitivity.csv`, the end of `summary.txt`, `claims.json`; unless
+//! `--no-sensitivity`): claims 3.5–3.7 under each setting §3.3 leaves open and under the
+//! caption's `β = 0.8` for the windowed average ([`crate::study::rcac::sensitivity`]),
+//! the sweep claim on [`SENSITIVITY_POINTS`] damping ratios.
 
 use crate::study::rcac::RcacError;
 use std::borrow::Cow;
@@ -63,6 +69,7 @@ pub use crate::study::rcac::driver::Options;
 use crate::study::rcac::driver::{
     self, Bode, PlaneFigure, RcacStudy, Setup, SingleOutcome, SingleRun, tone_errors,
 };
+use crate::study::rcac::sensitivity::{self, Change};
 use crate::study::rcac::sweep_csv;
 use crate::study::rcac::sweep_stats::{POOR_DB, SweepStats, secs};
 use crate::study::reproduction::{Claim, Figures};
@@ -160,6 +167,10 @@ pub fn zetas(points: usize) -> Vec<f64> {
         })
         .collect()
 }
+
+/// Damping ratios of the sensitivity table's coarse sweep
+/// ([`crate::study::rcac::sensitivity`]).
+pub const SENSITIVITY_POINTS: usize = 6;
 
 /// One row of the sweep: `at` is the true damping, tone `j` is the tone of input `u_j`.
 pub type Row = driver::Row<f64, 2>;
@@ -271,6 +282,18 @@ impl RcacStudy<2> for Miso {
             dtms: designs,
             thetas: thetas(),
         })
+    }
+
+    /// Six damping ratios from 0.01 to 0.5 ([`SENSITIVITY_POINTS`]).
+    fn sensitivity_points(&self) -> Vec<f64> {
+        zetas(SENSITIVITY_POINTS)
+    }
+
+    /// The shared alternatives and the windowed average's `β` at the caption's 0.8.
+    fn sensitivity_changes(&self) -> Vec<Change> {
+        let mut v = sensitivity::shared();
+        v.push(Change::AverageBeta(0.8));
+        v
     }
 
     /// Figures 3.13/3.14 and 3.16/3.17 at `ζ = 0.01`.

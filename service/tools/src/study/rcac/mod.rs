@@ -9,6 +9,8 @@
 //! - [`siso`], [`miso`]: the two studies, each what is its own.
 //! - [`sweep_csv`], [`sweep_stats`]: the sweep's CSV columns and its summary statistics.
 //! - [`claims`]: the chapter's claims checked on the sweeps and the single runs.
+//! - [`sensitivity`]: the settings §3.3 leaves open, moved to alternatives, and the claims
+//!   under each (the sensitivity table, `sensitivity.csv`).
 
 use crate::file_error::FileError;
 
@@ -80,6 +82,7 @@ pub mod claims;
 pub mod common;
 pub mod driver;
 pub mod miso;
+pub mod sensitivity;
 pub mod siso;
 pub mod sweep_csv;
 pub mod sweep_stats;

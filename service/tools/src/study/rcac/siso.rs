@@ -21,6 +21,12 @@
 //! `θ_0 = 0`, `k_w = 5 n_c`, gradient `μ_Exp` with `α = 0.5`, `R = 0`, and/or RLS with
 //! `P_0 = I`, `λ = 1`) for [`RUN_SECONDS`] and measures the last [`WINDOW_SECONDS`] (see
 //! `common`); [`driver`] drives the runs.
+//!
+//! Besides the sweep, the figures and `summary.txt`, it writes the sensitivity table
+//! (`sensitivity.csv`, the end of `summary.txt`, `claims.json`; unless
+//! `--no-sensitivity`): claims 3.1–3.4 under each setting §3.3 leaves open
+//! ([`crate::study::rcac::sensitivity`]), the sweep claims on [`SENSITIVITY_POINTS`]
+//! frequencies per case.
 
 use crate::study::rcac::RcacError;
 use std::borrow::Cow;
@@ -173,6 +179,10 @@ pub fn sweep(points: usize) -> Vec<f64> {
         .collect()
 }
 
+/// Disturbance frequencies per case of the sensitivity table's coarse sweep
+/// ([`crate::study::rcac::sensitivity`]).
+pub const SENSITIVITY_POINTS: usize = 6;
+
 /// Where a sweep point lies: a case of Figure 3.5 and a disturbance frequency.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SweepAt {
@@ -307,6 +317,11 @@ impl RcacStudy<1> for Siso {
             dtms,
             thetas: [at.wd * TS],
         })
+    }
+
+    /// Every case at six `ω_d` from 4π to 50π ([`SENSITIVITY_POINTS`]).
+    fn sensitivity_points(&self) -> Vec<SweepAt> {
+        self.sweep_points(SENSITIVITY_POINTS)
     }
 
     fn single_at(&self) -> SweepAt {

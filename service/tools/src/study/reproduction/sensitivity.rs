@@ -113,6 +113,42 @@ pub fn tally(rows: &[Alternative]) -> Vec<(String, usize, usize)> {
     out
 }
 
+/// Points each claim's [`super::Claim::ours`] to the table: appends `; sensitivity table:
+/// holds under p of n alternatives` ([`tally`]) to every claim the rows bear on.
+pub fn annotate(claims: &mut [super::Claim], rows: &[Alternative]) {
+    for (id, pass, n) in tally(rows) {
+        if let Some(c) = claims.iter_mut().find(|c| c.id == id) {
+            c.ours.push_str(&format!(
+                "; sensitivity table: holds under {pass} of {n} alternatives"
+            ));
+        }
+    }
+}
+
+/// The rows as CSV, one line per alternative and claim it bears on: `setting, ours, value,
+/// claim, verdict, measured` (every field quoted, `"` doubled); a row with no reading
+/// gives one line with the last three empty. This is the `sensitivity.csv` a study writes
+/// beside its `claims.json`.
+pub fn csv(rows: &[Alternative]) -> String {
+    let q = |s: &str| format!("\"{}\"", s.replace('"', "\"\""));
+    let mut out = String::from("setting,ours,value,claim,verdict,measured\n");
+    for row in rows {
+        let head = format!("{},{},{}", q(&row.setting), q(&row.ours), q(&row.value));
+        if row.readings.is_empty() {
+            out.push_str(&format!("{head},,,\n"));
+        }
+        for r in &row.readings {
+            out.push_str(&format!(
+                "{head},{},{},{}\n",
+                q(&r.claim),
+                r.verdict.word(),
+                q(&r.measured)
+            ));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -146,6 +182,30 @@ mod tests {
             ),
         ];
         assert!(rows[0].is_ours() && !rows[1].is_ours());
+        let text = csv(&rows);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 1 + 4);
+        assert_eq!(lines[0], "setting,ours,value,claim,verdict,measured");
+        assert_eq!(lines[2], "\"P_0\",\"I\",\"10 I\",\"6.4\",FAIL,\"15 s\"");
+        let st = |id| super::super::Statement {
+            chapter: 6,
+            id,
+            source: "",
+            claim: "",
+            criterion: "",
+        };
+        let mut claims = vec![st("6.4").check(false, "27 s"), st("6.5").check(true, "x")];
+        annotate(&mut claims, &rows);
+        assert_eq!(
+            claims[0].ours,
+            "27 s; sensitivity table: holds under 1 of 2 alternatives"
+        );
+        assert_eq!(claims[1].ours, "x");
+        let quoted = csv(&[Alternative::new("a \"b\"", "", "1", "2", vec![])]);
+        assert!(
+            quoted.ends_with("\"a \"\"b\"\"\",\"1\",\"2\",,,\n"),
+            "{quoted}"
+        );
         assert_eq!(
             tally(&rows),
             vec![("6.4".to_string(), 1, 2), ("6.11".to_string(), 1, 1)]
