@@ -335,11 +335,12 @@ pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
         source,
     })?;
     // The chapter's claims, for `study all`, with the sensitivity of each.
-    let claims = reproduction::with_figures(
+    let mut claims = reproduction::with_figures(
         claims::claims(&results, &all_readings, &why),
         claims::FIGURES,
     );
     let sensitivity = sensitivity::record(&plant, runs, seed, &results, &claims, &all_readings)?;
+    reproduction::sensitivity::annotate(&mut claims, &sensitivity);
     Ok(reproduction::write(
         out,
         &reproduction::Claims {

@@ -384,14 +384,10 @@ pub fn claims(outcomes: &[Outcome]) -> Vec<Claim> {
         Some((o, c)) => {
             let within = within_s(exp);
             let reduced = o.reduction(c, NODE_8) >= SUPPRESSED_DB;
-            let sens = if o.sensitivity.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; the choices §6.2 leaves open: {}",
-                    super::sensitivity::summary(&o.sensitivity, within, SUPPRESSED_DB)
-                )
-            };
+            let sens = super::sensitivity::earliest(&o.sensitivity, SUPPRESSED_DB)
+                .map_or(String::new(), |e| {
+                    format!("; the earliest under the choices §6.2 leaves open: {e}")
+                });
             st.check(
                 reduced && c.converge.is_some_and(|t| t <= within),
                 format!(

@@ -639,10 +639,23 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
         let secs = t.elapsed().as_secs_f64();
         summarize(&o, secs, &mut report)?;
         if !o.sensitivity.is_empty() {
+            let within = claims::within_s(exp);
+            let alternatives = o.sensitivity.iter().filter(|r| {
+                !matches!(
+                    r.change,
+                    sensitivity::Change::Study | sensitivity::Change::Settled(_)
+                )
+            });
+            let meets = alternatives
+                .clone()
+                .filter(|r| r.meets(within, claims::SUPPRESSED_DB))
+                .count();
             let _ = writeln!(
                 report,
-                "  sensitivity (node 8, printed setting; sensitivity.csv): {}",
-                sensitivity::summary(&o.sensitivity, claims::within_s(exp), claims::SUPPRESSED_DB)
+                "  sensitivity (node 8, printed setting; sensitivity.csv): within {within} s under {meets} of {} alternatives; the earliest: {}",
+                alternatives.count(),
+                sensitivity::earliest(&o.sensitivity, claims::SUPPRESSED_DB)
+                    .unwrap_or_else(|| "none converges".into())
             );
         }
         for c in &o.closed {
@@ -671,6 +684,7 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
     print!("{report}");
     write(&out.join("summary.txt"), &report)?;
     let names = |v: Vec<&str>| v.join(",");
+    let rows = sensitivity::record(&outcomes, claims::SUPPRESSED_DB);
     Ok(reproduction::write(
         out,
         &reproduction::Claims {
@@ -686,8 +700,12 @@ pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
                     names(opts.settings.iter().map(|s| s.name()).collect())
                 }
             ),
-            claims: reproduction::with_figures(claims::claims(&outcomes), claims::FIGURES),
-            sensitivity: sensitivity::record(&outcomes, claims::SUPPRESSED_DB),
+            claims: {
+                let mut c = reproduction::with_figures(claims::claims(&outcomes), claims::FIGURES);
+                reproduction::sensitivity::annotate(&mut c, &rows);
+                c
+            },
+            sensitivity: rows,
         },
     )?)
 }

@@ -369,31 +369,16 @@ fn apply(
     }
 }
 
-/// The sensitivity of a convergence claim as one line: how many alternatives of node 8's
-/// convergence (the study's own row and the settled fractions, which do not change it,
-/// not counted) meet it, and the closest.
-pub fn summary(rows: &[Row], within: f64, min_db: f64) -> String {
-    let alts: Vec<&Row> = rows
-        .iter()
+/// The alternative of node 8's convergence (the study's own row and the settled
+/// fractions, which do not change it, not counted) that converges first while reduced by
+/// at least `min_db`, as text (`None`: none converges).
+pub fn earliest(rows: &[Row], min_db: f64) -> Option<String> {
+    rows.iter()
         .filter(|r| !matches!(r.change, Change::Study | Change::Settled(_)))
-        .collect();
-    let meets = alts.iter().filter(|r| r.meets(within, min_db)).count();
-    let closest = alts
-        .iter()
         .filter(|r| r.reduction_db >= min_db)
         .filter_map(|r| r.converge.map(|t| (t, r)))
         .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map_or(String::new(), |(t, r)| {
-            format!(
-                "; the earliest: {} {} at {t:.1} s",
-                r.change.choice(),
-                r.change.value()
-            )
-        });
-    format!(
-        "within {within} s under {meets} of {} alternatives{closest} (the chapter's sensitivity table)",
-        alts.len()
-    )
+        .map(|(t, r)| format!("{} {} at {t:.1} s", r.change.choice(), r.change.value()))
 }
 
 #[cfg(test)]
@@ -429,11 +414,9 @@ mod tests {
         let mut rows = vec![r(Some(3.0), 20.0), r(Some(9.0), 20.0), r(None, 20.0)];
         rows[1].change = Change::Seed(2);
         rows[2].change = Change::P0(10.0);
-        let s = summary(&rows, 10.0, 6.0);
-        assert!(
-            s.starts_with("within 10 s under 1 of 2 alternatives; the earliest: seed 2 at 9.0 s"),
-            "{s}"
-        );
+        // The study's own row (3 s) is not an alternative.
+        assert_eq!(earliest(&rows, 6.0).as_deref(), Some("seed 2 at 9.0 s"));
+        assert_eq!(earliest(&rows, 30.0), None);
         assert!(r(Some(9.0), 20.0).suppressed_first());
         assert!(!r(Some(25.0), 20.0).suppressed_first());
         assert!(!r(None, 20.0).suppressed_first());
