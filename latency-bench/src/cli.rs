@@ -73,7 +73,7 @@ pub struct Options {
     /// Core of the real-time side (service RT thread, echo, cyclictest, step cost).
     #[arg(long, default_value_t = 1)]
     pub rt_core: usize,
-    /// Timed PCAC steps per workload (truss, arm), each also solved by clarabel
+    /// Timed PCAC steps per workload (truss, arm), each also solved by clarabel and OSQP
     /// (default 2000; 300 with --quick). `latency-bench pcac` runs this phase alone.
     #[arg(long)]
     pub pcac_steps: Option<u64>,
@@ -98,9 +98,12 @@ pub struct PcacArgs {
     /// Which workload: truss, arm or all.
     #[arg(long, default_value = "all")]
     pub workload: String,
-    /// Time the PCAC step only, without solving its QPs with clarabel.
+    /// Do not solve the PCAC step's QPs with clarabel.
     #[arg(long)]
     pub no_clarabel: bool,
+    /// Do not solve the PCAC step's QPs with OSQP.
+    #[arg(long)]
+    pub no_osqp: bool,
     /// Core of the timing thread (pinned, SCHED_FIFO).
     #[arg(long, default_value_t = 1)]
     pub rt_core: usize,
@@ -138,7 +141,7 @@ impl RunArgs {
 /// A subcommand: the PCAC phase alone, or one of the child roles.
 #[derive(Subcommand)]
 pub enum Role {
-    /// Only the PCAC step cost (truss and sampling-arm sizes) beside clarabel.
+    /// Only the PCAC step cost (truss and sampling-arm sizes) beside clarabel and OSQP.
     Pcac(PcacArgs),
     /// Child role: the real service.
     #[command(hide = true)]

@@ -35,10 +35,10 @@
 //!    `timing = "answer-first"`, in ABBA rounds of fresh processes, the plant closing the
 //!    controller's loop; the rows are the service's own response time (sample time →
 //!    publication of the answer) and compute time, with answer-first ÷ compute-first.
-//! 5. **What does a PCAC step cost, and how does it compare with clarabel?**
+//! 5. **What does a PCAC step cost, and how does it compare with clarabel and OSQP?**
 //!    ([`pcac_cost`]) `Pcac::step` at the truss size and at the sampling-arm size, each in a
-//!    closed loop, with clarabel timed on the same QPs and the step taken apart into its
-//!    kernels. `latency-bench pcac` runs this phase alone.
+//!    closed loop, with clarabel and OSQP ([`osqp_anchor`]) timed on the same QPs and the
+//!    step taken apart into its kernels. `latency-bench pcac` runs this phase alone.
 //!
 //! Every distribution is an HdrHistogram ([`hist`]), written as a percentile distribution
 //! (`.hgrm`, µs) and as an interval log (`.hlog`, V2 + deflate, ns) into the output folder,
@@ -58,6 +58,7 @@ pub mod configs;
 pub mod cyclictest;
 pub mod hist;
 pub mod machine;
+pub mod osqp_anchor;
 pub mod paced;
 pub mod pcac_cost;
 pub mod pcac_phase;

@@ -2,14 +2,14 @@
 //!
 //! ```text
 //! cargo run --release -p latency-bench [-- --samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest --skip-timing]
-//! cargo run --release -p latency-bench -- pcac [--steps N --workload truss|arm|all --out DIR --results FILE]
+//! cargo run --release -p latency-bench -- pcac [--steps N --workload truss|arm|all --no-clarabel --no-osqp --out DIR --results FILE]
 //! ```
 //!
 //! Runs, in order: the contract round trip against the real service, the raw iceoryx2
 //! ping-pong, the service's wake-up latency at 8 kHz in sleep-poll, busy-poll and blocking mode,
 //! cyclictest on the RT core (when installed), the service's response time with
 //! compute-first against answer-first per controller, the step cost of each known controller
-//! configuration, the RLS update cost and the PCAC step cost beside clarabel (the `pcac`
+//! configuration, the RLS update cost and the PCAC step cost beside clarabel and OSQP (the `pcac`
 //! subcommand runs the last alone). Prints the machine facts and one table, writes every
 //! distribution (`.hgrm`, `.hlog`), the service's run reports and a `summary.json` to the
 //! output folder (default `bench-results/<unix-time>/`), and the table with the machine,
@@ -22,7 +22,7 @@ use ipc_types::ChannelCounts;
 use ipc_types::rt::RtSetup;
 use latency_bench::cli::{Cli, Options, PcacArgs, Role, Settings};
 use latency_bench::machine::{self, MachineFacts};
-use latency_bench::pcac_cost::Workload;
+use latency_bench::pcac_cost::{Anchors, Workload};
 use latency_bench::report::{self, Collected, RunKind, RunRecord};
 use latency_bench::{
     child, cyclictest, paced, pcac_phase, rls_cost, roundtrip, step_cost, timing_phase,
@@ -155,7 +155,7 @@ fn bench(o: &Options) -> i32 {
         .extend(rls_cost::rls_phase(&s, &out.join("rls")));
     if let Some(steps) = s.pcac_steps {
         progress(&format!(
-            "PCAC step cost beside clarabel, {steps} steps per workload"
+            "PCAC step cost beside clarabel and OSQP, {steps} steps per workload"
         ));
         let (rows, lines, v) = pcac_phase::pcac_phase(
             s.rt_core,
@@ -163,7 +163,7 @@ fn bench(o: &Options) -> i32 {
             &Workload::ALL,
             None,
             steps,
-            true,
+            Anchors::BOTH,
         );
         col.measured.extend(rows);
         col.details.extend(lines);
@@ -218,6 +218,10 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         .steps
         .unwrap_or(if a.run.quick { 300 } else { 5_000 })
         .max(1);
+    let anchors = Anchors {
+        clarabel: !a.no_clarabel,
+        osqp: !a.no_osqp,
+    };
     let (started, out) = match start_run(a.run.out.as_deref(), "pcac-") {
         Ok(run) => run,
         Err(code) => return code,
@@ -236,7 +240,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         out.display()
     ));
     let (measured, details, v) =
-        pcac_phase::pcac_phase(a.rt_core, &out, &workloads, a.warmup, steps, !a.no_clarabel);
+        pcac_phase::pcac_phase(a.rt_core, &out, &workloads, a.warmup, steps, anchors);
     let mut col = Collected {
         measured,
         details,
@@ -264,7 +268,8 @@ fn pcac_only(a: &PcacArgs) -> i32 {
             "steps": steps,
             "warmup": a.warmup,
             "workload": a.workload,
-            "clarabel": !a.no_clarabel,
+            "clarabel": anchors.clarabel,
+            "osqp": anchors.osqp,
             "rt_core": a.rt_core,
         }),
         out: &out,

@@ -3,7 +3,7 @@
 //! the full run and is all of `latency-bench pcac`.
 
 use crate::hist::{self, Summary, ratio};
-use crate::pcac_cost::{self, PcacCost, Workload};
+use crate::pcac_cost::{self, AnchorCost, Anchors, PcacCost, Workload};
 use crate::report::Measured;
 use crate::table::fmt_ratio;
 use crate::timed_on_rt_core;
@@ -12,16 +12,16 @@ use serde_json::{Value, json};
 use std::path::Path;
 use std::time::{Duration, SystemTime};
 
-/// The PCAC step at each of `workloads` on the pinned RT core, beside clarabel on the same
-/// QPs when `clarabel` (see [`crate::pcac_cost`]): the table rows, the detail lines
-/// and the JSON block of `summary.json`.
+/// The PCAC step at each of `workloads` on the pinned RT core, beside the `anchors`
+/// (clarabel, OSQP) on the same QPs (see [`crate::pcac_cost`]): the table rows, the detail
+/// lines and the JSON block of `summary.json`.
 pub fn pcac_phase(
     rt_core: usize,
     dir: &Path,
     workloads: &[Workload],
     warmup: Option<u64>,
     steps: u64,
-    clarabel: bool,
+    anchors: Anchors,
 ) -> (Vec<Measured>, Vec<String>, Value) {
     let list = workloads.to_vec();
     let run = match timed_on_rt_core(
@@ -33,7 +33,7 @@ pub fn pcac_phase(
             list.iter()
                 .map(|&w| {
                     let warm = warmup.unwrap_or(w.default_warmup());
-                    (w, pcac_cost::measure(w, warm, steps, clarabel))
+                    (w, pcac_cost::measure(w, warm, steps, anchors))
                 })
                 .collect::<Vec<_>>()
         },
@@ -49,7 +49,7 @@ pub fn pcac_phase(
     for (w, r) in results {
         match r {
             Ok(c) => {
-                let (mut m, l, v) = pcac_rows(&c, dir, start, elapsed, clarabel);
+                let (mut m, l, v) = pcac_rows(&c, dir, start, elapsed, anchors);
                 rows.append(&mut m);
                 lines.extend(l);
                 json_out.insert(w.slug().into(), v);
@@ -66,13 +66,14 @@ pub fn pcac_phase(
     (rows, lines, Value::Object(json_out))
 }
 
-/// The rows, detail lines and JSON of one PCAC workload.
+/// The rows, detail lines and JSON of one PCAC workload, with rows for the `anchors` that
+/// ran.
 pub fn pcac_rows(
     c: &PcacCost,
     dir: &Path,
     start: SystemTime,
     elapsed: Duration,
-    clarabel: bool,
+    anchors: Anchors,
 ) -> (Vec<Measured>, Vec<String>, Value) {
     let w = c.workload;
     let slug = w.slug();
@@ -113,28 +114,47 @@ pub fn pcac_rows(
     }
     m.note = note;
     rows.push(m);
-    let cl = Summary::of(&c.clarabel);
-    if clarabel {
-        let mut m = Measured::from_summary(
-            &format!("{slug}-clarabel"),
-            "  clarabel, same QPs (set-up + solve)",
-            cl,
-            files(&format!("{slug}-clarabel"), &c.clarabel),
-        );
+    let cl = Summary::of(&c.clarabel.time);
+    let os = Summary::of(&c.osqp.time);
+    let anchor_row = |id: &str, label: &str, a: &AnchorCost, sm: Summary, extra: String| {
+        let mut m = Measured::from_summary(id, label, sm, files(id, &a.time));
         m.note = format!(
-            "÷ pcac step: p50 {}×, p99 {}×; first move agrees to {:.1e} ({} of {} compared{})",
-            fmt_ratio(ratio(cl.p50_ns, step.p50_ns)),
-            fmt_ratio(ratio(cl.p99_ns, step.p99_ns)),
-            c.max_first_move_diff,
-            c.compared,
+            "÷ pcac step: p50 {}×, p99 {}×; first move agrees to {:.1e} ({} of {} compared{}{})",
+            fmt_ratio(ratio(sm.p50_ns, step.p50_ns)),
+            fmt_ratio(ratio(sm.p99_ns, step.p99_ns)),
+            a.max_first_move_diff,
+            a.compared,
             timed,
-            if c.clarabel_unsolved > 0 {
-                format!(", clarabel not solved {}", c.clarabel_unsolved)
+            if a.unsolved > 0 {
+                format!(", not solved {}", a.unsolved)
             } else {
                 String::new()
-            }
+            },
+            extra,
         );
-        rows.push(m);
+        m
+    };
+    if anchors.clarabel {
+        rows.push(anchor_row(
+            &format!("{slug}-clarabel"),
+            "  clarabel, same QPs (set-up + solve)",
+            &c.clarabel,
+            cl,
+            String::new(),
+        ));
+    }
+    if anchors.osqp {
+        rows.push(anchor_row(
+            &format!("{slug}-osqp"),
+            "  OSQP, same QPs (update + warm solve)",
+            &c.osqp,
+            os,
+            if c.osqp_setups == 1 {
+                String::new()
+            } else {
+                format!(", {} set-ups", c.osqp_setups)
+            },
+        ));
     }
     for (i, what) in ["no active constraint", "≥ 1 active constraint"]
         .iter()
@@ -175,44 +195,62 @@ pub fn pcac_rows(
     m.note = "not in the step row".into();
     rows.push(m);
     let ct = &c.counters;
-    let mut diffs = c.first_move_diffs.clone();
-    diffs.sort_by(f64::total_cmp);
-    let diff_q = |q: f64| -> f64 {
-        if diffs.is_empty() {
-            f64::NAN
-        } else {
-            diffs[((q * diffs.len() as f64) as usize).min(diffs.len() - 1)]
-        }
-    };
     let active_any = timed.saturating_sub(c.active.count_between(0, 0));
-    let lines = vec![
-        format!(
-            "{slug}: active constraints per step p50 {} / p90 {} / p99 {} / max {}, {:.0} % of steps with ≥ 1; QP iterations p50 {} / p99 {} / max {}",
-            hist::quantile(&c.active, 0.5),
-            hist::quantile(&c.active, 0.9),
-            hist::quantile(&c.active, 0.99),
-            c.active.max(),
-            pct(active_any),
-            hist::quantile(&c.iterations, 0.5),
-            hist::quantile(&c.iterations, 0.99),
-            c.iterations.max(),
-        ),
-        format!(
+    let mut lines = vec![format!(
+        "{slug}: active constraints per step p50 {} / p90 {} / p99 {} / max {}, {:.0} % of steps with ≥ 1; QP iterations p50 {} / p99 {} / max {}",
+        hist::quantile(&c.active, 0.5),
+        hist::quantile(&c.active, 0.9),
+        hist::quantile(&c.active, 0.99),
+        c.active.max(),
+        pct(active_any),
+        hist::quantile(&c.iterations, 0.5),
+        hist::quantile(&c.iterations, 0.99),
+        c.iterations.max(),
+    )];
+    if anchors.clarabel {
+        let a = &c.clarabel;
+        lines.push(format!(
             "{slug}: first move |u − u_clarabel| (tol {:.0e}) p50 {:.1e} / p90 {:.1e} / p99 {:.1e} / max {:.1e}; beyond {:.0e} at {} of {} compared steps; there: clarabel re-solved at tol {:.0e} agrees to {:.1e} ({} re-solves not solved); ρ = (J(U_cl) − J(U))/(½eᵀHe) ≥ {:.3} (≥ 1: clarabel's point is higher than ours by at least ½eᵀHe); clarabel's constraint violation ≤ {:.1e}",
             pcac_cost::CLARABEL_TOL,
-            diff_q(0.5),
-            diff_q(0.9),
-            diff_q(0.99),
-            c.max_first_move_diff,
+            a.first_move_diff_quantile(0.5),
+            a.first_move_diff_quantile(0.9),
+            a.first_move_diff_quantile(0.99),
+            a.max_first_move_diff,
             pcac_cost::AGREE_TOL,
-            c.over_tol,
-            c.compared,
+            a.over_tol,
+            a.compared,
             pcac_cost::CLARABEL_TIGHT_TOL,
             c.tight_diff,
             c.tight_unsolved,
-            c.optimality_ratio,
-            c.clarabel_violation,
-        ),
+            a.optimality_ratio,
+            a.violation,
+        ));
+    }
+    if anchors.osqp {
+        let a = &c.osqp;
+        lines.push(format!(
+            "{slug}: first move |u − u_osqp| (eps_abs = eps_rel = {:.0e}, polished) p50 {:.1e} / p90 {:.1e} / p99 {:.1e} / max {:.1e}; beyond {:.0e} at {} of {} compared steps; there: ρ = (J(U_osqp) − J(U))/(½eᵀHe) ≥ {:.3}; OSQP's constraint violation ≤ {:.1e}; OSQP set up {} time(s), then updated and warm-started; ADMM iterations p50 {} / p99 {} / max {}; solved but not polished {}; not solved {} (SolvedInaccurate {}, iteration cap {})",
+            pcac_cost::OSQP_TOL,
+            a.first_move_diff_quantile(0.5),
+            a.first_move_diff_quantile(0.9),
+            a.first_move_diff_quantile(0.99),
+            a.max_first_move_diff,
+            pcac_cost::AGREE_TOL,
+            a.over_tol,
+            a.compared,
+            a.optimality_ratio,
+            a.violation,
+            c.osqp_setups,
+            hist::quantile(&c.osqp_iterations, 0.5),
+            hist::quantile(&c.osqp_iterations, 0.99),
+            c.osqp_iterations.max(),
+            c.osqp_unpolished,
+            a.unsolved,
+            c.osqp_inaccurate_or_capped[0],
+            c.osqp_inaccurate_or_capped[1],
+        ));
+    }
+    lines.push(
         format!(
             "{slug}: {} timed steps; max |u| {:.3}; counters over the whole run: {} MPC steps, {} solved, {} fallbacks ({} infeasible, {} iteration cap, {} numerical, {} refused), {} identification resets; reference copy mismatches {}; pieces' first move vs the step's {:.1e}",
             timed,
@@ -228,7 +266,7 @@ pub fn pcac_rows(
             c.replica_mismatches,
             c.pieces_diff,
         ),
-    ];
+    );
     let active_hist: Vec<(u64, u64)> = c
         .active
         .iter_recorded()
@@ -237,20 +275,38 @@ pub fn pcac_rows(
     let v = json!({
         "step": step,
         "cold": Summary::of(&c.cold),
-        "clarabel": if clarabel { Some(cl) } else { None },
+        "clarabel": if anchors.clarabel { Some(cl) } else { None },
+        "osqp": if anchors.osqp { Some(json!({
+            "summary": os,
+            "tol": pcac_cost::OSQP_TOL,
+            "compared": c.osqp.compared,
+            "unsolved": c.osqp.unsolved,
+            "max_first_move_diff": c.osqp.max_first_move_diff,
+            "first_move_diff_p50": c.osqp.first_move_diff_quantile(0.5),
+            "first_move_diff_p90": c.osqp.first_move_diff_quantile(0.9),
+            "first_move_diff_p99": c.osqp.first_move_diff_quantile(0.99),
+            "over_agree_tol": c.osqp.over_tol,
+            "optimality_ratio": c.osqp.optimality_ratio.is_finite().then_some(c.osqp.optimality_ratio),
+            "violation": c.osqp.violation,
+            "setups": c.osqp_setups,
+            "unpolished": c.osqp_unpolished,
+            "solved_inaccurate": c.osqp_inaccurate_or_capped[0],
+            "iteration_cap": c.osqp_inaccurate_or_capped[1],
+            "iterations": Summary::of(&c.osqp_iterations),
+        })) } else { None },
         "pieces": pcac_cost::PIECES.iter().zip(&c.pieces).map(|(n, h)| json!({"name": n, "summary": Summary::of(h)})).collect::<Vec<_>>(),
-        "max_first_move_diff": c.max_first_move_diff,
-        "compared": c.compared,
-        "clarabel_unsolved": c.clarabel_unsolved,
+        "max_first_move_diff": c.clarabel.max_first_move_diff,
+        "compared": c.clarabel.compared,
+        "clarabel_unsolved": c.clarabel.unsolved,
         "pieces_diff": c.pieces_diff,
-        "first_move_diff_p50": diff_q(0.5),
-        "first_move_diff_p90": diff_q(0.9),
-        "first_move_diff_p99": diff_q(0.99),
+        "first_move_diff_p50": c.clarabel.first_move_diff_quantile(0.5),
+        "first_move_diff_p90": c.clarabel.first_move_diff_quantile(0.9),
+        "first_move_diff_p99": c.clarabel.first_move_diff_quantile(0.99),
         "tight_unsolved": c.tight_unsolved,
-        "over_agree_tol": c.over_tol,
+        "over_agree_tol": c.clarabel.over_tol,
         "tight_tol_diff": c.tight_diff,
-        "optimality_ratio": if c.optimality_ratio.is_finite() { Some(c.optimality_ratio) } else { None },
-        "clarabel_violation": c.clarabel_violation,
+        "optimality_ratio": if c.clarabel.optimality_ratio.is_finite() { Some(c.clarabel.optimality_ratio) } else { None },
+        "clarabel_violation": c.clarabel.violation,
         "replica_mismatches": c.replica_mismatches,
         "saturated_steps": c.saturated,
         "move_bound_steps": c.at_move_bound,
