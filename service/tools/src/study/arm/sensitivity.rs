@@ -11,7 +11,7 @@
 //!
 //! | choice | study | alternatives | why open | claims |
 //! | --- | --- | --- | --- | --- |
-//! | robust gain `K` (7.41) | margin design, λ = 0.025 | min-gain, LQR designs | (7.41) as printed (min s, s ≥ 0) is met by `Q = 0, Y = 0`; `K` is not printed | 7.2–7.6 |
+//! | robust gain `K` (7.41) | margin design, λ = 0.025 | min-gain, LQR designs; the margin design with its force-error column × 0.1 ([`FORCE_GAIN_SCALE`], below its certificate) | (7.41) as printed (min s, s ≥ 0) is met by `Q = 0, Y = 0`; `K` is not printed | 7.2–7.6 |
 //! | `c_r` → damping of (7.28) | Hunt–Crossley `3(1 − c_r)/2` | Lankarani–Nikravesh, Flores et al. ([`super::restitution`]) | (7.28) cites [85–87], which use all three; Figure 7.5's caption says "damping c_s" | 7.4–7.6 |
 //! | sign of `ẏ_0` in (7.28) | the signed onset velocity (< 0): dissipative | the onset speed `\|ẏ_0\|`: `χ → −χ` | "initial contact velocity", no sign convention | 7.4–7.6 |
 //! | Hunt–Crossley exponent `n` | 3/2 (7.28) | 1 | (7.28) prints 3/2 but §7.3.2 gives `k_s` in N/m, the unit of `n = 1` | 7.4–7.6 |
@@ -58,6 +58,15 @@ use crate::study::arm::restitution::Restitution;
 use crate::study::reproduction::sensitivity::{Alternative, Reading};
 use crate::study::reproduction::{Claim, Verdict};
 
+/// The factor of [`Change::ForceGain`]. In (7.39) with `τ_f = K χ`, the force loop's two
+/// modes solve `s² − (K_22 − c_s K_23) s + k_s K_23 = 0`; with the committed gain
+/// (`K_22 ≈ −194`, `K_23 ≈ 0.028`) at Figure 7.4's `k_s = 2·10⁵`, `c_s = 5` the slow
+/// one is about 35 /s, and `k_s K_23 / |K_22|` when overdamped. Scaling `K_23` by 0.1
+/// brings it to about 2.9 /s, where settling within 5 % from `e = −F_d` takes about
+/// `ln 20 / 2.9 ≈ 1` s: claim 7.3's "most of the 2 second contact period". Chosen from
+/// claim 7.3's words and the committed gain, before any run with it.
+pub const FORCE_GAIN_SCALE: f64 = 0.1;
+
 /// Points per axis of the alternatives' grids: every third point of the 10 × 10 grid.
 pub const SENSITIVITY_GRID: usize = 4;
 
@@ -82,6 +91,9 @@ pub enum Change {
         /// The file in `scenarios/arm/`.
         file: &'static str,
     },
+    /// The committed gain with its force-error column (`K_13`, `K_23`) times this factor,
+    /// in both controllers: a force loop this much slower, below its certificate.
+    ForceGain(f64),
     /// Another mapping of `c_r` to the Hunt–Crossley damping.
     Mapping(Restitution),
     /// (7.28) with the onset speed `|ẏ_0|`: `χ = −3(1 − c_r)/2`.
@@ -118,7 +130,7 @@ impl Change {
     pub fn choice(self) -> &'static str {
         match self {
             Change::Study => "the study's choices",
-            Change::Gain { .. } => "robust gain K (7.41)",
+            Change::Gain { .. } | Change::ForceGain(_) => "robust gain K (7.41)",
             Change::Mapping(_) => "c_r → damping of (7.28)",
             Change::OnsetSpeed => "sign of ẏ_0 in (7.28)",
             Change::Exponent(_) => "Hunt–Crossley exponent n",
@@ -137,7 +149,7 @@ impl Change {
     pub fn why_open(self) -> &'static str {
         match self {
             Change::Study => "",
-            Change::Gain { .. } => {
+            Change::Gain { .. } | Change::ForceGain(_) => {
                 "K is not printed, and (7.41) as printed (min s, s ≥ 0) is met by Q = 0, Y = 0"
             }
             Change::Mapping(_) => {
@@ -161,7 +173,7 @@ impl Change {
     pub fn ours(self) -> String {
         match self {
             Change::Study => "–",
-            Change::Gain { .. } => "margin design (robust-gain.toml)",
+            Change::Gain { .. } | Change::ForceGain(_) => "margin design (robust-gain.toml)",
             Change::Mapping(_) => Restitution::HuntCrossley.name(),
             Change::OnsetSpeed => "signed ẏ_0 < 0 (dissipative)",
             Change::Exponent(_) => "3/2",
@@ -181,6 +193,9 @@ impl Change {
         match self {
             Change::Study => "–".into(),
             Change::Gain { objective, file } => format!("{objective} design ({file})"),
+            Change::ForceGain(f) => {
+                format!("margin design, force-error column × {f} (not certified)")
+            }
             Change::Mapping(m) => m.name().into(),
             Change::OnsetSpeed => "onset speed |ẏ_0| (χ → −χ)".into(),
             Change::Exponent(n) => format!("{n}"),
@@ -225,6 +240,12 @@ impl Change {
         match self {
             Change::Gain { objective, file } => {
                 s = s.with_gain(gain_sensitivity::load(dir, objective, file)?.gain);
+            }
+            Change::ForceGain(f) => {
+                let mut k = base.robust.robust_gain;
+                k[2] *= f;
+                k[5] *= f;
+                s = s.with_gain(k);
             }
             Change::Inertia(i) => {
                 if let Some(a) = s.single.plant.arm_mut() {
@@ -324,6 +345,7 @@ pub fn alternatives() -> Vec<Change> {
             .map(|&(objective, file)| Change::Gain { objective, file }),
     );
     v.extend([
+        Change::ForceGain(FORCE_GAIN_SCALE),
         Change::Mapping(Restitution::LankaraniNikravesh),
         Change::Mapping(Restitution::Flores),
         Change::OnsetSpeed,
@@ -669,6 +691,11 @@ mod tests {
             (s.robust.arm.i2, s.augmented.arm.i1),
             (4.0 / 3.0, 4.0 / 3.0)
         );
+        let s = Change::ForceGain(0.1).setup(&base, &dir).unwrap();
+        let (k0, k) = (base.robust.robust_gain, s.augmented.robust_gain);
+        assert_eq!((k[0], k[1], k[3], k[4]), (k0[0], k0[1], k0[3], k0[4]));
+        assert!((k[5] - 0.1 * k0[5]).abs() <= 1e-15 * k0[5].abs());
+        assert_eq!(s.robust.robust_gain, k);
         let s = Change::BusModel(0.9).setup(&base, &dir).unwrap();
         assert!((s.robust.arm.m_sc - 378.0).abs() < 1e-9);
         assert_eq!(s.single.plant.arm.as_ref().unwrap().spacecraft.m_sc, 420.0);
