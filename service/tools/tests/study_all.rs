@@ -158,6 +158,7 @@ fn a_study_that_cannot_run_is_reported_and_a_stale_claims_file_does_not_stand_in
             chapter: 7,
             run: "an earlier run".into(),
             claims: Vec::new(),
+            sensitivity: Vec::new(),
         },
     )
     .unwrap();

@@ -624,7 +624,8 @@ pub fn record(outcomes: &[Outcome], n: usize) -> Vec<Alternative> {
     rows
 }
 
-/// The sentence appended to claim `id`'s "ours": how many alternatives give PASS, which.
+/// The sentence appended to claim `id`'s "ours": how many alternatives give PASS, and the
+/// fewer side by name (those that give PASS, or those that do not).
 pub fn reading(id: &str, rows: &[Alternative]) -> String {
     let alts: Vec<(&Alternative, &Reading)> = rows
         .iter()
@@ -634,20 +635,26 @@ pub fn reading(id: &str, rows: &[Alternative]) -> String {
     if alts.is_empty() {
         return String::new();
     }
-    let pass: Vec<String> = alts
-        .iter()
-        .filter(|(_, x)| x.verdict == Verdict::Pass)
-        .map(|(r, _)| format!("{} = {}", r.setting, r.value))
-        .collect();
+    let named = |pass: bool| -> Vec<String> {
+        alts.iter()
+            .filter(|(_, x)| (x.verdict == Verdict::Pass) == pass)
+            .map(|(r, _)| format!("{} = {}", r.setting, r.value))
+            .collect()
+    };
+    let (pass, fail) = (named(true), named(false));
+    let which = if pass.is_empty() {
+        String::new()
+    } else if pass.len() <= fail.len() {
+        format!(" — {}", pass.join("; "))
+    } else if fail.is_empty() {
+        " — all".to_string()
+    } else {
+        format!(" — all but {}", fail.join("; "))
+    };
     format!(
-        " (Verdict under the study's readings; PASS under {} of {} alternatives of the open settings{}: the sensitivity table.)",
+        " (Verdict under the study's readings; PASS under {} of {} alternatives of the open settings{which}: the sensitivity table.)",
         pass.len(),
         alts.len(),
-        if pass.is_empty() {
-            String::new()
-        } else {
-            format!(" — {}", pass.join("; "))
-        }
     )
 }
 
@@ -814,7 +821,17 @@ mod tests {
         assert_eq!(rows[4].readings.len(), 2);
         assert_eq!(rows[0].readings[0].verdict, Verdict::Fail);
         let s = reading("7.4", &rows);
-        assert!(s.contains("PASS under 2 of 3 alternatives"), "{s}");
+        assert!(
+            s.contains(
+                "PASS under 2 of 3 alternatives of the open settings — all but m_sc of the linearization (7.31) = 1.1×"
+            ),
+            "{s}"
+        );
+        let s = reading("7.2", &rows);
+        assert!(
+            s.contains("PASS under 1 of 2 alternatives of the open settings — m_sc of the linearization (7.31) = 0.9×"),
+            "{s}"
+        );
         assert!(reading("7.1", &rows).is_empty());
     }
 }
