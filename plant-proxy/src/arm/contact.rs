@@ -9,6 +9,18 @@
 //! Hunt–Crossley (7.28):  F_c = k_s (−y)^{3/2} (1 + 3(1 − c_r)/2 · ẏ/ẏ_0)
 //! ```
 //!
+//! and, for the sensitivity of chapter 7's study to how (7.28) is read, the Hunt–Crossley
+//! family it belongs to ([`ContactModel::Hysteretic`], not in the scenario's tables),
+//!
+//! ```text
+//! F_c = k_s (−y)^n (1 + χ ẏ/ẏ_0),
+//! ```
+//!
+//! of which (7.28) is `n = 3/2`, `χ = 3(1 − c_r)/2`; other mappings of `c_r` to the
+//! hysteresis factor `χ` (Lankarani–Nikravesh, Flores et al.) and other exponents are
+//! members, and `χ < 0` is (7.28) read with the contact speed `|ẏ_0|` in place of the
+//! velocity,
+//!
 //! with the stiffness `k_s` (N/m, resp. N/m^{3/2}), the damping `c_s` (N s/m), the
 //! coefficient of restitution `c_r ∈ [0, 1]` and the contact velocity `ẏ_0 < 0` recorded
 //! at the onset of the maneuver's contact (the "initial contact velocity";
@@ -71,6 +83,17 @@ pub enum ContactModel {
         /// `c_r` in `[0, 1]`.
         restitution: f64,
     },
+    /// The Hunt–Crossley family: `F_c = k_s (−y)^n (1 + χ ẏ/ẏ_0)` ((7.28) is `n = 3/2`,
+    /// `χ = 3(1 − c_r)/2`). Built by programs (the sensitivity of chapter 7's study), not
+    /// read from a scenario.
+    Hysteretic {
+        /// `k_s`, N/m^n (> 0).
+        stiffness: f64,
+        /// The exponent `n` (> 0).
+        exponent: f64,
+        /// The hysteresis factor `χ` (finite; negative adds energy while pressing in).
+        hysteresis: f64,
+    },
 }
 
 /// Why a surface was refused: the field (as in the scenario's `[plant.surface]`) and
@@ -125,11 +148,26 @@ impl ContactModel {
         })
     }
 
-    /// The name used in the scenario: `"kelvin-voigt"` or `"hunt-crossley"`.
+    /// The Hunt–Crossley family with `k_s > 0`, `n > 0` and a finite `χ`.
+    pub fn hysteretic(
+        stiffness: f64,
+        exponent: f64,
+        hysteresis: f64,
+    ) -> Result<Self, SurfaceError> {
+        Ok(ContactModel::Hysteretic {
+            stiffness: check("stiffness", stiffness, stiffness > 0.0, "positive")?,
+            exponent: check("exponent", exponent, exponent > 0.0, "positive")?,
+            hysteresis: check("hysteresis", hysteresis, true, "finite")?,
+        })
+    }
+
+    /// The name used in the scenario: `"kelvin-voigt"` or `"hunt-crossley"`
+    /// (`"hysteretic"` for the family, which no scenario names).
     pub fn name(&self) -> &'static str {
         match self {
             ContactModel::KelvinVoigt { .. } => "kelvin-voigt",
             ContactModel::HuntCrossley { .. } => "hunt-crossley",
+            ContactModel::Hysteretic { .. } => "hysteretic",
         }
     }
 
@@ -137,7 +175,8 @@ impl ContactModel {
     pub fn stiffness(&self) -> f64 {
         match *self {
             ContactModel::KelvinVoigt { stiffness, .. }
-            | ContactModel::HuntCrossley { stiffness, .. } => stiffness,
+            | ContactModel::HuntCrossley { stiffness, .. }
+            | ContactModel::Hysteretic { stiffness, .. } => stiffness,
         }
     }
 
@@ -151,6 +190,11 @@ impl ContactModel {
                 stiffness,
                 restitution,
             } => Self::hunt_crossley(stiffness, restitution).map(|_| ()),
+            ContactModel::Hysteretic {
+                stiffness,
+                exponent,
+                hysteresis,
+            } => Self::hysteretic(stiffness, exponent, hysteresis).map(|_| ()),
         }
     }
 }
@@ -207,6 +251,15 @@ impl Surface {
                 let pen = (-y).max(0.0);
                 let v0 = yd0.min(-MIN_ONSET_SPEED);
                 stiffness * pen * pen.sqrt() * (1.0 + 1.5 * (1.0 - restitution) * yd / v0)
+            }
+            ContactModel::Hysteretic {
+                stiffness,
+                exponent,
+                hysteresis,
+            } => {
+                let pen = (-y).max(0.0);
+                let v0 = yd0.min(-MIN_ONSET_SPEED);
+                stiffness * pen.powf(exponent) * (1.0 + hysteresis * yd / v0)
             }
         }
     }

@@ -401,6 +401,33 @@ fn hunt_crossley_gives_7_28_with_the_recorded_contact_velocity() {
 }
 
 #[test]
+fn the_hysteretic_family_holds_7_28_and_its_other_readings() {
+    let (y, yd, yd0) = (-1e-4, -0.05, -0.1);
+    for (k, c_r) in [(2e5, 0.9), (300.0, 0.1), (1e4, 1.0)] {
+        let printed = Surface::chapter(ContactModel::hunt_crossley(k, c_r).unwrap());
+        let family = Surface::chapter(ContactModel::hysteretic(k, 1.5, 1.5 * (1.0 - c_r)).unwrap());
+        let (a, b) = (printed.raw_force(y, yd, yd0), family.raw_force(y, yd, yd0));
+        assert!((a - b).abs() <= 1e-12 * a.abs(), "{k} {c_r}: {a} {b}");
+    }
+    // n = 1 with χ = 0.5 while pressing in at half the onset speed: k δ (1 + 0.25).
+    let linear = Surface::chapter(ContactModel::hysteretic(2e5, 1.0, 0.5).unwrap());
+    assert!((linear.contact_force(y, yd, yd0) - 2e5 * 1e-4 * 1.25).abs() < 1e-9);
+    // χ < 0: less force while pressing in than the elastic part alone.
+    let speed = Surface::chapter(ContactModel::hysteretic(2e5, 1.5, -0.15).unwrap());
+    assert!(speed.contact_force(y, yd, yd0) < 2e5 * 1e-6);
+    assert_eq!(
+        ContactModel::hysteretic(2e5, 0.0, 0.1).unwrap_err().field,
+        "exponent"
+    );
+    assert_eq!(
+        ContactModel::hysteretic(2e5, 1.5, f64::NAN)
+            .unwrap_err()
+            .field,
+        "hysteresis"
+    );
+}
+
+#[test]
 fn friction_is_regularized_coulomb_7_29() {
     let s = Surface::chapter(kv());
     let f_c = 25.0;

@@ -62,6 +62,17 @@ fn surface_json(s: &Surface) -> Value {
             "stiffness": stiffness,
             "restitution": restitution,
         }),
+        ContactModel::Hysteretic {
+            stiffness,
+            exponent,
+            hysteresis,
+        } => json!({
+            "model": "hysteretic",
+            "equation": "F_c = k_s (-y)^n (1 + chi dy/dy_0)",
+            "stiffness": stiffness,
+            "exponent": exponent,
+            "hysteresis": hysteresis,
+        }),
     };
     json!({
         "law": law,

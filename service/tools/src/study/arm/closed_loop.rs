@@ -202,8 +202,13 @@ impl Setup {
 
     /// The single-maneuver scenario with the surface `model(k_s, c)`.
     pub fn single_on(&self, model: Model, k_s: f64, c: f64) -> Result<Scenario, ArmError> {
+        self.single_with(model.surface(k_s, c)?)
+    }
+
+    /// The single-maneuver scenario with the normal-force law `law`.
+    pub fn single_with(&self, law: ContactModel) -> Result<Scenario, ArmError> {
         let mut sc = self.single.clone();
-        sc.plant.arm_mut().ok_or(ArmError::NotArm)?.surface.model = model.surface(k_s, c)?;
+        sc.plant.arm_mut().ok_or(ArmError::NotArm)?.surface.model = law;
         Ok(sc)
     }
 
@@ -305,7 +310,12 @@ pub use crate::stats::median;
 /// time from the first sample to the first after which every sample is in the band
 /// (`+∞` when the last one is not).
 pub fn settling_time(f: &[f64], ts: f64) -> f64 {
-    let inside = |v: f64| (v - F_D).abs() <= BAND * F_D;
+    settling_time_within(f, ts, BAND)
+}
+
+/// [`settling_time`] into `F_d (1 ± band)` (the sensitivity of the band).
+pub fn settling_time_within(f: &[f64], ts: f64, band: f64) -> f64 {
+    let inside = |v: f64| (v - F_D).abs() <= band * F_D;
     match f.iter().rposition(|&v| !inside(v)) {
         None => 0.0,
         Some(i) if i + 1 == f.len() => f64::INFINITY,
@@ -315,6 +325,11 @@ pub fn settling_time(f: &[f64], ts: f64) -> f64 {
 
 /// The contact phases of the samples `(r_k, F_c,k)` sampled every `ts`.
 pub fn contact_stats(r: &[f64], force: &[f64], ts: f64) -> Vec<ContactStats> {
+    contact_stats_within(r, force, ts, BAND)
+}
+
+/// [`contact_stats`] with the settling time into `F_d (1 ± band)`.
+pub fn contact_stats_within(r: &[f64], force: &[f64], ts: f64, band: f64) -> Vec<ContactStats> {
     let mut out = Vec::new();
     let mut k = 0;
     while k < r.len() {
@@ -328,7 +343,7 @@ pub fn contact_stats(r: &[f64], force: &[f64], ts: f64) -> Vec<ContactStats> {
                 first,
                 samples: k - first,
                 median: median(f),
-                settling: settling_time(f, ts),
+                settling: settling_time_within(f, ts, band),
             });
         } else {
             k += 1;
@@ -449,5 +464,10 @@ mod tests {
         assert_eq!((c[0].first, c[0].samples, c[0].median), (1, 2, 13.0));
         assert_eq!(c[0].settling, 0.5);
         assert_eq!((c[1].first, c[1].settling), (4, 0.0));
+        // A wider band settles earlier, a narrower one later.
+        let f = [0.0, 22.0, 24.0, 25.2, 25.0];
+        assert_eq!(settling_time_within(&f, ts, 0.15), 0.5);
+        assert_eq!(settling_time_within(&f, ts, 0.05), 1.0);
+        assert_eq!(settling_time_within(&f, ts, 0.005), 2.0);
     }
 }

@@ -191,7 +191,7 @@ fn study_section(s: &mut String, all: &AllRun, r: &StudyRun, links: Links) {
 /// A study's sensitivity table ([`super::sensitivity`]): one row per alternative, one
 /// column per claim the rows bear on, with a line before it that counts, per claim, the
 /// alternatives under which it holds. Nothing when the study has none.
-fn sensitivity_table(s: &mut String, rows: &[super::sensitivity::Alternative]) {
+pub fn sensitivity_table(s: &mut String, rows: &[super::sensitivity::Alternative]) {
     if rows.is_empty() {
         return;
     }
