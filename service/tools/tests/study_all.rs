@@ -111,6 +111,19 @@ fn study_all_quick_reports_every_studys_claims_with_verdicts() {
                 _ => assert!(!c.ours.is_empty(), "{} {}: no number", s.name, c.id),
             }
         }
+        // Every study shows the settings its chapter leaves open: alternatives beyond its
+        // own choice, each reading a claim of the file (`reproduction::read` refuses a
+        // reading of a claim it does not have), and the report's table of them.
+        assert!(
+            claims.sensitivity.iter().any(|r| !r.is_ours()),
+            "{}: no sensitivity alternatives",
+            s.name
+        );
+        assert!(
+            claims.sensitivity.iter().all(|r| !r.readings.is_empty()),
+            "{}: a sensitivity row reads no claim",
+            s.name
+        );
         for (t, v) in [Verdict::Pass, Verdict::Fail, Verdict::NotChecked]
             .iter()
             .enumerate()
@@ -118,6 +131,11 @@ fn study_all_quick_reports_every_studys_claims_with_verdicts() {
             totals[t] += claims.count(*v);
         }
     }
+    assert_eq!(
+        report.matches("**Sensitivity.**").count(),
+        STUDIES.len(),
+        "one sensitivity table per study"
+    );
     // The totals row and the printed count agree with the claims files.
     let totals_row = format!(
         "| {} of {} | {} | {} | {} |",
