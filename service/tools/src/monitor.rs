@@ -148,6 +148,9 @@ pub struct Monitor {
     readers: Vec<JoinHandle<()>>,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     server: Option<tokio::task::JoinHandle<std::io::Result<()>>>,
+    /// `SIGTERM` and `SIGINT`, caught from [`Monitor::start`] on: a signal sent as soon as
+    /// the monitor has said where it listens stops it cleanly instead of killing it.
+    signals: (tokio::signal::unix::Signal, tokio::signal::unix::Signal),
 }
 
 impl core::fmt::Debug for Monitor {
@@ -238,6 +241,17 @@ impl Monitor {
             registry: Arc::new(metrics::registry(hub.clone())),
             command_timeout: opts.command_timeout,
         };
+        let signals = {
+            use tokio::signal::unix::{SignalKind, signal};
+            let _in_runtime = runtime.enter();
+            let handler = |kind, name: &str| {
+                signal(kind).map_err(|e| MonitorError::Start(format!("the {name} handler: {e}")))
+            };
+            (
+                handler(SignalKind::terminate(), "SIGTERM")?,
+                handler(SignalKind::interrupt(), "SIGINT")?,
+            )
+        };
         let (tx, rx) = tokio::sync::oneshot::channel::<()>();
         let server = runtime.spawn(async move {
             axum::serve(listener, http::router(app))
@@ -255,6 +269,7 @@ impl Monitor {
             readers,
             shutdown: Some(tx),
             server: Some(server),
+            signals,
         })
     }
 
@@ -273,17 +288,16 @@ impl Monitor {
         &self.hub
     }
 
-    /// Blocks until `SIGINT` or `SIGTERM`, or until the HTTP server ends on its own.
+    /// Blocks until `SIGINT` or `SIGTERM` (caught since [`Monitor::start`]), or until the
+    /// HTTP server ends on its own.
     ///
     /// # Errors
     ///
-    /// The signal handlers could not be installed, or the server failed.
+    /// The server failed.
     pub fn wait_for_signal(&mut self) -> Result<(), MonitorError> {
         let server = self.server.as_mut();
+        let (term, int) = &mut self.signals;
         self.runtime.block_on(async {
-            use tokio::signal::unix::{SignalKind, signal};
-            let mut term = signal(SignalKind::terminate())
-                .map_err(|e| MonitorError::Start(format!("the SIGTERM handler: {e}")))?;
             let ended = async {
                 match server {
                     Some(s) => s.await,
@@ -291,7 +305,7 @@ impl Monitor {
                 }
             };
             tokio::select! {
-                _ = tokio::signal::ctrl_c() => Ok(()),
+                _ = int.recv() => Ok(()),
                 _ = term.recv() => Ok(()),
                 r = ended => match r {
                     Ok(Ok(())) => Ok(()),

@@ -299,3 +299,14 @@ fn a_bad_option_is_refused_naming_it() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--listen not-an-address"));
 }
+
+#[test]
+fn a_sigterm_sent_as_soon_as_it_listens_stops_it_cleanly() {
+    // The signal handlers are in place before the monitor says where it listens, so a
+    // supervisor that stops it right away gets a clean exit, not a kill by the signal.
+    for i in 0..5 {
+        let m = MonitorProcess::start(&["--rig", &unique_rig(&format!("term-{i}"))]);
+        let status = m.stop();
+        assert!(status.success(), "run {i}: {status:?}");
+    }
+}
