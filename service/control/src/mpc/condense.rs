@@ -134,6 +134,38 @@
 use super::qp::{ConstraintId, QpData, QpProblem};
 use crate::linalg::dot_in_order as dot;
 
+/// One row of the `T_tᵀ Q T_t` recursion ([`Condenser::build_hessian`]) with `PT`
+/// tracked outputs: `dst[(b − a)·m + β] = from[(b − a)·m + β] + (Q G_{ℓ−1−a})ᵀ_α ·
+/// G_{ℓ−1−b}[β]` for `b = a..ℓ−1` (`dst` and `from` cover those blocks, `q_ga` is row `α`
+/// of `(2 Q G_{ℓ−1−a})ᵀ`, `gt` holds the `G_sᵀ`, `m × PT` each, from `s = 1`), each sum
+/// over `t = 0..PT` in order.
+#[inline(always)]
+fn recursion_row<const PT: usize>(
+    dst: &mut [f64],
+    from: &[f64],
+    gt: &[f64],
+    q_ga: &[f64],
+    m: usize,
+) {
+    let Ok(q): Result<[f64; PT], _> = q_ga.try_into() else {
+        return;
+    };
+    let blocks = dst.len() / m;
+    for (k, (dst, from)) in dst
+        .chunks_exact_mut(m)
+        .zip(from.chunks_exact(m))
+        .enumerate()
+    {
+        // Block b = a + k reads G_s with s = ℓ−1−b = blocks − k.
+        let s = blocks - k;
+        let g = &gt[(s - 1) * PT * m..s * PT * m];
+        for ((d, f), gcol) in dst.iter_mut().zip(from).zip(g.chunks_exact(PT)) {
+            let sum: f64 = q.iter().zip(gcol).map(|(x, y)| x * y).sum();
+            *d = f + sum;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests;
 
@@ -745,12 +777,28 @@ impl Condenser {
                     }
                     let src = &below[al * n..(al + 1) * n];
                     let qga = &qg_of(ell - 1 - a)[al * pt..(al + 1) * pt];
-                    for b in a..ell - 1 {
-                        let gb = g_of(ell - 1 - b);
-                        let dst = &mut row[b * m..(b + 1) * m];
-                        let from = &src[(b + 1) * m..(b + 2) * m];
-                        for ((d, f), gcol) in dst.iter_mut().zip(from).zip(gb.chunks_exact(pt)) {
-                            *d = f + dot(qga, gcol);
+                    let dst = &mut row[a * m..(ell - 1) * m];
+                    let from = &src[(a + 1) * m..ell * m];
+                    // The tracked-output counts of the examples get a loop unrolled at
+                    // compile time; the sums are the same, term by term, in the same order.
+                    match pt {
+                        1 => recursion_row::<1>(dst, from, gt, qga, m),
+                        2 => recursion_row::<2>(dst, from, gt, qga, m),
+                        3 => recursion_row::<3>(dst, from, gt, qga, m),
+                        4 => recursion_row::<4>(dst, from, gt, qga, m),
+                        _ => {
+                            for (b, (dst, from)) in dst
+                                .chunks_exact_mut(m)
+                                .zip(from.chunks_exact(m))
+                                .enumerate()
+                            {
+                                let gb = g_of(ell - 1 - a - b);
+                                for ((d, f), gcol) in
+                                    dst.iter_mut().zip(from).zip(gb.chunks_exact(pt))
+                                {
+                                    *d = f + dot(qga, gcol);
+                                }
+                            }
                         }
                     }
                 }

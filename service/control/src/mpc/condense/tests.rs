@@ -297,6 +297,10 @@ fn structured_tqt_matches_the_dense_product() {
             ),
         ),
         (9, 3, 2, 2, Weight::Scalar(1.0)),
+        // Every tracked-output count with its own unrolled recursion row (1 to 4), the
+        // sampling arm's (p_t = 3) among them.
+        (50, 2, 5, 3, Weight::PerChannel(vec![1000.0, 100.0, 1.0])),
+        (20, 2, 4, 4, Weight::Scalar(2.0)),
     ] {
         let mut s = spec(ell, m, p, pt, &mut rng);
         s.q = q;
