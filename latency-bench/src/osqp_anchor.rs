@@ -401,7 +401,7 @@ fn sym(h: &[f64], n: usize, i: usize, j: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use control::mpc::qp::{DenseQpSolver, QpSettings, QpStatus, WarmStart};
+    use control::mpc::qp::{DenseQpSolver, QpData, QpSettings, QpStatus, WarmStart};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -426,52 +426,30 @@ mod tests {
     /// minimizer lies well outside the box and the rows, so that some bounds and rows are
     /// active; one upper bound and one row are disabled (`+∞`) and one lower bound is
     /// `−∞`.
-    struct RandomQp {
-        hess: Vec<f64>,
-        f: Vec<f64>,
-        lb: Vec<f64>,
-        ub: Vec<f64>,
-        g: Vec<f64>,
-        h: Vec<f64>,
-    }
-
-    impl RandomQp {
-        fn new(rng: &mut ChaCha8Rng, n: usize, m: usize) -> Self {
-            let l: Vec<f64> = (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect();
-            let mut hess = vec![0.0; n * n];
-            for i in 0..n {
-                for j in 0..n {
-                    let s: f64 = (0..n).map(|k| l[i * n + k] * l[j * n + k]).sum();
-                    hess[i * n + j] = s + if i == j { 0.5 } else { 0.0 };
-                }
-            }
-            let f = (0..n).map(|_| rng.random_range(-20.0..20.0)).collect();
-            let mut lb = vec![-1.0; n];
-            let mut ub = vec![1.0; n];
-            lb[0] = f64::NEG_INFINITY;
-            ub[n - 1] = f64::INFINITY;
-            let g = (0..m * n).map(|_| rng.random_range(-1.0..1.0)).collect();
-            let mut h: Vec<f64> = (0..m).map(|_| rng.random_range(0.1..1.0)).collect();
-            h[m - 1] = f64::INFINITY;
-            Self {
-                hess,
-                f,
-                lb,
-                ub,
-                g,
-                h,
+    fn random_qp(rng: &mut ChaCha8Rng, n: usize, m: usize) -> QpData {
+        let l: Vec<f64> = (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let mut hess = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let s: f64 = (0..n).map(|k| l[i * n + k] * l[j * n + k]).sum();
+                hess[i * n + j] = s + if i == j { 0.5 } else { 0.0 };
             }
         }
-
-        fn problem(&self) -> QpProblem<'_> {
-            QpProblem {
-                hess: &self.hess,
-                f: &self.f,
-                lb: &self.lb,
-                ub: &self.ub,
-                g: &self.g,
-                h: &self.h,
-            }
+        let f = (0..n).map(|_| rng.random_range(-20.0..20.0)).collect();
+        let mut lb = vec![-1.0; n];
+        let mut ub = vec![1.0; n];
+        lb[0] = f64::NEG_INFINITY;
+        ub[n - 1] = f64::INFINITY;
+        let g = (0..m * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let mut h: Vec<f64> = (0..m).map(|_| rng.random_range(0.1..1.0)).collect();
+        h[m - 1] = f64::INFINITY;
+        QpData {
+            hess,
+            f,
+            lb,
+            ub,
+            g,
+            h,
         }
     }
 
@@ -500,7 +478,7 @@ mod tests {
         let (mut any_bound, mut any_row) = (false, false);
         for case in 0..40 {
             let (n, m) = (2 + case % 7, 1 + case % 4);
-            let qp = RandomQp::new(&mut rng, n, m);
+            let qp = random_qp(&mut rng, n, m);
             let p = qp.problem();
             let ours = dense(&p);
             let mut osqp = OsqpAnchor::new(TOL);
@@ -521,7 +499,7 @@ mod tests {
 
     #[test]
     fn infinite_bounds_and_disabled_rows_become_osqp_infinity() {
-        let qp = RandomQp::new(&mut ChaCha8Rng::seed_from_u64(1), 3, 2);
+        let qp = random_qp(&mut ChaCha8Rng::seed_from_u64(1), 3, 2);
         let mut osqp = OsqpAnchor::new(TOL);
         osqp.fill_vectors(&qp.problem());
         assert_eq!(
@@ -534,7 +512,7 @@ mod tests {
     #[test]
     fn a_second_problem_of_the_same_pattern_is_updated_not_set_up_again() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let mut qp = RandomQp::new(&mut rng, 5, 3);
+        let mut qp = random_qp(&mut rng, 5, 3);
         let mut osqp = OsqpAnchor::new(TOL);
         assert!(osqp.solve(&qp.problem()).unwrap().set_up);
         // New values on the same (dense) pattern: updated, warm-started, still exact.
@@ -567,7 +545,7 @@ mod tests {
 
     #[test]
     fn inconsistent_slices_are_refused() {
-        let qp = RandomQp::new(&mut ChaCha8Rng::seed_from_u64(2), 3, 2);
+        let qp = random_qp(&mut ChaCha8Rng::seed_from_u64(2), 3, 2);
         let mut p = qp.problem();
         p.g = &qp.g[..5];
         assert_eq!(

@@ -471,25 +471,17 @@ fn sensitivity_markdown(rows: &[reproduction::sensitivity::Alternative]) -> Stri
                 "| {} | {} | {} | {} | {} | {} |",
                 row.setting,
                 row.ours,
-                if row.is_ours() {
-                    "(ours)"
-                } else {
-                    row.value.as_str()
-                },
+                row.shown_value(),
                 r.claim,
                 r.verdict.word(),
                 r.measured.replace('|', "\\|")
             );
         }
     }
-    let tally: Vec<String> = reproduction::sensitivity::tally(rows)
-        .iter()
-        .map(|(id, pass, n)| format!("{id} {pass}/{n}"))
-        .collect();
     let _ = writeln!(
         s,
         "\nPASS over the alternatives (the study's own row not counted): {}.",
-        tally.join(", ")
+        reproduction::sensitivity::tally_text(rows)
     );
     s
 }

@@ -535,25 +535,17 @@ fn report_sensitivity(rows: &[Alternative], report: &mut String) {
                 report,
                 "  {:<32} {:<12} {:<4} {:<4} {}",
                 row.setting,
-                if row.is_ours() {
-                    "(ours)"
-                } else {
-                    row.value.as_str()
-                },
+                row.shown_value(),
                 r.claim,
                 r.verdict.word(),
                 r.measured
             );
         }
     }
-    let tally: Vec<String> = reproduction::sensitivity::tally(rows)
-        .iter()
-        .map(|(id, pass, n)| format!("{id} {pass}/{n}"))
-        .collect();
     let _ = writeln!(
         report,
         "  PASS over the alternatives (the study's own row not counted): {}",
-        tally.join(", ")
+        reproduction::sensitivity::tally_text(rows)
     );
 }
 

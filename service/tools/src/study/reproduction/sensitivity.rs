@@ -89,6 +89,15 @@ impl Alternative {
     pub fn is_ours(&self) -> bool {
         self.value == self.ours
     }
+
+    /// The alternative as a summary shows it: `(ours)` in the study's own row.
+    pub fn shown_value(&self) -> &str {
+        if self.is_ours() {
+            "(ours)"
+        } else {
+            &self.value
+        }
+    }
 }
 
 /// For each claim the rows bear on, in order of first appearance: how many of the
@@ -111,6 +120,15 @@ pub fn tally(rows: &[Alternative]) -> Vec<(String, usize, usize)> {
         }
     }
     out
+}
+
+/// The [`tally`] as one line's text: `4.1 7/12, 4.2 10/12, …`.
+pub fn tally_text(rows: &[Alternative]) -> String {
+    tally(rows)
+        .iter()
+        .map(|(id, pass, n)| format!("{id} {pass}/{n}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Points each claim's [`super::Claim::ours`] to the table: appends `; sensitivity table:
@@ -182,6 +200,11 @@ mod tests {
             ),
         ];
         assert!(rows[0].is_ours() && !rows[1].is_ours());
+        assert_eq!(
+            (rows[0].shown_value(), rows[1].shown_value()),
+            ("(ours)", "10 I")
+        );
+        assert_eq!(tally_text(&rows), "6.4 1/2, 6.11 1/1");
         let text = csv(&rows);
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 1 + 4);
