@@ -45,7 +45,7 @@
 //! adaptation (the loop caught up: the plant holds its input, and the plan in force is
 //! dropped, as after an observation in the single-rate form), or samples lost before the
 //! one at hand (the plan in force moves on by as many rows, as the plant followed it; a
-//! new cycle starts at this sample). Everything here is allocated in [`Replan::new`].
+//! new cycle starts at this sample). Everything here is allocated when the controller is built.
 
 /// The three units of work of one solve (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
