@@ -47,10 +47,10 @@
 //!    - **the pieces**: the step's PCAC part taken apart into the public kernels of
 //!      `control`, each timed alone on the data the reference PCAC just used:
 //!      `IoModel::update` on a copy of its model taken before the step (identification;
-//!      the copy's coefficients are checked equal to PCAC's), `HorizonPrediction` on the
-//!      identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
-//!      `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state, Markov
-//!      parameters, free response), `Condenser::build` (condensing) and
+//!      the copy's coefficients are checked equal to PCAC's, untimed), `HorizonPrediction`
+//!      on the identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop
+//!      model `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state,
+//!      Markov parameters, free response), `Condenser::build` (condensing) and
 //!      `DenseQpSolver::solve` (warm-started from its own shifted active set, as `Pcac`
 //!      does). Its first move is compared with the timed controller's, which checks that
 //!      the pieces are the step. Not timed as pieces: the arm's linearization and robust
@@ -404,6 +404,8 @@ impl Pieces {
             .zip(m.coefficients())
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
+        // The prediction's time starts after that check, which is not part of a step.
+        let t1b = monotonic_ns();
         // Same-step timing with the augmentation (the arm): the closed-loop model from its
         // state, moves from u_aug,k−1; next-step timing (the truss): from the model and
         // u_k, moves from u_k (`Pcac::solve_mpc`).
@@ -445,7 +447,7 @@ impl Pieces {
         let t3 = monotonic_ns();
         let status = self.solver.solve(&problem, warm);
         let t4 = monotonic_ns();
-        *t = [t1 - t0, t2 - t1, t3 - t2b, t4 - t3];
+        *t = [t1 - t0, t2 - t1b, t3 - t2b, t4 - t3];
         if status == QpStatus::Solved {
             let na = self.solver.active_set_into(&mut self.active);
             self.n_shifted = self
