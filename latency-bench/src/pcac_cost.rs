@@ -192,6 +192,18 @@ pub fn truss_params() -> PcacParams {
         .build()
 }
 
+/// The truss workload's plant: the plant tables of `scenarios/truss/broadband-25hz.toml`
+/// (module docs), from its start.
+///
+/// # Errors
+///
+/// The scenario's plant is refused (a broken build).
+pub fn truss_plant() -> Result<PlantSim, String> {
+    let sc = plant_proxy::scenario::parse(TRUSS_SCENARIO, "broadband-25hz.toml")
+        .map_err(|e| e.to_string())?;
+    PlantSim::new(&sc.plant, sc.rig.sample_period).map_err(|e| format!("truss plant: {e}"))
+}
+
 /// The controller of a closed loop: PCAC alone (truss) or the arm's Algorithm 3 with PCAC
 /// inside.
 enum Ctrl {
@@ -220,10 +232,7 @@ impl ClosedLoop {
     fn new(w: Workload) -> Result<Self, String> {
         let (plant, ctrl, mpc, n_u) = match w {
             Workload::Truss => {
-                let sc = plant_proxy::scenario::parse(TRUSS_SCENARIO, "broadband-25hz.toml")
-                    .map_err(|e| e.to_string())?;
-                let sim = PlantSim::new(&sc.plant, sc.rig.sample_period)
-                    .map_err(|e| format!("truss plant: {e}"))?;
+                let sim = truss_plant()?;
                 let params = truss_params();
                 let (p, m) = (params.model.p, params.model.m);
                 let counts = ChannelCounts::new(p, p, 0, m).map_err(|e| e.to_string())?;

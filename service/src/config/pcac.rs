@@ -21,6 +21,8 @@
 //! timing = "same-step"            # or "next-step" (the dissertation's u_{1|k} at k+1)
 //! warm-start = true
 //! qp-max-iterations = 500         # the solver's cap on active-set changes per step (≤ 10⁶)
+//! replan-every = 1                # N: solve every N samples, the work spread over N periods,
+//!                                 # the plant following the plan between (next-step; ≤ ℓ)
 //! lambda = 1.0                    # constant forgetting, or:
 //! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
 //! rule = "f-test"
@@ -67,6 +69,7 @@ pub(super) struct RawPcac {
     timing: Option<String>,
     warm_start: Option<bool>,
     qp_max_iterations: Option<usize>,
+    replan_every: Option<usize>,
     output_constraints: Option<RawOutputConstraints>,
 }
 
@@ -185,6 +188,10 @@ pub(super) fn read(
         let field = f("qp-max-iterations");
         qp.max_iterations = count(n as u64, 0, MAX_QP_ITERATIONS, &field, err)? as usize;
     }
+    let replan_every = match raw.replan_every {
+        None => PcacParams::DEFAULT_REPLAN_EVERY,
+        Some(n) => count(n as u64, 0, MAX_PCAC_HORIZON, &f("replan-every"), err)? as usize,
+    };
     let params = PcacParams::builder(n_hat, p, m, p0, horizon)
         .theta0(theta0)
         .forgetting(rule.rule.clone())
@@ -198,6 +205,7 @@ pub(super) fn read(
         .timing(timing)
         .qp(qp)
         .warm_start(raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START))
+        .replan_every(replan_every)
         .build();
     Ok((params, rule))
 }
@@ -236,6 +244,13 @@ mod tests {
         assert_eq!(p.mpc.output_constraints.as_ref().unwrap().d, vec![-5.0]);
         assert_eq!(p.timing, PcacTiming::NextStep);
         assert!(p.warm_start);
+        assert_eq!(p.replan_every, 1);
+        let every4 = params(&GOOD.replace(
+            "timing = \"next-step\"",
+            "timing = \"next-step\"\nreplan-every = 4",
+        ))
+        .unwrap();
+        assert_eq!(every4.replan_every, 4);
         let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "pcac");

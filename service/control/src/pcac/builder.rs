@@ -20,6 +20,7 @@
 //! | QP settings | [`QpSettings::default`] |
 //! | warm start | [`PcacParams::DEFAULT_WARM_START`] |
 //! | augmentation (7.53)–(7.57) | none |
+//! | re-planning period `N` ([`PcacParams::replan_every`]) | [`PcacParams::DEFAULT_REPLAN_EVERY`] (every sample) |
 //!
 //! [`PcacParams::chapter_6`] and [`PcacParams::chapter_7`] start from the settings of the
 //! dissertation's examples instead: the truss (§6.2) and the sampling arm (§7.3).
@@ -76,6 +77,7 @@ impl PcacParams {
                 qp: QpSettings::default(),
                 warm_start: PcacParams::DEFAULT_WARM_START,
                 augmentation: None,
+                replan_every: PcacParams::DEFAULT_REPLAN_EVERY,
             },
         }
     }
@@ -210,6 +212,13 @@ impl PcacBuilder {
         self
     }
 
+    /// Re-plan every `n` samples ([`PcacParams::replan_every`]; needs next-step timing
+    /// when `n > 1`).
+    pub fn replan_every(mut self, n: usize) -> Self {
+        self.params.replan_every = n;
+        self
+    }
+
     /// The parameters, unchecked ([`PcacParams::validate`] checks them).
     pub fn build(self) -> PcacParams {
         self.params
@@ -233,6 +242,7 @@ mod tests {
         assert_eq!(p.mpc.u_min, vec![f64::NEG_INFINITY]);
         assert_eq!(p.timing, PcacTiming::SameStep);
         assert!(p.warm_start && p.augmentation.is_none());
+        assert_eq!(p.replan_every, 1);
         p.validate(Dimensions::new(2, 0, 0, 1)).unwrap();
         p.validate(Dimensions::new(2, 0, 2, 1)).unwrap();
     }
