@@ -54,10 +54,46 @@
 //!
 //! the coefficient of `z^{−i}` in `(I + Σ F̂_j z^{−j}) H(z) = Σ Ĝ_j z^{−j}`: `O(ℓ n̂ p² m)`
 //! for `ℓ` of them, no `n̂p × n̂p` matrix involved ([`Realization::markov`]). The free
-//! response `Ĉ Â^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}`), propagates the state with the
-//! structure `x_i ← −F̂_i x_1 + x_{i+1}`: `O(ℓ n̂ p²)` ([`Realization::free_response`]).
-//! [`HorizonPrediction`] holds the buffers of all of them for one horizon and computes
-//! them together for the condensing in [`crate::mpc`].
+//! response `y_i = Ĉ Â^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}`), obeys the same
+//! recursion with the blocks of `x_1 = [x_1^{(1)}; …; x_1^{(n̂)}]` in place of the `Ĝ_i`:
+//!
+//! ```text
+//! y_i = x_1^{(i)} − Σ_{j=1}^{min(i−1, n̂)} F̂_j y_{i−j}       (x_1^{(i)} = 0 for i > n̂)
+//! ```
+//!
+//! because `x ← Â x` sets block `b` to `−F̂_b x^{(1)} + x^{(b+1)}` (2.40), so that block 1
+//! after `i − 1` steps is `x_1^{(i)}` less `F̂_j y_{i−j}` for each `j`: `O(ℓ n̂ p²)`, and no
+//! state to propagate ([`Realization::free_response`]). [`HorizonPrediction`] holds the
+//! buffers of all of them for one horizon and computes them together for the condensing
+//! in [`crate::mpc`].
+//!
+//! # Cost
+//!
+//! All three are short sums of products with the rows of `Θ̃`. For the truss (`n̂ = 25`,
+//! `p = 4`, `m = 2`, `ℓ = 40`) the Markov parameters take 21 600 multiply–adds
+//! (`Σ_{i≤ℓ} min(i−1, n̂) = 675` products `F̂_j Ĥ_{i−j}`), the free response 10 800 (the same
+//! 675 products with `p × 1` blocks; propagating the state took `(ℓ−1) n̂ p² = 15 600`) and
+//! the state estimate (2.39) 7 200 (`n̂(n̂−1)/2 = 300` products of a block pair with the
+//! data). What made them slow was how the arithmetic was reached, not its amount, so the
+//! kernels
+//!
+//! - sum in **tiles** of at most 4 rows × 2 columns of the result (`Ĥ_i`, `y_i` or `x̂_i`):
+//!   the up to 8 sums of a tile are independent and stay in registers through the whole
+//!   sum, where adding each term to the result in memory made every term wait for the
+//!   store of the last one. The tile shapes are compile-time constants; the 8 of them
+//!   (1–4 rows × 1–2 columns) cover every `p` and `m`;
+//! - walk each row of `Θ̃` (`[F̂_1 … F̂_n̂ Ĝ_1 … Ĝ_n̂]`, contiguous) through slices taken once
+//!   per block, with index arithmetic rather than `chunks_exact` over the run-time `p` or
+//!   `m` (whose set-up divides), and without a test for zero coefficients (a branch per
+//!   coefficient that identified models never take);
+//! - read the data window once per lag `j` in [`Realization::fill_state`]: `2(n̂−1)` reads
+//!   instead of `n̂(n̂−1)p`, each an index into a ring buffer with a division.
+//!
+//! Every entry is still summed over the same terms in the same order as the formulas
+//! above are written — the Markov parameters and the state over `j` ascending, the free
+//! response over `j` descending, which is the order in which propagating `x ← Â x` adds
+//! them — so the results are bit for bit those of the plain loops; the tests check this
+//! for shapes that use every tile.
 //!
 //! # Real time
 //!
@@ -69,8 +105,6 @@
 #![allow(clippy::needless_range_loop)] // index-heavy block algebra
 
 use std::fmt;
-
-use crate::linalg::axpy;
 
 /// A slice of the wrong length handed to a model or realization routine; nothing was
 /// changed.
@@ -222,6 +256,13 @@ impl<'a> Realization<'a> {
         self.coef[r * self.nr + self.n_hat * self.p + (i - 1) * self.m + s]
     }
 
+    /// Row `r < p` of `Θ̃`, split into its `F̂` part `[F̂_1 … F̂_n̂]` (row `r` of each,
+    /// `n̂p` entries) and its `Ĝ` part `[Ĝ_1 … Ĝ_n̂]` (`n̂m` entries).
+    #[inline]
+    fn row(&self, r: usize) -> (&'a [f64], &'a [f64]) {
+        self.coef[r * self.nr..(r + 1) * self.nr].split_at(self.n_hat * self.p)
+    }
+
     /// Fills `Â` (2.40) into `a` (`n̂p × n̂p`, row-major): `−F̂_i` in block `(i, 1)`,
     /// `I_p` in blocks `(i, i+1)`, zeros elsewhere.
     ///
@@ -267,7 +308,8 @@ impl<'a> Realization<'a> {
 
     /// Fills the state estimate `x̂_k` (2.38)–(2.39) into `x` (length `n̂p`):
     /// `x̂_{1,k} = y_k` and `x̂_{i,k} = Σ_{j=1}^{n̂−i+1} (−F̂_{i+j−1} y_{k−j} + Ĝ_{i+j−1} u_{k−j})`
-    /// with these coefficients and the data of `data`. `O(n̂² p (p+m))`.
+    /// with these coefficients and the data of `data`: `O(n̂² p (p+m))`, each datum fetched
+    /// from `data` once (module docs, "Cost").
     ///
     /// # Errors
     ///
@@ -277,25 +319,60 @@ impl<'a> Realization<'a> {
         data: &W,
         x: &mut [f64],
     ) -> Result<(), DimError> {
-        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        let (n_hat, p) = (self.n_hat, self.p);
         check("x_hat", x.len(), n_hat * p)?;
-        x[..p].copy_from_slice(data.past_output(0));
-        for i in 2..=n_hat {
-            for r in 0..p {
-                let mut v = 0.0;
-                for j in 1..=n_hat - i + 1 {
-                    let (y, u) = (data.past_output(j), data.past_input(j));
-                    for s in 0..p {
-                        v -= self.f(i + j - 1, r, s) * y[s];
-                    }
-                    for s in 0..m {
-                        v += self.g(i + j - 1, r, s) * u[s];
-                    }
+        let (x1, rest) = x.split_at_mut(p);
+        x1.copy_from_slice(data.past_output(0));
+        rest.fill(0.0);
+        // y_{k−j}, u_{k−j} enter x̂_i for i = 2 … n̂−j+1, with F̂_{i+j−1}, Ĝ_{i+j−1}.
+        for j in 1..n_hat {
+            let (y, u) = (data.past_output(j), data.past_input(j));
+            for r0 in (0..p).step_by(TILE_ROWS) {
+                match (p - r0).min(TILE_ROWS) {
+                    4 => self.state_tile::<4>(j, r0, y, u, rest),
+                    3 => self.state_tile::<3>(j, r0, y, u, rest),
+                    2 => self.state_tile::<2>(j, r0, y, u, rest),
+                    _ => self.state_tile::<1>(j, r0, y, u, rest),
                 }
-                x[(i - 1) * p + r] = v;
             }
         }
         Ok(())
+    }
+
+    /// Adds the terms of `y_{k−j}`, `u_{k−j}` (`y`, `u`) to rows `r0 .. r0+R` of
+    /// `x̂_2 … x̂_{n̂−j+1}` (`rest` = `x̂_2 … x̂_n̂`): `x̂_i[r] −= F̂_{i+j−1}[r, :] y_{k−j}`
+    /// then `x̂_i[r] += Ĝ_{i+j−1}[r, :] u_{k−j}`, each sum over the columns ascending.
+    #[inline(always)]
+    fn state_tile<const R: usize>(
+        &self,
+        j: usize,
+        r0: usize,
+        y: &[f64],
+        u: &[f64],
+        rest: &mut [f64],
+    ) {
+        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        let rows: [(&[f64], &[f64]); R] = std::array::from_fn(|rr| self.row(r0 + rr));
+        let (py, mu) = (p.min(y.len()), m.min(u.len()));
+        for b in 1..=n_hat - j {
+            // x̂_{b+1} takes F̂_l, Ĝ_l with l = b + j (0-based l − 1 below).
+            let l = b + j - 1;
+            let xb = &mut rest[(b - 1) * p + r0..][..R];
+            let mut acc: [f64; R] = std::array::from_fn(|rr| xb[rr]);
+            let f: [&[f64]; R] = std::array::from_fn(|rr| &rows[rr].0[l * p..][..p]);
+            for s in 0..py {
+                for (a, f) in acc.iter_mut().zip(&f) {
+                    *a -= f[s] * y[s];
+                }
+            }
+            let g: [&[f64]; R] = std::array::from_fn(|rr| &rows[rr].1[l * m..][..m]);
+            for s in 0..mu {
+                for (a, g) in acc.iter_mut().zip(&g) {
+                    *a += g[s] * u[s];
+                }
+            }
+            xb.copy_from_slice(&acc);
+        }
     }
 
     /// `x_{1|k} = Â x̂ + B̂ u` (2.36) from the structure, `O(n̂ p (p+m))`:
@@ -311,16 +388,19 @@ impl<'a> Realization<'a> {
         check("x", x.len(), n_hat * p)?;
         check("u", u.len(), m)?;
         check("x_next", out.len(), n_hat * p)?;
-        for i in 1..=n_hat {
-            for r in 0..p {
-                let mut v = if i < n_hat { x[i * p + r] } else { 0.0 };
-                for s in 0..p {
-                    v -= self.f(i, r, s) * x[s];
+        let (x_1, x_up) = x.split_at(p);
+        for r in 0..p {
+            let (fr, gr) = self.row(r);
+            for b in 0..n_hat {
+                // Block b + 1 (1-based): x̂_{b+2} (row r) if b + 1 < n̂, nothing for the last.
+                let mut v = x_up.get(b * p + r).copied().unwrap_or(0.0);
+                for (f, xs) in fr[b * p..][..p].iter().zip(x_1) {
+                    v -= f * xs;
                 }
-                for s in 0..m {
-                    v += self.g(i, r, s) * u[s];
+                for (g, us) in gr[b * m..][..m].iter().zip(u) {
+                    v += g * us;
                 }
-                out[(i - 1) * p + r] = v;
+                out[b * p + r] = v;
             }
         }
         Ok(())
@@ -328,32 +408,31 @@ impl<'a> Realization<'a> {
 
     /// The Markov parameters `Ĥ_i = Ĉ Â^{i−1} B̂` of `T̂_{k,ℓ}` (2.46), `i = 1 … ℓ`, into `h`
     /// (`ℓ` blocks of `p × m` row-major, `ℓ = h.len() / (p m)`), by the recursion
-    /// `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`):
-    /// `O(ℓ n̂ p² m)`, no dense power.
+    /// `Ĥ_i = Ĝ_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Ĥ_{i−j}` (`Ĝ_i = 0` for `i > n̂`), each entry
+    /// summed over `j` ascending: `O(ℓ n̂ p² m)`, no dense power (module docs, "Cost").
     ///
     /// # Errors
     ///
     /// [`DimError`] when `h.len()` is not a multiple of `p m`.
     pub fn markov(&self, h: &mut [f64]) -> Result<(), DimError> {
-        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        let (p, m) = (self.p, self.m);
         let blk = p * m;
         let ell = blocks("Markov parameters (a multiple of p·m)", h.len(), blk)?;
         for i in 1..=ell {
             let (done, rest) = h.split_at_mut((i - 1) * blk);
             let hi = &mut rest[..blk];
-            for r in 0..p {
-                for s in 0..m {
-                    hi[r * m + s] = if i <= n_hat { self.g(i, r, s) } else { 0.0 };
-                }
-            }
-            for j in 1..=(i - 1).min(n_hat) {
-                let prev = &done[(i - 1 - j) * blk..(i - j) * blk];
-                for r in 0..p {
-                    for t in 0..p {
-                        let f = self.f(j, r, t);
-                        if f != 0.0 {
-                            axpy(-f, &prev[t * m..(t + 1) * m], &mut hi[r * m..(r + 1) * m]);
-                        }
+            for r0 in (0..p).step_by(TILE_ROWS) {
+                for c0 in (0..m).step_by(TILE_COLS) {
+                    let at = Tile { i, r0, c0 };
+                    match ((p - r0).min(TILE_ROWS), (m - c0).min(TILE_COLS)) {
+                        (4, 2) => self.markov_tile::<4, 2>(at, done, hi),
+                        (4, _) => self.markov_tile::<4, 1>(at, done, hi),
+                        (3, 2) => self.markov_tile::<3, 2>(at, done, hi),
+                        (3, _) => self.markov_tile::<3, 1>(at, done, hi),
+                        (2, 2) => self.markov_tile::<2, 2>(at, done, hi),
+                        (2, _) => self.markov_tile::<2, 1>(at, done, hi),
+                        (_, 2) => self.markov_tile::<1, 2>(at, done, hi),
+                        _ => self.markov_tile::<1, 1>(at, done, hi),
                     }
                 }
             }
@@ -361,44 +440,119 @@ impl<'a> Realization<'a> {
         Ok(())
     }
 
+    /// The tile `at` (`R` rows, `C` columns) of `Ĥ_i` into `hi` (the block, `p × m`), from
+    /// `Ĥ_1 … Ĥ_{i−1}` in `done`: the recursion seeded with `Ĝ_i`, `j` ascending.
+    #[inline(always)]
+    fn markov_tile<const R: usize, const C: usize>(&self, at: Tile, done: &[f64], hi: &mut [f64]) {
+        let m = self.m;
+        let mut seed = [[0.0; C]; R];
+        if at.i <= self.n_hat {
+            for (rr, s) in seed.iter_mut().enumerate() {
+                s.copy_from_slice(&self.row(at.r0 + rr).1[(at.i - 1) * m + at.c0..][..C]);
+            }
+        }
+        let acc = self.recursion_tile::<R, C, false>(at, m, seed, done);
+        for (rr, a) in acc.iter().enumerate() {
+            hi[(at.r0 + rr) * m + at.c0..][..C].copy_from_slice(a);
+        }
+    }
+
     /// The free response `Ĉ Â^{i−1} x_1`, `i = 1 … ℓ` (`Γ̂_{k,ℓ} x_{1|k}` of (2.43), (2.45)
-    /// for `x_1 = x_{1|k}`), into `out` (`ℓ` blocks of `p`, `ℓ = out.len() / p`),
-    /// propagating the state in `work` (length `n̂p`, overwritten) by
-    /// `x_i ← −F̂_i x_1 + x_{i+1}`: `O(ℓ n̂ p²)`.
+    /// for `x_1 = x_{1|k}`), into `out` (`ℓ` blocks of `p`, `ℓ = out.len() / p`), by the
+    /// recursion `y_i = x_{1,i} − Σ_{j=1}^{min(i−1, n̂)} F̂_j y_{i−j}` (`x_{1,i}` block `i` of
+    /// `x_1`, zero for `i > n̂`), each entry summed over `j` descending, which is the order
+    /// in which propagating `x ← Â x` adds the terms: `O(ℓ n̂ p²)` (module docs, "Cost").
     ///
     /// # Errors
     ///
     /// [`DimError`] for a slice of the wrong length.
-    pub fn free_response(
-        &self,
-        x1: &[f64],
-        work: &mut [f64],
-        out: &mut [f64],
-    ) -> Result<(), DimError> {
-        let (n_hat, p) = (self.n_hat, self.p);
-        check("x_1", x1.len(), n_hat * p)?;
-        check("work", work.len(), n_hat * p)?;
+    pub fn free_response(&self, x1: &[f64], out: &mut [f64]) -> Result<(), DimError> {
+        let p = self.p;
+        check("x_1", x1.len(), self.n_hat * p)?;
         let ell = blocks("free response (a multiple of p)", out.len(), p)?;
-        work.copy_from_slice(x1);
-        for i in 0..ell {
-            let y = &mut out[i * p..(i + 1) * p];
-            y.copy_from_slice(&work[..p]);
-            if i + 1 == ell {
-                break;
-            }
-            // x ← Â x: block b = −F̂_b y + x_{b+1}, upward, so x_{b+1} is still old.
-            for b in 1..=n_hat {
-                for r in 0..p {
-                    let mut v = if b < n_hat { work[b * p + r] } else { 0.0 };
-                    for s in 0..p {
-                        v -= self.f(b, r, s) * y[s];
-                    }
-                    work[(b - 1) * p + r] = v;
+        for i in 1..=ell {
+            let (done, rest) = out.split_at_mut((i - 1) * p);
+            let yi = &mut rest[..p];
+            for r0 in (0..p).step_by(TILE_ROWS) {
+                let at = Tile { i, r0, c0: 0 };
+                match (p - r0).min(TILE_ROWS) {
+                    4 => self.free_tile::<4>(at, x1, done, yi),
+                    3 => self.free_tile::<3>(at, x1, done, yi),
+                    2 => self.free_tile::<2>(at, x1, done, yi),
+                    _ => self.free_tile::<1>(at, x1, done, yi),
                 }
             }
         }
         Ok(())
     }
+
+    /// Rows `at.r0 .. at.r0+R` of `y_i` into `yi` (the block, length `p`), from
+    /// `y_1 … y_{i−1}` in `done`: the recursion seeded with `x_{1,i}`, `j` descending.
+    #[inline(always)]
+    fn free_tile<const R: usize>(&self, at: Tile, x1: &[f64], done: &[f64], yi: &mut [f64]) {
+        let p = self.p;
+        let mut seed = [[0.0; 1]; R];
+        if at.i <= self.n_hat {
+            for (rr, s) in seed.iter_mut().enumerate() {
+                s[0] = x1[(at.i - 1) * p + at.r0 + rr];
+            }
+        }
+        let acc = self.recursion_tile::<R, 1, true>(at, 1, seed, done);
+        for (rr, a) in acc.iter().enumerate() {
+            yi[at.r0 + rr] = a[0];
+        }
+    }
+
+    /// The companion recursion `Z_i = S_i − Σ_{j=1}^{min(i−1, n̂)} F̂_j Z_{i−j}` on one tile
+    /// (`R` rows from `at.r0`, `C` columns from `at.c0`) of `Z_i` (`p × w`): `acc` holds the
+    /// tile of the seed `S_i` and gets the sums, `done` holds `Z_1 … Z_{i−1}` (`p × w`
+    /// row-major each). The `j` run ascending, or descending when `DOWN`; within a `j`, the
+    /// columns `t` of `F̂_j` ascending. The `R·C` sums are independent, so they stay in
+    /// registers and overlap instead of waiting on each other.
+    #[inline(always)]
+    fn recursion_tile<const R: usize, const C: usize, const DOWN: bool>(
+        &self,
+        at: Tile,
+        w: usize,
+        mut acc: [[f64; C]; R],
+        done: &[f64],
+    ) -> [[f64; C]; R] {
+        let p = self.p;
+        let jmax = (at.i - 1).min(self.n_hat);
+        let f_rows: [&[f64]; R] = std::array::from_fn(|rr| &self.row(at.r0 + rr).0[..jmax * p]);
+        // Index arithmetic rather than `chunks_exact` over the run-time `p` or `w`, whose
+        // set-up divides.
+        for jj in 0..jmax {
+            // 0-based: F̂_{j+1} against Z_{i−1−j}.
+            let j = if DOWN { jmax - 1 - jj } else { jj };
+            let zj = &done[(at.i - 2 - j) * p * w..][..p * w];
+            let fj: [&[f64]; R] = std::array::from_fn(|rr| &f_rows[rr][j * p..][..p]);
+            for t in 0..p {
+                let zt = &zj[t * w + at.c0..][..C];
+                for (a, f) in acc.iter_mut().zip(&fj) {
+                    let f = f[t];
+                    for (a, z) in a.iter_mut().zip(zt) {
+                        *a -= f * z;
+                    }
+                }
+            }
+        }
+        acc
+    }
+}
+
+/// The most rows of `Θ̃` one tile of the realization's recursions sums at once.
+const TILE_ROWS: usize = 4;
+/// The most columns of a Markov parameter one tile of [`Realization::markov`] sums at once.
+const TILE_COLS: usize = 2;
+
+/// Where a tile of a recursion lies: block `i` (1-based) of the result, first row `r0`,
+/// first column `c0`.
+#[derive(Debug, Clone, Copy)]
+struct Tile {
+    i: usize,
+    r0: usize,
+    c0: usize,
 }
 
 /// Pre-sized buffers for the quantities MPC needs at step `k` from an identified model:
@@ -411,6 +565,7 @@ pub struct HorizonPrediction {
     ell: usize,
     x_hat: Vec<f64>,
     x1: Vec<f64>,
+    /// The other half of `x_{j|k} → x_{j+1|k}` in [`Self::compute_committed`].
     work: Vec<f64>,
     markov: Vec<f64>,
     free: Vec<f64>,
@@ -454,7 +609,7 @@ impl HorizonPrediction {
         let real = self.fill_state(model)?;
         real.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
         real.markov(&mut self.markov)?;
-        real.free_response(&self.x1, &mut self.work, &mut self.free)
+        real.free_response(&self.x1, &mut self.free)
     }
 
     /// Step `k` for a plan that starts `d` samples later (PCAC's multi-rate re-planning,
@@ -497,7 +652,7 @@ impl HorizonPrediction {
             std::mem::swap(&mut self.x1, &mut self.work);
         }
         real.markov(&mut self.markov)?;
-        real.free_response(&self.x1, &mut self.work, &mut self.free)
+        real.free_response(&self.x1, &mut self.free)
     }
 
     /// Step `k`, after the model's identification step, for an input `u_k` still to be
@@ -516,7 +671,7 @@ impl HorizonPrediction {
         let real = self.fill_state(model)?;
         self.x1.copy_from_slice(&self.x_hat);
         real.markov(&mut self.markov)?;
-        real.free_response(&self.x_hat, &mut self.work, &mut self.free)
+        real.free_response(&self.x_hat, &mut self.free)
     }
 
     /// The start of both computations: checks the buffers against the model's
@@ -572,7 +727,7 @@ mod tests {
 
     use nalgebra::{DMatrix, DVector};
 
-    use super::{DimError, HorizonPrediction, Realization};
+    use super::{DataWindow, DimError, HorizonPrediction, Realization};
     use crate::forgetting::ForgettingRule;
     use crate::pcac::{IdKernel, IoModel, IoModelParams};
     use crate::test_support::{Gauss, io_model_params, max_abs, max_abs_diff};
@@ -662,8 +817,7 @@ mod tests {
             let mut h = vec![0.0; (ell + 3) * p * m];
             real.markov(&mut h).unwrap();
             let mut free = vec![0.0; ell * p];
-            let mut work = vec![0.0; nx];
-            real.free_response(&x1, &mut work, &mut free).unwrap();
+            real.free_response(&x1, &mut free).unwrap();
             for i in 0..ell {
                 let mut y = free[i * p..(i + 1) * p].to_vec();
                 for j in 0..i {
@@ -800,6 +954,120 @@ mod tests {
         assert!(max_abs_diff(&x, &want) < 1e-14);
     }
 
+    /// The plain loops of (2.39), of the Markov recursion and of the state propagation
+    /// `x ← Â x`, summing in the order the tiled kernels keep: the state with `j`
+    /// ascending, `F̂` before `Ĝ`; `Ĥ_i` with `j` ascending; the free response as the
+    /// propagation adds its terms.
+    struct Plain<'a>(Realization<'a>);
+
+    impl Plain<'_> {
+        fn state(&self, model: &IoModel, x: &mut [f64]) {
+            let (r, n, p, m) = (&self.0, self.0.n_hat(), self.0.p(), self.0.m());
+            x[..p].copy_from_slice(model.past_output(0));
+            for i in 2..=n {
+                for row in 0..p {
+                    let mut v = 0.0;
+                    for j in 1..=n - i + 1 {
+                        let (y, u) = (model.past_output(j), model.past_input(j));
+                        for s in 0..p {
+                            v -= r.f(i + j - 1, row, s) * y[s];
+                        }
+                        for s in 0..m {
+                            v += r.g(i + j - 1, row, s) * u[s];
+                        }
+                    }
+                    x[(i - 1) * p + row] = v;
+                }
+            }
+        }
+
+        fn markov(&self, h: &mut [f64]) {
+            let (r, n, p, m) = (&self.0, self.0.n_hat(), self.0.p(), self.0.m());
+            let blk = p * m;
+            for i in 1..=h.len() / blk {
+                for row in 0..p {
+                    for s in 0..m {
+                        let mut v = if i <= n { r.g(i, row, s) } else { 0.0 };
+                        for j in 1..=(i - 1).min(n) {
+                            for t in 0..p {
+                                v -= r.f(j, row, t) * h[(i - j - 1) * blk + t * m + s];
+                            }
+                        }
+                        h[(i - 1) * blk + row * m + s] = v;
+                    }
+                }
+            }
+        }
+
+        fn free_response(&self, x1: &[f64], out: &mut [f64]) {
+            let (r, n, p) = (&self.0, self.0.n_hat(), self.0.p());
+            let mut x = x1.to_vec();
+            for i in 0..out.len() / p {
+                let y = x[..p].to_vec();
+                out[i * p..(i + 1) * p].copy_from_slice(&y);
+                for b in 1..=n {
+                    for row in 0..p {
+                        let mut v = if b < n { x[b * p + row] } else { 0.0 };
+                        for s in 0..p {
+                            v -= r.f(b, row, s) * y[s];
+                        }
+                        x[(b - 1) * p + row] = v;
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_tiled_kernels_equal_the_plain_loops_bit_for_bit() {
+        // p from 1 to 9 covers every tile height (4-row tiles and a last one of 1, 2 or 3
+        // rows) and m from 1 to 5 every tile width (2-column tiles and a last one of 1);
+        // the truss (25, 4, 2) and the arm (1, 5, 2) are among them. ℓ below, at and
+        // beyond n̂.
+        let mut g = Gauss::new(53);
+        let shapes = [
+            (25, 4, 2, 40),
+            (1, 5, 2, 50),
+            (1, 1, 1, 3),
+            (2, 2, 1, 1),
+            (3, 3, 3, 7),
+            (4, 6, 5, 9),
+            (5, 7, 2, 4),
+            (3, 8, 4, 12),
+            (6, 9, 1, 8),
+            (2, 5, 3, 6),
+        ];
+        for (n, p, m, ell) in shapes {
+            let mut model = random_model(&mut g, n, p, m);
+            let plain = Plain(model.realization());
+            let (mut x, mut x_ref) = (vec![0.0; n * p], vec![1.0; n * p]);
+            model.realization().fill_state(&model, &mut x).unwrap();
+            plain.state(&model, &mut x_ref);
+            assert_eq!(x, x_ref, "state, shape {n} {p} {m}");
+            let (mut h, mut h_ref) = (vec![0.0; ell * p * m], vec![1.0; ell * p * m]);
+            model.realization().markov(&mut h).unwrap();
+            plain.markov(&mut h_ref);
+            assert_eq!(h, h_ref, "Markov parameters, shape {n} {p} {m} {ell}");
+            let (mut f, mut f_ref) = (vec![0.0; ell * p], vec![1.0; ell * p]);
+            model.realization().free_response(&x, &mut f).unwrap();
+            plain.free_response(&x, &mut f_ref);
+            assert_eq!(f, f_ref, "free response, shape {n} {p} {m} {ell}");
+            // The bundle computes the same (from x̂_k here, same-step timing).
+            let mut hp = HorizonPrediction::new(&model, ell).unwrap();
+            hp.compute_from_state(&model).unwrap();
+            assert_eq!((hp.markov(), hp.free_response()), (&h[..], &f[..]));
+            // Identified coefficients as well as random ones: one update, then again.
+            model.update(&g.vec(p), &g.vec(m)).unwrap();
+            let plain = Plain(model.realization());
+            model.realization().markov(&mut h).unwrap();
+            plain.markov(&mut h_ref);
+            assert_eq!(
+                h, h_ref,
+                "Markov parameters after an update, shape {n} {p} {m}"
+            );
+        }
+    }
+
     #[test]
     fn a_realization_built_from_coefficients_equals_the_models_own() {
         let mut g = Gauss::new(37);
@@ -852,10 +1120,8 @@ mod tests {
         assert!(real.fill_b(&mut [0.0; 6]).is_ok());
         assert!(real.markov(&mut [0.0; 5]).is_err());
         assert!(real.markov(&mut [0.0; 6]).is_ok());
-        assert!(
-            real.free_response(&[0.0; 6], &mut [0.0; 6], &mut [0.0; 5])
-                .is_err()
-        );
+        assert!(real.free_response(&[0.0; 6], &mut [0.0; 5]).is_err());
+        assert!(real.free_response(&[0.0; 5], &mut [0.0; 6]).is_err());
         assert!(
             real.one_step_state(&[0.0; 6], &[0.0; 2], &mut [0.0; 6])
                 .is_err()
