@@ -21,6 +21,9 @@
 //! timing = "same-step"            # or "next-step" (the dissertation's u_{1|k} at k+1)
 //! warm-start = true
 //! qp-max-iterations = 500         # the solver's cap on active-set changes per step (≤ 10⁶)
+//! fast-path = "auto"              # the unconstrained Riccati fast path: "auto" (when its
+//!                                 # operation count is below condensing + the dense
+//!                                 # factorization), "always" or "never"
 //! lambda = 1.0                    # constant forgetting, or:
 //! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
 //! rule = "f-test"
@@ -41,6 +44,7 @@ use super::forgetting::{RawForgetting, ReadRule, forgetting_rule, required_p0};
 use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
 use control::mpc::condense::{MoveBounds, OutputConstraints, Weight};
+use control::mpc::fast_path::FastPathMode;
 use control::mpc::qp::QpSettings;
 use control::pcac::{PcacParams, PcacTiming};
 
@@ -67,6 +71,7 @@ pub(super) struct RawPcac {
     timing: Option<String>,
     warm_start: Option<bool>,
     qp_max_iterations: Option<usize>,
+    fast_path: Option<String>,
     output_constraints: Option<RawOutputConstraints>,
 }
 
@@ -180,6 +185,17 @@ pub(super) fn read(
         &f("timing"),
         err,
     )?;
+    let fast_path = one_of(
+        raw.fast_path.as_deref(),
+        FastPathMode::default(),
+        &[
+            ("auto", FastPathMode::Auto),
+            ("always", FastPathMode::Always),
+            ("never", FastPathMode::Never),
+        ],
+        &f("fast-path"),
+        err,
+    )?;
     let mut qp = QpSettings::default();
     if let Some(n) = raw.qp_max_iterations {
         let field = f("qp-max-iterations");
@@ -198,6 +214,7 @@ pub(super) fn read(
         .timing(timing)
         .qp(qp)
         .warm_start(raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START))
+        .fast_path(fast_path)
         .build();
     Ok((params, rule))
 }
@@ -207,6 +224,7 @@ mod tests {
     use crate::config::ServiceConfig;
     use crate::config::refusal_cases::assert_refused_naming_fields;
     use control::mpc::condense::Weight;
+    use control::mpc::fast_path::FastPathMode;
     use control::pcac::PcacTiming;
 
     const GOOD: &str = include_str!("../../../tests/fixtures/config/pcac-chapter-6.toml");
@@ -236,9 +254,26 @@ mod tests {
         assert_eq!(p.mpc.output_constraints.as_ref().unwrap().d, vec![-5.0]);
         assert_eq!(p.timing, PcacTiming::NextStep);
         assert!(p.warm_start);
+        assert_eq!(p.fast_path, FastPathMode::Auto);
         let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "pcac");
+    }
+
+    #[test]
+    fn the_fast_path_setting_is_read() {
+        for (text, mode) in [
+            ("always", FastPathMode::Always),
+            ("never", FastPathMode::Never),
+            ("auto", FastPathMode::Auto),
+        ] {
+            let with = GOOD.replace(
+                "timing = \"next-step\"",
+                &format!("timing = \"next-step\"\nfast-path = \"{text}\""),
+            );
+            assert_ne!(with, GOOD, "the fixture sets the timing");
+            assert_eq!(params(&with).unwrap().fast_path, mode);
+        }
     }
 
     #[test]

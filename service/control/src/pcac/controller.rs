@@ -16,7 +16,11 @@
 //!    with the configured forgetting rule (the F-test (2.33)–(2.35) in chapter 6).
 //! 3. **Realization and prediction** (2.36)–(2.46): `x̂_k` (2.38)–(2.39), the Markov
 //!    parameters `Ĥ_i` and the free response, from the companion structure.
-//! 4. **MPC** (2.47)–(2.51): [`Condenser::build`] and [`DenseQpSolver::solve`], warm-started
+//! 4. **MPC** (2.47)–(2.51): when [`PcacParams::fast_path`] chooses it, first the
+//!    unconstrained fast path ([`crate::mpc::fast_path`]): the Riccati minimizer of (2.48)
+//!    and, if it meets every constraint, that is the QP's solution (status solved, no
+//!    iteration, an empty active set). Otherwise, or without the fast path,
+//!    [`Condenser::build`] and [`DenseQpSolver::solve`], warm-started
 //!    from the previous step's active set shifted by one step
 //!    ([`Condenser::shift_active_set`]). The first move is the input. Samples taken in
 //!    without a solve since then (caught up: [`Controller::observe`], or
@@ -81,10 +85,12 @@ use crate::ParamError;
 use crate::ahead::Ahead;
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
 use crate::mpc::condense::{Condenser, MpcSpec, Weight};
+use crate::mpc::fast_path::{FastPath, FastPathMode};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
 
 #[cfg(test)]
 mod tests;
+mod unconstrained;
 
 /// When the input computed at sample `k` is applied (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -110,6 +116,9 @@ pub struct PcacParams {
     pub qp: QpSettings,
     /// Start each QP from the previous active set shifted by one step (default true).
     pub warm_start: bool,
+    /// Whether to try the unconstrained fast path before condensing
+    /// ([`crate::mpc::fast_path`]; default [`FastPathMode::Auto`]).
+    pub fast_path: FastPathMode,
     /// A fixed output feedback `K̄` that this PCAC augments (chapter 7, (7.53)–(7.57);
     /// [`super::augmentation`]): the plant's input is `K̄ y_k + u_k`, identification
     /// regresses on it, and the MPC plans `u_k` with the closed-loop model. `None`: plain
@@ -124,6 +133,8 @@ pub struct PcacCounters {
     pub steps: u64,
     /// QPs solved.
     pub solved: u64,
+    /// Of those, solved by the unconstrained fast path (no condensing, no QP solve).
+    pub fast_path: u64,
     /// QPs proven infeasible.
     pub infeasible: u64,
     /// QPs stopped by the iteration cap.
@@ -189,6 +200,10 @@ pub struct Pcac {
     pred: HorizonPrediction,
     cond: Condenser,
     solver: DenseQpSolver,
+    /// The unconstrained fast path, when [`PcacParams::fast_path`] chooses it.
+    fast: Option<FastPath>,
+    /// The last MPC step's solution is the fast path's `U*` (not the solver's).
+    fast_used: bool,
     /// `u_{k−1}` as this controller believes it (the input over the last period).
     u_last: Vec<f64>,
     /// Next-step timing: the input decided for the coming period (`u_{1|k−1}`).
@@ -514,6 +529,8 @@ impl Pcac {
         let pred = HorizonPrediction::new(&model, spec.horizon).map_err(whole)?;
         let cond = Condenser::new(spec).map_err(|e| whole(format!("pcac: {e}")))?;
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
+        let fast = FastPath::new(spec, mp.n_hat, params.qp.feasibility_tol, params.fast_path)
+            .map_err(|e| whole(format!("pcac: {e}")))?;
         let n_ids = cond.n() + cond.n_ineq();
         let mut c = Self {
             counts,
@@ -523,6 +540,8 @@ impl Pcac {
             aug,
             pred,
             solver,
+            fast,
+            fast_used: false,
             u_last: vec![0.0; n_u],
             u_next: vec![0.0; n_u],
             u_ref: vec![0.0; n_u],
@@ -621,15 +640,18 @@ impl Pcac {
         self.last_status
     }
 
-    /// The condensed QP of the last MPC step (e.g. to solve it with
-    /// `mpc::qp::solve_with_clarabel` (feature `clarabel`) for comparison).
+    /// The condensed QP of the last MPC step that condensed (e.g. to solve it with
+    /// `mpc::qp::solve_with_clarabel` (feature `clarabel`) for comparison); after a step
+    /// that took the fast path, an older one: [`Pcac::condensed_problem`] condenses the
+    /// last step's.
     pub fn last_problem(&self) -> crate::mpc::qp::QpProblem<'_> {
         self.cond.problem()
     }
 
-    /// The last QP's solution `U` (all `ℓ m` planned inputs).
+    /// The last QP's solution `U` (all `ℓ m` planned inputs; the fast path's when the
+    /// last MPC step took it).
     pub fn planned_inputs(&self) -> &[f64] {
-        self.solver.x()
+        self.solution()
     }
 
     /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`. Returns [`IDENTIFIED`]
@@ -751,7 +773,11 @@ impl Pcac {
         };
         self.last_iterations = 0;
         self.last_active = 0;
-        let status = if predicted.is_err() {
+        self.fast_used = predicted.is_ok() && self.try_fast_path();
+        let status = if self.fast_used {
+            self.counters.fast_path += 1;
+            Some(QpStatus::Solved)
+        } else if predicted.is_err() {
             None
         } else {
             match self.cond.build(
@@ -772,15 +798,22 @@ impl Pcac {
             }
         };
         self.last_status = status;
-        self.last_iterations = self.solver.iterations();
+        if !self.fast_used {
+            self.last_iterations = self.solver.iterations();
+        }
         self.tracked_prediction = self.tracked_one_step();
         match status {
             Some(QpStatus::Solved) => {
                 self.counters.solved += 1;
-                let first = self.cond.first_move(self.solver.x());
+                let planned = unconstrained::solution_of(&self.fast, self.fast_used, &self.solver);
+                let first = self.cond.first_move(planned);
                 if first.iter().all(|v| v.is_finite()) {
                     self.u_tmp.copy_from_slice(first);
-                    let na = self.solver.active_set_into(&mut self.active);
+                    let na = if self.fast_used {
+                        0
+                    } else {
+                        self.solver.active_set_into(&mut self.active)
+                    };
                     self.last_active = na;
                     self.n_shifted = self
                         .cond
@@ -833,7 +866,7 @@ impl Pcac {
             if with_u {
                 let h = self.pred.markov();
                 let m = self.u_tmp.len();
-                let x = self.solver.x();
+                let x = self.solution();
                 for j in 0..m {
                     y +=
                         h.get(s * m + j).copied().unwrap_or(0.0) * x.get(j).copied().unwrap_or(0.0);
@@ -952,6 +985,7 @@ impl Controller for Pcac {
         vec![
             ("mpc steps", c.steps),
             ("qp solved", c.solved),
+            ("fast path", c.fast_path),
             ("infeasible", c.infeasible),
             ("iteration cap", c.max_iterations),
             ("numerical error", c.numerical_error),
@@ -1055,7 +1089,7 @@ impl Ahead for Pcac {
         if !self.plan_valid || m == 0 {
             return 0;
         }
-        let later = self.solver.x().get(m..).unwrap_or(&[]);
+        let later = self.solution().get(m..).unwrap_or(&[]);
         let mut rows = 0;
         for (row, planned) in out.chunks_exact_mut(m).zip(later.chunks_exact(m)) {
             row.copy_from_slice(planned);
