@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! latency-bench [--samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest …]
-//! latency-bench pcac [--steps N --workload truss|arm|all --out DIR --results FILE …]
+//! latency-bench pcac [--steps N --workload truss|arm|all --replan-every 2,3,4 --out DIR --results FILE …]
 //! ```
 //!
 //! Two hidden subcommands select the role of the child process of the two-process
@@ -107,6 +107,10 @@ pub struct PcacArgs {
     /// Core of the timing thread (pinned, SCHED_FIFO).
     #[arg(long, default_value_t = 1)]
     pub rt_core: usize,
+    /// Re-planning periods N to time on the truss workload beside a solve at every sample
+    /// (comma-separated; 0 for none).
+    #[arg(long, value_delimiter = ',', default_values_t = crate::pcac_replan::DEFAULT_PERIODS)]
+    pub replan_every: Vec<usize>,
     /// Output folder, results file, `--quick`.
     #[command(flatten)]
     pub run: RunArgs,

@@ -38,7 +38,9 @@
 //! 5. **What does a PCAC step cost, and how does it compare with clarabel and OSQP?**
 //!    ([`pcac_cost`]) `Pcac::step` at the truss size and at the sampling-arm size, each in a
 //!    closed loop, with clarabel and OSQP ([`osqp_anchor`]) timed on the same QPs and the
-//!    step taken apart into its kernels. `latency-bench pcac` runs this phase alone.
+//!    step taken apart into its kernels; and the cost per period of re-planning every `N`
+//!    samples, which spreads a solve over `N` periods ([`pcac_replan`]). `latency-bench
+//!    pcac` runs this phase alone.
 //!
 //! Every distribution is an HdrHistogram ([`hist`]), written as a percentile distribution
 //! (`.hgrm`, µs) and as an interval log (`.hlog`, V2 + deflate, ns) into the output folder,
@@ -62,6 +64,7 @@ pub mod osqp_anchor;
 pub mod paced;
 pub mod pcac_cost;
 pub mod pcac_phase;
+pub mod pcac_replan;
 pub mod report;
 pub mod rls_cost;
 pub mod roundtrip;

@@ -164,6 +164,7 @@ fn bench(o: &Options) -> i32 {
             None,
             steps,
             Anchors::BOTH,
+            &latency_bench::pcac_replan::DEFAULT_PERIODS,
         );
         col.measured.extend(rows);
         col.details.extend(lines);
@@ -239,8 +240,10 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         "PCAC step cost, {steps} steps per workload, writing to {}",
         out.display()
     ));
-    let (measured, details, v) =
-        pcac_phase::pcac_phase(a.rt_core, &out, &workloads, a.warmup, steps, anchors);
+    let replan: Vec<usize> = a.replan_every.iter().copied().filter(|&n| n > 0).collect();
+    let (measured, details, v) = pcac_phase::pcac_phase(
+        a.rt_core, &out, &workloads, a.warmup, steps, anchors, &replan,
+    );
     let mut col = Collected {
         measured,
         details,
@@ -270,6 +273,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
             "workload": a.workload,
             "clarabel": anchors.clarabel,
             "osqp": anchors.osqp,
+            "replan_every": replan,
             "rt_core": a.rt_core,
         }),
         out: &out,

@@ -47,8 +47,8 @@
 //!    - **the pieces**: the step's PCAC part taken apart into the public kernels of
 //!      `control`, each timed alone on the data the reference PCAC just used:
 //!      `IoModel::update` on a copy of its model taken before the step (identification;
-//!      the copy's coefficients are checked equal to PCAC's), `HorizonPrediction` on the
-//!      identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
+//!      the copy's coefficients are checked equal to PCAC's, untimed), `HorizonPrediction` on
+//!      the identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
 //!      `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state, Markov
 //!      parameters, free response), where PCAC's `fast-path` setting chooses it (the arm)
 //!      `FastPath::solve` (the Riccati minimizer and the constraint check, on the
@@ -198,6 +198,18 @@ pub fn truss_params() -> PcacParams {
         .build()
 }
 
+/// The truss workload's plant: the plant tables of `scenarios/truss/broadband-25hz.toml`
+/// (module docs), from its start.
+///
+/// # Errors
+///
+/// The scenario's plant is refused (a broken build).
+pub fn truss_plant() -> Result<PlantSim, String> {
+    let sc = plant_proxy::scenario::parse(TRUSS_SCENARIO, "broadband-25hz.toml")
+        .map_err(|e| e.to_string())?;
+    PlantSim::new(&sc.plant, sc.rig.sample_period).map_err(|e| format!("truss plant: {e}"))
+}
+
 /// The controller of a closed loop: PCAC alone (truss) or the arm's Algorithm 3 with PCAC
 /// inside.
 enum Ctrl {
@@ -228,10 +240,7 @@ impl ClosedLoop {
     fn new(w: Workload) -> Result<Self, String> {
         let (plant, ctrl, mpc, fast_path, n_u) = match w {
             Workload::Truss => {
-                let sc = plant_proxy::scenario::parse(TRUSS_SCENARIO, "broadband-25hz.toml")
-                    .map_err(|e| e.to_string())?;
-                let sim = PlantSim::new(&sc.plant, sc.rig.sample_period)
-                    .map_err(|e| format!("truss plant: {e}"))?;
+                let sim = truss_plant()?;
                 let params = truss_params();
                 let (p, m) = (params.model.p, params.model.m);
                 let counts = ChannelCounts::new(p, p, 0, m).map_err(|e| e.to_string())?;
@@ -445,6 +454,8 @@ impl Pieces {
             .zip(m.coefficients())
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
+        // The prediction's time starts after that check, which is not part of a step.
+        let t1b = monotonic_ns();
         // Same-step timing with the augmentation (the arm): the closed-loop model from its
         // state, moves from u_aug,k−1; next-step timing (the truss): from the model and
         // u_k, moves from u_k (`Pcac::solve_mpc`).
@@ -492,7 +503,7 @@ impl Pieces {
                 self.fast_taken = true;
                 self.n_shifted = 0;
                 t[0] = Some(t1 - t0);
-                t[1] = Some(t2 - t1);
+                t[1] = Some(t2 - t1b);
                 return (Some(QpStatus::Solved), coef_diff);
             }
         }
@@ -514,7 +525,7 @@ impl Pieces {
         let t3 = monotonic_ns();
         let status = self.solver.solve(&problem, warm);
         let t4 = monotonic_ns();
-        t[..4].copy_from_slice(&[Some(t1 - t0), Some(t2 - t1), Some(t3 - t2b), Some(t4 - t3)]);
+        t[..4].copy_from_slice(&[Some(t1 - t0), Some(t2 - t1b), Some(t3 - t2b), Some(t4 - t3)]);
         if status == QpStatus::Solved {
             let na = self.solver.active_set_into(&mut self.active);
             self.n_shifted = self

@@ -4,6 +4,7 @@
 
 use crate::hist::{self, Summary, ratio};
 use crate::pcac_cost::{self, AnchorCost, Anchors, PcacCost, Workload};
+use crate::pcac_replan::{self, ReplanCost};
 use crate::report::Measured;
 use crate::table::fmt_ratio;
 use crate::timed_on_rt_core;
@@ -13,8 +14,10 @@ use std::path::Path;
 use std::time::{Duration, SystemTime};
 
 /// The PCAC step at each of `workloads` on the pinned RT core, beside the `anchors`
-/// (clarabel, OSQP) on the same QPs (see [`crate::pcac_cost`]): the table rows, the detail
-/// lines and the JSON block of `summary.json`.
+/// (clarabel, OSQP) on the same QPs (see [`crate::pcac_cost`]), and, when the truss is
+/// among them, its cost per period re-planning every `N` of `replan` beside a solve at
+/// every sample ([`crate::pcac_replan`]): the table rows, the detail lines and the JSON
+/// block of `summary.json`.
 pub fn pcac_phase(
     rt_core: usize,
     dir: &Path,
@@ -22,26 +25,39 @@ pub fn pcac_phase(
     warmup: Option<u64>,
     steps: u64,
     anchors: Anchors,
+    replan: &[usize],
 ) -> (Vec<Measured>, Vec<String>, Value) {
     let list = workloads.to_vec();
+    let periods: Vec<usize> = if workloads.contains(&Workload::Truss) && !replan.is_empty() {
+        std::iter::once(1).chain(replan.iter().copied()).collect()
+    } else {
+        Vec::new()
+    };
     let run = match timed_on_rt_core(
         rt_core,
         dir,
         "bench-pcac",
         ("pcac", "pcac step"),
         move || {
-            list.iter()
+            let costs = list
+                .iter()
                 .map(|&w| {
                     let warm = warmup.unwrap_or(w.default_warmup());
                     (w, pcac_cost::measure(w, warm, steps, anchors))
                 })
-                .collect::<Vec<_>>()
+                .collect::<Vec<_>>();
+            let warm = warmup.unwrap_or(Workload::Truss.default_warmup());
+            let replans = periods
+                .iter()
+                .map(|&n| pcac_replan::measure(n, warm, steps))
+                .collect::<Vec<_>>();
+            (costs, replans)
         },
     ) {
         Ok(run) => run,
         Err(failed) => return (vec![*failed], Vec::new(), Value::Null),
     };
-    let (setup, results) = (run.setup, run.value);
+    let (setup, (results, replans)) = (run.setup, run.value);
     let (start, elapsed) = (run.start, run.elapsed);
     let mut rows = Vec::new();
     let mut lines = Vec::new();
@@ -56,6 +72,12 @@ pub fn pcac_phase(
             }
             Err(e) => rows.push(Measured::failed(w.slug(), w.label(), e)),
         }
+    }
+    if !replans.is_empty() {
+        let (mut m, l, v) = replan_rows(&replans, dir, start, elapsed);
+        rows.append(&mut m);
+        lines.extend(l);
+        json_out.insert("truss-replan".into(), v);
     }
     lines.push(format!(
         "pcac: timing thread: {}; each workload's copies run in blocks of {} samples, the first {} timed steps of a block recorded apart (cold cache)",
@@ -334,4 +356,96 @@ pub fn pcac_rows(
         "stretch_p99_ns": w.stretch_ns(),
     });
     (rows, lines, v)
+}
+
+/// The rows, detail lines and JSON of the truss re-planning every `N`: the first run is
+/// the reference (`N = 1`, a solve at every sample), each later one a row with its
+/// worst periods against it and its periods by position in the cycle.
+fn replan_rows(
+    runs: &[Result<ReplanCost, String>],
+    dir: &Path,
+    start: SystemTime,
+    elapsed: Duration,
+) -> (Vec<Measured>, Vec<String>, Value) {
+    let mut rows = Vec::new();
+    let mut lines = Vec::new();
+    let mut out = Vec::new();
+    let files = |name: &str, h: &Histogram<u64>| {
+        hist::write_files(dir, name, h, start, elapsed).unwrap_or_default()
+    };
+    let mut reference: Option<Summary> = None;
+    for run in runs {
+        let r = match run {
+            Ok(r) => r,
+            Err(e) => {
+                rows.push(Measured::failed(
+                    "truss-replan",
+                    "pcac truss re-planning",
+                    e.clone(),
+                ));
+                continue;
+            }
+        };
+        let id = format!("truss-replan-{}", r.every);
+        let sm = Summary::of(&r.period);
+        let label = if r.every == 1 {
+            "pcac truss, a solve every sample (per period)".to_string()
+        } else {
+            format!("pcac truss, re-planning every {} (per period)", r.every)
+        };
+        let mut m = Measured::from_summary(&id, &label, sm, files(&id, &r.period));
+        let positions = ["prediction", "condensing", "QP", "no unit"];
+        let used = r.every.min(4);
+        let by_pos: Vec<String> = (0..used)
+            .map(|i| {
+                let what = if r.every == 1 {
+                    "whole solve"
+                } else if r.every == 2 && i == 0 {
+                    "prediction + condensing"
+                } else if r.every == 2 {
+                    "QP"
+                } else {
+                    positions[i]
+                };
+                format!(
+                    "{what} p99 {:.1}",
+                    Summary::of(&r.by_position[i]).p99_ns as f64 / 1e3
+                )
+            })
+            .collect();
+        m.note = match reference {
+            Some(base) if r.every > 1 => format!(
+                "÷ every sample: p99 {}×, max {}×; {} µs; {} solves, {} fallbacks",
+                fmt_ratio(ratio(sm.p99_ns, base.p99_ns)),
+                fmt_ratio(ratio(sm.max_ns, base.max_ns)),
+                by_pos.join(", "),
+                r.solves,
+                r.fallbacks
+            ),
+            _ => format!(
+                "the reference of the rows below; {} solves, {} fallbacks",
+                r.solves, r.fallbacks
+            ),
+        };
+        if r.every == 1 {
+            reference = Some(sm);
+        }
+        rows.push(m);
+        lines.push(format!(
+            "truss-replan-{}: {} timed periods, {} at block starts apart; u at bound in {:.1} % of the periods",
+            r.every,
+            r.period.len(),
+            r.cold.len(),
+            100.0 * r.saturated as f64 / r.period.len().max(1) as f64
+        ));
+        out.push(json!({
+            "every": r.every,
+            "period": sm,
+            "by_position": r.by_position[..used].iter().map(Summary::of).collect::<Vec<_>>(),
+            "cold": Summary::of(&r.cold),
+            "solves": r.solves,
+            "fallbacks": r.fallbacks,
+        }));
+    }
+    (rows, lines, Value::Array(out))
 }

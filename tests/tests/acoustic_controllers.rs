@@ -1,7 +1,8 @@
-//! The acoustic rig's two shipped controllers, each in lockstep (deterministic) on the
+//! The acoustic rig's shipped adaptive controllers, each in lockstep (deterministic) on the
 //! main job's scenario `scenarios/acoustic-rig.toml`, the real processes over shared
-//! memory: the scenario's gradient RCAC and full-RLS RCAC
-//! (`scenarios/rcac/acoustic-rls.toml`). Each must meet its own acceptance criterion
+//! memory: the scenario's gradient RCAC, full-RLS RCAC (`scenarios/rcac/acoustic-rls.toml`)
+//! and PCAC (`scenarios/pcac/acoustic.toml`, checked against its own bar: see
+//! [`PCAC_FLOOR_DB`]). Each RCAC must meet its own acceptance criterion
 //! (`service.report.min-suppression-db`: 60 dB and 40 dB for every one of the seven tones
 //! at the end of the 10 s run), pass its verdict, and show no burst once adapted: a burst
 //! is the adapted loop leaving its stability margin for a moment, `z` ringing up several
@@ -29,6 +30,20 @@ const ADAPTED_FROM: f64 = 16_000.0;
 const Z_RING_MAX: f64 = 2.0;
 /// Samples per window of the burst check: 0.25 s at 8 kHz.
 const WINDOW: usize = 2000;
+
+/// The bar of the PCAC run: every tone suppressed by at least this much at the end of the
+/// 10 s run. The file keeps the 40 dB as its acceptance criterion, which it does
+/// not meet (docs/pcac.md, "PCAC on the acoustic rig"); measured in lockstep: 13.4, 10.5,
+/// 13.2, 20.7, 38.2, 22.8 and 18.8 dB for the seven tones. 8 dB sits 2.5 dB under the
+/// worst of them; the configurations of the search whose loop went unstable or identified
+/// a wrong model in the start-up transient ended at −0.7 to 6 dB on their worst tone.
+const PCAC_FLOOR_DB: f64 = 8.0;
+/// The input bound of `scenarios/pcac/acoustic.toml`, V.
+const PCAC_U_MAX: f64 = 20.0;
+/// The largest mean of either input over the last second of the PCAC run, V: the move
+/// penalty leaves the mean free, and with ±40 V bounds it wandered to ±25 V; with the
+/// file's ±20 V it stays within about 0.6 V.
+const PCAC_U_MEAN_MAX: f64 = 3.0;
 
 /// The repository's `scenarios/` folder.
 fn scenarios() -> PathBuf {
@@ -156,4 +171,92 @@ fn full_rls_rcac_meets_its_40_db_without_a_burst() {
         run("acoustic-rls", Some("rcac/acoustic-rls.toml")),
         40.0,
     );
+}
+
+#[test]
+fn pcac_suppresses_every_tone_to_its_bar_with_every_qp_solved() {
+    let text = std::fs::read_to_string(scenarios().join("pcac/acoustic.toml")).expect("file");
+    for line in [
+        "u-min = [-20.0, -20.0]\n",
+        "u-max = [20.0, 20.0]\n",
+        "min-suppression-db = 40.0\n",
+    ] {
+        assert!(
+            text.contains(line),
+            "pcac/acoustic.toml does not say {line:?}"
+        );
+    }
+    let Run {
+        ok,
+        report,
+        header,
+        rows,
+    } = run("acoustic-pcac", Some("pcac/acoustic.toml"));
+    let tones = report["tones"]["tones"].as_array().expect("tones");
+    assert_eq!(tones.len(), 7, "seven tones");
+    let dbs: Vec<f64> = tones
+        .iter()
+        .map(|t| t["suppression_db"].as_f64().unwrap_or(f64::NAN))
+        .collect();
+    for (t, db) in tones.iter().zip(&dbs) {
+        assert!(
+            *db >= PCAC_FLOOR_DB,
+            "tone {t} suppressed by {db} dB < {PCAC_FLOOR_DB}"
+        );
+    }
+    // The verdict fails on the 40 dB criterion alone while a tone is below it: no miss, no
+    // loss, no held input, no suspended update.
+    let failures = report["verdict"]["failures"].as_array().expect("failures");
+    let below_40 = dbs.iter().any(|db| *db < 40.0);
+    assert_eq!(ok, !below_40, "verdict {}", report["verdict"]);
+    for f in failures {
+        let f = f.as_str().unwrap_or_default();
+        assert!(
+            f.starts_with("SUPPRESSION BELOW 40 dB"),
+            "verdict failure {f}"
+        );
+    }
+    let counters: Vec<(String, u64)> =
+        serde_json::from_value(report["controller_counters"].clone()).expect("counters");
+    let counter = |name: &str| {
+        counters
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+            .unwrap_or_else(|| panic!("no counter {name:?} in {counters:?}"))
+    };
+    assert_eq!(counter("fallbacks"), 0, "{counters:?}");
+    assert!(counter("mpc steps") >= 72_000, "{counters:?}");
+    assert_eq!(counter("qp solved"), counter("mpc steps"), "{counters:?}");
+    let (seq, u0, u1) = (
+        column(&header, "seq"),
+        column(&header, "u0"),
+        column(&header, "u1"),
+    );
+    let last = rows.last().expect("rows")[seq];
+    let mut sums = [0.0; 2];
+    let mut count = 0.0;
+    for r in &rows {
+        for (i, c) in [u0, u1].into_iter().enumerate() {
+            assert!(
+                r[c].abs() <= PCAC_U_MAX,
+                "u{i} = {} at seq {} beyond ±{PCAC_U_MAX} V",
+                r[c],
+                r[seq]
+            );
+            if r[seq] > last - 8000.0 {
+                sums[i] += r[c];
+            }
+        }
+        if r[seq] > last - 8000.0 {
+            count += 1.0;
+        }
+    }
+    for (i, sum) in sums.iter().enumerate() {
+        let mean = sum / count;
+        assert!(
+            mean.abs() <= PCAC_U_MEAN_MAX,
+            "u{i}'s mean over the last second is {mean} V (wandered)"
+        );
+    }
 }

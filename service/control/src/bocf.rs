@@ -457,6 +457,49 @@ impl HorizonPrediction {
         real.free_response(&self.x1, &mut self.work, &mut self.free)
     }
 
+    /// Step `k` for a plan that starts `d` samples later (PCAC's multi-rate re-planning,
+    /// [`crate::pcac::PcacParams::replan_every`]): the inputs `u_k, …, u_{k+d−1}` are
+    /// already committed (`committed`, `d ≥ 1` rows of `m`), so the state the new plan
+    /// starts from is the `d`-step prediction
+    ///
+    /// ```text
+    /// x_{1|k} = Â_k x̂_k + B̂_k u_k,   x_{j+1|k} = Â_k x_{j|k} + B̂_k u_{k+j},  j = 1 … d−1
+    /// ```
+    ///
+    /// ((2.36) repeated), and the free response is `Ĉ Â_k^{i−1} x_{d|k}`, `i = 1 … ℓ`: the
+    /// outputs `y_{d|k}, …, y_{d+ℓ−1|k}` for zero inputs from `u_{k+d}` on. The Markov
+    /// parameters do not depend on the start. [`Self::one_step_state`] is then `x_{d|k}`.
+    /// With `d = 1` this is [`Self::compute`], bit for bit. `O(d n̂ p (p+m))` more than
+    /// it; never allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `committed` is empty or not a multiple of `m`, or the model's
+    /// dimensions do not match the buffers.
+    pub fn compute_committed<M: IdentifiedModel + ?Sized>(
+        &mut self,
+        model: &M,
+        committed: &[f64],
+    ) -> Result<(), DimError> {
+        let real = self.fill_state(model)?;
+        let m = real.m();
+        let d = blocks("committed inputs (a multiple of m)", committed.len(), m)?;
+        if d == 0 {
+            return Err(DimError {
+                what: "committed inputs (at least one row)",
+                expected: m,
+                got: 0,
+            });
+        }
+        real.one_step_state(&self.x_hat, &committed[..m], &mut self.x1)?;
+        for u in committed.chunks_exact(m).skip(1) {
+            real.one_step_state(&self.x1, u, &mut self.work)?;
+            std::mem::swap(&mut self.x1, &mut self.work);
+        }
+        real.markov(&mut self.markov)?;
+        real.free_response(&self.x1, &mut self.work, &mut self.free)
+    }
+
     /// Step `k`, after the model's identification step, for an input `u_k` still to be
     /// chosen (PCAC's same-step timing): fills `x̂_k`, the Markov parameters and the free
     /// response `Ĉ Â_k^{i−1} x̂_k`, `i = 1 … ℓ` (the outputs `y_k, ŷ_{k+1}, …, ŷ_{k+ℓ−1}`
@@ -642,6 +685,37 @@ mod tests {
             assert_eq!(hp.markov(), &h[..ell * p * m]);
             assert_eq!(hp.free_response(), &free[..]);
             assert!(hp.compute(&model, &vec![0.0; m + 1]).is_err());
+            // Committed inputs: one row is `compute` bit for bit; three start the free
+            // response at x_{3|k}, whose output is the recursive prediction of y_{k+3}.
+            let mut hc = HorizonPrediction::new(&model, ell).unwrap();
+            hc.compute_committed(&model, &u_k).unwrap();
+            assert_eq!(hc.one_step_state(), hp.one_step_state());
+            assert_eq!(hc.free_response(), hp.free_response());
+            assert_eq!(hc.markov(), hp.markov());
+            if ell >= 3 {
+                let committed: Vec<f64> =
+                    u_k.iter().chain(&fut[0]).chain(&fut[1]).copied().collect();
+                hc.compute_committed(&model, &committed).unwrap();
+                assert_eq!(hc.markov(), hp.markov());
+                for i in 0..ell - 2 {
+                    let mut want = y_rec[i + 2].clone();
+                    // y_rec continues with the planned inputs fut[2..]; take them out.
+                    for j in 0..i {
+                        let hb = &h[(i - j - 1) * p * m..(i - j) * p * m];
+                        for r in 0..p {
+                            for s in 0..m {
+                                want[r] -= hb[r * m + s] * fut[j + 2][s];
+                            }
+                        }
+                    }
+                    let got = &hc.free_response()[i * p..(i + 1) * p];
+                    dl = dl.max(max_abs_diff(got, &want) / (1.0 + max_abs(&want)));
+                }
+            }
+            assert!(hc.compute_committed(&model, &[]).is_err());
+            if m > 1 {
+                assert!(hc.compute_committed(&model, &vec![0.0; m + 1]).is_err());
+            }
             // Markov parameters and free response against dense powers.
             let mut apow = DMatrix::<f64>::identity(nx, nx);
             let x1v = DVector::from_column_slice(&x1);

@@ -24,6 +24,8 @@
 //! fast-path = "auto"              # the unconstrained Riccati fast path: "auto" (when its
 //!                                 # operation count is below condensing + the dense
 //!                                 # factorization), "always" or "never"
+//! replan-every = 1                # N: solve every N samples, the work spread over N periods,
+//!                                 # the plant following the plan between (next-step; ≤ ℓ)
 //! lambda = 1.0                    # constant forgetting, or:
 //! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
 //! rule = "f-test"
@@ -72,6 +74,7 @@ pub(super) struct RawPcac {
     warm_start: Option<bool>,
     qp_max_iterations: Option<usize>,
     fast_path: Option<String>,
+    replan_every: Option<usize>,
     output_constraints: Option<RawOutputConstraints>,
 }
 
@@ -201,6 +204,10 @@ pub(super) fn read(
         let field = f("qp-max-iterations");
         qp.max_iterations = count(n as u64, 0, MAX_QP_ITERATIONS, &field, err)? as usize;
     }
+    let replan_every = match raw.replan_every {
+        None => PcacParams::DEFAULT_REPLAN_EVERY,
+        Some(n) => count(n as u64, 0, MAX_PCAC_HORIZON, &f("replan-every"), err)? as usize,
+    };
     let params = PcacParams::builder(n_hat, p, m, p0, horizon)
         .theta0(theta0)
         .forgetting(rule.rule.clone())
@@ -215,6 +222,7 @@ pub(super) fn read(
         .qp(qp)
         .warm_start(raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START))
         .fast_path(fast_path)
+        .replan_every(replan_every)
         .build();
     Ok((params, rule))
 }
@@ -255,6 +263,13 @@ mod tests {
         assert_eq!(p.timing, PcacTiming::NextStep);
         assert!(p.warm_start);
         assert_eq!(p.fast_path, FastPathMode::Auto);
+        assert_eq!(p.replan_every, 1);
+        let every4 = params(&GOOD.replace(
+            "timing = \"next-step\"",
+            "timing = \"next-step\"\nreplan-every = 4",
+        ))
+        .unwrap();
+        assert_eq!(every4.replan_every, 4);
         let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "pcac");

@@ -88,6 +88,10 @@ pub fn dense_operation_count(spec: &MpcSpec) -> u64 {
 pub struct FastPath {
     riccati: Riccati,
     check: ConstraintCheck,
+    /// `n̂`, `p`, `m` of the model.
+    dims: [usize; 3],
+    /// The coefficients `Θ̃` kept by [`FastPath::keep_model`] (`n̂p(p+m)`).
+    coef: Vec<f64>,
 }
 
 impl FastPath {
@@ -127,10 +131,52 @@ impl FastPath {
         if !Self::chosen(mode, spec, n_hat) {
             return Ok(None);
         }
+        let (p, m) = (spec.n_outputs, spec.n_inputs);
         Ok(Some(Self {
             riccati: Riccati::new(spec, n_hat)?,
             check: ConstraintCheck::new(spec, feasibility_tol),
+            dims: [n_hat, p, m],
+            coef: vec![0.0; n_hat * p * (p + m)],
         }))
+    }
+
+    /// Keeps a copy of the coefficients `Θ̃` of `real` for [`FastPath::solve_kept`]: the
+    /// realization a prediction used, for a minimizer computed in a later sample period
+    /// (PCAC's re-planning, [`crate::pcac::PcacParams::replan_every`]), when
+    /// identification has moved the model on. False (nothing kept) when `real` does not
+    /// have this fast path's dimensions. Allocation-free.
+    pub fn keep_model(&mut self, real: &Realization<'_>) -> bool {
+        let [n_hat, p, m] = self.dims;
+        let coef = real.coefficients();
+        if [real.n_hat(), real.p(), real.m()] != self.dims || coef.len() != n_hat * p * (p + m) {
+            return false;
+        }
+        self.coef.copy_from_slice(coef);
+        true
+    }
+
+    /// [`FastPath::solve`] for the realization kept by the last [`FastPath::keep_model`].
+    /// Allocation-free.
+    pub fn solve_kept(
+        &mut self,
+        x0: &[f64],
+        u_k: &[f64],
+        reference: &[f64],
+        free_response: &[f64],
+        markov: &[f64],
+    ) -> bool {
+        let [n_hat, p, m] = self.dims;
+        let Ok(real) = Realization::new(n_hat, p, m, &self.coef) else {
+            return false;
+        };
+        self.riccati.solve(&real, x0, u_k, reference).is_ok()
+            && self.check.satisfied(
+                self.riccati.u(),
+                self.riccati.outputs(),
+                free_response,
+                markov,
+                u_k,
+            )
     }
 
     /// Computes `U*` for the realization `real`, the start state `x0`, the move reference

@@ -21,6 +21,7 @@
 //! | warm start | [`PcacParams::DEFAULT_WARM_START`] |
 //! | unconstrained fast path | [`FastPathMode::Auto`] (when the Riccati recursion is cheaper) |
 //! | augmentation (7.53)–(7.57) | none |
+//! | re-planning period `N` ([`PcacParams::replan_every`]) | [`PcacParams::DEFAULT_REPLAN_EVERY`] (every sample) |
 //!
 //! [`PcacParams::chapter_6`] and [`PcacParams::chapter_7`] start from the settings of the
 //! dissertation's examples instead: the truss (§6.2) and the sampling arm (§7.3).
@@ -79,6 +80,7 @@ impl PcacParams {
                 warm_start: PcacParams::DEFAULT_WARM_START,
                 fast_path: FastPathMode::default(),
                 augmentation: None,
+                replan_every: PcacParams::DEFAULT_REPLAN_EVERY,
             },
         }
     }
@@ -220,6 +222,13 @@ impl PcacBuilder {
         self
     }
 
+    /// Re-plan every `n` samples ([`PcacParams::replan_every`]; needs next-step timing
+    /// when `n > 1`).
+    pub fn replan_every(mut self, n: usize) -> Self {
+        self.params.replan_every = n;
+        self
+    }
+
     /// The parameters, unchecked ([`PcacParams::validate`] checks them).
     pub fn build(self) -> PcacParams {
         self.params
@@ -244,6 +253,7 @@ mod tests {
         assert_eq!(p.timing, PcacTiming::SameStep);
         assert!(p.warm_start && p.augmentation.is_none());
         assert_eq!(p.fast_path, FastPathMode::Auto);
+        assert_eq!(p.replan_every, 1);
         p.validate(Dimensions::new(2, 0, 0, 1)).unwrap();
         p.validate(Dimensions::new(2, 0, 2, 1)).unwrap();
     }

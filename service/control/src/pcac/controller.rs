@@ -71,6 +71,16 @@
 //!   held exactly and it did not re-plan. After a fallback or a sample taken in
 //!   without adaptation there is no solution to give, and the plan is empty.
 //!
+//! # Re-planning every `N` samples
+//!
+//! With [`PcacParams::replan_every`] `= N > 1` (next-step timing) the MPC is solved at
+//! every `N`-th sample only, its three units of work (prediction, condensing, QP) spread
+//! over the periods that follow, and between solves the ready input is the next row of
+//! the plan in force, which the plant follows; a solve started at `k` plans from
+//! `x_{N|k}`, the state the committed inputs `u_k … u_{k+N−1}` lead to, and its plan
+//! takes over at `k + N` ([`super::replan`]). [`Ahead::plan`] gives the rows of the plan in
+//! force after the ready one. `N = 1` is the step above.
+//!
 //! # Commands
 //!
 //! The tracked outputs `C_t y` (2.48) follow `r_k` held over the horizon
@@ -81,6 +91,7 @@ use crate::controller::{Dimensions, status};
 
 use super::augmentation::{Augmentation, AugmentedModel, OutputFeedback};
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
+use super::replan::Replan;
 use crate::ParamError;
 use crate::ahead::Ahead;
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
@@ -124,12 +135,18 @@ pub struct PcacParams {
     /// regresses on it, and the MPC plans `u_k` with the closed-loop model. `None`: plain
     /// PCAC, the plant's input is `u_k`.
     pub augmentation: Option<OutputFeedback>,
+    /// Re-plan every `N` samples (multi-rate PCAC, [`super::replan`]): the QP is solved at
+    /// every `N`-th sample only, its work spread over the `N` periods that follow, and the
+    /// plant follows the plan in between. `1` (the default) solves at every sample; `N > 1`
+    /// needs [`PcacTiming::NextStep`] and `N ≤ ℓ`.
+    pub replan_every: usize,
 }
 
 /// Why a step fell back, and how often (see [`Pcac::counts_of`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct PcacCounters {
-    /// Steps that ran the MPC (controller steps, not observations).
+    /// MPC solves started (one per sample, or one per `N` samples when re-planning every
+    /// `N`: [`PcacParams::replan_every`]; observations start none).
     pub steps: u64,
     /// QPs solved.
     pub solved: u64,
@@ -202,6 +219,10 @@ pub struct Pcac {
     solver: DenseQpSolver,
     /// The unconstrained fast path, when [`PcacParams::fast_path`] chooses it.
     fast: Option<FastPath>,
+    /// The running solve's prediction kept its realization for the fast path.
+    fast_model: bool,
+    /// The running solve's build unit found the fast path's `U*` to be the solution.
+    fast_found: bool,
     /// The last MPC step's solution is the fast path's `U*` (not the solver's).
     fast_used: bool,
     /// `u_{k−1}` as this controller believes it (the input over the last period).
@@ -237,9 +258,13 @@ pub struct Pcac {
     /// The status bits of the MPC step that produced `u_next` (the ahead form's ready
     /// input).
     ready_status: u32,
-    /// The solver's `U` is the solution that produced `u_next` (its rows after the first
-    /// are the plan).
-    plan_valid: bool,
+    /// Next-step timing: the plan in force and the schedule of the solves
+    /// ([`super::replan`]; every sample when not re-planning at a lower rate).
+    replan: Replan,
+    /// The running solve's prediction succeeded.
+    predicted: bool,
+    /// The running solve's QP was built.
+    built: bool,
 }
 
 impl PcacParams {
@@ -260,6 +285,8 @@ impl PcacParams {
     pub const DEFAULT_R: f64 = 1.0;
     /// Warm starts when a configuration does not say.
     pub const DEFAULT_WARM_START: bool = true;
+    /// Re-planning period `N` when a configuration does not say: a solve at every sample.
+    pub const DEFAULT_REPLAN_EVERY: usize = 1;
 
     /// `n̂ p (p+m)`, the number of identified coefficients.
     pub fn theta_len(n_hat: usize, p: usize, m: usize) -> usize {
@@ -282,7 +309,8 @@ impl PcacParams {
     /// wrong size or non-finite, or `n_r` neither 0 nor `p_t`), `"q"` (not finite and
     /// `≥ 0`), `"r"` (not finite and `> 0`), `"u-min"` (`u_min ≤ u_max` violated),
     /// `"du-min"`, `"du-max"` (holding the input not allowed), `"output-constraints.c"`,
-    /// `"output-constraints.d"`, `"qp-max-iterations"` (0), `"augmentation"` (a `K̄` that
+    /// `"output-constraints.d"`, `"qp-max-iterations"` (0), `"replan-every"` (0, above
+    /// `ℓ`, or above 1 without next-step timing), `"augmentation"` (a `K̄` that
     /// is not `m × p` or not finite); and the empty field when the model's or the MPC
     /// problem's `p`, `m` do not match the rig's `n_y`, `n_u`.
     ///
@@ -413,6 +441,7 @@ impl PcacParams {
         if self.qp.max_iterations == 0 {
             return Err(ParamError::new("qp-max-iterations", "must be at least 1"));
         }
+        self.validate_replan()?;
         if let Some(fb) = &self.augmentation {
             if fb.gain.len() != m * p {
                 return Err(ParamError::new(
@@ -426,6 +455,34 @@ impl PcacParams {
             if fb.gain.iter().any(|x| !x.is_finite()) {
                 return Err(ParamError::new("augmentation", "K̄ must be finite"));
             }
+        }
+        Ok(())
+    }
+
+    /// The re-planning part of [`PcacParams::validate`].
+    fn validate_replan(&self) -> Result<(), ParamError> {
+        let (n, ell) = (self.replan_every, self.mpc.horizon);
+        if n == 0 {
+            return Err(ParamError::new("replan-every", "must be at least 1"));
+        }
+        if n > 1 && self.timing != PcacTiming::NextStep {
+            return Err(ParamError::new(
+                "replan-every",
+                format!(
+                    "{n}: re-planning every N > 1 samples needs timing = \"next-step\" (the \
+                     plan's inputs are sent ahead; same-step timing solves for the input of \
+                     the sample at hand)"
+                ),
+            ));
+        }
+        if n > ell {
+            return Err(ParamError::new(
+                "replan-every",
+                format!(
+                    "{n} exceeds the horizon ℓ = {ell}: a plan must cover the samples until the \
+                     next one takes over"
+                ),
+            ));
         }
         Ok(())
     }
@@ -541,6 +598,8 @@ impl Pcac {
             pred,
             solver,
             fast,
+            fast_model: false,
+            fast_found: false,
             fast_used: false,
             u_last: vec![0.0; n_u],
             u_next: vec![0.0; n_u],
@@ -562,7 +621,9 @@ impl Pcac {
             tracked_prediction: 0.0,
             ahead: params.answers_ahead(),
             ready_status: status::OK,
-            plan_valid: false,
+            replan: Replan::new(params.replan_every, n_u, spec.horizon),
+            predicted: false,
+            built: false,
             cond,
         };
         c.initial_inputs();
@@ -589,7 +650,7 @@ impl Pcac {
         self.last_status = None;
         self.tracked_prediction = 0.0;
         self.ready_status = status::OK;
-        self.plan_valid = false;
+        self.replan.clear();
     }
 
     /// The identified model (coefficients `θ_{k+1}`, covariance, prior error). With an
@@ -743,14 +804,27 @@ impl Pcac {
             .shift_active_set_by(&self.active[..n], steps, &mut self.shifted);
     }
 
-    /// Steps 3–5: the input for the period the MPC plans from, into `self.u_tmp`; returns
-    /// the status bits.
+    /// Steps 3–5 in one go (a solve at every sample): the input for the period the MPC
+    /// plans from, into `self.u_tmp`; returns the status bits. The committed inputs of
+    /// next-step timing (`u_k`) must be in [`Replan::commit`] already.
     fn solve_mpc(&mut self, input: &StepInput<'_>) -> u32 {
+        self.predicted = self.predict(input);
+        self.built = self.predicted && self.build_qp();
+        self.solve_qp(self.built)
+    }
+
+    /// Step 3, the first unit of a solve ([`super::replan`]): the move reference (2.47),
+    /// the command and the prediction — from `x̂_k` (same step) or from the committed
+    /// inputs (next step: `x_{1|k}`, or `x_{N|k}` when re-planning every `N`). Returns
+    /// whether the prediction is usable.
+    fn predict(&mut self, input: &StepInput<'_>) -> bool {
         self.counters.steps += 1;
-        // The move reference (2.47): u_{k−1} (same step) or u_k (next step).
+        self.last_iterations = 0;
+        self.last_active = 0;
+        // The move reference (2.47): u_{k−1} (same step) or the last committed input.
         match self.timing {
             PcacTiming::SameStep => self.u_ref.copy_from_slice(&self.u_last),
-            PcacTiming::NextStep => self.u_ref.copy_from_slice(&self.u_next),
+            PcacTiming::NextStep => self.u_ref.copy_from_slice(self.replan.last_committed()),
         }
         let pt = self.cond.n_tracked();
         for (i, r) in self.reference.iter_mut().enumerate() {
@@ -761,48 +835,65 @@ impl Pcac {
                 .filter(|v| v.is_finite())
                 .unwrap_or(0.0);
         }
+        let committed = self.replan.committed();
         let predicted = match (&self.aug, self.timing) {
             (None, PcacTiming::SameStep) => self.pred.compute_from_state(&self.model),
-            (None, PcacTiming::NextStep) => self.pred.compute(&self.model, &self.u_ref),
+            (None, PcacTiming::NextStep) => self.pred.compute_committed(&self.model, committed),
             (Some(aug), PcacTiming::SameStep) => {
                 self.pred.compute_from_state(&aug.view(&self.model))
             }
-            (Some(aug), PcacTiming::NextStep) => {
-                self.pred.compute(&aug.view(&self.model), &self.u_ref)
-            }
+            (Some(aug), PcacTiming::NextStep) => self
+                .pred
+                .compute_committed(&aug.view(&self.model), committed),
         };
-        self.last_iterations = 0;
-        self.last_active = 0;
-        self.fast_used = predicted.is_ok() && self.try_fast_path();
+        self.fast_found = false;
+        self.fast_model = predicted.is_ok() && self.keep_fast_model();
+        predicted.is_ok()
+    }
+
+    /// Step 4's condensing, the second unit of a solve: first the unconstrained fast path
+    /// when [`PcacParams::fast_path`] chooses it, whose `U*`, when it meets every
+    /// constraint, is the solution (nothing to condense; the solve unit only takes it);
+    /// otherwise the condensed QP. Whether the solve unit has a solution or a QP.
+    fn build_qp(&mut self) -> bool {
+        self.fast_found = self.try_fast_path();
+        self.fast_found
+            || self
+                .cond
+                .build(
+                    self.pred.markov(),
+                    self.pred.free_response(),
+                    &self.u_ref,
+                    &self.reference,
+                )
+                .is_ok()
+    }
+
+    /// Steps 4–5's solve, the last unit: the QP of the last build when `built` (else the
+    /// refusal), the first move (or the fallback) into `self.u_tmp`, the next warm start
+    /// ([`PcacParams::replan_every`] samples on), and the plan into [`Replan`] (next-step
+    /// timing). Returns the status bits.
+    fn solve_qp(&mut self, built: bool) -> u32 {
+        self.fast_used = built && self.fast_found;
         let status = if self.fast_used {
             self.counters.fast_path += 1;
             Some(QpStatus::Solved)
-        } else if predicted.is_err() {
-            None
+        } else if built {
+            let warm = if self.warm_start && self.n_shifted > 0 {
+                WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
+            } else {
+                WarmStart::Cold
+            };
+            Some(self.solver.solve(&self.cond.problem(), warm))
         } else {
-            match self.cond.build(
-                self.pred.markov(),
-                self.pred.free_response(),
-                &self.u_ref,
-                &self.reference,
-            ) {
-                Err(_) => None,
-                Ok(problem) => {
-                    let warm = if self.warm_start && self.n_shifted > 0 {
-                        WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
-                    } else {
-                        WarmStart::Cold
-                    };
-                    Some(self.solver.solve(&problem, warm))
-                }
-            }
+            None
         };
         self.last_status = status;
         if !self.fast_used {
             self.last_iterations = self.solver.iterations();
         }
         self.tracked_prediction = self.tracked_one_step();
-        match status {
+        let bits = match status {
             Some(QpStatus::Solved) => {
                 self.counters.solved += 1;
                 let planned = unconstrained::solution_of(&self.fast, self.fast_used, &self.solver);
@@ -815,21 +906,25 @@ impl Pcac {
                         self.solver.active_set_into(&mut self.active)
                     };
                     self.last_active = na;
-                    self.n_shifted = self
-                        .cond
-                        .shift_active_set(&self.active[..na], &mut self.shifted);
+                    self.n_shifted = self.cond.shift_active_set_by(
+                        &self.active[..na],
+                        self.replan.every(),
+                        &mut self.shifted,
+                    );
                     // Within the input bounds up to round-off; clip it exactly.
                     self.cond.clip_to_input_bounds(&mut self.u_tmp);
-                    self.plan_valid = true;
-                    if self.cond.at_input_bound(&self.u_tmp) {
+                    let bits = if self.cond.at_input_bound(&self.u_tmp) {
                         status::SATURATED
                     } else {
                         status::OK
-                    }
-                } else {
-                    self.counters.numerical_error += 1;
-                    self.fall_back()
+                    };
+                    let cond = &self.cond;
+                    self.replan
+                        .set_pending(planned, bits, |row| cond.clip_to_input_bounds(row));
+                    return bits;
                 }
+                self.counters.numerical_error += 1;
+                self.fall_back()
             }
             Some(QpStatus::Infeasible) => {
                 self.counters.infeasible += 1;
@@ -847,7 +942,37 @@ impl Pcac {
                 self.counters.refused += 1;
                 self.fall_back()
             }
+        };
+        self.replan.set_pending_fallback(&self.u_tmp, bits);
+        bits
+    }
+
+    /// Next-step timing, a closed-loop sample `k` after steps 1–2, with `u_k` in
+    /// `self.u_next`: this period's units of the running solve ([`super::replan`]; all
+    /// three when solving at every sample), then `u_{k+1}` from the plan in force into
+    /// `self.u_next` (`u_k` held when it has none) and `u_k` into `self.u_last`. Returns
+    /// the status bits of the solve that made `u_{k+1}`.
+    fn plan_ahead(&mut self, input: &StepInput<'_>) -> u32 {
+        self.replan.skip(input.lost);
+        let units = self.replan.units();
+        if units.predict {
+            let _ = self.replan.commit(&self.u_next);
+            self.predicted = self.predict(input);
+            self.built = false;
         }
+        if units.build {
+            self.built = self.predicted && self.build_qp();
+        }
+        if units.solve {
+            let _ = self.solve_qp(self.built);
+        }
+        self.replan.next_sample(units.take_over);
+        self.u_last.copy_from_slice(&self.u_next);
+        self.ready_status = self
+            .replan
+            .next_input(&mut self.u_next)
+            .unwrap_or(status::OK);
+        self.ready_status
     }
 
     /// The first tracked output of the next sample's prediction with the planned inputs.
@@ -878,7 +1003,6 @@ impl Pcac {
     }
 
     fn fall_back(&mut self) -> u32 {
-        self.plan_valid = false;
         self.counters.fallbacks += 1;
         self.n_shifted = 0;
         self.cond.fallback_input(&self.u_ref, &mut self.u_tmp);
@@ -898,20 +1022,16 @@ impl Controller for Pcac {
     fn step(&mut self, input: &StepInput<'_>, u: &mut [f64]) -> u32 {
         let identified = self.take_in(input);
         self.adapted[identified] += 1;
-        let status = self.solve_mpc(input);
-        let out = match self.timing {
+        let status = match self.timing {
             PcacTiming::SameStep => {
+                let status = self.solve_mpc(input);
                 self.u_last.copy_from_slice(&self.u_tmp);
-                &self.u_last
+                status
             }
-            PcacTiming::NextStep => {
-                // Apply u_k (decided at k − 1); u_{1|k} waits for the next sample.
-                self.u_last.copy_from_slice(&self.u_next);
-                self.u_next.copy_from_slice(&self.u_tmp);
-                &self.u_last
-            }
+            // Apply u_k (decided before); u_{k+1} waits for the next sample.
+            PcacTiming::NextStep => self.plan_ahead(input),
         };
-        for (d, s) in u.iter_mut().zip(out.iter()) {
+        for (d, s) in u.iter_mut().zip(self.u_last.iter()) {
             *d = *s;
         }
         status
@@ -923,7 +1043,7 @@ impl Controller for Pcac {
         let _ = self.take_in(input);
         self.counters.observed += 1;
         self.age_warm_start(1);
-        self.plan_valid = false;
+        self.replan.clear();
         self.u_next.copy_from_slice(&self.u_last);
     }
 
@@ -983,6 +1103,10 @@ impl Controller for Pcac {
     fn counters(&self) -> Vec<(&'static str, u64)> {
         let c = &self.counters;
         vec![
+            (
+                "samples per solve (replan-every)",
+                self.replan.every() as u64,
+            ),
             ("mpc steps", c.steps),
             ("qp solved", c.solved),
             ("fast path", c.fast_path),
@@ -1067,40 +1191,34 @@ impl Ahead for Pcac {
             }
         }
         if adapt {
-            let status = self.solve_mpc(input);
-            self.u_last.copy_from_slice(&self.u_next);
-            self.u_next.copy_from_slice(&self.u_tmp);
-            self.ready_status = status;
+            self.plan_ahead(input);
         } else {
             self.counters.observed += 1;
             self.age_warm_start(1);
-            self.plan_valid = false;
+            self.replan.clear();
             self.u_last.copy_from_slice(&self.u_next);
             self.ready_status = status::OK;
         }
         self.ready_status
     }
 
-    /// The rows `u_{2|k}, …, u_{ℓ|k}` of the last solution `U` (2.44), each clipped
-    /// exactly into the input bounds (2.50) as the first move is, as many as fit; none
-    /// after a fallback or a sample taken in without adaptation.
+    /// The rows of the plan in force after the ready input, each clipped exactly into the
+    /// input bounds (2.50) as the first move is, as many as fit: `u_{2|k}, …, u_{ℓ|k}` of
+    /// the last solution `U` (2.44) when solving at every sample, the rows still ahead
+    /// when re-planning every `N` ([`PcacParams::replan_every`]); none after a fallback
+    /// or a sample taken in without adaptation.
     fn plan(&mut self, out: &mut [f64]) -> usize {
-        let m = self.u_next.len();
-        if !self.plan_valid || m == 0 {
-            return 0;
-        }
-        let later = self.solution().get(m..).unwrap_or(&[]);
-        let mut rows = 0;
-        for (row, planned) in out.chunks_exact_mut(m).zip(later.chunks_exact(m)) {
-            row.copy_from_slice(planned);
-            self.cond.clip_to_input_bounds(row);
-            rows += 1;
-        }
-        rows
+        self.replan.rows_after_next(out)
     }
 
     fn plan_source(&self) -> &'static str {
-        "the MPC solution u_{2|k}, …, u_{ℓ|k} (2.43)–(2.51) of the identified model; \
-         none after a fallback"
+        if self.replan.every() > 1 {
+            "the plan in force of the MPC (2.43)–(2.51) of the identified model, solved every \
+             N samples (replan-every) from the state its committed inputs lead to: its rows \
+             after the ready input; none after a fallback"
+        } else {
+            "the MPC solution u_{2|k}, …, u_{ℓ|k} (2.43)–(2.51) of the identified model; \
+             none after a fallback"
+        }
     }
 }

@@ -44,6 +44,7 @@ pub mod augmentation;
 pub mod builder;
 mod controller;
 pub mod model;
+pub mod replan;
 
 pub use augmentation::{AugmentedModel, OutputFeedback};
 pub use builder::PcacBuilder;

@@ -36,6 +36,22 @@
 //! to its *reduced* tolerances (5·10⁻⁵ on the gap, 10⁻⁴ on feasibility): [`minimize`]
 //! accepts it, but [`SdpSolution::full_accuracy`] is then `false` and the bounds above do
 //! not hold.
+//!
+//! # When the first solve stops on numerics
+//!
+//! Clarabel's PSD cones do their linear algebra through BLAS, and OpenBLAS picks its
+//! kernels by the CPU it runs on, so the same program's iterates differ in their last bits
+//! from one machine to the next. On a badly scaled program (the robust gain's, whose state
+//! is scaled by 100) that decides whether clarabel's Ruiz equilibration leads the
+//! iterates into a KKT system it cannot factor (`NumericalError`) or not. [`minimize`]
+//! therefore solves in up to [`ATTEMPTS`] settings, in order, and stops at the first that
+//! reports `Solved` or `AlmostSolved`: clarabel's defaults, then the same without
+//! equilibration, then that with a shorter step (`max_step_fraction` 0.9). Only the
+//! numerical stops (`NumericalError`, `InsufficientProgress`, `MaxIterations`) lead to the
+//! next attempt; an infeasible program is reported at once. The tolerances and hence the
+//! guarantee above are the same in every attempt; [`SdpSolution::status`] names the
+//! attempt that solved. CI solves the design programs with OpenBLAS forced to several
+//! CPUs' kernels (`OPENBLAS_CORETYPE`).
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -80,12 +96,12 @@ pub enum SdpError {
     /// clarabel refused the problem (its error, debug form).
     #[error("clarabel rejected the problem: {0}")]
     Rejected(String),
-    /// clarabel stopped without a solution.
+    /// clarabel stopped without a solution in every attempt it was given.
     #[error("clarabel stopped with status {status} after {iterations} iterations")]
     Stopped {
-        /// Its status (debug form).
+        /// Its status (debug form) in each attempt made, with the attempt's settings.
         status: String,
-        /// Its iterations.
+        /// Its iterations in the last attempt.
         iterations: u32,
     },
 }
@@ -149,7 +165,8 @@ pub struct SdpSolution {
     /// The dual cost (the gap `|cost − dual_cost|` is below
     /// [`Tolerances::cost_accuracy`] when [`SdpSolution::full_accuracy`]).
     pub dual_cost: f64,
-    /// Clarabel's status (`Solved` or `AlmostSolved`).
+    /// Clarabel's status (`Solved` or `AlmostSolved`), followed by the settings of the
+    /// attempt that reached it when that was not the first ([`ATTEMPTS`]).
     pub status: String,
     /// `true` for `Solved` (the tolerances asked for hold), `false` for `AlmostSolved`
     /// (only clarabel's reduced tolerances do).
@@ -222,6 +239,16 @@ pub fn minimize(c: &[f64], lmis: &[Lmi]) -> Result<SdpSolution, SdpError> {
 
 /// [`minimize`] with the stopping tolerances `tol`.
 pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSolution, SdpError> {
+    minimize_in(c, lmis, tol, &ATTEMPTS)
+}
+
+/// [`minimize_with`] trying the settings `attempts` in order.
+fn minimize_in(
+    c: &[f64],
+    lmis: &[Lmi],
+    tol: &Tolerances,
+    attempts: &[Attempt],
+) -> Result<SdpSolution, SdpError> {
     let n = c.len();
     let mut b = Vec::new();
     let mut columns: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
@@ -268,32 +295,90 @@ pub fn minimize_with(c: &[f64], lmis: &[Lmi], tol: &Tolerances) -> Result<SdpSol
     }
     let a = CscMatrix::new(m, n, colptr, rowval, nzval);
     let p = CscMatrix::zeros((n, n));
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .tol_gap_abs(tol.gap_abs)
-        .tol_gap_rel(tol.gap_rel)
-        .tol_feas(tol.feas)
-        .build()
-        .map_err(|e| SdpError::Settings(e.to_string()))?;
-    let mut solver = DefaultSolver::new(&p, c, &a, &b, &cones, settings)
-        .map_err(|e| SdpError::Rejected(format!("{e:?}")))?;
-    solver.solve();
-    let status = solver.solution.status;
-    match status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => Ok(SdpSolution {
-            x: solver.solution.x.clone(),
-            cost: solver.solution.obj_val,
-            dual_cost: solver.solution.obj_val_dual,
-            status: format!("{status:?}"),
-            full_accuracy: status == SolverStatus::Solved,
-            iterations: solver.solution.iterations,
-        }),
-        other => Err(SdpError::Stopped {
-            status: format!("{other:?}"),
-            iterations: solver.solution.iterations,
-        }),
+    let mut stops = Vec::new();
+    let mut iterations = 0;
+    for attempt in attempts {
+        let settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .tol_gap_abs(tol.gap_abs)
+            .tol_gap_rel(tol.gap_rel)
+            .tol_feas(tol.feas)
+            .equilibrate_enable(attempt.equilibrate)
+            .max_step_fraction(attempt.max_step_fraction)
+            .build()
+            .map_err(|e| SdpError::Settings(e.to_string()))?;
+        let mut solver = DefaultSolver::new(&p, c, &a, &b, &cones, settings)
+            .map_err(|e| SdpError::Rejected(format!("{e:?}")))?;
+        solver.solve();
+        let status = solver.solution.status;
+        iterations = solver.solution.iterations;
+        match status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {
+                let status = if stops.is_empty() {
+                    format!("{status:?}")
+                } else {
+                    format!(
+                        "{status:?} ({}; before: {})",
+                        attempt.name,
+                        stops.join(", ")
+                    )
+                };
+                return Ok(SdpSolution {
+                    x: solver.solution.x.clone(),
+                    cost: solver.solution.obj_val,
+                    dual_cost: solver.solution.obj_val_dual,
+                    status,
+                    full_accuracy: solver.solution.status == SolverStatus::Solved,
+                    iterations,
+                });
+            }
+            SolverStatus::NumericalError
+            | SolverStatus::InsufficientProgress
+            | SolverStatus::MaxIterations => {
+                stops.push(format!("{status:?} with {}", attempt.name));
+            }
+            other => {
+                stops.push(format!("{other:?} with {}", attempt.name));
+                break;
+            }
+        }
     }
+    Err(SdpError::Stopped {
+        status: stops.join(", then "),
+        iterations,
+    })
 }
+
+/// One set of solver settings [`minimize`] may solve in (the module docs say when the next
+/// is tried).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Attempt {
+    /// What it changes from clarabel's defaults, for the solution's status.
+    pub name: &'static str,
+    /// Clarabel's `equilibrate_enable` (Ruiz scaling of the KKT data).
+    pub equilibrate: bool,
+    /// Clarabel's `max_step_fraction` (of the step to the cone's boundary).
+    pub max_step_fraction: f64,
+}
+
+/// The settings [`minimize`] tries, in order.
+pub const ATTEMPTS: [Attempt; 3] = [
+    Attempt {
+        name: "clarabel's defaults",
+        equilibrate: true,
+        max_step_fraction: 0.99,
+    },
+    Attempt {
+        name: "without equilibration",
+        equilibrate: false,
+        max_step_fraction: 0.99,
+    },
+    Attempt {
+        name: "without equilibration, step fraction 0.9",
+        equilibrate: false,
+        max_step_fraction: 0.9,
+    },
+];
 
 #[cfg(test)]
 mod tests {
@@ -363,5 +448,35 @@ mod tests {
         let lmis = affine_lmis(1, |x| vec![sym(&[&[-1.0, 0.0], &[0.0, x[0]]])]);
         let e = minimize(&[1.0], &lmis).unwrap_err().to_string();
         assert!(e.contains("Infeasible"), "{e}");
+        // Infeasibility is the program's, not the numerics': no second attempt.
+        assert!(!e.contains("then"), "{e}");
+    }
+
+    #[test]
+    fn a_numerical_stop_leads_to_the_next_attempt_and_the_status_names_it() {
+        // min x subject to [[x, 1], [1, 1]] ⪰ 0: x = 1. A step fraction of 10⁻³ cannot reach
+        // it in clarabel's 200 iterations, so the first attempt stops on MaxIterations.
+        let lmis = affine_lmis(1, |x| vec![sym(&[&[x[0], 1.0], &[1.0, 1.0]])]);
+        let crawl = Attempt {
+            name: "a crawl",
+            equilibrate: true,
+            max_step_fraction: 1e-3,
+        };
+        let sol = minimize_in(&[1.0], &lmis, &Tolerances::DEFAULT, &[crawl, ATTEMPTS[1]]).unwrap();
+        assert!((sol.x[0] - 1.0).abs() < 1e-6, "{:?}", sol.x);
+        assert!(sol.full_accuracy);
+        assert_eq!(
+            sol.status,
+            "Solved (without equilibration; before: MaxIterations with a crawl)"
+        );
+        let e = minimize_in(&[1.0], &lmis, &Tolerances::DEFAULT, &[crawl, crawl])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("MaxIterations with a crawl, then MaxIterations with a crawl"),
+            "{e}"
+        );
+        // The ladder's first attempt is clarabel's defaults, and it solves this at once.
+        assert_eq!(minimize(&[1.0], &lmis).unwrap().status, "Solved");
     }
 }

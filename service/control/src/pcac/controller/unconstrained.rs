@@ -22,32 +22,39 @@ pub(super) fn solution_of<'a>(
 }
 
 impl Pcac {
-    /// Tries the fast path on the prediction just computed (`self.pred`: the start state
-    /// `x_{1|k}` or `x̂_k`, the Markov parameters and the free response), with the move
-    /// reference `self.u_ref` and the command `self.reference`; true when its `U*` is the
-    /// QP's solution. False without a fast path. Allocation-free.
+    /// With the fast path, keeps the realization the prediction just used (the identified
+    /// model's, or with an augmented `K̄` the closed loop's (7.56)–(7.57)) for
+    /// [`Pcac::try_fast_path`], which may run a period later when re-planning
+    /// ([`super::super::replan`]), after identification has moved the model on. False when
+    /// there is a fast path and the realization was refused (then it is not tried).
+    /// Allocation-free.
+    pub(super) fn keep_fast_model(&mut self) -> bool {
+        let Some(fast) = &mut self.fast else {
+            return false;
+        };
+        match &self.aug {
+            None => fast.keep_model(&self.model.realization()),
+            Some(aug) => fast.keep_model(&aug.view(&self.model).realization()),
+        }
+    }
+
+    /// Tries the fast path on the last prediction (`self.pred`: the start state `x_{1|k}`,
+    /// `x_{N|k}` or `x̂_k`, the Markov parameters and the free response) and the
+    /// realization it used ([`Pcac::keep_fast_model`]), with the move reference
+    /// `self.u_ref` and the command `self.reference`; true when its `U*` is the QP's
+    /// solution. False without a fast path. Allocation-free.
     pub(super) fn try_fast_path(&mut self) -> bool {
         let Some(fast) = &mut self.fast else {
             return false;
         };
-        // The realization the prediction used: the identified model's, or with an
-        // augmented K̄ the closed loop's (7.56)–(7.57).
-        let view;
-        let real = match &self.aug {
-            None => self.model.realization(),
-            Some(aug) => {
-                view = aug.view(&self.model);
-                view.realization()
-            }
-        };
-        fast.solve(
-            &real,
-            self.pred.one_step_state(),
-            &self.u_ref,
-            &self.reference,
-            self.pred.free_response(),
-            self.pred.markov(),
-        )
+        self.fast_model
+            && fast.solve_kept(
+                self.pred.one_step_state(),
+                &self.u_ref,
+                &self.reference,
+                self.pred.free_response(),
+                self.pred.markov(),
+            )
     }
 
     /// The last MPC step's solution `U`: the fast path's `U*` when it took the fast path,
