@@ -20,8 +20,10 @@
 //! does not depend on `U` (block row 1 of `T̂` (2.46) is zero); and `x_ℓ` enters no term
 //! (`u_{ℓ|k}` affects no predicted output: block column `ℓ` of `T̂` is zero). The start
 //! state `x_0` is the condenser's: `x_{1|k} = Â x̂_k + B̂ u_k` (2.36) in the dissertation's
-//! next-step timing, `x̂_k` with the move reference `u_{k−1}` in the same-step timing
-//! ([`crate::pcac`]). The cost is (2.48) itself, without the condenser's factor 2
+//! next-step timing, `x̂_k` with the move reference `u_{k−1}` in the same-step timing, or
+//! `x_{N|k}` with the last committed input when PCAC re-plans every `N` samples
+//! ([`crate::pcac`]): whatever start state and move reference the condenser's problem
+//! was built from. The cost is (2.48) itself, without the condenser's factor 2
 //! (`J = ½ Uᵀ H U + fᵀ U + c` with `H = 2(…)`, `f = 2(…)`): a positive factor does not
 //! move the minimizer.
 //!

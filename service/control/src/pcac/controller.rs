@@ -19,7 +19,8 @@
 //! 4. **MPC** (2.47)–(2.51): when [`PcacParams::fast_path`] chooses it, first the
 //!    unconstrained fast path ([`crate::mpc::fast_path`]): the Riccati minimizer of (2.48)
 //!    and, if it meets every constraint, that is the QP's solution (status solved, no
-//!    iteration, an empty active set). Otherwise, or without the fast path,
+//!    iteration, an empty active set; when re-planning every `N`, in the condensing
+//!    unit's period, on the realization the prediction kept). Otherwise, or without it,
 //!    [`Condenser::build`] and [`DenseQpSolver::solve`], warm-started
 //!    from the previous step's active set shifted by one step
 //!    ([`Condenser::shift_active_set`]). The first move is the input. Samples taken in
