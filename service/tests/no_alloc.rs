@@ -894,7 +894,7 @@ fn the_pcac_fast_path_step_re_planning_every_3_does_not_allocate() {
 /// The body of the fast-path allocation tests, re-planning every `replan` samples.
 fn pcac_fast_path_steps_make_no_allocation(replan: usize) {
     let mut ctl = service::rt_alloc::outside_rt(|| arm_size_pcac(replan));
-    let counter = |ctl: &Box<dyn control::Controller>, name: &str| {
+    let counter = |ctl: &dyn control::Controller, name: &str| {
         ctl.counters()
             .iter()
             .find(|(n, _)| *n == name)
@@ -932,7 +932,10 @@ fn pcac_fast_path_steps_make_no_allocation(replan: usize) {
     for k in 0..200 {
         run(&mut ctl, k);
     }
-    let (fast0, solved0) = (counter(&ctl, "fast path"), counter(&ctl, "qp solved"));
+    let (fast0, solved0) = (
+        counter(ctl.as_ref(), "fast path"),
+        counter(ctl.as_ref(), "qp solved"),
+    );
     enter_rt_thread(16);
     let before = thread_stats();
     for k in 200..1000 {
@@ -944,8 +947,8 @@ fn pcac_fast_path_steps_make_no_allocation(replan: usize) {
     }
     assert_nothing_allocated_since(&before, String::new);
     let (fast, solved) = (
-        counter(&ctl, "fast path") - fast0,
-        counter(&ctl, "qp solved") - solved0,
+        counter(ctl.as_ref(), "fast path") - fast0,
+        counter(ctl.as_ref(), "qp solved") - solved0,
     );
     // Both paths ran (172 and 710 of 882 solves at N = 1, 26 and 256 of 282 at N = 3).
     assert!(fast >= 10, "the fast path solved {fast} of {solved}");
