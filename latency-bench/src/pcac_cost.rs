@@ -47,20 +47,25 @@
 //!    - **the pieces**: the step's PCAC part taken apart into the public kernels of
 //!      `control`, each timed alone on the data the reference PCAC just used:
 //!      `IoModel::update` on a copy of its model taken before the step (identification;
-//!      the copy's coefficients are checked equal to PCAC's, untimed), `HorizonPrediction`
-//!      on the identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop
-//!      model `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state,
-//!      Markov parameters, free response), `Condenser::build` (condensing) and
-//!      `DenseQpSolver::solve` (warm-started from its own shifted active set, as `Pcac`
-//!      does). Its first move is compared with the timed controller's, which checks that
+//!      the copy's coefficients are checked equal to PCAC's, untimed), `HorizonPrediction` on
+//!      the identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
+//!      `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state, Markov
+//!      parameters, free response), where PCAC's `fast-path` setting chooses it (the arm)
+//!      `FastPath::solve` (the Riccati minimizer and the constraint check, on the
+//!      realization the prediction used), and where that minimizer is not the solution
+//!      (or without the fast path) `Condenser::build` (condensing) and
+//!      `DenseQpSolver::solve` (warm-started from its own shifted active set, emptied by a
+//!      fast-path step, as `Pcac` does); each piece is recorded at the steps that run it.
+//!      Its first move is compared with the timed controller's, which checks that
 //!      the pieces are the step. Not timed as pieces: the arm's linearization and robust
 //!      gain, and PCAC's bookkeeping (the difference between the step and the sum of the
 //!      pieces). The arm's first contact sample of a phase only primes PCAC's regressor
 //!      and has no pieces.
-//!    - **clarabel**: `solve_with_clarabel(&pcac.last_problem(), 1e-8)` — clarabel's
-//!      set-up and solve, allocating — on the reference PCAC's QP (the arm's through
-//!      `ArmController::pcac`), and the first move of both solvers is compared where both
-//!      report *solved*. The active-set size and the iteration count of the dense solver
+//!    - **clarabel**: `solve_with_clarabel(&qp, 1e-8)` — clarabel's set-up and solve,
+//!      allocating — on the reference PCAC's QP `qp = Pcac::condensed_problem()` (the arm's
+//!      through `ArmController::pcac_mut`; condensed there, untimed, when the step took the
+//!      fast path), and its first move is compared with the step's (the fast path's
+//!      minimizer, or the dense solver's solution) where both report *solved*. The active-set size and the iteration count of the dense solver
 //!      are read here from `Controller::internals` (`qp_active`, `qp_iterations`).
 //!    - **OSQP**: [`OsqpAnchor::solve`] on the same QP at [`OSQP_TOL`] with polishing,
 //!      set up once per workload (at its first timed step) and afterwards updated with the
@@ -79,8 +84,9 @@
 use crate::hist::new_histogram;
 use crate::osqp_anchor::{OsqpAnchor, OsqpStatus};
 use control::arm::controller::{ArmController, ArmControllerParams, ArmMode};
-use control::bocf::DataWindow;
+use control::bocf::{DataWindow, IdentifiedModel};
 use control::mpc::condense::{Condenser, MpcSpec};
+use control::mpc::fast_path::{FastPath, FastPathMode};
 use control::mpc::qp::{
     ConstraintId, DenseQpSolver, QpProblem, QpSettings, QpStatus, WarmStart, solve_with_clarabel,
 };
@@ -216,6 +222,8 @@ struct ClosedLoop {
     ctrl: Ctrl,
     /// PCAC's MPC as the controller runs it.
     mpc: MpcSpec,
+    /// PCAC's fast-path setting.
+    fast_path: FastPathMode,
     plant: Box<PlantSim>,
     y: Vec<f64>,
     z: Vec<f64>,
@@ -230,7 +238,7 @@ struct ClosedLoop {
 impl ClosedLoop {
     /// The workload's plant and controller, as the service and plant-proxy build them.
     fn new(w: Workload) -> Result<Self, String> {
-        let (plant, ctrl, mpc, n_u) = match w {
+        let (plant, ctrl, mpc, fast_path, n_u) = match w {
             Workload::Truss => {
                 let sim = truss_plant()?;
                 let params = truss_params();
@@ -238,17 +246,23 @@ impl ClosedLoop {
                 let counts = ChannelCounts::new(p, p, 0, m).map_err(|e| e.to_string())?;
                 let c = Pcac::new(&params, service::wire::dimensions(counts))
                     .map_err(|e| e.to_string())?;
-                (sim, Ctrl::Truss(Box::new(c)), params.mpc, m)
+                (
+                    sim,
+                    Ctrl::Truss(Box::new(c)),
+                    params.mpc,
+                    params.fast_path,
+                    m,
+                )
             }
             Workload::Arm => {
                 let (sim, params, counts) = arm_loop()?;
-                let mpc = params
+                let pcac = params
                     .augmented_pcac()
-                    .map_err(|e| format!("{ARM_CONTROLLER}: {}", e.message))?
-                    .mpc;
+                    .map_err(|e| format!("{ARM_CONTROLLER}: {}", e.message))?;
                 let c = ArmController::new(&params, service::wire::dimensions(counts))
                     .map_err(|e| format!("{ARM_CONTROLLER}: {}", e.message))?;
-                (sim, Ctrl::Arm(Box::new(c)), mpc, counts.n_u as usize)
+                let n_u = counts.n_u as usize;
+                (sim, Ctrl::Arm(Box::new(c)), pcac.mpc, pcac.fast_path, n_u)
             }
         };
         Ok(Self {
@@ -260,6 +274,7 @@ impl ClosedLoop {
             identifies: true,
             ctrl,
             mpc,
+            fast_path,
             plant: Box::new(plant),
         })
     }
@@ -269,6 +284,14 @@ impl ClosedLoop {
         match &self.ctrl {
             Ctrl::Truss(c) => c,
             Ctrl::Arm(c) => c.pcac().expect("the arm workload is built with PCAC"),
+        }
+    }
+
+    /// [`Self::pcac`], mutable (for [`Pcac::condensed_problem`]).
+    fn pcac_mut(&mut self) -> &mut Pcac {
+        match &mut self.ctrl {
+            Ctrl::Truss(c) => c,
+            Ctrl::Arm(c) => c.pcac_mut().expect("the arm workload is built with PCAC"),
         }
     }
 
@@ -363,6 +386,10 @@ struct Pieces {
     pred: HorizonPrediction,
     cond: Condenser,
     solver: DenseQpSolver,
+    /// The unconstrained fast path, when PCAC's setting chooses it.
+    fast: Option<FastPath>,
+    /// The last step's first move is the fast path's.
+    fast_taken: bool,
     active: Vec<ConstraintId>,
     shifted: Vec<ConstraintId>,
     n_shifted: usize,
@@ -371,11 +398,14 @@ struct Pieces {
 }
 
 impl Pieces {
-    fn new(pcac: &Pcac, mpc: &MpcSpec) -> Result<Self, String> {
+    fn new(pcac: &Pcac, mpc: &MpcSpec, fast_path: FastPathMode) -> Result<Self, String> {
         let model = pcac.model().clone();
         let pred = HorizonPrediction::new(&model, mpc.horizon)?;
         let cond = Condenser::new(mpc).map_err(|e| e.to_string())?;
-        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), QpSettings::default());
+        let settings = QpSettings::default();
+        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), settings);
+        let fast = FastPath::new(mpc, model.n_hat(), settings.feasibility_tol, fast_path)
+            .map_err(|e| e.to_string())?;
         let ids = cond.n() + cond.n_ineq();
         Ok(Self {
             reference: vec![0.0; mpc.horizon * mpc.n_tracked],
@@ -387,6 +417,8 @@ impl Pieces {
             pred,
             cond,
             solver,
+            fast,
+            fast_taken: false,
         })
     }
 
@@ -396,11 +428,20 @@ impl Pieces {
         self.model.clone_from(pcac.model());
     }
 
-    /// After the reference step, which identified: the four kernels on its data, timed
-    /// into `t` (ns). Returns the QP's status (`None`: not built) and the largest
-    /// difference between the copy's coefficients and PCAC's.
+    /// After the reference step, which identified: the kernels on its data, timed into `t`
+    /// (ns, in the order of [`PIECES`]; `None` for a kernel the step did not run: the
+    /// fast path without one, condensing and the QP when the fast path's minimizer was
+    /// the solution). Returns the QP's status (`None`: not built; `Solved` by the fast
+    /// path) and the largest difference between the copy's coefficients and PCAC's.
     /// `u_k` is the controller's output at the step.
-    fn step(&mut self, pcac: &Pcac, u_k: &[f64], t: &mut [u64; 4]) -> (Option<QpStatus>, f64) {
+    fn step(
+        &mut self,
+        pcac: &Pcac,
+        u_k: &[f64],
+        t: &mut [Option<u64>; 5],
+    ) -> (Option<QpStatus>, f64) {
+        self.fast_taken = false;
+        *t = [None; 5];
         let m = pcac.model();
         let (y, tau) = (m.last_y(), m.past_input(1));
         let t0 = monotonic_ns();
@@ -419,9 +460,10 @@ impl Pieces {
         // state, moves from u_aug,k−1; next-step timing (the truss): from the model and
         // u_k, moves from u_k (`Pcac::solve_mpc`).
         let t2;
-        let predicted = match pcac.closed_loop_model() {
+        let cl = pcac.closed_loop_model();
+        let predicted = match &cl {
             Some(cl) => {
-                let r = self.pred.compute_from_state(&cl);
+                let r = self.pred.compute_from_state(cl);
                 t2 = monotonic_ns();
                 self.u_ref.copy_from_slice(cl.past_input(1));
                 r
@@ -437,6 +479,33 @@ impl Pieces {
         if predicted.is_err() {
             self.n_shifted = 0;
             return (None, coef_diff);
+        }
+        // The fast path (as `Pcac::solve_mpc`): on the realization the prediction used.
+        if let Some(fast) = &mut self.fast {
+            let t5 = monotonic_ns();
+            let (x0, free, markov) = (
+                self.pred.one_step_state(),
+                self.pred.free_response(),
+                self.pred.markov(),
+            );
+            let taken = match &cl {
+                Some(cl) => {
+                    let real = cl.realization();
+                    fast.solve(&real, x0, &self.u_ref, &self.reference, free, markov)
+                }
+                None => {
+                    let real = self.model.realization();
+                    fast.solve(&real, x0, &self.u_ref, &self.reference, free, markov)
+                }
+            };
+            t[4] = Some(monotonic_ns() - t5);
+            if taken {
+                self.fast_taken = true;
+                self.n_shifted = 0;
+                t[0] = Some(t1 - t0);
+                t[1] = Some(t2 - t1b);
+                return (Some(QpStatus::Solved), coef_diff);
+            }
         }
         let warm = if self.n_shifted > 0 {
             WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
@@ -456,7 +525,7 @@ impl Pieces {
         let t3 = monotonic_ns();
         let status = self.solver.solve(&problem, warm);
         let t4 = monotonic_ns();
-        *t = [t1 - t0, t2 - t1b, t3 - t2b, t4 - t3];
+        t[..4].copy_from_slice(&[Some(t1 - t0), Some(t2 - t1b), Some(t3 - t2b), Some(t4 - t3)]);
         if status == QpStatus::Solved {
             let na = self.solver.active_set_into(&mut self.active);
             self.n_shifted = self
@@ -474,16 +543,24 @@ impl Pieces {
     }
 
     fn first_move(&self) -> &[f64] {
-        self.cond.first_move(self.solver.x())
+        match &self.fast {
+            Some(fast) if self.fast_taken => self.cond.first_move(fast.u()),
+            _ => self.cond.first_move(self.solver.x()),
+        }
     }
 }
 
-/// Names of the four pieces, in the order of [`PcacCost::pieces`].
-pub const PIECES: [&str; 4] = [
+/// Names of the pieces, in the order of [`PcacCost::pieces`]. Condensing and the QP
+/// solve are timed at the steps that run them: all without the fast path; with it, those
+/// whose unconstrained minimizer violates a constraint. The fast path (the Riccati
+/// minimizer and the constraint check) runs at every step when PCAC's setting chooses it
+/// (never on the truss).
+pub const PIECES: [&str; 5] = [
     "identification (IoModel::update)",
     "realization + prediction (HorizonPrediction)",
     "condensing (Condenser::build)",
     "QP solve, warm (DenseQpSolver::solve)",
+    "fast path (Riccati + constraint check)",
 ];
 
 /// The result of [`measure`].
@@ -516,8 +593,9 @@ pub struct PcacCost {
     /// OSQP solves reported `Solved` whose polishing did not succeed (the point is then
     /// ADMM's, accurate only to [`OSQP_TOL`]).
     pub osqp_unpolished: u64,
-    /// The step's kernels timed alone, ns, in the order of [`PIECES`].
-    pub pieces: [Histogram<u64>; 4],
+    /// The step's kernels timed alone, ns, in the order of [`PIECES`] (each at the steps
+    /// that run it).
+    pub pieces: [Histogram<u64>; 5],
     /// Active constraints of the dense solver's solution per timed step (`qp_active`).
     pub active: Histogram<u64>,
     /// The dense solver's iterations (active-set changes) per timed step.
@@ -567,6 +645,9 @@ pub struct AnchorCost {
     /// evaluated as `1 + eᵀ(HU + f) / (½ eᵀHe)`, so without the cancellation of two large
     /// objectives.
     pub optimality_ratio: f64,
+    /// [`Self::optimality_ratio`] at the steps whose `U` came from PCAC's unconstrained
+    /// fast path (the Riccati minimizer, not the dense solver's solution of this QP).
+    pub optimality_ratio_fast: f64,
     /// At those steps, the largest constraint violation of the anchor's point.
     pub violation: f64,
 }
@@ -581,6 +662,7 @@ impl AnchorCost {
             over_tol: 0,
             first_move_diffs: Vec::with_capacity(steps as usize),
             optimality_ratio: f64::INFINITY,
+            optimality_ratio_fast: f64::INFINITY,
             violation: 0.0,
         }
     }
@@ -588,7 +670,7 @@ impl AnchorCost {
     /// Compares the anchor's solution `x_a` of `qp` with the dense solver's `x` on the
     /// first `m` entries (the first move); beyond [`AGREE_TOL`] also `ρ` and the anchor's
     /// violation. Returns the first-move difference.
-    fn compare(&mut self, qp: &QpProblem, x: &[f64], x_a: &[f64], m: usize) -> f64 {
+    fn compare(&mut self, qp: &QpProblem, x: &[f64], x_a: &[f64], m: usize, fast: bool) -> f64 {
         let d = x[..m]
             .iter()
             .zip(x_a)
@@ -599,7 +681,13 @@ impl AnchorCost {
         self.compared += 1;
         if d > AGREE_TOL {
             self.over_tol += 1;
-            self.optimality_ratio = self.optimality_ratio.min(optimality_ratio(qp, x, x_a));
+            let rho = optimality_ratio(qp, x, x_a);
+            if fast {
+                self.optimality_ratio_fast = self.optimality_ratio_fast.min(rho);
+                eprintln!("DEBUG fast d {d:.3e} rho {rho:.4}");
+            } else {
+                self.optimality_ratio = self.optimality_ratio.min(rho);
+            }
             self.violation = self.violation.max(violation(qp, x_a));
         }
         d
@@ -695,7 +783,7 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
     let mut timed = ClosedLoop::new(w)?;
     let mut reference = ClosedLoop::new(w)?;
     let mpc = reference.mpc.clone();
-    let mut pieces = Pieces::new(reference.pcac(), &mpc)?;
+    let mut pieces = Pieces::new(reference.pcac(), &mpc, reference.fast_path)?;
     let (m, n_u) = (mpc.n_inputs, timed.u.len());
     let names = reference.pcac().internal_names();
     let du_max = mpc.move_bounds.as_ref().map(|b| b.max.clone());
@@ -707,6 +795,7 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
         first: vec![0.0; block * m],
     };
     let mut u_prev = vec![0.0; m];
+    let mut x_buf = Vec::with_capacity(mpc.horizon * m);
     let mut buf = [0.0; MAX_INTERNALS];
     let mut osqp = OsqpAnchor::new(OSQP_TOL);
     let mut r = PcacCost {
@@ -802,7 +891,7 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
             let pcac = reference.pcac();
             // The pieces (only where PCAC identified: not the first sample of a contact).
             if reference.identifies {
-                let mut t = [0u64; 4];
+                let mut t = [None; 5];
                 let (st, coef_diff) = pieces.step(pcac, &reference.u, &mut t);
                 r.pieces_diff = r.pieces_diff.max(coef_diff);
                 if st == Some(QpStatus::Solved) {
@@ -816,7 +905,9 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
                 }
                 if measured && log.dt[i].is_some() && st.is_some() {
                     for (h, v) in r.pieces.iter_mut().zip(t) {
-                        h.saturating_record(v);
+                        if let Some(v) = v {
+                            h.saturating_record(v);
+                        }
                     }
                 }
             } else {
@@ -837,8 +928,18 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
                 r.iterations.saturating_record(iters as u64);
             }
             let ours_solved = pcac.last_qp_status() == Some(QpStatus::Solved);
-            let qp = pcac.last_problem();
-            let x = pcac.planned_inputs();
+            let fast = pcac.fast_path_taken();
+            // The step's QP and its solution (the fast path's when the step took it; its
+            // QP is then condensed here, untimed, for the anchors).
+            x_buf.clear();
+            x_buf.extend_from_slice(pcac.planned_inputs());
+            let x = &x_buf[..];
+            let Some(qp) = reference.pcac_mut().condensed_problem() else {
+                return Err(format!(
+                    "{}: the step's QP could not be condensed",
+                    w.slug()
+                ));
+            };
             if anchors.clarabel {
                 let t0 = monotonic_ns();
                 let sol = solve_with_clarabel(&qp, CLARABEL_TOL);
@@ -847,7 +948,7 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
                 if ours_solved {
                     match sol {
                         Some(s) if s.status == clarabel::solver::SolverStatus::Solved => {
-                            if r.clarabel.compare(&qp, x, &s.x, m) > AGREE_TOL {
+                            if r.clarabel.compare(&qp, x, &s.x, m, fast) > AGREE_TOL {
                                 match solve_with_clarabel(&qp, CLARABEL_TIGHT_TOL) {
                                     Some(t)
                                         if t.status == clarabel::solver::SolverStatus::Solved =>
@@ -883,7 +984,7 @@ pub fn measure(w: Workload, warmup: u64, steps: u64, anchors: Anchors) -> Result
                         if !out.polished {
                             r.osqp_unpolished += 1;
                         }
-                        r.osqp.compare(&qp, x, osqp.x(), m);
+                        r.osqp.compare(&qp, x, osqp.x(), m, fast);
                     } else {
                         r.osqp.unsolved += 1;
                         match out.status {
@@ -916,6 +1017,10 @@ mod tests {
         let w = Workload::Truss;
         let r = measure(w, w.default_warmup(), 400, Anchors::BOTH).unwrap();
         check_common(&r, 400);
+        assert_eq!(
+            r.counters.fast_path, 0,
+            "the fast path does not pay at the truss's size"
+        );
         assert!(r.active.max() > 0);
         assert!(r.saturated > 0, "the inputs never reach ±10 N");
     }
@@ -938,8 +1043,14 @@ mod tests {
         let r = measure(Workload::Arm, 0, 300, Anchors::BOTH).unwrap();
         check_common(&r, 300);
         assert!(r.move_bounds);
-        // PCAC stepped only in the contact samples: the 300 timed ones.
+        // PCAC stepped only in the contact samples: the 300 timed ones; the unconstrained
+        // fast path solved most of them.
         assert_eq!(r.counters.steps, 300);
+        assert!(
+            r.counters.fast_path >= 250,
+            "fast path at {} steps",
+            r.counters.fast_path
+        );
     }
 
     /// On the QPs of the arm workload's first 40 contact steps (`n = 100` moves, 200
@@ -964,18 +1075,20 @@ mod tests {
                 continue;
             }
             contact += 1;
-            let pcac = arm.pcac();
+            let pcac = arm.pcac_mut();
             if pcac.last_qp_status() != Some(QpStatus::Solved) {
                 continue;
             }
-            let qp = pcac.last_problem();
+            // Ours: the fast path's minimizer where the step took it, else the solver's.
+            let ours = pcac.planned_inputs().to_vec();
+            let ours = &ours[..];
+            let qp = pcac.condensed_problem().unwrap();
             assert_eq!((qp.f.len(), qp.h.len()), (100, 200));
             let out = osqp.solve(&qp).unwrap();
             if out.status != OsqpStatus::Solved {
                 continue;
             }
             solved += 1;
-            let ours = pcac.planned_inputs();
             let n = ours.len();
             let j = |u: &[f64]| -> f64 {
                 (0..n)
@@ -1058,8 +1171,14 @@ mod tests {
             "{name}: pieces differ by {}",
             r.pieces_diff
         );
-        for h in &r.pieces {
-            assert!(!h.is_empty(), "{name}");
+        // Identification and prediction at every step; the fast path where PCAC's setting
+        // chooses it (the arm, not the truss); without it, condensing and the QP at every
+        // step (with it, only where a constraint is active, which a short run may miss).
+        let fast = r.counters.fast_path > 0;
+        assert!(!r.pieces[0].is_empty() && !r.pieces[1].is_empty(), "{name}");
+        assert_eq!(!r.pieces[4].is_empty(), fast, "{name}");
+        if !fast {
+            assert!(!r.pieces[2].is_empty() && !r.pieces[3].is_empty(), "{name}");
         }
         assert!(r.max_abs_u.is_finite() && r.max_abs_u > 0.0, "{name}");
     }

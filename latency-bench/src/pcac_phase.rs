@@ -196,7 +196,13 @@ pub fn pcac_rows(
         );
         rows.push(m);
     }
+    // Each piece at the steps that ran it (module docs of `pcac_cost`); none for a piece
+    // the workload never runs (the fast path on the truss).
+    let timed_pieces = c.pieces[0].len();
     for (i, name) in pcac_cost::PIECES.iter().enumerate() {
+        if c.pieces[i].is_empty() {
+            continue;
+        }
         let id = format!("{slug}-piece-{i}");
         let mut m = Measured::from_summary(
             &id,
@@ -206,6 +212,9 @@ pub fn pcac_rows(
         );
         let share = ratio(Summary::of(&c.pieces[i]).p50_ns, step.p50_ns).unwrap_or(0.0);
         m.note = format!("{:.0} % of the step's p50", 100.0 * share);
+        if c.pieces[i].len() != timed_pieces {
+            m.note += &format!("; at {} of {} steps", c.pieces[i].len(), timed_pieces);
+        }
         rows.push(m);
     }
     let mut m = Measured::from_summary(
@@ -274,11 +283,12 @@ pub fn pcac_rows(
     }
     lines.push(
         format!(
-            "{slug}: {} timed steps; max |u| {:.3}; counters over the whole run: {} MPC steps, {} solved, {} fallbacks ({} infeasible, {} iteration cap, {} numerical, {} refused), {} identification resets; reference copy mismatches {}; pieces' first move vs the step's {:.1e}",
+            "{slug}: {} timed steps; max |u| {:.3}; counters over the whole run: {} MPC steps, {} solved ({} by the fast path), {} fallbacks ({} infeasible, {} iteration cap, {} numerical, {} refused), {} identification resets; reference copy mismatches {}; pieces' first move vs the step's {:.1e}",
             timed,
             c.max_abs_u,
             ct.steps,
             ct.solved,
+            ct.fast_path,
             ct.fallbacks,
             ct.infeasible,
             ct.max_iterations,
@@ -337,7 +347,7 @@ pub fn pcac_rows(
         "active_constraints": active_hist,
         "iterations": Summary::of(&c.iterations),
         "counters": {
-            "steps": ct.steps, "solved": ct.solved, "fallbacks": ct.fallbacks,
+            "steps": ct.steps, "solved": ct.solved, "fast_path": ct.fast_path, "fallbacks": ct.fallbacks,
             "infeasible": ct.infeasible, "max_iterations": ct.max_iterations,
             "numerical_error": ct.numerical_error, "refused": ct.refused,
             "id_resets": ct.id_resets,

@@ -827,6 +827,140 @@ fn pcac_steps_make_no_allocation(replan: usize) {
     );
 }
 
+/// A PCAC controller at the sampling arm's size of chapter 7 (`n̂ = 1`, `p = 5`, `m = 2`,
+/// `ℓ = 50`), where the default `fast-path = "auto"` takes the unconstrained fast path
+/// (the Riccati minimizer, checked against the bounds), read from a scenario text with
+/// input bounds, move bounds and an output constraint that the plans meet at most steps
+/// and not at all; re-planning every `replan` samples (next-step timing) when
+/// `replan > 1`.
+fn arm_size_pcac(replan: usize) -> Box<dyn control::Controller> {
+    let timing = if replan > 1 {
+        format!("timing = \"next-step\"\nreplan-every = {replan}\n")
+    } else {
+        String::new()
+    };
+    let cfg = parse_config(
+        "pcac-fast-no-alloc",
+        "sample-period = 0.0005",
+        "y = 5, z = 5, u = 2",
+        "fifo-priority = 0\nmlockall = false",
+        &(r#"[controller]
+kind = "pcac"
+n-hat = 1
+p0 = 10.0
+theta0 = 0.01
+horizon = 50
+tracking = [[0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]
+q = [1000.0, 100.0, 1.0]
+r = 1.0
+u-min = -1.0
+u-max = 1.0
+du-min = -0.2
+du-max = 0.2
+"#
+        .to_string()
+            + &timing
+            + r#"[controller.forgetting]
+rule = "f-test"
+tau-n = 40
+tau-d = 200
+eta = 0.1
+alpha = 0.001
+[controller.output-constraints]
+c = [[1.0, 0.0, 0.0, 0.0, 0.0]]
+d = [-2.0]
+"#),
+    );
+    cfg.controller.build(cfg.counts).unwrap()
+}
+
+/// The PCAC step through the unconstrained fast path: at the arm's size, steps whose
+/// Riccati minimizer meets the input, move and output bounds skip condensing and the QP,
+/// the others (a disturbance that pushes the inputs to their bounds now and then) fall
+/// back to them; with caught-up samples, lost samples, internals and a reset. Built
+/// outside the counted region; 900 steps inside it make no allocation, and both paths ran.
+#[test]
+fn the_pcac_fast_path_step_does_not_allocate() {
+    pcac_fast_path_steps_make_no_allocation(1);
+}
+
+/// [`the_pcac_fast_path_step_does_not_allocate`] re-planning every 3 samples: the fast
+/// path runs in the condensing unit's period, on the realization the prediction kept.
+#[test]
+fn the_pcac_fast_path_step_re_planning_every_3_does_not_allocate() {
+    pcac_fast_path_steps_make_no_allocation(3);
+}
+
+/// The body of the fast-path allocation tests, re-planning every `replan` samples.
+fn pcac_fast_path_steps_make_no_allocation(replan: usize) {
+    let mut ctl = service::rt_alloc::outside_rt(|| arm_size_pcac(replan));
+    let counter = |ctl: &dyn control::Controller, name: &str| {
+        ctl.counters()
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, v)| *v)
+            .unwrap()
+    };
+    // Five first-order outputs driven by the two inputs and a disturbance that comes and
+    // goes (its bursts saturate the inputs).
+    let mut y = [0.0f64; 5];
+    let (mut u, mut applied) = ([0.0; 2], [0.0; 2]);
+    let mut internals = [0.0; control::MAX_INTERNALS];
+    let mut run = |ctl: &mut Box<dyn control::Controller>, k: usize| {
+        let burst = if (k / 60) % 3 == 2 { 3.0 } else { 0.1 };
+        let w = burst * (0.2 * k as f64).sin();
+        for (o, yo) in y.iter_mut().enumerate() {
+            let a = 0.9 - 0.05 * o as f64;
+            *yo = a * *yo + 0.2 * applied[o % 2] + 0.1 * w;
+        }
+        let input = StepInput {
+            seq: k as u64,
+            y: &y,
+            z: &y,
+            r: &[],
+            u_applied: Some(&applied),
+            lost: if k % 131 == 5 { 1 } else { 0 },
+        };
+        if k % 50 == 7 {
+            ctl.observe(&input, &mut u);
+        } else {
+            ctl.step(&input, &mut u);
+            applied = u;
+        }
+        ctl.internals(&mut internals);
+    };
+    for k in 0..200 {
+        run(&mut ctl, k);
+    }
+    let (fast0, solved0) = (
+        counter(ctl.as_ref(), "fast path"),
+        counter(ctl.as_ref(), "qp solved"),
+    );
+    enter_rt_thread(16);
+    let before = thread_stats();
+    for k in 200..1000 {
+        run(&mut ctl, k);
+    }
+    ctl.reset();
+    for k in 1000..1100 {
+        run(&mut ctl, k);
+    }
+    assert_nothing_allocated_since(&before, String::new);
+    let (fast, solved) = (
+        counter(ctl.as_ref(), "fast path") - fast0,
+        counter(ctl.as_ref(), "qp solved") - solved0,
+    );
+    // Both paths ran (172 and 710 of 882 solves at N = 1, 26 and 256 of 282 at N = 3).
+    assert!(fast >= 10, "the fast path solved {fast} of {solved}");
+    assert!(
+        solved - fast >= 10,
+        "only {} of {solved} solves fell back to the QP",
+        solved - fast
+    );
+    eprintln!("replan-every {replan}: fast path {fast} of {solved} solved");
+    assert!(u.iter().all(|v| v.is_finite() && v.abs() <= 1.0));
+}
+
 /// As in the service: the controller is built on one thread and stepped on another (the RT
 /// thread) from its very first step, after `prepare_thread` there. (Without it the QP's
 /// first Cholesky factorization on the new thread allocates the matrix-multiply kernels'

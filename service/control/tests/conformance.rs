@@ -57,6 +57,7 @@
 use control::arm::controller::{ArmController, ArmControllerParams, JointHold};
 use control::forgetting::ForgettingRule;
 use control::mpc::condense::{MoveBounds, Weight};
+use control::mpc::fast_path::FastPathMode;
 use control::mrac::{Appc, AppcParams, RcMrac, RcMracParams};
 use control::pcac::{OutputFeedback, Pcac, PcacParams, PcacTiming};
 use control::rcac::{Rcac, RcacParams, RcacUpdate};
@@ -228,6 +229,25 @@ fn pcac_params(timing: PcacTiming) -> PcacParams {
         .move_bounds(Some(MoveBounds::symmetric(0.3, 1)))
         .timing(timing)
         .build()
+}
+
+/// [`pcac`] with the unconstrained fast path at every step (`control::mpc::fast_path`;
+/// at this size the setting's default would not take it): steps whose Riccati minimizer
+/// meets the bounds skip condensing and the QP, the others fall back to them.
+fn pcac_fast_path() -> Box<dyn Controller> {
+    pcac_fast_path_timed(PcacTiming::SameStep)
+}
+
+/// [`pcac_fast_path`] in the next-step timing (the ahead form's plan is the fast path's
+/// `U` where it was taken).
+fn pcac_next_step_fast_path() -> Box<dyn Controller> {
+    pcac_fast_path_timed(PcacTiming::NextStep)
+}
+
+fn pcac_fast_path_timed(timing: PcacTiming) -> Box<dyn Controller> {
+    let mut params = pcac_params(timing);
+    params.fast_path = FastPathMode::Always;
+    Box::new(Pcac::new(&params, Dimensions::new(1, 1, 1, 1)).expect("valid PCAC parameters"))
 }
 
 /// [`pcac`] augmenting the fixed output feedback `K̄ = −0.5` (7.53)–(7.57): the plant's
@@ -989,6 +1009,8 @@ conformance! {
     pcac: Kind { build: pcac, limits: LIMITS, observe: Observe::AsStep, ahead: false },
     pcac_next_step: Kind { build: pcac_next_step, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
     pcac_augmented: Kind { build: pcac_augmented, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    pcac_fast_path: Kind { build: pcac_fast_path, limits: LIMITS, observe: Observe::AsStep, ahead: false },
+    pcac_next_step_fast_path: Kind { build: pcac_next_step_fast_path, limits: LIMITS, observe: Observe::RecordsData, ahead: true },
     sampling_arm: Kind { build: sampling_arm, limits: ARM_LIMITS, observe: Observe::AsStep, ahead: false },
     sampling_arm_pcac: Kind { build: sampling_arm_pcac, limits: ARM_LIMITS, observe: Observe::AsStep, ahead: false },
     appc: Kind { build: appc, limits: LIMITS, observe: Observe::AsStep, ahead: false },

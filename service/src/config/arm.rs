@@ -27,7 +27,7 @@
 //! tracking = [[0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]
 //! q = [1000.0, 100.0, 1.0]
 //! u-min = -100.0                    # … r, u-max, du-min, du-max, timing, warm-start,
-//!                                   # qp-max-iterations, trace-limit, lambda
+//!                                   # qp-max-iterations, fast-path, trace-limit, lambda
 //! theta0 = "contact-model"          # w_0 from the zero-order-hold model of (7.35)–(7.36),
 //!                                   # or a scalar, or 35 values (n̂ = 1)
 //! [controller.pcac.forgetting]      # as [controller.forgetting]

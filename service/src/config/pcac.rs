@@ -21,6 +21,9 @@
 //! timing = "same-step"            # or "next-step" (the dissertation's u_{1|k} at k+1)
 //! warm-start = true
 //! qp-max-iterations = 500         # the solver's cap on active-set changes per step (≤ 10⁶)
+//! fast-path = "auto"              # the unconstrained Riccati fast path: "auto" (when its
+//!                                 # operation count is below condensing + the dense
+//!                                 # factorization), "always" or "never"
 //! replan-every = 1                # N: solve every N samples, the work spread over N periods,
 //!                                 # the plant following the plan between (next-step; ≤ ℓ)
 //! lambda = 1.0                    # constant forgetting, or:
@@ -43,6 +46,7 @@ use super::forgetting::{RawForgetting, ReadRule, forgetting_rule, required_p0};
 use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
 use control::mpc::condense::{MoveBounds, OutputConstraints, Weight};
+use control::mpc::fast_path::FastPathMode;
 use control::mpc::qp::QpSettings;
 use control::pcac::{PcacParams, PcacTiming};
 
@@ -69,6 +73,7 @@ pub(super) struct RawPcac {
     timing: Option<String>,
     warm_start: Option<bool>,
     qp_max_iterations: Option<usize>,
+    fast_path: Option<String>,
     replan_every: Option<usize>,
     output_constraints: Option<RawOutputConstraints>,
 }
@@ -183,6 +188,17 @@ pub(super) fn read(
         &f("timing"),
         err,
     )?;
+    let fast_path = one_of(
+        raw.fast_path.as_deref(),
+        FastPathMode::default(),
+        &[
+            ("auto", FastPathMode::Auto),
+            ("always", FastPathMode::Always),
+            ("never", FastPathMode::Never),
+        ],
+        &f("fast-path"),
+        err,
+    )?;
     let mut qp = QpSettings::default();
     if let Some(n) = raw.qp_max_iterations {
         let field = f("qp-max-iterations");
@@ -205,6 +221,7 @@ pub(super) fn read(
         .timing(timing)
         .qp(qp)
         .warm_start(raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START))
+        .fast_path(fast_path)
         .replan_every(replan_every)
         .build();
     Ok((params, rule))
@@ -215,6 +232,7 @@ mod tests {
     use crate::config::ServiceConfig;
     use crate::config::refusal_cases::assert_refused_naming_fields;
     use control::mpc::condense::Weight;
+    use control::mpc::fast_path::FastPathMode;
     use control::pcac::PcacTiming;
 
     const GOOD: &str = include_str!("../../../tests/fixtures/config/pcac-chapter-6.toml");
@@ -244,6 +262,7 @@ mod tests {
         assert_eq!(p.mpc.output_constraints.as_ref().unwrap().d, vec![-5.0]);
         assert_eq!(p.timing, PcacTiming::NextStep);
         assert!(p.warm_start);
+        assert_eq!(p.fast_path, FastPathMode::Auto);
         assert_eq!(p.replan_every, 1);
         let every4 = params(&GOOD.replace(
             "timing = \"next-step\"",
@@ -254,6 +273,22 @@ mod tests {
         let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "pcac");
+    }
+
+    #[test]
+    fn the_fast_path_setting_is_read() {
+        for (text, mode) in [
+            ("always", FastPathMode::Always),
+            ("never", FastPathMode::Never),
+            ("auto", FastPathMode::Auto),
+        ] {
+            let with = GOOD.replace(
+                "timing = \"next-step\"",
+                &format!("timing = \"next-step\"\nfast-path = \"{text}\""),
+            );
+            assert_ne!(with, GOOD, "the fixture sets the timing");
+            assert_eq!(params(&with).unwrap().fast_path, mode);
+        }
     }
 
     #[test]

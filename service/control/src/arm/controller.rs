@@ -352,6 +352,13 @@ impl ArmController {
         self.pcac.as_ref()
     }
 
+    /// [`ArmController::pcac`], mutable: for benchmarks and comparisons that need
+    /// [`Pcac::condensed_problem`]. Changing PCAC's state between steps changes this
+    /// controller's.
+    pub fn pcac_mut(&mut self) -> Option<&mut Pcac> {
+        self.pcac.as_mut()
+    }
+
     /// The robust gain `K`.
     pub fn robust_gain(&self) -> &Matrix2x3<f64> {
         &self.k

@@ -350,7 +350,9 @@ pub struct Condenser {
     qp: QpData,
 }
 
-fn expand_weight(
+/// A weight expanded per step (`ℓ·channels`, step-major) and checked (finite, `≥ 0`, or
+/// `> 0` when `positive`), with whether it is the same at every step.
+pub(super) fn expand_weight(
     w: &Weight,
     name: &str,
     channels: usize,

@@ -13,6 +13,16 @@
 //! - [`condense`]: builds that QP's `H, f`, bounds and rows from the Markov parameters, the
 //!   free response, `u_k` and the command, allocation-free and exploiting the Toeplitz
 //!   structure of `T`; the first move and the safe fallback input.
+//! - [`riccati`]: the unconstrained minimizer of (2.48) by a backward Riccati recursion on
+//!   the realization, `O(ℓ N n̂p (p + m))` (`N = n̂p + m`) instead of condensing and
+//!   factorizing the dense `H`.
+//! - [`constraint_check`]: whether a plan satisfies (2.49)–(2.51) as the QP solver judges it.
+//! - [`fast_path`]: the two together: when the unconstrained minimizer meets every
+//!   constraint it is the QP's solution (the problem is strictly convex), and the step
+//!   needs neither condensing nor the solver; when the recursion pays for a problem.
 
 pub mod condense;
+pub mod constraint_check;
+pub mod fast_path;
 pub mod qp;
+pub mod riccati;

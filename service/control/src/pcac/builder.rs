@@ -19,6 +19,7 @@
 //! | timing | [`PcacTiming::SameStep`] |
 //! | QP settings | [`QpSettings::default`] |
 //! | warm start | [`PcacParams::DEFAULT_WARM_START`] |
+//! | unconstrained fast path | [`FastPathMode::Auto`] (when the Riccati recursion is cheaper) |
 //! | augmentation (7.53)–(7.57) | none |
 //! | re-planning period `N` ([`PcacParams::replan_every`]) | [`PcacParams::DEFAULT_REPLAN_EVERY`] (every sample) |
 //!
@@ -33,6 +34,7 @@ use super::controller::{PcacParams, PcacTiming};
 use super::model::{IdKernel, IoModelParams};
 use crate::forgetting::ForgettingRule;
 use crate::mpc::condense::{MoveBounds, MpcSpec, OutputConstraints, Weight};
+use crate::mpc::fast_path::FastPathMode;
 use crate::mpc::qp::QpSettings;
 
 /// Builds [`PcacParams`] (module docs); start with [`PcacParams::builder`].
@@ -76,6 +78,7 @@ impl PcacParams {
                 timing: PcacTiming::default(),
                 qp: QpSettings::default(),
                 warm_start: PcacParams::DEFAULT_WARM_START,
+                fast_path: FastPathMode::default(),
                 augmentation: None,
                 replan_every: PcacParams::DEFAULT_REPLAN_EVERY,
             },
@@ -206,6 +209,13 @@ impl PcacBuilder {
         self
     }
 
+    /// Whether to try the unconstrained fast path before condensing
+    /// ([`crate::mpc::fast_path`]).
+    pub fn fast_path(mut self, mode: FastPathMode) -> Self {
+        self.params.fast_path = mode;
+        self
+    }
+
     /// The fixed output feedback `K̄` this PCAC augments (chapter 7).
     pub fn augmentation(mut self, feedback: Option<OutputFeedback>) -> Self {
         self.params.augmentation = feedback;
@@ -242,6 +252,7 @@ mod tests {
         assert_eq!(p.mpc.u_min, vec![f64::NEG_INFINITY]);
         assert_eq!(p.timing, PcacTiming::SameStep);
         assert!(p.warm_start && p.augmentation.is_none());
+        assert_eq!(p.fast_path, FastPathMode::Auto);
         assert_eq!(p.replan_every, 1);
         p.validate(Dimensions::new(2, 0, 0, 1)).unwrap();
         p.validate(Dimensions::new(2, 0, 2, 1)).unwrap();

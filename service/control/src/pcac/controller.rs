@@ -16,7 +16,12 @@
 //!    with the configured forgetting rule (the F-test (2.33)–(2.35) in chapter 6).
 //! 3. **Realization and prediction** (2.36)–(2.46): `x̂_k` (2.38)–(2.39), the Markov
 //!    parameters `Ĥ_i` and the free response, from the companion structure.
-//! 4. **MPC** (2.47)–(2.51): [`Condenser::build`] and [`DenseQpSolver::solve`], warm-started
+//! 4. **MPC** (2.47)–(2.51): when [`PcacParams::fast_path`] chooses it, first the
+//!    unconstrained fast path ([`crate::mpc::fast_path`]): the Riccati minimizer of (2.48)
+//!    and, if it meets every constraint, that is the QP's solution (status solved, no
+//!    iteration, an empty active set; when re-planning every `N`, in the condensing
+//!    unit's period, on the realization the prediction kept). Otherwise, or without it,
+//!    [`Condenser::build`] and [`DenseQpSolver::solve`], warm-started
 //!    from the previous step's active set shifted by one step
 //!    ([`Condenser::shift_active_set`]). The first move is the input. Samples taken in
 //!    without a solve since then (caught up: [`Controller::observe`], or
@@ -92,10 +97,12 @@ use crate::ParamError;
 use crate::ahead::Ahead;
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
 use crate::mpc::condense::{Condenser, MpcSpec, Weight};
+use crate::mpc::fast_path::{FastPath, FastPathMode};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
 
 #[cfg(test)]
 mod tests;
+mod unconstrained;
 
 /// When the input computed at sample `k` is applied (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -121,6 +128,9 @@ pub struct PcacParams {
     pub qp: QpSettings,
     /// Start each QP from the previous active set shifted by one step (default true).
     pub warm_start: bool,
+    /// Whether to try the unconstrained fast path before condensing
+    /// ([`crate::mpc::fast_path`]; default [`FastPathMode::Auto`]).
+    pub fast_path: FastPathMode,
     /// A fixed output feedback `K̄` that this PCAC augments (chapter 7, (7.53)–(7.57);
     /// [`super::augmentation`]): the plant's input is `K̄ y_k + u_k`, identification
     /// regresses on it, and the MPC plans `u_k` with the closed-loop model. `None`: plain
@@ -141,6 +151,8 @@ pub struct PcacCounters {
     pub steps: u64,
     /// QPs solved.
     pub solved: u64,
+    /// Of those, solved by the unconstrained fast path (no condensing, no QP solve).
+    pub fast_path: u64,
     /// QPs proven infeasible.
     pub infeasible: u64,
     /// QPs stopped by the iteration cap.
@@ -206,6 +218,14 @@ pub struct Pcac {
     pred: HorizonPrediction,
     cond: Condenser,
     solver: DenseQpSolver,
+    /// The unconstrained fast path, when [`PcacParams::fast_path`] chooses it.
+    fast: Option<FastPath>,
+    /// The running solve's prediction kept its realization for the fast path.
+    fast_model: bool,
+    /// The running solve's build unit found the fast path's `U*` to be the solution.
+    fast_found: bool,
+    /// The last MPC step's solution is the fast path's `U*` (not the solver's).
+    fast_used: bool,
     /// `u_{k−1}` as this controller believes it (the input over the last period).
     u_last: Vec<f64>,
     /// Next-step timing: the input decided for the coming period (`u_{1|k−1}`).
@@ -567,6 +587,8 @@ impl Pcac {
         let pred = HorizonPrediction::new(&model, spec.horizon).map_err(whole)?;
         let cond = Condenser::new(spec).map_err(|e| whole(format!("pcac: {e}")))?;
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
+        let fast = FastPath::new(spec, mp.n_hat, params.qp.feasibility_tol, params.fast_path)
+            .map_err(|e| whole(format!("pcac: {e}")))?;
         let n_ids = cond.n() + cond.n_ineq();
         let mut c = Self {
             counts,
@@ -576,6 +598,10 @@ impl Pcac {
             aug,
             pred,
             solver,
+            fast,
+            fast_model: false,
+            fast_found: false,
+            fast_used: false,
             u_last: vec![0.0; n_u],
             u_next: vec![0.0; n_u],
             u_ref: vec![0.0; n_u],
@@ -676,15 +702,18 @@ impl Pcac {
         self.last_status
     }
 
-    /// The condensed QP of the last MPC step (e.g. to solve it with
-    /// `mpc::qp::solve_with_clarabel` (feature `clarabel`) for comparison).
+    /// The condensed QP of the last MPC step that condensed (e.g. to solve it with
+    /// `mpc::qp::solve_with_clarabel` (feature `clarabel`) for comparison); after a step
+    /// that took the fast path, an older one: [`Pcac::condensed_problem`] condenses the
+    /// last step's.
     pub fn last_problem(&self) -> crate::mpc::qp::QpProblem<'_> {
         self.cond.problem()
     }
 
-    /// The last QP's solution `U` (all `ℓ m` planned inputs).
+    /// The last QP's solution `U` (all `ℓ m` planned inputs; the fast path's when the
+    /// last MPC step took it).
     pub fn planned_inputs(&self) -> &[f64] {
-        self.solver.x()
+        self.solution()
     }
 
     /// Steps 1–2 of the module docs: bring in `y_k` with `u_{k−1}`. Returns [`IDENTIFIED`]
@@ -818,19 +847,27 @@ impl Pcac {
                 .pred
                 .compute_committed(&aug.view(&self.model), committed),
         };
+        self.fast_found = false;
+        self.fast_model = predicted.is_ok() && self.keep_fast_model();
         predicted.is_ok()
     }
 
-    /// Step 4's condensing, the second unit of a solve: whether the QP was built.
+    /// Step 4's condensing, the second unit of a solve: first the unconstrained fast path
+    /// when [`PcacParams::fast_path`] chooses it, whose `U*`, when it meets every
+    /// constraint, is the solution (nothing to condense; the solve unit only takes it);
+    /// otherwise the condensed QP. Whether the solve unit has a solution or a QP.
     fn build_qp(&mut self) -> bool {
-        self.cond
-            .build(
-                self.pred.markov(),
-                self.pred.free_response(),
-                &self.u_ref,
-                &self.reference,
-            )
-            .is_ok()
+        self.fast_found = self.try_fast_path();
+        self.fast_found
+            || self
+                .cond
+                .build(
+                    self.pred.markov(),
+                    self.pred.free_response(),
+                    &self.u_ref,
+                    &self.reference,
+                )
+                .is_ok()
     }
 
     /// Steps 4–5's solve, the last unit: the QP of the last build when `built` (else the
@@ -838,7 +875,11 @@ impl Pcac {
     /// ([`PcacParams::replan_every`] samples on), and the plan into [`Replan`] (next-step
     /// timing). Returns the status bits.
     fn solve_qp(&mut self, built: bool) -> u32 {
-        let status = if built {
+        self.fast_used = built && self.fast_found;
+        let status = if self.fast_used {
+            self.counters.fast_path += 1;
+            Some(QpStatus::Solved)
+        } else if built {
             let warm = if self.warm_start && self.n_shifted > 0 {
                 WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
             } else {
@@ -849,15 +890,22 @@ impl Pcac {
             None
         };
         self.last_status = status;
-        self.last_iterations = self.solver.iterations();
+        if !self.fast_used {
+            self.last_iterations = self.solver.iterations();
+        }
         self.tracked_prediction = self.tracked_one_step();
         let bits = match status {
             Some(QpStatus::Solved) => {
                 self.counters.solved += 1;
-                let first = self.cond.first_move(self.solver.x());
+                let planned = unconstrained::solution_of(&self.fast, self.fast_used, &self.solver);
+                let first = self.cond.first_move(planned);
                 if first.iter().all(|v| v.is_finite()) {
                     self.u_tmp.copy_from_slice(first);
-                    let na = self.solver.active_set_into(&mut self.active);
+                    let na = if self.fast_used {
+                        0
+                    } else {
+                        self.solver.active_set_into(&mut self.active)
+                    };
                     self.last_active = na;
                     self.n_shifted = self.cond.shift_active_set_by(
                         &self.active[..na],
@@ -873,7 +921,7 @@ impl Pcac {
                     };
                     let cond = &self.cond;
                     self.replan
-                        .set_pending(self.solver.x(), bits, |row| cond.clip_to_input_bounds(row));
+                        .set_pending(planned, bits, |row| cond.clip_to_input_bounds(row));
                     return bits;
                 }
                 self.counters.numerical_error += 1;
@@ -944,7 +992,7 @@ impl Pcac {
             if with_u {
                 let h = self.pred.markov();
                 let m = self.u_tmp.len();
-                let x = self.solver.x();
+                let x = self.solution();
                 for j in 0..m {
                     y +=
                         h.get(s * m + j).copied().unwrap_or(0.0) * x.get(j).copied().unwrap_or(0.0);
@@ -1062,6 +1110,7 @@ impl Controller for Pcac {
             ),
             ("mpc steps", c.steps),
             ("qp solved", c.solved),
+            ("fast path", c.fast_path),
             ("infeasible", c.infeasible),
             ("iteration cap", c.max_iterations),
             ("numerical error", c.numerical_error),

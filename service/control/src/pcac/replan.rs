@@ -29,7 +29,10 @@
 //!
 //! 1. **predict**: the committed inputs, `x̂_k`, `x_{N|k}`, the Markov parameters and the
 //!    free response ((2.36)–(2.46)), and the command `𝓡`;
-//! 2. **build**: the condensed QP ([`Condenser::build`](crate::mpc::condense::Condenser::build));
+//! 2. **build**: the condensed QP ([`Condenser::build`](crate::mpc::condense::Condenser::build)),
+//!    or, when it is chosen and its minimizer meets every constraint, the unconstrained
+//!    fast path's solution instead ([`crate::mpc::fast_path`], on the realization kept
+//!    by the prediction), which leaves the solve unit nothing to solve;
 //! 3. **solve**: the warm-started QP
 //!    ([`DenseQpSolver::solve`](crate::mpc::qp::DenseQpSolver::solve)), the plan rows
 //!    clipped into the input bounds (2.50), or the fallback.

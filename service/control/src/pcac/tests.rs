@@ -1,5 +1,6 @@
 //! Tests of PCAC's model: identification and the Kronecker reduction (the realization's
-//! tests are in [`crate::bocf`]).
+//! tests are in [`crate::bocf`]); and of the step's unconstrained fast path
+//! ([`crate::mpc::fast_path`]) against condensing and the QP, in closed loop.
 
 #![allow(clippy::needless_range_loop)] // index-heavy reference computations
 
@@ -304,5 +305,234 @@ fn pcac_id_timing() {
             q(0.5),
             q(0.99)
         );
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The unconstrained fast path in the step.
+
+/// PCAC on the plant `sys` (`n̂ 2`, `p 2`, `m 2`, `θ_0` its coefficients, identification
+/// on), `ℓ = 15`, tracking `y_1` with `Q = 10`, `R = diag(0.1, 0.2)`, `|u| ≤ 1`,
+/// `|Δu| ≤ 0.4`, `y_2 ≤ 0.8` at every predicted step, the fast path `mode`, re-planning
+/// every `replan` samples; optionally augmenting `K̄ = −0.1 I` (7.53)–(7.57).
+fn fast_path_params(
+    sys: &Arx,
+    mode: crate::mpc::fast_path::FastPathMode,
+    timing: super::PcacTiming,
+    augmented: bool,
+    replan: usize,
+) -> super::PcacParams {
+    use crate::mpc::condense::{MoveBounds, OutputConstraints, Weight};
+    let (n, p, m) = (sys.n, sys.p, sys.m);
+    let nr = n * (p + m);
+    super::PcacParams::builder(n, p, m, 1.0, 15)
+        // θ = vec Θ̃, column-stacked (2.27).
+        .theta0(
+            (0..p * nr)
+                .map(|k| sys.coef[(k % p) * nr + k / p])
+                .collect(),
+        )
+        .tracking(1, vec![1.0, 0.0])
+        .q(Weight::Scalar(10.0))
+        .r(Weight::PerChannel(vec![0.1, 0.2]))
+        .input_bounds(vec![-1.0; 2], vec![1.0; 2])
+        .move_bounds(Some(MoveBounds::symmetric(0.4, 2)))
+        .output_constraints(Some(OutputConstraints {
+            c: vec![0.0, 1.0],
+            d: vec![-0.8],
+        }))
+        .timing(timing)
+        .fast_path(mode)
+        .replan_every(replan)
+        .augmentation(augmented.then(|| super::OutputFeedback {
+            gain: vec![-0.1, 0.0, 0.0, -0.1],
+        }))
+        .build()
+}
+
+/// One step of a fast-path run: the input, the plan's rows, whether the fast path gave
+/// them, and the QP's active-set size.
+struct FastStep {
+    u: Vec<f64>,
+    plan: Vec<f64>,
+    fast: bool,
+    active: f64,
+}
+
+/// 400 samples of `params` in closed loop with a copy of `sys` (measurement noise
+/// `10⁻³`), the command of `y_1` a square wave between 0 and 1.2 of period 60 samples
+/// (large enough that the plans ride the bounds after each edge, and settle inside
+/// them); the steps and the controller's counters.
+fn fast_path_run(sys: &Arx, params: &super::PcacParams) -> (Vec<FastStep>, super::PcacCounters) {
+    use crate::{Controller, Dimensions, StepInput};
+    let mut sys = Arx {
+        n: sys.n,
+        p: sys.p,
+        m: sys.m,
+        coef: sys.coef.clone(),
+        ys: vec![vec![0.0; sys.p]; sys.n],
+        us: vec![vec![0.0; sys.m]; sys.n],
+    };
+    let mut c = super::Pcac::new(params, Dimensions::new(2, 2, 1, 2)).unwrap();
+    let gain = params.augmentation.as_ref().map(|fb| fb.gain.clone());
+    let mut noise = Gauss::new(77);
+    let mut plant_input = vec![0.0; 2];
+    let mut internals = [0.0; crate::MAX_INTERNALS];
+    let names = c.internal_names();
+    let active_at = names.iter().position(|s| s == "qp_active").unwrap();
+    let mut out = Vec::new();
+    for k in 0..400 {
+        let mut y = sys.step(&plant_input);
+        y.iter_mut().for_each(|v| *v += 1e-3 * noise.normal());
+        let r = [if (k / 30) % 2 == 1 { 1.2 } else { 0.0 }];
+        let mut u = vec![f64::NAN; 2];
+        let status = c.step(
+            &StepInput {
+                seq: k as u64,
+                y: &y,
+                z: &y,
+                r: &r,
+                ..Default::default()
+            },
+            &mut u,
+        );
+        assert_eq!(status & crate::status::FALLBACK, 0, "step {k} fell back");
+        let mut plan = vec![0.0; 2 * 14];
+        let rows = c.ahead().map_or(0, |a| a.plan(&mut plan));
+        plan.truncate(2 * rows);
+        c.internals(&mut internals);
+        out.push(FastStep {
+            fast: c.fast_path_taken(),
+            active: internals[active_at],
+            u: u.clone(),
+            plan,
+        });
+        // The plant's input: u, or K̄ y + u with the augmentation.
+        plant_input.copy_from_slice(&u);
+        if let Some(g) = &gain {
+            for (j, pi) in plant_input.iter_mut().enumerate() {
+                *pi += g[j * 2] * y[0] + g[j * 2 + 1] * y[1];
+            }
+        }
+    }
+    (out, c.counts_of())
+}
+
+/// With and without the fast path the controller gives the same inputs (and, in the
+/// next-step timing, the same plans) to 10⁻⁹ on a closed loop whose constraints are
+/// active after each edge of the command and inactive in between; the fast path is taken
+/// exactly at the solves whose QP has an empty active set, and falls back to condensing
+/// and the QP at the others; in four configurations (same step, next step, an augmented
+/// `K̄`, and next step re-planning every 3 samples, where the fast path runs in the
+/// condensing unit's period and the plan in force is its `U*`).
+#[test]
+fn the_fast_path_gives_the_qps_inputs_and_falls_back_when_a_constraint_is_active() {
+    use super::PcacTiming;
+    use crate::mpc::fast_path::FastPathMode;
+    let mut g = Gauss::new(31);
+    let sys = Arx::random(&mut g, 2, 2, 2);
+    for (timing, augmented, replan) in [
+        (PcacTiming::SameStep, false, 1),
+        (PcacTiming::NextStep, false, 1),
+        (PcacTiming::SameStep, true, 1),
+        (PcacTiming::NextStep, false, 3),
+    ] {
+        let what = format!("{timing:?}, augmented {augmented}, replan-every {replan}");
+        let (with, cw) = fast_path_run(
+            &sys,
+            &fast_path_params(&sys, FastPathMode::Always, timing, augmented, replan),
+        );
+        let (without, co) = fast_path_run(
+            &sys,
+            &fast_path_params(&sys, FastPathMode::Never, timing, augmented, replan),
+        );
+        let (mut du, mut dplan) = (0.0f64, 0.0f64);
+        for (k, (a, b)) in with.iter().zip(&without).enumerate() {
+            du = du.max(max_abs_diff(&a.u, &b.u));
+            assert_eq!(a.plan.len(), b.plan.len(), "{what}: step {k}");
+            if !a.plan.is_empty() {
+                dplan = dplan.max(max_abs_diff(&a.plan, &b.plan));
+            }
+            assert!(!b.fast, "{what}: step {k}");
+            // The fast path is the QP's solution exactly when no constraint is active
+            // (the active-set size is that of the last solve at the solve's own sample:
+            // every sample, or every third one when re-planning).
+            if k % replan == replan - 1 {
+                assert_eq!(
+                    a.fast,
+                    b.active == 0.0,
+                    "{what}: step {k}, {} active",
+                    b.active
+                );
+                if a.fast {
+                    assert_eq!(a.active, 0.0, "{what}: step {k}");
+                }
+            }
+        }
+        assert!(du < 1e-9, "{what}: inputs differ by {du:e}");
+        assert!(dplan < 1e-9, "{what}: plans differ by {dplan:e}");
+        if timing == PcacTiming::NextStep && replan == 1 {
+            assert!(with.iter().all(|s| s.plan.len() == 2 * 14), "{what}");
+        }
+        if replan > 1 {
+            // The plant follows the plan between solves: the plan rows are read.
+            assert!(with.iter().any(|s| !s.plan.is_empty()), "{what}");
+        }
+        // Both branches ran, and the counters say so.
+        let solves = 400u64.div_ceil(replan as u64);
+        let solved_at_end = with
+            .iter()
+            .enumerate()
+            .filter(|(k, s)| k % replan == replan - 1 && s.fast)
+            .count() as u64;
+        assert_eq!(cw.fast_path, solved_at_end, "{what}");
+        assert_eq!(co.fast_path, 0, "{what}");
+        assert_eq!((cw.steps, co.steps), (solves, solves), "{what}");
+        let solved = 400 / replan as u64;
+        assert_eq!((cw.solved, co.solved), (solved, solved), "{what}");
+        let taken = cw.fast_path;
+        assert!(
+            taken >= solved / 4,
+            "{what}: fast path at {taken} of {solved} solves"
+        );
+        assert!(
+            cw.solved - taken >= solved / 20,
+            "{what}: {} solves fell back to the QP",
+            cw.solved - taken
+        );
+        eprintln!("{what}: fast path {taken}/{solved}, |Δu| {du:.1e}, |Δplan| {dplan:.1e}");
+    }
+}
+
+/// [`FastPathMode::Auto`] takes the fast path at the sampling arm's size (§7.3: `n̂ 1`,
+/// `p 5`, `m 2`, `ℓ 50`) and not at the truss's (§6.2: `n̂ 25`, `p 4`, `ℓ 40`), and the
+/// counter names it.
+#[test]
+fn auto_takes_the_fast_path_for_the_arm_and_not_for_the_truss() {
+    use crate::{Controller, Dimensions, StepInput};
+    let arm = super::PcacParams::chapter_7().build();
+    let truss = super::PcacParams::chapter_6().build();
+    for (params, p, want) in [(arm, 5, true), (truss, 4, false)] {
+        let m = params.model.m;
+        let mut c = super::Pcac::new(&params, Dimensions::new(p, p, 0, m)).unwrap();
+        let y = vec![0.01; p];
+        let mut u = vec![0.0; m];
+        for k in 0..3 {
+            let input = StepInput {
+                seq: k,
+                y: &y,
+                z: &y,
+                ..Default::default()
+            };
+            c.step(&input, &mut u);
+        }
+        let taken = c.counts_of().fast_path;
+        assert_eq!(
+            taken > 0,
+            want,
+            "n̂ = {}: fast path at {taken} steps",
+            params.model.n_hat
+        );
+        assert!(c.counters().contains(&("fast path", taken)));
     }
 }
