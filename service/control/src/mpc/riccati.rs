@@ -103,7 +103,7 @@ use super::condense::{MpcSpec, SpecError, expand_weight};
 use crate::bocf::Realization;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 /// Why [`Riccati::solve`] did not produce a minimizer (no allocation: static descriptions).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

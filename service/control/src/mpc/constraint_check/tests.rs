@@ -4,45 +4,15 @@
 
 use super::*;
 use crate::bocf::{HorizonPrediction, Realization};
-use crate::forgetting::ForgettingRule;
 use crate::mpc::condense::{Condenser, MoveBounds, OutputConstraints, Weight};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
 use crate::mpc::riccati::Riccati;
-use crate::pcac::{IdKernel, IoModel};
-use crate::test_support::{Gauss, io_model_params, max_abs, max_abs_diff};
+// A stable model (`‖F̂_i‖_F = 0.9 / n`) with random histories.
+use crate::mpc::riccati::tests::stable_model as model;
+use crate::pcac::IoModel;
+use crate::test_support::{Gauss, max_abs, max_abs_diff};
 
 const TOL: f64 = 1e-10;
-
-/// A stable model (`‖F̂_i‖_F = 0.9 / n`) with random histories.
-fn model(g: &mut Gauss, n: usize, p: usize, m: usize) -> IoModel {
-    let nr = n * (p + m);
-    let mut coef = vec![0.0; p * nr];
-    for i in 0..n {
-        let blk = g.vec(p * p);
-        let norm = blk.iter().map(|x| x * x).sum::<f64>().sqrt();
-        for r in 0..p {
-            for s in 0..p {
-                coef[r * nr + i * p + s] = 0.9 / n as f64 * blk[r * p + s] / norm;
-            }
-            for s in 0..m {
-                coef[r * nr + n * p + i * m + s] = g.normal();
-            }
-        }
-    }
-    let mut pr = io_model_params(
-        n,
-        p,
-        m,
-        ForgettingRule::Constant { lambda: 1.0 },
-        IdKernel::Shared,
-    );
-    pr.theta0 = (0..p * nr).map(|k| coef[(k % p) * nr + k / p]).collect();
-    let mut model = IoModel::new(&pr).unwrap();
-    for _ in 0..n + 3 {
-        model.observe(&g.vec(p), &g.vec(m)).unwrap();
-    }
-    model
-}
 
 /// A spec with input bounds `±u_max`, move bounds `±du_max` and the output constraint
 /// `y_1 ≤ y_max` (all optional through their size), tracking `y_1`.

@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, DVector};
 
 /// A model of order `n`, `p` outputs, `m` inputs with stable coefficients
 /// (`‖F̂_i‖_F = 0.9 / n`, so `Σ ‖F̂_i‖₂ < 1`), random `Ĝ_i` and random histories.
-fn stable_model(g: &mut Gauss, n: usize, p: usize, m: usize) -> IoModel {
+pub(crate) fn stable_model(g: &mut Gauss, n: usize, p: usize, m: usize) -> IoModel {
     let nr = n * (p + m);
     let mut coef = vec![0.0; p * nr];
     for i in 0..n {
