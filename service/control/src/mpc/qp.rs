@@ -120,6 +120,15 @@
 //! its work. `solve_with_clarabel` (crate feature `clarabel`) solves the same problem
 //! with clarabel (it allocates; for tests and benchmarks).
 //!
+//! A solve can also be split over several calls, so that a controller that re-plans
+//! every `N` samples spreads it over sample periods: [`DenseQpSolver::start`] does the
+//! fixed part (the checks, the factorization and the start point), and each
+//! [`DenseQpSolver::proceed`] adds violated constraints until the solution is reached or
+//! it has made the active-set changes it was given. Every iterate in between is dual
+//! feasible but not yet primal feasible, so nothing is usable before the end; the split
+//! changes when the work is done, not the work: the operations are those of one
+//! [`DenseQpSolver::solve`], in the same order, and the result is the same bit for bit.
+//!
 //! Warm start in the receding horizon: take the previous step's active set
 //! ([`DenseQpSolver::active_set_into`]), shift it by one step (`Upper(i)` → `Upper(i − m)`
 //! and likewise for the move rows, dropping those that fall off the front), and pass it
@@ -232,6 +241,16 @@ pub enum QpStatus {
     /// The problem's dimensions differ from the ones the solver was built for (`n`,
     /// `n_ineq`), or a slice has the wrong length.
     InvalidDimensions,
+}
+
+/// Where a solve split over several calls stands ([`DenseQpSolver::start`],
+/// [`DenseQpSolver::proceed`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QpProgress {
+    /// The solve is over, with this outcome.
+    Done(QpStatus),
+    /// Violated constraints remain to be added: [`DenseQpSolver::proceed`] goes on.
+    Running,
 }
 
 /// Tolerances and limits of [`DenseQpSolver`].
@@ -375,6 +394,10 @@ pub struct DenseQpSolver {
     iterations: usize,
     fixed_at_start: usize,
     freed: usize,
+    /// A solve begun by `start` awaits `proceed`.
+    running: bool,
+    /// The outcome of the last solve that ended.
+    last_status: QpStatus,
 }
 
 impl core::fmt::Debug for DenseQpSolver {
@@ -529,6 +552,8 @@ impl DenseQpSolver {
             iterations: 0,
             fixed_at_start: 0,
             freed: 0,
+            running: false,
+            last_status: QpStatus::InvalidDimensions,
         };
         solver.prepare_thread();
         solver
@@ -697,7 +722,25 @@ impl DenseQpSolver {
     }
 
     /// Solves the problem; allocation-free. See [`QpStatus`] for what the iterate means.
+    /// The same as [`DenseQpSolver::start`] followed by one [`DenseQpSolver::proceed`]
+    /// without a budget.
     pub fn solve(&mut self, p: &QpProblem, warm: WarmStart) -> QpStatus {
+        match self.start(p, warm) {
+            QpProgress::Done(status) => status,
+            QpProgress::Running => match self.proceed(p, usize::MAX) {
+                QpProgress::Done(status) => status,
+                // Only after usize::MAX iterations, which the iteration cap prevents.
+                QpProgress::Running => self.conclude(p, QpStatus::MaxIterations),
+            },
+        }
+    }
+
+    /// The first part of a solve split over several calls (module docs, "Real-time
+    /// use"): the checks, the factorization and the dual-feasible start point, without
+    /// any constraint addition. [`DenseQpSolver::proceed`] goes on with the same problem
+    /// (`p` must not change in between). Allocation-free.
+    pub fn start(&mut self, p: &QpProblem, warm: WarmStart) -> QpProgress {
+        self.running = false;
         self.iterations = 0;
         self.fixed_at_start = 0;
         self.freed = 0;
@@ -712,24 +755,73 @@ impl DenseQpSolver {
         self.free.clear();
         let n = self.n;
         let m = self.n_ineq;
-        if p.hess.len() != n * n
-            || p.f.len() != n
-            || p.lb.len() != n
-            || p.ub.len() != n
-            || p.g.len() != m * n
-            || p.h.len() != m
-        {
-            return QpStatus::InvalidDimensions;
+        if !self.dims_ok(p) {
+            self.last_status = QpStatus::InvalidDimensions;
+            return QpProgress::Done(QpStatus::InvalidDimensions);
         }
-        let status = self.run(p, warm);
-        self.finish(p, status)
+        match self.begin(p, warm) {
+            Ok(()) => {
+                self.running = true;
+                QpProgress::Running
+            }
+            Err(status) => QpProgress::Done(self.conclude(p, status)),
+        }
     }
 
-    fn run(&mut self, p: &QpProblem, warm: WarmStart) -> QpStatus {
+    /// Goes on with the solve begun by [`DenseQpSolver::start`] on the same, unchanged
+    /// problem `p`: adds violated constraints until the KKT conditions hold, the
+    /// iteration cap is reached, or this call has made `budget` active-set changes (a
+    /// constraint whose addition has begun is always completed, so a call may exceed
+    /// `budget` by the partial steps of one addition). `Running`: call again;
+    /// `Done(status)`: the solve is over, with the outcome [`DenseQpSolver::solve`]
+    /// would have returned, bit for bit. With no solve running, `Done` repeats the last
+    /// outcome. Allocation-free.
+    pub fn proceed(&mut self, p: &QpProblem, budget: usize) -> QpProgress {
+        if !self.running {
+            return QpProgress::Done(self.last_status);
+        }
+        if !self.dims_ok(p) {
+            self.running = false;
+            self.last_status = QpStatus::InvalidDimensions;
+            return QpProgress::Done(QpStatus::InvalidDimensions);
+        }
+        match self.add_violated(p, budget) {
+            Some(status) => QpProgress::Done(self.conclude(p, status)),
+            None => QpProgress::Running,
+        }
+    }
+
+    /// Whether `p` has the dimensions the solver was built for.
+    fn dims_ok(&self, p: &QpProblem) -> bool {
+        let (n, m) = (self.n, self.n_ineq);
+        p.hess.len() == n * n
+            && p.f.len() == n
+            && p.lb.len() == n
+            && p.ub.len() == n
+            && p.g.len() == m * n
+            && p.h.len() == m
+    }
+
+    /// Whether a solve begun by [`DenseQpSolver::start`] awaits [`DenseQpSolver::proceed`].
+    pub fn is_running(&self) -> bool {
+        self.running
+    }
+
+    /// [`DenseQpSolver::finish`], and the solve is over.
+    fn conclude(&mut self, p: &QpProblem, status: QpStatus) -> QpStatus {
+        self.running = false;
+        let status = self.finish(p, status);
+        self.last_status = status;
+        status
+    }
+
+    /// Everything before the first constraint addition: the compressed rows, the warm
+    /// start's fixed bounds, the factorization and the start point.
+    fn begin(&mut self, p: &QpProblem, warm: WarmStart) -> Result<(), QpStatus> {
         let n = self.n;
         let m = self.n_ineq;
         if !data_ok(p) {
-            return QpStatus::NumericalError;
+            return Err(QpStatus::NumericalError);
         }
 
         // Compressed rows of G (NaN and infinities are nonzero, so every one is seen).
@@ -774,10 +866,10 @@ impl DenseQpSolver {
             zero_row_violated |= nnz == self.row_ptr[j] && p.h[j] < -tol * (1.0 + p.h[j].abs());
         }
         if !g_finite {
-            return QpStatus::NumericalError;
+            return Err(QpStatus::NumericalError);
         }
         if zero_row_violated || p.lb.iter().zip(p.ub).any(|(l, u)| l > u) {
-            return QpStatus::Infeasible;
+            return Err(QpStatus::Infeasible);
         }
 
         // Which constraints exist, and which the warm start wants first.
@@ -803,14 +895,10 @@ impl DenseQpSolver {
             };
         }
         let max_iter = self.settings.max_iterations;
-        if let Err(status) = self.factor_free(p) {
-            return status;
-        }
+        self.factor_free(p)?;
         self.fixed_at_start = self.fixed.len();
         // The starting point (dual feasible, see `start_point`).
-        if let Err(status) = self.start_point(p, false, max_iter) {
-            return status;
-        }
+        self.start_point(p, false, max_iter)?;
         // Bounds violated at that point are fixed in bulk when there are at least
         // `BULK_FIX` of them: one more factorization instead of one dual step each (the
         // first steps of a saturated horizon, which the warm start does not foresee).
@@ -829,20 +917,27 @@ impl DenseQpSolver {
         if violated >= BULK_FIX {
             self.fixed_at_start += violated;
             self.clear_active();
-            if let Err(status) = self.factor_free(p) {
-                return status;
-            }
-            if let Err(status) = self.start_point(p, false, max_iter) {
-                return status;
-            }
+            self.factor_free(p)?;
+            self.start_point(p, false, max_iter)?;
         } else {
             for &i in &self.free {
                 self.fix[i] = FREE;
             }
         }
+        Ok(())
+    }
 
+    /// The dual iterations: the violated constraint (prioritized first, then the most
+    /// violated) is added, until none is left (`Solved`), a step fails, or `budget`
+    /// active-set changes have been made in this call (`None`).
+    fn add_violated(&mut self, p: &QpProblem, budget: usize) -> Option<QpStatus> {
+        let max_iter = self.settings.max_iterations;
+        let tol = self.settings.feasibility_tol;
+        let mark = self.iterations;
         loop {
-            // Choose the violated constraint: prioritized first, then the most violated.
+            if self.iterations - mark >= budget {
+                return None;
+            }
             let (best, best_v, best_pri) = self.select_violated(p, tol);
             let pid = if best_pri != usize::MAX {
                 best_pri
@@ -850,13 +945,13 @@ impl DenseQpSolver {
                 best
             };
             if pid == usize::MAX {
-                return QpStatus::Solved;
+                return Some(QpStatus::Solved);
             }
             if !best_v.is_finite() {
-                return QpStatus::NumericalError;
+                return Some(QpStatus::NumericalError);
             }
             if let Err(status) = self.add_constraint(p, pid, max_iter) {
-                return status;
+                return Some(status);
             }
         }
     }

@@ -959,3 +959,91 @@ fn qp_timing_at_n_100_with_active_constraints() {
     summary("row-oriented in place", &mut ours);
     summary("faer in place (used)", &mut faer_t);
 }
+
+/// A solve split into `start` and `proceed` calls of a small budget ends with the very
+/// result of one `solve` (bit for bit: iterate, multipliers, active set, iteration count),
+/// cold and warm, on problems with many active constraints; each `proceed` stops after at
+/// most its budget plus the partial steps of one addition; and `proceed` with no solve
+/// running repeats the last outcome.
+#[test]
+fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let mut split_runs = 0;
+    for case in 0..12 {
+        let p = if case % 2 == 0 {
+            pcac_problem(40, 2, true, 3, 3.0, &mut rng)
+        } else {
+            random_problem(20, 2, 4, true, &mut rng)
+        };
+        let mut whole = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
+        let mut split = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
+        let status = whole.solve(&p.problem(), WarmStart::Cold);
+        let mut ids = vec![ConstraintId::Row(0); p.n + p.n_ineq()];
+        let k = whole.active_set_into(&mut ids);
+        let warm_ids = ids[..k / 2].to_vec();
+        for warm in [WarmStart::Cold, WarmStart::ActiveSet(&warm_ids)] {
+            let status = if matches!(warm, WarmStart::Cold) {
+                status
+            } else {
+                whole.solve(&p.problem(), warm)
+            };
+            for budget in [1, 2, 5] {
+                let mut progress = split.start(&p.problem(), warm);
+                let mut calls = 0;
+                while progress == QpProgress::Running {
+                    assert!(split.is_running());
+                    let before = split.iterations();
+                    progress = split.proceed(&p.problem(), budget);
+                    let made = split.iterations() - before;
+                    assert!(made <= budget + p.n + p.n_ineq(), "case {case}: {made} changes");
+                    if progress == QpProgress::Running {
+                        assert!(made >= budget, "case {case}: stopped after {made} < {budget}");
+                    }
+                    calls += 1;
+                    assert!(calls <= 10_000);
+                }
+                assert!(!split.is_running());
+                assert_eq!(progress, QpProgress::Done(status), "case {case}");
+                if calls > 1 {
+                    split_runs += 1;
+                }
+                assert_eq!(split.iterations(), whole.iterations(), "case {case}");
+                assert_eq!(split.x(), whole.x(), "case {case}, budget {budget}");
+                assert_eq!(split.lambda_lower(), whole.lambda_lower());
+                assert_eq!(split.lambda_upper(), whole.lambda_upper());
+                assert_eq!(split.lambda_ineq(), whole.lambda_ineq());
+                assert_eq!(split.objective().to_bits(), whole.objective().to_bits());
+                let mut a = vec![ConstraintId::Row(0); p.n + p.n_ineq()];
+                let mut b = a.clone();
+                let (ka, kb) = (split.active_set_into(&mut a), whole.active_set_into(&mut b));
+                assert_eq!(a[..ka], b[..kb]);
+                assert_eq!(
+                    split.proceed(&p.problem(), budget),
+                    QpProgress::Done(status)
+                );
+            }
+        }
+    }
+    // The budgets did split most solves.
+    assert!(split_runs >= 40, "{split_runs} of 72 solves ran over several calls");
+}
+
+/// `proceed` with a problem of other dimensions ends the running solve with
+/// `InvalidDimensions`, and `start` refuses such a problem at once.
+#[test]
+fn a_split_solve_refuses_a_problem_of_other_dimensions() {
+    let mut rng = ChaCha8Rng::seed_from_u64(32);
+    let p = pcac_problem(20, 2, true, 3, 3.0, &mut rng);
+    let q = pcac_problem(10, 2, true, 3, 3.0, &mut rng);
+    let mut s = DenseQpSolver::new(p.n, p.n_ineq(), QpSettings::default());
+    assert_eq!(
+        s.start(&q.problem(), WarmStart::Cold),
+        QpProgress::Done(QpStatus::InvalidDimensions)
+    );
+    assert_eq!(s.start(&p.problem(), WarmStart::Cold), QpProgress::Running);
+    assert_eq!(
+        s.proceed(&q.problem(), 1),
+        QpProgress::Done(QpStatus::InvalidDimensions)
+    );
+    assert!(!s.is_running());
+}
