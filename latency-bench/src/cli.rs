@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! latency-bench [--samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest …]
-//! latency-bench pcac [--steps N --workload truss|arm|all --replan-every 2,3,4 --out DIR --results FILE …]
+//! latency-bench pcac [--steps N --workload truss|arm|all --replan-every 2,3,4 --qp-share B --out DIR --results FILE …]
 //! ```
 //!
 //! Two hidden subcommands select the role of the child process of the two-process
@@ -111,6 +111,10 @@ pub struct PcacArgs {
     /// (comma-separated; 0 for none).
     #[arg(long, value_delimiter = ',', default_values_t = crate::pcac_replan::DEFAULT_PERIODS)]
     pub replan_every: Vec<usize>,
+    /// Time each re-planning period N ≥ 4 a second time with the QP cut into shares of
+    /// this many active-set changes per period (`qp-changes-per-period`; 0: not).
+    #[arg(long, default_value_t = 0)]
+    pub qp_share: usize,
     /// Output folder, results file, `--quick`.
     #[command(flatten)]
     pub run: RunArgs,

@@ -165,6 +165,7 @@ fn bench(o: &Options) -> i32 {
             steps,
             Anchors::BOTH,
             &latency_bench::pcac_replan::DEFAULT_PERIODS,
+            0,
         );
         col.measured.extend(rows);
         col.details.extend(lines);
@@ -242,7 +243,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
     ));
     let replan: Vec<usize> = a.replan_every.iter().copied().filter(|&n| n > 0).collect();
     let (measured, details, v) = pcac_phase::pcac_phase(
-        a.rt_core, &out, &workloads, a.warmup, steps, anchors, &replan,
+        a.rt_core, &out, &workloads, a.warmup, steps, anchors, &replan, a.qp_share,
     );
     let mut col = Collected {
         measured,
@@ -274,6 +275,7 @@ fn pcac_only(a: &PcacArgs) -> i32 {
             "clarabel": anchors.clarabel,
             "osqp": anchors.osqp,
             "replan_every": replan,
+            "qp_share": a.qp_share,
             "rt_core": a.rt_core,
         }),
         out: &out,

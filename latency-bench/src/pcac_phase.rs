@@ -26,10 +26,18 @@ pub fn pcac_phase(
     steps: u64,
     anchors: Anchors,
     replan: &[usize],
+    qp_share: usize,
 ) -> (Vec<Measured>, Vec<String>, Value) {
     let list = workloads.to_vec();
-    let periods: Vec<usize> = if workloads.contains(&Workload::Truss) && !replan.is_empty() {
-        std::iter::once(1).chain(replan.iter().copied()).collect()
+    // (N, QP share): every sample first, then each N, and each N ≥ 4 again in shares.
+    let periods: Vec<(usize, usize)> = if workloads.contains(&Workload::Truss) && !replan.is_empty()
+    {
+        std::iter::once((1, 0))
+            .chain(replan.iter().flat_map(|&n| {
+                let shared = (n >= 4 && qp_share > 0).then_some((n, qp_share));
+                std::iter::once((n, 0)).chain(shared)
+            }))
+            .collect()
     } else {
         Vec::new()
     };
@@ -49,7 +57,7 @@ pub fn pcac_phase(
             let warm = warmup.unwrap_or(Workload::Truss.default_warmup());
             let replans = periods
                 .iter()
-                .map(|&n| pcac_replan::measure(n, warm, steps))
+                .map(|&(n, share)| pcac_replan::measure(n, share, warm, steps))
                 .collect::<Vec<_>>();
             (costs, replans)
         },
@@ -386,15 +394,29 @@ fn replan_rows(
                 continue;
             }
         };
-        let id = format!("truss-replan-{}", r.every);
+        let id = if r.share > 0 {
+            format!("truss-replan-{}-share-{}", r.every, r.share)
+        } else {
+            format!("truss-replan-{}", r.every)
+        };
         let sm = Summary::of(&r.period);
         let label = if r.every == 1 {
             "pcac truss, a solve every sample (per period)".to_string()
+        } else if r.share > 0 {
+            format!(
+                "pcac truss, re-planning every {}, QP in shares of {} (per period)",
+                r.every, r.share
+            )
         } else {
             format!("pcac truss, re-planning every {} (per period)", r.every)
         };
         let mut m = Measured::from_summary(&id, &label, sm, files(&id, &r.period));
-        let positions = ["prediction", "condensing", "QP", "no unit"];
+        let last = if r.share > 0 {
+            "QP continued"
+        } else {
+            "no unit"
+        };
+        let positions = ["prediction", "condensing", "QP", last];
         let used = r.every.min(4);
         let by_pos: Vec<String> = (0..used)
             .map(|i| {
@@ -432,14 +454,14 @@ fn replan_rows(
         }
         rows.push(m);
         lines.push(format!(
-            "truss-replan-{}: {} timed periods, {} at block starts apart; u at bound in {:.1} % of the periods",
-            r.every,
+            "{id}: {} timed periods, {} at block starts apart; u at bound in {:.1} % of the periods",
             r.period.len(),
             r.cold.len(),
             100.0 * r.saturated as f64 / r.period.len().max(1) as f64
         ));
         out.push(json!({
             "every": r.every,
+            "qp_share": r.share,
             "period": sm,
             "by_position": r.by_position[..used].iter().map(Summary::of).collect::<Vec<_>>(),
             "cold": Summary::of(&r.cold),

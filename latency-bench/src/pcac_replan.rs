@@ -15,7 +15,10 @@
 //! (p99, max) against the single-rate step. Each period is also recorded by its position
 //! in the cycle, so the table shows which unit costs what. The loops take no lost or late
 //! samples (the bench has no transport), so every cycle runs to its end and the position
-//! is `seq mod N`.
+//! is `seq mod N`. With `--qp-share B` each `N ≥ 4` is timed a second time with the QP
+//! cut into shares of `B` active-set changes per period
+//! (`control::pcac::PcacParams::qp_changes_per_period`): its factorization, start point
+//! and first share at position 2, a share at each later position, the rest at `N − 1`.
 //!
 //! What this does not show: the closed loop's performance with the plan held for `N`
 //! samples. That is the controller's tests' and the rigs' business (the acoustic rig's
@@ -37,6 +40,9 @@ pub const DEFAULT_PERIODS: [usize; 3] = [2, 3, 4];
 pub struct ReplanCost {
     /// `N`.
     pub every: usize,
+    /// The QP's share per period in active-set changes
+    /// (`control::pcac::PcacParams::qp_changes_per_period`; 0: the whole QP at position 2).
+    pub share: usize,
     /// Every timed period.
     pub period: Histogram<u64>,
     /// The timed periods by their position in the cycle, the last entry for the
@@ -52,17 +58,19 @@ pub struct ReplanCost {
     pub saturated: u64,
 }
 
-/// Runs the truss workload with re-planning every `every` samples: `warmup` untimed
+/// Runs the truss workload with re-planning every `every` samples, the QP in shares of
+/// `share` active-set changes per period when `share > 0` (`every ≥ 4`): `warmup` untimed
 /// samples, then `steps` timed periods (the first [`REWARM`] of each block of [`BLOCK`]
 /// recorded apart).
 ///
 /// # Errors
 ///
 /// The plant or the controller could not be built, or the plant refused an input.
-pub fn measure(every: usize, warmup: u64, steps: u64) -> Result<ReplanCost, String> {
+pub fn measure(every: usize, share: usize, warmup: u64, steps: u64) -> Result<ReplanCost, String> {
     let mut plant = truss_plant()?;
     let mut params = truss_params();
     params.replan_every = every;
+    params.qp_changes_per_period = share;
     let (p, m) = (params.model.p, params.model.m);
     let counts = ChannelCounts::new(p, p, 0, m).map_err(|e| e.to_string())?;
     let mut c = control::pcac::Pcac::new(&params, service::wire::dimensions(counts))
@@ -75,6 +83,7 @@ pub fn measure(every: usize, warmup: u64, steps: u64) -> Result<ReplanCost, Stri
     );
     let mut out = ReplanCost {
         every,
+        share,
         period: new_histogram(),
         by_position: std::array::from_fn(|_| new_histogram()),
         cold: new_histogram(),

@@ -681,9 +681,12 @@ fn an_rcac_step_with_the_gradient_update_does_not_allocate() {
 /// A PCAC controller at the truss size of chapter 6 (`n̂ = 25`, `p = 4`, `m = 2`, 600
 /// coefficients, `ℓ = 40`) read from a scenario text, with move bounds and, when
 /// `infeasible`, an output constraint `y_4 ≤ −100` no prediction can meet; re-planning
-/// every `replan` samples (next-step timing) when `replan > 1`.
+/// every `replan` samples (next-step timing) when `replan > 1`, with the QP cut into
+/// shares of 2 active-set changes per period when `replan ≥ 4`.
 fn truss_size_pcac(infeasible: bool, replan: usize) -> Box<dyn control::Controller> {
-    let timing = if replan > 1 {
+    let timing = if replan >= 4 {
+        format!("timing = \"next-step\"\nreplan-every = {replan}\nqp-changes-per-period = 2\n")
+    } else if replan > 1 {
         format!("timing = \"next-step\"\nreplan-every = {replan}\n")
     } else {
         String::new()
@@ -741,6 +744,13 @@ fn the_pcac_step_does_not_allocate() {
 #[test]
 fn the_pcac_step_re_planning_every_3_does_not_allocate() {
     pcac_steps_make_no_allocation(3);
+}
+
+/// The truss-size step allocates nothing re-planning every 5 samples with the QP cut
+/// into shares of 2 active-set changes over the periods 3 to 5.
+#[test]
+fn the_pcac_step_re_planning_every_5_with_the_qp_in_shares_does_not_allocate() {
+    pcac_steps_make_no_allocation(5);
 }
 
 /// The body of the PCAC allocation tests, re-planning every `replan` samples.

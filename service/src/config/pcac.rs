@@ -26,6 +26,8 @@
 //!                                 # factorization), "always" or "never"
 //! replan-every = 1                # N: solve every N samples, the work spread over N periods,
 //!                                 # the plant following the plan between (next-step; ≤ ℓ)
+//! qp-changes-per-period = 0       # N ≥ 4: the QP's share of each period before the last, in
+//!                                 # active-set changes (0: the whole QP in one period)
 //! lambda = 1.0                    # constant forgetting, or:
 //! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
 //! rule = "f-test"
@@ -75,6 +77,7 @@ pub(super) struct RawPcac {
     qp_max_iterations: Option<usize>,
     fast_path: Option<String>,
     replan_every: Option<usize>,
+    qp_changes_per_period: Option<usize>,
     output_constraints: Option<RawOutputConstraints>,
 }
 
@@ -208,6 +211,16 @@ pub(super) fn read(
         None => PcacParams::DEFAULT_REPLAN_EVERY,
         Some(n) => count(n as u64, 0, MAX_PCAC_HORIZON, &f("replan-every"), err)? as usize,
     };
+    let qp_share = match raw.qp_changes_per_period {
+        None => 0,
+        Some(n) => count(
+            n as u64,
+            0,
+            MAX_QP_ITERATIONS,
+            &f("qp-changes-per-period"),
+            err,
+        )? as usize,
+    };
     let params = PcacParams::builder(n_hat, p, m, p0, horizon)
         .theta0(theta0)
         .forgetting(rule.rule.clone())
@@ -223,6 +236,7 @@ pub(super) fn read(
         .warm_start(raw.warm_start.unwrap_or(PcacParams::DEFAULT_WARM_START))
         .fast_path(fast_path)
         .replan_every(replan_every)
+        .qp_changes_per_period(qp_share)
         .build();
     Ok((params, rule))
 }
@@ -270,6 +284,13 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(every4.replan_every, 4);
+        assert_eq!(every4.qp_changes_per_period, 0);
+        let shared = params(&GOOD.replace(
+            "timing = \"next-step\"",
+            "timing = \"next-step\"\nreplan-every = 4\nqp-changes-per-period = 8",
+        ))
+        .unwrap();
+        assert_eq!(shared.qp_changes_per_period, 8);
         let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "pcac");

@@ -753,8 +753,6 @@ impl DenseQpSolver {
         self.x.fill(0.0);
         self.fixed.clear();
         self.free.clear();
-        let n = self.n;
-        let m = self.n_ineq;
         if !self.dims_ok(p) {
             self.last_status = QpStatus::InvalidDimensions;
             return QpProgress::Done(QpStatus::InvalidDimensions);

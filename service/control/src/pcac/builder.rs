@@ -22,6 +22,7 @@
 //! | unconstrained fast path | [`FastPathMode::Auto`] (when the Riccati recursion is cheaper) |
 //! | augmentation (7.53)–(7.57) | none |
 //! | re-planning period `N` ([`PcacParams::replan_every`]) | [`PcacParams::DEFAULT_REPLAN_EVERY`] (every sample) |
+//! | QP share per re-planning period ([`PcacParams::qp_changes_per_period`]) | 0 (the whole QP in one period) |
 //!
 //! [`PcacParams::chapter_6`] and [`PcacParams::chapter_7`] start from the settings of the
 //! dissertation's examples instead: the truss (§6.2) and the sampling arm (§7.3).
@@ -80,6 +81,7 @@ impl PcacParams {
                 warm_start: PcacParams::DEFAULT_WARM_START,
                 fast_path: FastPathMode::default(),
                 augmentation: None,
+                qp_changes_per_period: 0,
                 replan_every: PcacParams::DEFAULT_REPLAN_EVERY,
             },
         }
@@ -219,6 +221,14 @@ impl PcacBuilder {
     /// The fixed output feedback `K̄` this PCAC augments (chapter 7).
     pub fn augmentation(mut self, feedback: Option<OutputFeedback>) -> Self {
         self.params.augmentation = feedback;
+        self
+    }
+
+    /// The QP's share of each re-planning period before the last, in active-set changes
+    /// ([`PcacParams::qp_changes_per_period`]; needs `replan_every ≥ 4`; 0 = the whole QP
+    /// in one period).
+    pub fn qp_changes_per_period(mut self, changes: usize) -> Self {
+        self.params.qp_changes_per_period = changes;
         self
     }
 

@@ -98,7 +98,7 @@ use crate::ahead::Ahead;
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
 use crate::mpc::condense::{Condenser, MpcSpec, Weight};
 use crate::mpc::fast_path::{FastPath, FastPathMode};
-use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpSettings, QpStatus, WarmStart};
+use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpProgress, QpSettings, QpStatus, WarmStart};
 
 #[cfg(test)]
 mod tests;
@@ -141,6 +141,12 @@ pub struct PcacParams {
     /// plant follows the plan in between. `1` (the default) solves at every sample; `N > 1`
     /// needs [`PcacTiming::NextStep`] and `N ≤ ℓ`.
     pub replan_every: usize,
+    /// When re-planning every `N ≥ 4` samples, the QP's share of each period before the
+    /// last of a cycle, in active-set changes ([`super::replan`], "The work of one solve"):
+    /// the solve starts in the third period with at most this many changes after its
+    /// factorization, goes on by as many in each following period, and ends in the last
+    /// one. `0` (the default) solves the whole QP in the third period.
+    pub qp_changes_per_period: usize,
 }
 
 /// Why a step fell back, and how often (see [`Pcac::counts_of`]).
@@ -212,6 +218,8 @@ pub struct Pcac {
     counts: Dimensions,
     timing: PcacTiming,
     warm_start: bool,
+    /// [`PcacParams::qp_changes_per_period`].
+    qp_changes_per_period: usize,
     model: IoModel,
     /// The closed-loop coefficients and the `u` history when augmenting a fixed `K̄`.
     aug: Option<Augmentation>,
@@ -266,6 +274,11 @@ pub struct Pcac {
     predicted: bool,
     /// The running solve's QP was built.
     built: bool,
+    /// A solve's QP unit has begun and its result is not taken yet.
+    qp_open: bool,
+    /// The split QP solve's progress (`None`: nothing to run, the fast path's solution
+    /// or a refused build).
+    qp_progress: Option<QpProgress>,
 }
 
 impl PcacParams {
@@ -311,7 +324,8 @@ impl PcacParams {
     /// `≥ 0`), `"r"` (not finite and `> 0`), `"u-min"` (`u_min ≤ u_max` violated),
     /// `"du-min"`, `"du-max"` (holding the input not allowed), `"output-constraints.c"`,
     /// `"output-constraints.d"`, `"qp-max-iterations"` (0), `"replan-every"` (0, above
-    /// `ℓ`, or above 1 without next-step timing), `"augmentation"` (a `K̄` that
+    /// `ℓ`, or above 1 without next-step timing), `"qp-changes-per-period"` (above 0 with
+    /// `N < 4`), `"augmentation"` (a `K̄` that
     /// is not `m × p` or not finite); and the empty field when the model's or the MPC
     /// problem's `p`, `m` do not match the rig's `n_y`, `n_u`.
     ///
@@ -476,6 +490,17 @@ impl PcacParams {
                 ),
             ));
         }
+        if self.qp_changes_per_period > 0 && n < 4 {
+            return Err(ParamError::new(
+                "qp-changes-per-period",
+                format!(
+                    "{}: the QP goes on over later periods only when re-planning every N ≥ 4 \
+                     samples (replan-every is {n}: the solve has one period); leave it out \
+                     or 0",
+                    self.qp_changes_per_period
+                ),
+            ));
+        }
         if n > ell {
             return Err(ParamError::new(
                 "replan-every",
@@ -594,6 +619,7 @@ impl Pcac {
             counts,
             timing: params.timing,
             warm_start: params.warm_start,
+            qp_changes_per_period: params.qp_changes_per_period,
             model,
             aug,
             pred,
@@ -625,6 +651,8 @@ impl Pcac {
             replan: Replan::new(params.replan_every, n_u, spec.horizon),
             predicted: false,
             built: false,
+            qp_open: false,
+            qp_progress: None,
             cond,
         };
         c.initial_inputs();
@@ -811,7 +839,8 @@ impl Pcac {
     fn solve_mpc(&mut self, input: &StepInput<'_>) -> u32 {
         self.predicted = self.predict(input);
         self.built = self.predicted && self.build_qp();
-        self.solve_qp(self.built)
+        self.start_qp(self.built);
+        self.qp_slice(true).unwrap_or(status::OK)
     }
 
     /// Step 3, the first unit of a solve ([`super::replan`]): the move reference (2.47),
@@ -820,6 +849,7 @@ impl Pcac {
     /// whether the prediction is usable.
     fn predict(&mut self, input: &StepInput<'_>) -> bool {
         self.counters.steps += 1;
+        self.qp_open = false;
         self.last_iterations = 0;
         self.last_active = 0;
         // The move reference (2.47): u_{k−1} (same step) or the last committed input.
@@ -870,24 +900,67 @@ impl Pcac {
                 .is_ok()
     }
 
-    /// Steps 4–5's solve, the last unit: the QP of the last build when `built` (else the
-    /// refusal), the first move (or the fallback) into `self.u_tmp`, the next warm start
-    /// ([`PcacParams::replan_every`] samples on), and the plan into [`Replan`] (next-step
-    /// timing). Returns the status bits.
-    fn solve_qp(&mut self, built: bool) -> u32 {
+    /// Step 5's beginning, the first period of the solve unit: the fast path's solution
+    /// when the build found one, else the QP of the last build when `built` (its
+    /// factorization and start point, [`DenseQpSolver::start`]), else nothing (the build
+    /// was refused).
+    fn start_qp(&mut self, built: bool) {
+        self.qp_open = true;
         self.fast_used = built && self.fast_found;
-        let status = if self.fast_used {
-            self.counters.fast_path += 1;
-            Some(QpStatus::Solved)
-        } else if built {
+        self.qp_progress = if self.fast_used || !built {
+            None
+        } else {
             let warm = if self.warm_start && self.n_shifted > 0 {
                 WarmStart::ActiveSet(&self.shifted[..self.n_shifted])
             } else {
                 WarmStart::Cold
             };
-            Some(self.solver.solve(&self.cond.problem(), warm))
+            Some(self.solver.start(&self.cond.problem(), warm))
+        };
+    }
+
+    /// This period's share of the solve unit: at most
+    /// [`PcacParams::qp_changes_per_period`] active-set changes, or all that remain when
+    /// `last` (the cycle's last period) or when no share is set. When the solve is over
+    /// (or had nothing to run), `take_solution` and its status bits.
+    fn qp_slice(&mut self, last: bool) -> Option<u32> {
+        if !self.qp_open {
+            return None;
+        }
+        if let Some(QpProgress::Running) = self.qp_progress {
+            let share = self.qp_changes_per_period;
+            let budget = if last || share == 0 {
+                usize::MAX
+            } else {
+                share
+            };
+            self.qp_progress = Some(self.solver.proceed(&self.cond.problem(), budget));
+        }
+        match self.qp_progress {
+            Some(QpProgress::Running) if !last => None,
+            _ => {
+                self.qp_open = false;
+                Some(self.take_solution())
+            }
+        }
+    }
+
+    /// Step 5's end, once the solve unit is over: the first move of its solution (or the
+    /// fallback) into `self.u_tmp`, the next warm start ([`PcacParams::replan_every`]
+    /// samples on), and the plan into [`Replan`] (next-step timing). Returns the status
+    /// bits.
+    fn take_solution(&mut self) -> u32 {
+        let status = if self.fast_used {
+            self.counters.fast_path += 1;
+            Some(QpStatus::Solved)
         } else {
-            None
+            match self.qp_progress {
+                Some(QpProgress::Done(status)) => Some(status),
+                // Only after usize::MAX changes in the last period, which the iteration
+                // cap prevents.
+                Some(QpProgress::Running) => Some(QpStatus::MaxIterations),
+                None => None,
+            }
         };
         self.last_status = status;
         if !self.fast_used {
@@ -965,7 +1038,10 @@ impl Pcac {
             self.built = self.predicted && self.build_qp();
         }
         if units.solve {
-            let _ = self.solve_qp(self.built);
+            self.start_qp(self.built);
+        }
+        if units.solve || units.solve_more {
+            let _ = self.qp_slice(units.take_over);
         }
         self.replan.next_sample(units.take_over);
         self.u_last.copy_from_slice(&self.u_next);

@@ -44,6 +44,17 @@
 //! always. The new plan takes over at the last position (`i = N − 1`), so the input sent
 //! ahead for `k + N` is its first row.
 //!
+//! With `N ≥ 4` the solve may go on over the periods `3 … N−1` as well
+//! ([`PcacParams::qp_changes_per_period`](super::PcacParams::qp_changes_per_period)
+//! `= B > 0`): the third period factors `H` and computes the start point
+//! ([`DenseQpSolver::start`](crate::mpc::qp::DenseQpSolver::start)) and makes at most `B`
+//! active-set changes, each later period at most `B` more
+//! ([`DenseQpSolver::proceed`](crate::mpc::qp::DenseQpSolver::proceed)), and the last
+//! period makes those that remain (up to the iteration cap). The QP's work is thus cut
+//! into shares no larger than the factorization plus `B` changes, except in the last
+//! period, and its result is the one solve's, bit for bit; the new plan takes over at
+//! the last position, as with the solve in one period.
+//!
 //! A cycle is abandoned when its data no longer hold: a sample taken in without
 //! adaptation (the loop caught up: the plant holds its input, and the plan in force is
 //! dropped, as after an observation in the single-rate form), or samples lost before the
@@ -57,8 +68,11 @@ pub(super) struct Units {
     pub predict: bool,
     /// The condensed QP.
     pub build: bool,
-    /// The QP solve and the new plan.
+    /// The QP solve begins (its factorization and start point, and its first share of
+    /// active-set changes).
     pub solve: bool,
+    /// The QP solve goes on (a period after the one it began in; `N ≥ 4`).
+    pub solve_more: bool,
     /// The new plan takes over after this period's work.
     pub take_over: bool,
 }
@@ -150,6 +164,7 @@ impl Replan {
             predict: at(0),
             build: at(1),
             solve: at(2),
+            solve_more: lag == 0 && pos > 2,
             take_over: pos + 1 == self.every,
         };
         self.pos = if units.take_over { None } else { Some(pos + 1) };

@@ -995,9 +995,15 @@ fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
                     let before = split.iterations();
                     progress = split.proceed(&p.problem(), budget);
                     let made = split.iterations() - before;
-                    assert!(made <= budget + p.n + p.n_ineq(), "case {case}: {made} changes");
+                    assert!(
+                        made <= budget + p.n + p.n_ineq(),
+                        "case {case}: {made} changes"
+                    );
                     if progress == QpProgress::Running {
-                        assert!(made >= budget, "case {case}: stopped after {made} < {budget}");
+                        assert!(
+                            made >= budget,
+                            "case {case}: stopped after {made} < {budget}"
+                        );
                     }
                     calls += 1;
                     assert!(calls <= 10_000);
@@ -1025,7 +1031,10 @@ fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
         }
     }
     // The budgets did split most solves.
-    assert!(split_runs >= 40, "{split_runs} of 72 solves ran over several calls");
+    assert!(
+        split_runs >= 40,
+        "{split_runs} of 72 solves ran over several calls"
+    );
 }
 
 /// `proceed` with a problem of other dimensions ends the running solve with

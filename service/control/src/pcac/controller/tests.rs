@@ -845,6 +845,62 @@ fn between_solves_the_ready_inputs_are_the_plan_rows() {
     assert_eq!(stepped, ahead);
 }
 
+/// Re-planning every `N ≥ 4` samples with the QP cut into shares of `B` active-set
+/// changes per period ([`PcacParams::qp_changes_per_period`]) gives the inputs and status
+/// bits of the whole QP in one period, bit for bit, while solves do end in later periods
+/// (the QP went on there); and the share is refused below `N = 4` under its name.
+#[test]
+fn a_qp_cut_into_shares_over_the_periods_gives_the_same_inputs() {
+    for n in [4usize, 6] {
+        let run = |share: usize| {
+            let mut p = params(PcacTiming::NextStep);
+            p.replan_every = n;
+            p.qp_changes_per_period = share;
+            let mut c = Pcac::new(&p, counts(1)).unwrap();
+            // The cycle position of each sample that ended a solve (cycles start at 0).
+            let mut ended_at = vec![0usize; n];
+            let (mut k, mut seen) = (0usize, 0u64);
+            let inputs = inputs_of(&mut c, true, 3000, |c| {
+                let done = c.counts_of();
+                let ended = done.solved + done.fallbacks;
+                if ended > seen {
+                    seen = ended;
+                    ended_at[k % n] += 1;
+                }
+                k += 1;
+            });
+            assert_eq!(c.counts_of().fallbacks, 0, "N = {n}, share {share}");
+            (inputs, ended_at)
+        };
+        let (whole, at_whole) = run(0);
+        assert_eq!(
+            at_whole[2],
+            at_whole.iter().sum::<usize>(),
+            "N = {n}: {at_whole:?}"
+        );
+        for share in [1, 2] {
+            let (cut, at_cut) = run(share);
+            assert_eq!(cut, whole, "N = {n}, share {share}");
+            let later: usize = at_cut[3..].iter().sum();
+            assert!(
+                later > 0,
+                "N = {n}, share {share}: no solve went on ({at_cut:?})"
+            );
+            assert_eq!(at_cut.iter().sum::<usize>(), at_whole[2]);
+        }
+    }
+    let field = |n: usize, share: usize| {
+        let mut p = params(PcacTiming::NextStep);
+        p.replan_every = n;
+        p.qp_changes_per_period = share;
+        p.validate(counts(0)).map_err(|e| e.path())
+    };
+    assert_eq!(field(3, 1), Err("qp-changes-per-period".into()));
+    assert_eq!(field(1, 5), Err("qp-changes-per-period".into()));
+    assert_eq!(field(4, 1), Ok(()));
+    assert_eq!(field(3, 0), Ok(()));
+}
+
 /// Re-planning every 2 and 3 samples still rejects the harmonic and tracks the step of
 /// the closed-loop test within the input and move bounds, from a cold start, without a
 /// fallback. What the plan held open loop for `N` samples costs is visible here: this
