@@ -164,8 +164,10 @@ fn bench(o: &Options) -> i32 {
             None,
             steps,
             Anchors::BOTH,
-            &latency_bench::pcac_replan::DEFAULT_PERIODS,
-            0,
+            latency_bench::pcac_replan::Runs {
+                every: &latency_bench::pcac_replan::DEFAULT_PERIODS,
+                qp_share: 0,
+            },
         );
         col.measured.extend(rows);
         col.details.extend(lines);
@@ -243,7 +245,16 @@ fn pcac_only(a: &PcacArgs) -> i32 {
     ));
     let replan: Vec<usize> = a.replan_every.iter().copied().filter(|&n| n > 0).collect();
     let (measured, details, v) = pcac_phase::pcac_phase(
-        a.rt_core, &out, &workloads, a.warmup, steps, anchors, &replan, a.qp_share,
+        a.rt_core,
+        &out,
+        &workloads,
+        a.warmup,
+        steps,
+        anchors,
+        latency_bench::pcac_replan::Runs {
+            every: &replan,
+            qp_share: a.qp_share,
+        },
     );
     let mut col = Collected {
         measured,

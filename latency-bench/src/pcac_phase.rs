@@ -25,9 +25,12 @@ pub fn pcac_phase(
     warmup: Option<u64>,
     steps: u64,
     anchors: Anchors,
-    replan: &[usize],
-    qp_share: usize,
+    replan: pcac_replan::Runs<'_>,
 ) -> (Vec<Measured>, Vec<String>, Value) {
+    let pcac_replan::Runs {
+        every: replan,
+        qp_share,
+    } = replan;
     let list = workloads.to_vec();
     // (N, QP share): every sample first, then each N, and each N ≥ 4 again in shares.
     let periods: Vec<(usize, usize)> = if workloads.contains(&Workload::Truss) && !replan.is_empty()

@@ -35,6 +35,16 @@ use ipc_types::clock::monotonic_ns;
 /// The re-planning periods `latency-bench pcac` times when not told otherwise.
 pub const DEFAULT_PERIODS: [usize; 3] = [2, 3, 4];
 
+/// Which re-planning runs to time: each period `N` of `every`, and each `N ≥ 4` a second
+/// time with the QP in shares of `qp_share` active-set changes when `qp_share > 0`.
+#[derive(Debug, Clone, Copy)]
+pub struct Runs<'a> {
+    /// The re-planning periods `N`.
+    pub every: &'a [usize],
+    /// The QP's share per period (`--qp-share`; 0: no second run).
+    pub qp_share: usize,
+}
+
 /// The periods of one re-planning period `N`.
 #[derive(Debug)]
 pub struct ReplanCost {
@@ -140,15 +150,27 @@ mod tests {
     /// recorded by their position; with a solve at every sample there is one position.
     #[test]
     fn the_solves_and_positions_follow_the_period() {
-        let three = measure(3, 30, 300).unwrap();
+        let three = measure(3, 0, 30, 300).unwrap();
         assert_eq!(three.solves, 330 / 3);
         assert_eq!(three.fallbacks, 0);
         let recorded: u64 = three.by_position[..3].iter().map(|h| h.len()).sum();
         assert_eq!(recorded, three.period.len());
         assert!(three.by_position.iter().take(3).all(|h| h.len() > 90));
         assert_eq!(three.period.len() + three.cold.len(), 300);
-        let one = measure(1, 30, 300).unwrap();
+        let one = measure(1, 0, 30, 300).unwrap();
         assert_eq!(one.solves, 330);
         assert_eq!(one.by_position[0].len(), one.period.len());
+    }
+
+    /// With the QP in shares (N = 5, 2 changes per period), the run solves as often, with
+    /// no fallback, and records all five positions.
+    #[test]
+    fn the_qp_in_shares_solves_as_often() {
+        let shared = measure(5, 2, 30, 300).unwrap();
+        assert_eq!(shared.share, 2);
+        assert_eq!(shared.solves, 330 / 5);
+        assert_eq!(shared.fallbacks, 0);
+        let recorded: u64 = shared.by_position.iter().map(|h| h.len()).sum();
+        assert_eq!(recorded, shared.period.len());
     }
 }
