@@ -122,9 +122,11 @@
 //!
 //! A solve can also be split over several calls, so that a controller that re-plans
 //! every `N` samples spreads it over sample periods: [`DenseQpSolver::start`] does the
-//! fixed part (the checks, the factorization and the start point), and each
-//! [`DenseQpSolver::proceed`] adds violated constraints until the solution is reached or
-//! it has made the active-set changes it was given. Every iterate in between is dual
+//! fixed part (the checks and the factorization), and each [`DenseQpSolver::proceed`]
+//! goes on until the solution is reached or it has made the active-set changes it was
+//! given: the start point's rounds (each frees the fixed bounds with negative
+//! multipliers, one change each, and re-minimizes), the bulk fix, then the additions of
+//! violated constraints. The budget is checked between rounds and between additions. Every iterate in between is dual
 //! feasible but not yet primal feasible, so nothing is usable before the end; the split
 //! changes when the work is done, not the work: the operations are those of one
 //! [`DenseQpSolver::solve`], in the same order, and the result is the same bit for bit.
@@ -251,6 +253,16 @@ pub enum QpProgress {
     Done(QpStatus),
     /// Violated constraints remain to be added: [`DenseQpSolver::proceed`] goes on.
     Running,
+}
+
+/// The stages of a solve after the factorization.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// The start point's rounds; `minimized`: the next round need not re-minimize;
+    /// `refactored`: the bulk fix has been done.
+    Start { minimized: bool, refactored: bool },
+    /// The dual iterations.
+    Add,
 }
 
 /// Tolerances and limits of [`DenseQpSolver`].
@@ -396,6 +408,8 @@ pub struct DenseQpSolver {
     freed: usize,
     /// A solve begun by `start` awaits `proceed`.
     running: bool,
+    /// Where the running solve stands.
+    phase: Phase,
     /// The outcome of the last solve that ended.
     last_status: QpStatus,
 }
@@ -553,6 +567,7 @@ impl DenseQpSolver {
             fixed_at_start: 0,
             freed: 0,
             running: false,
+            phase: Phase::Add,
             last_status: QpStatus::InvalidDimensions,
         };
         solver.prepare_thread();
@@ -736,8 +751,8 @@ impl DenseQpSolver {
     }
 
     /// The first part of a solve split over several calls (module docs, "Real-time
-    /// use"): the checks, the factorization and the dual-feasible start point, without
-    /// any constraint addition. [`DenseQpSolver::proceed`] goes on with the same problem
+    /// use"): the checks and the factorization; the start point and the constraint
+    /// additions follow in [`DenseQpSolver::proceed`]. [`DenseQpSolver::proceed`] goes on with the same problem
     /// (`p` must not change in between). Allocation-free.
     pub fn start(&mut self, p: &QpProblem, warm: WarmStart) -> QpProgress {
         self.running = false;
@@ -767,10 +782,11 @@ impl DenseQpSolver {
     }
 
     /// Goes on with the solve begun by [`DenseQpSolver::start`] on the same, unchanged
-    /// problem `p`: adds violated constraints until the KKT conditions hold, the
-    /// iteration cap is reached, or this call has made `budget` active-set changes (a
-    /// constraint whose addition has begun is always completed, so a call may exceed
-    /// `budget` by the partial steps of one addition). `Running`: call again;
+    /// problem `p`: computes the start point and adds violated constraints until the KKT
+    /// conditions hold, the iteration cap is reached, or this call has made `budget`
+    /// active-set changes (a start-point round or a constraint addition that has begun is
+    /// always completed, so a call may exceed `budget` by the bounds one round frees or
+    /// the partial steps of one addition). `Running`: call again;
     /// `Done(status)`: the solve is over, with the outcome [`DenseQpSolver::solve`]
     /// would have returned, bit for bit. With no solve running, `Done` repeats the last
     /// outcome. Allocation-free.
@@ -783,7 +799,7 @@ impl DenseQpSolver {
             self.last_status = QpStatus::InvalidDimensions;
             return QpProgress::Done(QpStatus::InvalidDimensions);
         }
-        match self.add_violated(p, budget) {
+        match self.work(p, budget) {
             Some(status) => QpProgress::Done(self.conclude(p, status)),
             None => QpProgress::Running,
         }
@@ -813,8 +829,8 @@ impl DenseQpSolver {
         status
     }
 
-    /// Everything before the first constraint addition: the compressed rows, the warm
-    /// start's fixed bounds, the factorization and the start point.
+    /// The fixed part of a solve: the compressed rows, the warm start's fixed bounds and
+    /// the factorization; the start point's rounds are set to follow (`work`).
     fn begin(&mut self, p: &QpProblem, warm: WarmStart) -> Result<(), QpStatus> {
         let n = self.n;
         let m = self.n_ineq;
@@ -892,14 +908,23 @@ impl DenseQpSolver {
                 _ => FREE,
             };
         }
-        let max_iter = self.settings.max_iterations;
         self.factor_free(p)?;
         self.fixed_at_start = self.fixed.len();
-        // The starting point (dual feasible, see `start_point`).
-        self.start_point(p, false, max_iter)?;
-        // Bounds violated at that point are fixed in bulk when there are at least
-        // `BULK_FIX` of them: one more factorization instead of one dual step each (the
-        // first steps of a saturated horizon, which the warm start does not foresee).
+        // The starting point (dual feasible, see `start_rows` and `start_round`) follows
+        // in `work`.
+        self.start_rows();
+        self.phase = Phase::Start {
+            minimized: false,
+            refactored: false,
+        };
+        Ok(())
+    }
+
+    /// Bounds violated at the start point are fixed in bulk when there are at least
+    /// `BULK_FIX` of them: one more factorization instead of one dual step each (the
+    /// first steps of a saturated horizon, which the warm start does not foresee).
+    /// Returns whether they were (and the start point must be computed again).
+    fn fix_in_bulk(&mut self, p: &QpProblem) -> Result<bool, QpStatus> {
         let tol = self.settings.feasibility_tol;
         let mut violated = 0;
         for &i in &self.free {
@@ -916,25 +941,56 @@ impl DenseQpSolver {
             self.fixed_at_start += violated;
             self.clear_active();
             self.factor_free(p)?;
-            self.start_point(p, false, max_iter)?;
+            self.start_rows();
+            Ok(true)
         } else {
             for &i in &self.free {
                 self.fix[i] = FREE;
             }
+            Ok(false)
         }
-        Ok(())
     }
 
-    /// The dual iterations: the violated constraint (prioritized first, then the most
-    /// violated) is added, until none is left (`Solved`), a step fails, or `budget`
-    /// active-set changes have been made in this call (`None`).
-    fn add_violated(&mut self, p: &QpProblem, budget: usize) -> Option<QpStatus> {
+    /// The work after the factorization, in order: the start point's rounds (each
+    /// freeing the fixed bounds and dropping the rows with negative multipliers), the
+    /// bulk fix (and the rounds again after it), then the dual iterations: the violated
+    /// constraint (prioritized first, then the most violated) is added, until none is
+    /// left (`Solved`) or a step fails; or until `budget` active-set changes have been
+    /// made in this call (`None`: more to do), checked between rounds and additions.
+    fn work(&mut self, p: &QpProblem, budget: usize) -> Option<QpStatus> {
         let max_iter = self.settings.max_iterations;
         let tol = self.settings.feasibility_tol;
         let mark = self.iterations;
         loop {
             if self.iterations - mark >= budget {
                 return None;
+            }
+            if let Phase::Start {
+                minimized,
+                refactored,
+            } = self.phase
+            {
+                match self.start_round(p, minimized, max_iter) {
+                    Err(status) => return Some(status),
+                    Ok(false) => {
+                        self.phase = Phase::Start {
+                            minimized: false,
+                            refactored,
+                        }
+                    }
+                    Ok(true) if refactored => self.phase = Phase::Add,
+                    Ok(true) => match self.fix_in_bulk(p) {
+                        Err(status) => return Some(status),
+                        Ok(true) => {
+                            self.phase = Phase::Start {
+                                minimized: false,
+                                refactored: true,
+                            }
+                        }
+                        Ok(false) => self.phase = Phase::Add,
+                    },
+                }
+                continue;
             }
             let (best, best_v, best_pri) = self.select_violated(p, tol);
             let pid = if best_pri != usize::MAX {
@@ -1002,13 +1058,12 @@ impl DenseQpSolver {
     /// (`U⁰` the minimizer without the rows, `L_F⁻¹ N_R = Q R`), and the fixed bounds'
     /// multipliers from stationarity on their rows. It is dual feasible when every
     /// multiplier is nonnegative; rows and fixed bounds with negative ones leave (the
-    /// variables are freed) until it is. `minimized`: `U_F` already holds `U⁰_F`.
-    fn start_point(
-        &mut self,
-        p: &QpProblem,
-        mut minimized: bool,
-        max_iter: usize,
-    ) -> Result<(), QpStatus> {
+    /// variables are freed) until it is.
+    ///
+    /// This collects the warm start's rows `R`; each [`DenseQpSolver::start_round`]
+    /// computes the point for the present `B` and `R` and frees (drops) those with
+    /// negative multipliers, until none is left.
+    fn start_rows(&mut self) {
         let n = self.n;
         self.start_rows.clear();
         for j in 0..self.n_ineq {
@@ -1017,11 +1072,22 @@ impl DenseQpSolver {
                 self.start_rows.push(id);
             }
         }
-        loop {
+    }
+
+    /// One round of the start point ([`DenseQpSolver::start_rows`]): `Ok(true)` when it
+    /// is dual feasible, `Ok(false)` when bounds were freed or rows dropped (another
+    /// round follows, re-minimizing). `minimized`: `U_F` already holds `U⁰_F`.
+    fn start_round(
+        &mut self,
+        p: &QpProblem,
+        minimized: bool,
+        max_iter: usize,
+    ) -> Result<bool, QpStatus> {
+        let n = self.n;
+        {
             if !minimized {
                 self.minimize_free(p)?;
             }
-            minimized = false;
             let nf = self.free.len();
             // Q R of the rows (a dependent one leaves).
             self.clear_active();
@@ -1109,7 +1175,7 @@ impl DenseQpSolver {
                 }
             }
             if negative == 0 {
-                return Ok(());
+                return Ok(true);
             }
             // Rebuilt in the next round; free the variables without updating Q R.
             self.clear_active();
@@ -1127,6 +1193,7 @@ impl DenseQpSolver {
                 return Err(QpStatus::MaxIterations);
             }
         }
+        Ok(false)
     }
 
     /// CGS2 of `w` (norm `w_norm`) against the active `Q` on the first `nf` coordinates:

@@ -902,7 +902,7 @@ impl Pcac {
 
     /// Step 5's beginning, the first period of the solve unit: the fast path's solution
     /// when the build found one, else the QP of the last build when `built` (its
-    /// factorization and start point, [`DenseQpSolver::start`]), else nothing (the build
+    /// factorization, [`DenseQpSolver::start`]), else nothing (the build
     /// was refused).
     fn start_qp(&mut self, built: bool) {
         self.qp_open = true;

@@ -46,12 +46,14 @@
 //!
 //! With `N ≥ 4` the solve may go on over the periods `3 … N−1` as well
 //! ([`PcacParams::qp_changes_per_period`](super::PcacParams::qp_changes_per_period)
-//! `= B > 0`): the third period factors `H` and computes the start point
+//! `= B > 0`): the third period factors `H`
 //! ([`DenseQpSolver::start`](crate::mpc::qp::DenseQpSolver::start)) and makes at most `B`
-//! active-set changes, each later period at most `B` more
+//! active-set changes (the start point's rounds, then constraint additions), each later
+//! period at most `B` more
 //! ([`DenseQpSolver::proceed`](crate::mpc::qp::DenseQpSolver::proceed)), and the last
 //! period makes those that remain (up to the iteration cap). The QP's work is thus cut
-//! into shares no larger than the factorization plus `B` changes, except in the last
+//! into shares no larger than the factorization plus `B` changes (and one round or
+//! addition begun), except in the last
 //! period, and its result is the one solve's, bit for bit; the new plan takes over at
 //! the last position, as with the solve in one period.
 //!
@@ -68,7 +70,7 @@ pub(super) struct Units {
     pub predict: bool,
     /// The condensed QP.
     pub build: bool,
-    /// The QP solve begins (its factorization and start point, and its first share of
+    /// The QP solve begins (its factorization, and its first share of
     /// active-set changes).
     pub solve: bool,
     /// The QP solve goes on (a period after the one it began in; `N ≥ 4`).
