@@ -69,6 +69,23 @@
 //!
 //! Steps are numbered `0..ℓ` in the code (`i = 0` is `y_{1|k}` / `u_{1|k}`).
 //!
+//! ## The tone-notch input cost (2.47')–(2.48')
+//!
+//! With [`MpcSpec::input_notch`] (PCAC's internal model of known tones,
+//! [`crate::internal_model`]; an extension beyond the dissertation) the cost is (2.48)
+//! plus `Vᵀ R_v V + Uᵀ R_u U`, `V = 𝒲 U + v_free` (2.47'), `𝒲` the lower triangular
+//! block Toeplitz matrix with blocks `w_{i−j} I_m` of the notch's impulse response
+//! ([`NotchInputCost`]). Then
+//!
+//! ```text
+//! H += 2 (𝒲ᵀ R_v 𝒲 + R_u),   f += 2 𝒲ᵀ R_v v_free,   c += v_freeᵀ R_v v_free
+//! ```
+//!
+//! The first term is constant, formed once in [`Condenser::new`] and added to every `H`
+//! (`(ℓm)²` additions); the second costs `O(ℓ² m / 2)` per build
+//! ([`Condenser::build_notched`]). Since `w_0 = 1`, `𝒲ᵀ R_v 𝒲` is positive definite for
+//! `R_v > 0`, so `R` may then be 0.
+//!
 //! ## The structure exploited
 //!
 //! - **Tracking first.** Only `Y_t` enters the cost, so the Markov parameters are
