@@ -55,10 +55,10 @@ use super::controller::{ControllerConfig, Rig, param_error};
 use super::forgetting::{RawForgetting, ReadRule, forgetting_rule, required_p0};
 use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
+use control::internal_model::MAX_TONES;
 use control::mpc::condense::{MoveBounds, OutputConstraints, Weight};
 use control::mpc::fast_path::FastPathMode;
 use control::mpc::qp::QpSettings;
-use control::internal_model::MAX_TONES;
 use control::pcac::{InternalModel, PcacParams, PcacTiming};
 
 #[derive(Deserialize)]
@@ -116,7 +116,10 @@ fn internal_model(
     if raw.tones_hz.is_empty() || raw.tones_hz.len() > MAX_TONES {
         return Err(err(
             &f("tones-hz"),
-            format!("has {} tones, expected 1 to {MAX_TONES}", raw.tones_hz.len()),
+            format!(
+                "has {} tones, expected 1 to {MAX_TONES}",
+                raw.tones_hz.len()
+            ),
         ));
     }
     if let Some(bad) = raw
@@ -380,7 +383,10 @@ mod tests {
         assert!((im.omegas[0] - two_pi * 0.1).abs() < 1e-12);
         assert!((im.omegas[1] - two_pi * 0.375).abs() < 1e-12);
         assert_eq!(im.notch_radius, 0.97);
-        assert_eq!((im.r_notch.clone(), im.r_level.clone()), (vec![1.0; 2], vec![100.0, 0.0]));
+        assert_eq!(
+            (im.r_notch.clone(), im.r_level.clone()),
+            (vec![1.0; 2], vec![100.0, 0.0])
+        );
         assert_eq!(p.mpc.r, Weight::PerChannel(vec![0.0, 0.0]));
         let c = ServiceConfig::parse(text, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();

@@ -399,7 +399,11 @@ struct CondensedNotch {
 impl CondensedNotch {
     /// Checks the cost for `ℓ` steps and `m` inputs and forms its constant Hessian.
     fn new(cost: &NotchInputCost, ell: usize, m: usize) -> Result<Self, SpecError> {
-        check_len(&cost.impulse_response, ell, "input_notch.impulse_response (ℓ)")?;
+        check_len(
+            &cost.impulse_response,
+            ell,
+            "input_notch.impulse_response (ℓ)",
+        )?;
         check_len(&cost.r_notch, m, "input_notch.r_notch (m)")?;
         check_len(&cost.r_level, m, "input_notch.r_level (m)")?;
         let w = &cost.impulse_response;

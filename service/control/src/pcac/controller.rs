@@ -94,9 +94,9 @@ use super::augmentation::{Augmentation, AugmentedModel, OutputFeedback};
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
 use super::replan::Replan;
 use super::tone_model::{InternalModel, ToneModel, ToneProductModel};
-use crate::bocf::{DimError, IdentifiedModel};
 use crate::ParamError;
 use crate::ahead::Ahead;
+use crate::bocf::{DimError, IdentifiedModel};
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
 use crate::mpc::condense::{Condenser, MpcSpec, NotchInputCost, Weight};
 use crate::mpc::fast_path::{FastPath, FastPathMode};
@@ -396,13 +396,7 @@ impl PcacParams {
             ));
         }
         check_weight(&spec.q, "q", pt, spec.horizon, false)?;
-        check_weight(
-            &spec.r,
-            "r",
-            m,
-            spec.horizon,
-            self.internal_model.is_none(),
-        )?;
+        check_weight(&spec.r, "r", m, spec.horizon, self.internal_model.is_none())?;
         self.validate_internal_model()?;
         if spec.u_min.len() != m || spec.u_max.len() != m {
             return Err(ParamError::new(
@@ -511,8 +505,7 @@ impl PcacParams {
                  never takes it) or \"never\"",
             ));
         }
-        if let Err(e) = crate::internal_model::ToneAnnihilator::new(&im.omegas, im.notch_radius)
-        {
+        if let Err(e) = crate::internal_model::ToneAnnihilator::new(&im.omegas, im.notch_radius) {
             let field = if e.contains("radius") {
                 "internal-model.notch-radius"
             } else {
@@ -530,8 +523,7 @@ impl PcacParams {
                     format!("has {} values, expected one per input ({m})", w.len()),
                 ));
             }
-            if w
-                .iter()
+            if w.iter()
                 .any(|x| !x.is_finite() || *x < 0.0 || (positive && *x == 0.0))
             {
                 let need = if positive { "> 0" } else { "≥ 0" };

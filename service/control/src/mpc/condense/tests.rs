@@ -848,8 +848,7 @@ fn direct_notched_cost(
 fn the_tone_notch_cost_condensed_equals_2_48_prime_evaluated_directly() {
     let mut rng = ChaCha8Rng::seed_from_u64(48);
     for (ell, m, p, pt, r_move) in [(9, 2, 1, 1, 0.0), (6, 2, 3, 2, 0.3), (12, 1, 2, 1, 0.0)] {
-        let ann =
-            crate::internal_model::ToneAnnihilator::new(&[0.4, 1.3], 0.9).expect("tones");
+        let ann = crate::internal_model::ToneAnnihilator::new(&[0.4, 1.3], 0.9).expect("tones");
         let cost = NotchInputCost {
             impulse_response: ann.notch_impulse_response(ell),
             r_notch: (0..m).map(|j| 0.5 + j as f64).collect(),
@@ -867,8 +866,14 @@ fn the_tone_notch_cost_condensed_equals_2_48_prime_evaluated_directly() {
             c.build(&case.markov, &case.free, &case.u_k, &case.reference),
             Err(BuildError::Length { what: "v_free", .. })
         ));
-        c.build_notched(&case.markov, &case.free, &case.u_k, &case.reference, &v_free)
-            .unwrap();
+        c.build_notched(
+            &case.markov,
+            &case.free,
+            &case.u_k,
+            &case.reference,
+            &v_free,
+        )
+        .unwrap();
         let dn = dense(&case.spec, &case.markov);
         for _ in 0..5 {
             let u = DVector::from_vec(randn(ell * m, &mut rng));

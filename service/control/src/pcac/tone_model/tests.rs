@@ -156,9 +156,16 @@ fn identification_on_filtered_data_recovers_the_plant_part_with_the_tones_presen
         u_prev = u;
     }
     let err = max_abs_diff(model.coefficients(), &PLANT);
-    assert!(err < 1e-6, "filtered fit off by {err}: {:?}", model.coefficients());
+    assert!(
+        err < 1e-6,
+        "filtered fit off by {err}: {:?}",
+        model.coefficients()
+    );
     let plain_err = max_abs_diff(plain.coefficients(), &PLANT);
-    assert!(plain_err > 100.0 * err, "the plain fit is off by only {plain_err}");
+    assert!(
+        plain_err > 100.0 * err,
+        "the plain fit is off by only {plain_err}"
+    );
 }
 
 #[test]
@@ -275,7 +282,10 @@ fn the_internal_model_refuses_the_always_fast_path_and_bad_settings_by_name() {
     };
     let dims = Dimensions::new(1, 1, 0, 1);
     let field = |p: PcacParams| p.validate(dims).unwrap_err().field.to_string();
-    assert_eq!(field(base().fast_path(FastPathMode::Always).build()), "fast-path");
+    assert_eq!(
+        field(base().fast_path(FastPathMode::Always).build()),
+        "fast-path"
+    );
     let mut im = internal_model(1);
     im.notch_radius = 1.0;
     assert_eq!(
