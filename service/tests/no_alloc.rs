@@ -1083,3 +1083,95 @@ fn qp_solves_with_fixed_and_freed_bounds_do_not_allocate() {
     assert_eq!((solved, infeasible), (90, 30));
     assert!(fixed > 1000 && freed > 100, "{fixed} fixed, {freed} freed");
 }
+
+/// A PCAC controller with the internal model of known tones (`[controller.internal-model]`:
+/// `D(q)`-filtered identification, the product-model prediction, the tone-notch and
+/// level input cost in condensing), at a reduced acoustic size (`n̂ = 12`, `p = 1`,
+/// `m = 2`, three tones, `ℓ = 24`), next-step timing, re-planning every `replan` samples.
+fn internal_model_pcac(replan: usize) -> Box<dyn control::Controller> {
+    let cfg = parse_config(
+        "pcac-internal-model-no-alloc",
+        "sample-period = 1.25e-4",
+        "y = 1, z = 1, u = 2",
+        "fifo-priority = 0\nmlockall = false",
+        &format!(
+            r#"[controller]
+kind = "pcac"
+n-hat = 12
+p0 = 0.01
+theta0 = 0.01
+horizon = 24
+q = 10.0
+u-min = -5.0
+u-max = 5.0
+du-min = -4.0
+du-max = 4.0
+timing = "next-step"
+replan-every = {replan}
+[controller.internal-model]
+tones-hz = [800.0, 1300.0, 3000.0]
+notch-radius = 0.97
+r-level = [100.0, 0.0]
+"#
+        ),
+    );
+    cfg.controller.build(cfg.counts).unwrap()
+}
+
+/// The PCAC step with the internal model of known tones, solving at every sample and
+/// re-planning every 3: steps with lost samples (bridged), caught-up samples, held inputs,
+/// internals and a reset make no allocation once built.
+#[test]
+fn the_pcac_step_with_the_internal_model_does_not_allocate() {
+    for replan in [1, 3] {
+        let mut ctl = service::rt_alloc::outside_rt(|| internal_model_pcac(replan));
+        let mut x = [0.0f64; 2];
+        let (mut y, mut u, mut applied) = ([0.0; 1], [0.0; 2], [0.0; 2]);
+        let mut internals = [0.0; control::MAX_INTERNALS];
+        let mut answered = 0;
+        let mut run = |ctl: &mut Box<dyn control::Controller>, k: usize, answered: &mut usize| {
+            let t = k as f64;
+            let w = (0.63 * t).sin() + 0.5 * (2.36 * t).sin();
+            let next = 1.6 * x[0] - 0.8 * x[1] + 0.1 * applied[0] + 0.2 * applied[1] + 0.05 * w;
+            x = [next, x[0]];
+            y[0] = next;
+            let input = StepInput {
+                seq: k as u64,
+                y: &y,
+                z: &y,
+                r: &[],
+                u_applied: Some(&applied),
+                lost: if k.is_multiple_of(97) { 2 } else { 0 },
+            };
+            if k % 50 == 7 {
+                ctl.observe(&input, &mut u);
+            } else {
+                ctl.step(&input, &mut u);
+                *answered += 1;
+                if !k.is_multiple_of(9) {
+                    applied = u;
+                }
+            }
+            ctl.internals(&mut internals);
+        };
+        for k in 0..200 {
+            run(&mut ctl, k, &mut answered);
+        }
+        enter_rt_thread(16);
+        let before = thread_stats();
+        for k in 200..600 {
+            run(&mut ctl, k, &mut answered);
+        }
+        ctl.reset();
+        for k in 600..700 {
+            run(&mut ctl, k, &mut answered);
+        }
+        assert_nothing_allocated_since(&before, || format!("replan-every = {replan}"));
+        assert!(answered > 600);
+        assert!(
+            u.iter()
+                .chain(&applied)
+                .all(|v| v.is_finite() && v.abs() <= 5.0)
+        );
+    }
+}

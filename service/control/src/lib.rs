@@ -67,6 +67,7 @@ pub mod controller;
 #[cfg(feature = "excitation")]
 pub mod excitation;
 pub mod forgetting;
+pub mod internal_model;
 pub mod learned;
 pub mod linalg;
 pub mod lti;

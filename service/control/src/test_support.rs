@@ -93,6 +93,7 @@ pub fn siso_mpc_spec(horizon: usize, q: f64, r: f64, u_max: f64, du_max: f64) ->
         u_max: vec![u_max],
         move_bounds: Some(MoveBounds::symmetric(du_max, 1)),
         output_constraints: None,
+        input_notch: None,
     }
 }
 

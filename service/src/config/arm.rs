@@ -231,7 +231,7 @@ fn pcac(
         .try_into()
         .map_err(|e: toml::de::Error| err(PCAC, e.to_string()))?;
     let pcac_dims = ArmControllerParams::pcac_dimensions();
-    let (mut params, rule) = read_pcac(raw, PCAC, pcac_dims.n_y, pcac_dims.n_u, err)?;
+    let (mut params, rule) = read_pcac(raw, PCAC, pcac_dims.n_y, pcac_dims.n_u, period, err)?;
     match (contact_model, prior) {
         (false, Some(_)) => {
             return Err(err(

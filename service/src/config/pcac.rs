@@ -38,7 +38,17 @@
 //! [controller.output-constraints] # (2.49) C_c y_{i|k} + 𝓓 ≤ 0 at every step, optional
 //! c = [[0.0, 0.0, 0.0, 1.0]]      # C_c (n_c × p)
 //! d = [-0.5]                      # 𝓓 (n_c)
+//! [controller.internal-model]     # known tones (beyond the dissertation), optional
+//! tones-hz = [800.0, 900.0]       # the tones' frequencies, each in (0, Nyquist), 1 to 32
+//! notch-radius = 0.97             # ρ of the notch W = D(q)/D(ρq), in (0, 1); default 0.97
+//! r-notch = 1.0                   # R_v on the notched input: scalar or per input (> 0); default 1
+//! r-level = [100.0, 0.0]          # R_u on the input's level: scalar or per input (≥ 0); default 0
 //! ```
+//!
+//! With `[controller.internal-model]` ([`control::pcac::tone_model`]) the identification
+//! runs on `D(q)`-filtered data, the prediction uses the product model and the cost
+//! (2.48') adds `Vᵀ R_v V + Uᵀ R_u U`; `r` (the move weight) then defaults to 0 and may be
+//! 0, and `fast-path = "always"` is refused.
 
 use serde::Deserialize;
 
@@ -47,10 +57,11 @@ use super::controller::{ControllerConfig, Rig, param_error};
 use super::forgetting::{RawForgetting, ReadRule, forgetting_rule, required_p0};
 use super::values::{ScalarOrVec, count, magnitudes, matrix, one_of, per_channel, row_major};
 use super::{ConfigError, ErrFn};
+use control::internal_model::MAX_TONES;
 use control::mpc::condense::{MoveBounds, OutputConstraints, Weight};
 use control::mpc::fast_path::FastPathMode;
 use control::mpc::qp::QpSettings;
-use control::pcac::{PcacParams, PcacTiming};
+use control::pcac::{InternalModel, PcacParams, PcacTiming};
 
 #[derive(Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
@@ -79,6 +90,64 @@ pub(super) struct RawPcac {
     replan_every: Option<usize>,
     qp_changes_per_period: Option<usize>,
     output_constraints: Option<RawOutputConstraints>,
+    internal_model: Option<RawInternalModel>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+struct RawInternalModel {
+    tones_hz: Vec<f64>,
+    notch_radius: Option<f64>,
+    r_notch: Option<ScalarOrVec>,
+    r_level: Option<ScalarOrVec>,
+}
+
+/// The notch radius `ρ` when `[controller.internal-model]` gives none.
+const DEFAULT_NOTCH_RADIUS: f64 = 0.97;
+
+/// `[<table>.internal-model]` into an [`InternalModel`] for the sampling period `period`
+/// (s): the tones in hertz within `(0, Nyquist)`, converted to rad/sample.
+fn internal_model(
+    raw: &RawInternalModel,
+    table: &str,
+    m: usize,
+    period: f64,
+    err: &ErrFn<'_>,
+) -> Result<InternalModel, ConfigError> {
+    let f = |name: &str| format!("{table}.internal-model.{name}");
+    let nyquist = 0.5 / period;
+    if raw.tones_hz.is_empty() || raw.tones_hz.len() > MAX_TONES {
+        return Err(err(
+            &f("tones-hz"),
+            format!(
+                "has {} tones, expected 1 to {MAX_TONES}",
+                raw.tones_hz.len()
+            ),
+        ));
+    }
+    if let Some(bad) = raw
+        .tones_hz
+        .iter()
+        .find(|x| !(x.is_finite() && **x > 0.0 && **x < nyquist))
+    {
+        return Err(err(
+            &f("tones-hz"),
+            format!(
+                "{bad} Hz: every tone must lie strictly between 0 and the Nyquist frequency \
+                 {nyquist} Hz"
+            ),
+        ));
+    }
+    Ok(InternalModel {
+        omegas: raw
+            .tones_hz
+            .iter()
+            .map(|hz| 2.0 * std::f64::consts::PI * hz * period)
+            .collect(),
+        notch_radius: raw.notch_radius.unwrap_or(DEFAULT_NOTCH_RADIUS),
+        r_notch: per_channel(&raw.r_notch, m, 1.0, &f("r-notch"), err)?,
+        r_level: per_channel(&raw.r_level, m, 0.0, &f("r-level"), err)?,
+    })
 }
 
 #[derive(Deserialize)]
@@ -96,7 +165,7 @@ pub(super) fn parse(
     err: &ErrFn<'_>,
 ) -> Result<ControllerConfig, ConfigError> {
     let dims = crate::wire::dimensions(rig.counts);
-    let (params, rule) = read(raw, "controller", dims.n_y, dims.n_u, err)?;
+    let (params, rule) = read(raw, "controller", dims.n_y, dims.n_u, rig.period, err)?;
     params
         .validate(dims)
         .map_err(|e| param_error(rule.locate(e), err))?;
@@ -107,7 +176,8 @@ pub(super) fn parse(
 
 /// Reads a PCAC table found at `table` (`"controller"`, or `"controller.pcac"` in the
 /// sampling-arm controller) for a model with `p` outputs and `m` inputs into
-/// [`PcacParams`] (without an augmentation), naming its fields `<table>.<field>`; the
+/// [`PcacParams`] (without an augmentation; the internal model's tones in hertz at the
+/// sampling period `period`, s), naming its fields `<table>.<field>`; the
 /// caller validates the result (the kernel's fields are relative to the table) with the
 /// returned rule's [`ReadRule::locate`].
 pub(super) fn read(
@@ -115,6 +185,7 @@ pub(super) fn read(
     table: &str,
     p: usize,
     m: usize,
+    period: f64,
     err: &ErrFn<'_>,
 ) -> Result<(PcacParams, ReadRule), ConfigError> {
     let f = |name: &str| format!("{table}.{name}");
@@ -153,7 +224,18 @@ pub(super) fn read(
     }
     let pt = tracking.nrows();
     let q = per_channel(&raw.q, pt, PcacParams::DEFAULT_Q, &f("q"), err)?;
-    let r = per_channel(&raw.r, m, PcacParams::DEFAULT_R, &f("r"), err)?;
+    let internal = match &raw.internal_model {
+        None => None,
+        Some(im) => Some(internal_model(im, table, m, period, err)?),
+    };
+    // With the internal model the tone-notch cost makes the QP strictly convex: R may be 0
+    // and is 0 unless given.
+    let r_default = if internal.is_some() {
+        0.0
+    } else {
+        PcacParams::DEFAULT_R
+    };
+    let r = per_channel(&raw.r, m, r_default, &f("r"), err)?;
     let u_min = per_channel(&raw.u_min, m, f64::NEG_INFINITY, &f("u-min"), err)?;
     let u_max = per_channel(&raw.u_max, m, f64::INFINITY, &f("u-max"), err)?;
     let move_bounds = if raw.du_min.is_none() && raw.du_max.is_none() {
@@ -237,6 +319,7 @@ pub(super) fn read(
         .fast_path(fast_path)
         .replan_every(replan_every)
         .qp_changes_per_period(qp_share)
+        .internal_model(internal)
         .build();
     Ok((params, rule))
 }
@@ -313,9 +396,42 @@ mod tests {
     }
 
     #[test]
+    fn the_internal_model_is_read_in_radians_per_sample_with_r_zero_by_default() {
+        let text = include_str!("../../../tests/fixtures/config/pcac-internal-model.toml");
+        let p = params(text).unwrap();
+        let im = p.internal_model.as_ref().unwrap();
+        let two_pi = 2.0 * std::f64::consts::PI;
+        assert!((im.omegas[0] - two_pi * 0.1).abs() < 1e-12);
+        assert!((im.omegas[1] - two_pi * 0.375).abs() < 1e-12);
+        assert_eq!(im.notch_radius, 0.97);
+        assert_eq!(
+            (im.r_notch.clone(), im.r_level.clone()),
+            (vec![1.0; 2], vec![100.0, 0.0])
+        );
+        assert_eq!(p.mpc.r, Weight::PerChannel(vec![0.0, 0.0]));
+        let c = ServiceConfig::parse(text, "pcac.toml").unwrap();
+        let ctl = c.controller.build(c.counts).unwrap();
+        assert_eq!(ctl.kind(), "pcac");
+        // The defaults: ρ = 0.97, R_v = 1, R_u = 0.
+        let bare = params(
+            &text
+                .replace("notch-radius = 0.97\n", "")
+                .replace("r-notch = 1.0\n", "")
+                .replace("r-level = [100.0, 0.0]\n", ""),
+        )
+        .unwrap();
+        let im = bare.internal_model.as_ref().unwrap();
+        assert_eq!((im.notch_radius, im.r_level.clone()), (0.97, vec![0.0; 2]));
+    }
+
+    #[test]
     fn bad_pcac_settings_are_refused_naming_the_field() {
         let cases = include_str!("../../../tests/fixtures/refusals/controller-pcac.toml");
         assert_refused_naming_fields(GOOD, "pcac.toml", cases);
+        let im = include_str!("../../../tests/fixtures/config/pcac-internal-model.toml");
+        let cases =
+            include_str!("../../../tests/fixtures/refusals/controller-pcac-internal-model.toml");
+        assert_refused_naming_fields(im, "pcac.toml", cases);
         // Commands must match the tracked outputs.
         let m = params(&GOOD.replace("r = 0, u = 2", "r = 2, u = 2")).unwrap_err();
         assert!(m.contains("2 commands r"), "{m}");

@@ -69,6 +69,23 @@
 //!
 //! Steps are numbered `0..ℓ` in the code (`i = 0` is `y_{1|k}` / `u_{1|k}`).
 //!
+//! ## The tone-notch input cost (2.47')–(2.48')
+//!
+//! With [`MpcSpec::input_notch`] (PCAC's internal model of known tones,
+//! [`crate::internal_model`]; an extension beyond the dissertation) the cost is (2.48)
+//! plus `Vᵀ R_v V + Uᵀ R_u U`, `V = 𝒲 U + v_free` (2.47'), `𝒲` the lower triangular
+//! block Toeplitz matrix with blocks `w_{i−j} I_m` of the notch's impulse response
+//! ([`NotchInputCost`]). Then
+//!
+//! ```text
+//! H += 2 (𝒲ᵀ R_v 𝒲 + R_u),   f += 2 𝒲ᵀ R_v v_free,   c += v_freeᵀ R_v v_free
+//! ```
+//!
+//! The first term is constant, formed once in [`Condenser::new`] and added to every `H`
+//! (`(ℓm)²` additions); the second costs `O(ℓ² m / 2)` per build
+//! ([`Condenser::build_notched`]). Since `w_0 = 1`, `𝒲ᵀ R_v 𝒲` is positive definite for
+//! `R_v > 0`, so `R` may then be 0.
+//!
 //! ## The structure exploited
 //!
 //! - **Tracking first.** Only `Y_t` enters the cost, so the Markov parameters are
@@ -236,6 +253,22 @@ pub struct MpcSpec {
     pub move_bounds: Option<MoveBounds>,
     /// The output constraints (2.49), if any.
     pub output_constraints: Option<OutputConstraints>,
+    /// The internal-model law's input cost (2.47')–(2.48') added to (2.48), if any; with
+    /// it `R` may be `0` (module docs, "The tone-notch input cost").
+    pub input_notch: Option<NotchInputCost>,
+}
+
+/// The input cost `Vᵀ R_v V + Uᵀ R_u U` of (2.48'), `V = 𝒲 U + v_free` (2.47')
+/// ([`crate::internal_model`]), added to (2.48).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NotchInputCost {
+    /// `w_0 = 1, w_1, …, w_{ℓ−1}`: the impulse response of the notch `W(q)` over the
+    /// horizon ([`crate::internal_model::ToneAnnihilator::notch_impulse_response`]).
+    pub impulse_response: Vec<f64>,
+    /// `R_v` per input (`m`, finite, `> 0`): the weight on the notched input.
+    pub r_notch: Vec<f64>,
+    /// `R_u` per input (`m`, finite, `≥ 0`): the weight on the input's level.
+    pub r_level: Vec<f64>,
 }
 
 /// Why [`Condenser::new`] refused an [`MpcSpec`].
@@ -295,7 +328,7 @@ impl std::error::Error for BuildError {}
 /// let spec = MpcSpec {
 ///     horizon: 3, n_inputs: 1, n_outputs: 1, n_tracked: 1, tracking: vec![1.0],
 ///     q: Weight::Scalar(1.0), r: Weight::Scalar(0.01),
-///     u_min: vec![-1.0], u_max: vec![1.0], move_bounds: None, output_constraints: None,
+///     u_min: vec![-1.0], u_max: vec![1.0], move_bounds: None, output_constraints: None, input_notch: None,
 /// };
 /// let mut c = Condenser::new(&spec).unwrap();
 /// let mut solver = DenseQpSolver::new(c.n(), c.n_ineq(), QpSettings::default());
@@ -348,6 +381,67 @@ pub struct Condenser {
     cost_const: f64,
     /// The condensed problem.
     qp: QpData,
+    /// The tone-notch input cost (2.47')–(2.48'), when the spec has one.
+    notch: Option<CondensedNotch>,
+}
+
+/// The constant parts of the tone-notch input cost (2.47')–(2.48') in the condensed QP.
+#[derive(Clone, Debug)]
+struct CondensedNotch {
+    /// `w_0 … w_{ℓ−1}`, the impulse response of `W(q)`.
+    w: Vec<f64>,
+    /// `R_v` per input (`m`).
+    r_v: Vec<f64>,
+    /// `2 (𝒲ᵀ R_v 𝒲 + R_u)`, `ℓm × ℓm` row-major: constant, added to every `H`.
+    hess: Vec<f64>,
+}
+
+impl CondensedNotch {
+    /// Checks the cost for `ℓ` steps and `m` inputs and forms its constant Hessian.
+    fn new(cost: &NotchInputCost, ell: usize, m: usize) -> Result<Self, SpecError> {
+        check_len(
+            &cost.impulse_response,
+            ell,
+            "input_notch.impulse_response (ℓ)",
+        )?;
+        check_len(&cost.r_notch, m, "input_notch.r_notch (m)")?;
+        check_len(&cost.r_level, m, "input_notch.r_level (m)")?;
+        let w = &cost.impulse_response;
+        if w.iter().any(|x| !x.is_finite()) || w[0] != 1.0 {
+            return Err(SpecError(
+                "input_notch.impulse_response: must be finite with w_0 = 1".into(),
+            ));
+        }
+        if cost.r_notch.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(SpecError(
+                "input_notch.r_notch: every weight must be finite and > 0".into(),
+            ));
+        }
+        if cost.r_level.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+            return Err(SpecError(
+                "input_notch.r_level: every weight must be finite and ≥ 0".into(),
+            ));
+        }
+        let n = ell * m;
+        // Block (a, b) of 𝒲ᵀ R_v 𝒲 is Σ_{i ≥ max(a,b)} w_{i−a} w_{i−b} R_v (diagonal).
+        let mut hess = vec![0.0; n * n];
+        for a in 0..ell {
+            for b in 0..ell {
+                let s: f64 = (a.max(b)..ell).map(|i| w[i - a] * w[i - b]).sum();
+                for j in 0..m {
+                    hess[(a * m + j) * n + b * m + j] = 2.0 * s * cost.r_notch[j];
+                }
+            }
+            for j in 0..m {
+                hess[(a * m + j) * n + a * m + j] += 2.0 * cost.r_level[j];
+            }
+        }
+        Ok(Self {
+            w: w.clone(),
+            r_v: cost.r_notch.clone(),
+            hess,
+        })
+    }
 }
 
 /// A weight expanded per step (`ℓ·channels`, step-major) and checked (finite, `≥ 0`, or
@@ -435,7 +529,18 @@ impl Condenser {
             return Err(SpecError("tracking (C_t): entries must be finite".into()));
         }
         let (q, q_const) = expand_weight(&spec.q, "q (tracking weight Q)", pt, ell, false)?;
-        let (r, _) = expand_weight(&spec.r, "r (move weight R)", m, ell, true)?;
+        // With the tone-notch cost, whose 𝒲ᵀ R_v 𝒲 is positive definite, R may be 0.
+        let (r, _) = expand_weight(
+            &spec.r,
+            "r (move weight R)",
+            m,
+            ell,
+            spec.input_notch.is_none(),
+        )?;
+        let notch = match &spec.input_notch {
+            None => None,
+            Some(cost) => Some(CondensedNotch::new(cost, ell, m)?),
+        };
         check_len(&spec.u_min, m, "u_min")?;
         check_len(&spec.u_max, m, "u_max")?;
         for j in 0..m {
@@ -531,6 +636,7 @@ impl Condenser {
             qe: vec![0.0; ell * pt],
             cost_const: 0.0,
             qp: QpData::zeros(n, n_ineq),
+            notch,
         };
         // Input bounds (2.50).
         for i in 0..ell {
@@ -625,7 +731,8 @@ impl Condenser {
     /// - `u_k`: the current input (`m`), the reference of the first move (2.47).
     /// - `reference`: `𝓡 = [r_{k+1}; …; r_{k+ℓ}]` (`ℓ·p_t`).
     ///
-    /// Every value must be finite.
+    /// Every value must be finite. A spec with the tone-notch cost needs
+    /// [`Condenser::build_notched`].
     pub fn build(
         &mut self,
         markov: &[f64],
@@ -633,7 +740,44 @@ impl Condenser {
         u_k: &[f64],
         reference: &[f64],
     ) -> Result<QpProblem<'_>, BuildError> {
+        self.build_notched(markov, free_response, u_k, reference, &[])
+    }
+
+    /// Whether the spec has the tone-notch input cost (2.47')–(2.48').
+    pub fn has_input_notch(&self) -> bool {
+        self.notch.is_some()
+    }
+
+    /// [`Condenser::build`] with the tone-notch input cost (2.47')–(2.48') of the spec:
+    /// `v_free` (`ℓ·m`, step-major) is `W(q)`'s response over the horizon to the past
+    /// inputs with `U = 0`, so that `V = 𝒲 U + v_free`; then
+    ///
+    /// ```text
+    /// H += 2 (𝒲ᵀ R_v 𝒲 + R_u)   (constant, formed once),
+    /// f += 2 𝒲ᵀ R_v v_free,      c += v_freeᵀ R_v v_free
+    /// ```
+    ///
+    /// `v_free` must be empty without that cost. Allocation-free.
+    pub fn build_notched(
+        &mut self,
+        markov: &[f64],
+        free_response: &[f64],
+        u_k: &[f64],
+        reference: &[f64],
+        v_free: &[f64],
+    ) -> Result<QpProblem<'_>, BuildError> {
         let (ell, m, p, pt, nc, n) = (self.ell, self.m, self.p, self.pt, self.nc, self.n);
+        let expected_v = if self.notch.is_some() { n } else { 0 };
+        if v_free.len() != expected_v {
+            return Err(BuildError::Length {
+                what: "v_free",
+                expected: expected_v,
+                got: v_free.len(),
+            });
+        }
+        if v_free.iter().any(|x| !x.is_finite()) {
+            return Err(BuildError::NonFinite { what: "v_free" });
+        }
         let blk = p * m;
         let n_markov = ell - 1;
         if markov.len() != n_markov * blk && markov.len() != ell * blk {
@@ -729,6 +873,24 @@ impl Condenser {
         }
         for ((fj, r), u) in self.qp.f.iter_mut().zip(&self.r).zip(u_k) {
             *fj -= 2.0 * r * u;
+        }
+        if let Some(notch) = &self.notch {
+            // f_(a, j) += 2 Σ_{i ≥ a} w_{i−a} R_v,j v_free(i, j); c += Σ R_v v_free².
+            for a in 0..ell {
+                for j in 0..m {
+                    let mut s = 0.0;
+                    for i in a..ell {
+                        s += notch.w[i - a] * v_free[i * m + j];
+                    }
+                    self.qp.f[a * m + j] += 2.0 * notch.r_v[j] * s;
+                }
+            }
+            for (i, v) in v_free.iter().enumerate() {
+                self.cost_const += notch.r_v[i % m] * v * v;
+            }
+            for (h, c) in self.qp.hess.iter_mut().zip(&notch.hess) {
+                *h += c;
+            }
         }
 
         // Move-bound rows: only the first step's h carries u_k.

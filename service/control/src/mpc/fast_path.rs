@@ -96,13 +96,16 @@ pub struct FastPath {
 
 impl FastPath {
     /// Whether `mode` takes the fast path for `spec` and a model of order `n_hat`: never
-    /// when `N = n̂p + m` exceeds [`Riccati::MAX_N`]; for [`FastPathMode::Auto`], when
+    /// when `N = n̂p + m` exceeds [`Riccati::MAX_N`] or the spec has the tone-notch input
+    /// cost (2.48') ([`super::condense::NotchInputCost`], which the recursion does not
+    /// know); for [`FastPathMode::Auto`], when
     /// [`Riccati::operation_count`] is below [`dense_operation_count`].
     pub fn chosen(mode: FastPathMode, spec: &MpcSpec, n_hat: usize) -> bool {
         let n = n_hat
             .saturating_mul(spec.n_outputs)
             .saturating_add(spec.n_inputs);
-        if n > Riccati::MAX_N {
+        // The recursion knows only (2.48)'s move penalty, not the tone-notch cost (2.48').
+        if n > Riccati::MAX_N || spec.input_notch.is_some() {
             return false;
         }
         match mode {
@@ -121,13 +124,21 @@ impl FastPath {
     ///
     /// # Errors
     ///
-    /// Those of [`Riccati::new`].
+    /// Those of [`Riccati::new`], and [`FastPathMode::Always`] with the tone-notch input
+    /// cost.
     pub fn new(
         spec: &MpcSpec,
         n_hat: usize,
         feasibility_tol: f64,
         mode: FastPathMode,
     ) -> Result<Option<Self>, SpecError> {
+        if mode == FastPathMode::Always && spec.input_notch.is_some() {
+            return Err(SpecError(
+                "fast-path = \"always\": the Riccati fast path does not support the tone-notch \
+                 input cost (2.48') of the internal model; use \"auto\" or \"never\""
+                    .into(),
+            ));
+        }
         if !Self::chosen(mode, spec, n_hat) {
             return Ok(None);
         }

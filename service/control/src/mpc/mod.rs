@@ -12,7 +12,8 @@
 //!   against.
 //! - [`condense`]: builds that QP's `H, f`, bounds and rows from the Markov parameters, the
 //!   free response, `u_k` and the command, allocation-free and exploiting the Toeplitz
-//!   structure of `T`; the first move and the safe fallback input.
+//!   structure of `T`; the first move and the safe fallback input; optionally the
+//!   internal model's tone-notch and level input cost (2.47')–(2.48').
 //! - [`riccati`]: the unconstrained minimizer of (2.48) by a backward Riccati recursion on
 //!   the realization, `O(ℓ N n̂p (p + m))` (`N = n̂p + m`) instead of condensing and
 //!   factorizing the dense `H`.

@@ -75,6 +75,7 @@ impl PcacParams {
                     u_max: vec![f64::INFINITY; m],
                     move_bounds: None,
                     output_constraints: None,
+                    input_notch: None,
                 },
                 timing: PcacTiming::default(),
                 qp: QpSettings::default(),
@@ -83,6 +84,7 @@ impl PcacParams {
                 augmentation: None,
                 qp_changes_per_period: 0,
                 replan_every: PcacParams::DEFAULT_REPLAN_EVERY,
+                internal_model: None,
             },
         }
     }
@@ -190,6 +192,12 @@ impl PcacBuilder {
     /// The output constraints (2.49).
     pub fn output_constraints(mut self, constraints: Option<OutputConstraints>) -> Self {
         self.params.mpc.output_constraints = constraints;
+        self
+    }
+
+    /// The internal model of known tones ([`super::tone_model`]; `None`: none).
+    pub fn internal_model(mut self, internal_model: Option<super::InternalModel>) -> Self {
+        self.params.internal_model = internal_model;
         self
     }
 

@@ -93,10 +93,12 @@ use crate::controller::{Dimensions, status};
 use super::augmentation::{Augmentation, AugmentedModel, OutputFeedback};
 use super::model::{HorizonPrediction, IoModel, IoModelParams};
 use super::replan::Replan;
+use super::tone_model::{InternalModel, ToneModel, ToneProductModel};
 use crate::ParamError;
 use crate::ahead::Ahead;
+use crate::bocf::{DimError, IdentifiedModel};
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
-use crate::mpc::condense::{Condenser, MpcSpec, Weight};
+use crate::mpc::condense::{Condenser, MpcSpec, NotchInputCost, Weight};
 use crate::mpc::fast_path::{FastPath, FastPathMode};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpProgress, QpSettings, QpStatus, WarmStart};
 
@@ -147,6 +149,12 @@ pub struct PcacParams {
     /// factorization, goes on by as many in each following period, and ends in the last
     /// one. `0` (the default) solves the whole QP in the third period.
     pub qp_changes_per_period: usize,
+    /// The internal model of known tones ([`super::tone_model`], an extension beyond the
+    /// dissertation): identification on `D(q)`-filtered data, prediction with the product
+    /// model, and the tone-notch and level input cost (2.47')–(2.48') added to (2.48)
+    /// (whose `R` may then be 0). Not with [`PcacParams::augmentation`], and not with
+    /// [`FastPathMode::Always`]. `None`: the dissertation's PCAC.
+    pub internal_model: Option<InternalModel>,
 }
 
 /// Why a step fell back, and how often (see [`Pcac::counts_of`]).
@@ -198,6 +206,20 @@ const SUSPENSION_CAUSES: [&str; 4] = [
     "a restart of its histories (a new phase)",
 ];
 
+/// Step 3's prediction with `model`: from `x̂_k` when nothing is `committed` (same-step
+/// timing), else from the state the committed inputs lead to.
+fn predict_with<M: IdentifiedModel + ?Sized>(
+    pred: &mut HorizonPrediction,
+    model: &M,
+    committed: &[f64],
+) -> Result<(), DimError> {
+    if committed.is_empty() {
+        pred.compute_from_state(model)
+    } else {
+        pred.compute_committed(model, committed)
+    }
+}
+
 /// The last QP's outcome as a number for the signal log (`qp_status`).
 fn status_code(s: Option<QpStatus>) -> f64 {
     match s {
@@ -223,6 +245,8 @@ pub struct Pcac {
     model: IoModel,
     /// The closed-loop coefficients and the `u` history when augmenting a fixed `K̄`.
     aug: Option<Augmentation>,
+    /// The internal model of known tones, when configured.
+    tones: Option<ToneModel>,
     pred: HorizonPrediction,
     cond: Condenser,
     solver: DenseQpSolver,
@@ -386,7 +410,8 @@ impl PcacParams {
             ));
         }
         check_weight(&spec.q, "q", pt, spec.horizon, false)?;
-        check_weight(&spec.r, "r", m, spec.horizon, true)?;
+        check_weight(&spec.r, "r", m, spec.horizon, self.internal_model.is_none())?;
+        self.validate_internal_model()?;
         if spec.u_min.len() != m || spec.u_max.len() != m {
             return Err(ParamError::new(
                 "u-min",
@@ -472,6 +497,72 @@ impl PcacParams {
             }
         }
         Ok(())
+    }
+
+    /// The internal-model part of [`PcacParams::validate`].
+    fn validate_internal_model(&self) -> Result<(), ParamError> {
+        let Some(im) = &self.internal_model else {
+            return Ok(());
+        };
+        let m = self.model.m;
+        if self.augmentation.is_some() {
+            return Err(ParamError::new(
+                "internal-model",
+                "cannot be combined with an augmented output feedback",
+            ));
+        }
+        if self.fast_path == FastPathMode::Always {
+            return Err(ParamError::new(
+                "fast-path",
+                "\"always\" cannot be used with the internal model: the Riccati fast path \
+                 does not know its tone-notch input cost (2.48'); use \"auto\" (which then \
+                 never takes it) or \"never\"",
+            ));
+        }
+        if let Err(e) = crate::internal_model::ToneAnnihilator::new(&im.omegas, im.notch_radius) {
+            let field = if e.contains("radius") {
+                "internal-model.notch-radius"
+            } else {
+                "internal-model.tones-hz"
+            };
+            return Err(ParamError::new(field, e));
+        }
+        for (field, w, positive) in [
+            ("internal-model.r-notch", &im.r_notch, true),
+            ("internal-model.r-level", &im.r_level, false),
+        ] {
+            if w.len() != m {
+                return Err(ParamError::new(
+                    field,
+                    format!("has {} values, expected one per input ({m})", w.len()),
+                ));
+            }
+            if w.iter()
+                .any(|x| !x.is_finite() || *x < 0.0 || (positive && *x == 0.0))
+            {
+                let need = if positive { "> 0" } else { "≥ 0" };
+                return Err(ParamError::new(
+                    field,
+                    format!("weights must be finite and {need}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The MPC problem with the internal model's input cost (2.47')–(2.48') when there is
+    /// one. Allocates.
+    fn mpc_spec(&self) -> Result<MpcSpec, String> {
+        let mut spec = self.mpc.clone();
+        if let Some(im) = &self.internal_model {
+            let ann = crate::internal_model::ToneAnnihilator::new(&im.omegas, im.notch_radius)?;
+            spec.input_notch = Some(NotchInputCost {
+                impulse_response: ann.notch_impulse_response(spec.horizon),
+                r_notch: im.r_notch.clone(),
+                r_level: im.r_level.clone(),
+            });
+        }
+        Ok(spec)
     }
 
     /// The re-planning part of [`PcacParams::validate`].
@@ -601,15 +692,24 @@ impl Pcac {
     pub fn new(params: &PcacParams, counts: Dimensions) -> Result<Self, ParamError> {
         params.validate(counts)?;
         let (n_y, n_u) = (counts.n_y, counts.n_u);
-        let (mp, spec) = (&params.model, &params.mpc);
+        let mp = &params.model;
         // Validated above: what the pieces still refuse is reported for the whole table.
         let whole = |e: String| ParamError::new("", e);
+        let spec = &params.mpc_spec().map_err(whole)?;
         let model = IoModel::new(mp).map_err(whole)?;
         let aug = params
             .augmentation
             .as_ref()
             .map(|fb| Augmentation::new(&model, fb));
-        let pred = HorizonPrediction::new(&model, spec.horizon).map_err(whole)?;
+        let tones = match &params.internal_model {
+            None => None,
+            Some(im) => Some(ToneModel::new(&model, im, spec.horizon).map_err(whole)?),
+        };
+        let pred = match &tones {
+            None => HorizonPrediction::new(&model, spec.horizon),
+            Some(t) => HorizonPrediction::new(&t.view(), spec.horizon),
+        }
+        .map_err(whole)?;
         let cond = Condenser::new(spec).map_err(|e| whole(format!("pcac: {e}")))?;
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
         let fast = FastPath::new(spec, mp.n_hat, params.qp.feasibility_tol, params.fast_path)
@@ -622,6 +722,7 @@ impl Pcac {
             qp_changes_per_period: params.qp_changes_per_period,
             model,
             aug,
+            tones,
             pred,
             solver,
             fast,
@@ -656,6 +757,7 @@ impl Pcac {
             cond,
         };
         c.initial_inputs();
+        c.hold_identification_for_the_filter();
         Ok(c)
     }
 
@@ -673,13 +775,27 @@ impl Pcac {
             aug.clear();
             aug.refresh(&self.model);
         }
+        if let Some(t) = &mut self.tones {
+            t.clear();
+            t.refresh(&self.model);
+        }
         self.initial_inputs();
         self.n_shifted = 0;
         self.suspend = 0;
+        self.hold_identification_for_the_filter();
         self.last_status = None;
         self.tracked_prediction = 0.0;
         self.ready_status = status::OK;
         self.replan.clear();
+    }
+
+    /// With the internal model, the first `n̂ + 2n_t` samples after zero histories only
+    /// fill them: `D(q)` applied across the zeros before the data is not the data's.
+    fn hold_identification_for_the_filter(&mut self) {
+        if let Some(t) = &self.tones {
+            self.suspend = t.window();
+            self.suspend_cause = RESTART;
+        }
     }
 
     /// The identified model (coefficients `θ_{k+1}`, covariance, prior error). With an
@@ -694,6 +810,20 @@ impl Pcac {
     /// ((7.53)–(7.57), [`super::augmentation`]); `None` for plain PCAC.
     pub fn closed_loop_model(&self) -> Option<AugmentedModel<'_>> {
         self.aug.as_ref().map(|a| a.view(&self.model))
+    }
+
+    /// With the internal model of known tones ([`PcacParams::internal_model`]), the
+    /// product model the MPC predicts with ([`super::tone_model`]); `None` without it.
+    pub fn tone_product_model(&self) -> Option<ToneProductModel<'_>> {
+        self.tones.as_ref().map(ToneModel::view)
+    }
+
+    /// The samples a datum stays in the identification's regressor: `n̂`, or `n̂ + 2n_t`
+    /// with the internal model (its filter spreads a sample over `2n_t` more).
+    fn id_window(&self) -> usize {
+        self.tones
+            .as_ref()
+            .map_or(self.model.n_hat(), ToneModel::window)
     }
 
     /// The output feedback `K̄` this PCAC augments, if any.
@@ -711,7 +841,7 @@ impl Pcac {
     pub fn restart_histories(&mut self) {
         self.model.restart_histories();
         self.restart_plan();
-        self.suspend = self.model.n_hat();
+        self.suspend = self.id_window();
         self.suspend_cause = RESTART;
     }
 
@@ -754,7 +884,7 @@ impl Pcac {
         {
             self.u_last.copy_from_slice(&ua[..m]);
         }
-        let n_hat = self.model.n_hat();
+        let n_hat = self.id_window();
         if input.lost > 0 {
             // Bridge with the held output and input; at most n̂ entries matter.
             self.y_work.copy_from_slice(self.model.last_y());
@@ -799,6 +929,18 @@ impl Pcac {
     /// or with an augmented `K̄` the plant's input `τ_{f,k−1} = u_{k−1} + K̄ y_{k−1}`
     /// ([`super::augmentation`]), whose `u_{k−1}` joins the closed-loop model's history.
     fn store_sample(&mut self, identify: bool) -> bool {
+        if let Some(t) = &mut self.tones {
+            // The internal model: the identification sees D(q) y and D(q) u.
+            t.take_sample(&self.y_work, &self.u_last);
+            let (yf, uf) = t.filtered();
+            if !identify {
+                let _ = self.model.observe(yf, uf);
+                return false;
+            }
+            let reset = matches!(self.model.update(yf, uf), Ok(st) if st.reset);
+            t.refresh(&self.model);
+            return reset;
+        }
         let input: &[f64] = match &mut self.aug {
             None => &self.u_last,
             Some(aug) => aug.take_input(self.model.last_y(), &self.u_last),
@@ -866,16 +1008,17 @@ impl Pcac {
                 .filter(|v| v.is_finite())
                 .unwrap_or(0.0);
         }
-        let committed = self.replan.committed();
-        let predicted = match (&self.aug, self.timing) {
-            (None, PcacTiming::SameStep) => self.pred.compute_from_state(&self.model),
-            (None, PcacTiming::NextStep) => self.pred.compute_committed(&self.model, committed),
-            (Some(aug), PcacTiming::SameStep) => {
-                self.pred.compute_from_state(&aug.view(&self.model))
+        let committed = match self.timing {
+            PcacTiming::SameStep => &[][..],
+            PcacTiming::NextStep => self.replan.committed(),
+        };
+        let predicted = match (&self.aug, &mut self.tones) {
+            (Some(aug), _) => predict_with(&mut self.pred, &aug.view(&self.model), committed),
+            (None, Some(t)) => {
+                t.fill_v_free(committed);
+                predict_with(&mut self.pred, &t.view(), committed)
             }
-            (Some(aug), PcacTiming::NextStep) => self
-                .pred
-                .compute_committed(&aug.view(&self.model), committed),
+            (None, None) => predict_with(&mut self.pred, &self.model, committed),
         };
         self.fast_found = false;
         self.fast_model = predicted.is_ok() && self.keep_fast_model();
@@ -891,11 +1034,12 @@ impl Pcac {
         self.fast_found
             || self
                 .cond
-                .build(
+                .build_notched(
                     self.pred.markov(),
                     self.pred.free_response(),
                     &self.u_ref,
                     &self.reference,
+                    self.tones.as_ref().map_or(&[][..], ToneModel::v_free),
                 )
                 .is_ok()
     }
@@ -1144,6 +1288,9 @@ impl Controller for Pcac {
         let restored = self.model.restore_learned(saved);
         if let Some(aug) = &mut self.aug {
             aug.refresh(&self.model);
+        }
+        if let Some(t) = &mut self.tones {
+            t.refresh(&self.model);
         }
         restored
     }

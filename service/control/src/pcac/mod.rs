@@ -39,17 +39,26 @@
 //! as the input–output model with `F̂_i − Ĝ_i K̄` ([`augmentation`], where the equivalence
 //! is derived). Chapter 7 augments the robust force controller of the sampling arm this
 //! way ([`crate::arm`]).
+//!
+//! # The internal model of known tones (2.47')–(2.48'), beyond the dissertation
+//!
+//! With [`PcacParams::internal_model`] the identification runs on data filtered by the
+//! tones' annihilator `D(q)`, the prediction uses the product model `D·F̂`, `D·Ĝ`, and the
+//! cost penalizes the tone-notched input and the input's level instead of (or besides)
+//! the moves ([`tone_model`], [`crate::internal_model`]).
 
 pub mod augmentation;
 pub mod builder;
 mod controller;
 pub mod model;
 pub mod replan;
+pub mod tone_model;
 
 pub use augmentation::{AugmentedModel, OutputFeedback};
 pub use builder::PcacBuilder;
 pub use controller::{Pcac, PcacCounters, PcacParams, PcacTiming};
 pub use model::{DimError, HorizonPrediction, IdKernel, IoModel, IoModelParams};
+pub use tone_model::{InternalModel, ToneProductModel};
 
 #[cfg(test)]
 mod tests;

@@ -39,6 +39,7 @@ fn spec(ell: usize, m: usize, p: usize, pt: usize, rng: &mut ChaCha8Rng) -> MpcS
             c: randn(2 * p, rng),
             d: randn(2, rng),
         }),
+        input_notch: None,
     }
 }
 
@@ -815,4 +816,88 @@ fn condense_timing() {
             percentile(&mut dense_t, 0.5),
         );
     }
+}
+
+/// (2.48') evaluated directly: (2.48) plus `Vᵀ R_v V + Uᵀ R_u U`, `V = 𝒲 U + v_free`,
+/// with `𝒲` formed entry by entry from the impulse response.
+fn direct_notched_cost(
+    dn: &Dense,
+    cost: &NotchInputCost,
+    case: &Case,
+    v_free: &[f64],
+    u: &DVector<f64>,
+) -> f64 {
+    let m = cost.r_notch.len();
+    let ell = cost.impulse_response.len();
+    let mut v = DVector::from_column_slice(v_free);
+    for i in 0..ell {
+        for jstep in 0..=i {
+            for c in 0..m {
+                v[i * m + c] += cost.impulse_response[i - jstep] * u[jstep * m + c];
+            }
+        }
+    }
+    let mut extra = 0.0;
+    for k in 0..ell * m {
+        extra += cost.r_notch[k % m] * v[k] * v[k] + cost.r_level[k % m] * u[k] * u[k];
+    }
+    direct_cost(dn, &case.free, u, &case.u_k, &case.reference) + extra
+}
+
+#[test]
+fn the_tone_notch_cost_condensed_equals_2_48_prime_evaluated_directly() {
+    let mut rng = ChaCha8Rng::seed_from_u64(48);
+    for (ell, m, p, pt, r_move) in [(9, 2, 1, 1, 0.0), (6, 2, 3, 2, 0.3), (12, 1, 2, 1, 0.0)] {
+        let ann = crate::internal_model::ToneAnnihilator::new(&[0.4, 1.3], 0.9).expect("tones");
+        let cost = NotchInputCost {
+            impulse_response: ann.notch_impulse_response(ell),
+            r_notch: (0..m).map(|j| 0.5 + j as f64).collect(),
+            r_level: (0..m).map(|j| if j == 0 { 7.0 } else { 0.0 }).collect(),
+        };
+        let mut s = spec(ell, m, p, pt, &mut rng);
+        s.r = Weight::Scalar(r_move);
+        s.input_notch = Some(cost.clone());
+        let case = random_case(s, &mut rng);
+        let v_free = randn(ell * m, &mut rng);
+        let mut c = Condenser::new(&case.spec).unwrap();
+        assert!(c.has_input_notch());
+        // Without v_free the notched problem is refused.
+        assert!(matches!(
+            c.build(&case.markov, &case.free, &case.u_k, &case.reference),
+            Err(BuildError::Length { what: "v_free", .. })
+        ));
+        c.build_notched(
+            &case.markov,
+            &case.free,
+            &case.u_k,
+            &case.reference,
+            &v_free,
+        )
+        .unwrap();
+        let dn = dense(&case.spec, &case.markov);
+        for _ in 0..5 {
+            let u = DVector::from_vec(randn(ell * m, &mut rng));
+            let want = direct_notched_cost(&dn, &cost, &case, &v_free, &u);
+            let got = condensed_cost(&c, u.as_slice());
+            assert!(
+                (want - got).abs() <= 1e-9 * (1.0 + want.abs()),
+                "ℓ = {ell}, m = {m}: {got} vs {want}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_zero_move_weight_is_refused_without_the_tone_notch_cost_and_accepted_with_it() {
+    let mut s = siso_mpc_spec(5, 1.0, 0.0, 1.0, 1.0);
+    assert!(Condenser::new(&s).is_err());
+    let ann = crate::internal_model::ToneAnnihilator::new(&[1.0], 0.9).expect("tone");
+    s.input_notch = Some(NotchInputCost {
+        impulse_response: ann.notch_impulse_response(5),
+        r_notch: vec![1.0],
+        r_level: vec![0.0],
+    });
+    assert!(Condenser::new(&s).is_ok());
+    s.input_notch.as_mut().unwrap().r_notch = vec![0.0];
+    assert!(Condenser::new(&s).is_err());
 }

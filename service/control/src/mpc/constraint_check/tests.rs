@@ -31,6 +31,7 @@ fn spec(ell: usize, p: usize, m: usize, u_max: f64, du_max: f64, y_max: f64) -> 
         u_max: vec![u_max; m],
         move_bounds: Some(MoveBounds::symmetric(du_max, m)),
         output_constraints: Some(OutputConstraints { c, d: vec![-y_max] }),
+        input_notch: None,
     }
 }
 

@@ -87,6 +87,7 @@ fn spec_of(c: &Case, g: &mut Gauss) -> MpcSpec {
         u_max: vec![1.0; m],
         move_bounds: Some(MoveBounds::symmetric(0.5, m)),
         output_constraints: None,
+        input_notch: None,
     }
 }
 
