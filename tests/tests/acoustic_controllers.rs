@@ -217,18 +217,7 @@ fn pcac_suppresses_every_tone_to_its_bar_with_every_qp_solved() {
             "verdict failure {f}"
         );
     }
-    let counters: Vec<(String, u64)> =
-        serde_json::from_value(report["controller_counters"].clone()).expect("counters");
-    let counter = |name: &str| {
-        counters
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, v)| *v)
-            .unwrap_or_else(|| panic!("no counter {name:?} in {counters:?}"))
-    };
-    assert_eq!(counter("fallbacks"), 0, "{counters:?}");
-    assert!(counter("mpc steps") >= 72_000, "{counters:?}");
-    assert_eq!(counter("qp solved"), counter("mpc steps"), "{counters:?}");
+    every_qp_solved(&report);
     let (seq, u0, u1) = (
         column(&header, "seq"),
         column(&header, "u0"),
@@ -271,8 +260,15 @@ fn pcac_with_the_internal_model_meets_its_40_db_with_every_qp_solved() {
         "acoustic-pcac-im",
         Some("pcac/acoustic-internal-model.toml"),
     );
+    every_qp_solved(&r.report);
+    check("pcac internal model", r, 40.0);
+}
+
+/// A PCAC run's report shows no fallback and a solved QP at every one of at least 72 000
+/// MPC steps (the 9 s of closed loop at 8 kHz).
+fn every_qp_solved(report: &Value) {
     let counters: Vec<(String, u64)> =
-        serde_json::from_value(r.report["controller_counters"].clone()).expect("counters");
+        serde_json::from_value(report["controller_counters"].clone()).expect("counters");
     let counter = |name: &str| {
         counters
             .iter()
@@ -283,5 +279,4 @@ fn pcac_with_the_internal_model_meets_its_40_db_with_every_qp_solved() {
     assert_eq!(counter("fallbacks"), 0, "{counters:?}");
     assert!(counter("mpc steps") >= 72_000, "{counters:?}");
     assert_eq!(counter("qp solved"), counter("mpc steps"), "{counters:?}");
-    check("pcac internal model", r, 40.0);
 }
