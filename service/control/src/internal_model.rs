@@ -58,6 +58,25 @@
 /// The most tones an annihilator takes (its order is twice this).
 pub const MAX_TONES: usize = 32;
 
+/// Why [`ToneAnnihilator::new`] refused its arguments: which one, and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ToneError {
+    /// The frequencies: none, more than [`MAX_TONES`], or one outside `(0, π)`.
+    Tones(String),
+    /// The notch radius `ρ`: outside `(0, 1)`.
+    Radius(String),
+}
+
+impl core::fmt::Display for ToneError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ToneError::Tones(why) | ToneError::Radius(why) => f.write_str(why),
+        }
+    }
+}
+
+impl std::error::Error for ToneError {}
+
 /// The annihilator `D(q)` of a set of tones and its notch `W(q) = D(q) / D(ρq)` (module
 /// docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -77,23 +96,26 @@ impl ToneAnnihilator {
     ///
     /// No tone or more than [`MAX_TONES`], a frequency outside `(0, π)` or non-finite, or
     /// `ρ` outside `(0, 1)`.
-    pub fn new(omegas: &[f64], rho: f64) -> Result<Self, String> {
+    pub fn new(omegas: &[f64], rho: f64) -> Result<Self, ToneError> {
         if omegas.is_empty() || omegas.len() > MAX_TONES {
-            return Err(format!("{} tones: need 1 to {MAX_TONES}", omegas.len()));
+            return Err(ToneError::Tones(format!(
+                "{} tones: need 1 to {MAX_TONES}",
+                omegas.len()
+            )));
         }
         if let Some(w) = omegas
             .iter()
             .find(|w| !(w.is_finite() && **w > 0.0 && **w < std::f64::consts::PI))
         {
-            return Err(format!(
+            return Err(ToneError::Tones(format!(
                 "a tone at {w} rad/sample: each must lie strictly between 0 and the Nyquist \
                  frequency (π)"
-            ));
+            )));
         }
         if !(rho > 0.0 && rho < 1.0) {
-            return Err(format!(
+            return Err(ToneError::Radius(format!(
                 "the notch radius ρ = {rho} must lie strictly between 0 and 1"
-            ));
+            )));
         }
         let mut d = vec![1.0];
         for w in omegas {
@@ -119,16 +141,16 @@ impl ToneAnnihilator {
     /// # Errors
     ///
     /// As [`ToneAnnihilator::new`], with the frequency in hertz.
-    pub fn from_hz(tones_hz: &[f64], fs: f64, rho: f64) -> Result<Self, String> {
+    pub fn from_hz(tones_hz: &[f64], fs: f64, rho: f64) -> Result<Self, ToneError> {
         if let Some(f) = tones_hz
             .iter()
             .find(|f| !(f.is_finite() && **f > 0.0 && **f < fs / 2.0))
         {
-            return Err(format!(
+            return Err(ToneError::Tones(format!(
                 "a tone at {f} Hz: each must lie strictly between 0 and the Nyquist frequency \
                  ({} Hz)",
                 fs / 2.0
-            ));
+            )));
         }
         let omegas: Vec<f64> = tones_hz
             .iter()
@@ -163,13 +185,32 @@ impl ToneAnnihilator {
     pub fn notch_impulse_response(&self, len: usize) -> Vec<f64> {
         let mut w = vec![0.0; len];
         for j in 0..len {
-            let mut v = self.d.get(j).copied().unwrap_or(0.0);
-            for i in 1..=j.min(self.order()) {
-                v -= self.d_rho[i] * w[j - i];
-            }
-            w[j] = v;
+            let uf = self.d.get(j).copied().unwrap_or(0.0);
+            w[j] = self.notch_output(uf, |i| if i <= j { w[j - i] } else { 0.0 });
         }
         w
+    }
+
+    /// `(D(q) x)_t = Σ_{i=0}^{2n_t} δ_i x_{t−i}`, with `past(i) = x_{t−i}`. Allocation-free.
+    #[inline]
+    pub fn annihilate(&self, past: impl Fn(usize) -> f64) -> f64 {
+        let mut acc = 0.0;
+        for (i, di) in self.d.iter().enumerate() {
+            acc += di * past(i);
+        }
+        acc
+    }
+
+    /// One output of the notch `W(q) = D(q) / D(ρq)`:
+    /// `v_t = (D(q) u)_t − Σ_{i=1}^{2n_t} δ_i ρⁱ v_{t−i}`, with `uf = (D(q) u)_t`
+    /// ([`ToneAnnihilator::annihilate`]) and `past_v(i) = v_{t−i}`. Allocation-free.
+    #[inline]
+    pub fn notch_output(&self, uf: f64, past_v: impl Fn(usize) -> f64) -> f64 {
+        let mut v = uf;
+        for (i, di) in self.d_rho.iter().enumerate().skip(1) {
+            v -= di * past_v(i);
+        }
+        v
     }
 
     /// The product `D(q) · Σ_{i=0}^{n} a_i q⁻ⁱ` of `D` with a polynomial whose

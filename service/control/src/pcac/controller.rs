@@ -98,6 +98,7 @@ use crate::ParamError;
 use crate::ahead::Ahead;
 use crate::bocf::{DimError, IdentifiedModel};
 use crate::controller::{Adaptation, Controller, MAX_INTERNALS, StepInput};
+use crate::internal_model::{ToneAnnihilator, ToneError};
 use crate::mpc::condense::{Condenser, MpcSpec, NotchInputCost, Weight};
 use crate::mpc::fast_path::{FastPath, FastPathMode};
 use crate::mpc::qp::{ConstraintId, DenseQpSolver, QpProgress, QpSettings, QpStatus, WarmStart};
@@ -519,13 +520,12 @@ impl PcacParams {
                  never takes it) or \"never\"",
             ));
         }
-        if let Err(e) = crate::internal_model::ToneAnnihilator::new(&im.omegas, im.notch_radius) {
-            let field = if e.contains("radius") {
-                "internal-model.notch-radius"
-            } else {
-                "internal-model.tones-hz"
+        if let Err(e) = ToneAnnihilator::new(&im.omegas, im.notch_radius) {
+            let field = match e {
+                ToneError::Radius(_) => "internal-model.notch-radius",
+                ToneError::Tones(_) => "internal-model.tones-hz",
             };
-            return Err(ParamError::new(field, e));
+            return Err(ParamError::new(field, e.to_string()));
         }
         for (field, w, positive) in [
             ("internal-model.r-notch", &im.r_notch, true),
@@ -555,7 +555,8 @@ impl PcacParams {
     fn mpc_spec(&self) -> Result<MpcSpec, String> {
         let mut spec = self.mpc.clone();
         if let Some(im) = &self.internal_model {
-            let ann = crate::internal_model::ToneAnnihilator::new(&im.omegas, im.notch_radius)?;
+            let ann =
+                ToneAnnihilator::new(&im.omegas, im.notch_radius).map_err(|e| e.to_string())?;
             spec.input_notch = Some(NotchInputCost {
                 impulse_response: ann.notch_impulse_response(spec.horizon),
                 r_notch: im.r_notch.clone(),

@@ -86,7 +86,7 @@ impl ToneModel {
     ///
     /// Those of [`ToneAnnihilator::new`].
     pub(super) fn new(model: &IoModel, im: &InternalModel, ell: usize) -> Result<Self, String> {
-        let ann = ToneAnnihilator::new(&im.omegas, im.notch_radius)?;
+        let ann = ToneAnnihilator::new(&im.omegas, im.notch_radius).map_err(|e| e.to_string())?;
         let (n_hat, p, m) = (model.n_hat(), model.p(), model.m());
         let nd = ann.order();
         let nbar = n_hat + nd;
@@ -122,28 +122,17 @@ impl ToneModel {
     /// Step 1–2 of the module docs: stores `u_{k−1}` (`u_prev`) and `y_k`, the new
     /// `v_{k−1}`, and forms `y_{f,k}`, `u_{f,k−1}` ([`ToneModel::filtered`]).
     pub(super) fn take_sample(&mut self, y: &[f64], u_prev: &[f64]) {
-        let d = self.ann.coefficients();
-        let den = self.ann.notch_denominator();
         self.us.push(u_prev);
         for j in 0..self.m {
-            let mut uf = 0.0;
-            for (i, di) in d.iter().enumerate() {
-                uf += di * self.us.back(i)[j];
-            }
-            let mut v = uf;
-            for i in 1..=self.nd {
-                v -= den[i] * self.vs.back(i - 1)[j];
-            }
+            let uf = self.ann.annihilate(|i| self.us.back(i)[j]);
             self.uf[j] = uf;
-            self.v_new[j] = v;
+            self.v_new[j] = self.ann.notch_output(uf, |i| self.vs.back(i - 1)[j]);
         }
         self.vs.push(&self.v_new);
         for r in 0..self.p {
-            let mut yf = d[0] * y[r];
-            for (i, di) in d.iter().enumerate().skip(1) {
-                yf += di * self.ys.back(i - 1)[r];
-            }
-            self.yf[r] = yf;
+            self.yf[r] = self
+                .ann
+                .annihilate(|i| if i == 0 { y[r] } else { self.ys.back(i - 1)[r] });
         }
         self.ys.push(y);
     }
@@ -190,8 +179,6 @@ impl ToneModel {
     /// `m`, at most `ℓ` of them; none in same-step timing, whose `U` starts at `u_k`).
     pub(super) fn fill_v_free(&mut self, committed: &[f64]) -> &[f64] {
         let (m, nd, ell) = (self.m, self.nd, self.ell);
-        let d = self.ann.coefficients();
-        let den = self.ann.notch_denominator();
         let nc = (committed.len() / m).min(ell);
         for j in 0..m {
             // Positions 0..nd: the past, oldest first; then the committed inputs, then zeros.
@@ -203,14 +190,9 @@ impl ToneModel {
             for t in nd..total {
                 let c = t - nd;
                 self.run_u[t] = if c < nc { committed[c * m + j] } else { 0.0 };
-                let mut v = 0.0;
-                for i in 0..=nd {
-                    v += d[i] * self.run_u[t - i];
-                }
-                for i in 1..=nd {
-                    v -= den[i] * self.run_v[t - i];
-                }
-                self.run_v[t] = v;
+                let (run_u, run_v) = (&self.run_u, &self.run_v);
+                let uf = self.ann.annihilate(|i| run_u[t - i]);
+                self.run_v[t] = self.ann.notch_output(uf, |i| run_v[t - i]);
             }
             for i in 0..ell {
                 self.v_free[i * m + j] = self.run_v[nd + nc + i];
