@@ -440,23 +440,13 @@ impl Rls {
     /// the fly (bit-for-bit as the next update will apply it). Allocates: meant for tests
     /// and inspection, not the hot path.
     pub fn covariance(&self) -> DMatrix<f64> {
-        let (n, p) = (self.n, self.p);
-        let mut m = DMatrix::zeros(n, n);
-        let mut off = 0;
-        for i in 0..n {
-            for (t, &v) in self.cov[off..off + n - i].iter().enumerate() {
-                let j = i + t;
-                let v = if self.level.fma() {
-                    simd::entry::<true>(self.beta_pend, v, &self.w_pend, n, p, i, j)
-                } else {
-                    simd::entry::<false>(self.beta_pend, v, &self.w_pend, n, p, i, j)
-                };
-                m[(i, j)] = v;
-                m[(j, i)] = v;
-            }
-            off += n - i;
-        }
-        m
+        let pending = simd::Pending {
+            w: &self.w_pend,
+            beta: self.beta_pend,
+            n: self.n,
+            p: self.p,
+        };
+        applied_covariance(self.level, &self.cov, pending)
     }
 
     /// The prior error `e_k = y_k − φ_k θ_k` of the last update (zeros after a rejected
@@ -529,6 +519,33 @@ impl Rls {
         self.trace = self.n as f64 * self.p0;
         self.forgetting.reset();
     }
+}
+
+/// `β Q − W Wᵀ` as a full symmetric matrix, for the row-packed upper triangle `Q` and a
+/// deferred update (`pending`), entry by entry exactly as the next sweep will store it.
+/// Allocates: for inspection, tests and checkpoints.
+fn applied_covariance(
+    level: simd::Level,
+    packed: &[f64],
+    pending: simd::Pending<'_>,
+) -> DMatrix<f64> {
+    let simd::Pending { w, beta, n, p } = pending;
+    let mut m = DMatrix::zeros(n, n);
+    let mut off = 0;
+    for i in 0..n {
+        for (t, &v) in packed[off..off + n - i].iter().enumerate() {
+            let j = i + t;
+            let v = if level.fma() {
+                simd::entry::<true>(beta, v, w, n, p, i, j)
+            } else {
+                simd::entry::<false>(beta, v, w, n, p, i, j)
+            };
+            m[(i, j)] = v;
+            m[(j, i)] = v;
+        }
+        off += n - i;
+    }
+    m
 }
 
 /// `p0 · I` as a row-packed upper triangle (`n(n+1)/2` entries).

@@ -568,19 +568,14 @@ impl IoModel {
         match &self.kernel {
             Kernel::Shared(k) => {
                 let (n, p) = (k.n(), k.p());
-                let mut m = nalgebra::DMatrix::zeros(n * p, n * p);
-                let mut off = 0;
-                for i in 0..n {
-                    for (t, &v) in k.packed_covariance()[off..off + n - i].iter().enumerate() {
-                        let j = i + t;
-                        for r in 0..p {
-                            m[(i * p + r, j * p + r)] = v;
-                            m[(j * p + r, i * p + r)] = v;
-                        }
+                let pt = k.covariance();
+                nalgebra::DMatrix::from_fn(n * p, n * p, |a, b| {
+                    if a % p == b % p {
+                        pt[(a / p, b / p)]
+                    } else {
+                        0.0
                     }
-                    off += n - i;
-                }
-                m
+                })
             }
             Kernel::Full { rls, .. } => rls.covariance(),
         }

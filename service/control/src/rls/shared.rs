@@ -14,8 +14,17 @@
 //! with `β_k = 1/λ_k` from the forgetting rule fed with `z_k`. The prior error, the
 //! forgetting and the guard (non-finite data, `d_k ≤ 0`, a non-positive or non-finite
 //! covariance, `tr P` above its limit: reset to `Θ̃_0, P̃_0`) are those of [`Rls`](super::Rls).
+//!
+//! The covariance update is [`Rls`](super::Rls)'s kernel with one row: with
+//! `w_k = (β_k / √d_k) g_k`, (2.31) is `P̃_{k+1} = β_k P̃_k − w_k w_kᵀ`, and it is deferred
+//! to step `k + 1`, whose one sweep over the packed triangle applies it and forms
+//! `g_{k+1}` (the AVX2/FMA sweep when the processor has it); the diagonal and trace of
+//! `P̃_{k+1}` are computed and guarded in step `k`, an off-diagonal overflow in the sweep
+//! of step `k + 1` (the "Guard" of [`Rls`](super::Rls)).
 
-use super::{RlsStep, data_finite, guard_passes, prior_errors};
+use nalgebra::DMatrix;
+
+use super::{RlsStep, applied_covariance, data_finite, guard_passes, prior_errors, simd};
 use crate::forgetting::{Forgetting, ForgettingRule};
 use crate::linalg::{axpy, dot};
 
@@ -32,12 +41,19 @@ pub struct SharedRls {
     theta0: Vec<f64>,
     /// `Θ̃_k`, p×n row-major.
     theta: Vec<f64>,
-    /// `P̃_k`, upper triangle row-packed (row `i` has `n − i` entries, diagonal first).
+    /// `Q`, upper triangle row-packed (row `i` has `n − i` entries, diagonal first), with
+    /// `P̃_k = β Q − w wᵀ` (the deferred update, module docs).
     cov: Vec<f64>,
+    /// The deferred update's `w` (`n`).
+    w_pend: Vec<f64>,
+    /// The deferred update's `β`.
+    beta_pend: f64,
     /// `tr P̃_k`.
     trace: f64,
-    /// `g = P̃_k ψᵀ`.
+    /// `g = P̃_k ψᵀ`, then `w_k`.
     g: Vec<f64>,
+    /// The sweep's instruction set.
+    level: simd::Level,
     /// Prior error `z_k`.
     err: Vec<f64>,
     resets: u64,
@@ -63,8 +79,11 @@ impl SharedRls {
             theta: theta0_rows.clone(),
             theta0: theta0_rows,
             cov: vec![0.0; n * (n + 1) / 2],
+            w_pend: vec![0.0; n],
+            beta_pend: 1.0,
             trace: 0.0,
             g: vec![0.0; n],
+            level: simd::Level::detect(),
             err: vec![0.0; p],
             resets: 0,
         };
@@ -82,12 +101,9 @@ impl SharedRls {
     /// Back to `Θ̃_0`, `P̃_0` and the forgetting rule's initial state.
     pub fn reset(&mut self) {
         self.theta.copy_from_slice(&self.theta0);
-        self.cov.fill(0.0);
-        let mut off = 0;
-        for i in 0..self.n {
-            self.cov[off] = self.p0;
-            off += self.n - i;
-        }
+        super::fill_packed_identity(&mut self.cov, self.n, self.p0);
+        self.w_pend.fill(0.0);
+        self.beta_pend = 1.0;
         self.trace = self.n as f64 * self.p0;
         self.forgetting.reset();
     }
@@ -112,34 +128,21 @@ impl SharedRls {
         let beta = self.forgetting.beta_scaled(&self.err, y2);
         let lambda = 1.0 / beta;
 
-        // g = P̃ ψᵀ from the packed upper triangle, row by row: the row's entries right of
-        // the diagonal serve both g_i (a dot product) and g_j, j > i (an axpy).
-        self.g.fill(0.0);
-        let mut off = 0;
-        for i in 0..n {
-            let row = &self.cov[off..off + n - i];
-            let acc = row[0] * psi[i] + dot(&row[1..], &psi[i + 1..]);
-            axpy(psi[i], &row[1..], &mut self.g[i + 1..]);
-            self.g[i] += acc;
-            off += n - i;
+        // P̃_k = β_{k−1} Q − w_{k−1} w_{k−1}ᵀ (the deferred update) and g = P̃_k ψᵀ, in one
+        // sweep that also checks every entry it writes.
+        let pending = simd::Pending {
+            w: &self.w_pend,
+            beta: self.beta_pend,
+            n,
+            p: 1,
+        };
+        if !simd::fused_pass(self.level, &mut self.cov, pending, psi, &mut self.g) {
+            return self.fail(lambda, error_norm);
         }
         let s = dot(psi, &self.g);
         let d = 1.0 + beta * s;
         if !(d > 0.0 && d.is_finite()) {
             return self.fail(lambda, error_norm);
-        }
-
-        // P̃_{k+1} = β P̃ − (β²/d) g gᵀ, in place (one pass), with its trace; `sum` of all
-        // entries is non-finite if any entry is (or on overflow, which resets as well).
-        let c = beta * beta / d;
-        let (mut trace, mut min_diag, mut sum) = (0.0, f64::INFINITY, 0.0);
-        let mut off = 0;
-        for i in 0..n {
-            let row = &mut self.cov[off..off + n - i];
-            sum += rank1_row(row, &self.g[i..], beta, c * self.g[i]);
-            trace += row[0];
-            min_diag = f64::min(min_diag, row[0]);
-            off += n - i;
         }
         // Θ̃_{k+1} = Θ̃_k + z_k (β/d) gᵀ (2.32).
         let kf = beta / d;
@@ -150,15 +153,30 @@ impl SharedRls {
                 &mut self.theta[l * n..(l + 1) * n],
             );
         }
+        // w_k = (β/√d) g: P̃_{k+1} = β P̃_k − w_k w_kᵀ (2.31), deferred to the next sweep; its
+        // diagonal and trace now, exactly as the sweep will store them.
+        let scale = beta / d.sqrt();
+        for v in &mut self.g {
+            *v *= scale;
+        }
+        let next = simd::Pending {
+            w: &self.g,
+            beta,
+            n,
+            p: 1,
+        };
+        let (trace, min_diag, diag_ok) = simd::next_diag(self.level, &self.cov, next);
         if !guard_passes(
             &self.theta,
-            sum.is_finite(),
+            diag_ok,
             min_diag,
             p as f64 * trace,
             self.trace_limit,
         ) {
             return self.fail(lambda, error_norm);
         }
+        std::mem::swap(&mut self.g, &mut self.w_pend);
+        self.beta_pend = beta;
         self.trace = trace;
         RlsStep::accepted(lambda, error_norm)
     }
@@ -188,22 +206,35 @@ impl SharedRls {
         self.trace
     }
 
-    /// `P̃_k`, upper triangle row-packed (row `i` has `n − i` entries, diagonal first).
-    pub fn packed_covariance(&self) -> &[f64] {
-        &self.cov
+    /// `P̃_k` (n×n, exactly symmetric), with the deferred update applied as the next
+    /// step will apply it. Allocates: for tests and inspection.
+    pub fn covariance(&self) -> DMatrix<f64> {
+        applied_covariance(self.level, &self.cov, self.pending())
+    }
+
+    fn pending(&self) -> simd::Pending<'_> {
+        simd::Pending {
+            w: &self.w_pend,
+            beta: self.beta_pend,
+            n: self.n,
+            p: 1,
+        }
     }
 
     /// Visits what the estimator learned as the blocks of a checkpoint
-    /// ([`crate::learned`]): `theta` (Θ̃_k, row-major), `P-tilde` (the packed triangle of
-    /// P̃_k) and `trace` (`[tr P̃_k]`). Does not allocate.
+    /// ([`crate::learned`]): `theta` (Θ̃_k, row-major), `Q` (the packed triangle), `w` (the
+    /// deferred update) and `beta-trace` (`[β, tr P̃_k]`), with `P̃_k = β Q − w wᵀ`. Does not
+    /// allocate.
     pub fn learned(&self, visit: &mut dyn FnMut(&'static str, &[f64])) {
         visit("theta", &self.theta);
-        visit("P-tilde", &self.cov);
-        visit("trace", &[self.trace]);
+        visit("Q", &self.cov);
+        visit("w", &self.w_pend);
+        visit("beta-trace", &[self.beta_pend, self.trace]);
     }
 
-    /// Takes back the blocks of [`SharedRls::learned`] and restarts the forgetting rule.
-    /// Allocates (it checks that P̃_k is positive definite).
+    /// Takes back the blocks of [`SharedRls::learned`] and restarts the forgetting rule;
+    /// the estimator then continues exactly as the saved one would have. Allocates (it
+    /// checks that P̃_k is positive definite).
     ///
     /// # Errors
     ///
@@ -212,15 +243,25 @@ impl SharedRls {
     pub fn restore_learned(&mut self, saved: &crate::learned::Learned<'_>) -> Result<(), String> {
         let n = self.n;
         let theta = saved.block("theta", n * self.p)?;
-        let cov = saved.block("P-tilde", n * (n + 1) / 2)?;
-        self.trace = saved.scalar("trace")?;
+        let q = saved.block("Q", n * (n + 1) / 2)?;
+        let w = saved.block("w", n)?;
+        let bt = saved.block("beta-trace", 2)?;
         self.theta.copy_from_slice(theta);
-        self.cov.copy_from_slice(cov);
+        self.cov.copy_from_slice(q);
+        self.w_pend.copy_from_slice(w);
+        self.beta_pend = bt[0];
+        self.trace = bt[1];
         self.forgetting.reset();
         self.err.fill(0.0);
-        let p = crate::learned::unpack_symmetric(&self.cov, n);
-        let checked =
-            crate::learned::check_covariance(&p, self.p as f64 * self.trace, self.trace_limit);
+        let checked = if bt[0] > 0.0 {
+            crate::learned::check_covariance(
+                &self.covariance(),
+                self.p as f64 * self.trace,
+                self.trace_limit,
+            )
+        } else {
+            Err(format!("β = {:e} is not positive", bt[0]))
+        };
         if checked.is_err() {
             self.reset();
         }
@@ -231,27 +272,4 @@ impl SharedRls {
     pub fn resets(&self) -> u64 {
         self.resets
     }
-}
-
-/// `row_j ← β row_j − cg g_j` over the common length; returns the sum of the new entries
-/// (four lanes, so the loop vectorizes).
-#[inline(always)]
-fn rank1_row(row: &mut [f64], g: &[f64], beta: f64, cg: f64) -> f64 {
-    let n = row.len().min(g.len());
-    let (row, g) = (&mut row[..n], &g[..n]);
-    let mut acc = [0.0; 4];
-    let mut rc = row.chunks_exact_mut(4);
-    let mut gc = g.chunks_exact(4);
-    for (r, gg) in (&mut rc).zip(&mut gc) {
-        for t in 0..4 {
-            r[t] = beta * r[t] - cg * gg[t];
-            acc[t] += r[t];
-        }
-    }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for (r, &gg) in rc.into_remainder().iter_mut().zip(gc.remainder()) {
-        *r = beta * *r - cg * gg;
-        s += *r;
-    }
-    s
 }

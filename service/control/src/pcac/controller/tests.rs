@@ -462,7 +462,7 @@ fn what_pcac_identified_survives_a_checkpoint_and_a_new_data_stream() {
     let mut blocks = Vec::new();
     learned.learned(&mut |n, v| blocks.push((n.to_string(), v.to_vec())));
     let names: Vec<&str> = blocks.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["theta", "P-tilde", "trace"]);
+    assert_eq!(names, ["theta", "Q", "w", "beta-trace"]);
     let coefficients = learned.model().coefficients().to_vec();
     assert!(coefficients.iter().any(|v| (v - 1e-10).abs() > 1e-3));
 
