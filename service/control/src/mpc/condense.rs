@@ -766,18 +766,20 @@ impl Condenser {
         reference: &[f64],
         v_free: &[f64],
     ) -> Result<QpProblem<'_>, BuildError> {
-        let (ell, m, p, pt, nc, n) = (self.ell, self.m, self.p, self.pt, self.nc, self.n);
-        let expected_v = if self.notch.is_some() { n } else { 0 };
-        if v_free.len() != expected_v {
-            return Err(BuildError::Length {
-                what: "v_free",
-                expected: expected_v,
-                got: v_free.len(),
-            });
-        }
-        if v_free.iter().any(|x| !x.is_finite()) {
-            return Err(BuildError::NonFinite { what: "v_free" });
-        }
+        self.build_quadratic(markov)?;
+        self.build_linear(free_response, u_k, reference, v_free)
+    }
+
+    /// The first half of [`Condenser::build_notched`], what depends on the Markov
+    /// parameters only: `G_s = C_t H_s`, the output rows' `K_s = C_c H_s` and the Hessian
+    /// `H` (with the notch cost's constant part). [`Condenser::build_linear`] completes
+    /// the QP. Allocation-free.
+    ///
+    /// # Errors
+    ///
+    /// [`BuildError`] for Markov parameters of the wrong length or not finite.
+    pub fn build_quadratic(&mut self, markov: &[f64]) -> Result<(), BuildError> {
+        let (ell, m, p, pt, nc) = (self.ell, self.m, self.p, self.pt, self.nc);
         let blk = p * m;
         let n_markov = ell - 1;
         if markov.len() != n_markov * blk && markov.len() != ell * blk {
@@ -787,30 +789,8 @@ impl Condenser {
                 got: markov.len(),
             });
         }
-        let lens = [
-            ("free_response", free_response.len(), ell * p),
-            ("u_k", u_k.len(), m),
-            ("reference", reference.len(), ell * pt),
-        ];
-        for (what, got, expected) in lens {
-            if got != expected {
-                return Err(BuildError::Length {
-                    what,
-                    expected,
-                    got,
-                });
-            }
-        }
-        let finite = |v: &[f64]| v.iter().fold(true, |ok, x| ok & x.is_finite());
-        for (what, v) in [
-            ("markov", markov),
-            ("free_response", free_response),
-            ("u_k", u_k),
-            ("reference", reference),
-        ] {
-            if !finite(v) {
-                return Err(BuildError::NonFinite { what });
-            }
+        if markov.iter().any(|x| !x.is_finite()) {
+            return Err(BuildError::NonFinite { what: "markov" });
         }
         let markov = &markov[..n_markov * blk];
 
@@ -841,6 +821,66 @@ impl Condenser {
             }
         }
 
+        self.build_hessian();
+        if let Some(notch) = &self.notch {
+            for (h, c) in self.qp.hess.iter_mut().zip(&notch.hess) {
+                *h += c;
+            }
+        }
+        Ok(())
+    }
+
+    /// The second half of [`Condenser::build_notched`], after
+    /// [`Condenser::build_quadratic`] with this horizon's Markov parameters: the gradient
+    /// `f`, the constant, the move rows' and output rows' `h` and the output rows of `G`.
+    /// Allocation-free.
+    ///
+    /// # Errors
+    ///
+    /// [`BuildError`] for data of the wrong length or not finite.
+    pub fn build_linear(
+        &mut self,
+        free_response: &[f64],
+        u_k: &[f64],
+        reference: &[f64],
+        v_free: &[f64],
+    ) -> Result<QpProblem<'_>, BuildError> {
+        let (ell, m, p, pt, nc, n) = (self.ell, self.m, self.p, self.pt, self.nc, self.n);
+        let expected_v = if self.notch.is_some() { n } else { 0 };
+        if v_free.len() != expected_v {
+            return Err(BuildError::Length {
+                what: "v_free",
+                expected: expected_v,
+                got: v_free.len(),
+            });
+        }
+        if v_free.iter().any(|x| !x.is_finite()) {
+            return Err(BuildError::NonFinite { what: "v_free" });
+        }
+        let lens = [
+            ("free_response", free_response.len(), ell * p),
+            ("u_k", u_k.len(), m),
+            ("reference", reference.len(), ell * pt),
+        ];
+        for (what, got, expected) in lens {
+            if got != expected {
+                return Err(BuildError::Length {
+                    what,
+                    expected,
+                    got,
+                });
+            }
+        }
+        let finite = |v: &[f64]| v.iter().fold(true, |ok, x| ok & x.is_finite());
+        for (what, v) in [
+            ("free_response", free_response),
+            ("u_k", u_k),
+            ("reference", reference),
+        ] {
+            if !finite(v) {
+                return Err(BuildError::NonFinite { what });
+            }
+        }
         // Free tracking error e_i = C_t y_i − r_i; qe = 2 Q e; c = eᵀ Q e + u_kᵀ R_1 u_k.
         let mut c = 0.0;
         for i in 0..ell {
@@ -856,8 +896,6 @@ impl Condenser {
             c += r * u * u;
         }
         self.cost_const = c;
-
-        self.build_hessian();
 
         // f_a = Σ_{i>a} G_{i−a}ᵀ (2 Q_i e_i) − [a = 0] 2 R_1 u_k.
         self.qp.f.fill(0.0);
@@ -887,9 +925,6 @@ impl Condenser {
             }
             for (i, v) in v_free.iter().enumerate() {
                 self.cost_const += notch.r_v[i % m] * v * v;
-            }
-            for (h, c) in self.qp.hess.iter_mut().zip(&notch.hess) {
-                *h += c;
             }
         }
 

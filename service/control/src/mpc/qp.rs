@@ -105,9 +105,14 @@
 //! - The rows of `G` are copied at the start of each solve into a compressed (sparse-row)
 //!   buffer sized at construction, so the two-nonzero move-bound rows cost two flops each
 //!   when violations are checked.
-//! - The Cholesky factorization is faer's in-place blocked one on a buffer and scratch
-//!   sized at construction (`nalgebra`'s `cholesky()` allocates); the ignored timing test
-//!   compares it with a straightforward row-oriented in-place Cholesky.
+//! - The Cholesky factorization is left-looking by column panels, each panel with faer's
+//!   kernels (its product, blocked Cholesky and triangular solve) on a buffer and scratch
+//!   sized at construction (`nalgebra`'s `cholesky()` allocates): for a panel `J` of
+//!   columns, `A[J.., J] −= L[J.., :J] L[J, :J]ᵀ`, `A[J, J] = L_JJ L_JJᵀ`,
+//!   `L[below J, J] = A[below J, J] L_JJ⁻ᵀ`. A panel takes at most about 130 000
+//!   multiply–adds, so the factorization can be spread over calls (below). The ignored
+//!   timing test compares it with faer's blocked factorization in one call and with a
+//!   straightforward row-oriented one.
 //!
 //! ## Real-time use
 //!
@@ -122,9 +127,9 @@
 //!
 //! A solve can also be split over several calls, so that a controller that re-plans
 //! every `N` samples spreads it over sample periods: [`DenseQpSolver::start`] does the
-//! fixed part (the checks and the factorization), and each [`DenseQpSolver::proceed`]
-//! goes on until the solution is reached or it has made the active-set changes it was
-//! given: the start point's rounds (each frees the fixed bounds with negative
+//! checks and copies `H_FF`; each [`DenseQpSolver::proceed`] with a budget factors one
+//! panel of it while the factorization lasts, and then goes on until the solution is
+//! reached or it has made the active-set changes it was given: the start point's rounds (each frees the fixed bounds with negative
 //! multipliers, one change each, and re-minimizes), the bulk fix, then the additions of
 //! violated constraints. The budget is checked between rounds and between additions. Every iterate in between is dual
 //! feasible but not yet primal feasible, so nothing is usable before the end; the split
@@ -150,9 +155,11 @@
 //! ignored test `qp_timing_at_n_100_with_active_constraints` times it by active-set size.
 
 use crate::linalg::{axpy, dot_wide as dot};
-use faer::Par;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{self, LltRegularization};
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::{Accum, Par};
 
 #[cfg(any(test, feature = "clarabel"))]
 mod clarabel_reference;
@@ -255,9 +262,12 @@ pub enum QpProgress {
     Running,
 }
 
-/// The stages of a solve after the factorization.
+/// The stages of a solve.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Phase {
+    /// The factorization `H_FF = L_F L_Fᵀ`, done up to column `col` (panel by panel,
+    /// [`cholesky_panel`]).
+    Factor { col: usize },
     /// The start point's rounds; `minimized`: the next round need not re-minimize;
     /// `refactored`: the bulk fix has been done.
     Start { minimized: bool, refactored: bool },
@@ -478,22 +488,97 @@ fn backward_solve(l: &[f64], ld: usize, k: usize, y: &mut [f64]) {
     }
 }
 
-/// Factors the leading `k × k` block of the column-major matrix `a` (stride `ld`) in
-/// place as `L Lᵀ` (lower triangle read and written) with faer's blocked Cholesky on the
-/// pre-sized scratch `mem`. Returns `false` if it is not numerically positive definite.
-fn cholesky_in_place(a: &mut [f64], ld: usize, k: usize, mem: &mut MemBuffer) -> bool {
-    if k == 0 {
-        return true;
+/// Multiply–adds a panel of the factorization may take ([`panel_end`]): about a third of
+/// a `128 × 128` factorization (the acoustic rig's PCAC, `ℓ m = 128`), about twenty
+/// microseconds.
+const PANEL_WORK: usize = 1 << 17;
+
+/// The narrowest panel (columns); a panel that would leave fewer columns takes them too.
+const MIN_PANEL: usize = 8;
+
+/// The end of the panel that begins at column `j0` of the left-looking factorization of a
+/// `k × k` matrix: columns are added while the panel's multiply–adds — the update by the
+/// columns before it, `(k − j0) w j0`, the diagonal block's factorization, `w³/6`, and
+/// the solve below it, `(k − j0 − w) w²/2`, for `w` columns — stay within
+/// [`PANEL_WORK`], with at least [`MIN_PANEL`] columns, and none fewer left after it.
+fn panel_end(k: usize, j0: usize) -> usize {
+    let cost = |w: usize| (k - j0) * w * j0 + w * w * w / 6 + (k - j0 - w) * w * w / 2;
+    let mut w = MIN_PANEL.min(k - j0);
+    while j0 + w < k && cost(w + 1) <= PANEL_WORK {
+        w += 1;
     }
+    if k - (j0 + w) < MIN_PANEL { k } else { j0 + w }
+}
+
+/// Columns `j0..j1` of the Cholesky factor of the leading `k × k` block of the
+/// column-major matrix `a` (stride `ld`, lower triangle read and written), when the
+/// columns before `j0` already hold `L` (left-looking, with faer's kernels on the
+/// pre-sized scratch `mem`):
+///
+/// ```text
+/// A[j0.., J] −= L[j0.., ..j0] L[J, ..j0]ᵀ,   A[J, J] = L_JJ L_JJᵀ,   L[j1.., J] = A[j1.., J] L_JJ⁻ᵀ
+/// ```
+///
+/// for `J = j0..j1`. The same panels give the same factor, bit for bit, however the
+/// calls are spread. Returns `false` if the block is not numerically positive definite.
+fn cholesky_panel(
+    a: &mut [f64],
+    ld: usize,
+    k: usize,
+    (j0, j1): (usize, usize),
+    mem: &mut MemBuffer,
+) -> bool {
     let mat = faer::MatMut::from_column_major_slice_with_stride_mut(a, k, k, ld);
-    factor::cholesky_in_place(
-        mat,
+    let (done, rest) = mat.split_at_col_mut(j0);
+    let w = j1 - j0;
+    let mut panel = rest.subcols_mut(0, w).subrows_mut(j0, k - j0);
+    if j0 > 0 {
+        let below = done.as_ref().subrows(j0, k - j0);
+        let across = done.as_ref().subrows(j0, w);
+        matmul(
+            panel.as_mut(),
+            Accum::Add,
+            below,
+            across.transpose(),
+            -1.0,
+            Par::Seq,
+        );
+    }
+    let (mut diag, below) = panel.split_at_row_mut(w);
+    if factor::cholesky_in_place(
+        diag.as_mut(),
         LltRegularization::default(),
         Par::Seq,
         MemStack::new(mem),
         Default::default(),
     )
-    .is_ok()
+    .is_err()
+    {
+        return false;
+    }
+    solve_lower_triangular_in_place(diag.as_ref(), below.transpose_mut(), Par::Seq);
+    true
+}
+
+/// Columns `from..to` of the Cholesky factor of the leading `k × k` block, panel by panel
+/// ([`cholesky_panel`], panels of [`panel_end`]), when the columns before `from` hold
+/// `L`. Returns `false` if it is not numerically positive definite.
+fn cholesky_columns(
+    a: &mut [f64],
+    ld: usize,
+    k: usize,
+    (from, to): (usize, usize),
+    mem: &mut MemBuffer,
+) -> bool {
+    let mut j = from;
+    while j < to {
+        let end = panel_end(k, j);
+        if !cholesky_panel(a, ld, k, (j, end), mem) {
+            return false;
+        }
+        j = end;
+    }
+    true
 }
 
 /// The right-hand side `b_id` of constraint `id` (internal ids for `n` variables).
@@ -586,7 +671,7 @@ impl DenseQpSolver {
         for j in 0..n {
             self.l[j * n + j] = 1.0;
         }
-        let _ = cholesky_in_place(&mut self.l, n, n, &mut self.chol_mem);
+        let _ = cholesky_columns(&mut self.l, n, n, (0, n), &mut self.chol_mem);
     }
 
     /// The number of variables `n` this solver was built for.
@@ -751,8 +836,8 @@ impl DenseQpSolver {
     }
 
     /// The first part of a solve split over several calls (module docs, "Real-time
-    /// use"): the checks and the factorization; the start point and the constraint
-    /// additions follow in [`DenseQpSolver::proceed`]. [`DenseQpSolver::proceed`] goes on with the same problem
+    /// use"): the checks and the copy of `H_FF`; the factorization, the start point and
+    /// the constraint additions follow in [`DenseQpSolver::proceed`]. [`DenseQpSolver::proceed`] goes on with the same problem
     /// (`p` must not change in between). Allocation-free.
     pub fn start(&mut self, p: &QpProblem, warm: WarmStart) -> QpProgress {
         self.running = false;
@@ -782,11 +867,12 @@ impl DenseQpSolver {
     }
 
     /// Goes on with the solve begun by [`DenseQpSolver::start`] on the same, unchanged
-    /// problem `p`: computes the start point and adds violated constraints until the KKT
-    /// conditions hold, the iteration cap is reached, or this call has made `budget`
-    /// active-set changes (a start-point round or a constraint addition that has begun is
-    /// always completed, so a call may exceed `budget` by the bounds one round frees or
-    /// the partial steps of one addition). `Running`: call again;
+    /// problem `p`: while the factorization lasts, factors one panel of it (all of it
+    /// when `budget` is `usize::MAX`) and returns; then computes the start point and adds
+    /// violated constraints until the KKT conditions hold, the iteration cap is reached,
+    /// or this call has made `budget` active-set changes (a start-point round or a
+    /// constraint addition that has begun is always completed, so a call may exceed
+    /// `budget` by the bounds one round frees or the partial steps of one addition). `Running`: call again;
     /// `Done(status)`: the solve is over, with the outcome [`DenseQpSolver::solve`]
     /// would have returned, bit for bit. With no solve running, `Done` repeats the last
     /// outcome. Allocation-free.
@@ -908,15 +994,11 @@ impl DenseQpSolver {
                 _ => FREE,
             };
         }
-        self.factor_free(p)?;
+        self.gather_free(p);
         self.fixed_at_start = self.fixed.len();
-        // The starting point (dual feasible, see `start_rows` and `start_round`) follows
-        // in `work`.
-        self.start_rows();
-        self.phase = Phase::Start {
-            minimized: false,
-            refactored: false,
-        };
+        // The factorization and the starting point (dual feasible, see `start_rows` and
+        // `start_round`) follow in `work`.
+        self.phase = Phase::Factor { col: 0 };
         Ok(())
     }
 
@@ -940,7 +1022,8 @@ impl DenseQpSolver {
         if violated >= BULK_FIX {
             self.fixed_at_start += violated;
             self.clear_active();
-            self.factor_free(p)?;
+            self.gather_free(p);
+            self.factor_rest(0)?;
             self.start_rows();
             Ok(true)
         } else {
@@ -962,6 +1045,31 @@ impl DenseQpSolver {
         let tol = self.settings.feasibility_tol;
         let mark = self.iterations;
         loop {
+            if let Phase::Factor { col } = self.phase {
+                // One panel per call when the call has a budget; all of them otherwise.
+                let nf = self.free.len();
+                let end = if budget == usize::MAX {
+                    nf
+                } else {
+                    panel_end(nf, col)
+                };
+                if let Err(status) = self.factor_panels(col, end) {
+                    return Some(status);
+                }
+                if end < nf {
+                    self.phase = Phase::Factor { col: end };
+                    return None;
+                }
+                self.start_rows();
+                self.phase = Phase::Start {
+                    minimized: false,
+                    refactored: false,
+                };
+                if budget != usize::MAX {
+                    return None;
+                }
+                continue;
+            }
             if self.iterations - mark >= budget {
                 return None;
             }
@@ -1245,8 +1353,8 @@ impl DenseQpSolver {
     }
 
     /// Builds `free`, `pos` and `fixed` from `fix` (fixed variables at their bounds, their
-    /// bounds `FIXED`) and factors `H_FF = L_F L_Fᵀ`.
-    fn factor_free(&mut self, p: &QpProblem) -> Result<(), QpStatus> {
+    /// bounds `FIXED`) and copies `H_FF` where [`Self::factor_panels`] factors it.
+    fn gather_free(&mut self, p: &QpProblem) {
         let n = self.n;
         self.free.clear();
         self.fixed.clear();
@@ -1280,11 +1388,22 @@ impl DenseQpSolver {
                 }
             }
         }
-        if cholesky_in_place(&mut self.l, n, nf, &mut self.chol_mem) {
+    }
+
+    /// Columns `from..to` of `L_F` ([`cholesky_panel`], panels of [`panel_end`]), after
+    /// [`Self::gather_free`] and the columns before `from`.
+    fn factor_panels(&mut self, from: usize, to: usize) -> Result<(), QpStatus> {
+        let (n, nf) = (self.n, self.free.len());
+        if cholesky_columns(&mut self.l, n, nf, (from, to), &mut self.chol_mem) {
             Ok(())
         } else {
             Err(QpStatus::NumericalError)
         }
+    }
+
+    /// `L_F` from column `from` to the end.
+    fn factor_rest(&mut self, from: usize) -> Result<(), QpStatus> {
+        self.factor_panels(from, self.free.len())
     }
 
     /// With no constraint active: the free variables ← the minimizer of the objective

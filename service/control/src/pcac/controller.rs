@@ -146,9 +146,9 @@ pub struct PcacParams {
     pub replan_every: usize,
     /// When re-planning every `N ≥ 4` samples, the QP's share of each period before the
     /// last of a cycle, in active-set changes ([`super::replan`], "The work of one solve"):
-    /// the solve starts in the third period with at most this many changes after its
-    /// factorization, goes on by as many in each following period, and ends in the last
-    /// one. `0` (the default) solves the whole QP in the third period.
+    /// the solve starts in the third period, factors `H` one panel per period after it,
+    /// then makes at most this many changes per period, and ends in the last one. `0` (the
+    /// default) solves the whole QP in the third period.
     pub qp_changes_per_period: usize,
     /// The internal model of known tones ([`super::tone_model`], an extension beyond the
     /// dissertation): identification on `D(q)`-filtered data, prediction with the product
@@ -814,7 +814,8 @@ impl Pcac {
     }
 
     /// With the internal model of known tones ([`PcacParams::internal_model`]), the
-    /// product model the MPC predicts with ([`super::tone_model`]); `None` without it.
+    /// product model the MPC predicts with ([`super::tone_model`]), as of the last
+    /// prediction; `None` without it.
     pub fn tone_product_model(&self) -> Option<ToneProductModel<'_>> {
         self.tones.as_ref().map(ToneModel::view)
     }
@@ -938,9 +939,8 @@ impl Pcac {
                 let _ = self.model.observe(yf, uf);
                 return false;
             }
-            let reset = matches!(self.model.update(yf, uf), Ok(st) if st.reset);
-            t.refresh(&self.model);
-            return reset;
+            // The product coefficients follow at the next prediction (`predict`).
+            return matches!(self.model.update(yf, uf), Ok(st) if st.reset);
         }
         let input: &[f64] = match &mut self.aug {
             None => &self.u_last,
@@ -981,7 +981,7 @@ impl Pcac {
     /// next-step timing (`u_k`) must be in [`Replan::commit`] already.
     fn solve_mpc(&mut self, input: &StepInput<'_>) -> u32 {
         self.predicted = self.predict(input);
-        self.built = self.predicted && self.build_qp();
+        self.built = self.predicted && self.build_qp() && self.build_rest();
         self.start_qp(self.built);
         self.qp_slice(true).unwrap_or(status::OK)
     }
@@ -1016,6 +1016,7 @@ impl Pcac {
         let predicted = match (&self.aug, &mut self.tones) {
             (Some(aug), _) => predict_with(&mut self.pred, &aug.view(&self.model), committed),
             (None, Some(t)) => {
+                t.refresh(&self.model);
                 t.fill_v_free(committed);
                 predict_with(&mut self.pred, &t.view(), committed)
             }
@@ -1026,17 +1027,25 @@ impl Pcac {
         predicted.is_ok()
     }
 
-    /// Step 4's condensing, the second unit of a solve: first the unconstrained fast path
-    /// when [`PcacParams::fast_path`] chooses it, whose `U*`, when it meets every
-    /// constraint, is the solution (nothing to condense; the solve unit only takes it);
-    /// otherwise the condensed QP. Whether the solve unit has a solution or a QP.
+    /// Step 4's condensing, first half (the second unit of a solve): first the
+    /// unconstrained fast path when [`PcacParams::fast_path`] chooses it, whose `U*`, when
+    /// it meets every constraint, is the solution (nothing to condense; the solve unit only
+    /// takes it); otherwise the QP's Hessian from the Markov parameters
+    /// ([`Condenser::build_quadratic`]). Whether the second half may follow.
     fn build_qp(&mut self) -> bool {
         self.fast_found = self.try_fast_path();
+        self.fast_found || self.cond.build_quadratic(self.pred.markov()).is_ok()
+    }
+
+    /// Step 4's condensing, second half (at the start of the solve unit): the QP's
+    /// gradient and right-hand sides from the free response
+    /// ([`Condenser::build_linear`]), unless the fast path found the solution. Whether the
+    /// solve unit has a solution or a QP.
+    fn build_rest(&mut self) -> bool {
         self.fast_found
             || self
                 .cond
-                .build_notched(
-                    self.pred.markov(),
+                .build_linear(
                     self.pred.free_response(),
                     &self.u_ref,
                     &self.reference,
@@ -1183,9 +1192,12 @@ impl Pcac {
             self.built = self.predicted && self.build_qp();
         }
         if units.solve {
+            self.built = self.built && self.build_rest();
             self.start_qp(self.built);
         }
-        if units.solve || units.solve_more {
+        // With shares, the period that starts the solve goes no further.
+        let shared = self.qp_changes_per_period > 0 && !units.take_over;
+        if (units.solve && !shared) || units.solve_more {
             let _ = self.qp_slice(units.take_over);
         }
         self.replan.next_sample(units.take_over);
@@ -1404,7 +1416,9 @@ impl Ahead for Pcac {
     /// Steps 1–2 with `y_k` as [`Controller::step`] does, `u_k = applied` (non-finite
     /// entries keep the ready input), then, when `adapt`, steps 3–5 with `u_k` as the move
     /// reference (2.47), exactly as `step` in [`PcacTiming::NextStep`]; without `adapt`
-    /// as [`Controller::observe`]: identification only, `applied` held.
+    /// as [`Controller::observe`]: identification only, and `applied` held — unless
+    /// `applied` is the plan in force's row for this sample, whose next row is then the
+    /// ready input ([`super::replan`]).
     fn advance(&mut self, input: &StepInput<'_>, applied: &[f64], adapt: bool) -> u32 {
         let identified = self.take_in(input);
         if adapt {
@@ -1420,9 +1434,18 @@ impl Ahead for Pcac {
         } else {
             self.counters.observed += 1;
             self.age_warm_start(1);
-            self.replan.clear();
             self.u_last.copy_from_slice(&self.u_next);
             self.ready_status = status::OK;
+            if self.replan.row_applied(&self.u_next) {
+                // The plant followed the plan in force: it goes on ([`super::replan`]),
+                // and the running cycle is dropped, as over a lost sample.
+                self.replan.skip(1);
+                if let Some(s) = self.replan.next_input(&mut self.u_next) {
+                    self.ready_status = s;
+                }
+            } else {
+                self.replan.clear();
+            }
         }
         self.ready_status
     }

@@ -29,11 +29,14 @@
 //!
 //! 1. **predict**: the committed inputs, `x̂_k`, `x_{N|k}`, the Markov parameters and the
 //!    free response ((2.36)–(2.46)), and the command `𝓡`;
-//! 2. **build**: the condensed QP ([`Condenser::build`](crate::mpc::condense::Condenser::build)),
+//! 2. **build**: the condensed QP's Hessian from the Markov parameters
+//!    ([`Condenser::build_quadratic`](crate::mpc::condense::Condenser::build_quadratic)),
 //!    or, when it is chosen and its minimizer meets every constraint, the unconstrained
 //!    fast path's solution instead ([`crate::mpc::fast_path`], on the realization kept
-//!    by the prediction), which leaves the solve unit nothing to solve;
-//! 3. **solve**: the warm-started QP
+//!    by the prediction), which leaves the solve unit nothing to build or solve;
+//! 3. **solve**: the rest of the QP from the free response
+//!    ([`Condenser::build_linear`](crate::mpc::condense::Condenser::build_linear)), then
+//!    the warm-started QP
 //!    ([`DenseQpSolver::solve`](crate::mpc::qp::DenseQpSolver::solve)), the plan rows
 //!    clipped into the input bounds (2.50), or the fallback.
 //!
@@ -46,34 +49,39 @@
 //!
 //! With `N ≥ 4` the solve may go on over the periods `3 … N−1` as well
 //! ([`PcacParams::qp_changes_per_period`](super::PcacParams::qp_changes_per_period)
-//! `= B > 0`): the third period factors `H`
-//! ([`DenseQpSolver::start`](crate::mpc::qp::DenseQpSolver::start)) and makes at most `B`
-//! active-set changes (the start point's rounds, then constraint additions), each later
-//! period at most `B` more
-//! ([`DenseQpSolver::proceed`](crate::mpc::qp::DenseQpSolver::proceed)), and the last
-//! period makes those that remain (up to the iteration cap). The QP's work is thus cut
-//! into shares no larger than the factorization plus `B` changes (and one round or
-//! addition begun), except in the last
-//! period, and its result is the one solve's, bit for bit; the new plan takes over at
-//! the last position, as with the solve in one period.
+//! `= B > 0`): the third period completes the QP and begins the solve
+//! ([`DenseQpSolver::start`](crate::mpc::qp::DenseQpSolver::start): its checks and the
+//! copy of `H`); each later period factors one panel of `H = L Lᵀ` (of a bounded number
+//! of multiply–adds), and once `L` is complete makes at most `B` active-set changes (the
+//! start point's rounds, then constraint additions)
+//! ([`DenseQpSolver::proceed`](crate::mpc::qp::DenseQpSolver::proceed)); the last
+//! period does what remains (up to the iteration cap). The QP's work is thus cut
+//! into shares no larger than a panel, or `B` changes (and one round or addition begun),
+//! except in the last period, and its result is the one solve's, bit for bit; the new
+//! plan takes over at the last position, as with the solve in one period. `N` must leave
+//! periods for the panels (about ten at `ℓ m = 128`) and the changes, or the last period
+//! carries them.
 //!
 //! A cycle is abandoned when its data no longer hold: a sample taken in without
-//! adaptation (the loop caught up: the plant holds its input, and the plan in force is
-//! dropped, as after an observation in the single-rate form), or samples lost before the
-//! one at hand (the plan in force moves on by as many rows, as the plant followed it; a
-//! new cycle starts at this sample). Everything here is allocated when the controller is built.
+//! adaptation (the loop caught up, or the safe state), or samples lost before the one at
+//! hand (the plan in force moves on by as many rows, as the plant followed it; a new
+//! cycle starts at this sample). A sample taken in without adaptation whose applied input
+//! is the plan in force's row for it (the loop caught up while the plant followed the
+//! plan: its late policy applies the plan's entries) moves the plan on by one row as
+//! well; one whose input is anything else (the safe input, a held one) drops the plan, and
+//! the input is held until a new plan takes over. Everything here is allocated when the controller is built.
 
 /// The three units of work of one solve (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(super) struct Units {
     /// The prediction from the committed inputs.
     pub predict: bool,
-    /// The condensed QP.
+    /// The condensed QP's Hessian.
     pub build: bool,
-    /// The QP solve begins (its factorization, and its first share of
-    /// active-set changes).
+    /// The rest of the QP, and its solve begins (all of it without shares).
     pub solve: bool,
-    /// The QP solve goes on (a period after the one it began in; `N ≥ 4`).
+    /// The QP solve goes on: a panel of the factorization or a share of active-set
+    /// changes (a period after the one it began in; `N ≥ 4`).
     pub solve_more: bool,
     /// The new plan takes over after this period's work.
     pub take_over: bool,
@@ -154,6 +162,18 @@ impl Replan {
         self.pos = None;
         let lost = usize::try_from(lost).unwrap_or(usize::MAX);
         self.next_row = self.next_row.saturating_add(lost);
+    }
+
+    /// Whether `applied` is, bit for bit, the plan in force's row for the sample at hand:
+    /// the plant followed the plan over a sample the controller took in without
+    /// adaptation.
+    pub fn row_applied(&self, applied: &[f64]) -> bool {
+        let m = self.m;
+        self.next_row < self.active_rows
+            && self.active[self.next_row * m..(self.next_row + 1) * m]
+                .iter()
+                .zip(applied)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
     }
 
     /// The units this period runs, and moves the cycle on by one period. A cycle starts

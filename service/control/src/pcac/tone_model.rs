@@ -10,7 +10,8 @@
 //! 2. The identification gets `y_{f,k} = Σ_j δ_j y_{k−j}` and
 //!    `u_{f,k−1} = Σ_j δ_j u_{k−1−j}`: RLS (2.30)–(2.32) on the regressor (2.28) of the
 //!    filtered data estimates the plant part `F̂_i`, `Ĝ_i`, `i = 1 … n̂`.
-//! 3. The product coefficients (order `n̄ = n̂ + 2n_t`) are refreshed from `Θ̃`:
+//! 3. At each prediction the product coefficients (order `n̄ = n̂ + 2n_t`) are refreshed
+//!    from `Θ̃`:
 //!
 //!    ```text
 //!    F̄_i = δ_i I_p + Σ_{j=0}^{2n_t} δ_j F̂_{i−j},   Ḡ_i = Σ_{j=0}^{2n_t} δ_j Ĝ_{i−j},   i = 1 … n̄

@@ -934,12 +934,17 @@ fn qp_timing_at_n_100_with_active_constraints() {
         summary("dual active set, warm", &mut warm);
         summary("clarabel set-up + solve (tol 1e-8)", &mut clar);
     }
-    // The factorization alone: a row-oriented one vs faer's (the one the solver uses).
+    // The factorization alone: a row-oriented one, faer's blocked one in one call, and
+    // the panels the solver uses (faer's kernels, left-looking).
     let mut rng = ChaCha8Rng::seed_from_u64(21);
     let p0 = pcac_problem(50, 2, true, 3, 1.0, &mut rng);
     let n = p0.n;
     let mut buf = p0.hess.clone();
-    let (mut ours, mut faer_t) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
+    let (mut ours, mut faer_t, mut panels) = (
+        Vec::with_capacity(reps),
+        Vec::with_capacity(reps),
+        Vec::with_capacity(reps),
+    );
     let mut mem = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(
         n,
         Par::Seq,
@@ -952,23 +957,36 @@ fn qp_timing_at_n_100_with_active_constraints() {
         ours.push(t.elapsed().as_secs_f64() * 1e6);
         buf.copy_from_slice(&p0.hess);
         let t = Instant::now();
-        assert!(cholesky_in_place(&mut buf, n, n, &mut mem));
+        let mat = faer::MatMut::from_column_major_slice_mut(&mut buf, n, n);
+        let whole = factor::cholesky_in_place(
+            mat,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        );
         faer_t.push(t.elapsed().as_secs_f64() * 1e6);
+        assert!(whole.is_ok());
+        buf.copy_from_slice(&p0.hess);
+        let t = Instant::now();
+        assert!(cholesky_columns(&mut buf, n, n, (0, n), &mut mem));
+        panels.push(t.elapsed().as_secs_f64() * 1e6);
     }
     println!("Cholesky, n = 100:");
     summary("row-oriented in place", &mut ours);
-    summary("faer in place (used)", &mut faer_t);
+    summary("faer in place, one call", &mut faer_t);
+    summary("faer kernels in panels (used)", &mut panels);
 }
 
 /// A solve split into `start` and `proceed` calls of a small budget ends with the very
 /// result of one `solve` (bit for bit: iterate, multipliers, active set, iteration count),
 /// cold and warm, on problems with many active constraints; each `proceed` stops after at
-/// most its budget plus the partial steps of one addition; and `proceed` with no solve
-/// running repeats the last outcome.
+/// most its budget plus the partial steps of one addition, or after one panel of the
+/// factorization; and `proceed` with no solve running repeats the last outcome.
 #[test]
 fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
     let mut rng = ChaCha8Rng::seed_from_u64(31);
-    let mut split_runs = 0;
+    let (mut split_runs, mut panel_calls) = (0, 0);
     for case in 0..12 {
         let p = if case % 2 == 0 {
             pcac_problem(40, 2, true, 3, 3.0, &mut rng)
@@ -999,7 +1017,10 @@ fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
                         made <= budget + p.n + p.n_ineq(),
                         "case {case}: {made} changes"
                     );
-                    if progress == QpProgress::Running {
+                    if progress == QpProgress::Running && made == 0 {
+                        // A call during the factorization factors one panel.
+                        panel_calls += 1;
+                    } else if progress == QpProgress::Running {
                         assert!(
                             made >= budget,
                             "case {case}: stopped after {made} < {budget}"
@@ -1030,11 +1051,12 @@ fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
             }
         }
     }
-    // The budgets did split most solves.
+    // The budgets did split most solves, and the factorizations at n = 80 into panels.
     assert!(
         split_runs >= 40,
         "{split_runs} of 72 solves ran over several calls"
     );
+    assert!(panel_calls >= 36, "{panel_calls} calls factored a panel");
 }
 
 /// `proceed` with a problem of other dimensions ends the running solve with
@@ -1055,4 +1077,65 @@ fn a_split_solve_refuses_a_problem_of_other_dimensions() {
         QpProgress::Done(QpStatus::InvalidDimensions)
     );
     assert!(!s.is_running());
+}
+
+/// The factorization by column panels: at `n = 128` (the acoustic rig's PCAC) it takes
+/// several panels, their factor satisfies `L Lᵀ = H` to round-off and agrees with faer's
+/// blocked factorization in one call, the same panels give the same factor bit for bit
+/// however the columns are split over calls, and an indefinite matrix is refused.
+#[test]
+fn the_factorization_by_panels_is_cholesky_and_splits_bit_for_bit() {
+    let mut rng = ChaCha8Rng::seed_from_u64(41);
+    let n = 128;
+    let h = random_spd(n, 1e-3, &mut rng);
+    let scale = h.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let req = factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default());
+    let mut mem = MemBuffer::new(req);
+    let mut bounds = vec![0];
+    while *bounds.last().unwrap() < n {
+        bounds.push(panel_end(n, *bounds.last().unwrap()));
+    }
+    assert!(bounds.len() > 3, "panels {bounds:?}");
+    let mut whole = h.clone();
+    assert!(cholesky_columns(&mut whole, n, n, (0, n), &mut mem));
+    // Panel by panel, one call each.
+    let mut split = h.clone();
+    for w in bounds.windows(2) {
+        assert!(cholesky_columns(&mut split, n, n, (w[0], w[1]), &mut mem));
+    }
+    let lower = |a: &[f64], i: usize, j: usize| if i >= j { a[j * n + i] } else { 0.0 };
+    for j in 0..n {
+        for i in j..n {
+            assert_eq!(lower(&split, i, j).to_bits(), lower(&whole, i, j).to_bits());
+        }
+    }
+    let mut faer_l = h.clone();
+    let mat = faer::MatMut::from_column_major_slice_mut(&mut faer_l, n, n);
+    assert!(
+        factor::cholesky_in_place(
+            mat,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default()
+        )
+        .is_ok()
+    );
+    let mut worst = (0.0f64, 0.0f64);
+    for i in 0..n {
+        for j in 0..=i {
+            let llt: f64 = (0..=j)
+                .map(|k| lower(&whole, i, k) * lower(&whole, j, k))
+                .sum();
+            worst.0 = worst.0.max((llt - h[j * n + i]).abs() / scale);
+            worst.1 = worst
+                .1
+                .max((lower(&whole, i, j) - lower(&faer_l, i, j)).abs());
+        }
+    }
+    assert!(worst.0 < 1e-13, "L Lᵀ − H: {:e}", worst.0);
+    assert!(worst.1 < 1e-9, "against faer's factor: {:e}", worst.1);
+    let mut indefinite = h.clone();
+    indefinite[(n - 1) * n + n - 1] = -1.0;
+    assert!(!cholesky_columns(&mut indefinite, n, n, (0, n), &mut mem));
 }

@@ -845,6 +845,57 @@ fn between_solves_the_ready_inputs_are_the_plan_rows() {
     assert_eq!(stepped, ahead);
 }
 
+/// A sample taken in without adaptation (the loop caught up) while the plant followed the
+/// plan in force — its applied input is the plan's row for it — moves the plan on: the
+/// next ready input is the plan's next row and the rows after it are still sent, and a
+/// new solve follows; a sample whose applied input is anything else (the safe input)
+/// drops the plan, and that input is held.
+#[test]
+fn a_caught_up_sample_on_the_plan_keeps_the_plan_and_another_drops_it() {
+    let n = 4;
+    let mut p = params(PcacTiming::NextStep);
+    p.replan_every = n;
+    let mut c = Pcac::new(&p, counts(1)).unwrap();
+    let _ = inputs_of(&mut c, true, 1000, |_| {});
+    for (case, follow) in [(0, true), (1, false)] {
+        let mut u = [0.0];
+        let a = c.ahead().unwrap();
+        a.ready(&mut u);
+        let mut rows = [0.0; 64];
+        let got = a.plan(&mut rows);
+        assert!(got >= 2, "case {case}: a plan is in force ({got} rows)");
+        let (y, ua) = ([0.01], u);
+        let input = StepInput {
+            seq: 1000 + case,
+            y: &y,
+            z: &y,
+            r: &[0.0],
+            u_applied: Some(&ua),
+            lost: 0,
+        };
+        let applied = if follow { u } else { [0.0] };
+        let solved = c.counts_of().solved;
+        let a = c.ahead().unwrap();
+        a.advance(&input, &applied, false);
+        let mut next = [f64::NAN];
+        a.ready(&mut next);
+        let mut after = [0.0; 64];
+        let left = a.plan(&mut after);
+        if follow {
+            assert_eq!(next[0].to_bits(), rows[0].to_bits(), "the plan's next row");
+            assert_eq!(left, got - 1);
+            assert_eq!(after[..left], rows[1..got]);
+            // The loop goes on: a new cycle solves within N samples.
+            let _ = inputs_of(&mut c, true, n + 1, |_| {});
+            assert!(c.counts_of().solved > solved, "a new solve followed");
+        } else {
+            assert_eq!(next[0].to_bits(), 0.0f64.to_bits(), "the safe input held");
+            assert_eq!(left, 0, "no plan after the safe input");
+        }
+        assert_eq!(c.counts_of().observed, 1 + case);
+    }
+}
+
 /// Re-planning every `N ≥ 4` samples with the QP cut into shares of `B` active-set
 /// changes per period ([`PcacParams::qp_changes_per_period`]) gives the inputs and status
 /// bits of the whole QP in one period, bit for bit, while solves do end in later periods
