@@ -1215,9 +1215,9 @@ mod tests {
         o
     }
 
-    /// §6.2.1: measured 37.4 dB at node 8 (37.0 at node 7, 24.4 and 24.5 at nodes 5, 6),
-    /// tones 36.0, 43.6, 32.0 dB, converged at 27.6 s, no fallback, |u| ≤ 10 N.
-    /// Thresholds about 4 dB below. In metres: no reduction (u stays below 0.6 N).
+    /// §6.2.1: measured 37.1 dB at node 8 (37.0 at node 7, 24.4 at nodes 5, 6), tones
+    /// 33.2, 42.8, 31.9 dB, converged at 36.5 s, no fallback, |u| ≤ 10 N. Thresholds
+    /// about 4 dB below. In metres: no reduction (u stays below 0.6 N).
     #[test]
     fn pcac_as_printed_suppresses_the_three_tones_at_node_8() {
         let o = check(Experiment::Harmonic, 33.0, 20.0);
@@ -1229,9 +1229,9 @@ mod tests {
         }
     }
 
-    /// §6.2.2: measured 19.4 dB at nodes 7, 8 (18.1 and 18.7 at nodes 5, 6), converged at
-    /// 4.8 s. In metres the little the model learns is wrong: node 8 is amplified by
-    /// 10.6 dB and the inputs saturate.
+    /// §6.2.2: measured 19.4 dB at nodes 7, 8 (17.3 and 18.0 at nodes 5, 6), converged at
+    /// 5.2 s. In metres the little the model learns is wrong: node 8 is amplified by
+    /// 6.2 dB and the inputs saturate.
     #[test]
     fn pcac_as_printed_suppresses_the_25_hz_broadband_disturbance() {
         let o = check(Experiment::Broadband, 16.0, 14.0);
@@ -1239,8 +1239,9 @@ mod tests {
         assert!(o.reduction(metres, 3) < -5.0);
     }
 
-    /// §6.2.3: measured 13.2 dB at nodes 7, 8 (9.8 at nodes 5, 6), converged at 12.6 s,
-    /// despite 14 of the 16 modes aliasing at 10 Hz. In metres u stays at 0.
+    /// §6.2.3: measured 13.2 and 13.3 dB at nodes 7, 8 (9.7 and 9.8 at nodes 5, 6),
+    /// converged at 13.5 s, despite 14 of the 16 modes aliasing at 10 Hz. In metres u stays
+    /// at 0.
     #[test]
     fn pcac_as_printed_suppresses_the_aliased_broadband_disturbance() {
         check(Experiment::Aliasing, 10.0, 6.5);
