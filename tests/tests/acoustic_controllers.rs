@@ -253,8 +253,8 @@ fn pcac_suppresses_every_tone_to_its_bar_with_every_qp_solved() {
 
 /// PCAC with the internal model of the seven tones (docs/pcac.md, "The internal model of
 /// known tones") meets the issue's 40 dB on every tone without a burst, every QP solved,
-/// re-planning every 12 samples with the QP spread over the periods. Measured (lockstep):
-/// 41.4 to 59.1 dB.
+/// re-planning every 11 samples with the QP spread over the periods. Measured (lockstep):
+/// 44.2 to 58.3 dB.
 #[test]
 fn pcac_with_the_internal_model_meets_its_40_db_with_every_qp_solved() {
     let r = run(
@@ -265,9 +265,10 @@ fn pcac_with_the_internal_model_meets_its_40_db_with_every_qp_solved() {
     check("pcac internal model", r, 40.0);
 }
 
-/// A PCAC run's report shows no fallback and a solved QP at every one of its MPC steps:
-/// at least one per `N` samples of the 9 s of closed loop at 8 kHz (72 000 samples) when
-/// it re-plans every `N` (`samples per solve`).
+/// A PCAC run's report shows no fallback and a solved QP at every one of its MPC steps
+/// (but the last when it re-plans: that cycle may end with the run): at least one per `N`
+/// samples of the 9 s of closed loop at 8 kHz (72 000 samples) when it re-plans every `N`
+/// (`samples per solve`).
 fn every_qp_solved(report: &Value) {
     let counters: Vec<(String, u64)> =
         serde_json::from_value(report["controller_counters"].clone()).expect("counters");
@@ -281,5 +282,7 @@ fn every_qp_solved(report: &Value) {
     assert_eq!(counter("fallbacks"), 0, "{counters:?}");
     let every = counter("samples per solve (replan-every)").max(1);
     assert!(counter("mpc steps") >= 72_000 / every, "{counters:?}");
-    assert_eq!(counter("qp solved"), counter("mpc steps"), "{counters:?}");
+    // A cycle begun in the run's last `N` samples ends with the run, unsolved.
+    let (solved, steps) = (counter("qp solved"), counter("mpc steps"));
+    assert!(solved <= steps && solved + u64::from(every > 1) >= steps, "{counters:?}");
 }
