@@ -284,5 +284,8 @@ fn every_qp_solved(report: &Value) {
     assert!(counter("mpc steps") >= 72_000 / every, "{counters:?}");
     // A cycle begun in the run's last `N` samples ends with the run, unsolved.
     let (solved, steps) = (counter("qp solved"), counter("mpc steps"));
-    assert!(solved <= steps && solved + u64::from(every > 1) >= steps, "{counters:?}");
+    assert!(
+        solved <= steps && solved + u64::from(every > 1) >= steps,
+        "{counters:?}"
+    );
 }

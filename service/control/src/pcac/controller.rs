@@ -146,9 +146,10 @@ pub struct PcacParams {
     pub replan_every: usize,
     /// When re-planning every `N ≥ 4` samples, the QP's share of each period before the
     /// last of a cycle, in active-set changes ([`super::replan`], "The work of one solve"):
-    /// the solve starts in the third period, factors `H` one panel per period after it,
-    /// then makes at most this many changes per period, and ends in the last one. `0` (the
-    /// default) solves the whole QP in the third period.
+    /// the solve starts in the third period (without factoring), factors `H` one panel per
+    /// period after it, then makes at most this many changes per period, and ends in the
+    /// last one (at `N = 4` all of it falls to the last period). `0` (the default) solves
+    /// the whole QP in the third period.
     pub qp_changes_per_period: usize,
     /// The internal model of known tones ([`super::tone_model`], an extension beyond the
     /// dissertation): identification on `D(q)`-filtered data, prediction with the product
