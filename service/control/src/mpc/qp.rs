@@ -129,9 +129,10 @@
 //! every `N` samples spreads it over sample periods: [`DenseQpSolver::start`] does the
 //! checks and copies `H_FF`; each [`DenseQpSolver::proceed`] with a budget factors one
 //! panel of it while the factorization lasts, and then goes on until the solution is
-//! reached or it has made the active-set changes it was given: the start point's rounds (each frees the fixed bounds with negative
-//! multipliers, one change each, and re-minimizes), the bulk fix, then the additions of
-//! violated constraints. The budget is checked between rounds and between additions. Every iterate in between is dual
+//! reached or it has made the active-set changes it was given: the start point's rounds
+//! (each frees the fixed bounds with negative multipliers, one change each, and
+//! re-minimizes), the bulk fix, then the additions of violated constraints. The budget is
+//! checked between rounds and between additions. Every iterate in between is dual
 //! feasible but not yet primal feasible, so nothing is usable before the end; the split
 //! changes when the work is done, not the work: the operations are those of one
 //! [`DenseQpSolver::solve`], in the same order, and the result is the same bit for bit.
@@ -516,7 +517,9 @@ fn panel_end(k: usize, j0: usize) -> usize {
 /// pre-sized scratch `mem`):
 ///
 /// ```text
-/// A[j0.., J] −= L[j0.., ..j0] L[J, ..j0]ᵀ,   A[J, J] = L_JJ L_JJᵀ,   L[j1.., J] = A[j1.., J] L_JJ⁻ᵀ
+/// A[j0.., J] −= L[j0.., ..j0] L[J, ..j0]ᵀ
+/// A[J, J] = L_JJ L_JJᵀ
+/// L[j1.., J] = A[j1.., J] L_JJ⁻ᵀ
 /// ```
 ///
 /// for `J = j0..j1`. The same panels give the same factor, bit for bit, however the
