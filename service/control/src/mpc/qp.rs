@@ -1026,7 +1026,7 @@ impl DenseQpSolver {
             self.fixed_at_start += violated;
             self.clear_active();
             self.gather_free(p);
-            self.factor_rest(0)?;
+            self.factor_panels(0, self.free.len())?;
             self.start_rows();
             Ok(true)
         } else {
@@ -1402,11 +1402,6 @@ impl DenseQpSolver {
         } else {
             Err(QpStatus::NumericalError)
         }
-    }
-
-    /// `L_F` from column `from` to the end.
-    fn factor_rest(&mut self, from: usize) -> Result<(), QpStatus> {
-        self.factor_panels(from, self.free.len())
     }
 
     /// With no constraint active: the free variables ← the minimizer of the objective
