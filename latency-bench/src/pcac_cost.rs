@@ -50,10 +50,13 @@
 //!      the copy's coefficients are checked equal to PCAC's, untimed), `HorizonPrediction` on
 //!      the identified model (truss, `compute` from `u_k`) or on PCAC's closed-loop model
 //!      `Pcac::closed_loop_model` (arm, `compute_from_state`) (realization: state, Markov
-//!      parameters, free response), where PCAC's `fast-path` setting chooses it (the arm)
+//!      parameters, free response; with the fast path and no output constraint, the arm,
+//!      the state and the head only, `HorizonPrediction::defer_horizon`, as `Pcac`
+//!      does), where PCAC's `fast-path` setting chooses it (the arm)
 //!      `FastPath::solve` (the Riccati minimizer and the constraint check, on the
 //!      realization the prediction used), and where that minimizer is not the solution
-//!      (or without the fast path) `Condenser::build` (condensing) and
+//!      (or without the fast path) `HorizonPrediction::complete` (the rest of a deferred
+//!      prediction) with `Condenser::build` (condensing) and
 //!      `DenseQpSolver::solve` (warm-started from its own shifted active set, emptied by a
 //!      fast-path step, as `Pcac` does); each piece is recorded at the steps that run it.
 //!      Its first move is compared with the timed controller's, which checks that
@@ -400,12 +403,15 @@ struct Pieces {
 impl Pieces {
     fn new(pcac: &Pcac, mpc: &MpcSpec, fast_path: FastPathMode) -> Result<Self, String> {
         let model = pcac.model().clone();
-        let pred = HorizonPrediction::new(&model, mpc.horizon)?;
+        let mut pred = HorizonPrediction::new(&model, mpc.horizon)?;
         let cond = Condenser::new(mpc).map_err(|e| e.to_string())?;
         let settings = QpSettings::default();
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), settings);
         let fast = FastPath::new(mpc, model.n_hat(), settings.feasibility_tol, fast_path)
             .map_err(|e| e.to_string())?;
+        // As `Pcac`: with the fast path and no output constraint, the prediction's horizon
+        // waits until a QP is condensed.
+        pred.defer_horizon(fast.as_ref().is_some_and(|f| !f.reads_prediction()));
         let ids = cond.n() + cond.n_ineq();
         Ok(Self {
             reference: vec![0.0; mpc.horizon * mpc.n_tracked],
@@ -513,6 +519,15 @@ impl Pieces {
             WarmStart::Cold
         };
         let t2b = monotonic_ns();
+        // The rest of a deferred prediction, on the realization it used.
+        let completed = match &cl {
+            Some(cl) => self.pred.complete(&cl.realization()),
+            None => self.pred.complete(&self.model.realization()),
+        };
+        if completed.is_err() {
+            self.n_shifted = 0;
+            return (None, coef_diff);
+        }
         let Ok(problem) = self.cond.build(
             self.pred.markov(),
             self.pred.free_response(),
@@ -558,7 +573,7 @@ impl Pieces {
 pub const PIECES: [&str; 5] = [
     "identification (IoModel::update)",
     "realization + prediction (HorizonPrediction)",
-    "condensing (Condenser::build)",
+    "condensing (HorizonPrediction::complete + Condenser::build)",
     "QP solve, warm (DenseQpSolver::solve)",
     "fast path (Riccati + constraint check)",
 ];

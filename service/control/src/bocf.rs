@@ -569,7 +569,16 @@ pub struct HorizonPrediction {
     work: Vec<f64>,
     markov: Vec<f64>,
     free: Vec<f64>,
+    /// [`Self::defer_horizon`].
+    deferred: bool,
+    /// How much of `markov` and `free` the last computation filled.
+    markov_len: usize,
+    free_len: usize,
 }
+
+/// The blocks of the free response a deferred computation fills
+/// ([`HorizonPrediction::defer_horizon`]): `y` of the start and of one step on.
+const HEAD_FREE_BLOCKS: usize = 2;
 
 impl HorizonPrediction {
     /// Buffers for `model`'s dimensions and horizon `ℓ ≥ 1`.
@@ -590,7 +599,67 @@ impl HorizonPrediction {
             work: vec![0.0; nx],
             markov: vec![0.0; ell * p * m],
             free: vec![0.0; ell * p],
+            deferred: false,
+            markov_len: 0,
+            free_len: 0,
         })
+    }
+
+    /// Whether the computations ([`Self::compute`], [`Self::compute_committed`],
+    /// [`Self::compute_from_state`]) leave the horizon to [`Self::complete`]: with `true`
+    /// they fill the states, `Ĥ_1` and the first two blocks of the free response only
+    /// (what the one-step prediction of the signal log reads), which is all that the
+    /// unconstrained fast path ([`crate::mpc::fast_path`]) needs when the problem has no
+    /// output constraint; the rest, `O(ℓ n̂ p² (m + 1))`, only when a QP is condensed.
+    /// Default `false`.
+    pub fn defer_horizon(&mut self, deferred: bool) {
+        self.deferred = deferred;
+    }
+
+    /// Whether the Markov parameters and the free response cover the whole horizon (false
+    /// after a deferred computation until [`Self::complete`], and before any computation).
+    pub fn is_complete(&self) -> bool {
+        self.markov_len == self.markov.len() && self.free_len == self.free.len()
+    }
+
+    /// Fills the rest of a deferred computation: every Markov parameter and the whole free
+    /// response from the start state already computed, for `real`, which must be the
+    /// realization that computation used (the values are then bit for bit those of a
+    /// computation that was not deferred). Nothing to do when already complete. Never
+    /// allocates.
+    ///
+    /// # Errors
+    ///
+    /// [`DimError`] when `real`'s dimensions do not match the buffers.
+    pub fn complete(&mut self, real: &Realization<'_>) -> Result<(), DimError> {
+        if self.is_complete() {
+            return Ok(());
+        }
+        check("realization state", real.state_dim(), self.x1.len())?;
+        check(
+            "markov buffer",
+            self.markov.len(),
+            self.ell * real.p() * real.m(),
+        )?;
+        self.fill_horizon(real, false)
+    }
+
+    /// The Markov parameters and the free response from `x_{1|k}` (`self.x1`): all `ℓ`
+    /// blocks, or the head of [`Self::defer_horizon`] when `deferred`.
+    fn fill_horizon(&mut self, real: &Realization<'_>, deferred: bool) -> Result<(), DimError> {
+        let (markov_len, free_len) = if deferred {
+            let p = real.p();
+            (p * real.m(), (HEAD_FREE_BLOCKS * p).min(self.free.len()))
+        } else {
+            (self.markov.len(), self.free.len())
+        };
+        self.markov_len = 0;
+        self.free_len = 0;
+        real.markov(&mut self.markov[..markov_len])?;
+        real.free_response(&self.x1, &mut self.free[..free_len])?;
+        self.markov_len = markov_len;
+        self.free_len = free_len;
+        Ok(())
     }
 
     /// Step `k`, after the model's identification step: fills `x̂_k`,
@@ -608,8 +677,7 @@ impl HorizonPrediction {
     ) -> Result<(), DimError> {
         let real = self.fill_state(model)?;
         real.one_step_state(&self.x_hat, u_k, &mut self.x1)?;
-        real.markov(&mut self.markov)?;
-        real.free_response(&self.x1, &mut self.free)
+        self.fill_horizon(&real, self.deferred)
     }
 
     /// Step `k` for a plan that starts `d` samples later (PCAC's multi-rate re-planning,
@@ -651,8 +719,7 @@ impl HorizonPrediction {
             real.one_step_state(&self.x1, u, &mut self.work)?;
             std::mem::swap(&mut self.x1, &mut self.work);
         }
-        real.markov(&mut self.markov)?;
-        real.free_response(&self.x1, &mut self.free)
+        self.fill_horizon(&real, self.deferred)
     }
 
     /// Step `k`, after the model's identification step, for an input `u_k` still to be
@@ -670,8 +737,7 @@ impl HorizonPrediction {
     ) -> Result<(), DimError> {
         let real = self.fill_state(model)?;
         self.x1.copy_from_slice(&self.x_hat);
-        real.markov(&mut self.markov)?;
-        real.free_response(&self.x_hat, &mut self.free)
+        self.fill_horizon(&real, self.deferred)
     }
 
     /// The start of both computations: checks the buffers against the model's
@@ -706,14 +772,17 @@ impl HorizonPrediction {
     }
 
     /// `Ĥ_{k,1} … Ĥ_{k,ℓ}` (`ℓ` blocks `p × m`, row-major; [`crate::mpc`]'s condensing
-    /// uses the first `ℓ − 1`).
+    /// uses the first `ℓ − 1`): the blocks the last computation filled, all of them unless
+    /// it was deferred ([`Self::defer_horizon`], [`Self::is_complete`]); none before the
+    /// first. A computation refused for its arguments' dimensions leaves them as they were.
     pub fn markov(&self) -> &[f64] {
-        &self.markov
+        &self.markov[..self.markov_len]
     }
 
-    /// `Γ̂_{k,ℓ} x_{1|k}` = `y_{1|k} … y_{ℓ|k}` for `U = 0` (`ℓ` blocks of `p`).
+    /// `Γ̂_{k,ℓ} x_{1|k}` = `y_{1|k} … y_{ℓ|k}` for `U = 0` (`ℓ` blocks of `p`): the blocks
+    /// the last computation filled, as for [`Self::markov`].
     pub fn free_response(&self) -> &[f64] {
-        &self.free
+        &self.free[..self.free_len]
     }
 }
 
@@ -1088,6 +1157,51 @@ mod tests {
         for i in 1..=n {
             assert_eq!(built.f(i, 1, 0), model.f(i, 1, 0));
             assert_eq!(built.g(i, 0, 1), model.g(i, 0, 1));
+        }
+    }
+
+    /// A deferred prediction fills the states, `Ĥ_1` and two blocks of the free response;
+    /// completed on the same realization it equals the prediction that was not deferred,
+    /// bit for bit, in all three computations; a realization of other dimensions is
+    /// refused.
+    #[test]
+    fn a_deferred_horizon_completed_equals_the_whole_prediction() {
+        let mut g = Gauss::new(8);
+        for (n, p, m, ell) in [(1, 5, 2, 50), (3, 2, 2, 9), (2, 1, 1, 1)] {
+            let model = random_model(&mut g, n, p, m);
+            let (u_k, committed) = (g.vec(m), g.vec(3 * m));
+            let run = |defer: bool, which: usize| {
+                let mut hp = HorizonPrediction::new(&model, ell).unwrap();
+                hp.defer_horizon(defer);
+                assert!(!hp.is_complete());
+                match which {
+                    0 => hp.compute(&model, &u_k),
+                    1 => hp.compute_committed(&model, &committed),
+                    _ => hp.compute_from_state(&model),
+                }
+                .unwrap();
+                hp
+            };
+            for which in 0..3 {
+                let whole = run(false, which);
+                assert!(whole.is_complete());
+                assert_eq!(whole.markov().len(), ell * p * m);
+                let mut part = run(true, which);
+                assert_eq!(part.is_complete(), ell == 1 && p * m == part.markov().len());
+                assert_eq!(part.one_step_state(), whole.one_step_state());
+                assert_eq!(part.markov(), &whole.markov()[..p * m]);
+                let head = (2 * p).min(ell * p);
+                assert_eq!(part.free_response(), &whole.free_response()[..head]);
+                let other = random_model(&mut g, n, p + 1, m);
+                if !part.is_complete() {
+                    assert!(part.complete(&other.realization()).is_err());
+                    assert!(!part.is_complete());
+                }
+                part.complete(&model.realization()).unwrap();
+                assert!(part.is_complete());
+                assert_eq!(part.markov(), whole.markov());
+                assert_eq!(part.free_response(), whole.free_response());
+            }
         }
     }
 

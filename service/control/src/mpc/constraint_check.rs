@@ -89,10 +89,18 @@ impl ConstraintCheck {
         }
     }
 
+    /// Whether [`ConstraintCheck::satisfied`] reads the free response and the Markov
+    /// parameters: only for output constraints (2.49).
+    pub fn reads_prediction(&self) -> bool {
+        !self.dd.is_empty()
+    }
+
     /// Whether the plan `u` (`ℓ·m`) with its predicted outputs `outputs` (`ℓ·p`, `Y` of
     /// (2.43)) satisfies every constraint within the tolerance (module docs), for the free
     /// response `free_response` (`Γ̂ x_{1|k}`, `ℓ·p`), the Markov parameters `markov`
     /// (`Ĥ_1, …`, at least `ℓ−1` blocks of `p × m`) and the move reference `u_k` (`m`).
+    /// Without output constraints the free response and the Markov parameters are not
+    /// read ([`ConstraintCheck::reads_prediction`]) and may be of any length.
     /// Allocation-free; false for slices of the wrong length or non-finite values.
     pub fn satisfied(
         &mut self,
@@ -104,10 +112,12 @@ impl ConstraintCheck {
     ) -> bool {
         let (ell, m, p) = (self.ell, self.m, self.p);
         let nc = self.dd.len();
+        // The prediction is read by the output constraints only.
+        let prediction_ok = nc == 0
+            || (free_response.len() == ell * p && markov.len() >= ell.saturating_sub(1) * p * m);
         if u.len() != ell * m
             || outputs.len() != ell * p
-            || free_response.len() != ell * p
-            || markov.len() < ell.saturating_sub(1) * p * m
+            || !prediction_ok
             || u_k.len() != m
             || self.u_min.len() != m
             || self.u_max.len() != m
@@ -158,6 +168,9 @@ impl ConstraintCheck {
             }
         }
         // Output constraints (2.49).
+        if nc == 0 {
+            return true;
+        }
         self.norm2.fill(0.0);
         for i in 0..ell {
             if i >= 1 {

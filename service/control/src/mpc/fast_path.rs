@@ -166,6 +166,24 @@ impl FastPath {
         true
     }
 
+    /// The realization kept by the last [`FastPath::keep_model`] (zero coefficients
+    /// before any), for the rest of a deferred prediction
+    /// ([`crate::bocf::HorizonPrediction::complete`]) when the fast path's minimizer is not
+    /// the solution.
+    pub fn kept_realization(&self) -> Option<Realization<'_>> {
+        let [n_hat, p, m] = self.dims;
+        Realization::new(n_hat, p, m, &self.coef).ok()
+    }
+
+    /// Whether the constraint check reads the prediction's free response and Markov
+    /// parameters ([`ConstraintCheck::reads_prediction`]: only with output constraints).
+    /// When it does not, [`FastPath::solve`] needs only the prediction's start state, and
+    /// the rest of the prediction may wait until a QP is condensed
+    /// ([`crate::bocf::HorizonPrediction::defer_horizon`]).
+    pub fn reads_prediction(&self) -> bool {
+        self.check.reads_prediction()
+    }
+
     /// [`FastPath::solve`] for the realization kept by the last [`FastPath::keep_model`].
     /// Allocation-free.
     pub fn solve_kept(

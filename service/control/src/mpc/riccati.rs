@@ -82,7 +82,13 @@
 //! multiple of 4, at most [`Riccati::MAX_N`] `= 32`; the padding columns stay zero), so
 //! that a row operation is one unrolled loop of vector instructions with its row
 //! accumulated in registers: at the arm's `N = 7` the short, runtime-length loops of a
-//! plain implementation cost about twice as much. Per backward step:
+//! plain implementation cost about twice as much. `S_i`'s products read the rows of `Āᵀ`
+//! (no division by a run-time row length in the loops). On a CPU with AVX2 both passes run
+//! in a compilation for it, checked once by [`Riccati::new`]: the same multiplications and
+//! additions in the same order on four-wide vectors, without fused multiply–adds, so the
+//! result is bit for bit the baseline's (the test
+//! `the_avx2_form_equals_the_baseline_bit_for_bit`; the ignored test `riccati_timing`
+//! times both forms). Per backward step:
 //! `2 n̂p (p + m) w` for `Āᵀ P Ā`, `N²` for the transpose, `m N w` for `Zᵀ Z`, `2 m² w` for
 //! the Cholesky solves; per forward step `m w + n̂p (p + m)`
 //! ([`Riccati::operation_count`]). For the sampling arm (`n̂ = 1`, `p = 5`, `m = 2`,
@@ -190,6 +196,9 @@ pub struct Riccati {
     /// `U*` (`ℓ·m`) and its predicted outputs `y_0 … y_{ℓ−1}` (`ℓ·p`).
     u: Vec<f64>,
     y: Vec<f64>,
+    /// Whether the passes run in their AVX2 compilation (module docs, "Structure used and
+    /// cost"), found by [`Riccati::new`].
+    avx2: bool,
 }
 
 impl Riccati {
@@ -267,6 +276,7 @@ impl Riccati {
             offset: vec![0.0; ell * m],
             u: vec![0.0; ell * m],
             y: vec![0.0; ell * p],
+            avx2: avx2_available(),
         })
     }
 
@@ -397,6 +407,35 @@ impl Riccati {
         u_k: &[f64],
         reference: &[f64],
     ) -> Result<(), RiccatiError> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is true only when the CPU has AVX2 (`avx2_available`).
+            return unsafe { self.run_avx2::<W>(x0, u_k, reference) };
+        }
+        self.run_body::<W>(x0, u_k, reference)
+    }
+
+    /// [`Riccati::run_body`] compiled with AVX2: the same operations in the same order on
+    /// wider vectors (no fused multiply–add), so bit for bit the baseline's result.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_avx2<const W: usize>(
+        &mut self,
+        x0: &[f64],
+        u_k: &[f64],
+        reference: &[f64],
+    ) -> Result<(), RiccatiError> {
+        self.run_body::<W>(x0, u_k, reference)
+    }
+
+    /// Both passes, inlined into [`Riccati::run`] or into its AVX2 compilation.
+    #[inline(always)]
+    fn run_body<const W: usize>(
+        &mut self,
+        x0: &[f64],
+        u_k: &[f64],
+        reference: &[f64],
+    ) -> Result<(), RiccatiError> {
         self.fill_at::<W>();
         self.backward::<W>(reference)?;
         self.forward::<W>(x0, u_k);
@@ -404,6 +443,7 @@ impl Riccati {
     }
 
     /// The backward pass: `K_i`, `k_i` for `i = ℓ−1, …, 0`, on rows of width `W`.
+    #[inline(always)]
     fn backward<const W: usize>(&mut self, reference: &[f64]) -> Result<(), RiccatiError> {
         let Self {
             ell,
@@ -415,8 +455,6 @@ impl Riccati {
             r,
             eqe,
             eq,
-            f,
-            b,
             pm,
             v,
             t,
@@ -430,7 +468,7 @@ impl Riccati {
             ..
         } = self;
         let (ell, p, m, pt, nx, nn) = (*ell, *p, *m, *pt, *nx, *nn);
-        let shape = Shape { p, m, nx };
+        let shape = Shape { p, nx };
         let pm = pm.as_chunks_mut::<W>().0;
         let v = v.as_chunks_mut::<W>().0;
         let t = t.as_chunks_mut::<W>().0;
@@ -445,13 +483,13 @@ impl Riccati {
         let mut sigma = [0.0; W];
         for i in (0..ell).rev() {
             // S = Āᵀ P Ā as V = Āᵀ P, T = Vᵀ = P Ā, S = Āᵀ T.
-            shape.transpose_a_times(f, b, pm, v);
+            shape.transpose_a_times(at, pm, v);
             for (row, vrow) in v.iter().enumerate() {
                 for (trow, x) in t.iter_mut().zip(&vrow[..nn]) {
                     trow[row] = *x;
                 }
             }
-            shape.transpose_a_times(f, b, t, sm);
+            shape.transpose_a_times(at, t, sm);
             // σ = Āᵀ s.
             for (g, arow) in sigma.iter_mut().zip(at) {
                 *g = dot_row(arow, &s);
@@ -526,12 +564,15 @@ impl Riccati {
                 axpy_row(-zga, za, &mut s);
             }
             let eqe_i = &eqe[i * p * p..(i + 1) * p * p];
-            for (row, erow) in pm.iter_mut().zip(eqe_i.chunks_exact(p)) {
+            // Rows by index: `chunks_exact` with a run-time length divides at every call.
+            for (a, row) in pm[..p].iter_mut().enumerate() {
+                let erow = &eqe_i[a * p..(a + 1) * p];
                 row[..p].iter_mut().zip(erow).for_each(|(x, e)| *x += e);
             }
             let eq_i = &eq[i * p * pt..(i + 1) * p * pt];
             let ri = &reference[i * pt..(i + 1) * pt];
-            for (sv, erow) in s[..p].iter_mut().zip(eq_i.chunks_exact(pt)) {
+            for (a, sv) in s[..p].iter_mut().enumerate() {
+                let erow = &eq_i[a * pt..(a + 1) * pt];
                 *sv -= erow.iter().zip(ri).map(|(e, r)| e * r).sum::<f64>();
             }
         }
@@ -541,6 +582,7 @@ impl Riccati {
     /// `Āᵀ` by rows from `F̂_b`, `B̂` (module docs): row `t < p` holds `−F̂`'s column `t`
     /// (stacked over the blocks), row `p ≤ k < n̂p` the shift `e_{k−p}`, row `n̂p + j`
     /// `B̂`'s column `j` and the `1` of `I_m`.
+    #[inline(always)]
     fn fill_at<const W: usize>(&mut self) {
         let (p, m, nx) = (self.p, self.m, self.nx);
         let at = self.at.as_chunks_mut::<W>().0;
@@ -569,6 +611,7 @@ impl Riccati {
     /// The forward pass from `z_0 = [x0; u_k]`: `U*` and the outputs `y_i = Ĉ x_i`, with
     /// `z_{i+1} = Ā z_i + B̄ Δu_i = Ā [x_i; u_i]` (`B̄` is the last `m` columns of `Ā`),
     /// accumulated over the rows of `Āᵀ`.
+    #[inline(always)]
     fn forward<const W: usize>(&mut self, x0: &[f64], u_k: &[f64]) {
         let (ell, p, m, nx, nn) = (self.ell, self.p, self.m, self.nx, self.nn);
         let at = self.at.as_chunks::<W>().0;
@@ -596,11 +639,22 @@ impl Riccati {
     }
 }
 
+/// Whether this CPU runs AVX2 (always false off x86-64).
+fn avx2_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// The dimensions [`Shape::transpose_a_times`] needs.
 #[derive(Clone, Copy)]
 struct Shape {
     p: usize,
-    m: usize,
     nx: usize,
 }
 
@@ -608,30 +662,31 @@ impl Shape {
     /// `out = Āᵀ x` for the `N` rows `x` into the `N` rows `out`, by rows,
     /// `out_a = Σ_k Ā_{k,a} x_k`, over the nonzeros of `Ā` (module docs): row block 1 of
     /// `Āᵀ` is `[−F̂_1ᵀ … −F̂_n̂ᵀ 0]`, row block `b ≥ 2` picks `x`'s block `b − 1`, and the
-    /// last `m` rows are `[B̂ᵀ I_m]`. `f`: `F̂_1 … F̂_n̂` (`p × p` each), `b`: `B̂`.
+    /// last `m` rows are `[B̂ᵀ I_m]`; those rows are read from `at` (`Āᵀ` by rows).
+    #[inline(always)]
     fn transpose_a_times<const W: usize>(
         self,
-        f: &[f64],
-        b: &[f64],
+        at: &[[f64; W]],
         x: &[[f64; W]],
         out: &mut [[f64; W]],
     ) {
-        let Self { p, m, nx } = self;
+        let Self { p, nx } = self;
         let (ox, ou) = out.split_at_mut(nx);
         let (xx, xu) = x.split_at(nx);
+        let (at_x, at_u) = at.split_at(nx);
         // Each output row is accumulated in registers, then stored once.
-        for (t, dst) in ox[..p].iter_mut().enumerate() {
+        for (dst, arow) in ox[..p].iter_mut().zip(at_x) {
             let mut acc = [0.0; W];
-            for (src, frow) in xx.iter().zip(f.chunks_exact(p)) {
-                axpy_row(-frow[t], src, &mut acc);
+            for (src, a) in xx.iter().zip(&arow[..nx]) {
+                axpy_row(*a, src, &mut acc);
             }
             *dst = acc;
         }
         ox[p..].copy_from_slice(&xx[..nx - p]);
-        for (j, (dst, own)) in ou.iter_mut().zip(xu).enumerate() {
+        for ((dst, own), arow) in ou.iter_mut().zip(xu).zip(at_u) {
             let mut acc = *own;
-            for (src, brow) in xx.iter().zip(b.chunks_exact(m)) {
-                axpy_row(brow[j], src, &mut acc);
+            for (src, a) in xx.iter().zip(&arow[..nx]) {
+                axpy_row(*a, src, &mut acc);
             }
             *dst = acc;
         }

@@ -716,6 +716,10 @@ impl Pcac {
         let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
         let fast = FastPath::new(spec, mp.n_hat, params.qp.feasibility_tol, params.fast_path)
             .map_err(|e| whole(format!("pcac: {e}")))?;
+        // The fast path without output constraints needs only the prediction's start state;
+        // the rest waits until a QP is condensed.
+        let mut pred = pred;
+        pred.defer_horizon(tones.is_none() && fast.as_ref().is_some_and(|f| !f.reads_prediction()));
         let n_ids = cond.n() + cond.n_ineq();
         let mut c = Self {
             counts,
@@ -848,8 +852,12 @@ impl Pcac {
         self.suspend_cause = RESTART;
     }
 
-    /// The last horizon prediction (state, Markov parameters, free response).
-    pub fn prediction(&self) -> &HorizonPrediction {
+    /// The last horizon prediction (state, Markov parameters, free response), completed
+    /// first when the step deferred its horizon for the fast path
+    /// ([`HorizonPrediction::defer_horizon`]; that costs the rest of the prediction here,
+    /// not in the step).
+    pub fn prediction(&mut self) -> &HorizonPrediction {
+        let _ = self.complete_prediction();
         &self.pred
     }
 
@@ -1025,7 +1033,8 @@ impl Pcac {
         };
         self.fast_found = false;
         self.fast_model = predicted.is_ok() && self.keep_fast_model();
-        predicted.is_ok()
+        // Without the fast path's realization, the QP needs the whole prediction now.
+        predicted.is_ok() && (self.fast_model || self.complete_prediction_now())
     }
 
     /// Step 4's condensing, first half (the second unit of a solve): first the
@@ -1035,7 +1044,8 @@ impl Pcac {
     /// ([`Condenser::build_quadratic`]). Whether the second half may follow.
     fn build_qp(&mut self) -> bool {
         self.fast_found = self.try_fast_path();
-        self.fast_found || self.cond.build_quadratic(self.pred.markov()).is_ok()
+        self.fast_found
+            || (self.complete_prediction() && self.cond.build_quadratic(self.pred.markov()).is_ok())
     }
 
     /// Step 4's condensing, second half (at the start of the solve unit): the QP's

@@ -313,14 +313,14 @@ fn pcac_id_timing() {
 
 /// PCAC on the plant `sys` (`n̂ 2`, `p 2`, `m 2`, `θ_0` its coefficients, identification
 /// on), `ℓ = 15`, tracking `y_1` with `Q = 10`, `R = diag(0.1, 0.2)`, `|u| ≤ 1`,
-/// `|Δu| ≤ 0.4`, `y_2 ≤ 0.8` at every predicted step, the fast path `mode`, re-planning
+/// `|Δu| ≤ 0.4`, `y_2 ≤ 0.8` at every predicted step when `output_constraint` (without
+/// it, the fast path defers the prediction's horizon,
+/// [`crate::bocf::HorizonPrediction::defer_horizon`]), the fast path `mode`, re-planning
 /// every `replan` samples; optionally augmenting `K̄ = −0.1 I` (7.53)–(7.57).
 fn fast_path_params(
     sys: &Arx,
     mode: crate::mpc::fast_path::FastPathMode,
-    timing: super::PcacTiming,
-    augmented: bool,
-    replan: usize,
+    (timing, augmented, replan, output_constraint): (super::PcacTiming, bool, usize, bool),
 ) -> super::PcacParams {
     use crate::mpc::condense::{MoveBounds, OutputConstraints, Weight};
     let (n, p, m) = (sys.n, sys.p, sys.m);
@@ -337,7 +337,7 @@ fn fast_path_params(
         .r(Weight::PerChannel(vec![0.1, 0.2]))
         .input_bounds(vec![-1.0; 2], vec![1.0; 2])
         .move_bounds(Some(MoveBounds::symmetric(0.4, 2)))
-        .output_constraints(Some(OutputConstraints {
+        .output_constraints(output_constraint.then(|| OutputConstraints {
             c: vec![0.0, 1.0],
             d: vec![-0.8],
         }))
@@ -424,28 +424,32 @@ fn fast_path_run(sys: &Arx, params: &super::PcacParams) -> (Vec<FastStep>, super
 /// exactly at the solves whose QP has an empty active set, and falls back to condensing
 /// and the QP at the others; in four configurations (same step, next step, an augmented
 /// `K̄`, and next step re-planning every 3 samples, where the fast path runs in the
-/// condensing unit's period and the plan in force is its `U*`).
+/// condensing unit's period and the plan in force is its `U*`), and in the last two
+/// without the output constraint, where the fast path's step defers the prediction's
+/// horizon and a fallback completes it.
 #[test]
 fn the_fast_path_gives_the_qps_inputs_and_falls_back_when_a_constraint_is_active() {
     use super::PcacTiming;
     use crate::mpc::fast_path::FastPathMode;
     let mut g = Gauss::new(31);
     let sys = Arx::random(&mut g, 2, 2, 2);
-    for (timing, augmented, replan) in [
-        (PcacTiming::SameStep, false, 1),
-        (PcacTiming::NextStep, false, 1),
-        (PcacTiming::SameStep, true, 1),
-        (PcacTiming::NextStep, false, 3),
+    for case in [
+        (PcacTiming::SameStep, false, 1, true),
+        (PcacTiming::NextStep, false, 1, true),
+        (PcacTiming::SameStep, true, 1, true),
+        (PcacTiming::NextStep, false, 3, true),
+        // Without the output constraint the horizon of the prediction is deferred, and
+        // completed where the QP runs.
+        (PcacTiming::SameStep, true, 1, false),
+        (PcacTiming::NextStep, false, 3, false),
     ] {
-        let what = format!("{timing:?}, augmented {augmented}, replan-every {replan}");
-        let (with, cw) = fast_path_run(
-            &sys,
-            &fast_path_params(&sys, FastPathMode::Always, timing, augmented, replan),
+        let (timing, augmented, replan, output_constraint) = case;
+        let what = format!(
+            "{timing:?}, augmented {augmented}, replan-every {replan}, output constraint \
+             {output_constraint}"
         );
-        let (without, co) = fast_path_run(
-            &sys,
-            &fast_path_params(&sys, FastPathMode::Never, timing, augmented, replan),
-        );
+        let (with, cw) = fast_path_run(&sys, &fast_path_params(&sys, FastPathMode::Always, case));
+        let (without, co) = fast_path_run(&sys, &fast_path_params(&sys, FastPathMode::Never, case));
         let (mut du, mut dplan) = (0.0f64, 0.0f64);
         for (k, (a, b)) in with.iter().zip(&without).enumerate() {
             du = du.max(max_abs_diff(&a.u, &b.u));

@@ -323,6 +323,51 @@ fn a_second_solve_on_other_data_does_not_depend_on_the_first() {
     assert_eq!(fresh.outputs(), reused.outputs());
 }
 
+/// The AVX2 compilation of the passes (taken on this CPU when it has AVX2) gives the
+/// baseline compilation's `U*` and outputs bit for bit, at every row width from 4 to 32.
+#[test]
+fn the_avx2_form_equals_the_baseline_bit_for_bit() {
+    let mut g = Gauss::new(17);
+    let mut widths = Vec::new();
+    for (n_hat, p, m) in [
+        (1, 1, 1),
+        (1, 5, 2),
+        (2, 5, 1),
+        (2, 5, 3),
+        (4, 4, 3),
+        (6, 4, 3),
+        (5, 5, 4),
+        (5, 4, 2),
+        (6, 5, 2),
+    ] {
+        let c = Case {
+            n_hat,
+            p,
+            m,
+            ell: 12,
+            pt: 1,
+            per_step: true,
+            next_step: false,
+        };
+        let spec = spec_of(&c, &mut g);
+        let model = stable_model(&mut g, n_hat, p, m);
+        let (x0, u_k, r) = (g.vec(n_hat * p), g.vec(m), g.vec(c.ell));
+        let mut base = Riccati::new(&spec, n_hat).unwrap();
+        base.avx2 = false;
+        base.solve(&model.realization(), &x0, &u_k, &r).unwrap();
+        let mut wide = Riccati::new(&spec, n_hat).unwrap();
+        wide.solve(&model.realization(), &x0, &u_k, &r).unwrap();
+        assert_eq!(base.u(), wide.u(), "n̂ {n_hat}, p {p}, m {m}");
+        assert_eq!(base.outputs(), wide.outputs(), "n̂ {n_hat}, p {p}, m {m}");
+        assert!(max_abs(base.u()) > 0.0);
+        widths.push(wide.w);
+    }
+    widths.sort_unstable();
+    widths.dedup();
+    assert_eq!(widths, [4, 8, 12, 16, 20, 24, 28, 32]);
+    eprintln!("AVX2 form taken: {}", avx2_available());
+}
+
 #[test]
 fn wrong_sizes_and_non_finite_data_are_refused() {
     let mut g = Gauss::new(9);
@@ -495,10 +540,12 @@ fn riccati_timing() {
         pred.compute_from_state(&model).unwrap();
         let (u_k, reference) = (g.vec(c.m), g.vec(c.ell * c.pt));
         let mut ric = Riccati::new(&spec, c.n_hat).unwrap();
+        let mut base = Riccati::new(&spec, c.n_hat).unwrap();
+        base.avx2 = false;
         let mut cond = Condenser::new(&spec).unwrap();
         let mut solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), QpSettings::default());
         let real = model.realization();
-        let (mut tr, mut td) = (Vec::new(), Vec::new());
+        let (mut tr, mut tb, mut td) = (Vec::new(), Vec::new(), Vec::new());
         let mut sink = 0.0;
         for _ in 0..3000 {
             let t = Instant::now();
@@ -506,6 +553,11 @@ fn riccati_timing() {
                 .unwrap();
             tr.push(t.elapsed().as_secs_f64() * 1e6);
             sink += ric.u()[0];
+            let t = Instant::now();
+            base.solve(&real, pred.one_step_state(), &u_k, &reference)
+                .unwrap();
+            tb.push(t.elapsed().as_secs_f64() * 1e6);
+            sink += base.u()[0];
             let t = Instant::now();
             let qp = cond
                 .build(pred.markov(), pred.free_response(), &u_k, &reference)
@@ -515,7 +567,8 @@ fn riccati_timing() {
             sink += solver.x()[0];
         }
         println!(
-            "n̂ {}, p {}, m {}, ℓ {}: Riccati min {:.2} µs p50 {:.2} µs p99 {:.2} µs ({} multiply–adds); \
+            "n̂ {}, p {}, m {}, ℓ {}: Riccati min {:.2} µs p50 {:.2} µs p99 {:.2} µs ({} multiply–adds, \
+             AVX2 form {}); baseline form min {:.2} µs p50 {:.2} µs; \
              condensing + dense solve min {:.2} µs p50 {:.2} µs p99 {:.2} µs ({sink:.1e})",
             c.n_hat,
             c.p,
@@ -525,6 +578,9 @@ fn riccati_timing() {
             percentile(&mut tr, 0.5),
             percentile(&mut tr, 0.99),
             Riccati::operation_count(c.n_hat, c.p, c.m, c.ell),
+            ric.avx2,
+            percentile(&mut tb, 0.0),
+            percentile(&mut tb, 0.5),
             percentile(&mut td, 0.0),
             percentile(&mut td, 0.5),
             percentile(&mut td, 0.99),

@@ -758,8 +758,8 @@ fn a_plan_made_n_samples_ahead_predicts_the_exact_plant() {
             if c.counts_of().solved > solved {
                 solved = c.counts_of().solved;
                 let start = k - solve_at;
-                let free = c.prediction().free_response();
-                let h = c.prediction().markov();
+                let pr = c.prediction().clone();
+                let (free, h) = (pr.free_response(), pr.markov());
                 let plan = c.planned_inputs();
                 let pred: Vec<f64> = (0..=n)
                     .map(|i| free[i] + (0..i).map(|j| h[i - j - 1] * plan[j]).sum::<f64>())

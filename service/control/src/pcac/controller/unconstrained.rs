@@ -38,6 +38,35 @@ impl Pcac {
         }
     }
 
+    /// The rest of a deferred prediction ([`crate::bocf::HorizonPrediction::defer_horizon`]), for a QP,
+    /// on the realization the fast path kept (the one the prediction used, whichever
+    /// period this runs in); true when the prediction is complete. Allocation-free.
+    pub(super) fn complete_prediction(&mut self) -> bool {
+        if self.pred.is_complete() {
+            return true;
+        }
+        let Some(real) = self.fast.as_ref().and_then(FastPath::kept_realization) else {
+            return false;
+        };
+        self.fast_model && self.pred.complete(&real).is_ok()
+    }
+
+    /// The rest of a deferred prediction in the period of the prediction itself, on the
+    /// model it used (the identified model, or the closed loop with an augmented `K̄`;
+    /// never deferred with the internal model), when the fast path could not keep that
+    /// realization. True when the prediction is complete. Allocation-free.
+    pub(super) fn complete_prediction_now(&mut self) -> bool {
+        if self.pred.is_complete() {
+            return true;
+        }
+        let done = match (&self.aug, &self.tones) {
+            (Some(aug), _) => self.pred.complete(&aug.view(&self.model).realization()),
+            (None, None) => self.pred.complete(&self.model.realization()),
+            (None, Some(_)) => return false,
+        };
+        done.is_ok()
+    }
+
     /// Tries the fast path on the last prediction (`self.pred`: the start state `x_{1|k}`,
     /// `x_{N|k}` or `x̂_k`, the Markov parameters and the free response) and the
     /// realization it used ([`Pcac::keep_fast_model`]), with the move reference
@@ -77,6 +106,9 @@ impl Pcac {
     pub fn condensed_problem(&mut self) -> Option<QpProblem<'_>> {
         if !self.fast_used {
             return Some(self.cond.problem());
+        }
+        if !self.complete_prediction() {
+            return None;
         }
         self.cond
             .build(
