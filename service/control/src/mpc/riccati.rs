@@ -172,10 +172,6 @@ pub struct Riccati {
     /// The row stride of the `N`-column matrices: `N` rounded up to a multiple of 4, the
     /// padding columns zero (module docs, "Structure used and cost").
     w: usize,
-    /// `F̂_1 … F̂_n̂` (`p × p` each, row-major) of the last solve.
-    f: Vec<f64>,
-    /// `B̂ = [Ĝ_1; …; Ĝ_n̂]` (`n̂p × m`, row-major) of the last solve.
-    b: Vec<f64>,
     /// `Āᵀ` (`N` rows of stride `w`) of the last solve, for the forward pass.
     at: Vec<f64>,
     /// `P_{i+1}`, then `P_i` (`N` rows of stride `w`).
@@ -262,8 +258,6 @@ impl Riccati {
             eqe,
             eq,
             w,
-            f: vec![0.0; n_hat * p * p],
-            b: vec![0.0; nx * m],
             at: vec![0.0; nn * w],
             pm: vec![0.0; nn * w],
             v: vec![0.0; nn * w],
@@ -385,18 +379,29 @@ impl Riccati {
         Ok(())
     }
 
-    /// `F̂_b` and `B̂` of `real` into contiguous buffers.
+    /// `Āᵀ` by rows (stride `w`) from `F̂_b`, `Ĝ_b` of `real` (module docs): row `t < p`
+    /// holds `−F̂`'s column `t` (stacked over the blocks), row `p ≤ k < n̂p` the shift
+    /// `e_{k−p}`, row `n̂p + j` `B̂`'s column `j` and the `1` of `I_m`; the padding zero.
     fn load(&mut self, real: &Realization<'_>) {
-        let (n_hat, p, m) = (self.n_hat, self.p, self.m);
+        let (n_hat, p, m, nx, w) = (self.n_hat, self.p, self.m, self.nx, self.w);
+        let at = &mut self.at;
+        at.fill(0.0);
         for b in 0..n_hat {
             for r in 0..p {
-                for s in 0..p {
-                    self.f[(b * p + r) * p + s] = real.f(b + 1, r, s);
+                let k = b * p + r;
+                for t in 0..p {
+                    at[t * w + k] = -real.f(b + 1, r, t);
+                }
+                if k + p < nx {
+                    at[(k + p) * w + k] = 1.0;
                 }
                 for j in 0..m {
-                    self.b[(b * p + r) * m + j] = real.g(b + 1, r, j);
+                    at[(nx + j) * w + k] = real.g(b + 1, r, j);
                 }
             }
+        }
+        for j in 0..m {
+            at[(nx + j) * w + nx + j] = 1.0;
         }
     }
 
@@ -436,7 +441,6 @@ impl Riccati {
         u_k: &[f64],
         reference: &[f64],
     ) -> Result<(), RiccatiError> {
-        self.fill_at::<W>();
         self.backward::<W>(reference)?;
         self.forward::<W>(x0, u_k);
         Ok(())
@@ -577,35 +581,6 @@ impl Riccati {
             }
         }
         Ok(())
-    }
-
-    /// `Āᵀ` by rows from `F̂_b`, `B̂` (module docs): row `t < p` holds `−F̂`'s column `t`
-    /// (stacked over the blocks), row `p ≤ k < n̂p` the shift `e_{k−p}`, row `n̂p + j`
-    /// `B̂`'s column `j` and the `1` of `I_m`.
-    #[inline(always)]
-    fn fill_at<const W: usize>(&mut self) {
-        let (p, m, nx) = (self.p, self.m, self.nx);
-        let at = self.at.as_chunks_mut::<W>().0;
-        at.fill([0.0; W]);
-        for (k, (frow, brow)) in self
-            .f
-            .chunks_exact(p)
-            .zip(self.b.chunks_exact(m))
-            .enumerate()
-        {
-            for (t, fv) in frow.iter().enumerate() {
-                at[t][k] = -fv;
-            }
-            if k + p < nx {
-                at[k + p][k] = 1.0;
-            }
-            for (j, bv) in brow.iter().enumerate() {
-                at[nx + j][k] = *bv;
-            }
-        }
-        for j in 0..m {
-            at[nx + j][nx + j] = 1.0;
-        }
     }
 
     /// The forward pass from `z_0 = [x0; u_k]`: `U*` and the outputs `y_i = Ĉ x_i`, with
