@@ -78,12 +78,19 @@
 //! start's rows `R` held with equality, `U_F = U⁰_F − L_F⁻ᵀ Q R⁻ᵀ s` with
 //! `s = N_Rᵀ U⁰ − b_R` and `λ_R = R⁻¹ R⁻ᵀ s` (`U⁰` the minimizer without the rows); rows
 //! and fixed bounds with a negative multiplier leave (their variables are freed) until
-//! none is left. When at least [`BULK_FIX`] bounds are violated at that point (the first
-//! step of a saturation, which the shifted active set cannot foresee), they are fixed as
-//! well and the start is computed once more: one more factorization instead of one dual
-//! step per bound. A wrong guess costs work, never the result: the final point satisfies
-//! the KKT conditions of the whole problem, with every multiplier (fixed bounds'
-//! included) nonnegative.
+//! none is left. A round that frees `k` variables into `|F|` free ones grows `L_F` a row
+//! at a time, or factors `H_FF` anew when that is cheaper (`5k ≥ |F| + k`, see
+//! `refactor_pays`). When the warm start fixed no bound and at least [`BULK_FIX`] bounds
+//! are violated at that point (the first step of a saturation, which the shifted active
+//! set cannot foresee), they are fixed as well — those the objective pushes against, a
+//! positive multiplier estimate `∓(H U_clip + f)_i` at the start point clipped to the box —
+//! and the start is computed once more: one more factorization instead of one dual step
+//! per bound. A warm start that fixes bounds already stands in a saturated horizon; there
+//! the dual steps add the few bounds it missed (on the truss, whose ill-conditioned `H`
+//! sends the unconstrained minimizer far past the box, fixing the violated bounds in bulk
+//! and freeing most of them again cost about twice the solve). A wrong guess costs work,
+//! never the result: the final point satisfies the KKT conditions of the whole problem,
+//! with every multiplier (fixed bounds' included) nonnegative.
 //!
 //! Why this method rather than an interior-point method: an interior-point iteration costs
 //! a fresh `O(n³)` factorization of `H + Gᵀ D G` (≈ 0.3 Mflop at `n = 100`, about the same
@@ -267,8 +274,8 @@ pub enum QpProgress {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Phase {
     /// The factorization `H_FF = L_F L_Fᵀ`, done up to column `col` (panel by panel,
-    /// [`cholesky_panel`]).
-    Factor { col: usize },
+    /// [`cholesky_panel`]); `refactored` as in `Start`, for the rounds that follow.
+    Factor { col: usize, refactored: bool },
     /// The start point's rounds; `minimized`: the next round need not re-minimize;
     /// `refactored`: the bulk fix has been done.
     Start { minimized: bool, refactored: bool },
@@ -417,6 +424,10 @@ pub struct DenseQpSolver {
     iterations: usize,
     fixed_at_start: usize,
     freed: usize,
+    /// Calls of this solve that ended in a factorization's panel (budgeted calls only).
+    panel_stops: usize,
+    /// Start-point rounds of this solve that factored `H_FF` anew ([`refactor_pays`]).
+    refactors: usize,
     /// A solve begun by `start` awaits `proceed`.
     running: bool,
     /// Where the running solve stands.
@@ -584,6 +595,31 @@ fn cholesky_columns(
     true
 }
 
+/// How a round of the start point ended ([`DenseQpSolver::start_round`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Round {
+    /// Every multiplier is nonnegative: the start point is dual feasible.
+    DualFeasible,
+    /// Bounds were freed into `L_F` or rows dropped; another round re-minimizes.
+    Again,
+    /// So many bounds were freed that `H_FF` is factored again ([`refactor_pays`]).
+    Refactor,
+}
+
+/// Whether freeing `k` fixed variables into `nf` free ones costs more one at a time than
+/// a new factorization of the `N = nf + k` free ones. One at a time, each adds a row to
+/// `L_F` by a forward solve, `Σ_{j<k} (nf + j)²/2 ≈ (N³ − nf³)/6` multiply–adds in
+/// dependent column sweeps; the factorization takes `N³/6` in faer's blocked panels, which
+/// run them about twice as fast (`qp_timing`). The refactorization pays when
+/// `N³ − nf³ > N³/2`, i.e. `nf < 0.79 N`, taken as `5k ≥ N`, and for at least
+/// [`MIN_REFACTOR`] variables.
+fn refactor_pays(nf: usize, k: usize) -> bool {
+    k >= MIN_REFACTOR && 5 * k >= nf + k
+}
+
+/// The fewest freed variables that [`refactor_pays`] factors anew for.
+const MIN_REFACTOR: usize = 4;
+
 /// The right-hand side `b_id` of constraint `id` (internal ids for `n` variables).
 fn rhs(p: &QpProblem, n: usize, id: usize) -> f64 {
     if id < n {
@@ -654,6 +690,8 @@ impl DenseQpSolver {
             iterations: 0,
             fixed_at_start: 0,
             freed: 0,
+            panel_stops: 0,
+            refactors: 0,
             running: false,
             phase: Phase::Add,
             last_status: QpStatus::InvalidDimensions,
@@ -847,6 +885,8 @@ impl DenseQpSolver {
         self.iterations = 0;
         self.fixed_at_start = 0;
         self.freed = 0;
+        self.panel_stops = 0;
+        self.refactors = 0;
         self.objective = f64::NAN;
         self.active.clear();
         self.lambda_active.clear();
@@ -870,12 +910,14 @@ impl DenseQpSolver {
     }
 
     /// Goes on with the solve begun by [`DenseQpSolver::start`] on the same, unchanged
-    /// problem `p`: while the factorization lasts, factors one panel of it (all of it
+    /// problem `p`: while a factorization lasts, factors one panel of it (all of it
     /// when `budget` is `usize::MAX`) and returns; then computes the start point and adds
     /// violated constraints until the KKT conditions hold, the iteration cap is reached,
     /// or this call has made `budget` active-set changes (a start-point round or a
     /// constraint addition that has begun is always completed, so a call may exceed
-    /// `budget` by the bounds one round frees or the partial steps of one addition). `Running`: call again;
+    /// `budget` by the bounds one round frees or the partial steps of one addition). A
+    /// start-point round that frees many bounds at once, and the bulk fix, are followed by
+    /// a new factorization, whose first panel ends the call. `Running`: call again;
     /// `Done(status)`: the solve is over, with the outcome [`DenseQpSolver::solve`]
     /// would have returned, bit for bit. With no solve running, `Done` repeats the last
     /// outcome. Allocation-free.
@@ -999,41 +1041,64 @@ impl DenseQpSolver {
         }
         self.gather_free(p);
         self.fixed_at_start = self.fixed.len();
+        self.start_rows();
         // The factorization and the starting point (dual feasible, see `start_rows` and
         // `start_round`) follow in `work`.
-        self.phase = Phase::Factor { col: 0 };
+        self.phase = Phase::Factor {
+            col: 0,
+            refactored: false,
+        };
         Ok(())
     }
 
-    /// Bounds violated at the start point are fixed in bulk when there are at least
+    /// Bounds violated at the start point, and pushed against by the objective at the
+    /// start point clipped to the box, are fixed in bulk when there are at least
     /// `BULK_FIX` of them: one more factorization instead of one dual step each (the
-    /// first steps of a saturated horizon, which the warm start does not foresee).
-    /// Returns whether they were (and the start point must be computed again).
-    fn fix_in_bulk(&mut self, p: &QpProblem) -> Result<bool, QpStatus> {
+    /// first steps of a saturated horizon, which the warm start does not foresee; called
+    /// only when the warm start fixed no bound).
+    /// Returns whether they were (`H_FF` is then gathered, to be factored before the start
+    /// point is computed again).
+    fn fix_in_bulk(&mut self, p: &QpProblem) -> bool {
+        let n = self.n;
         let tol = self.settings.feasibility_tol;
-        let mut violated = 0;
+        // The start point clipped to the box, in `col`.
+        self.col.copy_from_slice(&self.x);
         for &i in &self.free {
             let xi = self.x[i];
             if xi - p.ub[i] > tol * (1.0 + p.ub[i].abs()) {
                 self.fix[i] = AT_UPPER;
-                violated += 1;
+                self.col[i] = p.ub[i];
             } else if p.lb[i] - xi > tol * (1.0 + p.lb[i].abs()) {
                 self.fix[i] = AT_LOWER;
+                self.col[i] = p.lb[i];
+            }
+        }
+        // A violated bound is fixed only if the objective's gradient at the clipped point
+        // pushes against it (its multiplier estimate `∓(H U_clip + f)_i` is positive).
+        let mut violated = 0;
+        for &i in &self.free {
+            if self.fix[i] == FREE {
+                continue;
+            }
+            let g = p.f[i] + dot(&p.hess[i * n..(i + 1) * n], &self.col);
+            let lam = if self.fix[i] == AT_UPPER { -g } else { g };
+            if lam > 0.0 {
                 violated += 1;
+            } else {
+                self.fix[i] = FREE;
             }
         }
         if violated >= BULK_FIX {
             self.fixed_at_start += violated;
             self.clear_active();
             self.gather_free(p);
-            self.factor_panels(0, self.free.len())?;
             self.start_rows();
-            Ok(true)
+            true
         } else {
             for &i in &self.free {
                 self.fix[i] = FREE;
             }
-            Ok(false)
+            false
         }
     }
 
@@ -1048,7 +1113,7 @@ impl DenseQpSolver {
         let tol = self.settings.feasibility_tol;
         let mark = self.iterations;
         loop {
-            if let Phase::Factor { col } = self.phase {
+            if let Phase::Factor { col, refactored } = self.phase {
                 // One panel per call when the call has a budget; all of them otherwise.
                 let nf = self.free.len();
                 let end = if budget == usize::MAX {
@@ -1060,15 +1125,19 @@ impl DenseQpSolver {
                     return Some(status);
                 }
                 if end < nf {
-                    self.phase = Phase::Factor { col: end };
+                    self.phase = Phase::Factor {
+                        col: end,
+                        refactored,
+                    };
+                    self.panel_stops += 1;
                     return None;
                 }
-                self.start_rows();
                 self.phase = Phase::Start {
                     minimized: false,
-                    refactored: false,
+                    refactored,
                 };
                 if budget != usize::MAX {
+                    self.panel_stops += 1;
                     return None;
                 }
                 continue;
@@ -1083,23 +1152,26 @@ impl DenseQpSolver {
             {
                 match self.start_round(p, minimized, max_iter) {
                     Err(status) => return Some(status),
-                    Ok(false) => {
+                    Ok(Round::Again) => {
                         self.phase = Phase::Start {
                             minimized: false,
                             refactored,
                         }
                     }
-                    Ok(true) if refactored => self.phase = Phase::Add,
-                    Ok(true) => match self.fix_in_bulk(p) {
-                        Err(status) => return Some(status),
-                        Ok(true) => {
-                            self.phase = Phase::Start {
-                                minimized: false,
+                    Ok(Round::Refactor) => self.phase = Phase::Factor { col: 0, refactored },
+                    Ok(Round::DualFeasible) if refactored || self.fixed_at_start > 0 => {
+                        self.phase = Phase::Add
+                    }
+                    Ok(Round::DualFeasible) => {
+                        if self.fix_in_bulk(p) {
+                            self.phase = Phase::Factor {
+                                col: 0,
                                 refactored: true,
                             }
+                        } else {
+                            self.phase = Phase::Add
                         }
-                        Ok(false) => self.phase = Phase::Add,
-                    },
+                    }
                 }
                 continue;
             }
@@ -1185,15 +1257,15 @@ impl DenseQpSolver {
         }
     }
 
-    /// One round of the start point ([`DenseQpSolver::start_rows`]): `Ok(true)` when it
-    /// is dual feasible, `Ok(false)` when bounds were freed or rows dropped (another
-    /// round follows, re-minimizing). `minimized`: `U_F` already holds `U⁰_F`.
+    /// One round of the start point ([`DenseQpSolver::start_rows`]): whether it is dual
+    /// feasible, or bounds were freed or rows dropped and another round follows,
+    /// re-minimizing ([`Round`]). `minimized`: `U_F` already holds `U⁰_F`.
     fn start_round(
         &mut self,
         p: &QpProblem,
         minimized: bool,
         max_iter: usize,
-    ) -> Result<bool, QpStatus> {
+    ) -> Result<Round, QpStatus> {
         let n = self.n;
         {
             if !minimized {
@@ -1286,25 +1358,42 @@ impl DenseQpSolver {
                 }
             }
             if negative == 0 {
-                return Ok(true);
+                return Ok(Round::DualFeasible);
             }
             // Rebuilt in the next round; free the variables without updating Q R.
             self.clear_active();
+            let freeing = self
+                .fixed
+                .iter()
+                .filter(|&&i| self.lam_fixed[i] < 0.0)
+                .count();
+            let refactor = refactor_pays(self.free.len(), freeing);
             let mut k = 0;
             while k < self.fixed.len() {
                 let i = self.fixed[k];
-                if self.lam_fixed[i] < 0.0 {
-                    self.free_variable(p, i)?;
-                } else {
+                if self.lam_fixed[i] >= 0.0 {
                     k += 1;
+                } else if refactor {
+                    self.fixed.swap_remove(k);
+                    self.fix[i] = FREE;
+                    self.lam_fixed[i] = 0.0;
+                    self.freed += 1;
+                    self.set_bound_states(p, i);
+                } else {
+                    self.free_variable(p, i)?;
                 }
             }
             self.iterations += negative;
             if self.iterations >= max_iter {
                 return Err(QpStatus::MaxIterations);
             }
+            if refactor {
+                self.refactors += 1;
+                self.gather_free(p);
+                return Ok(Round::Refactor);
+            }
         }
-        Ok(false)
+        Ok(Round::Again)
     }
 
     /// CGS2 of `w` (norm `w_norm`) against the active `Q` on the first `nf` coordinates:

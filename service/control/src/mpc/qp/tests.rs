@@ -545,7 +545,7 @@ fn warm_starts_reach_the_same_solution_in_fewer_iterations() {
 #[test]
 fn fixed_bounds_from_any_warm_start_reach_clarabels_solution() {
     let mut rng = ChaCha8Rng::seed_from_u64(31);
-    let (mut fixed, mut freed) = (0, 0);
+    let (mut fixed, mut freed, mut refactors) = (0, 0, 0);
     for k in 0..12 {
         let ell = [10, 25, 50][k % 3];
         let p = if k % 2 == 0 {
@@ -580,6 +580,7 @@ fn fixed_bounds_from_any_warm_start_reach_clarabels_solution() {
             s.solve(&p.problem(), WarmStart::ActiveSet(warm));
             fixed += s.fixed_at_start();
             freed += s.freed_bounds();
+            refactors += s.refactors;
         }
         s.solve(&p.problem(), WarmStart::ActiveSet(&exact));
         // Its bounds are fixed (and bounds violated at the start in bulk, when rows of
@@ -599,8 +600,48 @@ fn fixed_bounds_from_any_warm_start_reach_clarabels_solution() {
         }
         check_against_clarabel(&p2, WarmStart::ActiveSet(&exact), raw_tol);
     }
-    eprintln!("{fixed} bounds fixed at the start, {freed} freed");
+    eprintln!("{fixed} bounds fixed at the start, {freed} freed, {refactors} refactorizations");
     assert!(fixed > 500 && freed > 100, "{fixed} fixed, {freed} freed");
+    // Wrong warm starts free many bounds in one round, which factors H_FF anew.
+    assert!(refactors > 0);
+}
+
+/// The bulk fix (the first step of a saturation) runs on a cold start whose unconstrained
+/// minimizer leaves the box far, and fixes only bounds the objective pushes against; a
+/// warm start that fixes a bound skips it, and the dual steps reach the same solution.
+#[test]
+fn the_bulk_fix_runs_only_when_the_warm_start_fixes_no_bound() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let p = pcac_problem(50, 2, true, 3, 4.0, &mut rng);
+    let n = p.n;
+    let mut s = DenseQpSolver::new(n, p.n_ineq(), QpSettings::default());
+    assert_eq!(s.solve(&p.problem(), WarmStart::Cold), QpStatus::Solved);
+    let cold_x = s.x().to_vec();
+    let mut ids = vec![ConstraintId::Row(0); n + p.n_ineq()];
+    let k = s.active_set_into(&mut ids);
+    let bounds: Vec<ConstraintId> = ids[..k]
+        .iter()
+        .copied()
+        .filter(|c| !matches!(c, ConstraintId::Row(_)))
+        .collect();
+    // Cold: nothing fixed by the warm start, so all fixed bounds come from the bulk fix.
+    assert!(s.fixed_at_start() >= BULK_FIX, "{}", s.fixed_at_start());
+    assert!(bounds.len() > n / 2, "{} bounds active", bounds.len());
+    assert!(kkt_residual(&p, &s) < 1e-9);
+    // One bound of the solution as the warm start: only it is fixed at the start.
+    let warm = [bounds[0]];
+    assert_eq!(
+        s.solve(&p.problem(), WarmStart::ActiveSet(&warm)),
+        QpStatus::Solved
+    );
+    assert_eq!(s.fixed_at_start(), 1);
+    assert!(kkt_residual(&p, &s) < 1e-9);
+    let diff = s
+        .x()
+        .iter()
+        .zip(&cold_x)
+        .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
+    assert!(diff < 1e-8 * (1.0 + inf_norm(&cold_x)), "{diff}");
 }
 
 /// A fixed bound whose multiplier reaches zero while a row is added is freed in that
@@ -1010,15 +1051,17 @@ fn a_solve_split_over_calls_ends_bit_for_bit_where_one_solve_does() {
                 let mut calls = 0;
                 while progress == QpProgress::Running {
                     assert!(split.is_running());
-                    let before = split.iterations();
+                    let (before, panels_before) = (split.iterations(), split.panel_stops);
                     progress = split.proceed(&p.problem(), budget);
                     let made = split.iterations() - before;
                     assert!(
                         made <= budget + p.n + p.n_ineq(),
                         "case {case}: {made} changes"
                     );
-                    if progress == QpProgress::Running && made == 0 {
-                        // A call during the factorization factors one panel.
+                    let panel_stop = split.panel_stops > panels_before;
+                    assert!(split.panel_stops <= panels_before + 1);
+                    if progress == QpProgress::Running && panel_stop {
+                        // A call that reaches a factorization ends after one panel.
                         panel_calls += 1;
                     } else if progress == QpProgress::Running {
                         assert!(
