@@ -699,7 +699,6 @@ impl AnchorCost {
             let rho = optimality_ratio(qp, x, x_a);
             if fast {
                 self.optimality_ratio_fast = self.optimality_ratio_fast.min(rho);
-                eprintln!("DEBUG fast d {d:.3e} rho {rho:.4}");
             } else {
                 self.optimality_ratio = self.optimality_ratio.min(rho);
             }
