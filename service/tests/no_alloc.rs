@@ -682,9 +682,25 @@ fn an_rcac_step_with_the_gradient_update_does_not_allocate() {
 /// coefficients, `ℓ = 40`) read from a scenario text, with move bounds and, when
 /// `infeasible`, an output constraint `y_4 ≤ −100` no prediction can meet; re-planning
 /// every `replan` samples (next-step timing) when `replan > 1`, with the QP cut into
-/// shares of 2 active-set changes per period when `replan ≥ 4`.
+/// shares of 2 active-set changes per period when `replan ≥ 4`, and the Hessian built in
+/// every third cycle only (cycles of `replan + 3` samples) when `kept`.
 fn truss_size_pcac(infeasible: bool, replan: usize) -> Box<dyn control::Controller> {
-    let timing = if replan >= 4 {
+    truss_size_pcac_with(infeasible, replan, false)
+}
+
+/// [`truss_size_pcac`], keeping the Hessian between builds when `kept`.
+fn truss_size_pcac_with(
+    infeasible: bool,
+    replan: usize,
+    kept: bool,
+) -> Box<dyn control::Controller> {
+    let timing = if kept {
+        format!(
+            "timing = \"next-step\"\nreplan-every = {replan}\nqp-changes-per-period = 2\n\
+             hessian-every = 3\nhessian-cycle = {}\nfast-path = \"never\"\n",
+            replan + 3
+        )
+    } else if replan >= 4 {
         format!("timing = \"next-step\"\nreplan-every = {replan}\nqp-changes-per-period = 2\n")
     } else if replan > 1 {
         format!("timing = \"next-step\"\nreplan-every = {replan}\n")
@@ -753,13 +769,26 @@ fn the_pcac_step_re_planning_every_5_with_the_qp_in_shares_does_not_allocate() {
     pcac_steps_make_no_allocation(5);
 }
 
+/// The truss-size step allocates nothing re-planning every 4 samples and building the
+/// Hessian in every third cycle only: the kept cycles start the QP from the kept
+/// factorization.
+#[test]
+fn the_pcac_step_keeping_the_hessian_does_not_allocate() {
+    pcac_steps_make_no_allocation_with(4, true);
+}
+
 /// The body of the PCAC allocation tests, re-planning every `replan` samples.
 fn pcac_steps_make_no_allocation(replan: usize) {
+    pcac_steps_make_no_allocation_with(replan, false);
+}
+
+/// [`pcac_steps_make_no_allocation`], keeping the Hessian between builds when `kept`.
+fn pcac_steps_make_no_allocation_with(replan: usize, kept: bool) {
     use control::status;
     let (mut ctl, mut stuck) = service::rt_alloc::outside_rt(|| {
         (
-            truss_size_pcac(false, replan),
-            truss_size_pcac(true, replan),
+            truss_size_pcac_with(false, replan, kept),
+            truss_size_pcac_with(true, replan, kept),
         )
     });
     // A lightly damped 2-input, 4-output plant (one mode per output) with a disturbance,
@@ -827,8 +856,16 @@ fn pcac_steps_make_no_allocation(replan: usize) {
     // The infeasible controller fell back at every answered step — re-planning, at every
     // answered step that had a plan: not the N − 1 answers after its start and after each
     // of its 2 observations, which hold the input until the first plan takes over.
-    let unplanned = 3 * (replan - 1);
+    // (With the Hessian kept, the first cycle after each of them builds it: `N + 3` long.)
+    let first_cycle = if kept { replan + 3 } else { replan };
+    let unplanned = 3 * (first_cycle - 1);
     assert_eq!(solved - solved_before, unplanned);
+    let kept_factors = ctl
+        .counters()
+        .iter()
+        .find(|(name, _)| *name == "factorizations kept")
+        .map_or(0, |(_, n)| *n);
+    assert_eq!(kept_factors > 0, kept, "{kept_factors} factorizations kept");
     assert_eq!(fallbacks - fallbacks_before, 98 - unplanned);
     assert!(
         u.iter()

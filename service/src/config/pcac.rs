@@ -28,6 +28,11 @@
 //!                                 # the plant following the plan between (next-step; ≤ ℓ)
 //! qp-changes-per-period = 0       # N ≥ 4: the QP's share of each period before the last, in
 //!                                 # active-set changes (0: the whole QP in one period)
+//! hessian-every = 1               # M: build the QP's Hessian and factor it in every M-th
+//!                                 # cycle only, the others keep both (next-step, fast-path
+//!                                 # "never")
+//! hessian-cycle = 4               # N_H: the length of a cycle that builds it (N ≤ N_H ≤ ℓ;
+//!                                 # default N)
 //! lambda = 1.0                    # constant forgetting, or:
 //! [controller.forgetting]         # rule = "f-test" (tau-n, tau-d, eta, alpha) | …
 //! rule = "f-test"
@@ -89,6 +94,8 @@ pub(super) struct RawPcac {
     fast_path: Option<String>,
     replan_every: Option<usize>,
     qp_changes_per_period: Option<usize>,
+    hessian_every: Option<usize>,
+    hessian_cycle: Option<usize>,
     output_constraints: Option<RawOutputConstraints>,
     internal_model: Option<RawInternalModel>,
 }
@@ -303,6 +310,14 @@ pub(super) fn read(
             err,
         )? as usize,
     };
+    let hessian_every = match raw.hessian_every {
+        None => PcacParams::DEFAULT_HESSIAN_EVERY,
+        Some(n) => count(n as u64, 0, MAX_PCAC_HORIZON, &f("hessian-every"), err)? as usize,
+    };
+    let hessian_cycle = match raw.hessian_cycle {
+        None => 0,
+        Some(n) => count(n as u64, 1, MAX_PCAC_HORIZON, &f("hessian-cycle"), err)? as usize,
+    };
     let params = PcacParams::builder(n_hat, p, m, p0, horizon)
         .theta0(theta0)
         .forgetting(rule.rule.clone())
@@ -319,6 +334,7 @@ pub(super) fn read(
         .fast_path(fast_path)
         .replan_every(replan_every)
         .qp_changes_per_period(qp_share)
+        .hessian_every(hessian_every, hessian_cycle)
         .internal_model(internal)
         .build();
     Ok((params, rule))
@@ -374,6 +390,13 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(shared.qp_changes_per_period, 8);
+        let kept = params(&GOOD.replace(
+            "timing = \"next-step\"",
+            "timing = \"next-step\"\nfast-path = \"never\"\nreplan-every = 4\nhessian-every = 8\nhessian-cycle = 11",
+        ))
+        .unwrap();
+        assert_eq!((kept.hessian_every, kept.hessian_cycle_len()), (8, 11));
+        assert_eq!((every4.hessian_every, every4.hessian_cycle_len()), (1, 4));
         let c = ServiceConfig::parse(GOOD, "pcac.toml").unwrap();
         let ctl = c.controller.build(c.counts).unwrap();
         assert_eq!(ctl.kind(), "pcac");

@@ -144,6 +144,19 @@
 //! changes when the work is done, not the work: the operations are those of one
 //! [`DenseQpSolver::solve`], in the same order, and the result is the same bit for bit.
 //!
+//! ## Keeping the factorization
+//!
+//! A controller that rebuilds `H` less often than it solves (PCAC's
+//! `hessian-every`, [`crate::pcac::PcacParams::hessian_every`]) asks the solver to keep
+//! ([`DenseQpSolver::keep_factorization`]) the factor `L` of each solve that factored the
+//! whole `H` (`F` all variables), with a copy of that `H`. A later solve whose `H` equals
+//! the copy entry for entry and whose warm start fixes no bound starts from `L` (copied
+//! back only when the solve in between wrote over it) and goes straight to the start
+//! point: the fixed part of the solve is then the compression of `G` and the comparison
+//! of `H`, `O(n²)` reads instead of `n³/6` multiply–adds. Anything else (another `H`, a
+//! fixed bound) factors as before, and the result is the same bit for bit either way
+//! (the same panels factor the same matrix).
+//!
 //! Warm start in the receding horizon: take the previous step's active set
 //! ([`DenseQpSolver::active_set_into`]), shift it by one step (`Upper(i)` → `Upper(i − m)`
 //! and likewise for the move rows, dropping those that fall off the front), and pass it
@@ -372,6 +385,16 @@ pub struct DenseQpSolver {
     l: Vec<f64>,
     /// faer's scratch for the factorization (for every size up to `n`).
     chol_mem: MemBuffer,
+    /// The kept factorization ([`DenseQpSolver::keep_factorization`]): `L` of the whole
+    /// `h_kept` in the layout of `l` (both empty when not kept).
+    l_kept: Vec<f64>,
+    h_kept: Vec<f64>,
+    /// `l_kept` holds the factor of `h_kept`.
+    kept: bool,
+    /// `l` holds `l_kept` (nothing has written `l` since).
+    l_is_kept: bool,
+    /// This solve started from the kept factorization.
+    reused: bool,
     /// The iterate `U` (all `n` entries; the fixed variables at their bounds).
     x: Vec<f64>,
     /// Per variable: `FREE`, `AT_UPPER` or `AT_LOWER`.
@@ -656,6 +679,11 @@ impl DenseQpSolver {
             settings,
             l: vec![0.0; n * n],
             chol_mem: MemBuffer::new(req),
+            l_kept: Vec::new(),
+            h_kept: Vec::new(),
+            kept: false,
+            l_is_kept: false,
+            reused: false,
             x: vec![0.0; n],
             fix: vec![FREE; n],
             free: Vec::with_capacity(n),
@@ -708,6 +736,7 @@ impl DenseQpSolver {
     /// allocates on a thread that has not multiplied yet, and never again.
     pub fn prepare_thread(&mut self) {
         let n = self.n;
+        self.l_is_kept = false;
         self.l.fill(0.0);
         for j in 0..n {
             self.l[j * n + j] = 1.0;
@@ -887,6 +916,7 @@ impl DenseQpSolver {
         self.freed = 0;
         self.panel_stops = 0;
         self.refactors = 0;
+        self.reused = false;
         self.objective = f64::NAN;
         self.active.clear();
         self.lambda_active.clear();
@@ -945,6 +975,55 @@ impl DenseQpSolver {
             && p.ub.len() == n
             && p.g.len() == m * n
             && p.h.len() == m
+    }
+
+    /// Keeps (`true`) the factorization `H = L Lᵀ` of each solve that factors the whole
+    /// `H` (no bound fixed), with a copy of that `H`, and lets a later solve whose `H`
+    /// equals it entry for entry and whose warm start fixes no bound start from it instead
+    /// of factoring: for a controller that rebuilds `H` less often than it solves
+    /// (module docs, "Keeping the factorization"). Allocates two `n × n` buffers (call it
+    /// before the real-time loop); `false` frees them. Results are those of a solve that
+    /// factors, bit for bit: faer's factorization of the same matrix is the same.
+    pub fn keep_factorization(&mut self, keep: bool) {
+        let len = if keep { self.n * self.n } else { 0 };
+        self.l_kept = vec![0.0; len];
+        self.h_kept = vec![0.0; len];
+        self.kept = false;
+        self.l_is_kept = false;
+    }
+
+    /// Whether the last solve started from the kept factorization
+    /// ([`DenseQpSolver::keep_factorization`]) rather than factoring.
+    pub fn factor_reused(&self) -> bool {
+        self.reused
+    }
+
+    /// The start of a solve from the kept factorization, when there is one of this `H`
+    /// and the warm start fixed no bound: every variable free, `L` the kept factor (copied
+    /// only if something wrote `l` since), and the start point's rounds next. Returns
+    /// whether it did; otherwise nothing has changed.
+    fn reuse_kept(&mut self, p: &QpProblem) -> bool {
+        if !self.kept || self.fix.iter().any(|&f| f != FREE) || p.hess != &self.h_kept[..] {
+            return false;
+        }
+        self.free.clear();
+        self.fixed.clear();
+        for i in 0..self.n {
+            self.pos[i] = i;
+            self.free.push(i);
+        }
+        if !self.l_is_kept {
+            self.l.copy_from_slice(&self.l_kept);
+            self.l_is_kept = true;
+        }
+        self.fixed_at_start = 0;
+        self.start_rows();
+        self.phase = Phase::Start {
+            minimized: false,
+            refactored: false,
+        };
+        self.reused = true;
+        true
     }
 
     /// Whether a solve begun by [`DenseQpSolver::start`] awaits [`DenseQpSolver::proceed`].
@@ -1039,6 +1118,9 @@ impl DenseQpSolver {
                 _ => FREE,
             };
         }
+        if self.reuse_kept(p) {
+            return Ok(());
+        }
         self.gather_free(p);
         self.fixed_at_start = self.fixed.len();
         self.start_rows();
@@ -1131,6 +1213,12 @@ impl DenseQpSolver {
                     };
                     self.panel_stops += 1;
                     return None;
+                }
+                if nf == self.n && !self.l_kept.is_empty() {
+                    self.l_kept.copy_from_slice(&self.l);
+                    self.h_kept.copy_from_slice(p.hess);
+                    self.kept = true;
+                    self.l_is_kept = true;
                 }
                 self.phase = Phase::Start {
                     minimized: false,
@@ -1448,6 +1536,7 @@ impl DenseQpSolver {
     /// bounds `FIXED`) and copies `H_FF` where [`Self::factor_panels`] factors it.
     fn gather_free(&mut self, p: &QpProblem) {
         let n = self.n;
+        self.l_is_kept = false;
         self.free.clear();
         self.fixed.clear();
         for i in 0..n {
@@ -1523,6 +1612,7 @@ impl DenseQpSolver {
     /// rotations fold back into `R` (`O(|F|·|A|)`).
     fn free_variable(&mut self, p: &QpProblem, b: usize) -> Result<(), QpStatus> {
         let (n, nf, q) = (self.n, self.free.len(), self.active.len());
+        self.l_is_kept = false;
         for (a, &i) in self.free.iter().enumerate() {
             self.col[a] = p.hess[i * n + b];
         }

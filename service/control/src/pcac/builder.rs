@@ -23,6 +23,7 @@
 //! | augmentation (7.53)–(7.57) | none |
 //! | re-planning period `N` ([`PcacParams::replan_every`]) | [`PcacParams::DEFAULT_REPLAN_EVERY`] (every sample) |
 //! | QP share per re-planning period ([`PcacParams::qp_changes_per_period`]) | 0 (the whole QP in one period) |
+//! | cycles per Hessian build `M` ([`PcacParams::hessian_every`]), the build cycle's length ([`PcacParams::hessian_cycle`]) | [`PcacParams::DEFAULT_HESSIAN_EVERY`] (every cycle), `N` |
 //!
 //! [`PcacParams::chapter_6`] and [`PcacParams::chapter_7`] start from the settings of the
 //! dissertation's examples instead: the truss (§6.2) and the sampling arm (§7.3).
@@ -83,6 +84,8 @@ impl PcacParams {
                 fast_path: FastPathMode::default(),
                 augmentation: None,
                 qp_changes_per_period: 0,
+                hessian_every: PcacParams::DEFAULT_HESSIAN_EVERY,
+                hessian_cycle: 0,
                 replan_every: PcacParams::DEFAULT_REPLAN_EVERY,
                 internal_model: None,
             },
@@ -237,6 +240,14 @@ impl PcacBuilder {
     /// in one period).
     pub fn qp_changes_per_period(mut self, changes: usize) -> Self {
         self.params.qp_changes_per_period = changes;
+        self
+    }
+
+    /// Build the Hessian in every `m_every`-th re-planning cycle only, those cycles `len`
+    /// samples long (0: `N`) ([`PcacParams::hessian_every`], [`PcacParams::hessian_cycle`]).
+    pub fn hessian_every(mut self, m_every: usize, len: usize) -> Self {
+        self.params.hessian_every = m_every;
+        self.params.hessian_cycle = len;
         self
     }
 

@@ -151,6 +151,17 @@ pub struct PcacParams {
     /// last one (at `N = 4` all of it falls to the last period). `0` (the default) solves
     /// the whole QP in the third period.
     pub qp_changes_per_period: usize,
+    /// When re-planning, build the QP's Hessian `H` (from the identified model's Markov
+    /// parameters, (2.43)–(2.48)) and factor it in every `M`-th cycle only; the cycles in
+    /// between keep both and condense only the gradient and right-hand sides from their
+    /// own free response ([`super::replan`], "Keeping the Hessian"). `1` (the default)
+    /// builds at every solve. `M > 1` needs [`PcacTiming::NextStep`] and
+    /// [`FastPathMode::Never`].
+    pub hessian_every: usize,
+    /// The length `N_H` of a cycle that builds the Hessian when
+    /// [`PcacParams::hessian_every`] `> 1` (room for the build and the factorization's
+    /// panels), `N ≤ N_H ≤ ℓ`; `0` (the default) means `N`.
+    pub hessian_cycle: usize,
     /// The internal model of known tones ([`super::tone_model`], an extension beyond the
     /// dissertation): identification on `D(q)`-filtered data, prediction with the product
     /// model, and the tone-notch and level input cost (2.47')–(2.48') added to (2.48)
@@ -181,6 +192,11 @@ pub struct PcacCounters {
     pub fallbacks: u64,
     /// Identification resets by the RLS guard (non-finite data, trace limit).
     pub id_resets: u64,
+    /// QP Hessians built from the Markov parameters (one per solve unless
+    /// [`PcacParams::hessian_every`] `> 1`).
+    pub hessians_built: u64,
+    /// QP solves that started from the kept factorization of an unchanged Hessian.
+    pub factorizations_kept: u64,
     /// Samples bridged after losses.
     pub bridged: u64,
     /// Samples taken in without an answer ([`Controller::observe`]).
@@ -244,6 +260,8 @@ pub struct Pcac {
     warm_start: bool,
     /// [`PcacParams::qp_changes_per_period`].
     qp_changes_per_period: usize,
+    /// [`PcacParams::hessian_every`].
+    hessian_every: usize,
     model: IoModel,
     /// The closed-loop coefficients and the `u` history when augmenting a fixed `K̄`.
     aug: Option<Augmentation>,
@@ -300,6 +318,9 @@ pub struct Pcac {
     predicted: bool,
     /// The running solve's QP was built.
     built: bool,
+    /// The condenser holds a Hessian built from the current model's Markov parameters,
+    /// which a cycle that keeps it may use ([`PcacParams::hessian_every`]).
+    hessian_ready: bool,
     /// A solve's QP unit has begun and its result is not taken yet.
     qp_open: bool,
     /// The split QP solve's progress (`None`: nothing to run, the fast path's solution
@@ -327,6 +348,8 @@ impl PcacParams {
     pub const DEFAULT_WARM_START: bool = true;
     /// Re-planning period `N` when a configuration does not say: a solve at every sample.
     pub const DEFAULT_REPLAN_EVERY: usize = 1;
+    /// Cycles per Hessian build `M` when a configuration does not say: every cycle builds.
+    pub const DEFAULT_HESSIAN_EVERY: usize = 1;
 
     /// `n̂ p (p+m)`, the number of identified coefficients.
     pub fn theta_len(n_hat: usize, p: usize, m: usize) -> usize {
@@ -351,7 +374,9 @@ impl PcacParams {
     /// `"du-min"`, `"du-max"` (holding the input not allowed), `"output-constraints.c"`,
     /// `"output-constraints.d"`, `"qp-max-iterations"` (0), `"replan-every"` (0, above
     /// `ℓ`, or above 1 without next-step timing), `"qp-changes-per-period"` (above 0 with
-    /// `N < 4`), `"augmentation"` (a `K̄` that
+    /// `N < 4`), `"hessian-every"` (0, or above 1 without next-step timing or with a fast
+    /// path), `"hessian-cycle"` (below `N` or above `ℓ`, or other than `N` with
+    /// `hessian-every = 1`), `"augmentation"` (a `K̄` that
     /// is not `m × p` or not finite); and the empty field when the model's or the MPC
     /// problem's `p`, `m` do not match the rig's `n_y`, `n_u`.
     ///
@@ -567,12 +592,23 @@ impl PcacParams {
         Ok(spec)
     }
 
+    /// `N_H`: the length of a cycle that builds the Hessian ([`PcacParams::hessian_cycle`],
+    /// `N` when 0).
+    pub fn hessian_cycle_len(&self) -> usize {
+        if self.hessian_cycle == 0 {
+            self.replan_every
+        } else {
+            self.hessian_cycle
+        }
+    }
+
     /// The re-planning part of [`PcacParams::validate`].
     fn validate_replan(&self) -> Result<(), ParamError> {
         let (n, ell) = (self.replan_every, self.mpc.horizon);
         if n == 0 {
             return Err(ParamError::new("replan-every", "must be at least 1"));
         }
+        self.validate_hessian_every()?;
         if n > 1 && self.timing != PcacTiming::NextStep {
             return Err(ParamError::new(
                 "replan-every",
@@ -600,6 +636,55 @@ impl PcacParams {
                 format!(
                     "{n} exceeds the horizon ℓ = {ell}: a plan must cover the samples until the \
                      next one takes over"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The [`PcacParams::hessian_every`] part of [`PcacParams::validate_replan`].
+    fn validate_hessian_every(&self) -> Result<(), ParamError> {
+        let (m_every, len) = (self.hessian_every, self.hessian_cycle_len());
+        let (n, ell) = (self.replan_every, self.mpc.horizon);
+        if m_every == 0 {
+            return Err(ParamError::new("hessian-every", "must be at least 1"));
+        }
+        if m_every == 1 {
+            if self.hessian_cycle != 0 && self.hessian_cycle != n {
+                return Err(ParamError::new(
+                    "hessian-cycle",
+                    format!(
+                        "{}: a cycle of its own length for the Hessian's build needs                          hessian-every > 1 (every cycle builds it now, in replan-every = {n}                          samples); leave it out",
+                        self.hessian_cycle
+                    ),
+                ));
+            }
+            return Ok(());
+        }
+        if self.timing != PcacTiming::NextStep {
+            return Err(ParamError::new(
+                "hessian-every",
+                format!(
+                    "{m_every}: keeping the Hessian between solves needs timing = \"next-step\" \
+                     (the re-planning cycles)"
+                ),
+            ));
+        }
+        if self.fast_path != FastPathMode::Never {
+            return Err(ParamError::new(
+                "hessian-every",
+                format!(
+                    "{m_every}: the kept Hessian serves the QP, and the unconstrained fast path \
+                     has none; set fast-path = \"never\" or leave hessian-every out"
+                ),
+            ));
+        }
+        if len < n || len > ell {
+            return Err(ParamError::new(
+                "hessian-cycle",
+                format!(
+                    "{len}: the cycle that builds the Hessian must be at least replan-every = \
+                     {n} and at most the horizon ℓ = {ell} samples long"
                 ),
             ));
         }
@@ -713,7 +798,8 @@ impl Pcac {
         }
         .map_err(whole)?;
         let cond = Condenser::new(spec).map_err(|e| whole(format!("pcac: {e}")))?;
-        let solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
+        let mut solver = DenseQpSolver::new(cond.n(), cond.n_ineq(), params.qp);
+        solver.keep_factorization(params.hessian_every > 1);
         let fast = FastPath::new(spec, mp.n_hat, params.qp.feasibility_tol, params.fast_path)
             .map_err(|e| whole(format!("pcac: {e}")))?;
         // The fast path without output constraints needs only the prediction's start state;
@@ -726,6 +812,7 @@ impl Pcac {
             timing: params.timing,
             warm_start: params.warm_start,
             qp_changes_per_period: params.qp_changes_per_period,
+            hessian_every: params.hessian_every,
             model,
             aug,
             tones,
@@ -755,9 +842,16 @@ impl Pcac {
             tracked_prediction: 0.0,
             ahead: params.answers_ahead(),
             ready_status: status::OK,
-            replan: Replan::new(params.replan_every, n_u, spec.horizon),
+            replan: {
+                let mut r = Replan::new(params.replan_every, n_u, spec.horizon);
+                if params.hessian_every > 1 {
+                    r.set_hessian_every(params.hessian_every, params.hessian_cycle_len());
+                }
+                r
+            },
             predicted: false,
             built: false,
+            hessian_ready: false,
             qp_open: false,
             qp_progress: None,
             cond,
@@ -792,6 +886,7 @@ impl Pcac {
         self.last_status = None;
         self.tracked_prediction = 0.0;
         self.ready_status = status::OK;
+        self.hessian_ready = false;
         self.replan.clear();
     }
 
@@ -930,6 +1025,9 @@ impl Pcac {
         }
         if self.store_sample(true) {
             self.counters.id_resets += 1;
+            // The model starts over: so does the Hessian built from it.
+            self.hessian_ready = false;
+            self.replan.build_next();
         }
         IDENTIFIED
     }
@@ -1044,8 +1142,13 @@ impl Pcac {
     /// ([`Condenser::build_quadratic`]). Whether the second half may follow.
     fn build_qp(&mut self) -> bool {
         self.fast_found = self.try_fast_path();
-        self.fast_found
-            || (self.complete_prediction() && self.cond.build_quadratic(self.pred.markov()).is_ok())
+        if self.fast_found {
+            return true;
+        }
+        let built =
+            self.complete_prediction() && self.cond.build_quadratic(self.pred.markov()).is_ok();
+        self.counters.hessians_built += u64::from(built);
+        built
     }
 
     /// Step 4's condensing, second half (at the start of the solve unit): the QP's
@@ -1130,6 +1233,9 @@ impl Pcac {
         self.last_status = status;
         if !self.fast_used {
             self.last_iterations = self.solver.iterations();
+            if self.qp_progress.is_some() && self.solver.factor_reused() {
+                self.counters.factorizations_kept += 1;
+            }
         }
         self.tracked_prediction = self.tracked_one_step();
         let bits = match status {
@@ -1147,7 +1253,7 @@ impl Pcac {
                     self.last_active = na;
                     self.n_shifted = self.cond.shift_active_set_by(
                         &self.active[..na],
-                        self.replan.every(),
+                        self.replan.next_len(),
                         &mut self.shifted,
                     );
                     // Within the input bounds up to round-off; clip it exactly.
@@ -1197,10 +1303,18 @@ impl Pcac {
         if units.predict {
             let _ = self.replan.commit(&self.u_next);
             self.predicted = self.predict(input);
-            self.built = false;
+            // A cycle that keeps the Hessian condenses only the rest of the QP.
+            self.built = units.reuse && self.predicted && self.hessian_ready;
+            if units.reuse && !self.hessian_ready {
+                self.replan.build_next();
+            }
         }
         if units.build {
             self.built = self.predicted && self.build_qp();
+            self.hessian_ready = self.built && !self.fast_found;
+            if !self.hessian_ready {
+                self.replan.build_next();
+            }
         }
         if units.solve {
             self.built = self.built && self.build_rest();
@@ -1355,6 +1469,12 @@ impl Controller for Pcac {
                 "samples per solve (replan-every)",
                 self.replan.every() as u64,
             ),
+            (
+                "solves per hessian (hessian-every)",
+                self.hessian_every as u64,
+            ),
+            ("hessians built", c.hessians_built),
+            ("factorizations kept", c.factorizations_kept),
             ("mpc steps", c.steps),
             ("qp solved", c.solved),
             ("fast path", c.fast_path),

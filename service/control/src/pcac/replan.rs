@@ -62,6 +62,27 @@
 //! periods for the panels (about ten at `ℓ m = 128`) and the changes, or the last period
 //! carries them.
 //!
+//! # Keeping the Hessian
+//!
+//! The Hessian `H` of (2.48) depends on the identified model only through its Markov
+//! parameters, which change slowly once the model has converged; the free response, the
+//! gradient `f` and the right-hand sides change with every sample. With
+//! [`PcacParams::hessian_every`](super::PcacParams::hessian_every) `= M > 1` only every
+//! `M`-th cycle builds `H` (and the QP factors it); it is
+//! [`PcacParams::hessian_cycle`](super::PcacParams::hessian_cycle) `= N_H ≥ N` samples
+//! long, room for the build and the factorization's panels, and runs the three units
+//! above. The cycles in between are `N` samples long and run two units, **predict** in
+//! the first period and **solve** in the second (`N = 1`: both in one), with the shares of
+//! the QP after it as above: their `f` and right-hand sides come from their own
+//! prediction and the kept `G_s` (the Markov parameters of the build), and the QP starts
+//! from the kept factorization ([`crate::mpc::qp`], "Keeping the factorization"). The
+//! plan of a kept cycle is therefore the MPC of a model whose Markov parameters are up to
+//! `M` cycles old and whose free response is current; with a model that does not change
+//! it is the plan of a build at every cycle, bit for bit (test
+//! `a_hessian_kept_between_builds_gives_the_inputs_of_a_build_at_every_cycle`). A reset,
+//! an identification reset by the RLS guard, a dropped build cycle or a failed build
+//! make the next cycle build.
+//!
 //! A cycle is abandoned when its data no longer hold: a sample taken in without
 //! adaptation (the loop caught up, or the safe state), or samples lost before the one at
 //! hand (the plan in force moves on by as many rows, as the plant followed it; a new
@@ -85,6 +106,8 @@ pub(super) struct Units {
     pub solve_more: bool,
     /// The new plan takes over after this period's work.
     pub take_over: bool,
+    /// This cycle keeps the last cycle's Hessian and its factorization (no build unit).
+    pub reuse: bool,
 }
 
 /// The plan in force, the one being computed, and the position in the cycle.
@@ -92,6 +115,17 @@ pub(super) struct Units {
 pub(super) struct Replan {
     /// `N`.
     every: usize,
+    /// `M`: every `M`-th cycle builds the Hessian (1: every cycle).
+    hessian_every: usize,
+    /// `N_H ≥ N`: the length of a cycle that builds the Hessian.
+    hessian_cycle: usize,
+    /// The running cycle's length (`N` or `N_H`) and whether it builds the Hessian.
+    len: usize,
+    builds: bool,
+    /// Cycles begun since the last one that built the Hessian.
+    since_build: usize,
+    /// The next cycle must build the Hessian (a reset, a dropped build).
+    build_due: bool,
     /// Inputs per row, `m`.
     m: usize,
     /// The position in the running cycle, `None` when none runs.
@@ -122,6 +156,12 @@ impl Replan {
         let every = every.max(1);
         Self {
             every,
+            hessian_every: 1,
+            hessian_cycle: every,
+            len: every,
+            builds: true,
+            since_build: 0,
+            build_due: true,
             m,
             pos: None,
             active: vec![0.0; rows * m],
@@ -137,14 +177,45 @@ impl Replan {
         }
     }
 
+    /// Cycles that build the Hessian every `m_every ≥ 1` cycles, each `len ≥ N` samples
+    /// long; the cycles in between keep it (module docs, "Keeping the Hessian").
+    /// Allocates (before the loop).
+    pub fn set_hessian_every(&mut self, m_every: usize, len: usize) {
+        self.hessian_every = m_every.max(1);
+        self.hessian_cycle = len.max(self.every);
+        self.committed = vec![0.0; self.hessian_cycle * self.m];
+        self.build_due = true;
+    }
+
     /// `N`.
     pub fn every(&self) -> usize {
         self.every
     }
 
+    /// The next cycle builds the Hessian, whatever the count (the model or the data
+    /// changed, or the build failed).
+    pub fn build_next(&mut self) {
+        self.build_due = true;
+    }
+
+    /// The length of the cycle that starts after the running one (as things stand).
+    pub fn next_len(&self) -> usize {
+        if self.next_builds() {
+            self.hessian_cycle
+        } else {
+            self.every
+        }
+    }
+
+    /// Whether the next cycle to start builds the Hessian.
+    fn next_builds(&self) -> bool {
+        self.build_due || self.since_build + 1 >= self.hessian_every
+    }
+
     /// No plan in force and no cycle running (a reset, a new data stream, an
     /// observation).
     pub fn clear(&mut self) {
+        self.build_due = true;
         self.pos = None;
         self.active_rows = 0;
         self.active_valid = false;
@@ -159,6 +230,8 @@ impl Replan {
         if lost == 0 {
             return;
         }
+        // A dropped cycle that was to build the Hessian leaves it to the next one.
+        self.build_due |= self.pos.is_some() && self.builds;
         self.pos = None;
         let lost = usize::try_from(lost).unwrap_or(usize::MAX);
         self.next_row = self.next_row.saturating_add(lost);
@@ -179,15 +252,32 @@ impl Replan {
     /// The units this period runs, and moves the cycle on by one period. A cycle starts
     /// when none runs.
     pub fn units(&mut self) -> Units {
-        let pos = self.pos.unwrap_or(0);
-        let lag = 3 - self.every.min(3);
+        let pos = match self.pos {
+            Some(pos) => pos,
+            None => {
+                self.builds = self.next_builds();
+                if self.builds {
+                    self.since_build = 0;
+                    self.build_due = false;
+                    self.len = self.hessian_cycle;
+                } else {
+                    self.since_build += 1;
+                    self.len = self.every;
+                }
+                0
+            }
+        };
+        // The units of the cycle: predict, build (when it builds), solve.
+        let k = if self.builds { 3 } else { 2 };
+        let lag = k - self.len.min(k);
         let at = |j: usize| j.saturating_sub(lag) == pos;
         let units = Units {
             predict: at(0),
-            build: at(1),
-            solve: at(2),
-            solve_more: lag == 0 && pos > 2,
-            take_over: pos + 1 == self.every,
+            build: self.builds && at(1),
+            solve: at(k - 1),
+            solve_more: lag == 0 && pos > k - 1,
+            take_over: pos + 1 == self.len,
+            reuse: !self.builds,
         };
         self.pos = if units.take_over { None } else { Some(pos + 1) };
         units
@@ -199,7 +289,7 @@ impl Replan {
     pub fn commit(&mut self, applied: &[f64]) -> &[f64] {
         let m = self.m;
         self.committed[..m].copy_from_slice(&applied[..m]);
-        for j in 1..self.every {
+        for j in 1..self.len {
             let row = self.next_row.saturating_add(j);
             let (done, rest) = self.committed.split_at_mut(j * m);
             let dst = &mut rest[..m];
@@ -209,18 +299,19 @@ impl Replan {
                 dst.copy_from_slice(&done[(j - 1) * m..j * m]);
             }
         }
-        &self.committed
+        &self.committed[..self.len * m]
     }
 
-    /// The inputs committed by the last [`Replan::commit`] (`N m`).
+    /// The inputs committed by the last [`Replan::commit`] (`N m`, or `N_H m` in a cycle
+    /// that builds the Hessian).
     pub fn committed(&self) -> &[f64] {
-        &self.committed
+        &self.committed[..self.len * self.m]
     }
 
     /// The last committed input of the running cycle, `u_{k+N−1}`: the move reference
     /// (2.47) of its solve.
     pub fn last_committed(&self) -> &[f64] {
-        &self.committed[(self.every - 1) * self.m..]
+        &self.committed[(self.len - 1) * self.m..self.len * self.m]
     }
 
     /// The solve's plan: `rows` (`U` of the QP, `ℓ m`), each row clipped by `clip`.
@@ -371,5 +462,40 @@ mod tests {
         assert_eq!(r.next_input(&mut u), Some(9));
         assert_eq!(u, [0.5, 0.5]);
         assert_eq!(r.rows_after_next(&mut ahead), 0);
+    }
+
+    /// With a build every third cycle, cycles of `N_H = 7` build (predict, build, solve),
+    /// the two after them keep the Hessian in `N = 4` (predict, solve); a build cycle
+    /// dropped by lost samples leaves the build to the next cycle.
+    #[test]
+    fn cycles_that_build_the_hessian_take_their_own_length() {
+        let mut r = Replan::new(4, 1, 16);
+        r.set_hessian_every(3, 7);
+        let mut cycle = || {
+            let mut units = vec![r.units()];
+            while !units.last().unwrap().take_over {
+                units.push(r.units());
+            }
+            units
+        };
+        for _ in 0..2 {
+            let build = cycle();
+            assert_eq!(build.len(), 7);
+            assert!(build[0].predict && build[1].build && build[2].solve);
+            assert!(build.iter().all(|u| !u.reuse));
+            assert!(build[3..6].iter().all(|u| u.solve_more));
+            for _ in 0..2 {
+                let kept = cycle();
+                assert_eq!(kept.len(), 4);
+                assert!(kept[0].predict && kept[1].solve && kept[2].solve_more);
+                assert!(kept.iter().all(|u| u.reuse && !u.build));
+            }
+        }
+        assert_eq!(r.next_len(), 7);
+        let first = r.units();
+        assert!(first.predict && !first.reuse);
+        r.skip(1);
+        assert_eq!(r.next_len(), 7);
+        assert!(!r.units().reuse);
     }
 }

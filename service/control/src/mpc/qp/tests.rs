@@ -1182,3 +1182,105 @@ fn the_factorization_by_panels_is_cholesky_and_splits_bit_for_bit() {
     indefinite[(n - 1) * n + n - 1] = -1.0;
     assert!(!cholesky_columns(&mut indefinite, n, n, (0, n), &mut mem));
 }
+
+/// A solve's status, changes, `U`, multipliers and objective, bit for bit.
+type Outcome = (QpStatus, usize, Vec<u64>, Vec<u64>, u64);
+
+/// Everything a solve leaves, bit for bit.
+fn outcome(s: &DenseQpSolver, status: QpStatus) -> Outcome {
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut lam = bits(s.lambda_lower());
+    lam.extend(bits(s.lambda_upper()));
+    lam.extend(bits(s.lambda_ineq()));
+    (
+        status,
+        s.iterations(),
+        bits(s.x()),
+        lam,
+        s.objective().to_bits(),
+    )
+}
+
+/// [`outcome`] of a solve of `p` by `s`.
+fn solved(s: &mut DenseQpSolver, p: &Owned, warm: WarmStart) -> Outcome {
+    let status = s.solve(&p.problem(), warm);
+    outcome(s, status)
+}
+
+/// A solver that keeps its factorization starts from it when `H` is unchanged and the
+/// warm start fixes no bound, and ends bit for bit where a solver that factors does (whole
+/// or split); a changed `H`, or a warm start that fixes a bound, factors as before; a
+/// solve that overwrote `L` (the bulk fix) does not lose the kept factor.
+#[test]
+fn a_kept_factorization_is_reused_only_for_the_same_hessian_and_changes_nothing() {
+    let mut rng = ChaCha8Rng::seed_from_u64(77);
+    let (mut reused, mut bulk_then_reused) = (0, 0);
+    for case in 0..8 {
+        let mut p = if case % 2 == 0 {
+            pcac_problem(40, 2, true, 3, 1.0 + case as f64, &mut rng)
+        } else {
+            random_problem(20, 2, 4, case > 3, &mut rng)
+        };
+        let (n, ni) = (p.n, p.n_ineq());
+        let mut keep = DenseQpSolver::new(n, ni, QpSettings::default());
+        keep.keep_factorization(true);
+        let mut fresh = DenseQpSolver::new(n, ni, QpSettings::default());
+        let first = keep.solve(&p.problem(), WarmStart::Cold);
+        assert!(!keep.factor_reused());
+        let bulk_fixed = keep.fixed_at_start() > 0;
+        assert_eq!(
+            outcome(&keep, first),
+            solved(&mut fresh, &p, WarmStart::Cold)
+        );
+        // A new gradient and right-hand side with the same H.
+        for f in p.f.iter_mut() {
+            *f = 0.3 * *f + normal(&mut rng);
+        }
+        for budget in [usize::MAX, 1] {
+            let mut progress = keep.start(&p.problem(), WarmStart::Cold);
+            while progress == QpProgress::Running {
+                progress = keep.proceed(&p.problem(), budget);
+            }
+            let QpProgress::Done(status) = progress else {
+                unreachable!()
+            };
+            // Only a cold start after a solve that factored the whole H can reuse it.
+            assert!(keep.factor_reused(), "case {case}, budget {budget}");
+            assert_eq!(
+                outcome(&keep, status),
+                solved(&mut fresh, &p, WarmStart::Cold),
+                "case {case}, budget {budget}"
+            );
+            reused += 1;
+            bulk_then_reused += usize::from(bulk_fixed);
+        }
+        // A warm start that fixes a bound factors H_FF.
+        let mut ids = vec![ConstraintId::Row(0); n + ni];
+        let k = fresh.active_set_into(&mut ids);
+        if let Some(b) = ids[..k]
+            .iter()
+            .copied()
+            .find(|c| !matches!(c, ConstraintId::Row(_)))
+        {
+            let warm = [b];
+            let status = keep.solve(&p.problem(), WarmStart::ActiveSet(&warm));
+            assert!(!keep.factor_reused());
+            assert_eq!(
+                outcome(&keep, status),
+                solved(&mut fresh, &p, WarmStart::ActiveSet(&warm))
+            );
+        }
+        // A changed H (still symmetric) factors anew.
+        p.hess[0] *= 1.0 + 1e-12;
+        let status = keep.solve(&p.problem(), WarmStart::Cold);
+        assert!(!keep.factor_reused(), "case {case}");
+        assert_eq!(
+            outcome(&keep, status),
+            solved(&mut fresh, &p, WarmStart::Cold)
+        );
+    }
+    assert_eq!(reused, 16);
+    // Some first solves fixed bounds in bulk (overwriting L) and the kept factor served
+    // the next ones all the same.
+    assert!(bulk_then_reused > 0, "no case fixed bounds in bulk");
+}

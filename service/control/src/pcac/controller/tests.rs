@@ -1006,3 +1006,64 @@ fn replanning_every_two_or_three_samples_regulates_and_tracks_within_the_bounds(
         assert_eq!(run.fallbacks, 0, "N = {n}");
     }
 }
+
+/// A kept Hessian is the built one when the model does not change: with identification
+/// frozen (a fixed second-order model), building the Hessian only every fifth cycle gives
+/// the inputs of building it at every cycle, bit for bit, for `N = 4` and `6` with QP
+/// shares; the kept cycles start from the kept factorization, and the builds are one in
+/// five solves. With identification on, the cycles that build are `N_H` long, the others
+/// `N`, and no solve falls back.
+#[test]
+fn a_hessian_kept_between_builds_gives_the_inputs_of_a_build_at_every_cycle() {
+    let model = |p: &mut PcacParams| {
+        let mut theta = vec![0.0; 12];
+        theta[..2].copy_from_slice(&[1.8725, -0.9604]);
+        theta[6..8].copy_from_slice(&[0.1, 0.08]);
+        p.model.theta0 = theta;
+        p.fast_path = FastPathMode::Never;
+    };
+    for n in [4usize, 6] {
+        let run = |m_every: usize| {
+            let mut p = params(PcacTiming::NextStep);
+            model(&mut p);
+            p.replan_every = n;
+            p.qp_changes_per_period = 1;
+            p.hessian_every = m_every;
+            let mut c = Pcac::new(&p, counts(1)).unwrap();
+            assert!(c.set_adaptation(false));
+            let inputs = inputs_of(&mut c, true, 3000, |_| {});
+            (inputs, c.counts_of())
+        };
+        let (every, at_every) = run(1);
+        let (kept, at_kept) = run(5);
+        assert_eq!(kept, every, "N = {n}");
+        assert_eq!(at_every.hessians_built, at_every.steps);
+        assert_eq!(at_every.factorizations_kept, 0);
+        assert_eq!(at_kept.steps, at_every.steps);
+        assert_eq!(at_kept.hessians_built, at_kept.steps.div_ceil(5), "N = {n}");
+        assert!(
+            at_kept.factorizations_kept >= at_kept.steps - at_kept.hessians_built - 5,
+            "N = {n}: {at_kept:?}"
+        );
+        assert_eq!(at_kept.fallbacks, 0);
+    }
+    // Identification on: builds in cycles of N_H = 7 samples, kept cycles of N = 4.
+    let mut p = params(PcacTiming::NextStep);
+    p.fast_path = FastPathMode::Never;
+    p.replan_every = 4;
+    p.qp_changes_per_period = 1;
+    p.hessian_every = 4;
+    p.hessian_cycle = 7;
+    let mut c = Pcac::new(&p, counts(1)).unwrap();
+    let steps = 3000;
+    let _ = inputs_of(&mut c, true, steps, |_| {});
+    let done = c.counts_of();
+    // Three kept cycles of 4 samples per build cycle of 7: 19 samples per 4 solves.
+    let solves = (steps as u64 * 4).div_ceil(19);
+    assert!(
+        done.steps.abs_diff(solves) <= 4,
+        "{done:?} against {solves}"
+    );
+    assert_eq!(done.hessians_built, done.steps.div_ceil(4));
+    assert_eq!(done.fallbacks, 0);
+}
