@@ -1473,6 +1473,10 @@ impl Controller for Pcac {
                 "solves per hessian (hessian-every)",
                 self.hessian_every as u64,
             ),
+            (
+                "samples per hessian cycle (hessian-cycle)",
+                self.replan.hessian_cycle() as u64,
+            ),
             ("hessians built", c.hessians_built),
             ("factorizations kept", c.factorizations_kept),
             ("mpc steps", c.steps),

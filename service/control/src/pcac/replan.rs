@@ -192,6 +192,11 @@ impl Replan {
         self.every
     }
 
+    /// `N_H`, the length of a cycle that builds the Hessian (`N` when every cycle does).
+    pub fn hessian_cycle(&self) -> usize {
+        self.hessian_cycle
+    }
+
     /// The next cycle builds the Hessian, whatever the count (the model or the data
     /// changed, or the build failed).
     pub fn build_next(&mut self) {
