@@ -9,6 +9,14 @@
 //! squares ([`control::tones::tone_amplitudes_indexed`], which takes the sequence numbers,
 //! so lost samples leave gaps rather than shifting the phase) and gives, per tone and
 //! channel, `20 log10(A_open / A_closed)`.
+//!
+//! A window of `L` samples resolves frequencies `1/(L T)` apart, and what the fit gives at
+//! a tone cancelled below the broadband noise is that noise, as it happens to fall in the
+//! window. So the report also gives each tone's **noise floor** in the closed-loop window:
+//! the median amplitude of the same joint fit at the frequencies `f_i ± k/(L T)`, `k = 2 …
+//! 5` (fitted together with the tones, so the tones themselves are removed), and the
+//! suppression that floor allows, `20 log10(A_open / floor)`. A suppression near that
+//! limit is the noise's, not the tone's.
 
 use serde::Serialize;
 
@@ -45,6 +53,11 @@ pub struct ToneLine {
     pub closed: f64,
     /// `20 log10(open / closed)`.
     pub suppression_db: Option<f64>,
+    /// The closed-loop window's noise floor at the tone (module docs); none when no
+    /// offset frequency is below Nyquist or the fit failed.
+    pub floor: Option<f64>,
+    /// `20 log10(open / floor)`: the largest suppression the window can show.
+    pub floor_limit_db: Option<f64>,
 }
 
 /// The tone part of the run report.
@@ -182,18 +195,64 @@ impl ToneMeter {
                     }
                 }
             };
+            let floors = self.floors(&closed_seq, &closed_z, &omegas);
             for (i, hz) in self.hz.iter().enumerate() {
                 let o = open.as_ref().map(|a| a[i]);
+                let floor = floors[i];
                 out.tones.push(ToneLine {
                     hz: *hz,
                     channel: ch,
                     open: o,
                     closed: closed[i],
                     suppression_db: o.map(|o| suppression_db(o, closed[i])),
+                    floor,
+                    floor_limit_db: o.zip(floor).map(|(o, f)| suppression_db(o, f)),
                 });
             }
         }
         Some(out)
+    }
+}
+
+impl ToneMeter {
+    /// Per tone, the median amplitude fitted at `ω_i ± 2πk/L`, `k = 2 … 5` (`L` the
+    /// window's length), jointly with the tones (module docs); `None` for a tone with no
+    /// offset below Nyquist, or every tone when a fit fails.
+    fn floors(&self, seq: &[u64], z: &[f64], omegas: &[f64]) -> Vec<Option<f64>> {
+        let step = 2.0 * std::f64::consts::PI / self.window as f64;
+        let mut per_tone: Vec<Vec<f64>> = vec![Vec::new(); omegas.len()];
+        for k in [-5.0, -4.0, -3.0, -2.0, 2.0, 3.0, 4.0, 5.0] {
+            let shifted: Vec<f64> = omegas.iter().map(|w| w + k * step).collect();
+            // Only offsets inside (0, π) for every tone; the others are skipped for all.
+            if shifted
+                .iter()
+                .any(|w| !(*w > 0.0 && *w < std::f64::consts::PI))
+            {
+                continue;
+            }
+            let both: Vec<f64> = omegas.iter().chain(&shifted).copied().collect();
+            let Ok(a) = tone_amplitudes_indexed(seq, z, &both) else {
+                return vec![None; omegas.len()];
+            };
+            for (v, amp) in per_tone.iter_mut().zip(&a[omegas.len()..]) {
+                v.push(*amp);
+            }
+        }
+        per_tone
+            .into_iter()
+            .map(|mut v| {
+                if v.is_empty() {
+                    return None;
+                }
+                v.sort_by(f64::total_cmp);
+                let h = v.len() / 2;
+                Some(if v.len() % 2 == 1 {
+                    v[h]
+                } else {
+                    0.5 * (v[h - 1] + v[h])
+                })
+            })
+            .collect()
     }
 }
 
@@ -211,17 +270,24 @@ impl ToneReport {
 "
             );
         }
-        out += "  channel   tone Hz    open loop   closed loop   suppression\n";
+        out += "  channel   tone Hz    open loop   closed loop   suppression   noise floor   floor's limit\n";
         for t in &self.tones {
             let open = t.open.map_or("-".to_string(), |o| format!("{o:.3e}"));
-            let db = t
-                .suppression_db
-                .map_or("-".to_string(), |d| format!("{d:.1} dB"));
+            let db = |v: Option<f64>| v.map_or("-".to_string(), |d| format!("{d:.1} dB"));
+            let floor = t.floor.map_or("-".to_string(), |f| format!("{f:.3e}"));
             out += &format!(
-                "  z{:<7} {:>8.1} {:>12} {:>13.3e} {:>13}\n",
-                t.channel, t.hz, open, t.closed, db
+                "  z{:<7} {:>8.1} {:>12} {:>13.3e} {:>13} {:>13} {:>15}\n",
+                t.channel,
+                t.hz,
+                open,
+                t.closed,
+                db(t.suppression_db),
+                floor,
+                db(t.floor_limit_db)
             );
         }
+        out += "  (the noise floor: the closed-loop window's noise at each tone; a suppression near \
+                the floor's limit is the noise's, not the tone's)\n";
         out
     }
 }
@@ -267,5 +333,62 @@ mod tests {
         // of the open-loop phase.
         assert_eq!(r.samples[1], 400);
         assert!(r.samples[0] <= 400 && r.samples[0] > 300);
+    }
+
+    /// The noise floor: with white noise of standard deviation σ in the closed-loop window
+    /// and the tone cancelled below it, the fitted tone is at the noise (within a factor 3
+    /// of the floor) and the floor near the expected amplitude of noise alone at one
+    /// frequency, `σ √(π / L)` (Rayleigh mean, `L` samples); a tone well above the noise
+    /// keeps its own amplitude and a floor at the noise; without noise the floor is 0.
+    #[test]
+    fn the_floor_is_the_closed_loop_windows_noise_at_each_tone() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let cfg = ToneReportConfig {
+            tones_hz: vec![50.0, 120.0],
+            source: "test".into(),
+            window_cycles: 2000,
+            error_window: None,
+            force_regulation: None,
+            min_suppression_db: None,
+        };
+        let period = 1e-3;
+        let sigma = 0.01;
+        let run = |noise: f64| {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+            let mut m = ToneMeter::new(&cfg, 2000, 1, period);
+            for k in 0..6000u64 {
+                let t = k as f64 * period;
+                // 50 Hz: 1 open loop, 1e-5 closed loop (below the noise); 120 Hz: 0.5, 0.1.
+                let (a, b) = if k < 2000 { (1.0, 0.5) } else { (1e-5, 0.1) };
+                let n: f64 = StandardNormal.sample(&mut rng);
+                let z = a * (2.0 * std::f64::consts::PI * 50.0 * t).sin()
+                    + b * (2.0 * std::f64::consts::PI * 120.0 * t).cos()
+                    + noise * n;
+                m.record(k + 1, k, &[z]);
+            }
+            m.report().unwrap()
+        };
+        let r = run(sigma);
+        let expected = sigma * (std::f64::consts::PI / 2000.0).sqrt();
+        for t in &r.tones {
+            let floor = t.floor.unwrap();
+            assert!(
+                floor > 0.5 * expected && floor < 2.0 * expected,
+                "{} Hz: floor {floor}, expected about {expected}",
+                t.hz
+            );
+            let limit = t.floor_limit_db.unwrap();
+            assert!((limit - suppression_db(t.open.unwrap(), floor)).abs() < 1e-12);
+        }
+        let (weak, strong) = (&r.tones[0], &r.tones[1]);
+        assert!(weak.closed < 3.0 * weak.floor.unwrap(), "{weak:?}");
+        assert!((strong.closed - 0.1).abs() < 0.01, "{strong:?}");
+        let text = r.render();
+        assert!(text.contains("noise floor"), "{text}");
+        let clean = run(0.0);
+        for t in &clean.tones {
+            assert!(t.floor.unwrap() < 1e-9, "{t:?}");
+        }
     }
 }
