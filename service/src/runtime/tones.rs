@@ -296,16 +296,21 @@ impl ToneReport {
 mod tests {
     use super::*;
 
-    #[test]
-    fn the_meter_compares_the_end_of_the_open_loop_phase_with_the_end_of_the_run() {
-        let cfg = ToneReportConfig {
+    /// Tones at 50 and 120 Hz, windows of `window` samples.
+    fn config(window: u64) -> ToneReportConfig {
+        ToneReportConfig {
             tones_hz: vec![50.0, 120.0],
             source: "test".into(),
-            window_cycles: 400,
+            window_cycles: window,
             error_window: None,
             force_regulation: None,
             min_suppression_db: None,
-        };
+        }
+    }
+
+    #[test]
+    fn the_meter_compares_the_end_of_the_open_loop_phase_with_the_end_of_the_run() {
+        let cfg = config(400);
         let period = 1e-3;
         let mut m = ToneMeter::new(&cfg, 1000, 1, period);
         let tone = |k: u64, a: f64, b: f64| {
@@ -344,14 +349,7 @@ mod tests {
     fn the_floor_is_the_closed_loop_windows_noise_at_each_tone() {
         use rand::SeedableRng;
         use rand_distr::{Distribution, StandardNormal};
-        let cfg = ToneReportConfig {
-            tones_hz: vec![50.0, 120.0],
-            source: "test".into(),
-            window_cycles: 2000,
-            error_window: None,
-            force_regulation: None,
-            min_suppression_db: None,
-        };
+        let cfg = config(2000);
         let period = 1e-3;
         let sigma = 0.01;
         let run = |noise: f64| {
