@@ -15,8 +15,9 @@
 //! window. So the report also gives each tone's **noise floor** in the closed-loop window:
 //! the median amplitude of the same joint fit at the frequencies `f_i ± k/(L T)`, `k = 2 …
 //! 5` (fitted together with the tones, so the tones themselves are removed), and the
-//! suppression that floor allows, `20 log10(A_open / floor)`. A suppression near that
-//! limit is the noise's, not the tone's.
+//! suppression that floor typically allows, `20 log10(A_open / floor)`. A suppression near
+//! or above that limit is the noise's, not the tone's: the noise in the tone's bin is a
+//! random draw, often below its median.
 
 use serde::Serialize;
 
@@ -56,7 +57,7 @@ pub struct ToneLine {
     /// The closed-loop window's noise floor at the tone (module docs); none when no
     /// offset frequency is below Nyquist or the fit failed.
     pub floor: Option<f64>,
-    /// `20 log10(open / floor)`: the largest suppression the window can show.
+    /// `20 log10(open / floor)`: the suppression the window's noise typically allows.
     pub floor_limit_db: Option<f64>,
 }
 
@@ -287,7 +288,7 @@ impl ToneReport {
             );
         }
         out += "  (the noise floor: the closed-loop window's noise at each tone; a suppression near \
-                the floor's limit is the noise's, not the tone's)\n";
+                or above the floor's limit is the noise's, not the tone's)\n";
         out
     }
 }
