@@ -654,7 +654,9 @@ impl PcacParams {
                 return Err(ParamError::new(
                     "hessian-cycle",
                     format!(
-                        "{}: a cycle of its own length for the Hessian's build needs                          hessian-every > 1 (every cycle builds it now, in replan-every = {n}                          samples); leave it out",
+                        "{}: a cycle of its own length for the Hessian's build needs \
+                         hessian-every > 1 (every cycle builds it now, in replan-every = {n} \
+                         samples); leave it out",
                         self.hessian_cycle
                     ),
                 ));
