@@ -22,6 +22,7 @@
 use serde::Serialize;
 
 use crate::config::ToneReportConfig;
+use control::linalg::percentile;
 use control::tones::{suppression_db, tone_amplitudes_indexed};
 
 /// The two windows of `z` (see the module docs).
@@ -241,18 +242,7 @@ impl ToneMeter {
         }
         per_tone
             .into_iter()
-            .map(|mut v| {
-                if v.is_empty() {
-                    return None;
-                }
-                v.sort_by(f64::total_cmp);
-                let h = v.len() / 2;
-                Some(if v.len() % 2 == 1 {
-                    v[h]
-                } else {
-                    0.5 * (v[h - 1] + v[h])
-                })
-            })
+            .map(|mut v| (!v.is_empty()).then(|| percentile(&mut v, 0.5)))
             .collect()
     }
 }

@@ -260,8 +260,6 @@ pub struct Pcac {
     warm_start: bool,
     /// [`PcacParams::qp_changes_per_period`].
     qp_changes_per_period: usize,
-    /// [`PcacParams::hessian_every`].
-    hessian_every: usize,
     model: IoModel,
     /// The closed-loop coefficients and the `u` history when augmenting a fixed `K̄`.
     aug: Option<Augmentation>,
@@ -814,7 +812,6 @@ impl Pcac {
             timing: params.timing,
             warm_start: params.warm_start,
             qp_changes_per_period: params.qp_changes_per_period,
-            hessian_every: params.hessian_every,
             model,
             aug,
             tones,
@@ -1473,7 +1470,7 @@ impl Controller for Pcac {
             ),
             (
                 "solves per hessian (hessian-every)",
-                self.hessian_every as u64,
+                self.replan.hessian_every() as u64,
             ),
             (
                 "samples per hessian cycle (hessian-cycle)",

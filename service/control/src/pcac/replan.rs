@@ -192,6 +192,11 @@ impl Replan {
         self.every
     }
 
+    /// `M`: every `M`-th cycle builds the Hessian (1: every cycle).
+    pub fn hessian_every(&self) -> usize {
+        self.hessian_every
+    }
+
     /// `N_H`, the length of a cycle that builds the Hessian (`N` when every cycle does).
     pub fn hessian_cycle(&self) -> usize {
         self.hessian_cycle
