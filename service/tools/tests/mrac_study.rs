@@ -10,6 +10,7 @@ use control::{Controller, Dimensions, StepInput};
 use rig_tools::study::mrac::setup::{CommandKind, Example, Method};
 use rig_tools::study::mrac::summary::Verdict;
 use rig_tools::study::mrac::{self, Options};
+use rig_tools::study::shard::Runs;
 
 /// ‖e‖ (4.85) of `c` on Example 1's plant at `ρ = 0.5`, `ν = π/4` with the unit step:
 /// `y_{k+1} = u_k − 0.5 u_{k−1} + 2ρ cos ν y_k − ρ² y_{k−1}`, samples `k = 0 … 200`.
@@ -56,6 +57,7 @@ fn a_small_study_writes_its_files_and_repeats_the_kernel_tests_single_runs() {
     let out = out_dir("small");
     let options = Options::parse("1", "step", 3).expect("valid");
     let report = mrac::run(
+        &Runs::whole(),
         &options,
         &out,
         "study mrac --example 1 --command step --grid 3",
@@ -211,7 +213,7 @@ fn the_outward_reading_of_example_two_writes_its_grid_and_maps_and_can_be_turned
     let options = Options::parse("2", "step", 2)
         .and_then(|o| o.with_outward(2.0, 4))
         .expect("valid");
-    let report = mrac::run(&options, &out, "outward").expect("runs");
+    let report = mrac::run(&Runs::whole(), &options, &out, "outward").expect("runs");
     let csv = std::fs::read_to_string(out.join("grid-outward.csv")).expect("grid-outward.csv");
     let mut lines = csv.lines();
     assert_eq!(

@@ -8,7 +8,14 @@
 //! cargo run --release -p rig-tools --bin study -- sampling-arm [--grid 10] [--out DIR] [--quick] [--no-sensitivity] [--sensitivity-grid 4] [--results FILE]
 //! cargo run --release -p rig-tools --bin study -- mrac [--example 1|2|3|all] [--command step|two|four|all] [--grid 15] [--out DIR] [--results FILE] [--no-sensitivity]
 //! cargo run --release -p rig-tools --bin study -- all [--out DIR] [--quick] [--jobs N] [--results FILE]
+//! cargo run --release -p rig-tools --bin study -- <study> … --shard I/N
+//! cargo run --release -p rig-tools --bin study -- merge DIR… [--out DIR]
 //! ```
+//!
+//! `--shard I/N` (or a Slurm array's or Kubernetes Indexed Job's environment) runs shard
+//! `I` of `N` of any study, `all` included, into `DIR/shards/I-of-N/`; `merge` checks the
+//! shards and writes what the study run whole writes (`rig_tools::study::shard`,
+//! `docs/studies.md`).
 //!
 //! `all` runs every study into `DIR/<study>/` and writes the reproduction report
 //! `DIR/reproduction.md`; see the `all` module for the table of studies.
@@ -43,7 +50,10 @@ use rig_tools::file_error::{FileError, FileOp};
 use rig_tools::study::arm::ArmError;
 use rig_tools::study::mrac::MracError;
 use rig_tools::study::rcac::{RcacError, common, driver, miso, siso};
-use rig_tools::study::{forgetting, mrac, pcac_truss};
+use rig_tools::study::shard::manifest::COMMIT;
+use rig_tools::study::shard::merge::Shards;
+use rig_tools::study::shard::{Runs, ShardError, Slice};
+use rig_tools::study::{all, forgetting, mrac, pcac_truss};
 
 /// Command line.
 #[derive(Debug, Parser)]
@@ -52,6 +62,11 @@ struct Cli {
     /// The study to run.
     #[command(subcommand)]
     study: Study,
+    /// Run shard I of N (0 ≤ I < N) of the study's runs into `--out`/shards/I-of-N/, or
+    /// `none` for the whole study; when not given, a Slurm array's or Kubernetes Indexed
+    /// Job's environment names the shard (docs/studies.md).
+    #[arg(long, global = true, value_name = "I/N")]
+    shard: Option<String>,
 }
 
 /// The `--update` option of the RCAC studies.
@@ -185,6 +200,17 @@ enum Study {
         #[arg(long)]
         sensitivity_grid: Option<usize>,
     },
+    /// Checks the shards of one study (or of `study all`) in each DIR (a shard's folder,
+    /// the shards' `--out`, or a folder of shards) and writes what the study run whole
+    /// writes.
+    Merge {
+        /// The shards' folders, or the `--out` they were run with.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Output directory (default: the shards' own `--out`, as they were given it).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Every study of the dissertation, each into `--out/<study>/`, several at a time, and
     /// one reproduction report `--out/reproduction.md` of the chapters' claims.
     All {
@@ -203,24 +229,178 @@ enum Study {
     },
 }
 
+impl Study {
+    /// The subcommand's name.
+    fn name(&self) -> &'static str {
+        match self {
+            Study::Forgetting { .. } => "forgetting",
+            Study::RcacSiso { .. } => "rcac-siso",
+            Study::RcacMiso { .. } => "rcac-miso",
+            Study::PcacTruss { .. } => "pcac-truss",
+            Study::Mrac { .. } => "mrac",
+            Study::SamplingArm { .. } => "sampling-arm",
+            Study::Merge { .. } => "merge",
+            Study::All { .. } => "all",
+        }
+    }
+
+    /// The study's `--out`.
+    fn out(&self) -> Option<&Path> {
+        match self {
+            Study::Forgetting { out, .. }
+            | Study::RcacSiso { out, .. }
+            | Study::RcacMiso { out, .. }
+            | Study::PcacTruss { out, .. }
+            | Study::Mrac { out, .. }
+            | Study::SamplingArm { out, .. }
+            | Study::All { out, .. } => Some(out),
+            Study::Merge { .. } => None,
+        }
+    }
+
+    /// The study's `--out`, to change.
+    fn out_mut(&mut self) -> Option<&mut PathBuf> {
+        match self {
+            Study::Forgetting { out, .. }
+            | Study::RcacSiso { out, .. }
+            | Study::RcacMiso { out, .. }
+            | Study::PcacTruss { out, .. }
+            | Study::Mrac { out, .. }
+            | Study::SamplingArm { out, .. }
+            | Study::All { out, .. } => Some(out),
+            Study::Merge { .. } => None,
+        }
+    }
+}
+
+/// The command line after `study`, without `--shard`.
+fn args_without_shard() -> Vec<String> {
+    let mut args = Vec::new();
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        if a == "--shard" {
+            it.next();
+        } else if !a.starts_with("--shard=") {
+            args.push(a);
+        }
+    }
+    args
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result: Result<(), Box<dyn std::error::Error>> = match cli.study {
-        Study::Forgetting { runs, out, seed } => {
-            forgetting::run(runs, &out, seed).map_err(Into::into)
+    let runs = match (&cli.study, cli.shard.as_deref()) {
+        (Study::Merge { .. }, Some(s)) => {
+            eprintln!("study: --shard {s}: merge reads shards; it is not one");
+            return ExitCode::FAILURE;
+        }
+        (Study::Merge { .. }, None) => Ok(Runs::whole()),
+        (study, option) => {
+            Slice::resolve(option, |k| std::env::var(k).ok())
+                .map_err(ShardError::from)
+                .and_then(|slice| match slice {
+                None => Ok(Runs::whole()),
+                Some(slice) => Runs::shard(
+                    study.name(),
+                    args_without_shard(),
+                    &format!("{study:?}"),
+                    slice,
+                    study.out().unwrap_or(Path::new(".")),
+                ),
+            })
+        }
+    };
+    let result = match runs {
+        Ok(runs) => {
+            let r = match cli.study {
+                Study::Merge { dirs, out } => merge(&dirs, out),
+                study => run_study(study, &runs, None),
+            };
+            if let Some(line) = runs.shard_done() {
+                println!("{line}");
+                return ExitCode::SUCCESS;
+            }
+            r
+        }
+        Err(e) => Err(e.into()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("study: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `study merge`: finds and checks the shards in `dirs`, then runs their study again from
+/// their command line (with `out` for its `--out` if given) on their recorded runs.
+fn merge(dirs: &[PathBuf], out: Option<PathBuf>) -> Result<(), Box<dyn std::error::Error>> {
+    let shards = Shards::find(dirs)?;
+    for note in shards.binary_notes() {
+        eprintln!("study merge: {note}");
+    }
+    let m = shards.manifest().clone();
+    if m.commit != COMMIT {
+        return Err(format!(
+            "{}: the shards ran commit {}, this binary is commit {}: merge with a binary of the shards' commit",
+            shards.folders()[0].display(),
+            m.commit,
+            COMMIT
+        )
+        .into());
+    }
+    let cli = Cli::try_parse_from(std::iter::once("study".to_string()).chain(m.args.clone()))
+        .map_err(|e| {
+            format!(
+                "{}: its command line `study {}` does not parse: {e}",
+                shards.folders()[0].display(),
+                m.args.join(" ")
+            )
+        })?;
+    let mut study = cli.study;
+    let all_from = shards.folders()[0]
+        .parent()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf);
+    if let (Some(o), Some(slot)) = (out, study.out_mut()) {
+        *slot = o;
+    }
+    if let Study::All { .. } = study {
+        let from = all_from.ok_or_else(|| "the shards' folder has no parent".to_string())?;
+        let command = std::iter::once("study".to_string())
+            .chain(m.args.iter().cloned())
+            .collect::<Vec<_>>()
+            .join(" ");
+        return run_study(study, &Runs::whole(), Some((from, command)));
+    }
+    run_study(study, &Runs::merge(shards), None)
+}
+
+/// Runs `study` with its runs handed to `runs`; `study all` with `all_from` = (folder,
+/// command line): merges the shards of every study found under `folder/<study>/`, and
+/// reports the shards' command line.
+fn run_study(
+    study: Study,
+    runs: &Runs,
+    all_from: Option<(PathBuf, String)>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    match study {
+        Study::Forgetting { runs: n, out, seed } => {
+            forgetting::run(runs, n, &out, seed).map_err(Into::into)
         }
         Study::RcacSiso {
             out,
             points,
             update,
             no_sensitivity,
-        } => rcac(siso::run, &out, points, &update, !no_sensitivity).map_err(Into::into),
+        } => rcac(siso::run, runs, &out, points, &update, !no_sensitivity).map_err(Into::into),
         Study::RcacMiso {
             out,
             points,
             update,
             no_sensitivity,
-        } => rcac(miso::run, &out, points, &update, !no_sensitivity).map_err(Into::into),
+        } => rcac(miso::run, runs, &out, points, &update, !no_sensitivity).map_err(Into::into),
         Study::PcacTruss {
             out,
             duration,
@@ -231,6 +411,7 @@ fn main() -> ExitCode {
             .and_then(|experiments| {
                 pcac_truss::Setting::parse_set(&settings).and_then(|settings| {
                     pcac_truss::run(
+                        runs,
                         &out,
                         &pcac_truss::Options {
                             duration,
@@ -252,6 +433,7 @@ fn main() -> ExitCode {
             outward_grid,
             no_sensitivity,
         } => mrac_study(
+            runs,
             &example,
             &command,
             (grid, outward_rho, outward_grid, !no_sensitivity),
@@ -267,6 +449,7 @@ fn main() -> ExitCode {
             no_sensitivity,
             sensitivity_grid,
         } => sampling_arm(
+            runs,
             grid,
             quick,
             (!no_sensitivity).then_some(sensitivity_grid),
@@ -274,32 +457,40 @@ fn main() -> ExitCode {
             results.as_deref(),
         )
         .map_err(Into::into),
+        Study::Merge { dirs, out } => merge(&dirs, out),
         Study::All {
             out,
             quick,
             jobs,
             results,
-        } => rig_tools::study::all::command(
-            &out,
-            if quick {
-                rig_tools::study::all::Size::Quick
-            } else {
-                rig_tools::study::all::Size::Full
-            },
-            jobs,
-            results.as_deref(),
-            std::iter::once("study".to_string())
-                .chain(std::env::args().skip(1))
-                .collect::<Vec<_>>()
-                .join(" "),
-        )
-        .map_err(Into::into),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("study: {e}");
-            ExitCode::FAILURE
+        } => {
+            let (sharding, command) = match (all_from, runs.slice()) {
+                (Some((from, command)), _) => (all::Sharding::Merge(from), command),
+                (None, slice) => (
+                    if slice.is_some() {
+                        all::Sharding::Shard(runs)
+                    } else {
+                        all::Sharding::Whole
+                    },
+                    std::iter::once("study".to_string())
+                        .chain(args_without_shard())
+                        .collect::<Vec<_>>()
+                        .join(" "),
+                ),
+            };
+            all::command(
+                &out,
+                if quick {
+                    all::Size::Quick
+                } else {
+                    all::Size::Full
+                },
+                jobs,
+                results.as_deref(),
+                command,
+                &sharding,
+            )
+            .map_err(Into::into)
         }
     }
 }
@@ -307,7 +498,8 @@ fn main() -> ExitCode {
 /// Runs the RCAC study `run` into `out` with `points` sweep points, the update laws of
 /// `update` and, when `sensitivity`, the sensitivity table.
 fn rcac(
-    run: fn(&Path, &driver::Options) -> Result<(), RcacError>,
+    run: fn(&Runs, &Path, &driver::Options) -> Result<(), RcacError>,
+    runs: &Runs,
     out: &Path,
     points: usize,
     update: &UpdateArg,
@@ -315,6 +507,7 @@ fn rcac(
 ) -> Result<(), RcacError> {
     let updates = common::Update::parse_set(&update.update)?;
     run(
+        runs,
         out,
         &driver::Options {
             points,
@@ -326,6 +519,7 @@ fn rcac(
 
 /// `study mrac`: runs, prints the summary, writes `--results` if given.
 fn mrac_study(
+    runs: &Runs,
     example: &str,
     command: &str,
     (grid, outward_rho, outward_grid, sensitivity): (usize, f64, usize, bool),
@@ -340,7 +534,7 @@ fn mrac_study(
         "study mrac --example {example} --command {command} --grid {grid} --outward-rho {outward_rho} --outward-grid {outward_grid}{}",
         if sensitivity { "" } else { " --no-sensitivity" }
     );
-    let report = mrac::run(&options, out, &line)?;
+    let report = mrac::run(runs, &options, out, &line)?;
     print!("{}", report.markdown);
     println!(
         "\n{} cases, {} threads, {:.2} s; files in {}",
@@ -358,6 +552,7 @@ fn mrac_study(
 
 /// `study sampling-arm`: runs, prints the summary, writes `--results` if given.
 fn sampling_arm(
+    runs: &Runs,
     grid: Option<usize>,
     quick: bool,
     sensitivity: Option<Option<usize>>,
@@ -376,7 +571,7 @@ fn sampling_arm(
         Some(m) => format!("study sampling-arm --grid {n} --sensitivity-grid {m}"),
         None => format!("study sampling-arm --grid {n} --no-sensitivity"),
     };
-    let report = arm::run(n, m, out, &line)?;
+    let report = arm::run(runs, n, m, out, &line)?;
     print!("{}", report.markdown);
     println!(
         "\n{} threads, {:.2} s; files in {}",

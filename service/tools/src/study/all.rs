@@ -21,6 +21,7 @@
 
 use crate::file_error::{AtomicFileError, FileError, FileOp};
 use std::collections::VecDeque;
+use std::ffi::OsString;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -28,6 +29,7 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::study::reproduction::figures;
+use crate::study::shard::{Runs, ShardError};
 use crate::study::reproduction::report::{self, Links};
 use crate::study::reproduction::{self, Claims, ClaimsError, Verdict};
 
@@ -203,6 +205,9 @@ pub enum AllError {
     /// `--jobs 0`.
     #[error("--jobs 0: at least one study must run at a time")]
     NoJobs,
+    /// Sharding failed, or (not a failure) the shard is done.
+    #[error(transparent)]
+    Shard(#[from] ShardError),
     /// A figure of the claims could not be copied beside `--results`.
     #[error(transparent)]
     Figure(#[from] figures::FigureError),
@@ -239,6 +244,41 @@ pub enum RunError {
     /// Its claims file cannot be read.
     #[error(transparent)]
     Claims(#[from] ClaimsError),
+    /// Not a failure: the study ran as a shard; its claims are the merge's.
+    #[error("ran as a shard: its claims are the merge's")]
+    Shard,
+}
+
+/// How `study all` runs its studies.
+#[derive(Debug)]
+pub enum Sharding<'a> {
+    /// Each study whole (`--shard none`, whatever the environment says).
+    Whole,
+    /// Shard I/N of each study, into `--out/<study>/shards/I-of-N/`; `study all`'s own
+    /// manifest is `runs`'.
+    Shard(&'a Runs),
+    /// Each study merged from its shards under `from/<study>/`.
+    Merge(PathBuf),
+}
+
+impl Sharding<'_> {
+    /// The command line of the study `entry` with its options `args`, into `dir`.
+    fn command_line(&self, entry: &StudyEntry, dir: &Path, args: &[String]) -> Vec<OsString> {
+        let mut line: Vec<OsString> = Vec::new();
+        if let Sharding::Merge(from) = self {
+            line.extend(["merge".into(), from.join(entry.name).into_os_string()]);
+            line.extend(["--out".into(), dir.as_os_str().to_owned()]);
+            return line;
+        }
+        line.extend([entry.name.into(), "--out".into(), dir.as_os_str().to_owned()]);
+        line.extend(args.iter().map(OsString::from));
+        let slice = match self {
+            Sharding::Shard(runs) => runs.slice().map_or("none".into(), |s| s.to_string()),
+            _ => "none".to_string(),
+        };
+        line.extend(["--shard".into(), slice.into()]);
+        line
+    }
 }
 
 /// How one study went.
@@ -295,7 +335,7 @@ fn run_one(
     entry: &StudyEntry,
     dir: &Path,
     args: &[String],
-    threads: usize,
+    (threads, sharding): (usize, &Sharding),
 ) -> StudyRun {
     let t0 = Instant::now();
     let claims = (|| {
@@ -312,10 +352,7 @@ fn run_one(
             .try_clone()
             .map_err(|e| FileError::new(FileOp::Access, &log_path, e))?;
         let status = Command::new(exe)
-            .arg(entry.name)
-            .arg("--out")
-            .arg(dir)
-            .args(args)
+            .args(sharding.command_line(entry, dir, args))
             .env("RAYON_NUM_THREADS", threads.to_string())
             .stdin(Stdio::null())
             .stdout(log)
@@ -329,6 +366,9 @@ fn run_one(
                 log: log_path,
             });
         }
+        if let Sharding::Shard(_) = sharding {
+            return Err(RunError::Shard);
+        }
         Ok((entry.claims)(dir)?)
     })();
     StudyRun {
@@ -341,9 +381,16 @@ fn run_one(
 }
 
 /// Runs `studies` with the `study` binary `exe`, each into `out/<name>`, up to
-/// `options.jobs` at a time, the most expensive first; prints a line as each starts and
-/// ends. The studies' failures are in the result, not an error.
-pub fn run(exe: &Path, out: &Path, studies: &[StudyEntry], options: &Options) -> AllRun {
+/// `options.jobs` at a time, the most expensive first, whole, as shards or merged as
+/// `sharding` says; prints a line as each starts and ends. The studies' failures are in
+/// the result, not an error.
+pub fn run(
+    exe: &Path,
+    out: &Path,
+    studies: &[StudyEntry],
+    options: &Options,
+    sharding: &Sharding,
+) -> AllRun {
     let t0 = Instant::now();
     let mut order: Vec<usize> = (0..studies.len()).collect();
     order.sort_by_key(|&i| std::cmp::Reverse(studies[i].cost));
@@ -361,7 +408,13 @@ pub fn run(exe: &Path, out: &Path, studies: &[StudyEntry], options: &Options) ->
                         .map(|a| a.to_string())
                         .collect();
                     println!("study all: {} started", entry.name);
-                    let r = run_one(exe, entry, &out.join(entry.name), &args, options.threads);
+                    let r = run_one(
+                        exe,
+                        entry,
+                        &out.join(entry.name),
+                        &args,
+                        (options.threads, sharding),
+                    );
                     println!("study all: {} {}", entry.name, outcome_line(&r));
                     if let Ok(mut d) = done.lock() {
                         d.push((i, r));
@@ -390,19 +443,22 @@ fn outcome_line(r: &StudyRun) -> String {
             c.count(Verdict::Fail),
             c.count(Verdict::NotChecked)
         ),
+        Err(RunError::Shard) => format!("shard done in {:.1} s", r.wall),
         Err(e) => format!("FAILED TO RUN after {:.1} s: {e}", r.wall),
     }
 }
 
-/// `study all`: runs [`STUDIES`] with this executable into `out`, writes
-/// `out/reproduction.md` (and `results`, if given), prints the totals; an error when a
-/// study failed to run.
+/// `study all`: runs [`STUDIES`] with this executable into `out` (as `sharding` says),
+/// writes `out/reproduction.md` (and `results`, if given), prints the totals; an error
+/// when a study failed to run. As a shard it writes no report: each study's shard is in
+/// `out/<study>/shards/`, and the shard ends with [`ShardError::ShardDone`].
 pub fn command(
     out: &Path,
     size: Size,
     jobs: Option<usize>,
     results: Option<&Path>,
     command: String,
+    sharding: &Sharding,
 ) -> Result<(), AllError> {
     let options = Options::new(size, jobs, command)?;
     let exe = std::env::current_exe().map_err(AllError::Executable)?;
@@ -420,7 +476,27 @@ pub fn command(
             ""
         }
     );
-    let all = run(&exe, out, STUDIES, &options);
+    let all = run(&exe, out, STUDIES, &options, sharding);
+    if let Sharding::Shard(runs) = sharding {
+        let failed: Vec<&'static str> = all
+            .runs
+            .iter()
+            .filter(|r| !matches!(r.claims, Err(RunError::Shard)))
+            .map(|r| r.entry.name)
+            .collect();
+        if !failed.is_empty() {
+            return Err(AllError::Failed(failed));
+        }
+        let slice = runs.slice().map_or(String::new(), |s| s.to_string());
+        let ended = runs.gather();
+        runs.describe_done(format!(
+            "study all: shard {slice} of every study recorded under {}/<study>/shards/ in {:.1} s; when every shard is done: study merge {}",
+            out.display(),
+            all.wall,
+            out.display()
+        ));
+        return ended.map_err(AllError::from);
+    }
     let report = out.join(REPORT_FILE);
     ipc_types::files::write_atomic(&report, report::render(&all, Links::Relative).as_bytes())
         .map_err(|source| FileError::new(FileOp::Access, report.clone(), source))?;

@@ -11,6 +11,7 @@
 //!   PCAC-augmented, over the surface grids and the double maneuvers (§7.3).
 //! - [`reproduction`]: the record of the chapters' claims and the report of `study all`.
 //! - [`all`]: `study all`, every study and the report.
+//! - [`shard`]: a study's runs split over a cluster's job array, and merged back.
 //! - [`common`]: what the studies share: writing their files, the heat maps' color scale.
 
 pub mod all;
@@ -21,3 +22,4 @@ pub mod mrac;
 pub mod pcac_truss;
 pub mod rcac;
 pub mod reproduction;
+pub mod shard;

@@ -52,6 +52,9 @@ use grid::{Grid, GridPoint};
 /// fault.
 #[derive(Debug, thiserror::Error)]
 pub enum ArmError {
+    /// The study's runs could not be sharded or merged, or (not a failure) its shard is done.
+    #[error(transparent)]
+    Shard(#[from] crate::study::shard::ShardError),
     /// A file or folder that could not be read, written or made.
     #[error(transparent)]
     File(#[from] FileError),
@@ -241,11 +244,13 @@ fn table(md: &mut String, grid: &Grid, points: &[&GridPoint]) {
 /// `sensitivity = Some(m)` points per grid axis (`None`: not run); `line` is the command
 /// for the report.
 pub fn run(
+    runs: &crate::study::shard::Runs,
     n: usize,
     sensitivity: Option<usize>,
     out: &Path,
     line: &str,
 ) -> Result<Report, ArmError> {
+    let _ = runs;
     let t0 = Instant::now();
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Out, out.to_path_buf(), source))?;

@@ -57,6 +57,9 @@ use plant::{Msd, PRINTED, Plant, SAMPLE_PERIOD};
 /// Why `study forgetting` failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ForgettingError {
+    /// The study's runs could not be sharded or merged, or (not a failure) its shard is done.
+    #[error(transparent)]
+    Shard(#[from] crate::study::shard::ShardError),
     /// A file or folder that could not be read, written or made.
     #[error(transparent)]
     File(#[from] FileError),
@@ -172,7 +175,14 @@ fn band_color(m: Method) -> RGBColor {
 
 /// `study forgetting`: the chapter 5 study, `runs` Monte Carlo runs per case and method
 /// from the master seed `seed`, into `out` (the files above); prints the summary.
-pub fn run(runs: usize, out: &Path, seed: u64) -> Result<(), ForgettingError> {
+pub fn run(
+    runs: &crate::study::shard::Runs,
+    n_runs: usize,
+    out: &Path,
+    seed: u64,
+) -> Result<(), ForgettingError> {
+    let _ = runs;
+    let runs = n_runs;
     let t_start = Instant::now();
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Access, out.to_path_buf(), source))?;

@@ -83,6 +83,9 @@ pub enum ArgError {
 /// Why `study mrac` failed, naming the option, the case or the file at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum MracError {
+    /// The study's runs could not be sharded or merged, or (not a failure) its shard is done.
+    #[error(transparent)]
+    Shard(#[from] crate::study::shard::ShardError),
     /// A file or folder that could not be read, written or made.
     #[error(transparent)]
     File(#[from] FileError),
@@ -261,7 +264,13 @@ fn stem(e: Example, c: CommandKind, m: Method) -> String {
 
 /// Runs the study into `out` (created if missing); `command` is the command line shown in
 /// the summary.
-pub fn run(options: &Options, out: &Path, command: &str) -> Result<MracReport, MracError> {
+pub fn run(
+    runs: &crate::study::shard::Runs,
+    options: &Options,
+    out: &Path,
+    command: &str,
+) -> Result<MracReport, MracError> {
+    let _ = runs;
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Out, out.to_path_buf(), source))?;
     let grid = Grid::new(options.grid)?;

@@ -127,6 +127,9 @@ use crate::study::reproduction::{self, ClaimsError};
 /// fault.
 #[derive(Debug, thiserror::Error)]
 pub enum TrussError {
+    /// The study's runs could not be sharded or merged, or (not a failure) its shard is done.
+    #[error(transparent)]
+    Shard(#[from] crate::study::shard::ShardError),
     /// A file or folder that could not be read, written or made.
     #[error(transparent)]
     File(#[from] FileError),
@@ -613,7 +616,8 @@ pub fn run_experiment_with(
 }
 
 /// The study (see the module docs); writes into `out` and prints the summary.
-pub fn run(out: &Path, opts: &Options) -> Result<(), TrussError> {
+pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Result<(), TrussError> {
+    let _ = runs;
     let t0 = Instant::now();
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Access, out.to_path_buf(), source))?;
@@ -1255,6 +1259,7 @@ mod tests {
     fn the_study_writes_every_figure_and_table() {
         let dir = std::env::temp_dir().join(format!("pcac-truss-{}", std::process::id()));
         run(
+            &crate::study::shard::Runs::whole(),
             &dir,
             &Options {
                 duration: 30.0,

@@ -186,7 +186,8 @@ fn errors(model: &DiscreteModel, dtm: &Dtm) -> Result<[(f64, f64); 2], RcacError
 }
 
 /// The study (see the module docs); writes into `out` and prints the summary.
-pub fn run(out: &Path, opts: &Options) -> Result<(), RcacError> {
+pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Result<(), RcacError> {
+    let _ = runs;
     driver::run(&Miso, out, opts)
 }
 

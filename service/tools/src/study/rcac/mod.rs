@@ -26,6 +26,9 @@ use crate::study::reproduction::ClaimsError;
 /// file at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum RcacError {
+    /// The study's runs could not be sharded or merged, or (not a failure) its shard is done.
+    #[error(transparent)]
+    Shard(#[from] crate::study::shard::ShardError),
     /// A file or folder that could not be read, written or made.
     #[error(transparent)]
     File(#[from] FileError),

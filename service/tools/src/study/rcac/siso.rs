@@ -208,7 +208,8 @@ fn responses(
 }
 
 /// The study (see the module docs); writes into `out` and prints the summary.
-pub fn run(out: &Path, opts: &Options) -> Result<(), RcacError> {
+pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Result<(), RcacError> {
+    let _ = runs;
     driver::run(&Siso, out, opts)
 }
 
