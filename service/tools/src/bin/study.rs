@@ -295,10 +295,9 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
         (Study::Merge { .. }, None) => Ok(Runs::whole()),
-        (study, option) => {
-            Slice::resolve(option, |k| std::env::var(k).ok())
-                .map_err(ShardError::from)
-                .and_then(|slice| match slice {
+        (study, option) => Slice::resolve(option, |k| std::env::var(k).ok())
+            .map_err(ShardError::from)
+            .and_then(|slice| match slice {
                 None => Ok(Runs::whole()),
                 Some(slice) => Runs::shard(
                     study.name(),
@@ -307,8 +306,7 @@ fn main() -> ExitCode {
                     slice,
                     study.out().unwrap_or(Path::new(".")),
                 ),
-            })
-        }
+            }),
     };
     let result = match runs {
         Ok(runs) => {

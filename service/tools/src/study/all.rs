@@ -29,9 +29,9 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::study::reproduction::figures;
-use crate::study::shard::{Runs, ShardError};
 use crate::study::reproduction::report::{self, Links};
 use crate::study::reproduction::{self, Claims, ClaimsError, Verdict};
+use crate::study::shard::{Runs, ShardError};
 
 /// How large the runs are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -270,7 +270,11 @@ impl Sharding<'_> {
             line.extend(["--out".into(), dir.as_os_str().to_owned()]);
             return line;
         }
-        line.extend([entry.name.into(), "--out".into(), dir.as_os_str().to_owned()]);
+        line.extend([
+            entry.name.into(),
+            "--out".into(),
+            dir.as_os_str().to_owned(),
+        ]);
         line.extend(args.iter().map(OsString::from));
         let slice = match self {
             Sharding::Shard(runs) => runs.slice().map_or("none".into(), |s| s.to_string()),

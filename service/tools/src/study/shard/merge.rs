@@ -1,8 +1,8 @@
 //! `study merge`: finding a study's shards, checking that they make one whole, and handing
 //! their recorded runs to the study run again ([`super::Runs::merge`]).
 
-use std::path::{Path, PathBuf};
 use std::collections::HashSet;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use serde::de::DeserializeOwned;
@@ -120,7 +120,9 @@ impl Shards {
                 return Err(ShardError::LogLine {
                     path: log,
                     line: runs.len() + 1,
-                    why: "the last line is cut short, though the manifest says the shard is complete".into(),
+                    why:
+                        "the last line is cut short, though the manifest says the shard is complete"
+                            .into(),
                 });
             }
             slots[i] = Some(Source {
@@ -180,14 +182,15 @@ impl Shards {
         key: &str,
     ) -> Result<R, ShardError> {
         let owner = &self.by_index[g % self.by_index.len()];
-        let line = owner
-            .runs
-            .get(&(stage.to_string(), index))
-            .ok_or_else(|| ShardError::RunMissing {
-                path: owner.log.clone(),
-                stage: stage.to_string(),
-                index,
-            })?;
+        let line =
+            owner
+                .runs
+                .get(&(stage.to_string(), index))
+                .ok_or_else(|| ShardError::RunMissing {
+                    path: owner.log.clone(),
+                    stage: stage.to_string(),
+                    index,
+                })?;
         if line.key != key {
             return Err(ShardError::KeyMismatch {
                 path: owner.log.clone(),

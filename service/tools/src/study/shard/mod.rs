@@ -436,7 +436,8 @@ impl Runs {
             return Ok((g0, Vec::new()));
         }
         let keys: Vec<String> = items.iter().map(key_of).collect();
-        n.grid.update(format!("{name}\n{}\n", items.len()).as_bytes());
+        n.grid
+            .update(format!("{name}\n{}\n", items.len()).as_bytes());
         for k in &keys {
             n.grid.update(k.as_bytes());
             n.grid.update(b"\n");

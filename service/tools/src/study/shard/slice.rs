@@ -236,7 +236,10 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("SLURM_ARRAY_TASK_ID=4") && e.contains("--shard"), "{e}");
+        assert!(
+            e.contains("SLURM_ARRAY_TASK_ID=4") && e.contains("--shard"),
+            "{e}"
+        );
         let e = Slice::resolve(None, env(&[("SLURM_ARRAY_TASK_ID", "4")])).unwrap_err();
         assert_eq!(e, SliceError::SlurmMissing("SLURM_ARRAY_TASK_MIN"));
     }
