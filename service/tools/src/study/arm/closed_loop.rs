@@ -50,7 +50,7 @@ pub fn scenario_dir() -> PathBuf {
 }
 
 /// The two controllers compared in §7.3.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Law {
     /// The robust controller alone (`scenarios/arm/robust.toml`).
     Robust,
@@ -88,7 +88,7 @@ impl Law {
 }
 
 /// The contact models of §7.3.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Model {
     /// Kelvin–Voigt (7.27): `k_s`, `c_s`.
     Linear,
@@ -244,7 +244,7 @@ pub enum Record {
 }
 
 /// The signals of one run, sample by sample.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Trace {
     /// `t_k = k T_s`, s.
     pub t: Vec<f64>,
@@ -269,7 +269,7 @@ pub struct Trace {
 }
 
 /// One contact phase's statistics.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ContactStats {
     /// The first sample with `r > 0`.
     pub first: usize,
@@ -282,7 +282,7 @@ pub struct ContactStats {
 }
 
 /// The outcome of one run.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Outcome {
     /// Per contact phase (in order).
     pub contacts: Vec<ContactStats>,

@@ -1,5 +1,5 @@
-//! The surface grids of `study sampling-arm` (Figures 7.3 and 7.5), run in parallel with
-//! rayon, and their CSV.
+//! The surface grids of `study sampling-arm` (Figures 7.3 and 7.5): their runs ([`jobs`],
+//! [`run_point`], a sharded stage of the study), and their CSV.
 //!
 //! An `N × N` grid, log-spaced in both parameters (both ends included):
 //!
@@ -14,7 +14,6 @@
 //! phase ([`Record::FirstContact`]); a point whose run fails is kept, flagged.
 
 use crate::file_error::{FileError, FileOp};
-use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -84,7 +83,7 @@ impl Grid {
 }
 
 /// One grid point's result.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GridPoint {
     /// The contact model.
     pub model: Model,
@@ -109,39 +108,57 @@ impl GridPoint {
     }
 }
 
-/// Runs both controllers at every point of every grid, all in parallel; the result is in
-/// the order grid, law, point.
-pub fn sweep(setup: &Setup, grids: &[Grid]) -> Vec<GridPoint> {
-    let jobs: Vec<(Model, Law, f64, f64)> = grids
+/// One run of a grid: both controllers at every point of every grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Job {
+    /// The contact model.
+    pub model: Model,
+    /// The controller.
+    pub law: Law,
+    /// `k_s`.
+    pub k_s: f64,
+    /// `c_s` or `c_r`.
+    pub c: f64,
+}
+
+/// Every run of every grid, in the order grid, law, point (the order of the points
+/// [`run_point`] gives, and of `grid.csv`).
+pub fn jobs(grids: &[Grid]) -> Vec<Job> {
+    grids
         .iter()
         .flat_map(|g| {
             Law::ALL.into_iter().flat_map(move |law| {
-                g.points()
-                    .into_iter()
-                    .map(move |(k, c)| (g.model, law, k, c))
+                g.points().into_iter().map(move |(k_s, c)| Job {
+                    model: g.model,
+                    law,
+                    k_s,
+                    c,
+                })
             })
         })
-        .collect();
-    jobs.into_par_iter()
-        .map(|(model, law, k_s, c)| {
-            let out = setup
-                .single_on(model, k_s, c)
-                .and_then(|sc| closed_loop::run(setup, &sc, law, Record::FirstContact));
-            let (median, settling, failure) = match out {
-                Ok(o) => (o.median(), o.settling(), o.failure),
-                Err(e) => (f64::NAN, f64::NAN, Some(e.to_string())),
-            };
-            GridPoint {
-                model,
-                law,
-                k_s,
-                c,
-                median,
-                settling,
-                failure,
-            }
-        })
         .collect()
+}
+
+/// Runs one grid point (a sharded stage of the study: the study runs every [`jobs`]'s
+/// point in parallel).
+pub fn run_point(setup: &Setup, job: &Job) -> GridPoint {
+    let &Job { model, law, k_s, c } = job;
+    let out = setup
+        .single_on(model, k_s, c)
+        .and_then(|sc| closed_loop::run(setup, &sc, law, Record::FirstContact));
+    let (median, settling, failure) = match out {
+        Ok(o) => (o.median(), o.settling(), o.failure),
+        Err(e) => (f64::NAN, f64::NAN, Some(e.to_string())),
+    };
+    GridPoint {
+        model,
+        law,
+        k_s,
+        c,
+        median,
+        settling,
+        failure,
+    }
 }
 
 /// Writes the points as CSV: `model, controller, k_s, c_s_or_c_r, median_force,

@@ -6,8 +6,10 @@
 //!
 //! Every run is the real controller (built from `scenarios/arm/{robust,pcac}.toml` by the
 //! service's configuration) on the real simulated plant (plant-proxy's `PlantSim`), in
-//! the service's loop order ([`run`]). The grid runs and the single runs are
-//! independent and run in parallel (rayon).
+//! the service's loop order ([`run`]). The single runs, the grid runs and the sensitivity
+//! record's runs are independent: they are the study's sharded stages
+//! ([`crate::study::shard`]: `maneuvers`, `grid`, `sensitivity`, run in parallel with
+//! rayon when the study runs whole), whose results the rest of the study reads.
 //!
 //! # Outputs (in `--out`)
 //!
@@ -39,8 +41,6 @@ use crate::file_error::{AtomicFileError, FileError, FileOp};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-use rayon::prelude::*;
 
 use crate::plot::PlotError;
 use crate::study::reproduction::{self, Claims, ClaimsError, Verdict};
@@ -128,6 +128,10 @@ pub enum ArmError {
     /// A single run is missing.
     #[error("missing run")]
     MissingRun,
+    /// A single or double maneuver's run failed (the error's message: a sharded run's
+    /// result).
+    #[error("{0}")]
+    Run(String),
     /// `summary.md` cannot be written.
     #[error("summary.md: {0}")]
     Summary(#[source] std::io::Error),
@@ -250,7 +254,6 @@ pub fn run(
     out: &Path,
     line: &str,
 ) -> Result<Report, ArmError> {
-    let _ = runs;
     let t0 = Instant::now();
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Out, out.to_path_buf(), source))?;
@@ -283,23 +286,48 @@ pub fn run(
             closed_loop::Maneuver::DoubleHuntCrossley,
         ),
     ];
+    // Every run, as the sharded stages of the study (their items depend on the options
+    // alone): the single and double maneuvers, the grids, the sensitivity record's runs
+    // that the study does not have. Then their results, in the merge or the whole study.
     let t_single = Instant::now();
-    let jobs: Vec<(usize, Law)> = (0..singles.len())
-        .flat_map(|i| Law::ALL.map(|l| (i, l)))
+    let jobs: Vec<(closed_loop::Maneuver, Law)> = singles
+        .iter()
+        .flat_map(|s| Law::ALL.map(|l| (s.2, l)))
         .collect();
-    let outs: Vec<Result<Outcome, ArmError>> = jobs
-        .par_iter()
-        .map(|&(i, law)| {
-            let sc = setup.scenario(singles[i].2)?;
-            closed_loop::run(&setup, &sc, law, Record::Everything)
-        })
-        .collect();
+    let maneuvers = runs.map("maneuvers", &jobs, |&(m, law)| {
+        setup
+            .scenario(m)
+            .and_then(|sc| closed_loop::run(&setup, &sc, law, Record::Everything))
+            .map_err(|e| e.to_string())
+    })?;
     let wall_single = t_single.elapsed().as_secs_f64();
-    let mut outs = outs.into_iter();
+    let t_grid = Instant::now();
+    let grid_jobs = grid::jobs(&grids);
+    let grid_stage = runs.map("grid", &grid_jobs, |j| grid::run_point(&setup, j))?;
+    let wall_grid = t_grid.elapsed().as_secs_f64();
+    let t_sens = Instant::now();
+    let dir = closed_loop::scenario_dir();
+    let plan = match sensitivity {
+        Some(m) => Some(sensitivity::Plan::new(&setup, &dir, &grid_jobs, m)?),
+        None => None,
+    };
+    let sens_stage = match &plan {
+        Some(p) => Some(runs.map("sensitivity", p.items(), |item| p.run(item))?),
+        None => None,
+    };
+    let wall_sens_runs = t_sens.elapsed().as_secs_f64();
+    runs.gather()?;
+
+    let mut outs = maneuvers.into_vec()?.into_iter();
     let mut pairs = Vec::new();
     for (figure, title, _) in &singles {
-        let robust = outs.next().ok_or(ArmError::MissingRun)??;
-        let augmented = outs.next().ok_or(ArmError::MissingRun)??;
+        let mut next = || -> Result<Outcome, ArmError> {
+            outs.next()
+                .ok_or(ArmError::MissingRun)?
+                .map_err(ArmError::Run)
+        };
+        let robust = next()?;
+        let augmented = next()?;
         pairs.push(Pair {
             figure,
             title: title.clone(),
@@ -307,9 +335,7 @@ pub fn run(
             augmented,
         });
     }
-    let t_grid = Instant::now();
-    let points = grid::sweep(&setup, &grids);
-    let wall_grid = t_grid.elapsed().as_secs_f64();
+    let points = grid_stage.into_vec()?;
 
     // Files.
     grid::write_csv(&out.join("grid.csv"), &points)?;
@@ -374,9 +400,8 @@ pub fn run(
 
     // The sensitivity record: claims 7.2–7.6 under each alternative of the open settings.
     let t_sens = Instant::now();
-    let dir = closed_loop::scenario_dir();
     let designs = gain_sensitivity::designs(&dir)?;
-    if let Some(m) = sensitivity {
+    if let (Some(m), Some(plan), Some(stage)) = (sensitivity, &plan, sens_stage) {
         let study = sensitivity::StudyRuns {
             grid: &points,
             fig_7_4: (
@@ -389,14 +414,14 @@ pub fn run(
             ),
             ts: setup.single.rig.sample_period,
         };
-        let outcomes = sensitivity::run(&setup, &dir, &study, m)?;
+        let outcomes = plan.outcomes(&study, stage.into_vec()?)?;
         claims.sensitivity = sensitivity::record(&outcomes, m);
         sensitivity::write_csv(&out.join("sensitivity.csv"), &claims.sensitivity)?;
         for c in claims.claims.iter_mut() {
             c.ours += &sensitivity::reading(&c.id, &claims.sensitivity);
         }
     }
-    let wall_sens = t_sens.elapsed().as_secs_f64();
+    let wall_sens = wall_sens_runs + t_sens.elapsed().as_secs_f64();
     let wall = t0.elapsed().as_secs_f64();
 
     // Summary.

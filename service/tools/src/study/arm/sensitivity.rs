@@ -38,15 +38,16 @@
 //! study's 10 × 10 grid), so the study's own row is read on the same points of its own
 //! grid, without a run; runs a change cannot alter (the robust controller's under PCAC's
 //! move bounds, the linear surfaces under a Hunt–Crossley change, the points a linearly
-//! spaced grid shares with the study's) are the study's. All runs of all alternatives go
-//! to rayon at once (about 500 runs at the default, the study's 400 grid runs' cost).
+//! spaced grid shares with the study's) are the study's. Which runs are the study's is
+//! told from the options alone ([`Plan`]); all runs of all alternatives are one sharded
+//! stage of the study (about 500 runs at the default, the study's 400 grid runs' cost),
+//! read with the study's own after it gathers its runs ([`Plan::outcomes`]).
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use control::OutputLimits;
 use plant_proxy::arm::ContactModel;
-use rayon::prelude::*;
 
 use crate::file_error::{FileError, FileOp};
 use crate::study::arm::ArmError;
@@ -441,7 +442,7 @@ fn jobs(change: Change, n: usize) -> Result<Vec<Job>, ArmError> {
 }
 
 /// The outcome of one run: its first contact and why it failed, if it did.
-type Run = (ContactStats, Option<String>);
+pub type Run = (ContactStats, Option<String>);
 
 fn run_job(change: Change, setup: &Setup, job: Job) -> Run {
     let (model, law, k_s, c) = match job {
@@ -477,100 +478,190 @@ pub struct Outcome {
     pub claims: Vec<Claim>,
 }
 
-/// Runs every alternative (in parallel, all runs at once) with `n` points per grid axis
-/// on the study's `setup` (`dir`: the gain files), reading what they do not change on
-/// `study`.
-pub fn run(
-    base: &Setup,
-    dir: &Path,
-    study: &StudyRuns<'_>,
-    n: usize,
-) -> Result<Vec<Outcome>, ArmError> {
-    let changes = alternatives();
-    let setups: Vec<Setup> = changes
-        .iter()
-        .map(|c| c.setup(base, dir))
-        .collect::<Result<_, _>>()?;
-    // Every job of every change: the study's result when the change cannot alter it or
-    // the study's grid has the point, else a run.
-    let mut all: Vec<(usize, Job)> = Vec::new();
-    for (i, &c) in changes.iter().enumerate() {
-        for j in jobs(c, n)? {
-            all.push((i, j));
-        }
-    }
-    let from_study = |i: usize, job: Job| -> Option<Run> {
-        let c = changes[i];
-        match job {
-            Job::Point(m, l, k, cc) if !c.reruns(l, m) => study
-                .point(m, l, k, cc)
-                .map(|p| (stats_of(p), p.failure.clone())),
-            Job::Single(m, l) if !c.reruns(l, m) => {
-                let t = match (m, l) {
-                    (Model::Linear, Law::Robust) => study.fig_7_4.0,
-                    (Model::Linear, Law::Augmented) => study.fig_7_4.1,
-                    (Model::HuntCrossley, Law::Robust) => study.fig_7_6.0,
-                    (Model::HuntCrossley, Law::Augmented) => study.fig_7_6.1,
-                };
-                Some((study.first(t, c.band()), None))
-            }
-            _ => None,
-        }
-    };
-    let runs: Vec<Run> = all
-        .par_iter()
-        .map(|&(i, job)| from_study(i, job).unwrap_or_else(|| run_job(changes[i], &setups[i], job)))
-        .collect();
-    let mut out = Vec::new();
-    for (i, &change) in changes.iter().enumerate() {
-        let mut points = Vec::new();
-        let single = |m: Model, l: Law| -> ContactStats {
-            all.iter()
-                .zip(&runs)
-                .find(|((ii, j), _)| *ii == i && *j == Job::Single(m, l))
-                .map_or(
-                    ContactStats {
-                        first: 0,
-                        samples: 0,
-                        median: f64::NAN,
-                        settling: f64::NAN,
-                    },
-                    |(_, r)| r.0,
-                )
-        };
-        let fig_7_4 = (
-            single(Model::Linear, Law::Robust),
-            single(Model::Linear, Law::Augmented),
-        );
-        let fig_7_6 = (
-            single(Model::HuntCrossley, Law::Robust),
-            single(Model::HuntCrossley, Law::Augmented),
-        );
-        for ((ii, job), (stats, failure)) in all.iter().zip(&runs) {
-            if let (true, Job::Point(model, law, k_s, c)) = (*ii == i, *job) {
-                points.push(GridPoint {
-                    model,
-                    law,
-                    k_s,
-                    c,
-                    median: stats.median,
-                    settling: stats.settling,
-                    failure: failure.clone(),
-                });
+/// One run of the sensitivity record that the study does not have: a job of the
+/// alternative `changes[change]` ([`Plan::items`], a sharded stage of the study).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Item {
+    /// The alternative's index in [`alternatives`].
+    change: usize,
+    /// The alternative.
+    what: Change,
+    /// The run.
+    job: Job,
+}
+
+/// The runs of every alternative with `n` points per grid axis, told apart before any run:
+/// the study's result when the change cannot alter it and the study has the run (its
+/// single runs, the points of its grid), else a run of its own ([`Plan::items`]).
+#[derive(Debug)]
+pub struct Plan {
+    changes: Vec<Change>,
+    setups: Vec<Setup>,
+    /// Every job of every change, `(change, job)`.
+    all: Vec<(usize, Job)>,
+    /// Whether `all[i]` is read on the study's runs.
+    from_study: Vec<bool>,
+    /// The jobs that run, in the order of `all`.
+    items: Vec<Item>,
+}
+
+/// Whether the study's grid points `grid` (`(model, law, k_s, c)`) hold `(model, law,
+/// k_s, c)`; its index if so.
+fn find_point(
+    grid: &[(Model, Law, f64, f64)],
+    model: Model,
+    law: Law,
+    k_s: f64,
+    c: f64,
+) -> Option<usize> {
+    let same = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs());
+    grid.iter()
+        .position(|&(m, l, k, cc)| m == model && l == law && same(k, k_s) && same(cc, c))
+}
+
+impl Plan {
+    /// The plan of every alternative with `n` points per grid axis on the study's `setup`
+    /// (`dir`: the gain files), whose grids run `grid` (the study's grid runs, known from
+    /// its options alone).
+    pub fn new(base: &Setup, dir: &Path, grid: &[grid::Job], n: usize) -> Result<Self, ArmError> {
+        let changes = alternatives();
+        let setups: Vec<Setup> = changes
+            .iter()
+            .map(|c| c.setup(base, dir))
+            .collect::<Result<_, _>>()?;
+        let grid: Vec<(Model, Law, f64, f64)> =
+            grid.iter().map(|j| (j.model, j.law, j.k_s, j.c)).collect();
+        let mut all: Vec<(usize, Job)> = Vec::new();
+        for (i, &c) in changes.iter().enumerate() {
+            for j in jobs(c, n)? {
+                all.push((i, j));
             }
         }
-        let evidence = Evidence {
-            grid: &points,
-            fig_7_4,
-            fig_7_6,
-            doubles: Vec::new(),
-        };
-        out.push(Outcome {
-            change,
-            claims: claims::claims_in_band(&evidence, change.band()),
-        });
+        let from_study: Vec<bool> = all
+            .iter()
+            .map(|&(i, job)| {
+                let c = changes[i];
+                match job {
+                    Job::Point(m, l, k, cc) => {
+                        !c.reruns(l, m) && find_point(&grid, m, l, k, cc).is_some()
+                    }
+                    Job::Single(m, l) => !c.reruns(l, m),
+                }
+            })
+            .collect();
+        let items = all
+            .iter()
+            .zip(&from_study)
+            .filter(|(_, s)| !**s)
+            .map(|(&(i, job), _)| Item {
+                change: i,
+                what: changes[i],
+                job,
+            })
+            .collect();
+        Ok(Self {
+            changes,
+            setups,
+            all,
+            from_study,
+            items,
+        })
     }
-    Ok(out)
+
+    /// The runs the study does not have, in the order of the alternatives and their jobs.
+    pub fn items(&self) -> &[Item] {
+        &self.items
+    }
+
+    /// Runs `item` (one of [`Plan::items`]).
+    pub fn run(&self, item: &Item) -> Run {
+        run_job(item.what, &self.setups[item.change], item.job)
+    }
+
+    /// Every alternative's claims: its runs `ran` (those of [`Plan::items`], in their
+    /// order) and, for the rest, the study's runs `study`.
+    pub fn outcomes(&self, study: &StudyRuns<'_>, ran: Vec<Run>) -> Result<Vec<Outcome>, ArmError> {
+        let changes = &self.changes;
+        let all = &self.all;
+        let from_study = |i: usize, job: Job| -> Option<Run> {
+            let c = changes[i];
+            match job {
+                Job::Point(m, l, k, cc) => study
+                    .point(m, l, k, cc)
+                    .map(|p| (stats_of(p), p.failure.clone())),
+                Job::Single(m, l) => {
+                    let t = match (m, l) {
+                        (Model::Linear, Law::Robust) => study.fig_7_4.0,
+                        (Model::Linear, Law::Augmented) => study.fig_7_4.1,
+                        (Model::HuntCrossley, Law::Robust) => study.fig_7_6.0,
+                        (Model::HuntCrossley, Law::Augmented) => study.fig_7_6.1,
+                    };
+                    Some((study.first(t, c.band()), None))
+                }
+            }
+        };
+        let mut ran = ran.into_iter();
+        let runs: Vec<Run> = all
+            .iter()
+            .zip(&self.from_study)
+            .map(|(&(i, job), &s)| {
+                if s { from_study(i, job) } else { ran.next() }.ok_or(ArmError::MissingRun)
+            })
+            .collect::<Result<_, _>>()?;
+        if ran.next().is_some() {
+            return Err(ArmError::MissingRun);
+        }
+        let mut out = Vec::new();
+        for (i, &change) in changes.iter().enumerate() {
+            let mut points = Vec::new();
+            let single = |m: Model, l: Law| -> ContactStats {
+                all.iter()
+                    .zip(&runs)
+                    .find(|((ii, j), _)| *ii == i && *j == Job::Single(m, l))
+                    .map_or(
+                        ContactStats {
+                            first: 0,
+                            samples: 0,
+                            median: f64::NAN,
+                            settling: f64::NAN,
+                        },
+                        |(_, r)| r.0,
+                    )
+            };
+            let fig_7_4 = (
+                single(Model::Linear, Law::Robust),
+                single(Model::Linear, Law::Augmented),
+            );
+            let fig_7_6 = (
+                single(Model::HuntCrossley, Law::Robust),
+                single(Model::HuntCrossley, Law::Augmented),
+            );
+            for ((ii, job), (stats, failure)) in all.iter().zip(&runs) {
+                if let (true, Job::Point(model, law, k_s, c)) = (*ii == i, *job) {
+                    points.push(GridPoint {
+                        model,
+                        law,
+                        k_s,
+                        c,
+                        median: stats.median,
+                        settling: stats.settling,
+                        failure: failure.clone(),
+                    });
+                }
+            }
+            let evidence = Evidence {
+                grid: &points,
+                fig_7_4,
+                fig_7_6,
+                doubles: Vec::new(),
+            };
+            out.push(Outcome {
+                change,
+                claims: claims::claims_in_band(&evidence, change.band()),
+            });
+        }
+        Ok(out)
+    }
 }
 
 fn stats_of(p: &GridPoint) -> ContactStats {
@@ -685,6 +776,53 @@ mod tests {
 
     fn setup() -> Setup {
         Setup::load(&closed_loop::scenario_dir()).unwrap()
+    }
+
+    #[test]
+    fn the_plan_runs_only_what_the_studys_options_do_not_give() {
+        let base = setup();
+        let dir = closed_loop::scenario_dir();
+        let grids = Model::ALL.map(|m| Grid::new(m, super::super::DEFAULT_GRID).unwrap());
+        let plan = Plan::new(&base, &dir, &grid::jobs(&grids), SENSITIVITY_GRID).unwrap();
+        let changes = |c: Change| plan.items().iter().filter(move |i| i.what == c);
+        // The study's row, the bands and the spacings' shared points: the study's runs.
+        assert_eq!(changes(Change::Study).count(), 0);
+        assert_eq!(changes(Change::Band(0.02)).count(), 0);
+        let shared = |c: Change| changes(c).count();
+        // A linear c_r axis shares its ends with the log axis (2 of 4 values).
+        assert_eq!(shared(Change::Linear(Axis::Restitution)), 2 * 4 * 2);
+        // PCAC without move bounds: only PCAC's runs, all of them.
+        assert!(changes(Change::NoMoveBounds).all(|i| !matches!(
+            i.job,
+            Job::Point(_, Law::Robust, ..) | Job::Single(_, Law::Robust)
+        )));
+        assert_eq!(changes(Change::NoMoveBounds).count(), 4 + 16 + 2);
+        // Every item is the change it names, and the plan is the same plan every time.
+        assert!(
+            plan.items()
+                .iter()
+                .all(|i| plan.changes[i.change] == i.what)
+        );
+        let again = Plan::new(&base, &dir, &grid::jobs(&grids), SENSITIVITY_GRID).unwrap();
+        assert_eq!(again.items(), plan.items());
+    }
+
+    #[test]
+    fn a_run_survives_its_record_bit_for_bit() {
+        let r: Run = (
+            ContactStats {
+                first: 3,
+                samples: 4000,
+                median: f64::NAN,
+                settling: f64::INFINITY,
+            },
+            Some("plant at sample 7: diverged".into()),
+        );
+        let back: Run = postcard::from_bytes(&postcard::to_stdvec(&r).unwrap()).unwrap();
+        assert_eq!((back.0.first, back.0.samples), (3, 4000));
+        assert_eq!(back.0.median.to_bits(), r.0.median.to_bits());
+        assert_eq!(back.0.settling, f64::INFINITY);
+        assert_eq!(back.1, r.1);
     }
 
     #[test]
