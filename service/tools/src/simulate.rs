@@ -69,7 +69,7 @@ pub enum SimulateError {
 message_from!(SimulateError);
 
 /// Signals of one run, one vector per channel, one entry per sample.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Trace {
     /// Sample period in s.
     pub sample_period: f64,

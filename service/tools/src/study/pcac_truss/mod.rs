@@ -80,6 +80,15 @@
 //!   tone amplitudes and phases, broadband RMS, sensor SNR, `P_0`, the convergence rule;
 //!   [`sensitivity`]), printed setting, unless `--no-sensitivity`.
 //!
+//! ## Its runs ([`crate::study::shard`])
+//!
+//! The simulations are three sharded stages whose runs follow from the options alone:
+//! `open-loop` (one per experiment), `closed-loop` (one per experiment and setting) and
+//! `sensitivity` (one [`sensitivity::Probe`] per experiment and simulated alternative,
+//! which returns only its rows). What follows them (the outcomes, figures, tables and
+//! claims) runs once, whole or in `study merge`. An experiment's "s of computation" in the
+//! summary is the sum of its runs' times.
+//!
 //! ## What it writes
 //!
 //! Into the output folder, per experiment `<name>` (`harmonic`, `broadband-25hz`,
@@ -118,6 +127,7 @@ use control::pcac::{Pcac, PcacCounters, PcacParams};
 use control::tones::{suppression_db, tone_amplitudes};
 use plant_proxy::scenario::{self, Scenario};
 use plotters::style::RGBColor;
+use serde::{Deserialize, Serialize};
 use service::config::{ControllerConfig, ServiceConfig};
 
 use crate::study::common::files::write;
@@ -196,6 +206,10 @@ pub enum TrussError {
     /// The claims cannot be written.
     #[error(transparent)]
     Claims(#[from] ClaimsError),
+    /// A run of a sharded stage failed: its error's message, as the run (perhaps a
+    /// shard's) recorded it.
+    #[error("{0}")]
+    Run(String),
 }
 
 message_from!(TrussError);
@@ -223,7 +237,7 @@ const LINE_POINTS: usize = 4000;
 const CLOSED_COLOR: RGBColor = RGBColor(200, 30, 30);
 
 /// One experiment of §6.2.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Experiment {
     /// §6.2.1: three tones, 50 Hz.
     Harmonic,
@@ -295,7 +309,7 @@ impl Experiment {
 }
 
 /// Which PCAC settings run (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Setting {
     /// The §6.2 values as printed (`P_0 = I_600`), the scenario as it is (`y` in 10·mm).
     Printed,
@@ -391,8 +405,28 @@ pub struct Options {
     pub sensitivity: bool,
 }
 
+/// [`PcacCounters`] as serde sees them (the `control` crate has no serde): a closed loop
+/// is a sharded run's result.
+#[derive(Serialize, Deserialize)]
+#[serde(remote = "PcacCounters")]
+struct CountersDef {
+    steps: u64,
+    solved: u64,
+    fast_path: u64,
+    infeasible: u64,
+    max_iterations: u64,
+    numerical_error: u64,
+    refused: u64,
+    fallbacks: u64,
+    id_resets: u64,
+    hessians_built: u64,
+    factorizations_kept: u64,
+    bridged: u64,
+    observed: u64,
+}
+
 /// The closed loop of one setting and its measurements.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Closed {
     /// The setting.
     pub setting: Setting,
@@ -408,6 +442,7 @@ pub struct Closed {
     /// Largest `|u|`, N (`+∞` when an input is not finite).
     pub max_input: f64,
     /// The controller's counters at the end.
+    #[serde(with = "CountersDef")]
     pub counters: PcacCounters,
     /// `tr P_k` at the end (the full covariance).
     pub final_trace_p: f64,
@@ -537,6 +572,30 @@ pub fn run_experiment_with(
     duration: f64,
     change: &(dyn Fn(&mut Scenario, &mut PcacParams) + Sync),
 ) -> Result<Outcome, TrussError> {
+    let open = open_run(exp, duration, change)?;
+    let closed = settings
+        .iter()
+        .map(|&setting| closed_run(exp, setting, duration, change))
+        .collect::<Result<Vec<_>, _>>()?;
+    assemble(exp, open, closed)
+}
+
+/// An experiment's sampling for `duration` s: the sample period (s), the number of
+/// samples and the first sample of the late window.
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    ts: f64,
+    steps: usize,
+    late_start: usize,
+}
+
+/// The printed scenario of `exp` with `change` applied, and its [`Frame`] for `duration` s
+/// ([`TrussError::TooShort`] when the late window cannot hold two RMS windows).
+fn frame(
+    exp: Experiment,
+    duration: f64,
+    change: &(dyn Fn(&mut Scenario, &mut PcacParams) + Sync),
+) -> Result<(Scenario, Frame), TrussError> {
     let (mut sc, mut unused) = load(exp, Setting::Printed)?;
     change(&mut sc, &mut unused);
     let ts = sc.rig.sample_period;
@@ -545,79 +604,196 @@ pub fn run_experiment_with(
         return Err(TrussError::TooShort(duration));
     }
     let late_start = ((1.0 - LATE_FRACTION) * steps as f64).round() as usize;
-    let open = simulate::open_loop(&sc.plant, ts, steps)?;
-    let per_node = |t: &Trace| -> [f64; 4] { std::array::from_fn(|i| rms(&t.z[i][late_start..])) };
-    let rms_open = per_node(&open);
+    Ok((
+        sc,
+        Frame {
+            ts,
+            steps,
+            late_start,
+        },
+    ))
+}
+
+/// The tone frequencies of `exp`'s disturbance (Hz) and their angular frequencies per
+/// sample at `ts`.
+fn tones_of(exp: Experiment, ts: f64) -> Result<(Vec<f64>, Vec<f64>), TrussError> {
     let hz = tone_frequencies(&scenario_table(&exp.path())?);
-    let omegas: Vec<f64> = hz
+    let omegas = hz
         .iter()
         .map(|f| 2.0 * std::f64::consts::PI * f * ts)
         .collect();
-    let amps = |t: &Trace| -> Result<Vec<f64>, TrussError> {
-        if omegas.is_empty() {
-            return Ok(Vec::new());
-        }
-        tone_amplitudes(&t.z[3][late_start..], late_start, &omegas).map_err(TrussError::Tones)
-    };
-    let tones = hz.iter().copied().zip(amps(&open)?).collect();
-    let mut closed = Vec::new();
-    for &setting in settings {
-        let (mut sc, mut params) = load(exp, setting)?;
-        change(&mut sc, &mut params);
-        let p = &sc.plant;
-        let mut pcac = Pcac::new(&params, simulate::plant_dimensions(p))?;
-        let mut trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
-        // Compare in the open loop's unit (10·mm): the controller saw its own.
-        let to_mm = setting.to_millimetres();
-        for v in trace.y.iter_mut().chain(trace.z.iter_mut()).flatten() {
-            *v *= to_mm;
-        }
-        let rms_closed = per_node(&trace);
-        let window = (RMS_WINDOW_S / ts).round() as usize;
-        let max_input = trace.u.iter().flatten().fold(0.0_f64, |a, v| {
-            if v.is_finite() {
-                a.max(v.abs())
-            } else {
-                f64::INFINITY
-            }
-        });
-        let last = |name: &str| {
-            trace
-                .internal_names
-                .iter()
-                .position(|n| n == name)
-                .and_then(|i| trace.internals[i].last().copied())
-                .unwrap_or(f64::NAN)
-        };
-        closed.push(Closed {
-            setting,
-            rms: rms_closed,
-            tone_amps: amps(&trace)?,
-            converge: convergence_time(&trace.z[3], ts, window, rms_closed[3]),
-            max_input,
-            counters: pcac.counts_of(),
-            final_trace_p: last("trace_p"),
-            final_theta_norm: last("theta_norm"),
-            trace,
-        });
+    Ok((hz, omegas))
+}
+
+/// RMS of `z` per node of `t` over the late window.
+fn per_node(t: &Trace, late_start: usize) -> [f64; 4] {
+    std::array::from_fn(|i| rms(&t.z[i][late_start..]))
+}
+
+/// The amplitudes of the tones `omegas` in `z` of node 8 of `t` over the late window
+/// (none for broadband).
+fn amps(t: &Trace, late_start: usize, omegas: &[f64]) -> Result<Vec<f64>, TrussError> {
+    if omegas.is_empty() {
+        return Ok(Vec::new());
     }
-    Ok(Outcome {
-        experiment: exp,
-        ts,
+    tone_amplitudes(&t.z[3][late_start..], late_start, omegas).map_err(TrussError::Tones)
+}
+
+/// The open loop of an experiment and what is measured on it alone.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Open {
+    ts: f64,
+    late_start: usize,
+    open: Trace,
+    rms_open: [f64; 4],
+    rms_y_open: f64,
+    tones: Vec<(f64, f64)>,
+}
+
+/// Runs the open loop of `exp` for `duration` s with `change` applied.
+fn open_run(
+    exp: Experiment,
+    duration: f64,
+    change: &(dyn Fn(&mut Scenario, &mut PcacParams) + Sync),
+) -> Result<Open, TrussError> {
+    let (sc, f) = frame(exp, duration, change)?;
+    let open = simulate::open_loop(&sc.plant, f.ts, f.steps)?;
+    let rms_open = per_node(&open, f.late_start);
+    let (hz, omegas) = tones_of(exp, f.ts)?;
+    let tones = hz
+        .iter()
+        .copied()
+        .zip(amps(&open, f.late_start, &omegas)?)
+        .collect();
+    Ok(Open {
+        ts: f.ts,
+        late_start: f.late_start,
         rms_y_open: rms(&open.y[3]),
         open,
-        late_start,
         rms_open,
         tones,
+    })
+}
+
+/// Runs the closed loop of `exp` under `setting` for `duration` s with `change` applied,
+/// and measures it.
+fn closed_run(
+    exp: Experiment,
+    setting: Setting,
+    duration: f64,
+    change: &(dyn Fn(&mut Scenario, &mut PcacParams) + Sync),
+) -> Result<Closed, TrussError> {
+    let (
+        _,
+        Frame {
+            ts,
+            steps,
+            late_start,
+        },
+    ) = frame(exp, duration, change)?;
+    let (_, omegas) = tones_of(exp, ts)?;
+    let (mut sc, mut params) = load(exp, setting)?;
+    change(&mut sc, &mut params);
+    let p = &sc.plant;
+    let mut pcac = Pcac::new(&params, simulate::plant_dimensions(p))?;
+    let mut trace = simulate::closed_loop(p, ts, Some(&mut pcac), steps, None)?;
+    // Compare in the open loop's unit (10·mm): the controller saw its own.
+    let to_mm = setting.to_millimetres();
+    for v in trace.y.iter_mut().chain(trace.z.iter_mut()).flatten() {
+        *v *= to_mm;
+    }
+    let rms_closed = per_node(&trace, late_start);
+    let window = (RMS_WINDOW_S / ts).round() as usize;
+    let max_input = trace.u.iter().flatten().fold(0.0_f64, |a, v| {
+        if v.is_finite() {
+            a.max(v.abs())
+        } else {
+            f64::INFINITY
+        }
+    });
+    let last = |name: &str| {
+        trace
+            .internal_names
+            .iter()
+            .position(|n| n == name)
+            .and_then(|i| trace.internals[i].last().copied())
+            .unwrap_or(f64::NAN)
+    };
+    Ok(Closed {
+        setting,
+        rms: rms_closed,
+        tone_amps: amps(&trace, late_start, &omegas)?,
+        converge: convergence_time(&trace.z[3], ts, window, rms_closed[3]),
+        max_input,
+        counters: pcac.counts_of(),
+        final_trace_p: last("trace_p"),
+        final_theta_norm: last("theta_norm"),
+        trace,
+    })
+}
+
+/// The [`Outcome`] of `exp` from its open loop and its closed loops (no sensitivity).
+fn assemble(exp: Experiment, open: Open, closed: Vec<Closed>) -> Result<Outcome, TrussError> {
+    Ok(Outcome {
+        experiment: exp,
+        ts: open.ts,
+        rms_y_open: open.rms_y_open,
+        open: open.open,
+        late_start: open.late_start,
+        rms_open: open.rms_open,
+        tones: open.tones,
         in_band_modes: in_band_modes(exp)?,
         closed,
         sensitivity: Vec::new(),
     })
 }
 
+/// No change to the scenario or the controller.
+fn as_is(_: &mut Scenario, _: &mut PcacParams) {}
+
+/// A run of the study's sharded stages: its outcome (or its error's message) and how long
+/// it took, s.
+#[derive(Debug, Serialize, Deserialize)]
+struct Timed<T> {
+    secs: f64,
+    result: Result<T, String>,
+}
+
+impl<T> Timed<T> {
+    /// Runs `f`, timed.
+    fn run(f: impl FnOnce() -> Result<T, TrussError>) -> Self {
+        let t = Instant::now();
+        let result = f().map_err(|e| e.to_string());
+        Self {
+            secs: t.elapsed().as_secs_f64(),
+            result,
+        }
+    }
+
+    /// The outcome, or the run's error.
+    fn get(self) -> Result<T, TrussError> {
+        self.result.map_err(TrussError::Run)
+    }
+}
+
+/// A run of the stage `open-loop`: an experiment's open loop, `duration_s` long.
+#[derive(Debug)]
+struct OpenLoop {
+    experiment: Experiment,
+    duration_s: f64,
+}
+
+/// A run of the stage `closed-loop`: an experiment's closed loop under a setting,
+/// `duration_s` long.
+#[derive(Debug)]
+struct ClosedLoop {
+    experiment: Experiment,
+    setting: Setting,
+    duration_s: f64,
+}
+
 /// The study (see the module docs); writes into `out` and prints the summary.
 pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Result<(), TrussError> {
-    let _ = runs;
     let t0 = Instant::now();
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Access, out.to_path_buf(), source))?;
@@ -633,14 +809,80 @@ pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Resu
         opts.duration,
         100.0 * LATE_FRACTION
     );
-    let mut outcomes = Vec::new();
+    // Every experiment's sampling first: a duration too short fails here, before any run
+    // (and on every shard).
     for &exp in &opts.experiments {
-        let t = Instant::now();
-        let mut o = run_experiment(exp, &opts.settings, opts.duration)?;
-        if opts.sensitivity {
-            o.sensitivity = sensitivity::run(exp, opts.duration)?;
+        frame(exp, opts.duration, &as_is)?;
+    }
+    let open_runs: Vec<OpenLoop> = opts
+        .experiments
+        .iter()
+        .map(|&experiment| OpenLoop {
+            experiment,
+            duration_s: opts.duration,
+        })
+        .collect();
+    let closed_runs: Vec<ClosedLoop> = opts
+        .experiments
+        .iter()
+        .flat_map(|&experiment| {
+            opts.settings.iter().map(move |&setting| ClosedLoop {
+                experiment,
+                setting,
+                duration_s: opts.duration,
+            })
+        })
+        .collect();
+    let probes: Vec<Vec<sensitivity::Probe>> = opts
+        .experiments
+        .iter()
+        .map(|&exp| {
+            if opts.sensitivity {
+                sensitivity::probes(exp, opts.duration)
+            } else {
+                Vec::new()
+            }
+        })
+        .collect();
+    let all_probes: Vec<sensitivity::Probe> = probes.iter().flatten().cloned().collect();
+    let open_stage = runs.map("open-loop", &open_runs, |r| {
+        Timed::run(|| open_run(r.experiment, r.duration_s, &as_is))
+    })?;
+    let closed_stage = runs.map("closed-loop", &closed_runs, |r| {
+        Timed::run(|| closed_run(r.experiment, r.setting, r.duration_s, &as_is))
+    })?;
+    let probe_stage = runs.map("sensitivity", &all_probes, |p| {
+        Timed::run(|| sensitivity::run_probe(p))
+    })?;
+    runs.gather()?;
+    let mut opens = open_stage.into_vec()?.into_iter();
+    let mut closeds = closed_stage.into_vec()?.into_iter();
+    let mut probed = probe_stage.into_vec()?.into_iter();
+    let mut outcomes = Vec::new();
+    for (&exp, probes) in opts.experiments.iter().zip(&probes) {
+        let open = opens
+            .next()
+            .ok_or(TrussError::Run("an open loop is missing".into()))?;
+        let mut secs = open.secs;
+        let open = open.get()?;
+        let mut closed = Vec::new();
+        for _ in &opts.settings {
+            let c = closeds
+                .next()
+                .ok_or(TrussError::Run("a closed loop is missing".into()))?;
+            secs += c.secs;
+            closed.push(c.get()?);
         }
-        let secs = t.elapsed().as_secs_f64();
+        let mut o = assemble(exp, open, closed)?;
+        let mut rows = Vec::new();
+        for _ in probes {
+            let p = probed
+                .next()
+                .ok_or(TrussError::Run("a sensitivity run is missing".into()))?;
+            secs += p.secs;
+            rows.extend(p.get()?);
+        }
+        o.sensitivity = sensitivity::in_order(exp, rows);
         summarize(&o, secs, &mut report)?;
         if !o.sensitivity.is_empty() {
             let within = claims::within_s(exp);

@@ -25,8 +25,9 @@
 //! 5 s for the 25 Hz broadband case, and reduced by at least 6 dB) and claim 6.5's (node 8
 //! before both, in this experiment, the others as the study ran them) are evaluated under
 //! each alternative ([`record`]). The criterion
-//! changes reuse the study's closed loop; the others run a new open and closed loop (the
-//! open loop too, since the disturbance may change).
+//! changes are read on one run of the study's choices; the others run a new open and
+//! closed loop (the open loop too, since the disturbance may change). Each of these runs
+//! is a [`Probe`], a run of the study's sharded stage `sensitivity`.
 
 use super::settling::{SETTLED_FRACTION, settling_time};
 use super::{
@@ -35,9 +36,10 @@ use super::{
 };
 use crate::study::reproduction::sensitivity::{Alternative, Reading};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// One alternative choice.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Change {
     /// The study's choices.
     Study,
@@ -175,7 +177,7 @@ pub fn alternatives(exp: Experiment) -> Vec<Change> {
 }
 
 /// One row of the sensitivity table.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Row {
     /// The change from the study's choices.
     pub change: Change,
@@ -289,22 +291,70 @@ pub fn record(outcomes: &[Outcome], min_db: f64) -> Vec<Alternative> {
 /// Node 8's index in `z`.
 const NODE_8: usize = 3;
 
-/// Runs the alternatives of `exp` for `duration` s (in parallel), the printed setting.
-pub fn run(exp: Experiment, duration: f64) -> Result<Vec<Row>, TrussError> {
-    alternatives(exp)
-        .into_par_iter()
-        .map(|change| row(exp, duration, change))
+/// One simulation of the sensitivity of `experiment`, `duration_s` long, the printed
+/// setting: the open and closed loop under `simulated`, on which the rows of the
+/// alternatives `read` are read (the criterion changes share the run of the study's
+/// choices; every other alternative is its own run).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    /// The experiment.
+    pub experiment: Experiment,
+    /// The simulated duration, s.
+    pub duration_s: f64,
+    /// The change simulated ([`Change::Study`] for the criterion changes).
+    pub simulated: Change,
+    /// The alternatives read on this run.
+    pub read: Vec<Change>,
+}
+
+/// The simulations of the alternatives of `exp` for `duration` s: one for the study's
+/// choices and the criterion changes, then one per alternative that simulates, in the
+/// order of [`alternatives`].
+pub fn probes(exp: Experiment, duration: f64) -> Vec<Probe> {
+    let probe = |simulated, read| Probe {
+        experiment: exp,
+        duration_s: duration,
+        simulated,
+        read,
+    };
+    let (simulates, read): (Vec<Change>, Vec<Change>) =
+        alternatives(exp).into_iter().partition(|c| c.simulates());
+    std::iter::once(probe(Change::Study, read))
+        .chain(simulates.into_iter().map(|c| probe(c, vec![c])))
         .collect()
 }
 
-fn row(exp: Experiment, duration: f64, change: Change) -> Result<Row, TrussError> {
+/// Runs `probe`: its rows, in the order of its `read`.
+pub fn run_probe(probe: &Probe) -> Result<Vec<Row>, TrussError> {
+    let (exp, change) = (probe.experiment, probe.simulated);
     let o = if change.simulates() {
-        run_experiment_with(exp, &[Setting::Printed], duration, &|sc, params| {
+        run_experiment_with(exp, &[Setting::Printed], probe.duration_s, &|sc, params| {
             apply(change, sc, params)
         })?
     } else {
-        run_experiment_with(exp, &[Setting::Printed], duration, &|_, _| {})?
+        run_experiment_with(exp, &[Setting::Printed], probe.duration_s, &|_, _| {})?
     };
+    Ok(probe.read.iter().map(|&c| row(&o, c)).collect())
+}
+
+/// The rows of `exp`'s probes in the order of [`alternatives`].
+pub fn in_order(exp: Experiment, mut rows: Vec<Row>) -> Vec<Row> {
+    let alternatives = alternatives(exp);
+    rows.sort_by_key(|r| alternatives.iter().position(|c| *c == r.change));
+    rows
+}
+
+/// Runs the alternatives of `exp` for `duration` s (in parallel), the printed setting.
+pub fn run(exp: Experiment, duration: f64) -> Result<Vec<Row>, TrussError> {
+    let rows = probes(exp, duration)
+        .par_iter()
+        .map(run_probe)
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(in_order(exp, rows.into_iter().flatten().collect()))
+}
+
+/// The row of `change` read on `o`, the run of its [`Probe`].
+fn row(o: &Outcome, change: Change) -> Row {
     let c = &o.closed[0];
     let (window_s, bound) = match change {
         Change::Window(w) => (w, 2.0),
@@ -325,14 +375,14 @@ fn row(exp: Experiment, duration: f64, change: Change) -> Result<Row, TrussError
     let z = &c.trace.z[NODE_8];
     let late = rms(&z[o.late_start..]);
     let window = (window_s / o.ts).round() as usize;
-    Ok(Row {
+    Row {
         change,
         // convergence_time's bound is twice its target.
         converge: convergence_time(z, o.ts, window, late * bound / 2.0),
         reduction_db: o.reduction(c, NODE_8),
         theta_settles: settles("theta_norm"),
         p_settles: settles("trace_p"),
-    })
+    }
 }
 
 /// Applies `change` to a loaded scenario and controller.
