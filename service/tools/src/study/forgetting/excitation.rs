@@ -12,7 +12,7 @@
 use crate::study::forgetting::experiment::N;
 
 /// The singular values of a stretch of regressor rows and the input's RMS there.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Excitation {
     /// Smallest singular value `σ_min(Φ)`.
     pub sigma_min: f64,

@@ -157,7 +157,7 @@ pub const CONVERGED: f64 = 0.01;
 pub const CONVERGED_LOOSE: f64 = 0.10;
 
 /// Per-run scalar results.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunSummary {
     /// Steps after the change until `‖θ_k − θ_true‖/‖θ_true‖` stays below 1 % through the
     /// end of the run; `None` when it does not.

@@ -5,7 +5,8 @@
 //!
 //! - [`plant`]: the plant (5.8) derived from the mass-spring-damper and discretized.
 //! - [`experiment`]: the three cases of §5.3, the three estimators and one run.
-//! - [`montecarlo`]: the Monte Carlo in parallel, percentile bands, summary statistics.
+//! - [`montecarlo`]: the Monte Carlo's seeded runs (items of the sharded stages), percentile
+//!   bands, summary statistics.
 //! - [`output`]: the CSV files and the PNG figures.
 //! - [`excitation`]: the singular values of the regressor matrix over a stretch of steps.
 //! - [`slow_runs`]: per noiseless RLS/FTVRF run, its settling, excitation after the change
@@ -50,8 +51,8 @@ use plotters::style::RGBColor;
 
 use crate::plot::PlotError;
 use crate::study::reproduction::{self, ClaimsError};
-use experiment::{Case, Method, run_seed};
-use montecarlo::{Summary, monte_carlo};
+use experiment::{Case, Method, RunSummary, Variant, run_seed};
+use montecarlo::{SeededRun, Summary};
 use plant::{Msd, PRINTED, Plant, SAMPLE_PERIOD};
 
 /// Why `study forgetting` failed.
@@ -80,6 +81,9 @@ pub enum ForgettingError {
     /// A single run recorded no trace.
     #[error("no trace recorded")]
     NoTrace,
+    /// A seeded run of a stage failed (the message of its error).
+    #[error("{0}")]
+    Run(String),
     /// A method of a comparison figure has no single run.
     #[error("missing run")]
     MissingRun(Method),
@@ -173,22 +177,76 @@ fn band_color(m: Method) -> RGBColor {
     }
 }
 
-/// `study forgetting`: the chapter 5 study, `runs` Monte Carlo runs per case and method
+/// Every result of a stage, or the first run's error (its message).
+fn all_ok<T>(results: Vec<Result<T, String>>) -> Result<Vec<T>, ForgettingError> {
+    results
+        .into_iter()
+        .collect::<Result<_, _>>()
+        .map_err(ForgettingError::Run)
+}
+
+/// `study forgetting`: the chapter 5 study, `n_runs` Monte Carlo runs per case and method
 /// from the master seed `seed`, into `out` (the files above); prints the summary.
+///
+/// The seeded runs are handed to `runs` in four stages, all issued before any result is
+/// used: `montecarlo` (every case and method, with the series of the bands), `slow-runs`
+/// (the noiseless RLS/FTVRF runs' features, [`slow_runs`]), `settings` (the unprinted
+/// forgetting settings, [`readings`]) and `sensitivity` (the alternatives,
+/// [`sensitivity`]). After the gather, the single runs of the figures, the bands, the
+/// statistics and every file are made from the runs' results.
 pub fn run(
     runs: &crate::study::shard::Runs,
     n_runs: usize,
     out: &Path,
     seed: u64,
 ) -> Result<(), ForgettingError> {
-    let _ = runs;
-    let runs = n_runs;
     let t_start = Instant::now();
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Access, out.to_path_buf(), source))?;
     crate::plot::register_font()?;
     let mut report = String::new();
     let plant = derive_plant(&mut report)?;
+
+    // The seeded runs, stage by stage; their items depend only on the options.
+    let t_mc = Instant::now();
+    let mc_items: Vec<SeededRun> = Case::ALL
+        .iter()
+        .flat_map(|&case| {
+            Method::ALL.iter().flat_map(move |&method| {
+                SeededRun::all(
+                    case,
+                    method,
+                    Variant::STUDY,
+                    case.steps(),
+                    n_runs,
+                    seed,
+                    true,
+                )
+            })
+        })
+        .collect();
+    let mc_stage = runs.map("montecarlo", &mc_items, |item| item.simulate(&plant))?;
+    let mut mc_time = t_mc.elapsed().as_secs_f64();
+    let t_slow = Instant::now();
+    let slow_items = slow_runs::items(n_runs, seed);
+    let slow_stage = runs.map("slow-runs", &slow_items, |item| {
+        slow_runs::features_of(&plant, item)
+    })?;
+    let setting_items = readings::setting_items(n_runs, seed);
+    let setting_stage = runs.map("settings", &setting_items, |item| {
+        readings::settle_under(&plant, item)
+    })?;
+    let slow_time = t_slow.elapsed().as_secs_f64();
+    let sensitivity_items = sensitivity::items(n_runs, seed);
+    let sensitivity_stage = runs.map("sensitivity", &sensitivity_items, |item| {
+        item.simulate(&plant).map(|r| r.summary)
+    })?;
+    runs.gather()?;
+    let mc_runs = all_ok(mc_stage.into_vec()?)?;
+    let features = all_ok(slow_stage.into_vec()?)?;
+    let settles = all_ok(setting_stage.into_vec()?)?;
+    let sensitivity_runs: Vec<RunSummary> = all_ok(sensitivity_stage.into_vec()?)?;
+
     let _ = writeln!(
         report,
         "RLS: theta0 = 0, P0 = 100 I, tau_n = {}, tau_d = {}, eta = {}, alpha = {}, CRF lambda = {}, noise variance {}",
@@ -204,7 +262,7 @@ pub fn run(
     let mut table = String::new();
     let _ = writeln!(
         table,
-        "\nMonte Carlo: {runs} runs per case and method, seed {seed}. settle = steps after k = 100 until \
+        "\nMonte Carlo: {n_runs} runs per case and method, seed {seed}. settle = steps after k = 100 until \
          ||theta_k - theta_true|| / ||theta_true|| stays < 1 % to the end of the run\n\
          (never = not below at the end; 10%: the same with a 10 % threshold);\n\
          forget k<100 = runs with lambda_k < 1 for {} <= k < 100.",
@@ -225,13 +283,14 @@ pub fn run(
         "max trP max",
         "final trP med"
     );
-    let mut mc_time = 0.0;
     let mut results = Vec::new();
     let mut noiseless_bands = None;
+    let mut mc_chunks = mc_runs.chunks(n_runs.max(1));
     for case in Case::ALL {
         let n_steps = case.steps();
         let stem = format!("case{}_{}", case.number(), case.name());
-        // One run per method (run 0 of the Monte Carlo's seeds).
+        // One run per method (run 0 of the Monte Carlo's seeds), recorded whole for the
+        // figures: nine cheap runs, made here after the gather.
         let mut singles = Vec::new();
         for method in Method::ALL {
             let (_, trace) =
@@ -259,7 +318,7 @@ pub fn run(
         }
         for method in Method::ALL {
             let t0 = Instant::now();
-            let mc = monte_carlo(&plant, case, method, n_steps, runs, seed, true)?;
+            let mc = montecarlo::aggregate(&plant, n_steps, mc_chunks.next().unwrap_or(&[]), true);
             mc_time += t0.elapsed().as_secs_f64();
             let s: Summary = mc.summary;
             results.push((case, method, s));
@@ -277,7 +336,7 @@ pub fn run(
                     case.number(),
                     case.name(),
                     method.label(),
-                    runs
+                    n_runs
                 ),
                 &mc.bands,
                 band_color(method),
@@ -309,7 +368,6 @@ pub fn run(
     // Claim 5.1: which noiseless RLS/FTVRF runs are slow, why, and the readings of
     // "converge in less than 20 steps".
     let t_slow = Instant::now();
-    let features = slow_runs::collect(&plant, runs, seed)?;
     slow_runs::write_csv(&out.join("case1_noiseless_ftvrf_runs.csv"), &features)?;
     output::plot_settle_vs_excitation(
         &out.join("case1_noiseless_ftvrf_settle_vs_excitation.png"),
@@ -317,17 +375,17 @@ pub fn run(
     )?;
     let mut why = String::new();
     if let Some(c) = slow_runs::contrast(&features, 10) {
-        table.push_str(&slow_runs::report(&c, runs));
+        table.push_str(&slow_runs::report(&c, n_runs));
         why = slow_runs::why(&c);
     }
     let mut all_readings =
         readings::measurement_readings(&features, &noiseless_bands.unwrap_or_default());
-    all_readings.extend(readings::setting_readings(&plant, runs, seed)?);
+    all_readings.extend(readings::setting_readings(n_runs, &settles));
     table.push_str(&readings::table(&all_readings));
     let _ = writeln!(
         table,
         "(slow runs and readings: {:.2} s)",
-        t_slow.elapsed().as_secs_f64()
+        slow_time + t_slow.elapsed().as_secs_f64()
     );
     let _ = writeln!(
         table,
@@ -349,14 +407,15 @@ pub fn run(
         claims::claims(&results, &all_readings, &why),
         claims::FIGURES,
     );
-    let sensitivity = sensitivity::record(&plant, runs, seed, &results, &claims, &all_readings)?;
+    let sensitivity =
+        sensitivity::record(n_runs, &sensitivity_runs, &results, &claims, &all_readings);
     reproduction::sensitivity::annotate(&mut claims, &sensitivity);
     Ok(reproduction::write(
         out,
         &reproduction::Claims {
             study: "forgetting".into(),
             chapter: 5,
-            run: format!("study forgetting --runs {runs} --seed {seed}"),
+            run: format!("study forgetting --runs {n_runs} --seed {seed}"),
             claims,
             sensitivity,
         },

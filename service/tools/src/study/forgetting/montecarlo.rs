@@ -1,11 +1,11 @@
-//! The Monte Carlo over seeded runs (in parallel with rayon), percentile bands and the
-//! summary statistics.
+//! The Monte Carlo's seeded runs ([`SeededRun`], each an item of a sharded stage), and
+//! what is made of them after the gather: percentile bands and the summary statistics.
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
-use crate::study::forgetting::ForgettingError;
 use crate::study::forgetting::experiment::{
-    Case, Method, N, RunSummary, Trace, Variant, run, run_seed, run_with,
+    Case, Method, N, RunSummary, Trace, Variant, recorded, run_seed, run_with,
 };
 use crate::study::forgetting::plant::Plant;
 
@@ -128,64 +128,157 @@ pub struct MonteCarlo {
     pub bands: Bands,
 }
 
-/// Runs `runs` seeded simulations of `method` on `case` in parallel; run `i` uses
-/// [`run_seed`]`(seed, case, i)`, so results do not depend on the thread count.
-pub fn monte_carlo(
-    plant: &Plant,
-    case: Case,
-    method: Method,
-    steps: usize,
-    runs: usize,
-    seed: u64,
-    with_bands: bool,
-) -> Result<MonteCarlo, ForgettingError> {
-    let results: Vec<(RunSummary, Option<Trace>)> = (0..runs as u64)
-        .into_par_iter()
-        .map(|i| {
-            run(
-                plant,
+/// One seeded run of a Monte Carlo, an item of a sharded stage
+/// ([`crate::study::shard::Runs::map`]; its `Debug` text is its identity): run `run` of
+/// `method` on `case` under `variant` with `steps` steps, seeded with
+/// [`run_seed`]`(master, case, run)`, its trajectory recorded when `record` is set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeededRun {
+    /// The case.
+    pub case: Case,
+    /// The estimator.
+    pub method: Method,
+    /// The noise and the prior error's convergence rule.
+    pub variant: Variant,
+    /// Steps.
+    pub steps: usize,
+    /// The run's index in its Monte Carlo.
+    pub run: u64,
+    /// Its seed ([`run_seed`]).
+    pub seed: u64,
+    /// Whether the trajectory is recorded (for the bands).
+    pub record: bool,
+}
+
+impl SeededRun {
+    /// The `runs` runs of `method` on `case` under `variant` with `steps` steps from the
+    /// master seed `seed`, in run order; run `i` uses [`run_seed`]`(seed, case, i)`, so
+    /// results do not depend on the thread count or on how the runs are sharded, and the
+    /// methods and variants of a case meet the same inputs.
+    pub fn all(
+        case: Case,
+        method: Method,
+        variant: Variant,
+        steps: usize,
+        runs: usize,
+        seed: u64,
+        record: bool,
+    ) -> Vec<SeededRun> {
+        (0..runs as u64)
+            .map(|run| SeededRun {
                 case,
                 method,
+                variant,
                 steps,
-                run_seed(seed, case, i),
-                with_bands,
-            )
+                run,
+                seed: run_seed(seed, case, run),
+                record,
+            })
+            .collect()
+    }
+
+    /// Simulates the run on `plant` (an error as its message).
+    pub fn simulate(&self, plant: &Plant) -> Result<McRun, String> {
+        let (summary, trace) = run_with(
+            plant,
+            self.case,
+            &self.method.config(),
+            self.variant,
+            self.steps,
+            self.seed,
+            self.record,
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(McRun {
+            summary,
+            series: trace.map(Series::of),
         })
-        .collect::<Result<_, _>>()?;
-    let summaries: Vec<RunSummary> = results.iter().map(|r| r.0).collect();
+    }
+}
+
+/// What the bands need of one run's recorded trajectory: per recorded step its `θ`,
+/// `tr(P)`, `λ` and `e` (the steps and the true `θ` are the same in every run of a case:
+/// [`recorded_steps`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Series {
+    /// Estimates, `N` per row.
+    pub theta: Vec<[f64; N]>,
+    /// `tr(P)` per row.
+    pub trace_p: Vec<f64>,
+    /// `λ_k` per row.
+    pub lambda: Vec<f64>,
+    /// Prior error `e_k` per row.
+    pub error: Vec<f64>,
+}
+
+impl Series {
+    /// The series of a recorded trace.
+    pub fn of(t: Trace) -> Self {
+        Self {
+            theta: t.theta,
+            trace_p: t.trace_p,
+            lambda: t.lambda,
+            error: t.error,
+        }
+    }
+}
+
+/// One seeded run's result: its summary and, when recorded, its series.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct McRun {
+    /// The run's scalar results.
+    pub summary: RunSummary,
+    /// Its recorded series (`None` when not recorded).
+    pub series: Option<Series>,
+}
+
+/// The recorded steps of a run of `steps` steps ([`recorded`]) and the true `θ` at each, as
+/// a recorded [`Trace`] holds them.
+pub fn recorded_steps(plant: &Plant, steps: usize) -> (Vec<usize>, Vec<[f64; N]>) {
+    let ks: Vec<usize> = (0..steps).filter(|&k| recorded(k)).collect();
+    let truth = ks.iter().map(|&k| *plant.theta_at(k)).collect();
+    (ks, truth)
+}
+
+/// The Monte Carlo of the seeded runs `runs` (all of one case with `steps` steps): their
+/// summary and, when `with_bands`, the percentile bands of their series.
+pub fn aggregate(plant: &Plant, steps: usize, runs: &[McRun], with_bands: bool) -> MonteCarlo {
+    let summaries: Vec<RunSummary> = runs.iter().map(|r| r.summary).collect();
     let summary = summarize(&summaries);
     let bands = if with_bands {
-        let traces: Vec<&Trace> = results.iter().filter_map(|r| r.1.as_ref()).collect();
-        bands_of(&traces)
+        let series: Vec<&Series> = runs.iter().filter_map(|r| r.series.as_ref()).collect();
+        let (ks, truth) = recorded_steps(plant, steps);
+        bands_of(&ks, &truth, &series)
     } else {
         Bands::default()
     };
-    Ok(MonteCarlo { summary, bands })
+    MonteCarlo { summary, bands }
 }
 
-/// Percentile bands over equally recorded traces.
-pub fn bands_of(traces: &[&Trace]) -> Bands {
-    let Some(first) = traces.first() else {
+/// Percentile bands over equally recorded series, at the recorded steps `ks` with the true
+/// `θ` `truth`.
+pub fn bands_of(ks: &[usize], truth: &[[f64; N]], series: &[&Series]) -> Bands {
+    if series.is_empty() {
         return Bands::default();
-    };
-    let rows = first.ks.len();
+    }
+    let rows = ks.len();
     let per_row: Vec<([Band; N], Band, Band, Band)> = (0..rows)
         .into_par_iter()
         .map(|i| {
-            let mut col = vec![0.0; traces.len()];
+            let mut col = vec![0.0; series.len()];
             let mut th = [Band {
                 p05: 0.0,
                 p50: 0.0,
                 p95: 0.0,
             }; N];
             for (j, b) in th.iter_mut().enumerate() {
-                for (c, t) in col.iter_mut().zip(traces) {
+                for (c, t) in col.iter_mut().zip(series) {
                     *c = t.theta[i][j];
                 }
                 *b = Band::of(&mut col);
             }
-            let mut of = |f: &dyn Fn(&Trace) -> f64| {
-                for (c, t) in col.iter_mut().zip(traces) {
+            let mut of = |f: &dyn Fn(&Series) -> f64| {
+                for (c, t) in col.iter_mut().zip(series) {
                     *c = f(t);
                 }
                 Band::of(&mut col)
@@ -197,8 +290,8 @@ pub fn bands_of(traces: &[&Trace]) -> Bands {
         })
         .collect();
     Bands {
-        ks: first.ks.clone(),
-        truth: first.truth.clone(),
+        ks: ks.to_vec(),
+        truth: truth.to_vec(),
         theta: per_row.iter().map(|r| r.0).collect(),
         trace_p: per_row.iter().map(|r| r.1).collect(),
         lambda: per_row.iter().map(|r| r.2).collect(),
@@ -206,9 +299,29 @@ pub fn bands_of(traces: &[&Trace]) -> Bands {
     }
 }
 
-/// The summary of `runs` seeded simulations of `method` on `case` under `variant` (no
-/// bands); run `i` uses [`run_seed`]`(seed, case, i)`, as [`monte_carlo`] does, so the
-/// variant meets the same inputs.
+/// [`SeededRun::all`] simulated here and [`aggregate`]d: the Monte Carlo of `runs` runs of
+/// `method` on `case` (the tests' shortcut; the study hands its runs to its stages).
+#[cfg(test)]
+pub fn monte_carlo(
+    plant: &Plant,
+    case: Case,
+    method: Method,
+    steps: usize,
+    runs: usize,
+    seed: u64,
+    with_bands: bool,
+) -> Result<MonteCarlo, String> {
+    let items = SeededRun::all(case, method, Variant::STUDY, steps, runs, seed, with_bands);
+    let results: Vec<McRun> = items
+        .par_iter()
+        .map(|r| r.simulate(plant))
+        .collect::<Result<_, _>>()?;
+    Ok(aggregate(plant, steps, &results, with_bands))
+}
+
+/// The summary of `runs` runs of `method` on `case` under `variant` (no bands), simulated
+/// here (the tests' shortcut).
+#[cfg(test)]
 pub fn monte_carlo_variant(
     plant: &Plant,
     case: Case,
@@ -216,24 +329,13 @@ pub fn monte_carlo_variant(
     variant: Variant,
     runs: usize,
     seed: u64,
-) -> Result<Summary, ForgettingError> {
-    let config = method.config();
-    let summaries: Vec<RunSummary> = (0..runs as u64)
-        .into_par_iter()
-        .map(|i| {
-            run_with(
-                plant,
-                case,
-                &config,
-                variant,
-                case.steps(),
-                run_seed(seed, case, i),
-                false,
-            )
-            .map(|r| r.0)
-        })
+) -> Result<Summary, String> {
+    let items = SeededRun::all(case, method, variant, case.steps(), runs, seed, false);
+    let results: Vec<McRun> = items
+        .par_iter()
+        .map(|r| r.simulate(plant))
         .collect::<Result<_, _>>()?;
-    Ok(summarize(&summaries))
+    Ok(aggregate(plant, case.steps(), &results, false).summary)
 }
 
 #[cfg(test)]
@@ -370,6 +472,27 @@ mod tests {
             .unwrap()
             .summary;
         assert!(crf.final_trace_median > 1e6, "{crf:?}");
+    }
+
+    /// The bands' steps and true `θ`, taken from the plant, are those a recorded run holds.
+    #[test]
+    fn recorded_steps_are_those_of_a_recorded_run() {
+        let plant = Plant::chapter().unwrap();
+        for case in Case::ALL {
+            let (_, t) = crate::study::forgetting::experiment::run(
+                &plant,
+                case,
+                Method::Crf,
+                case.steps(),
+                5,
+                true,
+            )
+            .unwrap();
+            let t = t.unwrap();
+            let (ks, truth) = recorded_steps(&plant, case.steps());
+            assert_eq!(ks, t.ks);
+            assert_eq!(truth, t.truth);
+        }
     }
 
     #[test]

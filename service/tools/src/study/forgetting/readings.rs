@@ -14,9 +14,7 @@
 use std::fmt::Write as _;
 
 use control::forgetting::ForgettingRule;
-use rayon::prelude::*;
 
-use crate::study::forgetting::ForgettingError;
 use crate::study::forgetting::experiment::{
     Case, ETA, Method, TAU_D, TAU_N, Variant, run_seed, run_with,
 };
@@ -131,48 +129,96 @@ pub fn measurement_readings(runs: &[RunFeatures], bands: &Bands) -> Vec<Reading>
     out
 }
 
-/// The noiseless RLS/FTVRF Monte Carlo under forgetting settings the chapter does not print
-/// for §5.3.1 (1 % settling, as the study's).
-pub fn setting_readings(
-    plant: &Plant,
-    runs: usize,
-    seed: u64,
-) -> Result<Vec<Reading>, ForgettingError> {
-    let settings = [
-        ("alpha = 0.01 (not printed)", TAU_N, TAU_D, 0.01),
-        (
-            "tau_n = 5, tau_d = 50 (not printed)",
-            5,
-            50,
-            crate::study::forgetting::experiment::ALPHA,
-        ),
-    ];
-    settings
+/// A forgetting setting of RLS/FTVRF that the chapter does not print for §5.3.1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setting {
+    /// The reading's name.
+    pub name: &'static str,
+    /// Short window `τ_n`.
+    pub tau_n: usize,
+    /// Long window `τ_d`.
+    pub tau_d: usize,
+    /// Significance level `α`.
+    pub alpha: f64,
+}
+
+/// The settings read for contrast: `α = 0.01`, and `τ_n = 5`, `τ_d = 50`.
+pub const SETTINGS: [Setting; 2] = [
+    Setting {
+        name: "alpha = 0.01 (not printed)",
+        tau_n: TAU_N,
+        tau_d: TAU_D,
+        alpha: 0.01,
+    },
+    Setting {
+        name: "tau_n = 5, tau_d = 50 (not printed)",
+        tau_n: 5,
+        tau_d: 50,
+        alpha: crate::study::forgetting::experiment::ALPHA,
+    },
+];
+
+/// One noiseless RLS/FTVRF run under a [`Setting`], an item of the settings' stage: run
+/// `run` of the Monte Carlo, seeded `seed` ([`run_seed`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SettingRun {
+    /// The setting.
+    pub setting: Setting,
+    /// The run's index in the Monte Carlo.
+    pub run: u64,
+    /// Its seed.
+    pub seed: u64,
+}
+
+/// The `runs` runs of master seed `seed` under each of [`SETTINGS`], setting by setting.
+pub fn setting_items(runs: usize, seed: u64) -> Vec<SettingRun> {
+    SETTINGS
         .iter()
-        .map(|&(name, tau_n, tau_d, alpha)| {
-            let mut config = Method::Ftvrf.config();
-            config.rule = ForgettingRule::FTest {
-                tau_n,
-                tau_d,
-                eta: ETA,
-                alpha,
-            };
-            let settle: Vec<(u64, Option<usize>)> = (0..runs as u64)
-                .into_par_iter()
-                .map(|i| {
-                    let s = run_seed(seed, Case::Noiseless, i);
-                    run_with(
-                        plant,
-                        Case::Noiseless,
-                        &config,
-                        Variant::STUDY,
-                        STEPS,
-                        s,
-                        false,
-                    )
-                    .map(|(r, _)| (i, r.settle))
-                })
-                .collect::<Result<_, _>>()?;
+        .flat_map(|&setting| {
+            (0..runs as u64).map(move |run| SettingRun {
+                setting,
+                run,
+                seed: run_seed(seed, Case::Noiseless, run),
+            })
+        })
+        .collect()
+}
+
+/// The 1 % settling of the run `item` on `plant` (an error as its message).
+pub fn settle_under(plant: &Plant, item: &SettingRun) -> Result<Option<usize>, String> {
+    let mut config = Method::Ftvrf.config();
+    config.rule = ForgettingRule::FTest {
+        tau_n: item.setting.tau_n,
+        tau_d: item.setting.tau_d,
+        eta: ETA,
+        alpha: item.setting.alpha,
+    };
+    run_with(
+        plant,
+        Case::Noiseless,
+        &config,
+        Variant::STUDY,
+        STEPS,
+        item.seed,
+        false,
+    )
+    .map(|(r, _)| r.settle)
+    .map_err(|e| e.to_string())
+}
+
+/// The noiseless RLS/FTVRF Monte Carlo under forgetting settings the chapter does not print
+/// for §5.3.1 (1 % settling, as the study's), from the settling of each of
+/// [`setting_items`]`(runs, …)` in its order.
+pub fn setting_readings(runs: usize, settles: &[Option<usize>]) -> Vec<Reading> {
+    SETTINGS
+        .iter()
+        .enumerate()
+        .map(|(n, setting)| {
+            let settle: Vec<(u64, Option<usize>)> = settles[n * runs..(n + 1) * runs]
+                .iter()
+                .enumerate()
+                .map(|(i, &s)| (i as u64, s))
+                .collect();
             let mut v: Vec<f64> = settle
                 .iter()
                 .map(|(_, s)| s.map_or(f64::INFINITY, |s| s as f64))
@@ -185,13 +231,13 @@ pub fn setting_readings(
                     x.total_cmp(&y).then(b.0.cmp(&a.0))
                 })
                 .map(|r| r.0);
-            Ok(Reading {
-                name: name.into(),
+            Reading {
+                name: setting.name.into(),
                 supported: false,
                 median: percentile(&mut v, 0.5),
                 slowest: v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
                 slowest_run,
-            })
+            }
         })
         .collect()
 }

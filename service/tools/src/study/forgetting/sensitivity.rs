@@ -13,15 +13,15 @@
 //! | prior error's convergence bound | 2× its late RMS | 1.5×, 3× | 5.9 | the same |
 //!
 //! Each alternative reruns the Monte Carlos it needs on the same inputs
-//! ([`super::montecarlo::monte_carlo_variant`], common random numbers) and judges each
+//! ([`super::montecarlo::SeededRun::all`], common random numbers) and judges each
 //! claim by its own criterion ([`super::claims::claims`]); the claims it does not bear on
 //! keep the study's runs.
 
-use crate::study::forgetting::ForgettingError;
 use crate::study::forgetting::claims;
-use crate::study::forgetting::experiment::{Case, ERROR_BOUND, ERROR_WINDOW, Method, Variant};
-use crate::study::forgetting::montecarlo::{Summary, monte_carlo_variant};
-use crate::study::forgetting::plant::Plant;
+use crate::study::forgetting::experiment::{
+    Case, ERROR_BOUND, ERROR_WINDOW, Method, RunSummary, Variant,
+};
+use crate::study::forgetting::montecarlo::{SeededRun, Summary, summarize};
 use crate::study::forgetting::readings::Reading as ConvergeReading;
 use crate::study::reproduction::Claim;
 use crate::study::reproduction::sensitivity::{Alternative, Reading};
@@ -213,17 +213,38 @@ fn converge_row(r: &ConvergeReading) -> Alternative {
     )
 }
 
+/// The seeded runs of the Monte Carlo alternatives ([`Change::ALL`], each the Monte Carlos
+/// it reruns, in order), `runs` runs each from the master seed `seed`: the items of the
+/// sensitivity's stage. Each reruns the study's inputs ([`SeededRun::all`], common random
+/// numbers).
+pub fn items(runs: usize, seed: u64) -> Vec<SeededRun> {
+    let mut items = Vec::new();
+    for change in Change::ALL {
+        for &(case, method) in change.runs().0 {
+            items.extend(SeededRun::all(
+                case,
+                method,
+                change.variant(),
+                case.steps(),
+                runs,
+                seed,
+                false,
+            ));
+        }
+    }
+    items
+}
+
 /// The study's sensitivity rows: its own run (`results`, `study_claims`), claim 5.1 under
-/// the `converge` readings, and the Monte Carlo alternatives ([`Change::ALL`]) of `runs`
-/// runs from `seed`.
+/// the `converge` readings, and the Monte Carlo alternatives ([`Change::ALL`]) from the
+/// summaries `summaries` of [`items`]`(runs, …)` in its order.
 pub fn record(
-    plant: &Plant,
     runs: usize,
-    seed: u64,
+    summaries: &[RunSummary],
     results: &[(Case, Method, Summary)],
     study_claims: &[Claim],
     converge: &[ConvergeReading],
-) -> Result<Vec<Alternative>, ForgettingError> {
+) -> Vec<Alternative> {
     // The study's own run: claim 5.1's is the study's reading of "converge" below.
     let mut rows = vec![Alternative::new(
         "the study's choices",
@@ -233,11 +254,13 @@ pub fn record(
         readings_of(&NOISY_CLAIMS, study_claims, results),
     )];
     rows.extend(converge.iter().map(converge_row));
+    let mut at = 0;
     for change in Change::ALL {
         let (which, ids) = change.runs();
         let mut alt: Vec<(Case, Method, Summary)> = Vec::new();
         for &(case, method) in which {
-            let s = monte_carlo_variant(plant, case, method, change.variant(), runs, seed)?;
+            let s = summarize(&summaries[at..at + runs]);
+            at += runs;
             alt.push((case, method, s));
         }
         let verdicts = claims::claims(&alt, &[], "");
@@ -250,12 +273,14 @@ pub fn record(
             readings_of(ids, &verdicts, &alt),
         ));
     }
-    Ok(rows)
+    rows
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::study::forgetting::montecarlo::monte_carlo_variant;
+    use crate::study::forgetting::plant::Plant;
 
     #[test]
     fn each_change_moves_only_its_setting() {
@@ -308,6 +333,38 @@ mod tests {
         assert!(loose.error_settle_median <= study.error_settle_median);
         // The parameter error does not depend on the error rule.
         assert_eq!(loose.settle_loose_median, study.settle_loose_median);
+    }
+
+    /// The stage's items are every alternative's Monte Carlos, in the order `record` reads
+    /// them, on the study's inputs.
+    #[test]
+    fn the_items_are_each_alternative_s_runs_in_order() {
+        let items = items(4, 9);
+        let expected: usize = Change::ALL.iter().map(|c| c.runs().0.len() * 4).sum();
+        assert_eq!(items.len(), expected);
+        let first = &items[..4];
+        assert!(first.iter().all(|r| r.variant == Change::ALL[0].variant()));
+        assert_eq!(
+            first.iter().map(|r| r.seed).collect::<Vec<_>>(),
+            SeededRun::all(Case::Noisy, Method::Ftvrf, Variant::STUDY, 300, 4, 9, false)
+                .iter()
+                .map(|r| r.seed)
+                .collect::<Vec<_>>()
+        );
+        let summaries = vec![
+            RunSummary {
+                settle: Some(3),
+                settle_loose: Some(2),
+                early_forget: false,
+                max_trace: 1.0,
+                final_trace: 1.0,
+                resets: 0,
+                error_settle: Some(4),
+            };
+            items.len()
+        ];
+        let rows = record(4, &summaries, &[], &[], &[]);
+        assert_eq!(rows.len(), 1 + Change::ALL.len());
     }
 
     #[test]

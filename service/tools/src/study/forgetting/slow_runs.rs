@@ -19,13 +19,11 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use rayon::prelude::*;
-
 use crate::file_error::{FileError, FileOp};
 use crate::study::forgetting::ForgettingError;
 use crate::study::forgetting::excitation::Excitation;
-use crate::study::forgetting::experiment::{Case, Method, Trace, run, run_seed};
-use crate::study::forgetting::montecarlo::percentile;
+use crate::study::forgetting::experiment::{Case, Method, Trace, Variant, run_with};
+use crate::study::forgetting::montecarlo::{SeededRun, percentile};
 use crate::study::forgetting::plant::{CHANGE_STEP, Plant};
 
 /// Steps from the change over which the excitation is measured: the claim's 20 steps.
@@ -36,11 +34,11 @@ pub const VISUAL: f64 = 0.02;
 pub const STEPS: usize = 300;
 
 /// What one noiseless RLS/FTVRF run did after the change.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunFeatures {
     /// Index of the run in the Monte Carlo.
     pub run: u64,
-    /// Its seed ([`run_seed`]).
+    /// Its seed ([`run_seed`](crate::study::forgetting::experiment::run_seed)).
     pub seed: u64,
     /// Steps until the relative error stays below 1 % (the study's settling).
     pub settle: Option<usize>,
@@ -160,17 +158,34 @@ pub fn features(run: u64, seed: u64, t: &Trace) -> Option<RunFeatures> {
     })
 }
 
-/// The features of the `runs` noiseless RLS/FTVRF runs of master seed `seed`, in run order.
-pub fn collect(plant: &Plant, runs: usize, seed: u64) -> Result<Vec<RunFeatures>, ForgettingError> {
-    (0..runs as u64)
-        .into_par_iter()
-        .map(|i| {
-            let s = run_seed(seed, Case::Noiseless, i);
-            let (_, trace) = run(plant, Case::Noiseless, Method::Ftvrf, STEPS, s, true)?;
-            let trace = trace.ok_or(ForgettingError::NoTrace)?;
-            features(i, s, &trace).ok_or(ForgettingError::NoTrace)
-        })
-        .collect()
+/// The `runs` noiseless RLS/FTVRF runs of master seed `seed` (those of the Monte Carlo),
+/// recorded, in run order: the items of the slow runs' stage.
+pub fn items(runs: usize, seed: u64) -> Vec<SeededRun> {
+    SeededRun::all(
+        Case::Noiseless,
+        Method::Ftvrf,
+        Variant::STUDY,
+        STEPS,
+        runs,
+        seed,
+        true,
+    )
+}
+
+/// The features of the run `item` ([`items`]) on `plant` (an error as its message).
+pub fn features_of(plant: &Plant, item: &SeededRun) -> Result<RunFeatures, String> {
+    let (_, trace) = run_with(
+        plant,
+        item.case,
+        &item.method.config(),
+        item.variant,
+        item.steps,
+        item.seed,
+        item.record,
+    )
+    .map_err(|e| e.to_string())?;
+    let trace = trace.ok_or_else(|| ForgettingError::NoTrace.to_string())?;
+    features(item.run, item.seed, &trace).ok_or_else(|| ForgettingError::NoTrace.to_string())
 }
 
 /// Spearman's rank correlation of `x` and `y` (ties get their mean rank; `+∞` ranks last);
