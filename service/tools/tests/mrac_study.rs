@@ -259,7 +259,7 @@ fn the_outward_reading_of_example_two_writes_its_grid_and_maps_and_can_be_turned
     let options = Options::parse("2", "step", 2)
         .and_then(|o| o.with_outward(2.0, 0))
         .expect("valid");
-    mrac::run(&options, &off, "off").expect("runs");
+    mrac::run(&Runs::whole(), &options, &off, "off").expect("runs");
     assert!(!off.join("grid-outward.csv").exists());
     let _ = std::fs::remove_dir_all(&off);
     assert!(
@@ -274,7 +274,7 @@ fn the_outward_reading_of_example_two_writes_its_grid_and_maps_and_can_be_turned
 #[test]
 fn example_three_without_the_step_is_refused_naming_the_arguments() {
     let options = Options::parse("3", "two,four", 3).expect("parses");
-    let err = mrac::run(&options, &out_dir("empty"), "")
+    let err = mrac::run(&Runs::whole(), &options, &out_dir("empty"), "")
         .unwrap_err()
         .to_string();
     assert!(err.contains("--example/--command"), "{err}");

@@ -50,7 +50,7 @@ pub const METRIC_FROM: usize = 101;
 pub const DIVERGENCE_LIMIT: f64 = 1e6;
 
 /// Why a run was stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Divergence {
     /// `y_k` or `u_k` not finite.
     NonFinite,

@@ -53,7 +53,7 @@ impl Grid {
 }
 
 /// One grid point's result.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GridPoint {
     /// Pole radius.
     pub rho: f64,
@@ -111,6 +111,187 @@ impl Sweep {
     }
 }
 
+/// How a sweep builds the plant at `(ρ, ν)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlantRange {
+    /// The chapter's constructor, `0 < ρ < 1` ([`closed_loop::plant`]).
+    Chapter,
+    /// The study's own, any `ρ > 0` ([`crate::study::mrac::outward::plant`]).
+    Outward,
+}
+
+impl PlantRange {
+    /// `example`'s plant with poles at `ρ e^{±jν}`.
+    pub fn plant(
+        self,
+        example: Example,
+        rho: f64,
+        nu: f64,
+    ) -> Result<plant_proxy::discrete::DiscreteTf, MracError> {
+        match self {
+            PlantRange::Chapter => closed_loop::plant(example, rho, nu),
+            PlantRange::Outward => crate::study::mrac::outward::plant(example, rho, nu),
+        }
+    }
+}
+
+/// A sweep to run: `method` on `example` with `command` at every point of `grid`, each
+/// run under `settings` on the plant built by `plant`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepPlan {
+    /// The example.
+    pub example: Example,
+    /// The command.
+    pub command: CommandKind,
+    /// The method.
+    pub method: Method,
+    /// The poles.
+    pub grid: Grid,
+    /// The runs' settings.
+    pub settings: RunSettings,
+    /// How the plant is built.
+    pub plant: PlantRange,
+}
+
+impl SweepPlan {
+    /// The study's sweep of a case over `grid` (the chapter's plants, the study's
+    /// settings).
+    pub fn chapter(example: Example, command: CommandKind, method: Method, grid: &Grid) -> Self {
+        Self {
+            example,
+            command,
+            method,
+            grid: grid.clone(),
+            settings: RunSettings::STUDY,
+            plant: PlantRange::Chapter,
+        }
+    }
+
+    /// Its runs, in the order of [`Grid::points`].
+    pub fn items(&self) -> Vec<PointRun> {
+        self.grid
+            .points()
+            .into_iter()
+            .map(|(rho, nu)| PointRun {
+                example: self.example,
+                command: self.command,
+                method: self.method,
+                rho,
+                nu,
+                settings: self.settings,
+                plant: self.plant,
+            })
+            .collect()
+    }
+
+    /// Runs it here, in parallel.
+    pub fn run(&self) -> Result<Sweep, MracError> {
+        let points = self
+            .items()
+            .par_iter()
+            .map(PointRun::run)
+            .collect::<Result<Vec<_>, MracError>>()?;
+        Ok(self.sweep(points))
+    }
+
+    /// The sweep of these `points`.
+    fn sweep(&self, points: Vec<GridPoint>) -> Sweep {
+        Sweep {
+            example: self.example,
+            command: self.command,
+            method: self.method,
+            points,
+        }
+    }
+}
+
+/// One run of a sweep (the item of the study's sharded stages: its `Debug` text names
+/// everything the run depends on).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointRun {
+    /// The example.
+    pub example: Example,
+    /// The command.
+    pub command: CommandKind,
+    /// The method.
+    pub method: Method,
+    /// Pole radius.
+    pub rho: f64,
+    /// Pole angle, rad.
+    pub nu: f64,
+    /// The run's settings.
+    pub settings: RunSettings,
+    /// How the plant is built.
+    pub plant: PlantRange,
+}
+
+impl PointRun {
+    /// Runs it.
+    pub fn run(&self) -> Result<GridPoint, MracError> {
+        let tf = self.plant.plant(self.example, self.rho, self.nu)?;
+        closed_loop::run_on_with(
+            tf,
+            self.example,
+            self.command,
+            self.method,
+            false,
+            &self.settings,
+        )
+        .map(|o| GridPoint {
+            rho: self.rho,
+            nu: self.nu,
+            e_norm: o.e_norm,
+            diverged: o.diverged,
+            peak_y: o.peak_y,
+            theta_settle: o.theta_settle,
+        })
+    }
+
+    /// Runs it, an error as its text (what a shard records; [`assemble`] gives it back as
+    /// [`MracError::Recorded`], which prints the same).
+    pub fn record(&self) -> Result<GridPoint, String> {
+        self.run().map_err(|e| e.to_string())
+    }
+}
+
+/// The runs of `plans`, one after the other.
+pub fn items(plans: &[SweepPlan]) -> Vec<PointRun> {
+    plans.iter().flat_map(SweepPlan::items).collect()
+}
+
+/// The sweeps of `plans` from their runs' `results` (in the order of [`items`]); the
+/// first failed run's error.
+pub fn assemble(
+    plans: &[SweepPlan],
+    results: Vec<Result<GridPoint, String>>,
+) -> Result<Vec<Sweep>, MracError> {
+    let mut results = results.into_iter();
+    let mut out = Vec::with_capacity(plans.len());
+    for plan in plans {
+        let n = plan.grid.rho.len() * plan.grid.nu.len();
+        let points = results
+            .by_ref()
+            .take(n)
+            .collect::<Result<Vec<_>, String>>()
+            .map_err(MracError::Recorded)?;
+        if points.len() != n {
+            return Err(MracError::Recorded(format!(
+                "{} runs for {} sweeps: too few",
+                points.len(),
+                plans.len()
+            )));
+        }
+        out.push(plan.sweep(points));
+    }
+    Ok(out)
+}
+
+/// Runs `plans` here (in parallel, every run at once) and assembles their sweeps.
+pub fn run_plans(plans: &[SweepPlan]) -> Result<Vec<Sweep>, MracError> {
+    let results = items(plans).par_iter().map(PointRun::record).collect();
+    assemble(plans, results)
+}
+
 /// Runs `method` on `example` with `command` at every point of `grid`, in parallel (the
 /// chapter's plants, `0 < ρ < 1`).
 pub fn sweep(
@@ -119,53 +300,7 @@ pub fn sweep(
     method: Method,
     grid: &Grid,
 ) -> Result<Sweep, MracError> {
-    sweep_with(
-        example,
-        command,
-        method,
-        grid,
-        &RunSettings::STUDY,
-        |rho, nu| closed_loop::plant(example, rho, nu),
-    )
-}
-
-/// As [`sweep`], each run under `settings`, with the plant at `(ρ, ν)` built by `plant`
-/// (e.g. [`crate::study::mrac::outward::plant`], which also builds open-loop unstable
-/// plants).
-pub fn sweep_with<P>(
-    example: Example,
-    command: CommandKind,
-    method: Method,
-    grid: &Grid,
-    settings: &RunSettings,
-    plant: P,
-) -> Result<Sweep, MracError>
-where
-    P: Fn(f64, f64) -> Result<plant_proxy::discrete::DiscreteTf, MracError> + Sync,
-{
-    let points = grid
-        .points()
-        .into_par_iter()
-        .map(|(rho, nu)| {
-            let tf = plant(rho, nu)?;
-            closed_loop::run_on_with(tf, example, command, method, false, settings).map(|o| {
-                GridPoint {
-                    rho,
-                    nu,
-                    e_norm: o.e_norm,
-                    diverged: o.diverged,
-                    peak_y: o.peak_y,
-                    theta_settle: o.theta_settle,
-                }
-            })
-        })
-        .collect::<Result<Vec<_>, MracError>>()?;
-    Ok(Sweep {
-        example,
-        command,
-        method,
-        points,
-    })
+    SweepPlan::chapter(example, command, method, grid).run()
 }
 
 /// Writes every sweep as CSV: `example, command, method, rho, nu, e_norm, unstable,
@@ -208,5 +343,35 @@ mod tests {
         assert_eq!(g.points().len(), 9);
         assert_eq!(g.points()[1], (0.25, pi / 2.0));
         assert!(Grid::new(0).unwrap_err().to_string().contains("--grid"));
+    }
+
+    #[test]
+    fn a_sweep_assembled_from_its_recorded_runs_is_the_sweep_and_an_error_keeps_its_text() {
+        let g = Grid::new(2).expect("valid");
+        let plan = SweepPlan::chapter(Example::Two, CommandKind::Four, Method::Appc, &g);
+        let direct = plan.run().expect("runs");
+        let recorded: Vec<_> = plan.items().iter().map(PointRun::record).collect();
+        // As a shard records them and a merge reads them back.
+        let bytes = postcard::to_stdvec(&recorded).expect("encodes");
+        let back: Vec<Result<GridPoint, String>> = postcard::from_bytes(&bytes).expect("decodes");
+        let sweeps = assemble(std::slice::from_ref(&plan), back).expect("assembles");
+        assert_eq!(sweeps[0].points, direct.points);
+        assert_eq!(
+            run_plans(std::slice::from_ref(&plan)).expect("runs")[0].points,
+            direct.points
+        );
+        let bad = SweepPlan {
+            grid: Grid {
+                rho: vec![-1.0],
+                nu: vec![0.5],
+            },
+            plant: PlantRange::Outward,
+            ..plan
+        };
+        let text = bad.items()[0].run().unwrap_err().to_string();
+        let err = assemble(std::slice::from_ref(&bad), vec![bad.items()[0].record()]).unwrap_err();
+        assert_eq!(err.to_string(), text);
+        assert!(text.contains("Example 2"), "{text}");
+        assert!(assemble(std::slice::from_ref(&bad), Vec::new()).is_err());
     }
 }

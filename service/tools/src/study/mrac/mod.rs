@@ -46,8 +46,9 @@ use crate::plot::PlotError;
 use crate::study::reproduction::{self, ClaimsError};
 use closed_loop::RunTrace;
 use empty_squares::{Reading, ReadingError};
-use grid::{Grid, Sweep};
+use grid::{Grid, PointRun, Sweep, SweepPlan};
 use outward::{OutwardOptions, OutwardSweep, Region};
+use run_settings::RunSettings;
 use setup::{CommandKind, Example, Method, theta_names};
 use summary::{Claim, SweepStats};
 
@@ -130,6 +131,9 @@ pub enum MracError {
         #[source]
         source: control::ParamError,
     },
+    /// A run's error, as a shard recorded it.
+    #[error("{0}")]
+    Recorded(String),
     /// The single run recorded no trace.
     #[error("the single run was not recorded")]
     NotRecorded,
@@ -270,7 +274,6 @@ pub fn run(
     out: &Path,
     command: &str,
 ) -> Result<MracReport, MracError> {
-    let _ = runs;
     std::fs::create_dir_all(out)
         .map_err(|source| FileError::new(FileOp::Out, out.to_path_buf(), source))?;
     let grid = Grid::new(options.grid)?;
@@ -278,11 +281,44 @@ pub fn run(
     if cases.is_empty() {
         return Err(ArgError::NothingToRun.into());
     }
-    let mut sweeps: Vec<Sweep> = Vec::new();
+    // The sharded stages: every grid run of every case, the outward reading, the
+    // sensitivity table's runs (each run one item; all of them chosen by the options).
+    let plans: Vec<SweepPlan> = cases
+        .iter()
+        .map(|&(e, c, m)| SweepPlan::chapter(e, c, m, &grid))
+        .collect();
+    let grid_stage = runs.map("grid", &grid::items(&plans), PointRun::record)?;
+    let outward_plans = match options.outward {
+        Some(o) if options.examples.contains(&Example::Two) => {
+            let commands: Vec<CommandKind> = CommandKind::ALL
+                .into_iter()
+                .filter(|c| options.commands.contains(c))
+                .collect();
+            Some((o, outward::plans(&o, &commands, &RunSettings::STUDY)))
+        }
+        _ => None,
+    };
+    let outward_items = match &outward_plans {
+        Some((_, p)) => grid::items(&outward::sweep_plans(p)),
+        None => Vec::new(),
+    };
+    let outward_stage = runs.map("outward", &outward_items, PointRun::record)?;
+    let sensitivity_plans = if options.sensitivity {
+        sensitivity::plan(options)?
+    } else {
+        Vec::new()
+    };
+    let sensitivity_stage = runs.map(
+        "sensitivity",
+        &sensitivity::items(&sensitivity_plans),
+        PointRun::record,
+    )?;
+    runs.gather()?;
+
+    let sweeps = grid::assemble(&plans, grid_stage.into_vec()?)?;
     let mut singles = Vec::new();
     let mut traces: Vec<RunTrace> = Vec::new();
     for &(e, c, m) in &cases {
-        sweeps.push(grid::sweep(e, c, m, &grid)?);
         let single = closed_loop::run(e, c, m, SINGLE_POLE, true)?;
         let trace = single.trace.ok_or(MracError::NotRecorded)?;
         write_single_csv(
@@ -348,20 +384,17 @@ pub fn run(
         ),
         &inside_pairs.iter().map(|(a, r)| (a, r)).collect::<Vec<_>>(),
     )?;
-    let outward_sweeps = match options.outward {
-        Some(o) if options.examples.contains(&Example::Two) => {
-            let commands: Vec<CommandKind> = CommandKind::ALL
-                .into_iter()
-                .filter(|c| options.commands.contains(c))
-                .collect();
-            let sw = outward::sweep(&o, &commands)?;
+    let outward_results = outward_stage.into_vec()?;
+    let outward_sweeps = match outward_plans {
+        Some((o, p)) => {
+            let sw = outward::assemble(&p, outward_results)?;
             outward::write_csv(&out.join("grid-outward.csv"), &sw)?;
             if options.figures {
                 draw_outward_maps(out, &o, &sw)?;
             }
             Some((o, sw))
         }
-        _ => None,
+        None => None,
     };
     let outward_reading = match &outward_sweeps {
         Some((o, sw)) => {
@@ -392,7 +425,8 @@ pub fn run(
             outward: outward_reading.clone(),
             claims: claims.clone(),
         };
-        sensitivity::record(&sensitivity::run(options, &study)?, options.grid)
+        let rows = sensitivity::rows(&sensitivity_plans, sensitivity_stage.into_vec()?, &study)?;
+        sensitivity::record(&rows, options.grid)
     } else {
         Vec::new()
     };

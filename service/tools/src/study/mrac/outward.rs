@@ -31,7 +31,9 @@ use plant_proxy::discrete::DiscreteTf;
 use plant_proxy::mrac_examples::{MracExampleError, pole_polynomial};
 
 use crate::file_error::{FileError, FileOp};
-use crate::study::mrac::grid::{self, Grid, Sweep};
+use rayon::prelude::*;
+
+use crate::study::mrac::grid::{self, Grid, GridPoint, PlantRange, PointRun, Sweep, SweepPlan};
 use crate::study::mrac::run_settings::RunSettings;
 use crate::study::mrac::setup::{CommandKind, Example, Method};
 use crate::study::mrac::{ArgError, MracError};
@@ -167,8 +169,77 @@ pub fn plant(example: Example, rho: f64, nu: f64) -> Result<DiscreteTf, MracErro
     })
 }
 
+/// One sweep of the outward reading, to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutwardPlan {
+    /// The part of the plane.
+    pub region: Region,
+    /// The sweep (its grid the region's).
+    pub plan: SweepPlan,
+}
+
+/// The sweeps of the outward reading: APPC and RC-MRAC on Example 2 with each of
+/// `commands` over the outward grid and the patch around the zero, each run under
+/// `settings` (e.g. another divergence limit or run length).
+pub fn plans(
+    options: &OutwardOptions,
+    commands: &[CommandKind],
+    settings: &RunSettings,
+) -> Vec<OutwardPlan> {
+    let example = Example::Two;
+    let regions = [
+        (Region::Outward, options.outward_grid()),
+        (
+            Region::NearZero,
+            options.near_zero_grid(example.plant().zero()),
+        ),
+    ];
+    let mut out = Vec::new();
+    for (region, g) in &regions {
+        for &c in commands {
+            for m in [Method::Appc, Method::RcMrac] {
+                out.push(OutwardPlan {
+                    region: *region,
+                    plan: SweepPlan {
+                        example,
+                        command: c,
+                        method: m,
+                        grid: g.clone(),
+                        settings: *settings,
+                        plant: PlantRange::Outward,
+                    },
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The sweep plans of `plans`, in order (their runs are [`grid::items`] of these).
+pub fn sweep_plans(plans: &[OutwardPlan]) -> Vec<SweepPlan> {
+    plans.iter().map(|p| p.plan.clone()).collect()
+}
+
+/// The outward sweeps of `plans` from their runs' `results` (in the order of
+/// [`grid::items`] of [`sweep_plans`]).
+pub fn assemble(
+    plans: &[OutwardPlan],
+    results: Vec<Result<GridPoint, String>>,
+) -> Result<Vec<OutwardSweep>, MracError> {
+    let sweeps = grid::assemble(&sweep_plans(plans), results)?;
+    Ok(plans
+        .iter()
+        .zip(sweeps)
+        .map(|(p, sweep)| OutwardSweep {
+            region: p.region,
+            grid: p.plan.grid.clone(),
+            sweep,
+        })
+        .collect())
+}
+
 /// Runs APPC and RC-MRAC on Example 2 with each of `commands` over the outward grid and
-/// the patch around the zero.
+/// the patch around the zero, here.
 pub fn sweep(
     options: &OutwardOptions,
     commands: &[CommandKind],
@@ -182,30 +253,12 @@ pub fn sweep_with(
     commands: &[CommandKind],
     settings: &RunSettings,
 ) -> Result<Vec<OutwardSweep>, MracError> {
-    let example = Example::Two;
-    let regions = [
-        (Region::Outward, options.outward_grid()),
-        (
-            Region::NearZero,
-            options.near_zero_grid(example.plant().zero()),
-        ),
-    ];
-    let mut out = Vec::new();
-    for (region, g) in &regions {
-        for &c in commands {
-            for m in [Method::Appc, Method::RcMrac] {
-                let sweep = grid::sweep_with(example, c, m, g, settings, |rho, nu| {
-                    plant(example, rho, nu)
-                })?;
-                out.push(OutwardSweep {
-                    region: *region,
-                    grid: g.clone(),
-                    sweep,
-                });
-            }
-        }
-    }
-    Ok(out)
+    let p = plans(options, commands, settings);
+    let results = grid::items(&sweep_plans(&p))
+        .par_iter()
+        .map(PointRun::record)
+        .collect();
+    assemble(&p, results)
 }
 
 /// Writes `grid-outward.csv`: `region, command, method, rho, nu, open_loop_unstable,

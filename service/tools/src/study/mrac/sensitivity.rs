@@ -41,10 +41,11 @@
 
 use std::f64::consts::PI;
 
-use crate::study::mrac::closed_loop;
+use rayon::prelude::*;
+
 use crate::study::mrac::empty_squares::Reading as Squares;
-use crate::study::mrac::grid::{self, Grid, Sweep};
-use crate::study::mrac::outward;
+use crate::study::mrac::grid::{self, Grid, GridPoint, PointRun, Sweep, SweepPlan};
+use crate::study::mrac::outward::{self, OutwardPlan};
 use crate::study::mrac::run_settings::{RunSettings, Signal};
 use crate::study::mrac::setup::{CommandKind, Example, Method};
 use crate::study::mrac::summary::{self, Claim, SweepStats, Verdict as MracVerdict, find};
@@ -320,63 +321,167 @@ fn cases(change: Change, options: &Options) -> Vec<(Example, CommandKind, Method
         .collect()
 }
 
-/// Runs `change` (its grid, settings and, for 4.4, the outward reading) and checks the
-/// claims on it.
-fn evaluate(change: Change, options: &Options) -> Result<Evaluation, MracError> {
-    let grid = change.grid(options.grid)?;
-    let settings = change.settings();
-    let sweeps = cases(change, options)
-        .into_iter()
-        .map(|(e, c, m)| {
-            grid::sweep_with(e, c, m, &grid, &settings, |rho, nu| {
-                closed_loop::plant(e, rho, nu)
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let stats: Vec<SweepStats> = sweeps.iter().map(SweepStats::of).collect();
-    let inside = Squares::of("inside the unit circle", &example_2_pairs(&sweeps))?;
-    let outward = match options.outward {
-        Some(o) if change.reruns_outward() && options.examples.contains(&Example::Two) => {
-            let commands: Vec<CommandKind> = CommandKind::ALL
-                .into_iter()
-                .filter(|c| options.commands.contains(c))
-                .collect();
-            let sw = outward::sweep_with(&o, &commands, &settings)?;
-            let only: Vec<Sweep> = sw.into_iter().map(|s| s.sweep).collect();
-            let pairs: Vec<(&Sweep, &Sweep)> = only
-                .chunks(2)
-                .filter_map(|p| match p {
-                    [a, r] => Some((a, r)),
-                    _ => None,
-                })
-                .collect();
-            Some(Squares::of("outward", &pairs)?)
-        }
-        _ => None,
-    };
-    let claims = summary::claims(&stats, Some(&inside), outward.as_ref());
-    Ok(Evaluation {
-        stats,
-        inside: Some(inside),
-        outward,
-        claims,
-    })
+/// The runs of one change: its sweeps and, for 4.4, the outward reading again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChangeRuns {
+    /// The sweeps inside the unit circle.
+    pub inside: Vec<SweepPlan>,
+    /// The outward reading, when it runs again.
+    pub outward: Option<Vec<OutwardPlan>>,
 }
 
-/// Runs every alternative of [`alternatives`] for `options` (the study's own row and the
-/// criterion changes read on `study`, what the study found).
-pub fn run(options: &Options, study: &Evaluation) -> Result<Vec<Row>, MracError> {
+impl ChangeRuns {
+    /// The runs of `change` (its grid, settings and, for 4.4, the outward reading).
+    pub fn of(change: Change, options: &Options) -> Result<Self, MracError> {
+        let grid = change.grid(options.grid)?;
+        let settings = change.settings();
+        let inside = cases(change, options)
+            .into_iter()
+            .map(|(e, c, m)| SweepPlan {
+                settings,
+                ..SweepPlan::chapter(e, c, m, &grid)
+            })
+            .collect();
+        let outward = match options.outward {
+            Some(o) if change.reruns_outward() && options.examples.contains(&Example::Two) => {
+                let commands: Vec<CommandKind> = CommandKind::ALL
+                    .into_iter()
+                    .filter(|c| options.commands.contains(c))
+                    .collect();
+                Some(outward::plans(&o, &commands, &settings))
+            }
+            _ => None,
+        };
+        Ok(Self { inside, outward })
+    }
+
+    /// The sweep plans, inside then outward.
+    fn sweep_plans(&self) -> Vec<SweepPlan> {
+        let mut v = self.inside.clone();
+        if let Some(o) = &self.outward {
+            v.extend(outward::sweep_plans(o));
+        }
+        v
+    }
+
+    /// Every run, in order.
+    pub fn items(&self) -> Vec<PointRun> {
+        grid::items(&self.sweep_plans())
+    }
+
+    /// The claims checked on the runs' `results` (in the order of [`Self::items`]).
+    pub fn evaluation(
+        &self,
+        mut results: Vec<Result<GridPoint, String>>,
+    ) -> Result<Evaluation, MracError> {
+        let n_inside = grid::items(&self.inside).len();
+        let rest = results.split_off(n_inside.min(results.len()));
+        let sweeps = grid::assemble(&self.inside, results)?;
+        let stats: Vec<SweepStats> = sweeps.iter().map(SweepStats::of).collect();
+        let inside = Squares::of("inside the unit circle", &example_2_pairs(&sweeps))?;
+        let outward = match &self.outward {
+            Some(plans) => {
+                let sw = outward::assemble(plans, rest)?;
+                let only: Vec<Sweep> = sw.into_iter().map(|s| s.sweep).collect();
+                let pairs: Vec<(&Sweep, &Sweep)> = only
+                    .chunks(2)
+                    .filter_map(|p| match p {
+                        [a, r] => Some((a, r)),
+                        _ => None,
+                    })
+                    .collect();
+                Some(Squares::of("outward", &pairs)?)
+            }
+            None => None,
+        };
+        let claims = summary::claims(&stats, Some(&inside), outward.as_ref());
+        Ok(Evaluation {
+            stats,
+            inside: Some(inside),
+            outward,
+            claims,
+        })
+    }
+}
+
+/// One alternative of [`alternatives`] and its runs (`None`: read on the study's own
+/// runs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The change.
+    pub change: Change,
+    /// Its runs.
+    pub runs: Option<ChangeRuns>,
+}
+
+/// The alternatives of [`alternatives`] for `options`, with their runs.
+pub fn plan(options: &Options) -> Result<Vec<Plan>, MracError> {
     alternatives(options.grid)
         .into_iter()
         .map(|change| {
-            let evaluation = if change.reads_the_study() {
-                study.clone()
-            } else {
-                evaluate(change, options)?
-            };
-            Ok(Row { change, evaluation })
+            Ok(Plan {
+                change,
+                runs: if change.reads_the_study() {
+                    None
+                } else {
+                    Some(ChangeRuns::of(change, options)?)
+                },
+            })
         })
         .collect()
+}
+
+/// Every run of `plans`, one alternative after the other (the items of the study's
+/// `sensitivity` stage).
+pub fn items(plans: &[Plan]) -> Vec<PointRun> {
+    plans
+        .iter()
+        .filter_map(|p| p.runs.as_ref())
+        .flat_map(ChangeRuns::items)
+        .collect()
+}
+
+/// The rows of `plans` from their runs' `results` (in the order of [`items`]), the
+/// study's own row and the criterion changes read on `study`, what the study found.
+pub fn rows(
+    plans: &[Plan],
+    results: Vec<Result<GridPoint, String>>,
+    study: &Evaluation,
+) -> Result<Vec<Row>, MracError> {
+    let mut results = results.into_iter();
+    plans
+        .iter()
+        .map(|p| {
+            let evaluation = match &p.runs {
+                None => study.clone(),
+                Some(r) => {
+                    let n = r.items().len();
+                    r.evaluation(results.by_ref().take(n).collect())?
+                }
+            };
+            Ok(Row {
+                change: p.change,
+                evaluation,
+            })
+        })
+        .collect()
+}
+
+/// Runs `change` here (its grid, settings and, for 4.4, the outward reading) and checks
+/// the claims on it.
+#[cfg(test)]
+fn evaluate(change: Change, options: &Options) -> Result<Evaluation, MracError> {
+    let runs = ChangeRuns::of(change, options)?;
+    let results = runs.items().par_iter().map(PointRun::record).collect();
+    runs.evaluation(results)
+}
+
+/// Runs every alternative of [`alternatives`] for `options` here (the study's own row and
+/// the criterion changes read on `study`, what the study found).
+pub fn run(options: &Options, study: &Evaluation) -> Result<Vec<Row>, MracError> {
+    let plans = plan(options)?;
+    let results = items(&plans).par_iter().map(PointRun::record).collect();
+    rows(&plans, results, study)
 }
 
 /// `log₁₀` value for text: `inf` for `+∞`.
