@@ -181,7 +181,13 @@ fn a_study_that_cannot_run_is_reported_and_a_stale_claims_file_does_not_stand_in
     )
     .unwrap();
     let options = Options::new(Size::Quick, Some(2), "test".into()).unwrap();
-    let run = all::run(exe(), &out, &[mrac, missing], &options);
+    let run = all::run(
+        exe(),
+        &out,
+        &[mrac, missing],
+        &options,
+        &all::Sharding::Whole,
+    );
     assert_eq!(run.runs.len(), 2);
     assert!(run.runs[0].claims.is_ok(), "{:?}", run.runs[0].claims);
     let failed = run.failed();
