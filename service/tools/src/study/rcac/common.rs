@@ -93,7 +93,7 @@ pub const DIVERGED: f64 = 1e6;
 pub const SETTLE_DB: f64 = 40.0;
 
 /// How the dereverberated transfer function is built.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Method {
     /// Complex windowed average (3.40) and a fixed-order fit, §3.2.1.
     Average,

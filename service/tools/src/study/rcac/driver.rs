@@ -8,17 +8,24 @@
 //! ([`RcacStudy::setup`]), its designs, texts, figures and summary. [`run`] does the rest in
 //! this order:
 //!
-//! 1. the header and the designs (written to the report by the study);
-//! 2. every sweep point in parallel ([`RcacStudy::sweep_points`]): the open loop, then per
-//!    DTM the error `G_f / G_{zu,d}` at each tone (`θ_j` of channel `j`, [`tone_errors`])
-//!    and one closed-loop run per update law ([`run_closed`]), into [`Row`]s;
-//! 3. the CSV files, the error-plane figures, the single runs;
-//! 4. the study's summary, the time taken, the report printed and written to
-//!    `summary.txt`;
-//! 5. unless `--no-sensitivity`, the sensitivity table ([`sensitivity`]): the single runs
-//!    and a coarse subset of the sweep ([`RcacStudy::sensitivity_points`]) again under each
-//!    alternative of [`RcacStudy::sensitivity_changes`], the claims checked on each
-//!    ([`sensitivity_table`]), written to `sensitivity.csv` and the report;
+//! 1. the header and the designs (written to the report by the study; deterministic and
+//!    cheap, so every shard of a sharded study makes them again);
+//! 2. the runs, handed to [`Runs`] in stages whose items ([`PointRun`]) depend only on the
+//!    options:
+//!    - `sweep-gradient` and/or `sweep-rls`: every sweep point
+//!      ([`RcacStudy::sweep_points`]) with that update law: the open loop, then per DTM the
+//!      error `G_f / G_{zu,d}` at each tone (`θ_j` of channel `j`, [`tone_errors`]) and one
+//!      closed-loop run ([`run_closed`]), recorded as [`Measured`];
+//!    - unless `--no-sensitivity`, `sensitivity` ([`sensitivity_items`]): a coarse subset
+//!      of the sweep ([`RcacStudy::sensitivity_points`]) and the single runs' point, with
+//!      the gradient update, under each alternative of [`RcacStudy::sensitivity_changes`];
+//! 3. [`Runs::gather`] (a shard ends here, having written nothing but its run log); then
+//!    the designs' files, the sweep's [`Row`]s (per point, method and update law), the CSV
+//!    files, the error-plane figures, the single runs (run here, with their traces);
+//! 4. the study's summary; unless `--no-sensitivity`, the sensitivity table
+//!    ([`sensitivity`]): the claims checked under each alternative ([`sensitivity_table`]),
+//!    written to `sensitivity.csv` and the report;
+//! 5. the time taken, the report printed and written to `summary.txt`;
 //! 6. the chapter's claims ([`RcacStudy::claims`]) written to `claims.json`
 //!    ([`crate::study::reproduction`]), with the sensitivity rows.
 //!
@@ -44,9 +51,10 @@ use crate::study::rcac::common::{
 use crate::study::rcac::sensitivity::{self, Change};
 use crate::study::reproduction::sensitivity::Alternative;
 use crate::study::reproduction::{self, Claim};
+use crate::study::shard::{Runs, ShardError};
 use control::tones::suppression_db;
 use plant_proxy::scenario::Scenario;
-use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -238,8 +246,9 @@ pub struct SingleOutcome<const N: usize> {
 
 /// What one RCAC study of chapter 3 has of its own; [`run`] drives it.
 pub trait RcacStudy<const N: usize>: Sync {
-    /// Where a sweep point lies (a case and a tone frequency, a damping ratio).
-    type At: Copy + Send + Sync;
+    /// Where a sweep point lies (a case and a tone frequency, a damping ratio); its `Debug`
+    /// text names the point (a sharded run's identity, [`PointRun`]).
+    type At: Copy + Send + Sync + std::fmt::Debug;
     /// The target models and whatever else is designed once before the sweep.
     type Designs: Sync;
 
@@ -260,8 +269,16 @@ pub trait RcacStudy<const N: usize>: Sync {
     /// Writes the report's first lines: the study and its settings.
     fn header(&self, points: usize, report: &mut String);
 
-    /// Designs the target models (and writes them to the report, files to `out`).
-    fn design(&self, out: &Path, report: &mut String) -> Result<Self::Designs, RcacError>;
+    /// Designs the target models (and writes them to the report). Deterministic and cheap:
+    /// every shard designs them again before its runs.
+    fn design(&self, report: &mut String) -> Result<Self::Designs, RcacError>;
+
+    /// Writes the files of the designs into `out` (after the runs are gathered: a shard
+    /// writes no output).
+    fn write_design(&self, out: &Path) -> Result<(), RcacError> {
+        let _ = out;
+        Ok(())
+    }
 
     /// The sweep of `points` points (per case).
     fn sweep_points(&self, points: usize) -> Vec<Self::At>;
@@ -376,9 +393,15 @@ pub fn tone_errors<const N: usize>(
     }))
 }
 
-/// The study (see the module docs); writes into `out` and prints the summary.
+/// The study (see the module docs); writes into `out` and prints the summary. Its runs
+/// are handed to `runs` in stages whose items depend only on `opts` ([`PointRun`]): one
+/// stage of the sweep per update law (`sweep-gradient`, `sweep-rls`) and, unless
+/// `--no-sensitivity`, the sensitivity table's runs (`sensitivity`); the designs are made
+/// before them (by every shard), the single runs and everything written after
+/// [`Runs::gather`].
 pub fn run<S: RcacStudy<N>, const N: usize>(
     study: &S,
+    runs: &Runs,
     out: &Path,
     opts: &Options,
 ) -> Result<(), RcacError> {
@@ -386,18 +409,49 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     std::fs::create_dir_all(out).map_err(|source| FileError::new(FileOp::Access, out, source))?;
     let mut report = String::new();
     study.header(opts.points, &mut report);
-    let designs = study.design(out, &mut report)?;
+    let designs = study.design(&mut report)?;
     let t_design = t0.elapsed().as_secs_f64();
     let sweep = study.sweep_points(opts.points);
     let t1 = Instant::now();
-    let rows: Vec<Row<S::At, N>> = sweep
-        .par_iter()
-        .map(|&at| sweep_point(study, &designs, at, &opts.updates, Change::Study))
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter()
-        .flatten()
-        .collect();
+    let sweep_stages = opts
+        .updates
+        .iter()
+        .map(|&update| {
+            let items: Vec<PointRun<S::At>> = sweep
+                .iter()
+                .map(|&at| PointRun {
+                    at,
+                    update,
+                    change: Change::Study,
+                })
+                .collect();
+            runs.map(&format!("sweep-{}", update.name()), &items, |r| {
+                point_runs(study, &designs, r)
+            })
+        })
+        .collect::<Result<Vec<_>, ShardError>>()?;
     let t_sweep = t1.elapsed().as_secs_f64();
+    let t_sens_runs = Instant::now();
+    let sensitivity_items = if opts.sensitivity {
+        sensitivity_items(study)
+    } else {
+        Vec::new()
+    };
+    let sensitivity_stage = if opts.sensitivity {
+        Some(runs.map("sensitivity", &sensitivity_items, |r| {
+            point_runs(study, &designs, r)
+        })?)
+    } else {
+        None
+    };
+    let t_sens_runs = t_sens_runs.elapsed().as_secs_f64();
+    runs.gather()?;
+    study.write_design(out)?;
+    let per_update = sweep_stages
+        .into_iter()
+        .map(|stage| stage.into_vec())
+        .collect::<Result<Vec<_>, ShardError>>()?;
+    let rows = sweep_rows(&sweep, &opts.updates, per_update)?;
     study.write_csv(out, &rows)?;
     let t2 = Instant::now();
     for method in Method::ALL {
@@ -421,8 +475,8 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     let t_fig = t2.elapsed().as_secs_f64();
     study.summary(&rows, &opts.updates, &mut report);
     let t3 = Instant::now();
-    let sensitivity_rows = if opts.sensitivity {
-        let rows = sensitivity_table(study, &designs)?;
+    let sensitivity_rows = if let Some(stage) = sensitivity_stage {
+        let rows = sensitivity_table(study, &sensitivity_items, stage.into_vec()?)?;
         write(
             &out.join("sensitivity.csv"),
             &reproduction::sensitivity::csv(&rows),
@@ -432,7 +486,7 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     } else {
         Vec::new()
     };
-    let t_sens = t3.elapsed().as_secs_f64();
+    let t_sens = t_sens_runs + t3.elapsed().as_secs_f64();
     let designs_time = if S::REPORTS_DESIGN_TIME {
         format!("designs {t_design:.1} s, ")
     } else {
@@ -481,28 +535,55 @@ pub fn run<S: RcacStudy<N>, const N: usize>(
     )?)
 }
 
-/// The sensitivity table ([`sensitivity`]): per alternative of the study, the single runs
-/// and the sweep's coarse subset with the gradient update, and the claims checked on them.
-pub fn sensitivity_table<S: RcacStudy<N>, const N: usize>(
-    study: &S,
-    designs: &S::Designs,
-) -> Result<Vec<Alternative>, RcacError> {
-    let gradient = [Update::Gradient];
+/// The runs of the sensitivity table ([`sensitivity`]): per alternative of the study
+/// ([`RcacStudy::sensitivity_changes`]), the sweep's coarse subset
+/// ([`RcacStudy::sensitivity_points`]) and then the single runs' point, with the gradient
+/// update.
+pub fn sensitivity_items<S: RcacStudy<N>, const N: usize>(study: &S) -> Vec<PointRun<S::At>> {
     let points = study.sensitivity_points();
     let single_at = study.single_at();
     study
         .sensitivity_changes()
         .into_iter()
-        .map(|change| {
-            // The subset's points, then the single runs' point, in parallel.
-            let mut rows: Vec<Vec<Row<S::At, N>>> = points
+        .flat_map(|change| {
+            points
                 .iter()
                 .copied()
                 .chain(std::iter::once(single_at))
-                .collect::<Vec<_>>()
-                .par_iter()
-                .map(|&at| sweep_point(study, designs, at, &gradient, change))
-                .collect::<Result<_, _>>()?;
+                .map(move |at| PointRun {
+                    at,
+                    update: Update::Gradient,
+                    change,
+                })
+        })
+        .collect()
+}
+
+/// The sensitivity table ([`sensitivity`]) from the runs `measured` of `items`
+/// ([`sensitivity_items`]): per alternative, the claims checked on the sweep's coarse subset
+/// and the single runs.
+pub fn sensitivity_table<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    items: &[PointRun<S::At>],
+    measured: Vec<Recorded>,
+) -> Result<Vec<Alternative>, RcacError> {
+    let gradient = [Update::Gradient];
+    // Per alternative: the subset's points, then the single runs' point.
+    let per_change = study.sensitivity_points().len() + 1;
+    let measured = measured
+        .into_iter()
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(RcacError::Run)?;
+    items
+        .chunks(per_change)
+        .zip(measured.chunks(per_change))
+        .map(|(items, measured)| {
+            let mut rows: Vec<Vec<Row<S::At, N>>> = items
+                .iter()
+                .zip(measured)
+                .map(|(r, m)| m.iter().map(|m| m.row(r.at, r.update)).collect::<Vec<_>>())
+                .collect();
+            let change = items[0].change;
             let single = rows.pop().unwrap_or_default();
             let singles: Vec<SingleOutcome<N>> = single
                 .iter()
@@ -549,45 +630,153 @@ fn report_sensitivity(rows: &[Alternative], report: &mut String) {
     );
 }
 
+/// One sharded run set's item: a sweep point, run with one update law under one change
+/// ([`Change::Study`] for the study's own). Its `Debug` text is the run's identity.
+#[derive(Debug, Clone, Copy)]
+pub struct PointRun<At> {
+    /// Where in the sweep.
+    pub at: At,
+    /// The update law.
+    pub update: Update,
+    /// The study's choices or an alternative.
+    pub change: Change,
+}
+
+/// What the runs of a [`PointRun`] measured with the DTM of one method: a [`Row`] without
+/// its point and update law (the item's), per tone as a list (what a shard records).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Measured {
+    /// The method of the target model.
+    pub method: Method,
+    /// [`Row::error`].
+    pub error: Vec<(f64, f64)>,
+    /// [`Row::open_amp`].
+    pub open_amp: Vec<f64>,
+    /// [`Row::closed_amp`].
+    pub closed_amp: Vec<f64>,
+    /// [`Row::closed_amp_prev`].
+    pub closed_amp_prev: Vec<f64>,
+    /// [`Row::open_peak`].
+    pub open_peak: f64,
+    /// [`Row::closed_peak`].
+    pub closed_peak: f64,
+    /// [`Row::finite`].
+    pub finite: bool,
+    /// [`Row::settle`].
+    pub settle: Option<f64>,
+}
+
+/// A [`PointRun`]'s result: per method what it measured, or why it failed (the message).
+pub type Recorded = Result<Vec<Measured>, String>;
+
+impl Measured {
+    /// The row of this method at `at` with `update`.
+    pub fn row<At, const N: usize>(&self, at: At, update: Update) -> Row<At, N> {
+        let per_tone = |v: &[f64]| -> [f64; N] {
+            std::array::from_fn(|j| v.get(j).copied().unwrap_or(f64::NAN))
+        };
+        Row {
+            at,
+            method: self.method,
+            update,
+            error: std::array::from_fn(|j| {
+                self.error.get(j).copied().unwrap_or((f64::NAN, f64::NAN))
+            }),
+            open_amp: per_tone(&self.open_amp),
+            closed_amp: per_tone(&self.closed_amp),
+            closed_amp_prev: per_tone(&self.closed_amp_prev),
+            open_peak: self.open_peak,
+            closed_peak: self.closed_peak,
+            finite: self.finite,
+            settle: self.settle,
+        }
+    }
+}
+
+/// Runs the sweep point of `r` under its change with its update law: the open loop and one
+/// closed loop per method.
+pub fn point_runs<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    designs: &S::Designs,
+    r: &PointRun<S::At>,
+) -> Recorded {
+    point_runs_of(study, designs, r).map_err(|e| e.to_string())
+}
+
+fn point_runs_of<S: RcacStudy<N>, const N: usize>(
+    study: &S,
+    designs: &S::Designs,
+    &PointRun { at, update, change }: &PointRun<S::At>,
+) -> Result<Vec<Measured>, RcacError> {
+    let mut s = study.setup(designs, at)?;
+    change.apply(&mut s.scenario);
+    let (steps, window) = change.steps_and_window();
+    let (open, _) = run_open(&s.scenario, steps, window, &s.thetas)?;
+    let per_tone = |v: &[f64]| -> Vec<f64> {
+        (0..N)
+            .map(|j| v.get(j).copied().unwrap_or(f64::NAN))
+            .collect()
+    };
+    let mut measured = Vec::new();
+    for (method, dtm) in s.dtms {
+        let dtm = change.dtm(*method, dtm);
+        let error = tone_errors(&s.model, &dtm, &s.thetas)?;
+        let p = rcac_run(&s, &dtm, (update, S::ALPHA), open.peak, (steps, window), 0)?;
+        let finite = p.finite();
+        let w = p.closed.unwrap_or_default();
+        measured.push(Measured {
+            method: *method,
+            error: error.to_vec(),
+            open_amp: per_tone(&open.amp),
+            closed_amp: per_tone(&w.amp),
+            closed_amp_prev: per_tone(&w.amp_prev),
+            open_peak: open.peak,
+            closed_peak: if finite { w.peak } else { f64::NAN },
+            finite,
+            settle: p.settle,
+        });
+    }
+    Ok(measured)
+}
+
+/// The sweep's rows from the runs of each update law (`per_update[u][point]`, in the order
+/// of `updates`): per point, per method, per update law.
+fn sweep_rows<At: Copy, const N: usize>(
+    sweep: &[At],
+    updates: &[Update],
+    per_update: Vec<Vec<Recorded>>,
+) -> Result<Vec<Row<At, N>>, RcacError> {
+    let per_update = per_update
+        .into_iter()
+        .map(|runs| runs.into_iter().collect::<Result<Vec<_>, String>>())
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(RcacError::Run)?;
+    let mut rows = Vec::new();
+    for (p, &at) in sweep.iter().enumerate() {
+        let methods = per_update.first().map_or(0, |u| u[p].len());
+        for m in 0..methods {
+            for (runs, &update) in per_update.iter().zip(updates) {
+                rows.push(runs[p][m].row(at, update));
+            }
+        }
+    }
+    Ok(rows)
+}
+
 /// Runs one sweep point under `change` ([`Change::Study`] for the study's own): the open
-/// loop and every method × update.
-fn sweep_point<S: RcacStudy<N>, const N: usize>(
+/// loop and every method × update, as the sweep's rows.
+pub fn sweep_point<S: RcacStudy<N>, const N: usize>(
     study: &S,
     designs: &S::Designs,
     at: S::At,
     updates: &[Update],
     change: Change,
 ) -> Result<Vec<Row<S::At, N>>, RcacError> {
-    let mut s = study.setup(designs, at)?;
-    change.apply(&mut s.scenario);
-    let (steps, window) = change.steps_and_window();
-    let (open, _) = run_open(&s.scenario, steps, window, &s.thetas)?;
-    let per_tone =
-        |v: &[f64]| -> [f64; N] { std::array::from_fn(|j| v.get(j).copied().unwrap_or(f64::NAN)) };
-    let mut rows = Vec::new();
-    for (method, dtm) in s.dtms {
-        let dtm = change.dtm(*method, dtm);
-        let error = tone_errors(&s.model, &dtm, &s.thetas)?;
-        for &update in updates {
-            let p = rcac_run(&s, &dtm, (update, S::ALPHA), open.peak, (steps, window), 0)?;
-            let finite = p.finite();
-            let w = p.closed.unwrap_or_default();
-            rows.push(Row {
-                at,
-                method: *method,
-                update,
-                error,
-                open_amp: per_tone(&open.amp),
-                closed_amp: per_tone(&w.amp),
-                closed_amp_prev: per_tone(&w.amp_prev),
-                open_peak: open.peak,
-                closed_peak: if finite { w.peak } else { f64::NAN },
-                finite,
-                settle: p.settle,
-            });
-        }
-    }
-    Ok(rows)
+    let per_update = updates
+        .iter()
+        .map(|&update| vec![point_runs(study, designs, &PointRun { at, update, change })])
+        .collect();
+    sweep_rows(&[at], updates, per_update)
 }
 
 /// The single runs at [`RcacStudy::single_at`]: per method the Bode plot, per update law
@@ -712,9 +901,7 @@ mod tests {
     #[test]
     fn each_change_reaches_the_runs_of_a_sweep_point() {
         let study = Siso;
-        let designs = study
-            .design(Path::new("."), &mut String::new())
-            .expect("designs");
+        let designs = study.design(&mut String::new()).expect("designs");
         let at = SweepAt {
             case: 0,
             wd: 10.0 * PI,
@@ -734,12 +921,82 @@ mod tests {
     }
 
     #[test]
+    fn a_recorded_run_reads_back_bit_for_bit_and_rows_go_per_point_method_and_update() {
+        let m = |method, x: f64| Measured {
+            method,
+            error: vec![(x, -x)],
+            open_amp: vec![1.0],
+            closed_amp: vec![f64::NAN],
+            closed_amp_prev: vec![f64::INFINITY],
+            open_peak: 2.0,
+            closed_peak: f64::NAN,
+            finite: false,
+            settle: Some(0.1 + 0.2),
+        };
+        let runs =
+            |x: f64| -> Recorded { Ok(vec![m(Method::Average, x), m(Method::Optimize, x + 0.5)]) };
+        let recorded = vec![runs(1.0), Err("a failed run".to_string())];
+        let back: Vec<Recorded> =
+            postcard::from_bytes(&postcard::to_stdvec(&recorded).expect("encodes"))
+                .expect("decodes");
+        assert_eq!(format!("{back:?}"), format!("{recorded:?}"));
+        let Ok(b) = &back[0] else { panic!("a run") };
+        assert_eq!(
+            b[0].settle.map(f64::to_bits),
+            Some((0.1_f64 + 0.2).to_bits())
+        );
+        assert!(b[0].closed_amp[0].is_nan());
+        // Two points, two update laws: per point, per method, per update law.
+        let updates = [Update::Gradient, Update::Rls];
+        let per_update = vec![vec![runs(1.0), runs(2.0)], vec![runs(10.0), runs(20.0)]];
+        let rows: Vec<Row<u8, 1>> = sweep_rows(&[7, 8], &updates, per_update).expect("rows");
+        let got: Vec<(u8, Method, Update, f64)> = rows
+            .iter()
+            .map(|r| (r.at, r.method, r.update, r.error[0].0))
+            .collect();
+        use Method::{Average as A, Optimize as O};
+        use Update::{Gradient as G, Rls as R};
+        assert_eq!(
+            got,
+            vec![
+                (7, A, G, 1.0),
+                (7, A, R, 10.0),
+                (7, O, G, 1.5),
+                (7, O, R, 10.5),
+                (8, A, G, 2.0),
+                (8, A, R, 20.0),
+                (8, O, G, 2.5),
+                (8, O, R, 20.5),
+            ]
+        );
+        // A failed run's message is the study's error.
+        let failed = sweep_rows::<u8, 1>(&[7, 8], &[G], vec![recorded]);
+        assert_eq!(
+            failed.err().map(|e| e.to_string()).as_deref(),
+            Some("a failed run")
+        );
+    }
+
+    #[test]
+    fn the_sensitivity_runs_are_per_alternative_the_subset_then_the_single_point() {
+        let study = Miso;
+        let items = sensitivity_items(&study);
+        let per = study.sensitivity_points().len() + 1;
+        assert_eq!(items.len(), study.sensitivity_changes().len() * per);
+        for (chunk, change) in items.chunks(per).zip(study.sensitivity_changes()) {
+            assert!(
+                chunk
+                    .iter()
+                    .all(|r| r.change == change && r.update == Update::Gradient)
+            );
+            assert_eq!(chunk[per - 1].at, study.single_at());
+        }
+    }
+
+    #[test]
     fn the_average_dtms_beta_moves_only_the_average_dtm() {
         let study = Miso;
-        let dir = std::env::temp_dir().join(format!("rcac-driver-beta-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("temporary folder");
-        let designs = study.design(&dir, &mut String::new()).expect("designs");
-        let _ = std::fs::remove_dir_all(&dir);
+        let designs = study.design(&mut String::new()).expect("designs");
         let s = study.setup(&designs, 0.1).expect("setup");
         for (method, dtm) in s.dtms {
             let moved = Change::AverageBeta(0.8).dtm(*method, dtm);

@@ -187,8 +187,7 @@ fn errors(model: &DiscreteModel, dtm: &Dtm) -> Result<[(f64, f64); 2], RcacError
 
 /// The study (see the module docs); writes into `out` and prints the summary.
 pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Result<(), RcacError> {
-    let _ = runs;
-    driver::run(&Miso, out, opts)
+    driver::run(&Miso, runs, out, opts)
 }
 
 /// The MISO study of §3.3.2 as [`driver`] drives it.
@@ -244,13 +243,9 @@ impl RcacStudy<2> for Miso {
         );
     }
 
-    /// Both DTMs from the nominal model; its scenario is written to `out` as well.
-    fn design(&self, out: &Path, report: &mut String) -> Result<Self::Designs, RcacError> {
+    /// Both DTMs from the nominal model.
+    fn design(&self, report: &mut String) -> Result<Self::Designs, RcacError> {
         let nominal = scenario(NOMINAL_ZETA)?;
-        files::write(
-            &out.join("scenario-zeta-0.1.toml"),
-            &scenario_text(NOMINAL_ZETA),
-        )?;
         let dtms: Vec<(Method, Dtm)> = Method::ALL
             .par_iter()
             .map(|&m| Ok((m, design_dtm(&nominal, m, beta(m))?)))
@@ -268,6 +263,15 @@ impl RcacStudy<2> for Miso {
             }
         }
         Ok(dtms)
+    }
+
+    /// The nominal model's scenario.
+    fn write_design(&self, out: &Path) -> Result<(), RcacError> {
+        files::write(
+            &out.join("scenario-zeta-0.1.toml"),
+            &scenario_text(NOMINAL_ZETA),
+        )?;
+        Ok(())
     }
 
     fn sweep_points(&self, points: usize) -> Vec<f64> {

@@ -77,6 +77,10 @@ pub enum RcacError {
     /// The claims cannot be written.
     #[error(transparent)]
     Claims(#[from] ClaimsError),
+    /// A sweep point's runs failed (the message, as the run recorded it: a shard records a
+    /// failed run's message, and the merge reports it as the study run whole does).
+    #[error("{0}")]
+    Run(String),
 }
 
 message_from!(RcacError);

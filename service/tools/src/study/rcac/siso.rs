@@ -209,8 +209,7 @@ fn responses(
 
 /// The study (see the module docs); writes into `out` and prints the summary.
 pub fn run(runs: &crate::study::shard::Runs, out: &Path, opts: &Options) -> Result<(), RcacError> {
-    let _ = runs;
-    driver::run(&Siso, out, opts)
+    driver::run(&Siso, runs, out, opts)
 }
 
 /// The SISO study of §3.3.1 as [`driver`] drives it.
@@ -269,7 +268,7 @@ impl RcacStudy<1> for Siso {
     }
 
     /// Target models, one per case and method.
-    fn design(&self, _out: &Path, report: &mut String) -> Result<Self::Designs, RcacError> {
+    fn design(&self, report: &mut String) -> Result<Self::Designs, RcacError> {
         let designs: Self::Designs = CASES
             .par_iter()
             .map(|c| -> Result<_, RcacError> {
