@@ -28,6 +28,14 @@
 //!   [`sensitivity::SENSITIVITY_GRID`]-point grids. The claims' verdicts stay the study's
 //!   own readings; their "ours" ends with the tally. Skipped with `--no-sensitivity`
 //!   (`run`'s `sensitivity: None`).
+//!
+//! Its runs ([`crate::study::shard`]): three sharded stages whose items follow from the
+//! options alone: `maneuvers` (Figures 7.4, 7.6, 7.7, 7.8 under both controllers, with
+//! their traces), `grid` (both surface grids under both controllers) and `sensitivity`
+//! (the alternatives' runs the study's own do not already give; [`sensitivity::Plan`]
+//! tells them apart from the grid's definition). After
+//! [`crate::study::shard::Runs::gather`] come the designs' summaries, the aggregation, the
+//! files and the claims.
 
 pub mod claims;
 pub mod closed_loop;

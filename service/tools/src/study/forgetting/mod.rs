@@ -17,6 +17,13 @@
 //! - [`sensitivity`]: the settings §5.3 leaves open, moved to alternatives, and the claims'
 //!   verdicts under each (the report's sensitivity table).
 //!
+//! Its runs ([`crate::study::shard`]): four sharded stages of seeded runs whose items
+//! follow from `--runs` and `--seed` alone: `montecarlo` (each case, method and seed),
+//! `slow-runs` (the noiseless RLS/FTVRF runs, reduced to their features), `settings`
+//! (α = 0.01 and τ_n/τ_d = 5/50) and `sensitivity` (each alternative's runs). After
+//! [`crate::study::shard::Runs::gather`] come the single runs of the figures, the bands and
+//! statistics from the raw runs, the files and the claims.
+//!
 //! It writes, into `--out`:
 //!
 //! - `case{c}_{case}_{method}.csv`: one run (`k, θ_k, true θ, tr(P_k), λ_k, e_k`);

@@ -24,6 +24,12 @@
 //!   ([`crate::study::reproduction::sensitivity::csv`]);
 //! - `claims.json`: the claims in the reproduction's record ([`claims`]), with the
 //!   sensitivity rows.
+//!
+//! Its runs ([`crate::study::shard`]): three sharded stages whose items (one run at one
+//! pole, naming example, command, method, `ρ`, `ν` and the run's settings) follow from the
+//! options alone: `grid` (every case over the grid), `outward` (the outward reading) and
+//! `sensitivity` (every simulated alternative). After [`crate::study::shard::Runs::gather`]
+//! come the single runs at `ρ = 0.5`, `ν = π/4`, the files and the claims.
 
 pub mod claims;
 pub mod closed_loop;
