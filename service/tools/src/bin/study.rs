@@ -50,7 +50,7 @@ use rig_tools::file_error::{FileError, FileOp};
 use rig_tools::study::arm::ArmError;
 use rig_tools::study::mrac::MracError;
 use rig_tools::study::rcac::{RcacError, common, driver, miso, siso};
-use rig_tools::study::shard::manifest::COMMIT;
+use rig_tools::study::shard::manifest::{COMMIT, Manifest};
 use rig_tools::study::shard::merge::Shards;
 use rig_tools::study::shard::{Runs, ShardError, Slice};
 use rig_tools::study::{all, forgetting, mrac, pcac_truss};
@@ -244,20 +244,6 @@ impl Study {
         }
     }
 
-    /// The study's `--out`.
-    fn out(&self) -> Option<&Path> {
-        match self {
-            Study::Forgetting { out, .. }
-            | Study::RcacSiso { out, .. }
-            | Study::RcacMiso { out, .. }
-            | Study::PcacTruss { out, .. }
-            | Study::Mrac { out, .. }
-            | Study::SamplingArm { out, .. }
-            | Study::All { out, .. } => Some(out),
-            Study::Merge { .. } => None,
-        }
-    }
-
     /// The study's `--out`, to change.
     fn out_mut(&mut self) -> Option<&mut PathBuf> {
         match self {
@@ -288,7 +274,11 @@ fn args_without_shard() -> Vec<String> {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let mut cli = Cli::parse();
+    let out = cli
+        .study
+        .out_mut()
+        .map_or(PathBuf::from("."), |o| o.clone());
     let runs = match (&cli.study, cli.shard.as_deref()) {
         (Study::Merge { .. }, Some(s)) => {
             eprintln!("study: --shard {s}: merge reads shards; it is not one");
@@ -299,13 +289,14 @@ fn main() -> ExitCode {
             .map_err(ShardError::from)
             .and_then(|slice| match slice {
                 None => Ok(Runs::whole()),
-                Some(slice) => Runs::shard(
+                Some(slice) => Manifest::new(
                     study.name(),
                     args_without_shard(),
                     &format!("{study:?}"),
                     slice,
-                    study.out().unwrap_or(Path::new(".")),
-                ),
+                    &out,
+                )
+                .and_then(Runs::shard),
             }),
     };
     let result = match runs {

@@ -52,7 +52,7 @@ pub mod slice;
 
 use std::collections::HashSet;
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -328,19 +328,13 @@ impl Runs {
         }
     }
 
-    /// Shard `slice` of the study `study` run as `args` (the command line after `study`,
-    /// without `--shard`), whose parsed options read `config`, writing into
-    /// `out/shards/I-of-N/`; resumes the runs an earlier attempt recorded there.
-    pub fn shard(
-        study: &str,
-        args: Vec<String>,
-        config: &str,
-        slice: Slice,
-        out: &Path,
-    ) -> Result<Self, ShardError> {
-        let dir = out.join(SHARDS_DIR).join(slice.folder_name());
+    /// The shard that `manifest` describes ([`Manifest::new`]: its study, command line,
+    /// options, slice and `--out`), writing into `out/shards/I-of-N/`; resumes the runs an
+    /// earlier attempt recorded there.
+    pub fn shard(mut manifest: Manifest) -> Result<Self, ShardError> {
+        let slice = manifest.slice;
+        let dir = manifest.out.join(SHARDS_DIR).join(slice.folder_name());
         std::fs::create_dir_all(&dir).map_err(|e| FileError::new(FileOp::Creating, &dir, e))?;
-        let mut manifest = Manifest::new(study, args, config, slice, out)?;
         let log_path = dir.join(run_log::RUN_LOG_FILE);
         let mut earlier = run_log::Recorded::new();
         if dir.join(manifest::MANIFEST_FILE).exists() {
