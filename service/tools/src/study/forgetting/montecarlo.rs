@@ -177,9 +177,10 @@ impl SeededRun {
             .collect()
     }
 
-    /// Simulates the run on `plant` (an error as its message).
-    pub fn simulate(&self, plant: &Plant) -> Result<McRun, String> {
-        let (summary, trace) = run_with(
+    /// Runs it on `plant`: its summary and, when recorded, its trace (an error as its
+    /// message).
+    pub fn run_on(&self, plant: &Plant) -> Result<(RunSummary, Option<Trace>), String> {
+        run_with(
             plant,
             self.case,
             &self.method.config(),
@@ -188,7 +189,12 @@ impl SeededRun {
             self.seed,
             self.record,
         )
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| e.to_string())
+    }
+
+    /// Simulates the run on `plant` (an error as its message).
+    pub fn simulate(&self, plant: &Plant) -> Result<McRun, String> {
+        let (summary, trace) = self.run_on(plant)?;
         Ok(McRun {
             summary,
             series: trace.map(Series::of),

@@ -22,7 +22,7 @@ use std::path::Path;
 use crate::file_error::{FileError, FileOp};
 use crate::study::forgetting::ForgettingError;
 use crate::study::forgetting::excitation::Excitation;
-use crate::study::forgetting::experiment::{Case, Method, Trace, Variant, run_with};
+use crate::study::forgetting::experiment::{Case, Method, Trace, Variant};
 use crate::study::forgetting::montecarlo::{SeededRun, percentile};
 use crate::study::forgetting::plant::{CHANGE_STEP, Plant};
 
@@ -174,16 +174,7 @@ pub fn items(runs: usize, seed: u64) -> Vec<SeededRun> {
 
 /// The features of the run `item` ([`items`]) on `plant` (an error as its message).
 pub fn features_of(plant: &Plant, item: &SeededRun) -> Result<RunFeatures, String> {
-    let (_, trace) = run_with(
-        plant,
-        item.case,
-        &item.method.config(),
-        item.variant,
-        item.steps,
-        item.seed,
-        item.record,
-    )
-    .map_err(|e| e.to_string())?;
+    let (_, trace) = item.run_on(plant)?;
     let trace = trace.ok_or_else(|| ForgettingError::NoTrace.to_string())?;
     features(item.run, item.seed, &trace).ok_or_else(|| ForgettingError::NoTrace.to_string())
 }
