@@ -78,8 +78,8 @@ pub struct PlantReport {
     /// Wall time of the run, s.
     pub wall_time_s: f64,
     /// The round trip of the samples whose answer the plant waited for (lockstep, or
-    /// [`Wait::Until`](crate::Wait::Until)): from publishing `M_k` to holding the service's
-    /// answer to it; `None` when no sample was timed.
+    /// [`Wait::Until`](crate::Wait::Until), [`Wait::Spin`](crate::Wait::Spin)): from publishing
+    /// `M_k` to holding the service's answer to it; `None` when no sample was timed.
     pub round_trip: Option<RoundTrip>,
     /// Allocations on the thread of [`run`](crate::run)'s loop
     /// ([`ipc_types::rt_alloc`]): none from the system allocator, and one pool block per

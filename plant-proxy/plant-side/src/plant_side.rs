@@ -91,6 +91,10 @@ pub enum Wait {
     /// As soon as the actuation for `k` is there, at the latest at the absolute time (ns):
     /// software-timed output that applies each answer when it comes.
     Until(u64),
+    /// As [`Wait::Until`], polling without ever sleeping: a caller whose thread must not
+    /// give up the CPU, such as an audio server's process callback that decides a block of
+    /// samples within a budget ends at the absolute time (ns).
+    Spin(u64),
     /// Until the service has answered (or acknowledged) `M_k`, at most the policy's
     /// `lockstep-timeout`.
     Lockstep,
@@ -417,23 +421,30 @@ impl<'a> PlantSide<'a> {
                 self.drain(k);
                 self.book.decide(k)
             }
-            Wait::Until(t) => {
+            Wait::Until(t) | Wait::Spin(t) => {
+                let sleeps = matches!(wait, Wait::Until(_));
+                let mut waited = false;
                 loop {
                     self.drain(k);
                     if self.book.holds(k) {
-                        self.time_round_trip(k);
+                        self.time_round_trip(k, waited);
                         break;
                     }
+                    waited = true;
                     if monotonic_ns() >= t || self.stopping() {
                         break;
                     }
-                    sleep_until_ns(t.min(monotonic_ns() + POLL_NS));
+                    if sleeps {
+                        sleep_until_ns(t.min(monotonic_ns() + POLL_NS));
+                    } else {
+                        std::hint::spin_loop();
+                    }
                 }
                 self.book.decide(k)
             }
             Wait::Lockstep => {
                 if self.lockstep_wait(k, |book| book.answers(k)) {
-                    self.time_round_trip(k);
+                    self.time_round_trip(k, false);
                 }
                 self.book.decide(k)
             }
@@ -567,9 +578,13 @@ impl<'a> PlantSide<'a> {
         }
     }
 
-    /// Records the round trip of `M_k` when it was the latest measurement published.
-    fn time_round_trip(&mut self, k: u64) {
-        if matches!(self.published, Some((p, _)) if p == k) {
+    /// Records the round trip of `M_k` when it was the latest measurement published; with
+    /// a service that sends ahead, also that of `M_{k−1}` (whose answer carries `u_k`) when
+    /// the plant `waited` for it after publishing `M_{k−1}` (a caller that takes `u_k` before
+    /// publishing `M_k`, deciding a block of samples at once).
+    fn time_round_trip(&mut self, k: u64, waited: bool) {
+        let ahead = waited && self.book.sends_ahead();
+        if matches!(self.published, Some((p, _)) if p == k || (ahead && p + 1 == k)) {
             let dt = monotonic_ns().saturating_sub(self.published_at_ns);
             self.round_trip.saturating_record(dt.max(1));
         }

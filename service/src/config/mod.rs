@@ -97,8 +97,17 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// Top-level tables a scenario file may contain.
-pub const KNOWN_TABLES: &[&str] = &["rig", "plant", "proxy", "service", "controller", "log"];
+/// Top-level tables a scenario file may contain (`jack` is the JACK plant side's,
+/// `plant-jack`; the service does not read it).
+pub const KNOWN_TABLES: &[&str] = &[
+    "rig",
+    "plant",
+    "proxy",
+    "service",
+    "controller",
+    "log",
+    "jack",
+];
 
 /// A refused configuration: the file, the field and what is wrong.
 #[derive(Debug, Clone, PartialEq)]
