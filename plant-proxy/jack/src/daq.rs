@@ -122,6 +122,10 @@ pub struct DaqProcess {
     budget: f64,
     period_ns: u64,
     counters: Arc<Counters>,
+    /// The inputs are to be connected (`jack.u` lists ports): wait for them to start.
+    wired_u: bool,
+    /// The run started (and has not necessarily ended: [`DaqProcess::idle`]).
+    running: bool,
     error: Option<PlantError>,
     last_frame: Option<(Frames, Frames)>,
     callback_ns: Histogram<u64>,
@@ -131,8 +135,21 @@ pub struct DaqProcess {
 
 impl DaqProcess {
     /// The run has ended (or not started): the ports carry the safe input.
-    fn idle(&mut self) -> bool {
-        !self.counters.armed.load(Ordering::Acquire) || self.counters.done.load(Ordering::Relaxed)
+    fn idle(&self) -> bool {
+        !self.running || self.counters.done.load(Ordering::Relaxed)
+    }
+
+    /// Starts the run at the first cycle that is armed and sees every input port
+    /// connected (any when none is to be connected): see [`run`].
+    fn start_when_wired(&mut self) {
+        if self.running || !self.counters.armed.load(Ordering::Acquire) {
+            return;
+        }
+        self.running = !self.wired_u
+            || self
+                .u
+                .iter()
+                .all(|p| p.connected_count().is_ok_and(|n| n > 0));
     }
 
     /// Decides sample `k` (module documentation, steps 1 and 2); `None`: stopped.
@@ -181,11 +198,13 @@ impl jack::ProcessHandler for DaqProcess {
         let frame = ps.last_frame_time();
         if let Some((prev, prev_n)) = self.last_frame {
             let gap = frame.wrapping_sub(prev);
-            if gap > prev_n && gap < u32::MAX / 2 {
+            // A freewheeling server's clock is not the card's: only real time counts.
+            if !self.lockstep && gap > prev_n && gap < u32::MAX / 2 {
                 Counters::add(&self.counters.frames_skipped, u64::from(gap - prev_n));
             }
         }
         self.last_frame = Some((frame, n));
+        self.start_when_wired();
         let budget_end = t0 + (self.budget * f64::from(n) * self.period_ns as f64) as u64;
         let (n_y, n_z, n_u) = (self.y.len(), self.z.len(), self.u.len());
         let mut y_in: [&[f32]; MAX_Y] = [&[]; MAX_Y];
@@ -201,7 +220,8 @@ impl jack::ProcessHandler for DaqProcess {
         for (dst, p) in u_out.iter_mut().zip(self.u.iter_mut()) {
             *dst = unsafe_extend_mut(p.as_mut_slice(ps));
         }
-        if !self.idle() && self.allocs_base.is_none() {
+        let sampled = !self.idle();
+        if sampled && self.allocs_base.is_none() {
             self.allocs_base = Some(ipc_types::rt_alloc::thread_stats());
         }
         let (mut y, mut z) = ([0.0; MAX_Y], [0.0; MAX_Z]);
@@ -258,11 +278,14 @@ impl jack::ProcessHandler for DaqProcess {
         if self.allocs_base.is_some() {
             self.allocs_now = Some(ipc_types::rt_alloc::thread_stats());
         }
-        let spent = monotonic_ns().saturating_sub(t0);
-        if spent > u64::from(n) * self.period_ns {
-            Counters::add(&self.counters.over_period, 1);
+        if sampled {
+            // Freewheeling has no period to overrun.
+            let spent = monotonic_ns().saturating_sub(t0);
+            if !self.lockstep && spent > u64::from(n) * self.period_ns {
+                Counters::add(&self.counters.over_period, 1);
+            }
+            self.callback_ns.saturating_record(spent.max(1));
         }
-        self.callback_ns.saturating_record(spent.max(1));
         Control::Continue
     }
 }
@@ -429,8 +452,8 @@ pub fn run(d: DaqRun<'_>, stop: &'static AtomicBool) -> Result<DaqOutcome, Strin
             jack_server::find_peer_port(&client, &server, other, dir, &field).map_err(|e| e.0)?;
             let own = format!("{}:{name}{i}", client.name());
             wiring.push(match dir {
-                Direction::Capture => (other.clone(), own, field),
-                Direction::Playback => (own, other.clone(), field),
+                Direction::Capture => (other.clone(), own, field, false),
+                Direction::Playback => (own, other.clone(), field, true),
             });
         }
     }
@@ -482,6 +505,8 @@ pub fn run(d: DaqRun<'_>, stop: &'static AtomicBool) -> Result<DaqOutcome, Strin
         budget: cfg.budget,
         period_ns: d.period_ns,
         counters: counters.clone(),
+        wired_u: !cfg.u.is_empty(),
+        running: false,
         error: None,
         last_frame: None,
         callback_ns: Histogram::new_with_bounds(1, 10_000_000_000, 3)
@@ -544,17 +569,28 @@ pub fn run(d: DaqRun<'_>, stop: &'static AtomicBool) -> Result<DaqOutcome, Strin
             failure,
         })
     };
-    // Measurements first, then the inputs: when the two close a loop through another
-    // client, the server makes the input's connection the feedback one (a period late).
-    for (from, to, field) in &wiring {
+    // Measurements first, then freewheeling (lockstep) and arming, then the inputs. When
+    // the two close a loop through another client (the room), the server makes the
+    // inputs' connection the feedback one (a period late), and the callback starts at the
+    // first cycle that sees the inputs connected, the cycle the room starts in too: a
+    // lockstep run through the server is the same run every time.
+    let refuse = |active, e: JackError| {
+        finish(active, Some(e.0)).and_then(|o| Err(o.failure.unwrap_or_default()))
+    };
+    for (from, to, field, _) in wiring.iter().filter(|w| !w.3) {
         if let Err(e) = jack_server::connect(active.as_client(), from, to, field) {
-            return finish(active, Some(e.0)).and_then(|o| Err(o.failure.unwrap_or_default()));
+            return refuse(active, e);
         }
     }
     if lockstep && let Err(e) = jack_server::set_freewheel(active.as_client(), true) {
-        return finish(active, Some(e.0)).and_then(|o| Err(o.failure.unwrap_or_default()));
+        return refuse(active, e);
     }
     counters.armed.store(true, Ordering::Release);
+    for (from, to, field, _) in wiring.iter().filter(|w| w.3) {
+        if let Err(e) = jack_server::connect(active.as_client(), from, to, field) {
+            return refuse(active, e);
+        }
+    }
     if d.verbose {
         eprintln!(
             "[plant-jack] connected to JACK server '{server}' ({sample_rate} Hz, {} frames per period{}) and to the service; {} samples",

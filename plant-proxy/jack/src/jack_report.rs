@@ -69,20 +69,25 @@ pub struct JackReport {
     pub freewheel: bool,
     /// How the process thread was scheduled.
     pub thread: Option<String>,
-    /// Process callbacks.
+    /// Process callbacks, from activation to the end (those before the first sample and
+    /// after the last included).
     pub callbacks: u64,
     /// Xruns the server notified (a client, or the whole graph, missed its period).
     pub xruns: u64,
-    /// Frames the server's clock advanced past the callbacks (cycles it skipped).
+    /// Frames the server's clock advanced past the callbacks (cycles it skipped; real
+    /// time only). The contract's samples number the frames the plant side processed, so
+    /// a skipped cycle is a jump in the signals, not a gap in the samples, and it keeps the
+    /// loop's delay in samples (the card's clock runs on).
     pub frames_skipped: u64,
-    /// Callbacks that took longer than their period.
+    /// Callbacks that took longer than their period (real time only: a freewheeling
+    /// server has no period).
     pub callbacks_over_period: u64,
     /// Callbacks whose budget ran out with a sample unanswered (the rest of the block
     /// were misses).
     pub callbacks_budget_exhausted: u64,
     /// Input samples beyond the DAC's full scale (written clipped to ±1).
     pub u_clipped: u64,
-    /// The callbacks' duration.
+    /// The duration of the callbacks that decided samples.
     pub callback_time: CallbackTimes,
     /// The connected ports.
     pub ports: Vec<PortReport>,
@@ -109,7 +114,7 @@ impl JackReport {
     /// One line for the end of a run.
     pub fn summary_line(&self) -> String {
         format!(
-            "JACK server '{}' at {} Hz, {} frames per period{}: {} callbacks (p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs), {} xruns, {} frames skipped, {} over their period, {} out of budget, {} input samples clipped, delay added by the server {} frames",
+            "JACK server '{}' at {} Hz, {} frames per period{}: {} callbacks ({} with samples: p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs), {} xruns, {} frames skipped, {} over their period, {} out of budget, {} input samples clipped, delay added by the server {} frames",
             self.server,
             self.sample_rate,
             self.period_frames,
@@ -119,6 +124,7 @@ impl JackReport {
                 ""
             },
             self.callbacks,
+            self.callback_time.callbacks,
             self.callback_time.p50_us,
             self.callback_time.p99_us,
             self.callback_time.max_us,

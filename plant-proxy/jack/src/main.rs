@@ -221,11 +221,13 @@ fn room(scenario: &Path, duration: Option<f64>, xrun_at: &[f64]) -> ExitCode {
     let _ = active.deactivate();
     let samples = counters.samples.load(Ordering::Relaxed);
     eprintln!(
-        "[room] done: {samples} samples ({:.3} s simulated) in {:.3} s, {} xruns, {} injected, {} microphone samples clipped",
+        "[room] done: {samples} samples ({:.3} s simulated) in {:.3} s, {} xruns ({} injected), {} frames simulated with silent loudspeakers after them, {} not simulated, {} microphone samples clipped",
         samples as f64 * ts,
         started.elapsed().as_secs_f64(),
         counters.xruns.load(Ordering::Relaxed),
         counters.stalls.load(Ordering::Relaxed),
+        counters.frames_caught_up.load(Ordering::Relaxed),
+        counters.frames_dropped.load(Ordering::Relaxed),
         counters.clipped.load(Ordering::Relaxed)
     );
     match counters.failure.lock().ok().and_then(|f| f.clone()) {

@@ -12,10 +12,16 @@
 //! `jack.u-full-scale`, delayed by `jack.room.converter-delay` frames (a card's
 //! converters).
 //!
-//! The room's time is the server's frames: it advances one sample per frame it processes,
-//! whether the server runs on its driver's clock or freewheels, and an xrun does not skip
-//! simulated time. The disturbance plays from the room's first period on, as a room's
-//! noise does before any controller starts.
+//! The room's time is the server's frames, as a real room's is the card's clock: it
+//! advances one sample per frame of the server's clock, whether the server runs on its
+//! driver's clock or freewheels. Frames the server's clock passed without calling the room
+//! (an xrun) are simulated with silent loudspeakers, as a card's DAC plays silence when a
+//! period is missed; so an xrun shifts neither the room against the plant side nor the
+//! loop's delay. Its sample 0 is the first period in which every loudspeaker port is
+//! connected; until then its microphones are silent. The plant side starts its samples
+//! in that same period (it connects the loudspeakers last), so the room's sample `k` is
+//! the plant side's sample `k`, and a lockstep run through the server (freewheeling) is
+//! the same run every time.
 //!
 //! **Its latency.** The room sits in a loop with the plant side: the plant side's inputs
 //! feed the loudspeakers and the microphones feed the plant side. JACK runs such a loop
@@ -37,6 +43,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+/// The most frames one callback simulates to catch up with the server's clock (1 s at
+/// 8 kHz): a longer gap is a stopped server, not an xrun.
+pub const MAX_CATCH_UP: u32 = 8000;
+
 /// What the room's callback counts, read by its main thread.
 #[derive(Debug, Default)]
 pub struct RoomCounters {
@@ -48,6 +58,12 @@ pub struct RoomCounters {
     pub xruns: AtomicU64,
     /// Injected stalls done.
     pub stalls: AtomicU64,
+    /// Frames the server's clock passed without the room's callback, simulated with
+    /// silent loudspeakers.
+    pub frames_caught_up: AtomicU64,
+    /// Frames beyond [`MAX_CATCH_UP`] in one gap, not simulated (the room's time fell
+    /// behind the server's by that much).
+    pub frames_dropped: AtomicU64,
     /// The simulation failed, or the server went away: why.
     pub failure: Mutex<Option<String>>,
     /// Set with `failure`.
@@ -70,10 +86,34 @@ pub struct RoomProcess {
     stalls: Vec<u64>,
     next_stall: usize,
     period_ns: u64,
+    /// Every loudspeaker port is connected: the simulation runs.
+    running: bool,
+    /// The frame time and size of the latest period simulated.
+    last_frame: Option<(jack::Frames, jack::Frames)>,
     counters: Arc<RoomCounters>,
 }
 
 impl RoomProcess {
+    /// One sample of the room: the microphones' `y_k`, `z_k`, then a period under the
+    /// loudspeakers' input `u` (`None`: a frame the server skipped, silence), through the
+    /// converters' delay line.
+    fn step(&mut self, u: Option<&[f64; MAX_U]>) -> Result<([f64; MAX_Y], [f64; MAX_Z]), String> {
+        let k = self.counters.samples.load(Ordering::Relaxed);
+        let (n_y, n_z, n_u, n_r) = (self.sim.n_y(), self.sim.n_z(), self.sim.n_u(), self.sim.n_r());
+        let (mut y, mut z, mut r) = ([0.0; MAX_Y], [0.0; MAX_Z], [0.0; MAX_R]);
+        let failed = |e| format!("the room's simulation failed at sample {k}: {e}");
+        self.sim
+            .sample(&mut y[..n_y], &mut z[..n_z], &mut r[..n_r])
+            .map_err(failed)?;
+        let depth = self.line.len();
+        self.head = (self.head + 1) % depth;
+        self.line[self.head] = u.copied().unwrap_or([0.0; MAX_U]);
+        let oldest = self.line[(self.head + 1) % depth];
+        self.sim.advance(&oldest[..n_u]).map_err(failed)?;
+        self.counters.samples.fetch_add(1, Ordering::Relaxed);
+        Ok((y, z))
+    }
+
     fn fail(&self, why: String) {
         if let Ok(mut f) = self.counters.failure.lock() {
             f.get_or_insert(why);
@@ -86,7 +126,8 @@ impl jack::ProcessHandler for RoomProcess {
     fn process(&mut self, _: &Client, ps: &ProcessScope) -> Control {
         let n = ps.n_frames() as usize;
         let k0 = self.counters.samples.load(Ordering::Relaxed);
-        if let Some(&at) = self.stalls.get(self.next_stall)
+        if self.running
+            && let Some(&at) = self.stalls.get(self.next_stall)
             && at < k0 + n as u64
         {
             self.next_stall += 1;
@@ -94,26 +135,49 @@ impl jack::ProcessHandler for RoomProcess {
             // The injected fault itself: three periods asleep in the audio thread.
             std::thread::sleep(Duration::from_nanos(3 * n as u64 * self.period_ns));
         }
-        if self.counters.failed.load(Ordering::Relaxed) {
+        if !self.running {
+            self.running = self
+                .speakers
+                .iter()
+                .all(|p| p.connected_count().is_ok_and(|c| c > 0));
+        }
+        if !self.running || self.counters.failed.load(Ordering::Relaxed) {
             for p in self.mic_y.iter_mut().chain(self.mic_z.iter_mut()) {
                 p.as_mut_slice(ps).fill(0.0);
             }
             return Control::Continue;
         }
-        let (n_y, n_z, n_u) = (self.sim.n_y(), self.sim.n_z(), self.sim.n_u());
-        let (mut y, mut z, mut r) = ([0.0; MAX_Y], [0.0; MAX_Z], [0.0; MAX_R]);
-        let depth = self.line.len();
-        for i in 0..n {
-            if let Err(e) = self
-                .sim
-                .sample(&mut y[..n_y], &mut z[..n_z], &mut r[..self.sim.n_r()])
-            {
-                self.fail(format!(
-                    "the room's simulation failed at sample {}: {e}",
-                    k0 + i as u64
-                ));
-                return Control::Continue;
+        // Frames the server's clock passed without this callback (an xrun): the room's
+        // time goes on, with silent loudspeakers and nobody listening.
+        let frame = ps.last_frame_time();
+        let gap = match self.last_frame {
+            Some((prev, prev_n)) => frame.wrapping_sub(prev).wrapping_sub(prev_n),
+            None => 0,
+        };
+        self.last_frame = Some((frame, n as u32));
+        if gap > 0 && gap < u32::MAX / 2 {
+            let simulated = gap.min(MAX_CATCH_UP);
+            for _ in 0..simulated {
+                if let Err(e) = self.step(None) {
+                    self.fail(e);
+                    return Control::Continue;
+                }
             }
+            self.counters.frames_caught_up.fetch_add(u64::from(simulated), Ordering::Relaxed);
+            self.counters.frames_dropped.fetch_add(u64::from(gap - simulated), Ordering::Relaxed);
+        }
+        let mut u = [0.0; MAX_U];
+        for i in 0..n {
+            for (j, p) in self.speakers.iter().enumerate() {
+                u[j] = f64::from(p.as_slice(ps)[i]) * self.u_scale[j];
+            }
+            let (y, z) = match self.step(Some(&u)) {
+                Ok(out) => out,
+                Err(e) => {
+                    self.fail(e);
+                    return Control::Continue;
+                }
+            };
             let mut clipped = 0;
             for (j, p) in self.mic_y.iter_mut().enumerate() {
                 let s = y[j] / self.y_scale[j];
@@ -128,21 +192,7 @@ impl jack::ProcessHandler for RoomProcess {
             if clipped > 0 {
                 self.counters.clipped.fetch_add(clipped, Ordering::Relaxed);
             }
-            self.head = (self.head + 1) % depth;
-            for (j, p) in self.speakers.iter().enumerate() {
-                self.line[self.head][j] = f64::from(p.as_slice(ps)[i]) * self.u_scale[j];
-            }
-            let oldest = (self.head + 1) % depth;
-            let u = self.line[oldest];
-            if let Err(e) = self.sim.advance(&u[..n_u]) {
-                self.fail(format!(
-                    "the room's simulation failed at sample {}: {e}",
-                    k0 + i as u64
-                ));
-                return Control::Continue;
-            }
         }
-        self.counters.samples.fetch_add(n as u64, Ordering::Relaxed);
         Control::Continue
     }
 }
@@ -232,6 +282,8 @@ pub fn start(
         stalls,
         next_stall: 0,
         period_ns,
+        running: false,
+        last_frame: None,
         counters: counters.clone(),
     };
     let notifications = RoomNotifications {
