@@ -194,6 +194,13 @@ impl jack::ProcessHandler for DaqProcess {
     fn process(&mut self, _: &Client, ps: &ProcessScope) -> Control {
         let t0 = monotonic_ns();
         let n = ps.n_frames();
+        if Counters::get(&self.counters.callbacks) == 0 {
+            // Which thread the server runs the callback on (its scheduling is reported at
+            // the end): one system call, on the first callback only.
+            // SAFETY: a plain query of the calling thread's id.
+            let tid = unsafe { libc::gettid() };
+            self.counters.thread.store(tid, Ordering::Relaxed);
+        }
         Counters::add(&self.counters.callbacks, 1);
         let frame = ps.last_frame_time();
         if let Some((prev, prev_n)) = self.last_frame {
@@ -318,9 +325,6 @@ impl jack::NotificationHandler for DaqNotifications {
             core_affinity::set_for_current(core_affinity::CoreId { id: c });
         }
         ipc_types::rt_alloc::enter_rt_thread(RT_POOL_BLOCKS);
-        // SAFETY: a plain query of the calling thread's id.
-        let tid = unsafe { libc::gettid() };
-        self.counters.thread.store(tid, Ordering::Relaxed);
     }
 
     unsafe fn shutdown(&mut self, _status: jack::ClientStatus, reason: &str) {
@@ -365,7 +369,8 @@ fn describe_thread(tid: i32, core: Option<usize>) -> Option<String> {
     if policy < 0 {
         return None;
     }
-    let policy = match policy {
+    // The server may start its clients' threads with SCHED_RESET_ON_FORK.
+    let policy = match policy & !libc::SCHED_RESET_ON_FORK {
         libc::SCHED_FIFO => format!("SCHED_FIFO {prio}"),
         libc::SCHED_RR => format!("SCHED_RR {prio}"),
         _ => "SCHED_OTHER (the server runs without -R, or could not raise its clients)".to_string(),

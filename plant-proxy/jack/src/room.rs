@@ -99,7 +99,12 @@ impl RoomProcess {
     /// converters' delay line.
     fn step(&mut self, u: Option<&[f64; MAX_U]>) -> Result<([f64; MAX_Y], [f64; MAX_Z]), String> {
         let k = self.counters.samples.load(Ordering::Relaxed);
-        let (n_y, n_z, n_u, n_r) = (self.sim.n_y(), self.sim.n_z(), self.sim.n_u(), self.sim.n_r());
+        let (n_y, n_z, n_u, n_r) = (
+            self.sim.n_y(),
+            self.sim.n_z(),
+            self.sim.n_u(),
+            self.sim.n_r(),
+        );
         let (mut y, mut z, mut r) = ([0.0; MAX_Y], [0.0; MAX_Z], [0.0; MAX_R]);
         let failed = |e| format!("the room's simulation failed at sample {k}: {e}");
         self.sim
@@ -163,8 +168,12 @@ impl jack::ProcessHandler for RoomProcess {
                     return Control::Continue;
                 }
             }
-            self.counters.frames_caught_up.fetch_add(u64::from(simulated), Ordering::Relaxed);
-            self.counters.frames_dropped.fetch_add(u64::from(gap - simulated), Ordering::Relaxed);
+            self.counters
+                .frames_caught_up
+                .fetch_add(u64::from(simulated), Ordering::Relaxed);
+            self.counters
+                .frames_dropped
+                .fetch_add(u64::from(gap - simulated), Ordering::Relaxed);
         }
         let mut u = [0.0; MAX_U];
         for i in 0..n {
