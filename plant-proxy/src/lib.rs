@@ -25,6 +25,7 @@
 //!   harmonics (the two- and four-harmonic commands of chapter 4).
 //! - [`runtime`]: the plant process: the simulation as the I/O device of the plant side.
 //! - [`proxy_config`]: the `[proxy]` table, validated into [`proxy_config::ProxyConfig`].
+//! - [`run_args`]: the options of a plant process's `run` command and what they resolve to.
 //! - [`faults`]: the faults the plant injects on purpose (bad measurements, stalls).
 //!
 //! The plant side of the contract itself (clock, deadlines, the actuation book, the late
@@ -40,6 +41,7 @@ pub mod faults;
 pub mod harmonic;
 pub mod mrac_examples;
 pub mod proxy_config;
+pub mod run_args;
 pub mod runtime;
 pub mod scenario;
 pub mod sim;

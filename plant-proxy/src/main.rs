@@ -13,9 +13,8 @@
 //! `gave_up` says why.
 
 use clap::{Parser, Subcommand};
-use plant_proxy::runtime::{
-    Mode, PlantError, PlantReport, PlantRunOptions, ProxyConfig, run_plant,
-};
+use plant_proxy::run_args::{ResolvedRun, RunArgs};
+use plant_proxy::runtime::{PlantError, PlantReport, PlantRunOptions, ProxyConfig, run_plant};
 use plant_proxy::scenario::Scenario;
 use plant_proxy::sim::PlantSim;
 use std::path::PathBuf;
@@ -43,26 +42,11 @@ struct Cli {
 enum Command {
     /// Run the plant of a scenario against the control service.
     Run {
-        /// Scenario TOML file ([rig], [plant], optional [proxy]).
-        scenario: PathBuf,
-        /// Override proxy.mode.
-        #[arg(long, value_parser = parse_mode)]
-        mode: Option<Mode>,
-        /// Number of samples (default: rig.duration / sample period).
-        #[arg(long, conflicts_with = "duration")]
-        steps: Option<u64>,
-        /// Seconds of plant time (overrides rig.duration, with the same bounds).
-        #[arg(long, allow_negative_numbers = true)]
-        duration: Option<f64>,
+        #[command(flatten)]
+        args: RunArgs,
         /// Write a CSV trace of y, z and the applied u.
         #[arg(long)]
         trace: Option<PathBuf>,
-        /// Write the run report as JSON.
-        #[arg(long)]
-        report: Option<PathBuf>,
-        /// Print less.
-        #[arg(long)]
-        quiet: bool,
     },
     /// Print the discretized model of a scenario (state space and transfer functions) as JSON.
     Describe {
@@ -105,14 +89,6 @@ fn write_report(path: Option<&std::path::Path>, r: &PlantReport) -> Result<(), (
     };
     let text = serde_json::to_string_pretty(r).expect("a plant report is plain data");
     ipc_types::files::write_atomic(p, text.as_bytes()).map_err(|e| eprintln!("plant-proxy: {e}"))
-}
-
-fn parse_mode(s: &str) -> Result<Mode, String> {
-    match s {
-        "lockstep" => Ok(Mode::Lockstep),
-        "real-time" | "realtime" => Ok(Mode::RealTime),
-        _ => Err(format!("'{s}' is not lockstep or real-time")),
-    }
 }
 
 fn main() -> ExitCode {
@@ -160,36 +136,17 @@ fn main() -> ExitCode {
             }
             Err(m) => refused(m),
         },
-        Command::Run {
-            scenario,
-            mode,
-            steps,
-            duration,
-            trace,
-            report,
-            quiet,
-        } => {
-            let sc = match plant_proxy::scenario::load(&scenario) {
-                Ok(s) => s,
+        Command::Run { args, trace } => {
+            let ResolvedRun {
+                scenario: sc,
+                steps,
+                proxy,
+                ..
+            } = match args.resolve() {
+                Ok(r) => r,
                 Err(e) => return refused(e),
             };
-            let sc = match duration.map(|d| sc.clone().with_duration(d)) {
-                None => sc,
-                Some(Ok(s)) => s,
-                Some(Err(e)) => return refused(e),
-            };
-            let steps = match sc.run_steps(steps) {
-                Ok(n) => n,
-                Err(e) => return refused(e),
-            };
-            let text = std::fs::read_to_string(&scenario).unwrap_or_default();
-            let n_u = sc.plant.n_u();
-            // --mode before the checks that depend on the mode (stalls only in lockstep).
-            let origin = scenario.display().to_string();
-            let proxy = match ProxyConfig::parse_with_mode(&text, &origin, n_u, mode) {
-                Ok(p) => p,
-                Err(e) => return refused(e),
-            };
+            let (report, quiet) = (args.report, args.quiet);
             let shutdown = Arc::new(AtomicBool::new(false));
             for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
                 let _ = signal_hook::flag::register(sig, shutdown.clone());

@@ -392,6 +392,18 @@ pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     (header, rows)
 }
 
+/// Runs `rig-design <args…>`; whether it succeeded, and what it printed (standard output,
+/// then standard error).
+pub fn rig_design(args: &[&str]) -> (bool, String) {
+    let out = Command::new(bin("rig-design"))
+        .args(args)
+        .output()
+        .expect("run rig-design");
+    let text =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.success(), text)
+}
+
 /// Reads a JSON file.
 pub fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&read_text(path)).expect("valid JSON")

@@ -7,7 +7,6 @@ use control::target::{TargetForm, TargetModel};
 use rig_tests::*;
 use service::config::TargetModelFile;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// The `[rig]` and `[plant…]` tables of a scenario text (its service, controller, log and
 /// proxy tables are dropped so a test can give its own).
@@ -53,16 +52,6 @@ fn rig_design_target(args: &[&str], out: &Path) -> (TargetModel, String) {
     let tm = TargetModel::load(&out.join("target-model.toml"))
         .unwrap_or_else(|e| panic!("the target model of rig-design {} reads back: {e}", args[0]));
     (tm, text)
-}
-
-fn rig_design(args: &[&str]) -> (bool, String) {
-    let out = Command::new(bin("rig-design"))
-        .args(args)
-        .output()
-        .expect("run rig-design");
-    let text =
-        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
-    (out.status.success(), text)
 }
 
 #[test]

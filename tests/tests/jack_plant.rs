@@ -164,14 +164,10 @@ fn run_through_jack(
     (folder, report, service_ok)
 }
 
-fn rig_design(args: &[&str]) -> String {
-    let out = Command::new(bin("rig-design"))
-        .args(args)
-        .output()
-        .expect("rig-design runs");
-    let text =
-        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "rig-design {args:?} failed:\n{text}");
+/// Runs `rig-design <args…>` and asserts that it succeeded; what it printed.
+fn design(args: &[&str]) -> String {
+    let (ok, text) = rig_design(args);
+    assert!(ok, "rig-design {args:?} failed:\n{text}");
     text
 }
 
@@ -210,7 +206,7 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
     assert_eq!(report["rt_allocations"]["system_on_rt_thread"], 0);
 
     let frf = dir.path.join("frf");
-    let printed = rig_design(&[
+    let printed = design(&[
         "frf",
         folder.join("signals.csv").to_str().unwrap(),
         "--inputs",
@@ -225,7 +221,7 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
     // The room's 9 and 16 samples plus the period of the loop through the server.
     assert!(printed.contains("delays found [25, 32]"), "{printed}");
     let fir = dir.path.join("fir");
-    rig_design(&[
+    design(&[
         "dtf",
         frf.join("frf.csv").to_str().unwrap(),
         "--method",

@@ -20,7 +20,8 @@ use clap::{Parser, Subcommand};
 use plant_jack::daq::{self, DaqRun};
 use plant_jack::jack_config::{Channels, JackConfig};
 use plant_jack::jack_report::JackPlantReport;
-use plant_proxy::runtime::{Mode, ProxyConfig};
+use plant_proxy::run_args::{ResolvedRun, RunArgs};
+use plant_proxy::runtime::ProxyConfig;
 use plant_proxy::scenario::Scenario;
 use plant_proxy::sim::PlantSim;
 use std::path::{Path, PathBuf};
@@ -49,23 +50,8 @@ struct Cli {
 enum Command {
     /// Run the plant side through the JACK server against the control service.
     Run {
-        /// Scenario TOML file ([rig], [plant] for the channel counts, [proxy], [jack]).
-        scenario: PathBuf,
-        /// Override proxy.mode (lockstep: the server freewheels).
-        #[arg(long, value_parser = parse_mode)]
-        mode: Option<Mode>,
-        /// Number of samples (default: rig.duration / sample period).
-        #[arg(long, conflicts_with = "duration")]
-        steps: Option<u64>,
-        /// Seconds of plant time (overrides rig.duration, with the same bounds).
-        #[arg(long, allow_negative_numbers = true)]
-        duration: Option<f64>,
-        /// Write the run report (the plant side's counters and the JACK part) as JSON.
-        #[arg(long)]
-        report: Option<PathBuf>,
-        /// Print less.
-        #[arg(long)]
-        quiet: bool,
+        #[command(flatten)]
+        args: RunArgs,
     },
     /// Run the scenario's simulated plant as a JACK client (the room), until --duration or
     /// a signal.
@@ -86,14 +72,6 @@ enum Command {
     },
 }
 
-fn parse_mode(s: &str) -> Result<Mode, String> {
-    match s {
-        "lockstep" => Ok(Mode::Lockstep),
-        "real-time" | "realtime" => Ok(Mode::RealTime),
-        _ => Err(format!("'{s}' is not lockstep or real-time")),
-    }
-}
-
 /// Prints a refusal and gives exit code 2.
 fn refused(message: impl std::fmt::Display) -> ExitCode {
     eprintln!("plant-jack: {message}");
@@ -101,26 +79,26 @@ fn refused(message: impl std::fmt::Display) -> ExitCode {
 }
 
 /// The scenario, its simulation (for the channel counts and the room), its `[proxy]` and
-/// `[jack]` tables; `mode` overrides `proxy.mode`.
-fn load(
-    path: &Path,
-    mode: Option<Mode>,
-) -> Result<(Scenario, PlantSim, ProxyConfig, JackConfig), String> {
+/// `[jack]` tables.
+fn load(path: &Path) -> Result<(Scenario, PlantSim, ProxyConfig, JackConfig), String> {
     let sc = plant_proxy::scenario::load(path).map_err(|e| e.to_string())?;
     let origin = path.display().to_string();
     let sim = PlantSim::new(&sc.plant, sc.rig.sample_period)
         .map_err(|e| format!("{origin}: field 'plant': {e}"))?;
     let text = std::fs::read_to_string(path).map_err(|e| format!("{origin}: {e}"))?;
-    let proxy =
-        ProxyConfig::parse_with_mode(&text, &origin, sim.n_u(), mode).map_err(|e| e.to_string())?;
-    let ch = Channels {
+    let proxy = ProxyConfig::parse(&text, &origin, sim.n_u()).map_err(|e| e.to_string())?;
+    let jack = JackConfig::parse(&text, &origin, channels(&sim)).map_err(|e| e.to_string())?;
+    Ok((sc, sim, proxy, jack))
+}
+
+/// The channels a `[jack]` table is checked against: the simulation's.
+fn channels(sim: &PlantSim) -> Channels {
+    Channels {
         n_y: sim.n_y(),
         n_z: sim.n_z(),
         n_r: sim.n_r(),
         n_u: sim.n_u(),
-    };
-    let jack = JackConfig::parse(&text, &origin, ch).map_err(|e| e.to_string())?;
-    Ok((sc, sim, proxy, jack))
+    }
 }
 
 /// A process-wide stop flag set by SIGINT and SIGTERM.
@@ -135,7 +113,7 @@ fn stop_flag() -> &'static AtomicBool {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Check { scenario } => match load(&scenario, None) {
+        Command::Check { scenario } => match load(&scenario) {
             Ok((sc, sim, proxy, jack)) => {
                 println!(
                     "{}: ok (rig '{}', {} Hz, channels y={} z={} u={}, proxy {:?}, inputs applied {}, late policy {}; JACK server '{}', client '{}', budget {} of a period, ports y {:?} z {:?} u {:?}, room '{}')",
@@ -165,19 +143,12 @@ fn main() -> ExitCode {
             duration,
             xrun_at,
         } => room(&scenario, duration, &xrun_at),
-        Command::Run {
-            scenario,
-            mode,
-            steps,
-            duration,
-            report,
-            quiet,
-        } => run(&scenario, mode, steps, duration, report.as_deref(), quiet),
+        Command::Run { args } => run(&args),
     }
 }
 
 fn room(scenario: &Path, duration: Option<f64>, xrun_at: &[f64]) -> ExitCode {
-    let (sc, sim, _, jack) = match load(scenario, None) {
+    let (sc, sim, _, jack) = match load(scenario) {
         Ok(t) => t,
         Err(m) => return refused(m),
     };
@@ -239,30 +210,29 @@ fn room(scenario: &Path, duration: Option<f64>, xrun_at: &[f64]) -> ExitCode {
     }
 }
 
-fn run(
-    scenario: &Path,
-    mode: Option<Mode>,
-    steps: Option<u64>,
-    duration: Option<f64>,
-    report: Option<&Path>,
-    quiet: bool,
-) -> ExitCode {
-    let (sc, sim, proxy, jack) = match load(scenario, mode) {
-        Ok(t) => t,
+fn run(args: &RunArgs) -> ExitCode {
+    let scenario = &args.scenario;
+    let ResolvedRun {
+        scenario: sc,
+        steps,
+        proxy,
+        text,
+    } = match args.resolve() {
+        Ok(r) => r,
         Err(m) => return refused(m),
     };
-    let sc = match duration.map(|d| sc.clone().with_duration(d)) {
-        None => sc,
-        Some(Ok(s)) => s,
-        Some(Err(e)) => return refused(e),
+    let origin = scenario.display().to_string();
+    let sim = match PlantSim::new(&sc.plant, sc.rig.sample_period) {
+        Ok(s) => s,
+        Err(e) => return refused(format!("{origin}: field 'plant': {e}")),
     };
-    let steps = match sc.run_steps(steps) {
-        Ok(n) => n,
+    let jack = match JackConfig::parse(&text, &origin, channels(&sim)) {
+        Ok(j) => j,
         Err(e) => return refused(e),
     };
     let counts = match ipc_types::ChannelCounts::new(sim.n_y(), sim.n_z(), 0, sim.n_u()) {
         Ok(c) => c,
-        Err(e) => return refused(format!("{}: {e}", scenario.display())),
+        Err(e) => return refused(format!("{origin}: {e}")),
     };
     if proxy.plant.overrun != plant_proxy::runtime::Overrun::Slip {
         eprintln!(
@@ -270,7 +240,6 @@ fn run(
         );
     }
     let stop = stop_flag();
-    let origin = scenario.display().to_string();
     let outcome = match daq::run(
         DaqRun {
             origin: &origin,
@@ -280,7 +249,7 @@ fn run(
             policy: proxy.plant.clone(),
             jack,
             steps,
-            verbose: !quiet,
+            verbose: !args.quiet,
         },
         stop,
     ) {
@@ -295,7 +264,7 @@ fn run(
     eprintln!("[plant-jack] {done}: {}", outcome.plant.summary_line());
     eprintln!("[plant-jack] {}", outcome.jack.summary_line());
     let mut code = ExitCode::SUCCESS;
-    if let Some(p) = report {
+    if let Some(p) = &args.report {
         let r = JackPlantReport {
             plant: &outcome.plant,
             jack: &outcome.jack,
