@@ -3,6 +3,7 @@
 //! ```text
 //! latency-bench [--samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest …]
 //! latency-bench pcac [--steps N --workload truss|arm|all --replan-every 2,3,4 --qp-share B --out DIR --results FILE …]
+//! latency-bench jack [--periods 16,32,64 --seconds S --ident-seconds S --loads idle,busy --out DIR --results FILE …]
 //! ```
 //!
 //! Two hidden subcommands select the role of the child process of the two-process
@@ -146,11 +147,35 @@ impl RunArgs {
     }
 }
 
-/// A subcommand: the PCAC phase alone, or one of the child roles.
+/// `latency-bench jack`: the acoustic rig through a sound card under JACK.
+#[derive(clap::Args, Debug, Clone)]
+pub struct JackArgs {
+    /// JACK periods to run, frames (comma-separated).
+    #[arg(long, value_delimiter = ',', default_values_t = [16u32, 32, 64])]
+    pub periods: Vec<u32>,
+    /// Seconds of each RCAC run (default 10; 3 with --quick).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Seconds of each identification run (default 20; 5 with --quick).
+    #[arg(long)]
+    pub ident_seconds: Option<f64>,
+    /// Loads of the real-time runs (comma-separated: idle, busy).
+    #[arg(long, value_delimiter = ',', default_values_t = ["idle".to_string(), "busy".to_string()])]
+    pub loads: Vec<String>,
+    /// Output folder, results file, `--quick`.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// A subcommand: the PCAC phase alone, the JACK loop, or one of the child roles.
 #[derive(Subcommand)]
 pub enum Role {
     /// Only the PCAC step cost (truss and sampling-arm sizes) beside clarabel and OSQP.
     Pcac(PcacArgs),
+    /// The acoustic rig through a sound card under JACK (a dummy server and the simulated
+    /// room) against its direct loop: tone suppression, misses, xruns, round trips, the
+    /// delay the server adds, for each period.
+    Jack(JackArgs),
     /// Child role: the real service.
     #[command(hide = true)]
     ChildService {

@@ -41,6 +41,11 @@
 //!    step taken apart into its kernels; and the cost per period of re-planning every `N`
 //!    samples, which spreads a solve over `N` periods ([`pcac_replan`]). `latency-bench
 //!    pcac` runs this phase alone.
+//! 6. **How does the acoustic rig do through a sound card under JACK?** ([`jack_phase`])
+//!    `latency-bench jack` runs the design path and RCAC through a JACK server with the
+//!    dummy backend and the simulated room for each period, in lockstep and in real time
+//!    (idle and loaded), beside the direct loop: tone suppression, misses, xruns per
+//!    minute, round trips and the delay the server adds.
 //!
 //! Every distribution is an HdrHistogram ([`hist`]), written as a percentile distribution
 //! (`.hgrm`, µs) and as an interval log (`.hlog`, V2 + deflate, ns) into the output folder,
@@ -59,6 +64,7 @@ pub mod cli;
 pub mod configs;
 pub mod cyclictest;
 pub mod hist;
+pub mod jack_phase;
 pub mod machine;
 pub mod osqp_anchor;
 pub mod paced;

@@ -3,6 +3,7 @@
 //! ```text
 //! cargo run --release -p latency-bench [-- --samples N --seconds S --out DIR --results FILE --quick --skip-cyclictest --skip-timing]
 //! cargo run --release -p latency-bench -- pcac [--steps N --workload truss|arm|all --no-clarabel --no-osqp --out DIR --results FILE]
+//! cargo run --release -p latency-bench -- jack [--periods 16,32,64 --seconds S --ident-seconds S --loads idle,busy --out DIR --results FILE]
 //! ```
 //!
 //! Runs, in order: the contract round trip against the real service, the raw iceoryx2
@@ -10,7 +11,8 @@
 //! cyclictest on the RT core (when installed), the service's response time with
 //! compute-first against answer-first per controller, the step cost of each known controller
 //! configuration, the RLS update cost and the PCAC step cost beside clarabel and OSQP (the `pcac`
-//! subcommand runs the last alone). Prints the machine facts and one table, writes every
+//! subcommand runs the last alone). The `jack` subcommand runs the acoustic rig through a
+//! sound card under JACK against its direct loop (it needs `jackd`). Prints the machine facts and one table, writes every
 //! distribution (`.hgrm`, `.hlog`), the service's run reports and a `summary.json` to the
 //! output folder (default `bench-results/<unix-time>/`), and the table with the machine,
 //! the date and the command line into the results file (default `latency-bench.md` in the
@@ -20,7 +22,8 @@
 use clap::Parser;
 use ipc_types::ChannelCounts;
 use ipc_types::rt::RtSetup;
-use latency_bench::cli::{Cli, Options, PcacArgs, Role, Settings};
+use latency_bench::cli::{Cli, JackArgs, Options, PcacArgs, Role, Settings};
+use latency_bench::jack_phase::{self, JackPlan, Load};
 use latency_bench::machine::{self, MachineFacts};
 use latency_bench::pcac_cost::{Anchors, Workload};
 use latency_bench::report::{self, Collected, RunKind, RunRecord};
@@ -53,6 +56,7 @@ fn main() -> ExitCode {
         }
         Some(Role::ChildEcho { rig, core }) => roundtrip::run_echo_child(&rig, core),
         Some(Role::Pcac(a)) => pcac_only(&a),
+        Some(Role::Jack(a)) => jack_only(&a),
         None => bench(&cli.opts),
     };
     ExitCode::from(code.clamp(0, 255) as u8)
@@ -293,6 +297,108 @@ fn pcac_only(a: &PcacArgs) -> i32 {
         results: &results,
     };
     report::finish(&record, &col, &[], summary)
+}
+
+/// `latency-bench jack`: the JACK phase alone ([`latency_bench::jack_phase`]).
+fn jack_only(a: &JackArgs) -> i32 {
+    let quick = a.run.quick;
+    let loads = match a
+        .loads
+        .iter()
+        .map(|l| Load::parse(l))
+        .collect::<Result<Vec<_>, _>>()
+    {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("--loads: {e}");
+            return 2;
+        }
+    };
+    if a.periods.is_empty() || a.periods.contains(&0) {
+        eprintln!("--periods: give one or more periods of at least one frame");
+        return 2;
+    }
+    let seconds = a.seconds.unwrap_or(if quick { 3.0 } else { 10.0 });
+    let ident_seconds = a.ident_seconds.unwrap_or(if quick { 5.0 } else { 20.0 });
+    for (name, v) in [("--seconds", seconds), ("--ident-seconds", ident_seconds)] {
+        if !(v.is_finite() && v > 0.0) {
+            eprintln!("{name} {v} is not a positive number of seconds");
+            return 2;
+        }
+    }
+    let Some(bin_dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    else {
+        eprintln!("cannot find the folder of this executable (rig and rig-design are beside it)");
+        return 2;
+    };
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let (started, out) = match start_run(a.run.out.as_deref(), "jack-") {
+        Ok(run) => run,
+        Err(code) => return code,
+    };
+    let probe = match on_rt_core(1, "bench-probe", || ()) {
+        Ok((setup, ())) => setup,
+        Err(e) => {
+            eprintln!("{e}");
+            return 2;
+        }
+    };
+    let facts = machine_facts(&probe, 1);
+    let plan = JackPlan {
+        periods: a.periods.clone(),
+        seconds,
+        ident_seconds,
+        loads,
+        repo,
+        bin_dir,
+    };
+    let (runs, mut lines, v) = jack_phase::jack_phase(&plan, &out);
+    let failed = !v["failures"].as_array().is_none_or(Vec::is_empty);
+    let table = jack_phase::render(&runs);
+    println!("{table}");
+    lines.insert(
+        0,
+        format!("load average at the end: {}", machine::load_average()),
+    );
+    for l in &lines {
+        println!("{l}");
+    }
+    let command: Vec<String> = std::env::args().collect();
+    let summary = summary(
+        "latency-bench jack",
+        started,
+        &command,
+        &facts,
+        json!({ "jack": v }),
+    );
+    let results = a.run.results_file(&out);
+    let record = RunRecord {
+        kind: RunKind::Jack,
+        started_unix: started,
+        command,
+        facts: &facts,
+        settings: json!({
+            "periods": plan.periods,
+            "seconds": seconds,
+            "ident_seconds": ident_seconds,
+            "loads": a.loads,
+        }),
+        out: &out,
+        results: &results,
+    };
+    let code = report::write_results(
+        &out,
+        &format!("{}\n{table}\n{}\n", facts.render(), lines.join("\n")),
+        &Value::Object(summary),
+        &[],
+        &record,
+        &table,
+        &lines,
+    );
+    println!("results: {}", out.display());
+    if failed { 1 } else { code }
 }
 
 /// The object of a `json!({…})` literal.

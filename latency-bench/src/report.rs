@@ -129,17 +129,20 @@ pub enum RunKind {
     Full,
     /// `latency-bench pcac`: the PCAC phase alone.
     Pcac,
+    /// `latency-bench jack`: the acoustic rig through a sound card under JACK.
+    Jack,
 }
 
 impl RunKind {
     /// Every kind, in the order of their sections in the results file.
-    pub const ALL: [RunKind; 2] = [RunKind::Full, RunKind::Pcac];
+    pub const ALL: [RunKind; 3] = [RunKind::Full, RunKind::Pcac, RunKind::Jack];
 
     /// The key in the section markers.
     pub fn key(self) -> &'static str {
         match self {
             RunKind::Full => "full",
             RunKind::Pcac => "pcac",
+            RunKind::Jack => "jack",
         }
     }
 
@@ -148,6 +151,15 @@ impl RunKind {
         match self {
             RunKind::Full => "Full run (`latency-bench`)",
             RunKind::Pcac => "PCAC step cost alone (`latency-bench pcac`)",
+            RunKind::Jack => "A sound card under JACK (`latency-bench jack`)",
+        }
+    }
+
+    /// The caption of the section's table.
+    fn caption(self) -> &'static str {
+        match self {
+            RunKind::Full | RunKind::Pcac => "Results (µs):",
+            RunKind::Jack => "Results:",
         }
     }
 
@@ -264,7 +276,7 @@ impl RunRecord<'_> {
         s.push_str(&format!("- settings: `{}`\n\n", self.settings));
         s.push_str("Machine:\n\n```text\n");
         s.push_str(self.facts.render().trim_end());
-        s.push_str("\n```\n\nResults (µs):\n\n```text\n");
+        s.push_str(&format!("\n```\n\n{}\n\n```text\n", self.kind.caption()));
         s.push_str(table.trim_end());
         s.push_str("\n```\n");
         if !lines.is_empty() {
