@@ -3,7 +3,7 @@
 //! ```text
 //! rig launch <scenario.toml> [--mode real-time|lockstep] [--duration S] [--run-folder DIR]
 //!            [--wait sleep-poll|busy-poll|block] [--core N] [--controller FILE] [--warm-start FILE]
-//!            [--plant-trace]
+//!            [--plant-trace] [--plant proxy|jack|jack-room]
 //! rig plot <run-folder>
 //! rig stalls <scenario.toml> [--plan-length H] [--runs DIR] [--results FILE] [--json FILE]
 //! rig soak <scenario.toml> [--controller FILE|scenario]... [--runs N] [--conditions LIST]
@@ -16,13 +16,21 @@
 //! rig command --rig NAME <command> [--tunable NAME --value X] [--timeout S]
 //! ```
 //!
-//! `launch` starts `plant-proxy run` and `service run` (found next to this executable) on
-//! the same scenario, as two processes over shared memory; the service prints its run
-//! report; then `run.png` is drawn in the run folder (see `rig_tools::launch`). How each
-//! child ended is printed (`[launch] service: exit 0`) and written into `launch.json` in
-//! the run folder. Exit status: 0 when both ended cleanly; 1 when the service did not (it
-//! died, or its run verdict failed), or the plant did not and the launcher was not asked
-//! to stop; 2 when the configuration was refused before anything started. `plot` draws
+//! `launch` starts the plant and `service run` (found next to this executable) on the same
+//! scenario, as processes over shared memory; the service prints its run report; then
+//! `run.png` is drawn in the run folder (see `rig_tools::launch`). The plant is `--plant
+//! proxy` (default: `plant-proxy run`, the simulated plant), `--plant jack` (`plant-jack
+//! run` on the user's running JACK server: a sound card as the DAQ) or `--plant jack-room`
+//! (`plant-jack run` on a dummy JACK server the launcher starts, `jackd -d dummy`, against
+//! the simulated plant as the JACK client `plant-jack room`; their output goes into
+//! `jackd.log` and `room.log` in the run folder, and they are stopped after the service
+//! and the plant). How each child ended is printed (`[launch] service: exit 0`) and written
+//! into `launch.json` in the run folder. Exit status: 0 when the children ended cleanly; 1
+//! when the service did not (it died, or its run verdict failed), the plant did not and the
+//! launcher was not asked to stop, or the room or the dummy server ended on its own or was
+//! not ready; 2 when the configuration was refused before anything started (among others:
+//! `--plant-trace` with a JACK plant, `--plant jack` without the scenario's JACK server
+//! running, `--plant jack-room` with it already running or without `jackd`). `plot` draws
 //! `run.png` from a run folder (signals.csv and report.json) of any earlier run. `stalls`
 //! runs the stall study of `rig_tools::stalls` (seven lockstep runs of the scenario) and
 //! writes its table. `soak` runs the scenario in real time under each load, N rounds of
@@ -41,7 +49,7 @@
 //! malformed command.
 
 use clap::{Parser, Subcommand};
-use rig_tools::launch::{LaunchError, LaunchOptions, launch};
+use rig_tools::launch::{LaunchError, LaunchOptions, PlantKind, launch};
 use rig_tools::scenario_check::ScenarioCheck;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -61,7 +69,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// The main job: plant-proxy and the service on one scenario, then run.png.
+    /// The main job: the plant and the service on one scenario, then run.png.
     Launch {
         /// Scenario / configuration TOML file.
         config: PathBuf,
@@ -86,9 +94,16 @@ enum Command {
         /// Start the controller from what an earlier run learned (its checkpoint.json).
         #[arg(long)]
         warm_start: Option<PathBuf>,
-        /// Have the plant write its per-sample trace (plant-trace.csv in the run folder).
+        /// Have the plant write its per-sample trace (plant-trace.csv in the run folder;
+        /// plant-proxy only).
         #[arg(long)]
         plant_trace: bool,
+        /// The plant. jack and jack-room wire plant-jack as the scenario's `[jack]` table
+        /// lists; jack-room starts `jackd -n <jack.server> -d dummy` (Debian's jackd2; no
+        /// server of that name may be running) and the room, their output in jackd.log and
+        /// room.log of the run folder, and stops them after the run.
+        #[arg(long, value_enum, default_value_t = PlantKind::Proxy)]
+        plant: PlantKind,
     },
     /// The stall study: what stalls of 1 to 80 periods cost under each timing and late
     /// policy, in lockstep (one run of the scenario per case and baseline).
@@ -235,6 +250,7 @@ fn main() -> ExitCode {
             controller,
             warm_start,
             plant_trace,
+            plant,
         } => {
             // The number of the signal that asks the launch to stop (0: none).
             let stop = Arc::new(AtomicUsize::new(0));
@@ -251,6 +267,7 @@ fn main() -> ExitCode {
                 controller,
                 warm_start,
                 plant_trace,
+                plant,
                 ..Default::default()
             };
             match launch(&opts, stop) {
