@@ -7,7 +7,9 @@
 //! Needs Debian's jackd2 (`jackd`, `jack_lsp`) and the workspace's binaries next to `rig`
 //! (`service`, `plant-jack`: `cargo test --release --workspace` builds them). Each test has
 //! its own rig and server names, so the tests run in parallel with each other and with
-//! other JACK servers on the machine.
+//! other JACK servers on the machine. The server names are fixed (no process id): JACK keeps
+//! at most 8 servers in its registry and reclaims the entry of one that died without
+//! unregistering only for a new server of the same name.
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -245,7 +247,8 @@ fn a_jack_room_launch_runs_the_loop_through_a_dummy_server_and_stops_the_room_an
     needs_jack_and_the_binaries();
     let dir = TempDir::new("room");
     let pid = std::process::id();
-    let server = format!("rig-launch-test-{pid}");
+    // A fixed name (see `Jackd`): JACK reclaims a dead server's entry only for its name.
+    let server = "rig-launch-test-room".to_string();
     let sc = scenario(&dir.0, &format!("launch-jack-{pid}"), &server);
     let run = dir.0.join("run");
     let ran = launch(&dir.0, &sc, &run);
@@ -291,7 +294,7 @@ fn a_jack_room_launch_is_refused_with_2_when_its_server_already_runs() {
     needs_jack_and_the_binaries();
     let dir = TempDir::new("busy");
     let pid = std::process::id();
-    let server = format!("rig-launch-busy-{pid}");
+    let server = "rig-launch-test-busy".to_string();
     let _jackd = Jackd::start(&server, &dir.0.join("jackd.log"));
     let sc = scenario(&dir.0, &format!("launch-jack-busy-{pid}"), &server);
     let run = dir.0.join("run");
