@@ -40,6 +40,12 @@
 //! identifies the whole delay from a logged run ([`crate`] documentation), so the target
 //! model includes it.
 //!
+//! **Xruns.** A period the server skips (an xrun) is counted. In real time the samples
+//! are the card's frames: the samples of the skipped frames are lost, each decided as a
+//! miss without being published, and the next measurement carries the frame count, so the
+//! service sees a gap (which its controller bridges, e.g. RCAC's gap rule) and the loop's
+//! delay in samples stays what the card's clock makes it.
+//!
 //! **Lockstep.** With `proxy.mode = "lockstep"` the plant side puts the server into
 //! freewheel mode (no driver clock, no deadlines: every client's callback runs as soon as
 //! the previous cycle ended) and waits for each answer ([`Wait::Lockstep`]); the loop then
@@ -65,6 +71,10 @@ use std::time::{Duration, Instant};
 /// Blocks of the process thread's allocation pool (iceoryx2 holds one or two at once).
 const RT_POOL_BLOCKS: usize = 64;
 
+/// The most lost samples one callback decides one by one (1 s at 8 kHz); the rest of a
+/// longer gap (a server stopped for seconds) is skipped without a decision each.
+pub const MAX_LOST_DECIDED: u64 = 8000;
+
 /// What the process callback and the notifications count, read by the main thread.
 #[derive(Debug, Default)]
 pub struct Counters {
@@ -77,6 +87,7 @@ pub struct Counters {
     over_period: AtomicU64,
     budget_exhausted: AtomicU64,
     frames_skipped: AtomicU64,
+    samples_lost: AtomicU64,
     u_clipped: AtomicU64,
     /// The server shut the client down, or changed the rate: why.
     gone: Mutex<Option<String>>,
@@ -152,6 +163,33 @@ impl DaqProcess {
                 .all(|p| p.connected_count().is_ok_and(|n| n > 0));
     }
 
+    /// The server skipped `frames` frames (an xrun): their samples are lost. Each is
+    /// decided without being published (a miss: the plan's entry, else `plan-fallback`, and
+    /// the watchdog counts it), at most [`MAX_LOST_DECIDED`] of them, and the samples go on
+    /// from the card's frame count; the last sample of the run is never skipped, so that the
+    /// service hears the run's end.
+    fn lose(&mut self, frames: u32) {
+        let last = self.steps.saturating_sub(1);
+        let resume = (self.next_k + u64::from(frames)).min(last).max(self.next_k);
+        let decided = (resume - self.next_k).min(MAX_LOST_DECIDED);
+        for k in self.next_k..self.next_k + decided {
+            match self.side.0.take(k, Wait::Now) {
+                Ok(Some(_)) => {}
+                Ok(None) => {
+                    self.counters.done.store(true, Ordering::Release);
+                    return;
+                }
+                Err(e) => {
+                    self.error = Some(e);
+                    self.counters.done.store(true, Ordering::Release);
+                    return;
+                }
+            }
+        }
+        Counters::add(&self.counters.samples_lost, resume - self.next_k);
+        self.next_k = resume;
+    }
+
     /// Decides sample `k` (module documentation, steps 1 and 2); `None`: stopped.
     fn sample(
         &mut self,
@@ -203,14 +241,19 @@ impl jack::ProcessHandler for DaqProcess {
         }
         Counters::add(&self.counters.callbacks, 1);
         let frame = ps.last_frame_time();
+        let mut skipped = 0;
         if let Some((prev, prev_n)) = self.last_frame {
             let gap = frame.wrapping_sub(prev);
             // A freewheeling server's clock is not the card's: only real time counts.
             if !self.lockstep && gap > prev_n && gap < u32::MAX / 2 {
-                Counters::add(&self.counters.frames_skipped, u64::from(gap - prev_n));
+                skipped = gap - prev_n;
+                Counters::add(&self.counters.frames_skipped, u64::from(skipped));
             }
         }
         self.last_frame = Some((frame, n));
+        if skipped > 0 && !self.idle() {
+            self.lose(skipped);
+        }
         self.start_when_wired();
         let budget_end = t0 + (self.budget * f64::from(n) * self.period_ns as f64) as u64;
         let (n_y, n_z, n_u) = (self.y.len(), self.z.len(), self.u.len());
@@ -561,6 +604,7 @@ pub fn run(d: DaqRun<'_>, stop: &'static AtomicBool) -> Result<DaqOutcome, Strin
             callbacks: Counters::get(&c.callbacks),
             xruns: Counters::get(&c.xruns),
             frames_skipped: Counters::get(&c.frames_skipped),
+            samples_lost: Counters::get(&c.samples_lost),
             callbacks_over_period: Counters::get(&c.over_period),
             callbacks_budget_exhausted: Counters::get(&c.budget_exhausted),
             u_clipped: Counters::get(&c.u_clipped),

@@ -75,10 +75,11 @@ pub struct JackReport {
     /// Xruns the server notified (a client, or the whole graph, missed its period).
     pub xruns: u64,
     /// Frames the server's clock advanced past the callbacks (cycles it skipped; real
-    /// time only). The contract's samples number the frames the plant side processed, so
-    /// a skipped cycle is a jump in the signals, not a gap in the samples, and it keeps the
-    /// loop's delay in samples (the card's clock runs on).
+    /// time only).
     pub frames_skipped: u64,
+    /// Samples lost to skipped frames: decided as misses, never published (the service
+    /// sees a gap); the contract's samples are the card's frames.
+    pub samples_lost: u64,
     /// Callbacks that took longer than their period (real time only: a freewheeling
     /// server has no period).
     pub callbacks_over_period: u64,
@@ -114,7 +115,7 @@ impl JackReport {
     /// One line for the end of a run.
     pub fn summary_line(&self) -> String {
         format!(
-            "JACK server '{}' at {} Hz, {} frames per period{}: {} callbacks ({} with samples: p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs), {} xruns, {} frames skipped, {} over their period, {} out of budget, {} input samples clipped, delay added by the server {} frames",
+            "JACK server '{}' at {} Hz, {} frames per period{}: {} callbacks ({} with samples: p50 {:.1} µs, p99 {:.1} µs, max {:.1} µs), {} xruns, {} frames skipped ({} samples lost), {} over their period, {} out of budget, {} input samples clipped, delay added by the server {} frames",
             self.server,
             self.sample_rate,
             self.period_frames,
@@ -130,6 +131,7 @@ impl JackReport {
             self.callback_time.max_us,
             self.xruns,
             self.frames_skipped,
+            self.samples_lost,
             self.callbacks_over_period,
             self.callbacks_budget_exhausted,
             self.u_clipped,
