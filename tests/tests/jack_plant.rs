@@ -171,11 +171,11 @@ fn design(args: &[&str]) -> String {
     text
 }
 
-/// The first 216 Markov parameters of a target-model file, in order.
+/// The first 264 Markov parameters of a target-model file, in order.
 fn markov(path: &Path) -> Vec<f64> {
     TargetModel::load(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .markov(216)
+        .markov(264)
         .iter()
         .flat_map(|h| h.iter().copied().collect::<Vec<_>>())
         .collect()
@@ -185,7 +185,7 @@ fn markov(path: &Path) -> Vec<f64> {
 fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
     let test = "jack-design";
     let dir = TestDir::new(test);
-    let server = JackServer::start(&server_name(test), 8000, 16, false);
+    let server = JackServer::start(&server_name(test), 8000, 64, false);
     let scenario = jack_scenario(&dir, test, &server.name, &[]);
     let excitation =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/identify/excitation.toml");
@@ -201,8 +201,8 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
     assert_eq!(report["samples"], 160_000);
     assert_eq!(report["actuations_applied"], 160_000);
     assert_eq!(report["jack"]["freewheel"], true);
-    assert_eq!(report["jack"]["period_frames"], 16);
-    assert_eq!(report["jack"]["added_delay_frames"], 16);
+    assert_eq!(report["jack"]["period_frames"], 64);
+    assert_eq!(report["jack"]["added_delay_frames"], 64);
     assert_eq!(report["rt_allocations"]["system_on_rt_thread"], 0);
 
     let frf = dir.path.join("frf");
@@ -219,7 +219,7 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
         frf.to_str().unwrap(),
     ]);
     // The room's 9 and 16 samples plus the period of the loop through the server.
-    assert!(printed.contains("delays found [25, 32]"), "{printed}");
+    assert!(printed.contains("delays found [73, 80]"), "{printed}");
     let fir = dir.path.join("fir");
     design(&[
         "dtf",
@@ -227,7 +227,7 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
         "--method",
         "fir",
         "--count",
-        "216",
+        "264",
         "--out",
         fir.to_str().unwrap(),
     ]);
@@ -235,7 +235,7 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
     let committed = markov(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/jack/acoustic-target.toml"),
     );
-    assert_eq!(made.len(), 216 * 2);
+    assert_eq!(made.len(), 264 * 2);
     assert_eq!(
         made, committed,
         "the design path through the server no longer gives scenarios/jack/acoustic-target.toml"
@@ -246,7 +246,7 @@ fn the_design_path_through_the_server_reproduces_the_committed_target_model() {
 fn rcac_suppresses_the_tones_through_the_server() {
     let test = "jack-rcac";
     let dir = TestDir::new(test);
-    let server = JackServer::start(&server_name(test), 8000, 16, false);
+    let server = JackServer::start(&server_name(test), 8000, 64, false);
     let scenario = jack_scenario(&dir, test, &server.name, &[]);
     let (folder, report, service_ok) = run_through_jack(&dir, &scenario, "lockstep", "10", &[]);
     assert!(service_ok, "the service's verdict failed (see its report)");
@@ -302,7 +302,7 @@ fn refusals_name_the_server_the_field_and_the_port() {
         "{out}"
     );
 
-    let server = JackServer::start(&server_name(test), 8000, 16, false);
+    let server = JackServer::start(&server_name(test), 8000, 64, false);
     // A port that is not there (no room is running): the field and the port.
     let out = refused(&jack_scenario(&dir, test, &server.name, &[]));
     assert!(
@@ -314,10 +314,10 @@ fn refusals_name_the_server_the_field_and_the_port() {
         &dir,
         test,
         &server.name,
-        &[("period-frames = 16", "period-frames = 64")],
+        &[("period-frames = 64", "period-frames = 16")],
     ));
     assert!(
-        out.contains("runs with periods of 16 frames") && out.contains("jack.period-frames is 64"),
+        out.contains("runs with periods of 64 frames") && out.contains("jack.period-frames is 16"),
         "{out}"
     );
     // An input port where a measurement is read.
@@ -338,7 +338,7 @@ fn refusals_name_the_server_the_field_and_the_port() {
     drop(server);
 
     // Another sample rate than the scenario's.
-    let fast = JackServer::start(&server_name("jack-16k"), 16000, 16, false);
+    let fast = JackServer::start(&server_name("jack-16k"), 16000, 64, false);
     let out = refused(&jack_scenario(&dir, test, &fast.name, &[]));
     assert!(
         out.contains(&format!("JACK server '{}' runs at 16000 Hz", fast.name))
@@ -351,7 +351,7 @@ fn refusals_name_the_server_the_field_and_the_port() {
 fn an_xrun_and_a_stalled_service_are_survived_and_reported() {
     let test = "jack-faults";
     let dir = TestDir::new(test);
-    let server = JackServer::start(&server_name(test), 8000, 16, true);
+    let server = JackServer::start(&server_name(test), 8000, 64, true);
     let scenario = jack_scenario(&dir, test, &server.name, &[]);
     let folder = dir.path.join("run");
     std::fs::create_dir_all(&folder).unwrap();

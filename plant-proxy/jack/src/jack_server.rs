@@ -4,7 +4,7 @@
 //! libjack is loaded at run time (the `jack` crate's `dynamic_loading`): a box without it
 //! gets an error that says which package brings it. A client never starts a server
 //! (`JackNoStartServer`): the server, its sample rate and its period are the user's
-//! choice (`jackd -n NAME -R -d alsa -r 8000 -p 32`, or `-d dummy` without a card), and the
+//! choice (`jackd -n NAME -R -d alsa -r 8000 -p 64`, or `-d dummy` without a card), and the
 //! client checks them against the scenario.
 
 use jack::{Client, ClientOptions, ClientStatus, Port, PortFlags, Unowned};
@@ -68,7 +68,7 @@ fn describe_open_failure(server: &str, name: &str, status: ClientStatus) -> Stri
         || status.contains(ClientStatus::SERVER_ERROR)
     {
         format!(
-            "no JACK server named '{server}' is running (JACK client '{name}' could not connect): start one, e.g. `jackd -n {server} -R -d alsa -r 8000 -p 32` with a card or `jackd -n {server} -d dummy -r 8000 -p 32` without, or set jack.server"
+            "no JACK server named '{server}' is running (JACK client '{name}' could not connect): start one, e.g. `jackd -n {server} -R -d alsa -r 8000 -p 64` with a card or `jackd -n {server} -d dummy -r 8000 -p 64` without, or set jack.server"
         )
     } else {
         format!("JACK server '{server}' refused client '{name}' (status {status:?})")

@@ -52,8 +52,8 @@ fn a_bad_jack_table_is_refused_naming_the_file_and_the_field() {
             "field 'jack.u-full-scale'",
         ),
         (
-            "period-frames = 16",
-            "period = 16",
+            "period-frames = 64",
+            "period = 64",
             "unknown field `period`",
         ),
     ] {
