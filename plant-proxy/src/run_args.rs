@@ -9,7 +9,7 @@ use std::path::PathBuf;
 /// `run <scenario> [--mode …] [--steps N | --duration S] [--report out.json] [--quiet]`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct RunArgs {
-    /// Scenario TOML file ([rig], [plant], optional [proxy]; plant-jack also reads [jack]).
+    /// Scenario TOML file (`[rig]`, `[plant]`, optional `[proxy]`; plant-jack also reads `[jack]`).
     pub scenario: PathBuf,
     /// Override proxy.mode.
     #[arg(long, value_parser = parse_mode)]
