@@ -23,11 +23,10 @@
 //! The phase runs the real binaries next to this one (`rig`, `rig-design`), which start
 //! `jackd`, `plant-jack` and the service; it needs Debian's `jackd2`.
 
+use rig_tools::soak::hog::Hog;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// The server the phase's runs use (one at a time; `rig launch --plant jack-room` starts
@@ -79,44 +78,13 @@ impl Load {
     }
 }
 
-/// A busy loop on each core (normal priority) until dropped.
-struct Hog {
-    stop: Arc<AtomicBool>,
-    threads: Vec<std::thread::JoinHandle<()>>,
-}
-
-impl Hog {
-    fn start() -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
-        let threads = (0..cores)
-            .map(|core| {
-                let stop = stop.clone();
-                std::thread::spawn(move || {
-                    // SAFETY: a CPU set of one core, for the calling thread.
-                    unsafe {
-                        let mut set: libc::cpu_set_t = std::mem::zeroed();
-                        libc::CPU_SET(core, &mut set);
-                        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-                    }
-                    let mut x = 0u64;
-                    while !stop.load(Ordering::Relaxed) {
-                        x = std::hint::black_box(x.wrapping_add(1));
-                    }
-                })
-            })
-            .collect();
-        Self { stop, threads }
-    }
-}
-
-impl Drop for Hog {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-    }
+/// A busy loop on each core at normal priority (rig soak's load,
+/// [`rig_tools::soak::hog::Hog`]), stopped when the guards are dropped.
+fn hogs() -> Result<Vec<Hog>, String> {
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+    (0..cores)
+        .map(|c| Hog::start(c).map_err(|e| format!("a busy loop on core {c}: {e}")))
+        .collect()
 }
 
 /// One run of the table.
@@ -439,13 +407,17 @@ impl JackPlan {
         for &load in &self.loads {
             let mut rt = args.to_vec();
             rt.extend(["--duration", &seconds]);
-            let hog = (load == Load::Busy).then(Hog::start);
+            let load_guard = if load == Load::Busy {
+                hogs()?
+            } else {
+                Vec::new()
+            };
             let result = self.launch(
                 scenario,
                 &rt,
                 &dir.join(format!("real-time-{}", load.name())),
             );
-            drop(hog);
+            drop(load_guard);
             let (r, p) = result?;
             row("real-time", Some(load), r, p);
         }
